@@ -1,0 +1,38 @@
+// Draco compression of meshes for the wire.
+//
+// Element ids on the wire are the client's face order. Draco's edgebreaker method
+// reorders faces and vertices (and drops degenerate faces), so EncodeMeshToDraco uses the
+// sequential method, which keeps both orders; DecodeDracoMesh returns faces in the order
+// the bytes hold them, whatever method made them.
+#ifndef MLCLUST_CORE_DRACO_CODEC_H_
+#define MLCLUST_CORE_DRACO_CODEC_H_
+
+#include <string>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+#include "core/mesh.h"
+
+namespace mlclust {
+
+struct DracoEncodeOptions {
+  // Position quantization in bits; 0 keeps float32 positions exactly (the default, so
+  // that energies computed on the server match the client's own mesh bit for bit).
+  int position_quantization_bits = 0;
+  // Draco's speed/ratio trade-off, 0 (best compression) .. 10 (fastest).
+  int speed = 5;
+};
+
+// Encodes with the sequential method: face i and vertex v keep their indices.
+// INVALID_ARGUMENT for an out-of-range option or an index out of range.
+absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
+                                              const DracoEncodeOptions& options = {});
+
+// Decodes a Draco triangle mesh. Untrusted input: INVALID_ARGUMENT with Draco's message
+// for bytes that are not a Draco mesh (a point cloud is refused too), or a mesh without
+// positions. The result is not validated: call ValidateMesh.
+absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes);
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_DRACO_CODEC_H_

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs everything mlclust needs to build, test and benchmark, from Debian 12's archive.
+# Idempotent: packages already present are left alone. Run as root (or with sudo).
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config ninja-build
+  # wire + service
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  # library support
+  libabsl-dev libdraco-dev libassimp-dev libtbb-dev
+  # headless GL: EGL + Mesa (llvmpipe where there is no GPU)
+  libegl-dev libegl1 libgl1-mesa-dri libopengl-dev libgl-dev
+  # tests
+  libgtest-dev libgmock-dev
+)
+
+if [ "${1:-}" = "--bench" ]; then
+  # peers and plotting for bench/ (CGAL VSA, scikit-learn, fastcluster, matplotlib)
+  packages+=(libcgal-dev libcgal-demo /usr/bin/python3 python3-numpy python3-matplotlib)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  [ "${p#/}" != "$p" ] && continue
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
