@@ -1,5 +1,7 @@
 #include "core/hierarchy.h"
 
+#include <algorithm>
+
 #include "absl/strings/str_cat.h"
 
 namespace mlclust {
@@ -12,6 +14,7 @@ absl::Status HierarchyLog::OnStart(std::span<const ClusterId> labels, uint32_t c
   energy_ = {energy};
   level_end_ = {0};
   seen_in_level_.assign(labels.size(), 0);
+  stamp_ = 0;
   return absl::OkStatus();
 }
 
@@ -24,8 +27,13 @@ absl::Status HierarchyLog::OnLevel(const LevelMoves& level) {
         level.to_cluster.size(), " new clusters, ", level.from_cluster.size(),
         " old clusters)"));
   }
-  // Stamp elements with the level number to find repeats without clearing the scratch.
-  const uint32_t stamp = static_cast<uint32_t>(num_levels());
+  // Stamp elements with a per-call number to find repeats without clearing the scratch
+  // (a per-call stamp, not the level number, so that a refused level leaves no trace).
+  if (++stamp_ == 0) {
+    std::fill(seen_in_level_.begin(), seen_in_level_.end(), 0);
+    stamp_ = 1;
+  }
+  const uint32_t stamp = stamp_;
   for (size_t i = 0; i < count; ++i) {
     const uint32_t e = level.element[i];
     if (e >= start_labels_.size()) {

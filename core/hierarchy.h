@@ -80,6 +80,7 @@ class HierarchyLog : public LevelSink {
   std::vector<uint32_t> to_cluster_;
   std::vector<uint32_t> from_cluster_;
   std::vector<uint32_t> seen_in_level_;  // scratch for the duplicate check
+  uint32_t stamp_ = 0;
 };
 
 }  // namespace mlclust

@@ -1,0 +1,382 @@
+// mlclust: the command-line client. See `mlclust help`.
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "client/client.h"
+#include "core/cvd_energy.h"
+#include "core/draco_codec.h"
+#include "core/face_measures.h"
+#include "core/mesh_io.h"
+#include "grpcpp/grpcpp.h"
+#include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/server.h"
+
+namespace mlclust::cli {
+namespace {
+
+constexpr char kUsage[] = R"(mlclust — multilevel clustering of meshes and point sets
+
+usage:
+  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
+      Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
+
+  mlclust mesh INPUT [--server ADDR] [--algo hc] [--energy cvd] [--clusters K]
+                     [--labels FILE] [--levels-csv FILE] [--ply FILE]
+                     [--device auto|gpu|cpu] [--quiet]
+      Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
+      receives every level. Without --server the server runs inside this process.
+      --clusters K     the level written by --labels and --ply (the level with K clusters)
+      --labels FILE    one line per input face: its cluster (0..K-1) at that level
+      --levels-csv F   a row "clusters,energy" per level received
+      --ply FILE       the mesh with one colour per cluster at that level
+
+  mlclust energy INPUT --labels FILE [--energy cvd]
+      Computes the energy of a labelling directly from the mesh file (a check).
+
+  mlclust stats --server ADDR
+      Prints the server's queue depth, job counts and GL device.
+)";
+
+// --name value / --name=value options after the positional arguments.
+class Arguments {
+ public:
+  static absl::StatusOr<Arguments> Parse(int argc, char** argv, int first,
+                                         const std::vector<std::string>& known) {
+    Arguments args;
+    for (int i = first; i < argc; ++i) {
+      std::string arg = argv[i];
+      if (!absl::StartsWith(arg, "--")) {
+        args.positional_.push_back(arg);
+        continue;
+      }
+      std::string name = arg.substr(2), value;
+      const size_t eq = name.find('=');
+      const bool is_flag = name == "quiet";
+      if (eq != std::string::npos) {
+        value = name.substr(eq + 1);
+        name = name.substr(0, eq);
+      } else if (!is_flag) {
+        if (i + 1 >= argc) return absl::InvalidArgumentError(absl::StrCat(arg, " needs a value"));
+        value = argv[++i];
+      }
+      if (std::find(known.begin(), known.end(), name) == known.end()) {
+        return absl::InvalidArgumentError(absl::StrCat("unknown option --", name));
+      }
+      args.values_[name] = value;
+    }
+    return args;
+  }
+
+  bool has(const std::string& name) const { return values_.count(name) != 0; }
+  std::string get(const std::string& name, const std::string& fallback = "") const {
+    auto it = values_.find(name);
+    return it == values_.end() ? fallback : it->second;
+  }
+  absl::StatusOr<uint64_t> GetUint(const std::string& name, uint64_t fallback) const {
+    if (!has(name)) return fallback;
+    uint64_t value;
+    if (!absl::SimpleAtoi(get(name), &value)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--", name, ": '", get(name), "' is not a non-negative integer"));
+    }
+    return value;
+  }
+  const std::vector<std::string>& positional() const { return positional_; }
+
+ private:
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> positional_;
+};
+
+int Fail(const absl::Status& status) {
+  std::cerr << "mlclust: " << status.message() << "\n";
+  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot open ", path));
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
+int Serve(const Arguments& args) {
+  server::ServerOptions options;
+  options.listen_address = args.get("listen", "0.0.0.0:50051");
+  absl::StatusOr<uint64_t> queue = args.GetUint("queue", options.queue_capacity);
+  absl::StatusOr<uint64_t> max_mb = args.GetUint("max-input-mb", options.max_input_bytes >> 20);
+  if (!queue.ok()) return Fail(queue.status());
+  if (!max_mb.ok()) return Fail(max_mb.status());
+  options.queue_capacity = *queue;
+  options.max_input_bytes = *max_mb << 20;
+  const std::string gpu = args.get("gpu", "auto");
+  if (gpu == "auto") options.gpu = server::GpuMode::kAuto;
+  else if (gpu == "on") options.gpu = server::GpuMode::kOn;
+  else if (gpu == "off") options.gpu = server::GpuMode::kOff;
+  else return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
+
+  absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
+  if (!server.ok()) return Fail(server.status());
+  // Shut down cleanly on SIGINT / SIGTERM: a thread waits for the signal synchronously.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
+  int received = 0;
+  sigwait(&signals, &received);
+  std::fprintf(stderr, "mlclust: signal %d, shutting down\n", received);
+  (*server)->Shutdown();
+  return 0;
+}
+
+absl::Status WriteLevelsCsv(const std::string& path, const HierarchyLog& log) {
+  std::FILE* out = std::fopen(path.c_str(), "w");
+  if (out == nullptr) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  std::fputs("clusters,energy\n", out);
+  for (size_t l = 0; l < log.num_levels(); ++l) {
+    std::fprintf(out, "%u,%.17g\n", log.cluster_count(l), log.energy(l));
+  }
+  if (std::fclose(out) != 0) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  return absl::OkStatus();
+}
+
+absl::Status WriteLabels(const std::string& path, std::span<const uint32_t> labels) {
+  std::FILE* out = std::fopen(path.c_str(), "w");
+  if (out == nullptr) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  for (uint32_t label : labels) std::fprintf(out, "%u\n", label);
+  if (std::fclose(out) != 0) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<ClusterId>> ReadLabels(const std::string& path, size_t expected) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot open ", path));
+  std::vector<ClusterId> labels;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    uint32_t value;
+    if (!absl::SimpleAtoi(line, &value)) {
+      return absl::InvalidArgumentError(absl::StrCat(path, " line ", labels.size() + 1, ": '",
+                                                     line, "' is not a cluster id"));
+    }
+    labels.push_back(ClusterId(value));
+  }
+  if (labels.size() != expected) {
+    return absl::InvalidArgumentError(absl::StrCat(path, " has ", labels.size(),
+                                                   " labels; the mesh has ", expected, " faces"));
+  }
+  return labels;
+}
+
+// A one-line progress display on a terminal.
+class ProgressLine {
+ public:
+  explicit ProgressLine(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
+  void Update(const v1::JobEvent& event) {
+    if (!enabled_) return;
+    if (event.has_levels()) {
+      levels_ += event.levels().cluster_count_size();
+      clusters_ = event.levels().cluster_count(event.levels().cluster_count_size() - 1);
+    } else if (event.has_snapshot()) {
+      levels_ = 1;
+      clusters_ = event.snapshot().cluster_count();
+    } else if (event.has_progress()) {
+      stage_ = event.progress().stage();
+    } else if (event.has_accepted()) {
+      stage_ = absl::StrCat("queued (", event.accepted().queue_position(), " ahead)");
+    }
+    const absl::Time now = absl::Now();
+    if (now - last_ < absl::Milliseconds(100) && !event.final()) return;
+    last_ = now;
+    if (levels_ > 0) {
+      std::fprintf(stderr, "\r\033[Kmlclust: %u levels received, %u clusters", levels_,
+                   clusters_);
+    } else {
+      std::fprintf(stderr, "\r\033[Kmlclust: %s", stage_.c_str());
+    }
+    if (event.final()) std::fputc('\n', stderr);
+  }
+
+ private:
+  bool enabled_;
+  uint32_t levels_ = 0, clusters_ = 0;
+  std::string stage_;
+  absl::Time last_ = absl::InfinitePast();
+};
+
+int Mesh(const Arguments& args) {
+  if (args.positional().size() != 1) {
+    return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
+  }
+  const std::string& input_path = args.positional()[0];
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  if (!clusters.ok()) return Fail(clusters.status());
+  if ((args.has("labels") || args.has("ply")) && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--labels and --ply need --clusters K (K >= 1)"));
+  }
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  const std::string algo = args.get("algo", "hc");
+  if (algo == "hc") {
+    spec.set_algorithm(v1::ALGORITHM_HC);
+  } else {
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--algo: '", algo, "' is not one of: hc")));
+  }
+  const std::string energy = args.get("energy", "cvd");
+  if (energy == "cvd") {
+    spec.set_energy(v1::ENERGY_CVD);
+  } else {
+    return Fail(
+        absl::InvalidArgumentError(absl::StrCat("--energy: '", energy, "' is not one of: cvd")));
+  }
+  spec.set_device(args.get("device", "auto"));
+  spec.set_label(input_path);
+
+  // The mesh is read locally (its faces are the ids of every output) and sent compressed;
+  // a .drc file is sent as it is.
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(input_path);
+  if (!mesh.ok()) return Fail(mesh.status());
+  absl::StatusOr<std::string> payload = absl::EndsWithIgnoreCase(input_path, ".drc")
+                                            ? ReadFileBytes(input_path)
+                                            : EncodeMeshToDraco(*mesh);
+  if (!payload.ok()) return Fail(payload.status());
+
+  std::unique_ptr<server::Server> embedded;
+  std::shared_ptr<grpc::Channel> channel;
+  if (args.has("server")) {
+    channel = client::Connect(args.get("server"));
+  } else {
+    server::ServerOptions options;
+    options.log = false;
+    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    if (!started.ok()) return Fail(started.status());
+    embedded = *std::move(started);
+    channel = embedded->InProcessChannel();
+  }
+
+  ProgressLine progress(!args.has("quiet"));
+  client::RunOptions run_options;
+  run_options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
+  const absl::Time started_at = absl::Now();
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, *payload, run_options);
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  if (!result.ok()) return Fail(result.status());
+  const HierarchyLog& log = result->hierarchy;
+  if (log.num_elements() != mesh->num_faces()) {
+    return Fail(absl::DataLossError(absl::StrCat("the server sent labels for ",
+                                                 log.num_elements(), " faces; the mesh has ",
+                                                 mesh->num_faces())));
+  }
+
+  if (args.has("levels-csv")) {
+    if (absl::Status s = WriteLevelsCsv(args.get("levels-csv"), log); !s.ok()) return Fail(s);
+  }
+  std::string level_note;
+  if (*clusters > 0) {
+    std::optional<size_t> level = log.FirstLevelWithAtMost(static_cast<uint32_t>(*clusters));
+    if (!level.has_value()) {
+      return Fail(absl::NotFoundError(absl::StrCat("no level has ", *clusters,
+                                                   " clusters or fewer (the last has ",
+                                                   log.cluster_count(log.num_levels() - 1),
+                                                   ")")));
+    }
+    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
+    if (!labels.ok()) return Fail(labels.status());
+    const std::vector<uint32_t> compact = client::CompactLabels(*labels);
+    if (args.has("labels")) {
+      if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
+    }
+    if (args.has("ply")) {
+      std::vector<ClusterId> ids(compact.size());
+      for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
+      if (absl::Status s = WriteClusteredPly(args.get("ply"), *mesh, ids); !s.ok()) {
+        return Fail(s);
+      }
+    }
+    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
+                                 log.cluster_count(*level), log.energy(*level));
+  }
+  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s\n",
+              input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
+              result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
+              level_note.c_str());
+  return 0;
+}
+
+int Energy(const Arguments& args) {
+  if (args.positional().size() != 1 || !args.has("labels")) {
+    return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
+  }
+  if (args.get("energy", "cvd") != "cvd") {
+    return Fail(absl::InvalidArgumentError("--energy: only cvd so far"));
+  }
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(args.positional()[0]);
+  if (!mesh.ok()) return Fail(mesh.status());
+  absl::StatusOr<std::vector<ClusterId>> labels = ReadLabels(args.get("labels"), mesh->num_faces());
+  if (!labels.ok()) return Fail(labels.status());
+  const double energy = CvdEnergyDirect(ComputeFaceMeasures(*mesh), *labels);
+  std::printf("%.17g\n", energy);
+  return 0;
+}
+
+int Stats(const Arguments& args) {
+  if (!args.has("server")) return Fail(absl::InvalidArgumentError("stats: give --server ADDR"));
+  auto stub = v1::Clustering::NewStub(client::Connect(args.get("server")));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  v1::Stats stats;
+  grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
+  if (!status.ok()) {
+    return Fail(absl::Status(static_cast<absl::StatusCode>(status.error_code()),
+                             status.error_message()));
+  }
+  std::printf("%s", stats.DebugString().c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace mlclust::cli
+
+int main(int argc, char** argv) {
+  using mlclust::cli::Arguments;
+  if (argc < 2 || std::string(argv[1]) == "help" || std::string(argv[1]) == "--help") {
+    std::fputs(mlclust::cli::kUsage, argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string command = argv[1];
+  std::vector<std::string> known;
+  if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
+  if (command == "mesh") {
+    known = {"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply", "device",
+             "quiet"};
+  }
+  if (command == "energy") known = {"labels", "energy"};
+  if (command == "stats") known = {"server"};
+  if (known.empty()) {
+    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n%s", command.c_str(),
+                 mlclust::cli::kUsage);
+    return 2;
+  }
+  absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, known);
+  if (!args.ok()) return mlclust::cli::Fail(args.status());
+  if (command == "serve") return mlclust::cli::Serve(*args);
+  if (command == "mesh") return mlclust::cli::Mesh(*args);
+  if (command == "energy") return mlclust::cli::Energy(*args);
+  return mlclust::cli::Stats(*args);
+}

@@ -1,0 +1,219 @@
+#include "server/job_runner.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "core/draco_codec.h"
+#include "core/face_measures.h"
+#include "core/hierarchical_clustering.h"
+#include "core/mesh.h"
+#ifdef MLCLUST_HAVE_GPU
+#include "gpu/face_measures_gpu.h"
+#endif
+
+namespace mlclust::server {
+namespace {
+
+// Streams levels to the client as they are produced: level 0 as a snapshot, later levels
+// packed into LevelBatch messages of about `batch_triplets` triplets (many small levels
+// per message; never one message per triplet), flushed at least every `max_delay` so a
+// slow algorithm still shows progress.
+class StreamingLevelSink : public LevelSink {
+ public:
+  StreamingLevelSink(EventChannel& events, uint32_t batch_triplets)
+      : events_(events), batch_triplets_(std::max<uint32_t>(1, batch_triplets)) {}
+
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
+                       double energy) override {
+    // Level 0 in pieces of kSnapshotLabels labels, so no message outgrows the limits.
+    for (size_t first = 0; first == 0 || first < labels.size(); first += kSnapshotLabels) {
+      const size_t end = std::min(labels.size(), first + kSnapshotLabels);
+      v1::JobEvent event;
+      v1::LevelSnapshot* snapshot = event.mutable_snapshot();
+      snapshot->set_level(0);
+      snapshot->set_cluster_count(cluster_count);
+      snapshot->set_energy(energy);
+      snapshot->set_first_element(static_cast<uint32_t>(first));
+      snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
+      snapshot->mutable_labels()->Reserve(static_cast<int>(end - first));
+      for (size_t i = first; i < end; ++i) snapshot->add_labels(labels[i].value());
+      if (absl::Status s = Send(std::move(event)); !s.ok()) return s;
+      if (end == labels.size()) break;
+    }
+    levels_sent_ = 1;
+    next_level_ = 1;
+    last_cluster_count_ = cluster_count;
+    last_flush_ = absl::Now();
+    return absl::OkStatus();
+  }
+
+  absl::Status OnLevel(const LevelMoves& level) override {
+    if (events_.cancelled()) return absl::CancelledError("the call was cancelled");
+    v1::LevelBatch* batch = pending_.mutable_levels();
+    if (batch->cluster_count_size() == 0) batch->set_first_level(next_level_);
+    batch->add_cluster_count(level.cluster_count);
+    batch->add_energy(level.energy);
+    batch->add_source_level(next_level_);
+    batch->mutable_element()->Add(level.element.begin(), level.element.end());
+    batch->mutable_to_cluster()->Add(level.to_cluster.begin(), level.to_cluster.end());
+    batch->mutable_from_cluster()->Add(level.from_cluster.begin(), level.from_cluster.end());
+    batch->add_triplet_end(static_cast<uint32_t>(batch->element_size()));
+    ++next_level_;
+    ++levels_sent_;
+    triplets_sent_ += level.element.size();
+    last_cluster_count_ = level.cluster_count;
+    if (static_cast<uint32_t>(batch->element_size()) >= batch_triplets_ ||
+        batch->cluster_count_size() >= kMaxLevelsPerBatch ||
+        absl::Now() - last_flush_ > kMaxDelay) {
+      return Flush();
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status Flush() {
+    if (!pending_.has_levels()) return absl::OkStatus();
+    last_flush_ = absl::Now();
+    v1::JobEvent event = std::move(pending_);
+    pending_.Clear();
+    return Send(std::move(event));
+  }
+
+  uint32_t levels_sent() const { return levels_sent_; }
+  uint64_t triplets_sent() const { return triplets_sent_; }
+  uint32_t last_cluster_count() const { return last_cluster_count_; }
+
+ private:
+  static constexpr int kMaxLevelsPerBatch = 16384;
+  static constexpr size_t kSnapshotLabels = size_t{1} << 20;
+  static constexpr absl::Duration kMaxDelay = absl::Milliseconds(200);
+
+  absl::Status Send(v1::JobEvent event) {
+    if (!events_.Emit(std::move(event))) return absl::CancelledError("the call was cancelled");
+    return absl::OkStatus();
+  }
+
+  EventChannel& events_;
+  const uint32_t batch_triplets_;
+  v1::JobEvent pending_;
+  uint32_t next_level_ = 0;
+  uint32_t levels_sent_ = 0;
+  uint64_t triplets_sent_ = 0;
+  uint32_t last_cluster_count_ = 0;
+  absl::Time last_flush_;
+};
+
+void EmitProgress(EventChannel& events, const std::string& stage, const std::string& message) {
+  v1::JobEvent event;
+  event.mutable_progress()->set_stage(stage);
+  event.mutable_progress()->set_message(message);
+  events.Emit(std::move(event));
+}
+
+absl::Status WithContext(const absl::Status& status, absl::string_view what) {
+  return absl::Status(status.code(), absl::StrCat(what, ": ", status.message()));
+}
+
+absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const v1::JobSpec& spec,
+                                          const JobRunnerContext& context,
+                                          std::string& device_used) {
+  const std::string& device = spec.device();
+  if (device != "" && device != "auto" && device != "gpu" && device != "cpu") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("option device: '", device, "' is not one of auto, gpu, cpu"));
+  }
+  device_used = "cpu";
+  if (device == "cpu") return ComputeFaceMeasures(mesh);
+#ifdef MLCLUST_HAVE_GPU
+  if (context.gl != nullptr) {
+    absl::StatusOr<FaceMeasures> measures = gpu::ComputeFaceMeasuresGpu(*context.gl, mesh);
+    if (measures.ok()) {
+      device_used = context.gl_renderer;
+      return measures;
+    }
+    if (device == "gpu") return WithContext(measures.status(), "face measures on the GPU");
+    return ComputeFaceMeasures(mesh);  // auto: the CPU path always works
+  }
+#endif
+  if (device == "gpu") {
+    return absl::FailedPreconditionError("option device: 'gpu' but this server has no GPU");
+  }
+  return ComputeFaceMeasures(mesh);
+}
+
+absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context) {
+  const v1::JobSpec& spec = job.spec;
+  EventChannel& events = *job.events;
+  switch (spec.algorithm()) {
+    case v1::ALGORITHM_UNSPECIFIED:
+    case v1::ALGORITHM_HC:
+      break;
+    default:
+      return absl::UnimplementedError(absl::StrCat(
+          "algorithm ", v1::Algorithm_Name(spec.algorithm()),
+          " is not available on this server yet (available: ALGORITHM_HC)"));
+  }
+  if (spec.energy() != v1::ENERGY_UNSPECIFIED && spec.energy() != v1::ENERGY_CVD) {
+    return absl::UnimplementedError(absl::StrCat("energy ", v1::Energy_Name(spec.energy()),
+                                                 " is not available for ALGORITHM_HC yet "
+                                                 "(available: ENERGY_CVD)"));
+  }
+  if (spec.levels_high() != 0 || spec.levels_low() != 0) {
+    return absl::UnimplementedError("level ranges (levels_high, levels_low) are not supported "
+                                    "by this server yet");
+  }
+
+  EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"));
+  absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
+  if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
+  std::string().swap(job.input);  // the bytes are no longer needed
+  if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
+    return WithContext(valid, "input mesh");
+  }
+  const size_t num_faces = mesh->num_faces();
+  if (spec.clusters() > num_faces) {
+    return absl::InvalidArgumentError(absl::StrCat("clusters: ", spec.clusters(),
+                                                   " is more than the mesh's ", num_faces,
+                                                   " faces"));
+  }
+  EmitProgress(events, "measures",
+               absl::StrCat(num_faces, " faces, ", mesh->num_vertices(), " vertices"));
+  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+  if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
+  std::string device_used;
+  absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, spec, context, device_used);
+  if (!measures.ok()) return measures.status();
+
+  EmitProgress(events, "cluster", "hierarchical clustering (CVD)");
+  StreamingLevelSink sink(events, spec.batch_triplets() != 0 ? spec.batch_triplets()
+                                                              : context.default_batch_triplets);
+  HierarchicalClusteringOptions options;
+  options.min_clusters = std::max<uint32_t>(1, spec.clusters());
+  absl::StatusOr<HierarchicalClusteringSummary> summary =
+      RunHierarchicalClustering(*measures, *adjacency, options, sink);
+  if (!summary.ok()) return summary.status();
+  if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
+
+  JobOutcome outcome;
+  outcome.done.set_levels(sink.levels_sent());
+  outcome.done.set_triplets(sink.triplets_sent());
+  outcome.done.set_final_clusters(summary->final_clusters);
+  outcome.done.set_device(device_used);
+  return outcome;
+}
+
+}  // namespace
+
+absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
+  switch (job.spec.input_kind()) {
+    case v1::INPUT_KIND_DRACO_MESH:
+      return RunMeshJob(job, context);
+    case v1::INPUT_KIND_POINTS_F32:
+      return absl::UnimplementedError("point batches are not supported by this server yet");
+    default:
+      return absl::InvalidArgumentError("spec.input_kind: unspecified (send a Draco mesh)");
+  }
+}
+
+}  // namespace mlclust::server

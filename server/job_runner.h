@@ -1,0 +1,37 @@
+// Runs one job: decode, validate, measure, cluster, stream the levels.
+#ifndef MLCLUST_SERVER_JOB_RUNNER_H_
+#define MLCLUST_SERVER_JOB_RUNNER_H_
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "server/job.h"
+
+namespace mlclust::gpu {
+class GlContext;
+}
+
+namespace mlclust::server {
+
+struct JobRunnerContext {
+  // The worker's GL context, or nullptr when the server runs without a GPU. Only used on
+  // the thread that created it (the worker's).
+  gpu::GlContext* gl = nullptr;
+  std::string gl_renderer;
+  // Triplets per LevelBatch when the job does not say.
+  uint32_t default_batch_triplets = 1 << 16;
+};
+
+struct JobOutcome {
+  v1::Done done;  // filled on success
+};
+
+// Runs `job` to the end and streams its events (progress, snapshot, level batches) to
+// job.events. Does not send the final event: the caller does, from the returned status.
+// INVALID_ARGUMENT for bad input (with the validation message), UNIMPLEMENTED for inputs
+// and algorithms this server does not run, CANCELLED if the call went away.
+absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context);
+
+}  // namespace mlclust::server
+
+#endif  // MLCLUST_SERVER_JOB_RUNNER_H_

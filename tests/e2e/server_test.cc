@@ -1,0 +1,329 @@
+// End-to-end tests: a real server on 127.0.0.1:0, real Draco bytes over real gRPC.
+#include "server/server.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <future>
+#include <limits>
+#include <random>
+#include <thread>
+
+#include "absl/container/flat_hash_set.h"
+#include "client/client.h"
+#include "core/cvd_energy.h"
+#include "core/draco_codec.h"
+#include "core/face_measures.h"
+#include "core/mesh_io.h"
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "grpcpp/grpcpp.h"
+#include "mlclust/v1/mlclust.grpc.pb.h"
+#include "tests/core/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+class ServerTest : public ::testing::Test {
+ protected:
+  void StartServer(server::ServerOptions options = {}) {
+    options.listen_address = "127.0.0.1:0";
+    options.log = false;
+    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    ASSERT_TRUE(started.ok()) << started.status();
+    server_ = *std::move(started);
+    ASSERT_GT(server_->port(), 0);
+    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+  }
+  void SetUp() override { StartServer(); }
+
+  static v1::JobSpec HcSpec() {
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+    spec.set_algorithm(v1::ALGORITHM_HC);
+    spec.set_energy(v1::ENERGY_CVD);
+    return spec;
+  }
+
+  absl::StatusOr<client::JobResult> Run(const TriangleMesh& mesh, v1::JobSpec spec = HcSpec(),
+                                        client::RunOptions options = {}) {
+    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(mesh);
+    if (!bytes.ok()) return bytes.status();
+    return client::RunJob(channel_, spec, *bytes, options);
+  }
+
+  bool Healthy() {
+    auto stub = grpc::health::v1::Health::NewStub(channel_);
+    grpc::ClientContext context;
+    grpc::health::v1::HealthCheckRequest request;
+    request.set_service("mlclust.v1.Clustering");
+    grpc::health::v1::HealthCheckResponse response;
+    return stub->Check(&context, request, &response).ok() &&
+           response.status() == grpc::health::v1::HealthCheckResponse::SERVING;
+  }
+
+  v1::Stats GetStats() {
+    auto stub = v1::Clustering::NewStub(channel_);
+    grpc::ClientContext context;
+    v1::Stats stats;
+    EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+    return stats;
+  }
+
+  std::unique_ptr<server::Server> server_;
+  std::shared_ptr<grpc::Channel> channel_;
+};
+
+TriangleMesh Fandisk() {
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
+  EXPECT_TRUE(mesh.ok()) << mesh.status();
+  return *std::move(mesh);
+}
+
+// Checks a received hierarchy against the client's own mesh: at sampled levels the rebuilt
+// labels have the reported cluster count and the reported energy, recomputed from the
+// mesh and labels alone. Labels attached to the wrong faces would fail both checks.
+void ExpectLevelsMatchMesh(const HierarchyLog& log, const TriangleMesh& mesh) {
+  ASSERT_EQ(log.num_elements(), mesh.num_faces());
+  const FaceMeasures measures = ComputeFaceMeasures(mesh);
+  const size_t n = log.num_levels();
+  for (size_t level : {size_t{0}, size_t{1}, n / 3, n - 100, n - 10, n - 1}) {
+    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(level);
+    ASSERT_TRUE(labels.ok()) << labels.status();
+    absl::flat_hash_set<uint32_t> distinct;
+    for (ClusterId c : *labels) distinct.insert(c.value());
+    EXPECT_EQ(distinct.size(), log.cluster_count(level)) << "level " << level;
+    const double direct = CvdEnergyDirect(measures, *labels);
+    EXPECT_NEAR(log.energy(level), direct, 1e-9 * direct + 1e-12) << "level " << level;
+  }
+}
+
+TEST_F(ServerTest, FandiskHierarchyArrivesWhole) {
+  const TriangleMesh mesh = Fandisk();
+  std::vector<v1::JobEvent::EventCase> kinds;
+  client::RunOptions options;
+  options.on_event = [&](const v1::JobEvent& e) { kinds.push_back(e.event_case()); };
+  absl::StatusOr<client::JobResult> result = Run(mesh, HcSpec(), options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_THAT(result->job_id, HasSubstr("job-"));
+  EXPECT_EQ(result->hierarchy.num_levels(), mesh.num_faces());
+  EXPECT_EQ(result->done.levels(), mesh.num_faces());
+  EXPECT_EQ(result->done.triplets(), result->hierarchy.num_moves());
+  EXPECT_EQ(result->done.final_clusters(), 1u);
+  ExpectLevelsMatchMesh(result->hierarchy, mesh);
+  // Accepted first, done last, and the levels batched (far fewer messages than levels).
+  ASSERT_GE(kinds.size(), 3u);
+  EXPECT_EQ(kinds.front(), v1::JobEvent::kAccepted);
+  EXPECT_EQ(kinds.back(), v1::JobEvent::kDone);
+  const size_t batches = std::count(kinds.begin(), kinds.end(), v1::JobEvent::kLevels);
+  EXPECT_GE(batches, 1u);
+  EXPECT_LT(batches, mesh.num_faces() / 100);
+}
+
+TEST_F(ServerTest, ShuffledFacesKeepTheirIds) {
+  TriangleMesh mesh = Fandisk();
+  std::vector<uint32_t> order(mesh.num_faces());
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(7));
+  TriangleMesh shuffled;
+  shuffled.positions = mesh.positions;
+  for (uint32_t f : order) {
+    shuffled.indices.insert(shuffled.indices.end(), &mesh.indices[3 * f], &mesh.indices[3 * f + 3]);
+  }
+  absl::StatusOr<client::JobResult> result = Run(shuffled);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ExpectLevelsMatchMesh(result->hierarchy, shuffled);
+  // The first merge joins two faces that touch in the client's own face order.
+  const LevelMoves first = result->hierarchy.level(1);
+  ASSERT_EQ(first.element.size(), 1u);
+  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(shuffled);
+  ASSERT_TRUE(adjacency.ok());
+  const auto& around = adjacency->neighbours[first.element[0]];
+  EXPECT_TRUE(around[0] == FaceId(first.to_cluster[0]) || around[1] == FaceId(first.to_cluster[0]) ||
+              around[2] == FaceId(first.to_cluster[0]));
+}
+
+TEST_F(ServerTest, BadMeshesAreRefusedWithAMessageAndTheServerKeepsServing) {
+  struct Case {
+    std::string name;
+    TriangleMesh mesh;
+    std::string message;
+  };
+  TriangleMesh with_nan = testing::TwoTriangles();
+  with_nan.positions[4] = std::numeric_limits<float>::quiet_NaN();
+  std::vector<Case> cases = {
+      {"non-manifold edge",
+       testing::MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1}, {0, 1, 2, 1, 0, 3, 0, 1, 4}),
+       "non-manifold edge"},
+      {"NaN", with_nan, "non-finite coordinate"},
+      {"bow-tie", testing::BowTie(), "non-manifold vertex"},
+  };
+  for (const Case& c : cases) {
+    absl::StatusOr<client::JobResult> result = Run(c.mesh);
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << c.name;
+    EXPECT_THAT(result.status().message(), HasSubstr(c.message)) << c.name;
+  }
+  EXPECT_TRUE(Healthy());
+  absl::StatusOr<client::JobResult> good = Run(testing::Grid(20));
+  ASSERT_TRUE(good.ok()) << good.status();
+  EXPECT_EQ(good->done.final_clusters(), 1u);
+  EXPECT_GE(GetStats().jobs_failed(), 3u);
+}
+
+TEST_F(ServerTest, GarbageAndTruncatedDracoAreInvalidArgument) {
+  std::mt19937 rng(11);
+  std::string garbage(4096, '\0');
+  for (char& c : garbage) c = static_cast<char>(rng());
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel_, HcSpec(), garbage);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("input mesh"));
+
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(10));
+  ASSERT_TRUE(bytes.ok());
+  const std::string truncated = bytes->substr(0, bytes->size() / 2);
+  result = client::RunJob(channel_, HcSpec(), truncated);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(Healthy());
+}
+
+TEST_F(ServerTest, BadSpecsAreRefused) {
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(4));
+  ASSERT_TRUE(bytes.ok());
+  v1::JobSpec spec = HcSpec();
+  spec.set_clusters(1000);  // more than the 32 faces
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel_, spec, *bytes);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("clusters: 1000"));
+
+  spec = HcSpec();
+  spec.set_input_kind(v1::INPUT_KIND_UNSPECIFIED);
+  EXPECT_EQ(client::RunJob(channel_, spec, *bytes).status().code(),
+            absl::StatusCode::kInvalidArgument);
+
+  spec = HcSpec();
+  spec.set_device("tpu");
+  result = client::RunJob(channel_, spec, *bytes);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("device"));
+
+  spec = HcSpec();
+  spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  EXPECT_EQ(client::RunJob(channel_, spec, *bytes).status().code(),
+            absl::StatusCode::kUnimplemented);
+
+  // The hierarchy stops early at `clusters`.
+  spec = HcSpec();
+  spec.set_clusters(5);
+  result = client::RunJob(channel_, spec, *bytes);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(result->done.final_clusters(), 5u);
+}
+
+TEST_F(ServerTest, ChunkedUploadOfManySmallChunks) {
+  const TriangleMesh mesh = testing::Grid(30);
+  client::RunOptions options;
+  options.chunk_bytes = 97;  // many messages, none aligned to anything
+  absl::StatusOr<client::JobResult> result = Run(mesh, HcSpec(), options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(result->hierarchy.num_levels(), mesh.num_faces());
+}
+
+TEST(ServerLimitsTest, InputOverTheLimitIsResourceExhaustedBeforeUpload) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  options.max_input_bytes = 1000;
+  auto server = server::Server::Start(options);
+  ASSERT_TRUE(server.ok());
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()));
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(30));
+  ASSERT_TRUE(bytes.ok());
+  ASSERT_GT(bytes->size(), 1000u);
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, *bytes);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(result.status().message(), HasSubstr("limit of 1000 bytes"));
+}
+
+TEST(ServerLimitsTest, FullQueueIsResourceExhaustedAtOnceAndOthersFinish) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  options.queue_capacity = 1;
+  options.gpu = server::GpuMode::kOff;
+  auto server = server::Server::Start(options);
+  ASSERT_TRUE(server.ok());
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()));
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(150));  // 45k faces
+  ASSERT_TRUE(bytes.ok());
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  std::vector<std::future<absl::StatusOr<client::JobResult>>> jobs;
+  for (int i = 0; i < 6; ++i) {
+    jobs.push_back(std::async(std::launch::async,
+                              [&] { return client::RunJob(channel, spec, *bytes); }));
+  }
+  int succeeded = 0, refused = 0;
+  for (auto& job : jobs) {
+    absl::StatusOr<client::JobResult> result = job.get();
+    if (result.ok()) {
+      ++succeeded;
+      EXPECT_EQ(result->done.final_clusters(), 1u);
+    } else {
+      EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted) << result.status();
+      EXPECT_THAT(result.status().message(), HasSubstr("queue is full"));
+      ++refused;
+    }
+  }
+  EXPECT_GE(succeeded, 1);
+  EXPECT_GE(refused, 1);
+}
+
+TEST_F(ServerTest, DeadlineCancelsTheJobAndTheServerGoesOn) {
+  const TriangleMesh big = testing::Grid(300);  // 180k faces
+  client::RunOptions options;
+  options.deadline = absl::Milliseconds(300);
+  absl::StatusOr<client::JobResult> result = Run(big, HcSpec(), options);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kDeadlineExceeded) << result.status();
+  absl::StatusOr<client::JobResult> next = Run(testing::Grid(10));
+  ASSERT_TRUE(next.ok()) << next.status();
+  // The cancelled job is counted once the worker has noticed.
+  for (int i = 0; i < 100 && GetStats().jobs_cancelled() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(GetStats().jobs_cancelled(), 1u);
+  EXPECT_EQ(GetStats().jobs_succeeded(), 1u);
+}
+
+TEST_F(ServerTest, EmbeddedChannelGivesTheSameHierarchyAsTcp) {
+  const TriangleMesh mesh = testing::Grid(25);
+  absl::StatusOr<client::JobResult> tcp = Run(mesh);
+  ASSERT_TRUE(tcp.ok());
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(mesh);
+  ASSERT_TRUE(bytes.ok());
+  absl::StatusOr<client::JobResult> embedded =
+      client::RunJob(server_->InProcessChannel(), HcSpec(), *bytes);
+  ASSERT_TRUE(embedded.ok()) << embedded.status();
+  ASSERT_EQ(tcp->hierarchy.num_levels(), embedded->hierarchy.num_levels());
+  const size_t last = tcp->hierarchy.num_levels() - 1;
+  EXPECT_EQ(*tcp->hierarchy.LabelsAt(last / 2), *embedded->hierarchy.LabelsAt(last / 2));
+  EXPECT_EQ(tcp->hierarchy.energy(last), embedded->hierarchy.energy(last));
+}
+
+TEST_F(ServerTest, StatsReportTheQueueAndTheDevice) {
+  ASSERT_TRUE(Run(testing::Grid(5)).ok());
+  const v1::Stats stats = GetStats();
+  EXPECT_EQ(stats.jobs_succeeded(), 1u);
+  EXPECT_EQ(stats.jobs_accepted(), 1u);
+  EXPECT_EQ(stats.queue_capacity(), 16u);
+  EXPECT_EQ(stats.gpu_available(), !server_->gl_renderer().empty());
+  EXPECT_EQ(stats.gl_renderer(), server_->gl_renderer());
+  std::printf("GL renderer: '%s' (%s)\n", stats.gl_renderer().c_str(),
+              server_->gl_unavailable_reason().c_str());
+}
+
+}  // namespace
+}  // namespace mlclust
