@@ -77,7 +77,23 @@ absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const Cluster
   return absl::OkStatus();
 }
 
+// Faces per chunk. Buffer bounds: labels whole (4 bytes/face); per chunk, neighbours 12
+// bytes/face (the largest) and flags 1 byte/face rounded up to a whole word.
+uint64_t ChunkFaces(const GlContext& context, uint64_t num_faces) {
+  return std::min({MaxElementsPerBuffer(context, 3 * sizeof(uint32_t)), kMaxElementsPerChunk,
+                   kFacesPerWord * MaxInvocationsPerDispatch(context), num_faces});
+}
+
+uint64_t FlagBytes(uint64_t faces) {
+  return (faces + kFacesPerWord - 1) / kFacesPerWord * sizeof(uint32_t);
+}
+
 }  // namespace
+
+uint64_t FlagBoundaryFacesMemoryBound(const GlContext& context, uint64_t num_faces) {
+  const uint64_t chunk = ChunkFaces(context, num_faces);
+  return num_faces * sizeof(uint32_t) + chunk * 3 * sizeof(uint32_t) + FlagBytes(chunk);
+}
 
 std::vector<uint8_t> FlagBoundaryFacesCpu(const FaceAdjacency& adjacency,
                                           std::span<const ClusterId> labels) {
@@ -105,12 +121,7 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
   std::vector<uint8_t> flags(num_faces, 0);
   if (num_faces == 0) return flags;
 
-  // Buffer bounds: labels whole (4 bytes/face); per chunk, neighbours 12 bytes/face and
-  // flags 1 byte/face rounded up to whole words. Chunks are whole words of faces so each
-  // chunk's flags start at a word boundary of the output.
-  uint64_t chunk = std::min({MaxElementsPerBuffer(context, 3 * sizeof(uint32_t)),
-                             MaxElementsPerBuffer(context, 1), kMaxElementsPerChunk, num_faces});
-  if (chunk < num_faces) chunk -= chunk % kFacesPerWord;
+  const uint64_t chunk = ChunkFaces(context, num_faces);
   if (chunk == 0) {
     return absl::ResourceExhaustedError(absl::StrCat("storage buffers of ",
                                                      context.max_storage_buffer_bytes(),
@@ -121,7 +132,6 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
         "the labels of ", num_faces, " faces need ", num_faces * sizeof(uint32_t),
         " bytes in one storage buffer; the limit is ", context.max_storage_buffer_bytes()));
   }
-  const uint64_t chunk_words = (chunk + kFacesPerWord - 1) / kFacesPerWord;
 
   MLCLUST_GPU_ASSIGN_OR_RETURN(
       const uint32_t program,
@@ -132,7 +142,7 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
   MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer neighbours_buffer,
                                StorageBuffer::Create(context, chunk * 3 * sizeof(uint32_t)));
   MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer flags_buffer,
-                               StorageBuffer::Create(context, chunk_words * sizeof(uint32_t)));
+                               StorageBuffer::Create(context, FlagBytes(chunk)));
   MLCLUST_GPU_RETURN_IF_ERROR(labels_buffer.Upload(labels));
 
   const detail::GlFunctions& gl = context.gl();

@@ -31,6 +31,11 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
                                                        const FaceAdjacency& adjacency,
                                                        std::span<const ClusterId> labels);
 
+// The bytes of GPU memory FlagBoundaryFaces allocates for `num_faces` faces on `context`
+// (labels, one chunk of adjacency, one chunk of flags): for a caller that budgets GPU
+// memory before it submits work.
+uint64_t FlagBoundaryFacesMemoryBound(const GlContext& context, uint64_t num_faces);
+
 // The CPU reference of FlagBoundaryFaces, with the same result. Expects
 // labels.size() == adjacency.num_faces() and every neighbour Invalid() or in range
 // (asserted, not checked: this is the fallback for inputs core already validated).

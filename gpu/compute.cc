@@ -121,6 +121,11 @@ absl::StatusOr<DispatchGrid> PlanDispatch(uint64_t invocations, uint32_t max_gro
   return grid;
 }
 
+uint64_t MaxInvocationsPerDispatch(const GlContext& context) {
+  const uint64_t groups = uint64_t{context.max_work_groups(0)} * context.max_work_groups(1);
+  return std::min(groups * kLocalSize, uint64_t{1} << 32);
+}
+
 absl::Status DispatchLinear(GlContext& context, uint64_t invocations) {
   if (invocations == 0) return absl::OkStatus();
   absl::StatusOr<DispatchGrid> grid =

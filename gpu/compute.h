@@ -65,6 +65,11 @@ struct DispatchGrid {
 absl::StatusOr<DispatchGrid> PlanDispatch(uint64_t invocations, uint32_t max_groups_x,
                                           uint32_t max_groups_y);
 
+// The most invocations one DispatchLinear can cover on this context: a full grid of
+// max_work_groups(0) x max_work_groups(1) groups, capped at 2^32. Kernels bound their
+// chunks by it too, so a test that caps the grid also exercises chunking.
+uint64_t MaxInvocationsPerDispatch(const GlContext& context);
+
 // Dispatches the program in use (glUseProgram) over PlanDispatch(invocations, context's
 // limits). Does nothing for zero invocations.
 absl::Status DispatchLinear(GlContext& context, uint64_t invocations);

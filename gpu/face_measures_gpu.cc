@@ -80,7 +80,21 @@ absl::Status CheckMesh(const TriangleMesh& mesh) {
   return absl::OkStatus();
 }
 
+// Faces per chunk. Buffer bounds: positions whole (12 bytes/vertex, since indices reach
+// anywhere); per chunk, indices 12, areas 8, centroids 24 and normals 24 bytes per face.
+uint64_t ChunkFaces(const GlContext& context, uint64_t num_faces) {
+  return std::min({MaxElementsPerBuffer(context, 3 * sizeof(double)), kMaxElementsPerChunk,
+                   MaxInvocationsPerDispatch(context), num_faces});
+}
+
+constexpr uint64_t kChunkBytesPerFace = 3 * sizeof(uint32_t) + 7 * sizeof(double);
+
 }  // namespace
+
+uint64_t ComputeFaceMeasuresGpuMemoryBound(const GlContext& context, uint64_t num_faces,
+                                           uint64_t num_vertices) {
+  return num_vertices * 3 * sizeof(float) + ChunkFaces(context, num_faces) * kChunkBytesPerFace;
+}
 
 absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const TriangleMesh& mesh) {
   MLCLUST_GPU_RETURN_IF_ERROR(CheckMesh(mesh));
@@ -92,16 +106,13 @@ absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const Tr
   measures.unit_normal.resize(num_faces);
   if (num_faces == 0) return measures;
 
-  // Buffer bounds: positions whole (12 bytes/vertex, since indices reach anywhere); per
-  // chunk, indices 12, areas 8, centroids 24 and normals 24 bytes per face.
   const uint64_t position_bytes = mesh.positions.size() * sizeof(float);
   if (position_bytes > static_cast<uint64_t>(context.max_storage_buffer_bytes())) {
     return absl::ResourceExhaustedError(absl::StrCat(
         "the positions of ", mesh.num_vertices(), " vertices need ", position_bytes,
         " bytes in one storage buffer; the limit is ", context.max_storage_buffer_bytes()));
   }
-  const uint64_t chunk = std::min(
-      {MaxElementsPerBuffer(context, 3 * sizeof(double)), kMaxElementsPerChunk, num_faces});
+  const uint64_t chunk = ChunkFaces(context, num_faces);
   if (chunk == 0) {
     return absl::ResourceExhaustedError(
         absl::StrCat("storage buffers of ", context.max_storage_buffer_bytes(),

@@ -31,6 +31,12 @@ namespace mlclust::gpu {
 // Faces are processed in chunks that fit the storage buffer limit.
 absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const TriangleMesh& mesh);
 
+// The bytes of GPU memory ComputeFaceMeasuresGpu allocates for a mesh of this size on
+// `context` (positions, and one chunk of indices and of each output): for a caller that
+// budgets GPU memory before it submits work.
+uint64_t ComputeFaceMeasuresGpuMemoryBound(const GlContext& context, uint64_t num_faces,
+                                           uint64_t num_vertices);
+
 }  // namespace mlclust::gpu
 
 #endif  // MLCLUST_GPU_FACE_MEASURES_GPU_H_

@@ -5,9 +5,9 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cstdio>
 #include <cstring>
 #include <mutex>
-#include <optional>
 #include <utility>
 #include <vector>
 
@@ -91,7 +91,7 @@ class DisplayRefCounts {
     static DisplayRefCounts* counts = new DisplayRefCounts;
     return *counts;
   }
-  bool Acquire(EGLDisplay display, EGLint* major, EGLint* minor) {
+  bool Acquire(EGLDisplay display) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (auto& [d, count] : counts_) {
       if (d == display) {
@@ -99,7 +99,7 @@ class DisplayRefCounts {
         return eglQueryString(display, EGL_VERSION) != nullptr;
       }
     }
-    if (!eglInitialize(display, major, minor)) return false;
+    if (!eglInitialize(display, nullptr, nullptr)) return false;
     counts_.emplace_back(display, 1);
     return true;
   }
@@ -215,8 +215,7 @@ GlContext::~GlContext() {
 
 absl::Status GlContext::Initialize(void* display_handle, const GlContextOptions& options) {
   const EGLDisplay display = static_cast<EGLDisplay>(display_handle);
-  EGLint egl_major = 0, egl_minor = 0;
-  if (!DisplayRefCounts::Get().Acquire(display, &egl_major, &egl_minor)) {
+  if (!DisplayRefCounts::Get().Acquire(display)) {
     return absl::UnavailableError(EglError("eglInitialize"));
   }
   egl_->display = display;
@@ -225,6 +224,17 @@ absl::Status GlContext::Initialize(void* display_handle, const GlContextOptions&
   // No window system and no pbuffer: the context is made current with no surface at all.
   if (!HasExtension(extensions, "EGL_KHR_surfaceless_context")) {
     return absl::UnavailableError("EGL_KHR_surfaceless_context missing");
+  }
+  // Context version and profile attributes are EGL 1.5 core or EGL_KHR_create_context.
+  int egl_major = 0, egl_minor = 0;
+  const char* egl_version = eglQueryString(display, EGL_VERSION);
+  if (egl_version == nullptr || std::sscanf(egl_version, "%d.%d", &egl_major, &egl_minor) != 2) {
+    return absl::UnavailableError("EGL_VERSION unreadable");
+  }
+  if ((egl_major == 1 && egl_minor < 5) && !HasExtension(extensions, "EGL_KHR_create_context")) {
+    return absl::UnavailableError(absl::StrCat("EGL ", egl_version,
+                                               " without EGL_KHR_create_context cannot ask "
+                                               "for an OpenGL 4.5 core context"));
   }
   if (!eglBindAPI(EGL_OPENGL_API)) {
     return absl::UnavailableError(EglError("eglBindAPI(EGL_OPENGL_API)"));
@@ -310,6 +320,11 @@ absl::Status GlContext::MakeCurrent() {
     return absl::FailedPreconditionError(
         "the GL context is used on a thread other than the one that created it; GPU work "
         "must run on the context's owner thread");
+  }
+  // The current context is tracked per client API; another library on this thread may
+  // have bound OpenGL ES.
+  if (eglQueryAPI() != EGL_OPENGL_API && !eglBindAPI(EGL_OPENGL_API)) {
+    return absl::InternalError(EglError("eglBindAPI(EGL_OPENGL_API)"));
   }
   if (eglGetCurrentContext() == egl_->context) return absl::OkStatus();
   if (!eglMakeCurrent(egl_->display, EGL_NO_SURFACE, EGL_NO_SURFACE, egl_->context)) {
