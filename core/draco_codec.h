@@ -23,14 +23,22 @@ struct DracoEncodeOptions {
   int speed = 5;
 };
 
-// Encodes with the sequential method: face i and vertex v keep their indices.
-// INVALID_ARGUMENT for an out-of-range option or an index out of range.
+// Encodes with the sequential method: face i and vertex v keep their indices, and
+// nothing is cleaned up on the way (degenerate faces, duplicate faces, vertices at equal
+// positions and unused vertices all arrive as sent, so that ValidateMesh on the other
+// side sees what the client had). With position_quantization_bits == 0 positions arrive
+// bit for bit, NaN included.
+// INVALID_ARGUMENT for an out-of-range option, an index out of range, a mesh with
+// vertices but no faces (Draco 1.5.5 cannot decode what it makes of one), or a
+// non-finite coordinate when quantizing.
 absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
                                               const DracoEncodeOptions& options = {});
 
-// Decodes a Draco triangle mesh. Untrusted input: INVALID_ARGUMENT with Draco's message
-// for bytes that are not a Draco mesh (a point cloud is refused too), or a mesh without
-// positions. The result is not validated: call ValidateMesh.
+// Decodes a Draco triangle mesh: vertex i is Draco point i (its position followed
+// through the attribute's point-to-value map), faces in the order the bytes hold them.
+// Untrusted input: INVALID_ARGUMENT with Draco's message for bytes that are not a Draco
+// mesh (a point cloud is refused too), or a mesh without 3-component positions; never
+// crashes on random or truncated bytes. The result is not validated: call ValidateMesh.
 absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes);
 
 }  // namespace mlclust
