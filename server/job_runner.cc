@@ -126,7 +126,7 @@ absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const v1::Jo
   device_used = "cpu";
   if (device == "cpu") return ComputeFaceMeasures(mesh);
 #ifdef MLCLUST_HAVE_GPU
-  if (context.gl != nullptr) {
+  if (context.gl != nullptr && (device == "gpu" || !context.gl_is_software)) {
     absl::StatusOr<FaceMeasures> measures = gpu::ComputeFaceMeasuresGpu(*context.gl, mesh);
     if (measures.ok()) {
       device_used = context.gl_renderer;

@@ -18,6 +18,9 @@ struct JobRunnerContext {
   // the thread that created it (the worker's).
   gpu::GlContext* gl = nullptr;
   std::string gl_renderer;
+  // A software renderer (llvmpipe) is slower than the CPU path for these kernels, so
+  // device "auto" uses it only when it is hardware; device "gpu" uses it regardless.
+  bool gl_is_software = false;
   // Triplets per LevelBatch when the job does not say.
   uint32_t default_batch_triplets = 1 << 16;
 };

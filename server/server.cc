@@ -436,6 +436,7 @@ class ServerImpl {
         context.gl = gl.get();
         gl_renderer_ = gl->renderer();
         context.gl_renderer = gl_renderer_;
+        context.gl_is_software = gl->is_software();
         service_.SetGl(gl->renderer(), gl->device_description());
         LogLine(options.log, "GL context: ", gl->renderer(), " (", gl->version(), ", ",
                 gl->device_description(), ")");
@@ -472,16 +473,16 @@ class ServerImpl {
         event.mutable_done()->set_seconds_queued(
             absl::ToDoubleSeconds(started_at - job->accepted_at));
         event.mutable_done()->set_seconds_running(absl::ToDoubleSeconds(ended_at - started_at));
+        ++counters.succeeded;  // before Finish, so a client that saw Done sees it counted
         job->events->Finish(std::move(event), grpc::Status::OK);
-        ++counters.succeeded;
         LogLine(options.log, job->id, " done in ", absl::FormatDuration(ended_at - started_at),
                 ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(),
                 " triplets");
       } else {
         const grpc::Status status = ToGrpc(outcome.status());
-        job->events->Finish(FailedEvent(status), status);
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled
                                                                    : counters.failed);
+        job->events->Finish(FailedEvent(status), status);
         LogLine(options.log, job->id, " failed: ", outcome.status().ToString());
       }
       counters.job_running = false;

@@ -1,0 +1,83 @@
+// Times the stages of an HC run on a mesh file: read, validate, adjacency, measures, HC.
+//   hc_bench MESH [REPEATS]
+#include <cstdio>
+
+#include "absl/strings/numbers.h"
+#include "absl/time/clock.h"
+#include "core/face_measures.h"
+#include "core/hierarchical_clustering.h"
+#include "core/mesh_io.h"
+
+namespace {
+
+// Counts levels without storing them: the algorithm alone.
+class CountingSink : public mlclust::LevelSink {
+ public:
+  absl::Status OnStart(std::span<const mlclust::ClusterId>, uint32_t, double) override {
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    moves += level.element.size();
+    return absl::OkStatus();
+  }
+  uint64_t moves = 0;
+};
+
+template <typename F>
+double Seconds(F&& f) {
+  const absl::Time start = absl::Now();
+  f();
+  return absl::ToDoubleSeconds(absl::Now() - start);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: hc_bench MESH [REPEATS]\n");
+    return 2;
+  }
+  int repeats = 3;
+  if (argc > 2 && !absl::SimpleAtoi(argv[2], &repeats)) return 2;
+  absl::StatusOr<mlclust::TriangleMesh> mesh;
+  const double read = Seconds([&] { mesh = mlclust::ReadMeshFile(argv[1]); });
+  if (!mesh.ok()) {
+    std::fprintf(stderr, "%s\n", mesh.status().ToString().c_str());
+    return 1;
+  }
+  absl::Status valid;
+  const double validate = Seconds([&] { valid = mlclust::ValidateMesh(*mesh); });
+  if (!valid.ok()) {
+    std::fprintf(stderr, "%s\n", valid.ToString().c_str());
+    return 1;
+  }
+  absl::StatusOr<mlclust::FaceAdjacency> adjacency;
+  const double adjacency_s = Seconds([&] { adjacency = mlclust::BuildFaceAdjacency(*mesh); });
+  mlclust::FaceMeasures measures;
+  const double measures_s = Seconds([&] { measures = mlclust::ComputeFaceMeasures(*mesh); });
+  std::printf("%s: %zu faces, %zu vertices\n", argv[1], mesh->num_faces(), mesh->num_vertices());
+  std::printf("read %.3f s, validate %.3f s, adjacency %.3f s, measures %.3f s\n", read, validate,
+              adjacency_s, measures_s);
+  double best_count = 1e30, best_log = 1e30;
+  uint64_t moves = 0;
+  size_t log_bytes = 0;
+  for (int r = 0; r < repeats; ++r) {
+    CountingSink counting;
+    best_count = std::min(best_count, Seconds([&] {
+      auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, counting);
+      if (!s.ok()) std::abort();
+    }));
+    moves = counting.moves;
+    mlclust::HierarchyLog log;
+    best_log = std::min(best_log, Seconds([&] {
+      auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, log);
+      if (!s.ok()) std::abort();
+    }));
+    log_bytes = log.num_moves() * 12 + log.num_levels() * 20;
+  }
+  std::printf("HC full hierarchy: %.3f s (levels counted only), %.3f s (into a HierarchyLog, "
+              "~%.1f MB); %llu triplets; best of %d\n",
+              best_count, best_log, log_bytes / 1e6, static_cast<unsigned long long>(moves),
+              repeats);
+  return 0;
+}

@@ -1,0 +1,71 @@
+// The cost of the wire: the same HC job through the embedded (in-process) channel and
+// through TCP on loopback, end to end from the client's side (encode, upload, decode,
+// cluster, stream, rebuild).
+//   wire_bench MESH [REPEATS]
+#include <cstdio>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "client/client.h"
+#include "core/draco_codec.h"
+#include "core/mesh_io.h"
+#include "server/server.h"
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: wire_bench MESH [REPEATS]\n");
+    return 2;
+  }
+  int repeats = 3;
+  if (argc > 2 && !absl::SimpleAtoi(argv[2], &repeats)) return 2;
+  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(argv[1]);
+  if (!mesh.ok()) return 1;
+  const absl::Time encode_start = absl::Now();
+  absl::StatusOr<std::string> bytes = mlclust::EncodeMeshToDraco(*mesh);
+  const double encode = absl::ToDoubleSeconds(absl::Now() - encode_start);
+  if (!bytes.ok()) return 1;
+
+  mlclust::server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  auto server = mlclust::server::Server::Start(options);
+  if (!server.ok()) return 1;
+  std::printf("%s: %zu faces, Draco %zu bytes (encoded in %.3f s); GL: %s\n", argv[1],
+              mesh->num_faces(), bytes->size(), encode,
+              (*server)->gl_renderer().empty() ? "none" : (*server)->gl_renderer().c_str());
+
+  mlclust::v1::JobSpec spec;
+  spec.set_input_kind(mlclust::v1::INPUT_KIND_DRACO_MESH);
+  spec.set_algorithm(mlclust::v1::ALGORITHM_HC);
+  struct Route {
+    const char* name;
+    std::shared_ptr<grpc::Channel> channel;
+  } routes[] = {
+      {"embedded", (*server)->InProcessChannel()},
+      {"tcp", mlclust::client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()))},
+  };
+  for (const Route& route : routes) {
+    double best = 1e30, server_running = 0;
+    uint64_t triplets = 0;
+    for (int r = 0; r < repeats; ++r) {
+      const absl::Time start = absl::Now();
+      auto result = mlclust::client::RunJob(route.channel, spec, *bytes);
+      const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+      if (!result.ok()) {
+        std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+        return 1;
+      }
+      if (seconds < best) {
+        best = seconds;
+        server_running = result->done.seconds_running();
+        triplets = result->hierarchy.num_moves();
+      }
+    }
+    std::printf("%-8s end to end %.3f s (server side %.3f s), %llu triplets, %.1f M triplets/s "
+                "end to end; best of %d\n",
+                route.name, best, server_running, static_cast<unsigned long long>(triplets),
+                triplets / best / 1e6, repeats);
+  }
+  return 0;
+}
