@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# The CLI end to end: the embedded server and a separate `mlclust serve` give the same
+# levels; the labels' energy, recomputed from the mesh file alone, equals the reported
+# one; bad input gets a message and a non-zero exit while the server keeps serving.
+#   cli_test.sh MLCLUST_BINARY DATA_DIR
+set -euo pipefail
+mlclust=$1
+data=$2
+work=$(mktemp -d)
+server_pid=""
+cleanup() {
+  [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
+  rm -rf "$work"
+}
+trap cleanup EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+# Embedded.
+"$mlclust" mesh "$data/fandisk.off" --algo hc --clusters 100 --labels "$work/embedded.labels" \
+  --levels-csv "$work/embedded.csv" --ply "$work/embedded.ply" --quiet > "$work/embedded.out"
+[ "$(wc -l < "$work/embedded.labels")" -eq 12946 ] || fail "labels: not one line per face"
+[ "$(sort -un "$work/embedded.labels" | wc -l)" -eq 100 ] || fail "labels: not 100 clusters"
+[ "$(head -1 "$work/embedded.csv")" = "clusters,energy" ] || fail "csv header"
+[ "$(wc -l < "$work/embedded.csv")" -eq 12947 ] || fail "csv: not one row per level"
+reported=$(grep '^100,' "$work/embedded.csv" | cut -d, -f2)
+recomputed=$("$mlclust" energy "$data/fandisk.off" --labels "$work/embedded.labels")
+/usr/bin/env awk -v a="$reported" -v b="$recomputed" 'BEGIN {
+  d = a - b; if (d < 0) d = -d; exit !(d <= 1e-9 * b) }' \
+  || fail "reported energy $reported != recomputed $recomputed"
+head -c 3 "$work/embedded.ply" | grep -q ply || fail "ply header"
+
+# A separate server on a free port.
+port=$((20000 + RANDOM % 20000))
+"$mlclust" serve --listen "127.0.0.1:$port" 2> "$work/server.log" &
+server_pid=$!
+for _ in $(seq 100); do
+  grep -q "serving" "$work/server.log" 2>/dev/null && break
+  sleep 0.1
+done
+grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
+grep -q "GL" "$work/server.log" || fail "server did not log its GL renderer"
+
+"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --clusters 100 \
+  --labels "$work/remote.labels" --levels-csv "$work/remote.csv" --quiet > "$work/remote.out"
+cmp -s "$work/embedded.labels" "$work/remote.labels" || fail "remote labels differ from embedded"
+cmp -s "$work/embedded.csv" "$work/remote.csv" || fail "remote levels differ from embedded"
+
+# Bad input: a non-manifold edge (three faces on edge 0-1), as an OBJ file.
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n' > "$work/fin.obj"
+if "$mlclust" mesh "$work/fin.obj" --server "127.0.0.1:$port" --quiet 2> "$work/bad.err"; then
+  fail "a non-manifold mesh was accepted"
+fi
+grep -q "non-manifold edge" "$work/bad.err" || fail "no message for the bad mesh: $(cat "$work/bad.err")"
+# Random bytes as a .drc file.
+head -c 5000 /dev/urandom > "$work/garbage.drc"
+if "$mlclust" mesh "$work/garbage.drc" --server "127.0.0.1:$port" --quiet 2> "$work/garbage.err"; then
+  fail "random bytes were accepted"
+fi
+[ -s "$work/garbage.err" ] || fail "no message for random bytes"
+# The server is still up and serving.
+"$mlclust" mesh "$data/elephant.off" --server "127.0.0.1:$port" --clusters 10 --quiet \
+  > /dev/null || fail "the server stopped serving after bad input"
+"$mlclust" stats --server "127.0.0.1:$port" | grep -q "jobs_succeeded: 2" || fail "stats"
+# Unknown options and missing files get a message and exit 2 / non-zero.
+if "$mlclust" mesh "$data/fandisk.off" --bogus 1 2> "$work/opt.err"; then fail "--bogus accepted"; fi
+grep -q "unknown option --bogus" "$work/opt.err" || fail "no message for --bogus"
+if "$mlclust" mesh "$work/missing.off" --quiet 2> /dev/null; then fail "missing file accepted"; fi
+
+kill -TERM "$server_pid"
+wait "$server_pid" || fail "server exited with an error on SIGTERM"
+server_pid=""
+echo "cli_test: all checks passed"
