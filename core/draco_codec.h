@@ -19,7 +19,8 @@ struct DracoEncodeOptions {
   // Position quantization in bits; 0 keeps float32 positions exactly (the default, so
   // that energies computed on the server match the client's own mesh bit for bit).
   int position_quantization_bits = 0;
-  // Draco's speed/ratio trade-off, 0 (best compression) .. 10 (fastest).
+  // Draco's speed/ratio trade-off, 0 (best compression) .. 10 (fastest). Below 10 the
+  // face indices are delta and entropy coded; 10 sends them as raw 8/16/32-bit values.
   int speed = 5;
 };
 

@@ -24,6 +24,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "core/draco_codec.h"
@@ -547,6 +548,74 @@ PolygonPart PartFromAssimp(const aiMesh& mesh, const Affine& transform) {
   return part;
 }
 
+// Assimp 5.2's PLY reader loops forever on a header that ends early (a truncated file)
+// or holds a line or type it does not know, so the header is checked here first.
+// `head` is the start of the file; the header must end inside it.
+absl::Status CheckPlyHeader(absl::string_view head) {
+  static constexpr absl::string_view kTypes[] = {
+      "char", "uchar", "short", "ushort", "int",   "uint",   "float",   "double",
+      "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
+  auto is_type = [](absl::string_view t) {
+    return std::find(std::begin(kTypes), std::end(kTypes), t) != std::end(kTypes);
+  };
+  size_t position = 0;
+  int line_number = 0;
+  bool has_format = false;
+  while (position < head.size()) {
+    const size_t end = std::min(head.find('\n', position), head.size());
+    absl::string_view line = head.substr(position, end - position);
+    position = end + 1;
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    Tokens tokens(line);
+    std::vector<absl::string_view> words;
+    for (absl::string_view word; tokens.Next(&word);) words.push_back(word);
+    auto error = [line_number](auto&&... message) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("PLY header line ", line_number, ": ", message...));
+    };
+    if (line_number == 1) {
+      if (line != "ply") return error("the file does not start with 'ply'");
+      continue;
+    }
+    if (words.empty()) continue;
+    const absl::string_view keyword = words[0];
+    if (keyword == "end_header") {
+      if (!has_format) return error("no format line before end_header");
+      return absl::OkStatus();
+    }
+    if (keyword == "comment" || keyword == "obj_info") continue;
+    uint64_t count;
+    if (keyword == "format") {
+      if (words.size() != 3 || (words[1] != "ascii" && words[1] != "binary_little_endian" &&
+                                words[1] != "binary_big_endian")) {
+        return error("unknown format '", line, "'");
+      }
+      has_format = true;
+    } else if (keyword == "element") {
+      if (words.size() != 3 || !ParseUnsigned(words[2], &count)) {
+        return error("expected 'element NAME COUNT', found '", line, "'");
+      }
+    } else if (keyword == "property") {
+      const bool list =
+          words.size() == 5 && words[1] == "list" && is_type(words[2]) && is_type(words[3]);
+      if (!list && !(words.size() == 3 && is_type(words[1]))) {
+        return error("unknown property '", line, "'");
+      }
+    } else {
+      return error("unknown keyword '", keyword, "'");
+    }
+  }
+  return absl::InvalidArgumentError("the PLY header has no end_header line (truncated file?)");
+}
+
+// Headers are a few hundred bytes; this leaves room for any number of comments.
+constexpr size_t kMaxPlyHeaderBytes = 1 << 20;
+
+bool LooksLikePly(absl::string_view head) {
+  return absl::StartsWith(head, "ply\n") || absl::StartsWith(head, "ply\r\n");
+}
+
 absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path) {
   Assimp::Importer importer;
   // Bones without geometry would otherwise come back as generated "skeleton" meshes.
@@ -674,6 +743,13 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
       mesh = ReadDracoFile(path);
     } else if (extension == ".off" || LooksLikeOff(*head)) {
       mesh = ReadOffFile(path);
+    } else if (extension == ".ply" || LooksLikePly(*head)) {
+      absl::StatusOr<std::string> header = ReadFileBytes(path, kMaxPlyHeaderBytes);
+      if (!header.ok()) return header.status();
+      if (absl::Status status = CheckPlyHeader(*header); !status.ok()) {
+        return absl::InvalidArgumentError(absl::StrCat(path, ": ", status.message()));
+      }
+      mesh = ReadWithAssimp(path);
     } else {
       mesh = ReadWithAssimp(path);
     }

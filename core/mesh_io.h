@@ -37,8 +37,10 @@ namespace mlclust {
 // parsed or holds no triangles; the errno-derived code (e.g. PERMISSION_DENIED) if it
 // cannot be read. The result is not validated: call ValidateMesh.
 //
-// Trusted files only: the Debian build of Assimp keeps its internal assertions, which
-// abort the process on some malformed files. Decode untrusted bytes with DecodeDracoMesh.
+// Meant for the operator's own files. Assimp is not hardened against hostile input (the
+// Debian build keeps its internal assertions, which abort the process, and its PLY
+// reader loops forever on a truncated header unless, as here, the header is checked
+// first); bytes from the network go through DecodeDracoMesh.
 absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path);
 
 // Writes `mesh` as binary little-endian PLY with one colour per cluster: each face gets

@@ -615,6 +615,28 @@ TEST_F(MeshIoTest, PlyIndexOutOfRangeIsRefused) {
   EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("polygon 1 refers to vertex 9"));
 }
 
+TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
+  // Each of these made Assimp 5.2's PLY reader loop forever.
+  const BadOff cases[] = {
+      {"truncated", "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n",
+       "no end_header line"},
+      {"unknown_type", "ply\nformat ascii 1.0\nelement vertex 1\nproperty flaot x\nend_header\n0\n",
+       "PLY header line 4: unknown property 'property flaot x'"},
+      {"unknown_keyword", "ply\nformat ascii 1.0\nprop4rty float x\nend_header\n",
+       "unknown keyword 'prop4rty'"},
+      {"no_format", "ply\nelement vertex 0\nend_header\n", "no format line"},
+      {"bad_element", "ply\nformat ascii 1.0\nelement vertex many\nend_header\n",
+       "expected 'element NAME COUNT'"},
+  };
+  for (const BadOff& bad : cases) {
+    const std::string path = Write(absl::StrCat(bad.name, ".ply"), bad.text);
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+    EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
+  }
+}
+
 // ---------------------------------------------------------------------------------------
 // Clustered PLY output and colours.
 
