@@ -46,14 +46,7 @@ absl::Status CheckIndices(const TriangleMesh& mesh) {
                                                    " vertices, ", mesh.num_faces(),
                                                    " faces (limit ", kMaxMeshElements, ")"));
   }
-  const size_t num_vertices = mesh.num_vertices();
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    if (mesh.indices[i] >= num_vertices) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("face ", i / 3, " corner ", i % 3, " refers to vertex ", mesh.indices[i],
-                       ", but the mesh has ", num_vertices, " vertices"));
-    }
-  }
+  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   return absl::OkStatus();
 }
 

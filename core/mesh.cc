@@ -69,24 +69,24 @@ absl::Status CheckVertexManifold(const TriangleMesh& mesh, const VertexFaces& ta
   if (reached == degree) return absl::OkStatus();
   std::vector<uint32_t> fan, other;
   for (size_t k = 0; k < degree; ++k) (component[k] ? fan : other).push_back(first[k]);
-  return absl::InvalidArgumentError(absl::StrCat(
-      "non-manifold vertex ", vertex, ": its faces form more than one fan (faces ",
-      absl::StrJoin(fan, ", "), " are not edge-connected around it to faces ",
-      absl::StrJoin(other, ", "), ")"));
+  return absl::InvalidArgumentError(
+      absl::StrCat("non-manifold vertex ", vertex, ": its faces form more than one fan (faces ",
+                   absl::StrJoin(fan, ", "), " are not edge-connected around it to faces ",
+                   absl::StrJoin(other, ", "), ")"));
 }
 
 absl::StatusOr<FaceAdjacency> BuildFaceAdjacencyFrom(const TriangleMesh& mesh,
                                                      const VertexFaces& table) {
   FaceAdjacency adjacency;
   const size_t num_faces = mesh.num_faces();
-  adjacency.neighbours.assign(num_faces, {FaceId::Invalid(), FaceId::Invalid(),
-                                          FaceId::Invalid()});
+  adjacency.neighbours.assign(num_faces, {FaceId::Invalid(), FaceId::Invalid(), FaceId::Invalid()});
   for (uint32_t face = 0; face < num_faces; ++face) {
     for (int edge = 0; edge < 3; ++edge) {
       const uint32_t a = mesh.indices[3 * size_t{face} + edge];
       const uint32_t b = mesh.indices[3 * size_t{face} + (edge + 1) % 3];
       // Scan the faces around the endpoint with fewer faces for others holding both ends.
-      const uint32_t pivot = (table.end(a) - table.begin(a)) <= (table.end(b) - table.begin(b)) ? a : b;
+      const uint32_t pivot =
+          (table.end(a) - table.begin(a)) <= (table.end(b) - table.begin(b)) ? a : b;
       const uint32_t other_end = pivot == a ? b : a;
       uint32_t found = FaceId::kInvalidValue;
       for (const uint32_t* it = table.begin(pivot); it != table.end(pivot); ++it) {
@@ -110,10 +110,22 @@ absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh) {
   return BuildFaceAdjacencyFrom(mesh, BuildVertexFaces(mesh));
 }
 
+absl::Status CheckVertexIndices(const TriangleMesh& mesh) {
+  const size_t num_vertices = mesh.num_vertices();
+  for (size_t i = 0; i < mesh.indices.size(); ++i) {
+    if (mesh.indices[i] >= num_vertices) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("face ", i / 3, " corner ", i % 3, ": vertex index ", mesh.indices[i],
+                       " is out of range (the mesh has ", num_vertices, " vertices)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::Status ValidateMesh(const TriangleMesh& mesh) {
   if (mesh.positions.size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "positions hold ", mesh.positions.size(), " floats, not a multiple of 3"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("positions hold ", mesh.positions.size(), " floats, not a multiple of 3"));
   }
   if (mesh.indices.size() % 3 != 0) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -121,24 +133,17 @@ absl::Status ValidateMesh(const TriangleMesh& mesh) {
   }
   if (mesh.num_faces() == 0) return absl::InvalidArgumentError("empty mesh: it has no faces");
   if (mesh.num_faces() > kMaxMeshElements || mesh.num_vertices() > kMaxMeshElements) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "mesh too large: ", mesh.num_faces(), " faces and ", mesh.num_vertices(),
-        " vertices; at most ", kMaxMeshElements, " of each"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("mesh too large: ", mesh.num_faces(), " faces and ", mesh.num_vertices(),
+                     " vertices; at most ", kMaxMeshElements, " of each"));
   }
   const size_t num_vertices = mesh.num_vertices();
+  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   for (size_t face = 0; face < mesh.num_faces(); ++face) {
     const uint32_t* f = &mesh.indices[3 * face];
-    for (int corner = 0; corner < 3; ++corner) {
-      if (f[corner] >= num_vertices) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            "face ", face, " corner ", corner, ": vertex index ", f[corner],
-            " is out of range (the mesh has ", num_vertices, " vertices)"));
-      }
-    }
     if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
-      return absl::InvalidArgumentError(absl::StrCat("degenerate face ", face, ": vertices (",
-                                                     f[0], ", ", f[1], ", ", f[2],
-                                                     ") repeat an index"));
+      return absl::InvalidArgumentError(absl::StrCat("degenerate face ", face, ": vertices (", f[0],
+                                                     ", ", f[1], ", ", f[2], ") repeat an index"));
     }
   }
   for (size_t v = 0; v < num_vertices; ++v) {

@@ -47,6 +47,11 @@ inline constexpr size_t kMaxMeshElements = (size_t{1} << 31) - 1;
 // Zero-area faces with three distinct vertices and unreferenced vertices are accepted.
 absl::Status ValidateMesh(const TriangleMesh& mesh);
 
+// The range check alone: OK, or INVALID_ARGUMENT naming the first face corner whose
+// vertex index is not below num_vertices(). Part of ValidateMesh; for writers and encoders
+// that must not index out of bounds but accept what ValidateMesh would refuse.
+absl::Status CheckVertexIndices(const TriangleMesh& mesh);
+
 // For each face, the face across each of its three edges; edge i runs from corner i to
 // corner (i + 1) % 3. FaceId::Invalid() across a boundary edge.
 struct FaceAdjacency {

@@ -772,14 +772,7 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
     return absl::InvalidArgumentError(absl::StrCat("got ", labels.size(), " labels for ", num_faces,
                                                    " faces; one per face is needed"));
   }
-  const size_t num_vertices = mesh.num_vertices();
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    if (mesh.indices[i] >= num_vertices) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("face ", i / 3, " corner ", i % 3, " refers to vertex ", mesh.indices[i],
-                       ", but the mesh has ", num_vertices, " vertices"));
-    }
-  }
+  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   if (mesh.indices.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
     return absl::InvalidArgumentError("too many faces for PLY's int vertex indices");
   }
@@ -787,7 +780,7 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
   // One output vertex per (vertex, cluster) pair, numbered in order of first use, so that
   // a vertex on a cluster boundary carries each cluster's colour on its own copy.
   absl::flat_hash_map<uint64_t, uint32_t> split_vertex;
-  split_vertex.reserve(num_vertices + num_vertices / 4);
+  split_vertex.reserve(mesh.num_vertices() + mesh.num_vertices() / 4);
   std::vector<uint32_t> source_vertex;
   std::vector<uint32_t> split_indices(mesh.indices.size());
   for (size_t i = 0; i < mesh.indices.size(); ++i) {
