@@ -63,21 +63,23 @@ int main(int argc, char** argv) {
   size_t log_bytes = 0;
   for (int r = 0; r < repeats; ++r) {
     CountingSink counting;
-    best_count = std::min(best_count, Seconds([&] {
-      auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, counting);
-      if (!s.ok()) std::abort();
-    }));
+    best_count =
+        std::min(best_count, Seconds([&] {
+                   auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, counting);
+                   if (!s.ok()) std::abort();
+                 }));
     moves = counting.moves;
     mlclust::HierarchyLog log;
     best_log = std::min(best_log, Seconds([&] {
-      auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, log);
-      if (!s.ok()) std::abort();
-    }));
+                          auto s =
+                              mlclust::RunHierarchicalClustering(measures, *adjacency, {}, log);
+                          if (!s.ok()) std::abort();
+                        }));
     log_bytes = log.num_moves() * 12 + log.num_levels() * 20;
   }
-  std::printf("HC full hierarchy: %.3f s (levels counted only), %.3f s (into a HierarchyLog, "
-              "~%.1f MB); %llu triplets; best of %d\n",
-              best_count, best_log, log_bytes / 1e6, static_cast<unsigned long long>(moves),
-              repeats);
+  std::printf(
+      "HC full hierarchy: %.3f s (levels counted only), %.3f s (into a HierarchyLog, "
+      "~%.1f MB); %llu triplets; best of %d\n",
+      best_count, best_log, log_bytes / 1e6, static_cast<unsigned long long>(moves), repeats);
   return 0;
 }

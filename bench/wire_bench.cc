@@ -66,10 +66,12 @@ int main(int argc, char** argv) {
   };
   double no_wire = 1e30;
   uint64_t no_wire_triplets = 0;
-  for (int r = 0; r < repeats; ++r) no_wire = std::min(no_wire, NoWireSeconds(*bytes, &no_wire_triplets));
-  std::printf("%-8s decode + validate + HC into a HierarchyLog in one process: %.3f s, %llu "
-              "triplets; best of %d\n",
-              "no wire", no_wire, static_cast<unsigned long long>(no_wire_triplets), repeats);
+  for (int r = 0; r < repeats; ++r)
+    no_wire = std::min(no_wire, NoWireSeconds(*bytes, &no_wire_triplets));
+  std::printf(
+      "%-8s decode + validate + HC into a HierarchyLog in one process: %.3f s, %llu "
+      "triplets; best of %d\n",
+      "no wire", no_wire, static_cast<unsigned long long>(no_wire_triplets), repeats);
   for (const Route& route : routes) {
     double best = 1e30, server_running = 0;
     uint64_t triplets = 0;
@@ -89,10 +91,11 @@ int main(int argc, char** argv) {
     }
     // Levels stream while HC runs, so the wire's cost is what end to end adds beyond the
     // same work in one process.
-    std::printf("%-8s end to end %.3f s (server side %.3f s), %llu triplets = %.2f M "
-                "triplets/s end to end; the wire adds %+.3f s; best of %d\n",
-                route.name, best, server_running, static_cast<unsigned long long>(triplets),
-                triplets / best / 1e6, best - no_wire, repeats);
+    std::printf(
+        "%-8s end to end %.3f s (server side %.3f s), %llu triplets = %.2f M "
+        "triplets/s end to end; the wire adds %+.3f s; best of %d\n",
+        route.name, best, server_running, static_cast<unsigned long long>(triplets),
+        triplets / best / 1e6, best - no_wire, repeats);
   }
   return 0;
 }

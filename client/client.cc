@@ -9,8 +9,7 @@ namespace mlclust::client {
 namespace {
 
 absl::Status FromGrpc(const grpc::Status& status) {
-  return absl::Status(static_cast<absl::StatusCode>(status.error_code()),
-                      status.error_message());
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
 }
 
 // Assembles the events of one job into a HierarchyLog, checking that the stream is

@@ -123,10 +123,14 @@ int Serve(const Arguments& args) {
   options.queue_capacity = *queue;
   options.max_input_bytes = *max_mb << 20;
   const std::string gpu = args.get("gpu", "auto");
-  if (gpu == "auto") options.gpu = server::GpuMode::kAuto;
-  else if (gpu == "on") options.gpu = server::GpuMode::kOn;
-  else if (gpu == "off") options.gpu = server::GpuMode::kOff;
-  else return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
+  if (gpu == "auto")
+    options.gpu = server::GpuMode::kAuto;
+  else if (gpu == "on")
+    options.gpu = server::GpuMode::kOn;
+  else if (gpu == "off")
+    options.gpu = server::GpuMode::kOff;
+  else
+    return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
 
   absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
   if (!server.ok()) return Fail(server.status());
@@ -172,14 +176,14 @@ absl::StatusOr<std::vector<ClusterId>> ReadLabels(const std::string& path, size_
     if (line.empty()) continue;
     uint32_t value;
     if (!absl::SimpleAtoi(line, &value)) {
-      return absl::InvalidArgumentError(absl::StrCat(path, " line ", labels.size() + 1, ": '",
-                                                     line, "' is not a cluster id"));
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, " line ", labels.size() + 1, ": '", line, "' is not a cluster id"));
     }
     labels.push_back(ClusterId(value));
   }
   if (labels.size() != expected) {
-    return absl::InvalidArgumentError(absl::StrCat(path, " has ", labels.size(),
-                                                   " labels; the mesh has ", expected, " faces"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, " has ", labels.size(), " labels; the mesh has ", expected, " faces"));
   }
   return labels;
 }
@@ -205,8 +209,7 @@ class ProgressLine {
     if (now - last_ < absl::Milliseconds(100) && !event.final()) return;
     last_ = now;
     if (levels_ > 0) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %u levels received, %u clusters", levels_,
-                   clusters_);
+      std::fprintf(stderr, "\r\033[Kmlclust: %u levels received, %u clusters", levels_, clusters_);
     } else {
       std::fprintf(stderr, "\r\033[Kmlclust: %s", stage_.c_str());
     }
@@ -279,9 +282,8 @@ int Mesh(const Arguments& args) {
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != mesh->num_faces()) {
-    return Fail(absl::DataLossError(absl::StrCat("the server sent labels for ",
-                                                 log.num_elements(), " faces; the mesh has ",
-                                                 mesh->num_faces())));
+    return Fail(absl::DataLossError(absl::StrCat("the server sent labels for ", log.num_elements(),
+                                                 " faces; the mesh has ", mesh->num_faces())));
   }
 
   if (args.has("levels-csv")) {
@@ -293,8 +295,7 @@ int Mesh(const Arguments& args) {
     if (!level.has_value()) {
       return Fail(absl::NotFoundError(absl::StrCat("no level has ", *clusters,
                                                    " clusters or fewer (the last has ",
-                                                   log.cluster_count(log.num_levels() - 1),
-                                                   ")")));
+                                                   log.cluster_count(log.num_levels() - 1), ")")));
     }
     absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
     if (!labels.ok()) return Fail(labels.status());
@@ -343,8 +344,8 @@ int Stats(const Arguments& args) {
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
-    return Fail(absl::Status(static_cast<absl::StatusCode>(status.error_code()),
-                             status.error_message()));
+    return Fail(
+        absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()));
   }
   std::printf("%s", stats.DebugString().c_str());
   return 0;
@@ -363,8 +364,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> known;
   if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
   if (command == "mesh") {
-    known = {"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply", "device",
-             "quiet"};
+    known = {"server",     "algo", "energy", "clusters", "labels",
+             "levels-csv", "ply",  "device", "quiet"};
   }
   if (command == "energy") known = {"labels", "energy"};
   if (command == "stats") known = {"server"};

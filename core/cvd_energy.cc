@@ -13,8 +13,8 @@ CvdSums CvdFaceSums(double area, const Vec3& centroid, const Vec3& origin) {
 
 double CvdEnergy(const CvdSums& sums) {
   if (sums.area <= 0) return 0;
-  return std::max(0.0, sums.weighted_squared_norm -
-                           SquaredNorm(sums.weighted_centroid) / sums.area);
+  return std::max(0.0,
+                  sums.weighted_squared_norm - SquaredNorm(sums.weighted_centroid) / sums.area);
 }
 
 double CvdMergeCost(const CvdSums& a, const CvdSums& b) {

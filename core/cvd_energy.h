@@ -17,9 +17,9 @@
 namespace mlclust {
 
 struct CvdSums {
-  double area = 0;                  // sum A_j
-  Vec3 weighted_centroid;           // sum A_j g_j
-  double weighted_squared_norm = 0; // sum A_j |g_j|^2
+  double area = 0;                   // sum A_j
+  Vec3 weighted_centroid;            // sum A_j g_j
+  double weighted_squared_norm = 0;  // sum A_j |g_j|^2
 
   CvdSums& operator+=(const CvdSums& o) {
     area += o.area;

@@ -10,9 +10,9 @@
 namespace mlclust {
 
 struct FaceMeasures {
-  std::vector<double> area;      // triangle area A_j
-  std::vector<Vec3> centroid;    // triangle centroid g_j (mean of its three corners)
-  std::vector<Vec3> unit_normal; // n_j, counter-clockwise orientation; zero if A_j == 0
+  std::vector<double> area;       // triangle area A_j
+  std::vector<Vec3> centroid;     // triangle centroid g_j (mean of its three corners)
+  std::vector<Vec3> unit_normal;  // n_j, counter-clockwise orientation; zero if A_j == 0
 
   size_t num_faces() const { return area.size(); }
 };

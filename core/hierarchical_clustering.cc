@@ -65,8 +65,8 @@ absl::StatusOr<HierarchicalClusteringSummary> RunHierarchicalClustering(
     const HierarchicalClusteringOptions& options, LevelSink& sink) {
   const size_t n = measures.num_faces();
   if (adjacency.num_faces() != n) {
-    return absl::InvalidArgumentError(absl::StrCat("adjacency has ", adjacency.num_faces(),
-                                                   " faces, the measures ", n));
+    return absl::InvalidArgumentError(
+        absl::StrCat("adjacency has ", adjacency.num_faces(), " faces, the measures ", n));
   }
   if (options.min_clusters < 1) {
     return absl::InvalidArgumentError("min_clusters must be at least 1");

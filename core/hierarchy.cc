@@ -24,8 +24,7 @@ absl::Status HierarchyLog::OnLevel(const LevelMoves& level) {
   if (level.to_cluster.size() != count || level.from_cluster.size() != count) {
     return absl::InvalidArgumentError(absl::StrCat(
         "level ", num_levels(), ": triplet arrays differ in length (", count, " elements, ",
-        level.to_cluster.size(), " new clusters, ", level.from_cluster.size(),
-        " old clusters)"));
+        level.to_cluster.size(), " new clusters, ", level.from_cluster.size(), " old clusters)"));
   }
   // Stamp elements with a per-call number to find repeats without clearing the scratch
   // (a per-call stamp, not the level number, so that a refused level leaves no trace).
@@ -76,9 +75,8 @@ absl::Status HierarchyLog::StepLabels(std::vector<ClusterId>& labels, size_t fro
                                               " levels)"));
   }
   if (labels.size() != start_labels_.size()) {
-    return absl::InvalidArgumentError(absl::StrCat("labels hold ", labels.size(),
-                                                   " elements, the hierarchy ",
-                                                   start_labels_.size()));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "labels hold ", labels.size(), " elements, the hierarchy ", start_labels_.size()));
   }
   auto apply = [&](size_t l, bool forward) -> absl::Status {
     const size_t begin = level_end_[l - 1], end = level_end_[l];

@@ -45,8 +45,8 @@ class HierarchyLog : public LevelSink {
   absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
                        double energy) override;
 
-  // Appends a level. FAILED_PRECONDITION before OnStart; INVALID_ARGUMENT if the three spans differ in length, an element is
-  // out of range, or an element appears twice in the level.
+  // Appends a level. FAILED_PRECONDITION before OnStart; INVALID_ARGUMENT if the three spans differ
+  // in length, an element is out of range, or an element appears twice in the level.
   absl::Status OnLevel(const LevelMoves& level) override;
 
   size_t num_elements() const { return start_labels_.size(); }
@@ -62,8 +62,7 @@ class HierarchyLog : public LevelSink {
   // Steps `labels`, currently at `from_level`, to `to_level` (either direction) in
   // O(moves in between). DATA_LOSS if a triplet does not match the labels it is applied
   // to (the labels were not at `from_level`); OUT_OF_RANGE for a level past the end.
-  absl::Status StepLabels(std::vector<ClusterId>& labels, size_t from_level,
-                          size_t to_level) const;
+  absl::Status StepLabels(std::vector<ClusterId>& labels, size_t from_level, size_t to_level) const;
 
   // The labels at `level`, rebuilt from level 0.
   absl::StatusOr<std::vector<ClusterId>> LabelsAt(size_t level) const;

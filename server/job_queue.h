@@ -32,8 +32,8 @@ class BoundedJobQueue {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopped_) return absl::FailedPreconditionError("the server is shutting down");
     if (jobs_.size() >= capacity_) {
-      return absl::ResourceExhaustedError(absl::StrCat(
-          "the job queue is full (", capacity_, " jobs waiting); try again later"));
+      return absl::ResourceExhaustedError(
+          absl::StrCat("the job queue is full (", capacity_, " jobs waiting); try again later"));
     }
     const size_t ahead = jobs_.size();
     on_queued(ahead);

@@ -150,9 +150,9 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
     case v1::ALGORITHM_HC:
       break;
     default:
-      return absl::UnimplementedError(absl::StrCat(
-          "algorithm ", v1::Algorithm_Name(spec.algorithm()),
-          " is not available on this server yet (available: ALGORITHM_HC)"));
+      return absl::UnimplementedError(
+          absl::StrCat("algorithm ", v1::Algorithm_Name(spec.algorithm()),
+                       " is not available on this server yet (available: ALGORITHM_HC)"));
   }
   if (spec.energy() != v1::ENERGY_UNSPECIFIED && spec.energy() != v1::ENERGY_CVD) {
     return absl::UnimplementedError(absl::StrCat("energy ", v1::Energy_Name(spec.energy()),
@@ -160,8 +160,9 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
                                                  "(available: ENERGY_CVD)"));
   }
   if (spec.levels_high() != 0 || spec.levels_low() != 0) {
-    return absl::UnimplementedError("level ranges (levels_high, levels_low) are not supported "
-                                    "by this server yet");
+    return absl::UnimplementedError(
+        "level ranges (levels_high, levels_low) are not supported "
+        "by this server yet");
   }
 
   EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"));
@@ -173,9 +174,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   }
   const size_t num_faces = mesh->num_faces();
   if (spec.clusters() > num_faces) {
-    return absl::InvalidArgumentError(absl::StrCat("clusters: ", spec.clusters(),
-                                                   " is more than the mesh's ", num_faces,
-                                                   " faces"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "clusters: ", spec.clusters(), " is more than the mesh's ", num_faces, " faces"));
   }
   EmitProgress(events, "measures",
                absl::StrCat(num_faces, " faces, ", mesh->num_vertices(), " vertices"));
@@ -186,8 +186,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   if (!measures.ok()) return measures.status();
 
   EmitProgress(events, "cluster", "hierarchical clustering (CVD)");
-  StreamingLevelSink sink(events, spec.batch_triplets() != 0 ? spec.batch_triplets()
-                                                              : context.default_batch_triplets);
+  StreamingLevelSink sink(
+      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets);
   HierarchicalClusteringOptions options;
   options.min_clusters = std::max<uint32_t>(1, spec.clusters());
   absl::StatusOr<HierarchicalClusteringSummary> summary =

@@ -14,9 +14,9 @@ namespace mlclust::server {
 template <typename... Args>
 void LogLine(bool enabled, const Args&... args) {
   if (!enabled) return;
-  const std::string line = absl::StrCat(
-      absl::FormatTime("%Y-%m-%dT%H:%M:%E3SZ", absl::Now(), absl::UTCTimeZone()),
-      " mlclust: ", args..., "\n");
+  const std::string line =
+      absl::StrCat(absl::FormatTime("%Y-%m-%dT%H:%M:%E3SZ", absl::Now(), absl::UTCTimeZone()),
+                   " mlclust: ", args..., "\n");
   std::fputs(line.c_str(), stderr);
 }
 

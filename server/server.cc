@@ -32,8 +32,7 @@ constexpr int kMaxReceiveMessageBytes = 64 << 20;
 constexpr size_t kMaxBacklogBytes = size_t{64} << 20;
 
 grpc::Status ToGrpc(const absl::Status& status) {
-  return grpc::Status(static_cast<grpc::StatusCode>(status.code()),
-                      std::string(status.message()));
+  return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
 }
 
 v1::JobEvent FailedEvent(const grpc::Status& status) {
@@ -154,16 +153,14 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     }
     if (spec.input_bytes() == 0) return absl::InvalidArgumentError("spec.input_bytes is 0");
     if (spec.input_bytes() > options_.max_input_bytes) {
-      return absl::ResourceExhaustedError(absl::StrCat(
-          "input of ", spec.input_bytes(), " bytes is over this server's limit of ",
-          options_.max_input_bytes, " bytes"));
+      return absl::ResourceExhaustedError(absl::StrCat("input of ", spec.input_bytes(),
+                                                       " bytes is over this server's limit of ",
+                                                       options_.max_input_bytes, " bytes"));
     }
     return absl::OkStatus();
   }
 
-  std::string NextJobId() {
-    return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1);
-  }
+  std::string NextJobId() { return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1); }
 
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
@@ -186,9 +183,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
 
 bool CallChannel::Emit(v1::JobEvent event) {
   std::unique_lock<std::mutex> lock(mutex_);
-  backlog_space_.wait(lock, [&] {
-    return outbox_bytes_ < kMaxBacklogBytes || cancelled() || finished_;
-  });
+  backlog_space_.wait(lock,
+                      [&] { return outbox_bytes_ < kMaxBacklogBytes || cancelled() || finished_; });
   if (cancelled() || finished_ || finish_requested_) return false;
   outbox_bytes_ += event.ByteSizeLong();
   outbox_.push_back(std::move(event));
@@ -270,8 +266,8 @@ void RunCall::OnReadDone(bool ok) {
     if (!have_spec_) {
       Fail(absl::InvalidArgumentError("the call ended before a job spec was sent"));
     } else {
-      Fail(absl::InvalidArgumentError(absl::StrCat("the input ended after ", input_.size(),
-                                                   " of ", spec_.input_bytes(), " bytes")));
+      Fail(absl::InvalidArgumentError(absl::StrCat("the input ended after ", input_.size(), " of ",
+                                                   spec_.input_bytes(), " bytes")));
     }
     return;
   }
@@ -294,8 +290,8 @@ void RunCall::OnReadDone(bool ok) {
   }
   const std::string& chunk = request_.chunk();
   if (input_.size() + chunk.size() > spec_.input_bytes()) {
-    Fail(absl::InvalidArgumentError(absl::StrCat("more input than spec.input_bytes = ",
-                                                 spec_.input_bytes())));
+    Fail(absl::InvalidArgumentError(
+        absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
     return;
   }
   input_.append(chunk);
@@ -318,14 +314,13 @@ void RunCall::Submit() {
   job_ = job;
   // The Accepted event is queued while the queue's lock is held, so it is always the
   // first event even if the worker picks the job up at once.
-  absl::StatusOr<size_t> ahead =
-      service_->queue().Push(std::move(job), [&](size_t jobs_ahead) {
-        v1::JobEvent event;
-        event.mutable_accepted()->set_job_id(id);
-        event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
-        event.mutable_accepted()->set_input_bytes(bytes);
-        channel_->Emit(std::move(event));
-      });
+  absl::StatusOr<size_t> ahead = service_->queue().Push(std::move(job), [&](size_t jobs_ahead) {
+    v1::JobEvent event;
+    event.mutable_accepted()->set_job_id(id);
+    event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
+    event.mutable_accepted()->set_input_bytes(bytes);
+    channel_->Emit(std::move(event));
+  });
   if (!ahead.ok()) {
     ++service_->counters().rejected;
     LogLine(service_->options().log, id, " refused: ", ahead.status().message());
@@ -368,8 +363,7 @@ class ServerImpl {
     grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     if (!options.listen_address.empty()) {
-      builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(),
-                               &port_);
+      builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(), &port_);
     }
     builder.RegisterService(&service_);
     builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
@@ -381,12 +375,12 @@ class ServerImpl {
           absl::StrCat("cannot listen on '", options.listen_address, "'"));
     }
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
-    LogLine(options.log, "serving ", kServiceName,
-            options.listen_address.empty() ? std::string(" in-process")
-                                           : absl::StrCat(" on port ", port_),
-            "; queue capacity ", options.queue_capacity, "; GL: ",
-            gl_renderer_.empty() ? absl::StrCat("none (", gl_unavailable_reason_, ")")
-                                 : gl_renderer_);
+    LogLine(
+        options.log, "serving ", kServiceName,
+        options.listen_address.empty() ? std::string(" in-process")
+                                       : absl::StrCat(" on port ", port_),
+        "; queue capacity ", options.queue_capacity, "; GL: ",
+        gl_renderer_.empty() ? absl::StrCat("none (", gl_unavailable_reason_, ")") : gl_renderer_);
     return absl::OkStatus();
   }
 
@@ -450,9 +444,8 @@ class ServerImpl {
     gl_unavailable_reason_ = "built without MLCLUST_WITH_GPU";
 #endif
     if (options.gpu == GpuMode::kOn && gl_renderer_.empty()) {
-      started.set_value(absl::UnavailableError(
-          absl::StrCat("a GPU was required but no GL context could be created: ",
-                       gl_unavailable_reason_)));
+      started.set_value(absl::UnavailableError(absl::StrCat(
+          "a GPU was required but no GL context could be created: ", gl_unavailable_reason_)));
       return;
     }
     started.set_value(absl::OkStatus());
@@ -476,8 +469,7 @@ class ServerImpl {
         ++counters.succeeded;  // before Finish, so a client that saw Done sees it counted
         job->events->Finish(std::move(event), grpc::Status::OK);
         LogLine(options.log, job->id, " done in ", absl::FormatDuration(ended_at - started_at),
-                ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(),
-                " triplets");
+                ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(), " triplets");
       } else {
         const grpc::Status status = ToGrpc(outcome.status());
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled

@@ -79,8 +79,7 @@ TEST(CvdEnergyTest, SingleFaceAndZeroAreaClustersHaveNoEnergy) {
   EXPECT_EQ(CvdEnergy(empty), 0);
   EXPECT_EQ(CvdMergeCost(face, empty), 0);
   // Two unit-area faces two apart: cost = (1 * 1 / 2) * 4 = 2.
-  EXPECT_DOUBLE_EQ(CvdMergeCost(CvdFaceSums(1, {0, 0, 0}, {}), CvdFaceSums(1, {2, 0, 0}, {})),
-                   2.0);
+  EXPECT_DOUBLE_EQ(CvdMergeCost(CvdFaceSums(1, {0, 0, 0}, {}), CvdFaceSums(1, {2, 0, 0}, {})), 2.0);
 }
 
 }  // namespace

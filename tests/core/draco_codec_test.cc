@@ -222,8 +222,9 @@ TEST(DracoCodecTest, EncoderRefusesBadOptionsAndIndices) {
 
   TriangleMesh broken = Tetrahedron();
   broken.indices[7] = 4;
-  EXPECT_THAT(Message(EncodeMeshToDraco(broken).status()),
-              HasSubstr("face 2 corner 1: vertex index 4 is out of range (the mesh has 4 vertices)"));
+  EXPECT_THAT(
+      Message(EncodeMeshToDraco(broken).status()),
+      HasSubstr("face 2 corner 1: vertex index 4 is out of range (the mesh has 4 vertices)"));
   broken = Tetrahedron();
   broken.indices.pop_back();
   EXPECT_EQ(EncodeMeshToDraco(broken).status().code(), absl::StatusCode::kInvalidArgument);

@@ -27,9 +27,10 @@ TEST(HierarchyLogTest, NonNestedMovesRebuildForwardsAndBackwards) {
   HierarchyLog log;
   const std::vector<ClusterId> start = {ClusterId(0), ClusterId(1), ClusterId(2), ClusterId(3)};
   ASSERT_TRUE(log.OnStart(start, 4, 0.0).ok());
-  ASSERT_TRUE(AddLevel(log, 3, 1.0, {1}, {0}, {1}).ok());        // {0,1} {2} {3}
-  ASSERT_TRUE(AddLevel(log, 2, 2.0, {3}, {2}, {3}).ok());        // {0,1} {2,3}
-  ASSERT_TRUE(AddLevel(log, 2, 1.5, {1, 2}, {2, 0}, {0, 2}).ok());  // 1 leaves, 2 joins: {0,2} {1,3}
+  ASSERT_TRUE(AddLevel(log, 3, 1.0, {1}, {0}, {1}).ok());  // {0,1} {2} {3}
+  ASSERT_TRUE(AddLevel(log, 2, 2.0, {3}, {2}, {3}).ok());  // {0,1} {2,3}
+  ASSERT_TRUE(
+      AddLevel(log, 2, 1.5, {1, 2}, {2, 0}, {0, 2}).ok());  // 1 leaves, 2 joins: {0,2} {1,3}
   ASSERT_EQ(log.num_levels(), 4u);
   EXPECT_EQ(log.num_moves(), 4u);
 
@@ -52,7 +53,7 @@ TEST(HierarchyLogTest, StepFromTheWrongLevelIsDataLoss) {
   ASSERT_TRUE(log.OnStart(std::vector<ClusterId>{ClusterId(0), ClusterId(1)}, 2, 0).ok());
   ASSERT_TRUE(AddLevel(log, 1, 1, {1}, {0}, {1}).ok());
   std::vector<ClusterId> labels = {ClusterId(0), ClusterId(1)};  // level 0
-  absl::Status status = log.StepLabels(labels, 1, 0);               // claims level 1
+  absl::Status status = log.StepLabels(labels, 1, 0);            // claims level 1
   EXPECT_EQ(status.code(), absl::StatusCode::kDataLoss);
   EXPECT_EQ(log.StepLabels(labels, 0, 5).code(), absl::StatusCode::kOutOfRange);
 }

@@ -719,7 +719,8 @@ TEST_F(MeshIoTest, ClusteredPlyRefusesWrongLabelCountAndBadIndices) {
   std::vector<ClusterId> four(4, ClusterId(0));
   status = WriteClusteredPly(Path("b.ply"), broken, four);
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(std::string(status.message()), HasSubstr("face 1 corner 2: vertex index 9 is out of range"));
+  EXPECT_THAT(std::string(status.message()),
+              HasSubstr("face 1 corner 2: vertex index 9 is out of range"));
 
   status = WriteClusteredPly(Path("no/such/folder/c.ply"), mesh, four);
   EXPECT_FALSE(status.ok());

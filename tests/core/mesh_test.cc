@@ -11,9 +11,9 @@
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
 using testing::BowTie;
 using testing::Grid;
+using ::testing::HasSubstr;
 using testing::MakeMesh;
 using testing::Tetrahedron;
 using testing::TwoTriangles;
@@ -119,8 +119,8 @@ TEST(ValidateMeshTest, RejectsNonFiniteCoordinateNamingTheVertex) {
 
 TEST(ValidateMeshTest, RejectsNonManifoldEdgeNamingTheThreeFaces) {
   // Three triangles on the edge (0, 1): a fin.
-  TriangleMesh mesh = MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1},
-                               {0, 1, 2, 1, 0, 3, 0, 1, 4});
+  TriangleMesh mesh =
+      MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1}, {0, 1, 2, 1, 0, 3, 0, 1, 4});
   absl::Status status = ValidateMesh(mesh);
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(status.message(), HasSubstr("non-manifold edge between vertices 0 and 1"));

@@ -17,8 +17,7 @@ inline TriangleMesh MakeMesh(std::vector<float> positions, std::vector<uint32_t>
 
 // A closed tetrahedron, outward counter-clockwise faces.
 inline TriangleMesh Tetrahedron() {
-  return MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1},
-                  {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2});
+  return MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}, {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2});
 }
 
 // Two triangles sharing the edge (1, 2): a unit square.

@@ -141,8 +141,8 @@ TEST_F(ServerTest, ShuffledFacesKeepTheirIds) {
   absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(shuffled);
   ASSERT_TRUE(adjacency.ok());
   const auto& around = adjacency->neighbours[first.element[0]];
-  EXPECT_TRUE(around[0] == FaceId(first.to_cluster[0]) || around[1] == FaceId(first.to_cluster[0]) ||
-              around[2] == FaceId(first.to_cluster[0]));
+  EXPECT_TRUE(around[0] == FaceId(first.to_cluster[0]) ||
+              around[1] == FaceId(first.to_cluster[0]) || around[2] == FaceId(first.to_cluster[0]));
 }
 
 TEST_F(ServerTest, BadMeshesAreRefusedWithAMessageAndTheServerKeepsServing) {
@@ -155,7 +155,8 @@ TEST_F(ServerTest, BadMeshesAreRefusedWithAMessageAndTheServerKeepsServing) {
   with_nan.positions[4] = std::numeric_limits<float>::quiet_NaN();
   std::vector<Case> cases = {
       {"non-manifold edge",
-       testing::MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1}, {0, 1, 2, 1, 0, 3, 0, 1, 4}),
+       testing::MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1},
+                         {0, 1, 2, 1, 0, 3, 0, 1, 4}),
        "non-manifold edge"},
       {"NaN", with_nan, "non-finite coordinate"},
       {"bow-tie", testing::BowTie(), "non-manifold vertex"},
@@ -263,8 +264,8 @@ TEST(ServerLimitsTest, FullQueueIsResourceExhaustedAtOnceAndOthersFinish) {
   spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
   std::vector<std::future<absl::StatusOr<client::JobResult>>> jobs;
   for (int i = 0; i < 6; ++i) {
-    jobs.push_back(std::async(std::launch::async,
-                              [&] { return client::RunJob(channel, spec, *bytes); }));
+    jobs.push_back(
+        std::async(std::launch::async, [&] { return client::RunJob(channel, spec, *bytes); }));
   }
   int succeeded = 0, refused = 0;
   for (auto& job : jobs) {
