@@ -15,7 +15,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
-#include "core/cvd_energy.h"
+#include "core/energies.h"
 #include "core/draco_codec.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"

@@ -5,7 +5,7 @@
 #include <queue>
 
 #include "absl/strings/str_cat.h"
-#include "core/cvd_energy.h"
+#include "core/energies.h"
 
 namespace mlclust {
 namespace {

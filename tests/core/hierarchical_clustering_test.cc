@@ -4,7 +4,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/container/flat_hash_set.h"
-#include "core/cvd_energy.h"
+#include "core/energies.h"
 #include "core/mesh_io.h"
 #include "tests/core/test_meshes.h"
 

@@ -12,7 +12,7 @@
 
 #include "absl/container/flat_hash_set.h"
 #include "client/client.h"
-#include "core/cvd_energy.h"
+#include "core/energies.h"
 #include "core/draco_codec.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
