@@ -114,4 +114,11 @@ std::optional<size_t> HierarchyLog::FirstLevelWithAtMost(uint32_t k) const {
   return std::nullopt;
 }
 
+std::optional<size_t> HierarchyLog::LastLevelWith(uint32_t k) const {
+  for (size_t l = num_levels(); l-- > 0;) {
+    if (cluster_count_[l] == k) return l;
+  }
+  return std::nullopt;
+}
+
 }  // namespace mlclust

@@ -69,6 +69,8 @@ class HierarchyLog : public LevelSink {
 
   // The first level whose cluster count is <= k, or nullopt if none.
   std::optional<size_t> FirstLevelWithAtMost(uint32_t k) const;
+  // The last level whose cluster count is exactly k, or nullopt if none.
+  std::optional<size_t> LastLevelWith(uint32_t k) const;
 
  private:
   std::vector<ClusterId> start_labels_;

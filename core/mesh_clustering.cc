@@ -322,16 +322,24 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
           " clusters asked for; use a smaller level (or 0 to choose it)"));
     }
   }
-  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
-                        [&](const auto& energy) -> absl::StatusOr<std::vector<ClusterId>> {
-                          std::vector<uint32_t> labels = GrowFromSeeds(energy, adjacency, seeds);
-                          if (seeds.size() > k) {
-                            labels = ReduceToK(*problem.mesh, adjacency, *problem.measures,
-                                               std::move(labels),
-                                               static_cast<uint32_t>(seeds.size()), k);
-                          }
-                          return ToClusterIds(labels);
-                        });
+  // The CVD family grows by distance (each seed's centroid): geodesic Voronoi regions are
+  // compact discs, which the connectivity guard then keeps and coarsening needs. The
+  // planar and sphere energies grow by their own proxies, as VSA does: regions follow
+  // the shape's faces, and a feature may legitimately sit inside another region.
+  std::vector<uint32_t> labels;
+  if (problem.energy.kind == MeshEnergyKind::kPlanar ||
+      problem.energy.kind == MeshEnergyKind::kSphere) {
+    labels =
+        WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                       [&](const auto& energy) { return GrowFromSeeds(energy, adjacency, seeds); });
+  } else {
+    labels = GrowFromSeeds(CvdEnergy(*problem.measures), adjacency, seeds);
+  }
+  if (seeds.size() > k) {
+    labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
+                       static_cast<uint32_t>(seeds.size()), k);
+  }
+  return ToClusterIds(labels);
 }
 
 absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,

@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -874,6 +875,56 @@ std::array<uint8_t, 3> ClusterColour(uint32_t id) {
   std::array<uint8_t, 3> colour;
   for (int c = 0; c < 3; ++c) colour[c] = static_cast<uint8_t>(std::lround(rgb[c] * 255));
   return colour;
+}
+
+absl::Status WriteMeshFile(const std::string& path, const TriangleMesh& mesh) {
+  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  const std::string extension = LowercaseExtension(path);
+  if (extension != ".ply" && extension != ".obj" && extension != ".off") {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": cannot write '", extension, "' files (use .ply, .obj or .off)"));
+  }
+  std::FILE* out = std::fopen(path.c_str(), "wb");
+  if (out == nullptr) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  const size_t nv = mesh.num_vertices(), nf = mesh.num_faces();
+  if (extension == ".ply") {
+    std::fprintf(out,
+                 "ply\nformat binary_little_endian 1.0\ncomment written by mlclust\n"
+                 "element vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+                 "element face %zu\nproperty list uchar int vertex_indices\nend_header\n",
+                 nv, nf);
+    std::fwrite(mesh.positions.data(), sizeof(float), mesh.positions.size(), out);
+    for (size_t f = 0; f < nf; ++f) {
+      const uint8_t count = 3;
+      const int32_t corners[3] = {static_cast<int32_t>(mesh.indices[3 * f]),
+                                  static_cast<int32_t>(mesh.indices[3 * f + 1]),
+                                  static_cast<int32_t>(mesh.indices[3 * f + 2])};
+      std::fwrite(&count, 1, 1, out);
+      std::fwrite(corners, sizeof(int32_t), 3, out);
+    }
+  } else if (extension == ".obj") {
+    std::fprintf(out, "# written by mlclust: %zu vertices, %zu faces\n", nv, nf);
+    for (size_t v = 0; v < nv; ++v) {
+      std::fprintf(out, "v %.9g %.9g %.9g\n", mesh.positions[3 * v], mesh.positions[3 * v + 1],
+                   mesh.positions[3 * v + 2]);
+    }
+    for (size_t f = 0; f < nf; ++f) {
+      std::fprintf(out, "f %u %u %u\n", mesh.indices[3 * f] + 1, mesh.indices[3 * f + 1] + 1,
+                   mesh.indices[3 * f + 2] + 1);
+    }
+  } else {
+    std::fprintf(out, "OFF\n%zu %zu 0\n", nv, nf);
+    for (size_t v = 0; v < nv; ++v) {
+      std::fprintf(out, "%.9g %.9g %.9g\n", mesh.positions[3 * v], mesh.positions[3 * v + 1],
+                   mesh.positions[3 * v + 2]);
+    }
+    for (size_t f = 0; f < nf; ++f) {
+      std::fprintf(out, "3 %u %u %u\n", mesh.indices[3 * f], mesh.indices[3 * f + 1],
+                   mesh.indices[3 * f + 2]);
+    }
+  }
+  if (std::fclose(out) != 0) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  return absl::OkStatus();
 }
 
 }  // namespace mlclust

@@ -52,6 +52,11 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path);
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
                                std::span<const ClusterId> labels);
 
+// Writes `mesh` by the path's extension: .ply (binary little-endian), .obj or .off. Face
+// and vertex order are kept. INVALID_ARGUMENT for another extension or indices out of
+// range; UNAVAILABLE if the file cannot be written.
+absl::Status WriteMeshFile(const std::string& path, const TriangleMesh& mesh);
+
 // A colour for cluster `id`, well spread over hue, stable for a given id.
 std::array<uint8_t, 3> ClusterColour(uint32_t id);
 

@@ -9,6 +9,8 @@
 #include "core/face_measures.h"
 #include "core/hierarchical_clustering.h"
 #include "core/mesh.h"
+#include "core/mesh_clustering.h"
+#include "server/job_options.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/face_measures_gpu.h"
 #endif
@@ -142,23 +144,35 @@ absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const v1::Jo
   return ComputeFaceMeasures(mesh);
 }
 
+// A single-level algorithm's result as two levels: level 0 the initial clusters, level 1
+// the faces whose cluster the optimisation changed.
+absl::Status StreamSingleLevel(const std::vector<ClusterId>& initial, double initial_energy,
+                               const std::vector<ClusterId>& result, double energy,
+                               uint32_t clusters, StreamingLevelSink& sink) {
+  if (absl::Status s = sink.OnStart(initial, clusters, initial_energy); !s.ok()) return s;
+  std::vector<uint32_t> element, to, from;
+  for (uint32_t f = 0; f < result.size(); ++f) {
+    if (result[f] != initial[f]) {
+      element.push_back(f);
+      to.push_back(result[f].value());
+      from.push_back(initial[f].value());
+    }
+  }
+  LevelMoves level;
+  level.cluster_count = clusters;
+  level.energy = energy;
+  level.element = element;
+  level.to_cluster = to;
+  level.from_cluster = from;
+  if (absl::Status s = sink.OnLevel(level); !s.ok()) return s;
+  return sink.Flush();
+}
+
 absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
-  switch (spec.algorithm()) {
-    case v1::ALGORITHM_UNSPECIFIED:
-    case v1::ALGORITHM_HC:
-      break;
-    default:
-      return absl::UnimplementedError(
-          absl::StrCat("algorithm ", v1::Algorithm_Name(spec.algorithm()),
-                       " is not available on this server yet (available: ALGORITHM_HC)"));
-  }
-  if (spec.energy() != v1::ENERGY_UNSPECIFIED && spec.energy() != v1::ENERGY_CVD) {
-    return absl::UnimplementedError(absl::StrCat("energy ", v1::Energy_Name(spec.energy()),
-                                                 " is not available for ALGORITHM_HC yet "
-                                                 "(available: ENERGY_CVD)"));
-  }
+  absl::StatusOr<MeshJobPlan> plan = PlanMeshJob(spec);
+  if (!plan.ok()) return plan.status();
   if (spec.levels_high() != 0 || spec.levels_low() != 0) {
     return absl::UnimplementedError(
         "level ranges (levels_high, levels_low) are not supported "
@@ -185,21 +199,51 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, spec, context, device_used);
   if (!measures.ok()) return measures.status();
 
-  EmitProgress(events, "cluster", "hierarchical clustering (CVD)");
   StreamingLevelSink sink(
       events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets);
-  HierarchicalClusteringOptions options;
-  options.min_clusters = std::max<uint32_t>(1, spec.clusters());
-  absl::StatusOr<HierarchicalClusteringSummary> summary =
-      RunHierarchicalClustering(*measures, *adjacency, options, sink);
-  if (!summary.ok()) return summary.status();
-  if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
-
   JobOutcome outcome;
+  outcome.done.set_device(device_used);
+  if (plan->algorithm == v1::ALGORITHM_HC) {
+    EmitProgress(events, "cluster", "hierarchical clustering (CVD)");
+    HierarchicalClusteringOptions options;
+    options.min_clusters = std::max<uint32_t>(1, spec.clusters());
+    absl::StatusOr<HierarchicalClusteringSummary> summary =
+        RunHierarchicalClustering(*measures, *adjacency, options, sink);
+    if (!summary.ok()) return summary.status();
+    if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
+    outcome.done.set_final_clusters(summary->final_clusters);
+  } else {
+    const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan->energy};
+    EmitProgress(events, "seed", absl::StrCat(spec.clusters(), " initial clusters"));
+    absl::StatusOr<std::vector<ClusterId>> initial = InitialClusters(problem, plan->seeds);
+    if (!initial.ok()) return initial.status();
+    std::vector<ClusterId> labels = *initial;
+    absl::StatusOr<OptimizeResult> result;
+    if (plan->algorithm == v1::ALGORITHM_EMLO) {
+      EmitProgress(events, "cluster",
+                   absl::StrCat("EMLO (", MeshEnergyName(plan->energy.kind), ")"));
+      EmloOptions options = plan->emlo;
+      result = OptimizeEmlo(problem, labels, options);
+    } else {
+      EmitProgress(events, "cluster",
+                   absl::StrCat("boundary-based (", MeshEnergyName(plan->energy.kind), ")"));
+      BoundaryBasedOptions options = plan->boundary_based;
+      options.on_iteration = [&](uint32_t iteration, double energy) {
+        EmitProgress(events, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
+      };
+      result = OptimizeBoundaryBased(problem, labels, options);
+    }
+    if (!result.ok()) return result.status();
+    if (events.cancelled()) return absl::CancelledError("the call was cancelled");
+    if (absl::Status s = StreamSingleLevel(*initial, result->initial_energy, labels, result->energy,
+                                           spec.clusters(), sink);
+        !s.ok()) {
+      return s;
+    }
+    outcome.done.set_final_clusters(spec.clusters());
+  }
   outcome.done.set_levels(sink.levels_sent());
   outcome.done.set_triplets(sink.triplets_sent());
-  outcome.done.set_final_clusters(summary->final_clusters);
-  outcome.done.set_device(device_used);
   return outcome;
 }
 

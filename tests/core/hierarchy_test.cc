@@ -46,6 +46,8 @@ TEST(HierarchyLogTest, NonNestedMovesRebuildForwardsAndBackwards) {
   EXPECT_DOUBLE_EQ(log.energy(3), 1.5);
   EXPECT_EQ(log.FirstLevelWithAtMost(3), 1u);
   EXPECT_EQ(log.FirstLevelWithAtMost(1), std::nullopt);
+  EXPECT_EQ(log.LastLevelWith(2), 3u);  // levels 2 and 3 both have two clusters
+  EXPECT_EQ(log.LastLevelWith(1), std::nullopt);
 }
 
 TEST(HierarchyLogTest, StepFromTheWrongLevelIsDataLoss) {

@@ -745,3 +745,33 @@ TEST(ClusterColourTest, StableSpreadAndDistinctForNeighbours) {
 
 }  // namespace
 }  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+TEST(WriteMeshFileTest, RoundTripsThroughOurReaders) {
+  absl::StatusOr<TriangleMesh> fandisk = ReadMeshFile(testing::DataPath("fandisk.off"));
+  ASSERT_TRUE(fandisk.ok());
+  for (const char* extension : {".ply", ".off", ".obj"}) {
+    const std::string path = ::testing::TempDir() + "/roundtrip" + extension;
+    ASSERT_TRUE(WriteMeshFile(path, *fandisk).ok()) << extension;
+    absl::StatusOr<TriangleMesh> back = ReadMeshFile(path);
+    ASSERT_TRUE(back.ok()) << extension << ": " << back.status();
+    ASSERT_EQ(back->num_faces(), fandisk->num_faces()) << extension;
+    // Every face has the same three corner positions in the same order.
+    for (size_t f = 0; f < fandisk->num_faces(); f += 97) {
+      for (int c = 0; c < 3; ++c) {
+        const Vec3 a = fandisk->position(fandisk->corner(FaceId(f), c));
+        const Vec3 b = back->position(back->corner(FaceId(f), c));
+        EXPECT_NEAR(a.x, b.x, 1e-6) << extension;
+        EXPECT_NEAR(a.y, b.y, 1e-6) << extension;
+        EXPECT_NEAR(a.z, b.z, 1e-6) << extension;
+      }
+    }
+  }
+  EXPECT_EQ(WriteMeshFile(::testing::TempDir() + "/x.stl", *fandisk).code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace mlclust

@@ -1,0 +1,43 @@
+// Turns a JobSpec from the wire into typed library options, checking every field: a bad
+// value is INVALID_ARGUMENT naming the option; an algorithm or energy this server does not
+// run is UNIMPLEMENTED.
+#ifndef MLCLUST_SERVER_JOB_OPTIONS_H_
+#define MLCLUST_SERVER_JOB_OPTIONS_H_
+
+#include "absl/status/statusor.h"
+#include "core/energies.h"
+#include "core/mesh_clustering.h"
+#include "mlclust/v1/mlclust.pb.h"
+
+namespace mlclust::server {
+
+// Option names accepted in JobSpec.options (values are text):
+//   init              random | lneigh               (EMLO, BB; default lneigh)
+//   level             l of the l-neighbourhood seeds, 0 = chosen from k (default 0)
+//   density           power | linear                (cvd-adaptive, mwcvd-*; default power)
+//   gamma, delta      the power mapping (rho' + delta)^gamma (defaults 2, 0.1)
+//   rho-max           the linear mapping's upper end (default 10)
+//   mwcvd-p           the p of w^M (default 10)
+//   planar-tolerance  the sphere energy's planar limit (default 1e-9)
+//   threads           BB worker threads, 0 = all cores (default 0)
+//   max-iterations    BB sweeps (default 200)
+//   guard             on | off: the connectivity guard (default on)
+struct MeshJobPlan {
+  v1::Algorithm algorithm = v1::ALGORITHM_HC;
+  MeshEnergyOptions energy;
+  SeedOptions seeds;
+  EmloOptions emlo;
+  BoundaryBasedOptions boundary_based;
+};
+
+absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec);
+
+// The energy part alone (spec.energy and the energy options; other options ignored).
+absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec);
+
+// The core energy kind of a wire energy (ENERGY_UNSPECIFIED is CVD).
+absl::StatusOr<MeshEnergyKind> MeshEnergyFromWire(v1::Energy energy);
+
+}  // namespace mlclust::server
+
+#endif  // MLCLUST_SERVER_JOB_OPTIONS_H_
