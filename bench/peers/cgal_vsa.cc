@@ -51,6 +51,8 @@
 // seed_seconds includes building the metric (per-face normals and areas) and the VSA object;
 // total_seconds = seed_seconds + iterate_seconds. Reading the file is not timed. Every
 // repeat starts from the same std::srand(S), so every repeat gives the same labels (checked).
+// A warning goes to stderr when the best repeat's wall-clock time exceeds its CPU time by
+// more than 10%: the process then waited for a core, and the figure is not to be trusted.
 //
 // Output: one CSV line on stdout (with --header, a header line first):
 //   mesh,faces,k,k_obtained,seeding,iterations,seed_seconds,iterate_seconds,total_seconds,
@@ -71,6 +73,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <fstream>
 #include <iostream>
 #include <limits>
@@ -260,6 +263,7 @@ struct RunResult {
   double seed_seconds = 0;
   double iterate_seconds = 0;
   double total_seconds() const { return seed_seconds + iterate_seconds; }
+  double cpu_seconds = 0;  // the process's CPU time over the same span
   size_t k_obtained = 0;
   double cgal_error = 0;
   std::vector<std::size_t> labels;  // face -> proxy, in the file's face order
@@ -269,6 +273,11 @@ using Clock = std::chrono::steady_clock;
 double SecondsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
+double ProcessCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
 
 template <typename Metric>
 RunResult RunOnce(Mesh& mesh, const Options& options, VSA::Seeding_method method) {
@@ -276,6 +285,7 @@ RunResult RunOnce(Mesh& mesh, const Options& options, VSA::Seeding_method method
   const VertexPointMap vpm = get(boost::vertex_point, mesh);
   RunResult result;
   std::srand(options.seed);
+  const double cpu_start = ProcessCpuSeconds();
   const Clock::time_point start = Clock::now();
   const Metric metric(mesh, vpm);
   Approximation approximation(mesh, vpm, metric);
@@ -285,6 +295,7 @@ RunResult RunOnce(Mesh& mesh, const Options& options, VSA::Seeding_method method
   const Clock::time_point seeded = Clock::now();
   result.cgal_error = CGAL::to_double(approximation.run(options.iterations));
   const Clock::time_point done = Clock::now();
+  result.cpu_seconds = ProcessCpuSeconds() - cpu_start;
   result.seed_seconds = SecondsBetween(start, seeded);
   result.iterate_seconds = SecondsBetween(seeded, done);
   result.k_obtained = approximation.number_of_proxies();
@@ -397,14 +408,19 @@ int main(int argc, char** argv) {
                               mesh, options, method);
     std::cerr << "cgal_vsa: repeat " << r + 1 << "/" << options.repeats << ": seeding "
               << run.seed_seconds << " s, " << options.iterations << " iterations "
-              << run.iterate_seconds << " s, total " << run.total_seconds() << " s, "
-              << run.k_obtained << " proxies\n";
+              << run.iterate_seconds << " s, total " << run.total_seconds() << " s (CPU "
+              << run.cpu_seconds << " s), " << run.k_obtained << " proxies\n";
     if (r > 0 && (run.labels != best.labels || run.k_obtained != best.k_obtained)) {
       Fail("repeat " + std::to_string(r + 1) + " gave other labels than repeat 1");
     }
     if (r == 0 || run.total_seconds() < best.total_seconds()) best = std::move(run);
   }
 
+  // Wall time well above CPU time means the process waited for a core: other load.
+  if (best.total_seconds() > 1.1 * best.cpu_seconds + 0.005) {
+    std::cerr << "cgal_vsa: warning: disturbed timing: " << best.total_seconds()
+              << " s wall-clock for " << best.cpu_seconds << " s CPU (other load?)\n";
+  }
   for (std::size_t label : best.labels) {
     if (label >= best.k_obtained) Fail("a face has no proxy");
   }
