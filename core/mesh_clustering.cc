@@ -327,8 +327,7 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
   // planar and sphere energies grow by their own proxies, as VSA does: regions follow
   // the shape's faces, and a feature may legitimately sit inside another region.
   std::vector<uint32_t> labels;
-  if (problem.energy.kind == MeshEnergyKind::kPlanar ||
-      problem.energy.kind == MeshEnergyKind::kSphere) {
+  if (problem.energy.kind == MeshEnergyKind::kPlanar) {
     labels =
         WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
                        [&](const auto& energy) { return GrowFromSeeds(energy, adjacency, seeds); });

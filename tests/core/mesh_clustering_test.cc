@@ -300,3 +300,31 @@ TEST(OptimizerTest, BadLabelsAreRefused) {
 
 }  // namespace
 }  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// k spherical patches, clustered into k by EMLO with the sphere energy from an
+// l-neighbourhood start: the energy falls to that of the true patches (what is left comes
+// from triangles that straddle patch borders), far below the start's and one cluster's.
+TEST(SphereEnergyTest, SphericalPatchesReachNearZeroEnergyAtK) {
+  const testing::SphericalPatchModel model = testing::SphericalPatches(3, 2, 32);
+  const Loaded l = Load(model.mesh);  // 6 patches, 12288 faces
+  const MeshProblem problem = l.problem(MeshEnergyKind::kSphere);
+  const double truth = MeshEnergyOfLabels(problem.energy, l.mesh, model.patch);
+  const double one = MeshEnergyOfLabels(problem.energy, l.mesh,
+                                        std::vector<ClusterId>(l.mesh.num_faces(), ClusterId(0)));
+  absl::StatusOr<std::vector<ClusterId>> labels =
+      InitialClusters(problem, {SeedOptions::Method::kLNeighbourhood, 6, 0, 1});
+  ASSERT_TRUE(labels.ok()) << labels.status();
+  absl::StatusOr<OptimizeResult> result = OptimizeEmlo(problem, *labels);
+  ASSERT_TRUE(result.ok());
+  std::printf("sphere energy: one cluster %.4g, start %.4g, EMLO %.4g, true patches %.4g\n", one,
+              result->initial_energy, result->energy, truth);
+  EXPECT_LT(truth, 0.05 * one);  // the model is what it claims to be
+  EXPECT_LT(result->energy, 1.1 * truth);
+  EXPECT_LT(result->energy, 0.1 * result->initial_energy);
+}
+
+}  // namespace
+}  // namespace mlclust
