@@ -10,36 +10,20 @@ int CornerOf(const TriangleMesh& mesh, uint32_t face, uint32_t vertex) {
   return f[0] == vertex ? 0 : f[1] == vertex ? 1 : 2;
 }
 
-// Number of maximal runs of faces labelled `cluster` in the cyclic sequence `ring`.
-int CountRuns(const std::vector<uint32_t>& ring, std::span<const uint32_t> labels,
-              uint32_t cluster) {
-  const size_t n = ring.size();
-  auto in = [&](size_t i) {
-    const uint32_t face = ring[i % n];
-    return face != ConnectivityGuard::kGap && labels[face] == cluster;
-  };
-  int runs = 0;
-  bool any = false;
-  for (size_t i = 0; i < n; ++i) {
-    if (!in(i)) continue;
-    any = true;
-    if (!in(i + n - 1)) ++runs;
-  }
-  return runs == 0 && any ? 1 : runs;  // the whole ring is one cluster
-}
-
-}  // namespace
-
-void ConnectivityGuard::CornerWalk(uint32_t face, int corner, std::vector<uint32_t>& out) const {
-  const uint32_t vertex = mesh_.indices[3 * size_t{face} + corner];
-  const FaceId first = adjacency_.neighbours[face][corner];
-  const FaceId last = adjacency_.neighbours[face][(corner + 2) % 3];
+// Faces around corner vertex `corner` of `face`, from the neighbour across edge `corner`
+// to the neighbour across edge (corner + 2) % 3, both included, kGap at a boundary.
+void CornerWalk(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face, int corner,
+                std::vector<uint32_t>& out) {
+  constexpr uint32_t kGap = ConnectivityGuard::kGap;
+  const uint32_t vertex = mesh.indices[3 * size_t{face} + corner];
+  const FaceId first = adjacency.neighbours[face][corner];
+  const FaceId last = adjacency.neighbours[face][(corner + 2) % 3];
   // Steps from `current` (entered from `previous`) to the next face around `vertex`:
   // across the other edge of `current` that contains the vertex. Orientation-free.
   auto step = [&](uint32_t previous, uint32_t current) -> uint32_t {
-    const int c = CornerOf(mesh_, current, vertex);
-    const FaceId a = adjacency_.neighbours[current][c];
-    const FaceId b = adjacency_.neighbours[current][(c + 2) % 3];
+    const int c = CornerOf(mesh, current, vertex);
+    const FaceId a = adjacency.neighbours[current][c];
+    const FaceId b = adjacency.neighbours[current][(c + 2) % 3];
     const FaceId next = (a.valid() && a.value() == previous) ? b : a;
     return next.valid() ? next.value() : kGap;
   };
@@ -69,23 +53,56 @@ void ConnectivityGuard::CornerWalk(uint32_t face, int corner, std::vector<uint32
   std::reverse(out.begin() + backward_start, out.end());
 }
 
-void ConnectivityGuard::Ring(uint32_t face, std::vector<uint32_t>& ring) const {
-  ring.clear();
-  // Corner walks go n_i .. n_{i+2}; chaining corners 0, 2, 1 closes the cycle
-  // n_0 .. n_2 .. n_1 .. n_0. Each walk's last face starts the next walk, and gaps of
-  // neighbouring walks meet: collapse equal neighbours, cyclically.
-  for (int corner : {0, 2, 1}) CornerWalk(face, corner, ring);
-  ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-  while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+}  // namespace
+
+ConnectivityGuard::ConnectivityGuard(const TriangleMesh& mesh, const FaceAdjacency& adjacency) {
+  const size_t n = adjacency.num_faces();
+  ring_offset_.assign(n + 1, 0);
+  ring_faces_.reserve(13 * n);
+  std::vector<uint32_t> ring;
+  for (uint32_t face = 0; face < n; ++face) {
+    ring.clear();
+    // Corner walks go n_i .. n_{i+2}; chaining corners 0, 2, 1 closes the cycle
+    // n_0 .. n_2 .. n_1 .. n_0. Each walk's last face starts the next walk, and gaps of
+    // neighbouring walks meet: collapse equal neighbours, cyclically.
+    for (int corner : {0, 2, 1}) CornerWalk(mesh, adjacency, face, corner, ring);
+    ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+    while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+    ring_faces_.insert(ring_faces_.end(), ring.begin(), ring.end());
+    ring_offset_[face + 1] = ring_faces_.size();
+  }
 }
 
 bool ConnectivityGuard::CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
                                 std::span<const uint32_t> cluster_sizes) const {
   const uint32_t from = labels[face];
   if (from == to || cluster_sizes[from] <= 1) return false;
-  thread_local std::vector<uint32_t> ring;
-  Ring(face, ring);
-  return CountRuns(ring, labels, from) == 1 && CountRuns(ring, labels, to) == 1;
+  // Count the runs of `from` and of `to` around the ring in one pass: a run starts where
+  // a face of the cluster follows one that is not (a gap is in no cluster).
+  const std::span<const uint32_t> ring = Ring(face);
+  const size_t n = ring.size();
+  if (n == 0) return false;
+  auto label_at = [&](size_t i) {
+    const uint32_t g = ring[i];
+    return g == kGap ? kGap : labels[g];
+  };
+  uint32_t previous = label_at(n - 1);
+  int from_runs = 0, to_runs = 0;
+  bool any_from = false, any_to = false;
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t current = label_at(i);
+    if (current == from) {
+      any_from = true;
+      from_runs += previous != from;
+    } else if (current == to) {
+      any_to = true;
+      to_runs += previous != to;
+    }
+    previous = current;
+  }
+  if (any_from && from_runs == 0) from_runs = 1;  // the whole ring is one cluster
+  if (any_to && to_runs == 0) to_runs = 1;
+  return from_runs == 1 && to_runs == 1;
 }
 
 }  // namespace mlclust

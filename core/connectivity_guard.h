@@ -24,27 +24,25 @@ namespace mlclust {
 
 class ConnectivityGuard {
  public:
-  // Both must outlive the guard. Needs a mesh that passed ValidateMesh.
-  ConnectivityGuard(const TriangleMesh& mesh, const FaceAdjacency& adjacency)
-      : mesh_(mesh), adjacency_(adjacency) {}
+  // Builds every face's ring once (about 13 ids per face), so that a check is a scan of
+  // a dozen labels. Needs a mesh that passed ValidateMesh and its adjacency.
+  ConnectivityGuard(const TriangleMesh& mesh, const FaceAdjacency& adjacency);
 
   // Whether face `face` may move from its cluster labels[face] to cluster `to`, given the
   // cluster sizes (faces per cluster id). labels holds one cluster id per face.
   bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
                std::span<const uint32_t> cluster_sizes) const;
 
-  // The faces around `face` in ring order, kGap where the mesh boundary breaks the ring.
-  // Exposed for tests. `ring` is cleared first.
+  // The faces around `face` in ring order (cyclic), kGap where the mesh boundary breaks
+  // the ring.
   static constexpr uint32_t kGap = 0xffffffffu;
-  void Ring(uint32_t face, std::vector<uint32_t>& ring) const;
+  std::span<const uint32_t> Ring(uint32_t face) const {
+    return {ring_faces_.data() + ring_offset_[face], ring_offset_[face + 1] - ring_offset_[face]};
+  }
 
  private:
-  // Faces around corner vertex `corner` of `face`, from the neighbour across edge `corner`
-  // to the neighbour across edge (corner + 2) % 3, both included, kGap at a boundary.
-  void CornerWalk(uint32_t face, int corner, std::vector<uint32_t>& out) const;
-
-  const TriangleMesh& mesh_;
-  const FaceAdjacency& adjacency_;
+  std::vector<uint64_t> ring_offset_;
+  std::vector<uint32_t> ring_faces_;
 };
 
 }  // namespace mlclust

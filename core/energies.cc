@@ -16,18 +16,6 @@ CvdSums CvdFaceSums(double area, const Vec3& centroid, const Vec3& origin) {
   return {area, g * area, area * SquaredNorm(g)};
 }
 
-double CvdSumsEnergy(const CvdSums& sums) {
-  if (sums.area <= 0) return 0;
-  return std::max(0.0,
-                  sums.weighted_squared_norm - SquaredNorm(sums.weighted_centroid) / sums.area);
-}
-
-double CvdMergeCost(const CvdSums& a, const CvdSums& b) {
-  if (a.area <= 0 || b.area <= 0) return 0;  // a massless cluster adds no energy
-  const Vec3 difference = a.weighted_centroid / a.area - b.weighted_centroid / b.area;
-  return a.area * b.area / (a.area + b.area) * SquaredNorm(difference);
-}
-
 double CvdEnergyDirect(const FaceMeasures& measures, std::span<const ClusterId> labels) {
   struct Accumulator {
     double area = 0;

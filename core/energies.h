@@ -20,6 +20,7 @@
 #ifndef MLCLUST_CORE_ENERGIES_H_
 #define MLCLUST_CORE_ENERGIES_H_
 
+#include <algorithm>
 #include <cmath>
 #include <span>
 #include <string>
@@ -63,11 +64,19 @@ struct CvdSums {
 CvdSums CvdFaceSums(double area, const Vec3& centroid, const Vec3& origin);
 
 // Eq. 3.7: E = sum m|g|^2 - |sum m g|^2 / sum m, clamped at 0 against rounding.
-double CvdSumsEnergy(const CvdSums& sums);
+inline double CvdSumsEnergy(const CvdSums& sums) {
+  if (sums.area <= 0) return 0;
+  return std::max(0.0,
+                  sums.weighted_squared_norm - SquaredNorm(sums.weighted_centroid) / sums.area);
+}
 
 // Eq. 4.3 for CVD, in the form (m_a m_b / (m_a + m_b)) |gbar_a - gbar_b|^2: equal to
 // E(a u b) - E(a) - E(b), never negative, and free of cancellation (Ward's criterion).
-double CvdMergeCost(const CvdSums& a, const CvdSums& b);
+inline double CvdMergeCost(const CvdSums& a, const CvdSums& b) {
+  if (a.area <= 0 || b.area <= 0) return 0;  // a massless cluster adds no energy
+  const Vec3 difference = a.weighted_centroid / a.area - b.weighted_centroid / b.area;
+  return a.area * b.area / (a.area + b.area) * SquaredNorm(difference);
+}
 
 // The uniform CVD energy by its definition, in two passes (cluster centroids, then
 // distances): sum_i sum_{j in C_i} A_j |g_j - gbar_i|^2. `labels` has one entry per face.

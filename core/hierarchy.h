@@ -21,6 +21,7 @@ namespace mlclust {
 
 // One level as a driver reports it. The spans are only valid during the call.
 struct LevelMoves {
+  uint32_t level = 0;  // the driver's level number (1, 2, ...); 0 where it does not say
   uint32_t cluster_count = 0;
   double energy = 0;
   std::span<const uint32_t> element;       // element ids (faces or points)

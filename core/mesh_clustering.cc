@@ -353,34 +353,35 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
   std::vector<uint32_t> compact;
   const uint32_t k = CompactClusterIds(labels, compact);
   const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
-  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
-                        [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
-                          using Energy = std::decay_t<decltype(energy)>;
-                          Partition<Energy> partition(energy, compact, k);
-                          const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
-                          OptimizeResult result;
-                          result.initial_energy = partition.TotalEnergy();
-                          const uint64_t max_moves =
-                              options.max_moves != 0 ? options.max_moves : 1000 * n;
-                          uint64_t since_report = 0;
-                          const uint64_t every = std::max<uint64_t>(1, options.progress_moves);
-                          const detail::EmloCounters counters = detail::RunEmloOn(
-                              *problem.adjacency, options.connectivity_guard ? &guard : nullptr,
-                              partition, detail::BoundaryFaces(*problem.adjacency, partition),
-                              max_moves, [&](uint32_t, uint32_t, uint32_t) {
-                                if (options.on_progress && ++since_report == every) {
-                                  since_report = 0;
-                                  ++result.iterations;
-                                  options.on_progress(result.moves + 1, partition.TotalEnergy());
-                                }
-                                ++result.moves;
-                              });
-                          result.converged = !counters.hit_move_limit;
-                          result.energy = partition.TotalEnergy();
-                          if (options.on_progress) options.on_progress(result.moves, result.energy);
-                          WriteBack(partition.labels(), original, labels);
-                          return result;
-                        });
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+        using Energy = std::decay_t<decltype(energy)>;
+        Partition<Energy> partition(energy, compact, k);
+        const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
+        OptimizeResult result;
+        result.initial_energy = partition.TotalEnergy();
+        const uint64_t max_moves = options.max_moves != 0 ? options.max_moves : 1000 * n;
+        uint64_t since_report = 0;
+        const uint64_t every = std::max<uint64_t>(1, options.progress_moves);
+        detail::EmloScratch scratch;
+        const std::vector<uint32_t> boundary = detail::BoundaryFaces(*problem.adjacency, partition);
+        const detail::EmloCounters counters = detail::RunEmloOn(
+            *problem.adjacency, options.connectivity_guard ? &guard : nullptr, partition, boundary,
+            max_moves, scratch, [&](uint32_t, uint32_t, uint32_t) {
+              if (options.on_progress && ++since_report == every) {
+                since_report = 0;
+                ++result.iterations;
+                options.on_progress(result.moves + 1, partition.TotalEnergy());
+              }
+              ++result.moves;
+            });
+        result.converged = !counters.hit_move_limit;
+        result.energy = partition.TotalEnergy();
+        if (options.on_progress) options.on_progress(result.moves, result.energy);
+        WriteBack(partition.labels(), original, labels);
+        return result;
+      });
 }
 
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
@@ -453,12 +454,10 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
             tbb::parallel_for(
                 tbb::blocked_range<size_t>(0, moving.size(), 256),
                 [&](const tbb::blocked_range<size_t>& range) {
-                  std::vector<uint32_t> ring;
                   for (size_t i = range.begin(); i != range.end(); ++i) {
                     const uint32_t f = moving[i];
-                    guard.Ring(f, ring);
                     bool first = true;
-                    for (uint32_t g : ring) {
+                    for (uint32_t g : guard.Ring(f)) {
                       if (g != ConnectivityGuard::kGap && g < f && target[g] != kUnassigned) {
                         first = false;
                         break;

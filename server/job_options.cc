@@ -1,5 +1,6 @@
 #include "server/job_options.h"
 
+#include <algorithm>
 #include <set>
 #include <string>
 
@@ -147,12 +148,43 @@ absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec) {
 
   switch (plan.algorithm) {
     case v1::ALGORITHM_HC:
-      if (plan.energy.kind != MeshEnergyKind::kCvd) {
-        return absl::UnimplementedError(
-            absl::StrCat("energy ", MeshEnergyName(plan.energy.kind),
-                         " is not available for ALGORITHM_HC on this server yet (available: cvd)"));
+    case v1::ALGORITHM_ML:
+    case v1::ALGORITHM_PML: {
+      MultilevelOptions& ml = plan.multilevel;
+      ml.min_clusters = std::max<uint32_t>({1, spec.clusters(), spec.levels_low()});
+      if (plan.algorithm == v1::ALGORITHM_HC) {
+        ml.optimizer = MultilevelOptions::Optimizer::kNone;
+      } else {
+        std::string optimizer = "emlo";
+        if (absl::Status s = reader.Choice("optimizer", {"emlo", "bb", "none"}, optimizer);
+            !s.ok()) {
+          return s;
+        }
+        ml.optimizer = optimizer == "bb"     ? MultilevelOptions::Optimizer::kBoundaryBased
+                       : optimizer == "none" ? MultilevelOptions::Optimizer::kNone
+                                             : MultilevelOptions::Optimizer::kEmlo;
+        std::string guard = "on";
+        if (absl::Status s = reader.Choice("guard", {"on", "off"}, guard); !s.ok()) return s;
+        ml.connectivity_guard = guard == "on";
+        if (absl::Status s = reader.Double("p-percent", ml.p_percent, 0, 100); !s.ok()) return s;
+      }
+      if (plan.algorithm == v1::ALGORITHM_PML) {
+        ml.parallel = true;
+        if (absl::Status s = reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31);
+            !s.ok()) {
+          return s;
+        }
+        if (absl::Status s = reader.Integer<int>("threads", ml.threads, 0, 1024); !s.ok()) {
+          return s;
+        }
+      }
+      if (spec.levels_high() != 0 && spec.levels_high() < spec.levels_low()) {
+        return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", spec.levels_high(),
+                                                       " is below the low end ",
+                                                       spec.levels_low()));
       }
       break;
+    }
     case v1::ALGORITHM_EMLO:
     case v1::ALGORITHM_BB: {
       if (spec.clusters() < 1) {

@@ -7,6 +7,7 @@
 #include "absl/status/statusor.h"
 #include "core/energies.h"
 #include "core/mesh_clustering.h"
+#include "core/multilevel.h"
 #include "mlclust/v1/mlclust.pb.h"
 
 namespace mlclust::server {
@@ -22,12 +23,17 @@ namespace mlclust::server {
 //   threads           BB worker threads, 0 = all cores (default 0)
 //   max-iterations    BB sweeps (default 200)
 //   guard             on | off: the connectivity guard (default on)
+//   optimizer         emlo | bb | none: ML's and PML's local optimiser (default emlo)
+//   p-percent         ML: merge this % of the clusters first without optimising (Alg. 4.2)
+//   pml-until         PML: continue as ML below this many clusters (default 0: PML to the end)
+//   threads           also PML's worker threads
 struct MeshJobPlan {
   v1::Algorithm algorithm = v1::ALGORITHM_HC;
   MeshEnergyOptions energy;
   SeedOptions seeds;
   EmloOptions emlo;
   BoundaryBasedOptions boundary_based;
+  MultilevelOptions multilevel;  // HC, ML, PML
 };
 
 absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec);

@@ -7,9 +7,9 @@
 #include "absl/time/clock.h"
 #include "core/draco_codec.h"
 #include "core/face_measures.h"
-#include "core/hierarchical_clustering.h"
 #include "core/mesh.h"
 #include "core/mesh_clustering.h"
+#include "core/multilevel.h"
 #include "server/job_options.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/face_measures_gpu.h"
@@ -18,54 +18,59 @@
 namespace mlclust::server {
 namespace {
 
-// Streams levels to the client as they are produced: level 0 as a snapshot, later levels
-// packed into LevelBatch messages of about `batch_triplets` triplets (many small levels
-// per message; never one message per triplet), flushed at least every `max_delay` so a
-// slow algorithm still shows progress.
+// Streams levels to the client as they are produced: the first level sent as a snapshot
+// of all labels, later levels packed into LevelBatch messages of about `batch_triplets`
+// triplets (many small levels per message; never one message per triplet), flushed at
+// least every `max_delay` so a slow algorithm still shows progress.
+//
+// With a level range [low, high] (cluster counts; 0 = no bound) only levels in the range
+// are sent: the sink follows the labels through the levels before it, and the first level
+// in range goes out as the snapshot. It also keeps every level's cluster count and energy
+// for the elbow of the summary.
 class StreamingLevelSink : public LevelSink {
  public:
-  StreamingLevelSink(EventChannel& events, uint32_t batch_triplets)
-      : events_(events), batch_triplets_(std::max<uint32_t>(1, batch_triplets)) {}
+  StreamingLevelSink(EventChannel& events, uint32_t batch_triplets, uint32_t high = 0,
+                     uint32_t low = 0)
+      : events_(events),
+        batch_triplets_(std::max<uint32_t>(1, batch_triplets)),
+        high_(high),
+        low_(low) {}
 
   absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
                        double energy) override {
-    // Level 0 in pieces of kSnapshotLabels labels, so no message outgrows the limits.
-    for (size_t first = 0; first == 0 || first < labels.size(); first += kSnapshotLabels) {
-      const size_t end = std::min(labels.size(), first + kSnapshotLabels);
-      v1::JobEvent event;
-      v1::LevelSnapshot* snapshot = event.mutable_snapshot();
-      snapshot->set_level(0);
-      snapshot->set_cluster_count(cluster_count);
-      snapshot->set_energy(energy);
-      snapshot->set_first_element(static_cast<uint32_t>(first));
-      snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
-      snapshot->mutable_labels()->Reserve(static_cast<int>(end - first));
-      for (size_t i = first; i < end; ++i) snapshot->add_labels(labels[i].value());
-      if (absl::Status s = Send(std::move(event)); !s.ok()) return s;
-      if (end == labels.size()) break;
-    }
-    levels_sent_ = 1;
-    next_level_ = 1;
-    last_cluster_count_ = cluster_count;
-    last_flush_ = absl::Now();
+    curve_counts_.assign(1, cluster_count);
+    curve_energies_.assign(1, energy);
+    if (InRange(cluster_count)) return SendSnapshot(labels, 0, cluster_count, energy);
+    // Follow the labels until the first level in range.
+    labels_.assign(labels.begin(), labels.end());
     return absl::OkStatus();
   }
 
   absl::Status OnLevel(const LevelMoves& level) override {
     if (events_.cancelled()) return absl::CancelledError("the call was cancelled");
+    curve_counts_.push_back(level.cluster_count);
+    curve_energies_.push_back(level.energy);
+    if (!started_) {
+      for (size_t i = 0; i < level.element.size(); ++i) {
+        labels_[level.element[i]] = ClusterId(level.to_cluster[i]);
+      }
+      if (!InRange(level.cluster_count)) return absl::OkStatus();
+      absl::Status s = SendSnapshot(labels_, level.level, level.cluster_count, level.energy);
+      std::vector<ClusterId>().swap(labels_);
+      return s;
+    }
+    if (!InRange(level.cluster_count)) return absl::OkStatus();
     v1::LevelBatch* batch = pending_.mutable_levels();
-    if (batch->cluster_count_size() == 0) batch->set_first_level(next_level_);
+    if (batch->cluster_count_size() == 0) batch->set_first_level(levels_sent_);
     batch->add_cluster_count(level.cluster_count);
     batch->add_energy(level.energy);
-    batch->add_source_level(next_level_);
+    batch->add_source_level(level.level);
     batch->mutable_element()->Add(level.element.begin(), level.element.end());
     batch->mutable_to_cluster()->Add(level.to_cluster.begin(), level.to_cluster.end());
     batch->mutable_from_cluster()->Add(level.from_cluster.begin(), level.from_cluster.end());
     batch->add_triplet_end(static_cast<uint32_t>(batch->element_size()));
-    ++next_level_;
     ++levels_sent_;
     triplets_sent_ += level.element.size();
-    last_cluster_count_ = level.cluster_count;
     if (static_cast<uint32_t>(batch->element_size()) >= batch_triplets_ ||
         batch->cluster_count_size() >= kMaxLevelsPerBatch ||
         absl::Now() - last_flush_ > kMaxDelay) {
@@ -84,12 +89,39 @@ class StreamingLevelSink : public LevelSink {
 
   uint32_t levels_sent() const { return levels_sent_; }
   uint64_t triplets_sent() const { return triplets_sent_; }
-  uint32_t last_cluster_count() const { return last_cluster_count_; }
+  bool started() const { return started_; }
+  std::span<const uint32_t> curve_counts() const { return curve_counts_; }
+  std::span<const double> curve_energies() const { return curve_energies_; }
 
  private:
   static constexpr int kMaxLevelsPerBatch = 16384;
   static constexpr size_t kSnapshotLabels = size_t{1} << 20;
   static constexpr absl::Duration kMaxDelay = absl::Milliseconds(200);
+
+  bool InRange(uint32_t count) const { return (high_ == 0 || count <= high_) && count >= low_; }
+
+  // The labels in pieces of kSnapshotLabels, so no message outgrows the limits.
+  absl::Status SendSnapshot(std::span<const ClusterId> labels, uint32_t level,
+                            uint32_t cluster_count, double energy) {
+    for (size_t first = 0; first == 0 || first < labels.size(); first += kSnapshotLabels) {
+      const size_t end = std::min(labels.size(), first + kSnapshotLabels);
+      v1::JobEvent event;
+      v1::LevelSnapshot* snapshot = event.mutable_snapshot();
+      snapshot->set_level(level);
+      snapshot->set_cluster_count(cluster_count);
+      snapshot->set_energy(energy);
+      snapshot->set_first_element(static_cast<uint32_t>(first));
+      snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
+      snapshot->mutable_labels()->Reserve(static_cast<int>(end - first));
+      for (size_t i = first; i < end; ++i) snapshot->add_labels(labels[i].value());
+      if (absl::Status s = Send(std::move(event)); !s.ok()) return s;
+      if (end == labels.size()) break;
+    }
+    started_ = true;
+    levels_sent_ = 1;
+    last_flush_ = absl::Now();
+    return absl::OkStatus();
+  }
 
   absl::Status Send(v1::JobEvent event) {
     if (!events_.Emit(std::move(event))) return absl::CancelledError("the call was cancelled");
@@ -98,11 +130,14 @@ class StreamingLevelSink : public LevelSink {
 
   EventChannel& events_;
   const uint32_t batch_triplets_;
+  const uint32_t high_, low_;
+  bool started_ = false;
+  std::vector<ClusterId> labels_;  // followed until the first level in range
+  std::vector<uint32_t> curve_counts_;
+  std::vector<double> curve_energies_;
   v1::JobEvent pending_;
-  uint32_t next_level_ = 0;
   uint32_t levels_sent_ = 0;
   uint64_t triplets_sent_ = 0;
-  uint32_t last_cluster_count_ = 0;
   absl::Time last_flush_;
 };
 
@@ -173,10 +208,12 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   EventChannel& events = *job.events;
   absl::StatusOr<MeshJobPlan> plan = PlanMeshJob(spec);
   if (!plan.ok()) return plan.status();
-  if (spec.levels_high() != 0 || spec.levels_low() != 0) {
-    return absl::UnimplementedError(
-        "level ranges (levels_high, levels_low) are not supported "
-        "by this server yet");
+  const bool hierarchy = plan->algorithm == v1::ALGORITHM_HC ||
+                         plan->algorithm == v1::ALGORITHM_ML ||
+                         plan->algorithm == v1::ALGORITHM_PML;
+  if (!hierarchy && (spec.levels_high() != 0 || spec.levels_low() != 0)) {
+    return absl::InvalidArgumentError(
+        "levels: a level range applies to the hierarchies of HC, ML and PML only");
   }
 
   EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"));
@@ -200,18 +237,28 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   if (!measures.ok()) return measures.status();
 
   StreamingLevelSink sink(
-      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets);
+      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
+      hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
   JobOutcome outcome;
   outcome.done.set_device(device_used);
-  if (plan->algorithm == v1::ALGORITHM_HC) {
-    EmitProgress(events, "cluster", "hierarchical clustering (CVD)");
-    HierarchicalClusteringOptions options;
-    options.min_clusters = std::max<uint32_t>(1, spec.clusters());
-    absl::StatusOr<HierarchicalClusteringSummary> summary =
-        RunHierarchicalClustering(*measures, *adjacency, options, sink);
+  if (hierarchy) {
+    const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan->energy};
+    EmitProgress(events, "cluster",
+                 absl::StrCat(v1::Algorithm_Name(plan->algorithm), " (",
+                              MeshEnergyName(plan->energy.kind), ")"));
+    absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, plan->multilevel, sink);
     if (!summary.ok()) return summary.status();
+    if (!sink.started()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("levels: no level has a cluster count in [", spec.levels_low(), ", ",
+                       spec.levels_high(), "]; the hierarchy ends at ", summary->final_clusters,
+                       " clusters (one per connected component at the least)"));
+    }
     if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
     outcome.done.set_final_clusters(summary->final_clusters);
+    for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
+      outcome.done.add_elbow_cluster_counts(k);
+    }
   } else {
     const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan->energy};
     EmitProgress(events, "seed", absl::StrCat(spec.clusters(), " initial clusters"));

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <span>
 #include <vector>
 
 #include "core/connectivity_guard.h"
@@ -20,6 +21,13 @@ struct EmloCounters {
   bool hit_move_limit = false;
 };
 
+// Work memory reused across runs (the multilevel engine runs EMLO once per level, so
+// nothing of size O(faces) may be allocated per run).
+struct EmloScratch {
+  std::vector<uint8_t> queued;
+  std::deque<uint32_t> queue;
+};
+
 // Runs EMLO from the faces in `worklist` (any faces; those not on a cluster boundary are
 // skipped) until no face on a boundary can lower the energy, or `max_moves` moves.
 // For a boundary edge between face f in A and face g in B the three cases of eqs.
@@ -29,23 +37,27 @@ struct EmloCounters {
 // strictly lowers the energy of the two clusters it touches, so the run ends. `guard` (may
 // be null) vetoes moves that would split or pierce a cluster. `on_move(face, from, to)` is
 // called after each move. Faces whose neighbourhood changed go back on the worklist.
-template <typename Energy, typename OnMove>
+// `before_move(from, to)` runs just before each move (the engine records the two clusters'
+// energies then).
+template <typename Energy, typename OnMove, typename BeforeMove>
 EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
-                       Partition<Energy>& partition, std::vector<uint32_t> worklist,
-                       uint64_t max_moves, OnMove&& on_move) {
+                       Partition<Energy>& partition, std::span<const uint32_t> worklist,
+                       uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move,
+                       BeforeMove&& before_move) {
   const Energy& energy = partition.energy();
   using Sums = typename Energy::Sums;
   EmloCounters counters;
   const size_t n = adjacency.num_faces();
-  std::vector<uint8_t> queued(n, 0);
-  std::deque<uint32_t> queue;
+  std::vector<uint8_t>& queued = scratch.queued;
+  std::deque<uint32_t>& queue = scratch.queue;
+  if (queued.size() != n) queued.assign(n, 0);
+  queue.clear();
   for (uint32_t f : worklist) {
     if (!queued[f]) {
       queued[f] = 1;
       queue.push_back(f);
     }
   }
-  std::vector<uint32_t>().swap(worklist);
   auto enqueue_around = [&](uint32_t face) {
     if (!queued[face]) {
       queued[face] = 1;
@@ -60,6 +72,7 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
   };
   auto apply = [&](uint32_t face, uint32_t to) {
     const uint32_t from = partition.label(face);
+    before_move(from, to);
     partition.Move(face, to);
     ++counters.moves;
     on_move(face, from, to);
@@ -69,6 +82,8 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
   while (!queue.empty()) {
     if (counters.moves >= max_moves) {
       counters.hit_move_limit = true;
+      for (uint32_t f : queue) queued[f] = 0;  // leave the scratch clean
+      queue.clear();
       break;
     }
     const uint32_t f = queue.front();
@@ -129,6 +144,14 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
     }
   }
   return counters;
+}
+
+template <typename Energy, typename OnMove>
+EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
+                       Partition<Energy>& partition, std::span<const uint32_t> worklist,
+                       uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move) {
+  return RunEmloOn(adjacency, guard, partition, worklist, max_moves, scratch, on_move,
+                   [](uint32_t, uint32_t) {});
 }
 
 // The faces that have a neighbour in another cluster.

@@ -18,7 +18,7 @@ std::vector<uint32_t> Values(const std::vector<ClusterId>& labels) {
 absl::Status AddLevel(HierarchyLog& log, uint32_t count, double energy,
                       std::vector<uint32_t> element, std::vector<uint32_t> to,
                       std::vector<uint32_t> from) {
-  return log.OnLevel({count, energy, element, to, from});
+  return log.OnLevel({0, count, energy, element, to, from});
 }
 
 // Fig. 4.4's situation: a face leaves a cluster it joined in an earlier merge (the

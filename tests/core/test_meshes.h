@@ -11,6 +11,8 @@
 
 namespace mlclust::testing {
 
+inline constexpr uint32_t kInvalidRing = 0xffffffffu;
+
 inline TriangleMesh MakeMesh(std::vector<float> positions, std::vector<uint32_t> indices) {
   TriangleMesh mesh;
   mesh.positions = std::move(positions);
@@ -119,6 +121,103 @@ inline SphericalPatchModel SphericalPatches(int columns, int rows, int resolutio
     }
     model.patch.push_back(ClusterId(static_cast<uint32_t>(highest(x, y, &z))));
   }
+  return model;
+}
+
+// A closed "string of beads" made of `patches` spherical zones along the z axis: zone i
+// lies on its own sphere (centre on the axis), neighbouring zones meet along a shared
+// circle, and the two end zones run on to their sphere's pole. Every triangle has its three
+// corners on its zone's sphere, so the true clustering (`patch`, per face) has a sphere
+// energy of nearly zero (only chords versus arcs), while merging two zones does not.
+// `rings` rings of vertices per zone, `segments` vertices per ring.
+inline SphericalPatchModel SphericalBeads(int patches, int rings, int segments) {
+  // Boundary circles at z = 0, 1, 2, ... with radii that vary from circle to circle.
+  const double radius_pattern[] = {1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
+  auto circle = [&](int b) { return radius_pattern[b % 12]; };
+  struct Sphere {
+    double centre_z, radius;
+  };
+  std::vector<Sphere> spheres;
+  for (int i = 0; i < patches; ++i) {
+    // The sphere through circles (z = i, r = rho_a) and (z = i + 1, r = rho_b):
+    // rho_a^2 + (i - c)^2 = rho_b^2 + (i + 1 - c)^2.
+    const double a = circle(i), b = circle(i + 1);
+    const double c = (b * b - a * a + 2.0 * i + 1.0) / 2.0;
+    spheres.push_back({c, std::sqrt(a * a + (i - c) * (i - c))});
+  }
+  SphericalPatchModel model;
+  TriangleMesh& mesh = model.mesh;
+  const double pi = 3.14159265358979323846;
+  auto add_ring = [&](double z, double r) {
+    const uint32_t first = static_cast<uint32_t>(mesh.num_vertices());
+    for (int j = 0; j < segments; ++j) {
+      const double t = 2 * pi * j / segments;
+      mesh.positions.insert(mesh.positions.end(),
+                            {static_cast<float>(r * std::cos(t)),
+                             static_cast<float>(r * std::sin(t)), static_cast<float>(z)});
+    }
+    return first;
+  };
+  auto add_point = [&](double z) {
+    mesh.positions.insert(mesh.positions.end(), {0.0f, 0.0f, static_cast<float>(z)});
+    return static_cast<uint32_t>(mesh.num_vertices() - 1);
+  };
+  auto profile = [&](const Sphere& s, double z) {
+    return std::sqrt(std::max(0.0, s.radius * s.radius - (z - s.centre_z) * (z - s.centre_z)));
+  };
+  auto band = [&](uint32_t lower, uint32_t upper, int zone) {
+    for (int j = 0; j < segments; ++j) {
+      const uint32_t a = lower + j, b = lower + (j + 1) % segments;
+      const uint32_t c = upper + j, d = upper + (j + 1) % segments;
+      mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
+      model.patch.insert(model.patch.end(), 2, ClusterId(static_cast<uint32_t>(zone)));
+    }
+  };
+  auto fan = [&](uint32_t pole, uint32_t ring, int zone, bool bottom) {
+    for (int j = 0; j < segments; ++j) {
+      const uint32_t a = ring + j, b = ring + (j + 1) % segments;
+      if (bottom) {
+        mesh.indices.insert(mesh.indices.end(), {pole, b, a});
+      } else {
+        mesh.indices.insert(mesh.indices.end(), {pole, a, b});
+      }
+      model.patch.push_back(ClusterId(static_cast<uint32_t>(zone)));
+    }
+  };
+  // The bottom cap: sphere 0 from its pole up to the circle at z = 0.
+  const Sphere& first_sphere = spheres.front();
+  const double bottom_pole = first_sphere.centre_z - first_sphere.radius;
+  const uint32_t bottom = add_point(bottom_pole);
+  uint32_t previous = kInvalidRing;
+  for (int r = 1; r <= rings; ++r) {
+    const double z = bottom_pole + (0.0 - bottom_pole) * r / rings;
+    const uint32_t ring = add_ring(z, r == rings ? circle(0) : profile(first_sphere, z));
+    if (previous == kInvalidRing) {
+      fan(bottom, ring, 0, true);
+    } else {
+      band(previous, ring, 0);
+    }
+    previous = ring;
+  }
+  // The zones: rings from circle i to circle i + 1 on sphere i.
+  for (int i = 0; i < patches; ++i) {
+    for (int r = 1; r <= rings; ++r) {
+      const double z = i + static_cast<double>(r) / rings;
+      const uint32_t ring = add_ring(z, r == rings ? circle(i + 1) : profile(spheres[i], z));
+      band(previous, ring, i);
+      previous = ring;
+    }
+  }
+  // The top cap: the last sphere from the last circle up to its pole.
+  const Sphere& last_sphere = spheres.back();
+  const double top_pole = last_sphere.centre_z + last_sphere.radius;
+  for (int r = 1; r < rings; ++r) {
+    const double z = patches + (top_pole - patches) * r / rings;
+    const uint32_t ring = add_ring(z, profile(last_sphere, z));
+    band(previous, ring, patches - 1);
+    previous = ring;
+  }
+  fan(add_point(top_pole), previous, patches - 1, false);
   return model;
 }
 
