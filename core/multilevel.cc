@@ -95,14 +95,21 @@ class Engine {
     if (options_.optimizer == MultilevelOptions::Optimizer::kNone) optimise_below_ = 0;
 
     tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    bool odes_current = false;
     if (options_.parallel) {
+      arena.execute([&] { ComputeAllOdes(); });
+      odes_current = true;
       while (clusters_ > options_.min_clusters && clusters_ > options_.pml_until) {
         absl::StatusOr<bool> progressed = arena.execute([&] { return ParallelStep(); });
         if (!progressed.ok()) return progressed.status();
         if (!*progressed) break;
       }
     }
-    BuildHeap();
+    if (odes_current) {
+      RebuildHeap();  // from the ODEs PML kept up to date
+    } else {
+      BuildHeap();
+    }
     while (clusters_ > options_.min_clusters) {
       absl::StatusOr<bool> progressed = SequentialStep();
       if (!progressed.ok()) return progressed.status();
@@ -311,7 +318,7 @@ class Engine {
       origin_[f] = kNone;
     }
     touched_.clear();
-    if (!in_parallel_phase_) UpdateOptimalDualEdges();
+    UpdateOptimalDualEdges();
     for (uint32_t c : dirty_) dirty_mark_[c] = 0;
     dirty_.clear();
     affected_.clear();
@@ -351,7 +358,7 @@ class Engine {
     ode_[c] = d;
     ode_cost_[c] = cost;
     ++version_[c];
-    if (d != kNone) {
+    if (d != kNone && !in_parallel_phase_) {
       heap_.push_back({cost, c, version_[c]});
       std::push_heap(heap_.begin(), heap_.end(), CheaperLast{});
     }
@@ -391,7 +398,7 @@ class Engine {
         if (Better(cost, c, ode_cost_[d], ode_[d])) SetOde(d, c, cost);
       }
     }
-    MaybeCompactHeap();
+    if (!in_parallel_phase_) MaybeCompactHeap();
   }
 
   void BuildHeap() {
@@ -405,6 +412,9 @@ class Engine {
   // four to one, keeping the heap O(clusters).
   void MaybeCompactHeap() {
     if (heap_.size() <= 4 * static_cast<size_t>(clusters_) + 4096) return;
+    RebuildHeap();
+  }
+  void RebuildHeap() {
     heap_.clear();
     for (uint32_t c = 0; c < n_; ++c) {
       if (partition_.size(c) > 0 && ode_[c] != kNone)
@@ -433,15 +443,12 @@ class Engine {
 
   // ---- PML: all mutual optimal dual edges at once --------------------------------------
 
-  absl::StatusOr<bool> ParallelStep() {
-    in_parallel_phase_ = true;
+  // All ODEs at once, in parallel (PML's start); no heap entries.
+  void ComputeAllOdes() {
     alive_.clear();
     for (uint32_t c = 0; c < n_; ++c) {
       if (partition_.size(c) > 0) alive_.push_back(c);
     }
-    optimal_.resize(n_);
-    // Every cluster finds its optimal dual edge; equal costs go to the larger id, which
-    // makes the order total, so the globally cheapest edge is always mutual.
     tbb::parallel_for(tbb::blocked_range<size_t>(0, alive_.size(), 512),
                       [&](const tbb::blocked_range<size_t>& range) {
                         for (size_t i = range.begin(); i != range.end(); ++i) {
@@ -449,20 +456,32 @@ class Engine {
                           double best = std::numeric_limits<double>::infinity();
                           uint32_t best_d = kNone;
                           for (const auto& [d, count] : neighbours_[c]) {
-                            const double cost = partition_.energy().MergeCost(partition_.sums(c),
-                                                                              partition_.sums(d));
-                            if (cost < best || (cost == best && d > best_d)) {
+                            const double cost = Cost(c, d);
+                            if (Better(cost, d, best, best_d)) {
                               best = cost;
                               best_d = d;
                             }
                           }
-                          optimal_[c] = best_d;
+                          ode_[c] = best_d;
+                          ode_cost_[c] = best;
                         }
                       });
+  }
+
+  // One PML level: every cluster's ODE is up to date (ComputeAllOdes, then the flags of
+  // each level); the mutual pairs collapse together. Equal costs go to the larger id,
+  // which makes the order total, so the globally cheapest edge is always mutual.
+  absl::StatusOr<bool> ParallelStep() {
+    in_parallel_phase_ = true;
+    size_t alive = 0;
+    for (uint32_t c : alive_) {
+      if (partition_.size(c) > 0) alive_[alive++] = c;
+    }
+    alive_.resize(alive);
     pairs_.clear();
     for (uint32_t c : alive_) {
-      const uint32_t d = optimal_[c];
-      if (d != kNone && c < d && optimal_[d] == c) pairs_.push_back({c, d});
+      const uint32_t d = ode_[c];
+      if (d != kNone && c < d && ode_[d] == c) pairs_.push_back({c, d});
     }
     if (pairs_.empty()) {
       in_parallel_phase_ = false;
@@ -483,7 +502,13 @@ class Engine {
       Merge(keep, gone);
       merged_.push_back(keep);
     }
-    Optimise(merged_);
+    if (clusters_ <= options_.pml_until) {
+      // The hand-over to ML: one optimisation over every cluster's boundary, so that ML
+      // continues from a state optimised as a whole, not only around the last merges.
+      Optimise(alive_);
+    } else {
+      Optimise(merged_);
+    }
     absl::Status s = FinishLevel();
     in_parallel_phase_ = false;
     if (!s.ok()) return s;
@@ -524,7 +549,7 @@ class Engine {
   absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
 
   // PML scratch.
-  std::vector<uint32_t> alive_, optimal_, merged_;
+  std::vector<uint32_t> alive_, merged_;
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
 };
 
