@@ -12,13 +12,14 @@
 
 #include "absl/container/flat_hash_set.h"
 #include "client/client.h"
-#include "core/energies.h"
 #include "core/draco_codec.h"
+#include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/job_options.h"
 #include "tests/core/test_meshes.h"
 
 namespace mlclust {
@@ -324,6 +325,158 @@ TEST_F(ServerTest, StatsReportTheQueueAndTheDevice) {
   EXPECT_EQ(stats.gl_renderer(), server_->gl_renderer());
   std::printf("GL renderer: '%s' (%s)\n", stats.gl_renderer().c_str(),
               server_->gl_unavailable_reason().c_str());
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+v1::JobSpec Spec(v1::Algorithm algorithm, v1::Energy energy = v1::ENERGY_CVD) {
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  spec.set_algorithm(algorithm);
+  spec.set_energy(energy);
+  return spec;
+}
+
+class AlgorithmsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server::ServerOptions options;
+    options.listen_address = "127.0.0.1:0";
+    options.log = false;
+    auto started = server::Server::Start(options);
+    ASSERT_TRUE(started.ok()) << started.status();
+    server_ = *std::move(started);
+    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    mesh_ = *ReadMeshFile(testing::DataPath("elephant.off"));
+    bytes_ = *EncodeMeshToDraco(mesh_);
+  }
+  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec) {
+    return client::RunJob(channel_, spec, bytes_);
+  }
+  std::unique_ptr<server::Server> server_;
+  std::shared_ptr<grpc::Channel> channel_;
+  TriangleMesh mesh_;
+  std::string bytes_;
+};
+
+TEST_F(AlgorithmsTest, MlAndPmlHierarchiesMatchTheirEnergies) {
+  for (v1::Algorithm algorithm : {v1::ALGORITHM_ML, v1::ALGORITHM_PML}) {
+    for (v1::Energy energy : {v1::ENERGY_CVD, v1::ENERGY_PLANAR, v1::ENERGY_MWCVD_AREA}) {
+      v1::JobSpec spec = Spec(algorithm, energy);
+      if (algorithm == v1::ALGORITHM_PML) (*spec.mutable_options())["pml-until"] = "300";
+      absl::StatusOr<client::JobResult> result = Run(spec);
+      ASSERT_TRUE(result.ok()) << result.status();
+      const HierarchyLog& log = result->hierarchy;
+      ASSERT_GT(log.num_levels(), 2u);
+      EXPECT_EQ(log.cluster_count(log.num_levels() - 1), 1u);
+      MeshEnergyOptions options;
+      options.kind = *server::MeshEnergyFromWire(energy);
+      for (size_t level : {log.num_levels() / 2, log.num_levels() - 20}) {
+        auto labels = log.LabelsAt(level);
+        ASSERT_TRUE(labels.ok());
+        const double direct =
+            WithMeshEnergy(options, mesh_, ComputeFaceMeasures(mesh_),
+                           [&](const auto& e) { return EnergyFromProxies(e, *labels); });
+        EXPECT_NEAR(log.energy(level), direct, 1e-7 * direct)
+            << v1::Algorithm_Name(algorithm) << " " << v1::Energy_Name(energy);
+      }
+    }
+  }
+}
+
+TEST_F(AlgorithmsTest, LevelRangeSendsASnapshotThenOnlyLevelsInRange) {
+  v1::JobSpec full = Spec(v1::ALGORITHM_ML);
+  absl::StatusOr<client::JobResult> all = Run(full);
+  ASSERT_TRUE(all.ok());
+  v1::JobSpec spec = Spec(v1::ALGORITHM_ML);
+  spec.set_levels_high(500);
+  spec.set_levels_low(100);
+  absl::StatusOr<client::JobResult> range = Run(spec);
+  ASSERT_TRUE(range.ok()) << range.status();
+  const HierarchyLog& log = range->hierarchy;
+  ASSERT_EQ(log.num_levels(), 401u);  // 500, 499, ..., 100
+  EXPECT_EQ(log.cluster_count(0), 500u);
+  EXPECT_EQ(log.cluster_count(400), 100u);
+  // Every level in range equals the same level of the full run, labels and energy.
+  const size_t offset = *all->hierarchy.LastLevelWith(500);
+  for (size_t level : {size_t{0}, size_t{1}, size_t{250}, size_t{400}}) {
+    EXPECT_EQ(*log.LabelsAt(level), *all->hierarchy.LabelsAt(offset + level)) << level;
+    EXPECT_DOUBLE_EQ(log.energy(level), all->hierarchy.energy(offset + level));
+  }
+  EXPECT_LT(range->done.triplets(), all->done.triplets());
+  spec.set_levels_high(50);
+  spec.set_levels_low(100);
+  EXPECT_EQ(Run(spec).status().code(), absl::StatusCode::kInvalidArgument);
+  spec = Spec(v1::ALGORITHM_EMLO);
+  spec.set_clusters(10);
+  spec.set_levels_high(20);
+  EXPECT_EQ(Run(spec).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+TEST_F(AlgorithmsTest, SingleLevelAlgorithmsSendStartAndResult) {
+  for (v1::Algorithm algorithm : {v1::ALGORITHM_EMLO, v1::ALGORITHM_BB}) {
+    v1::JobSpec spec = Spec(algorithm, v1::ENERGY_PLANAR);
+    spec.set_clusters(40);
+    (*spec.mutable_options())["init"] = "random";
+    spec.set_seed(3);
+    absl::StatusOr<client::JobResult> result = Run(spec);
+    ASSERT_TRUE(result.ok()) << result.status();
+    ASSERT_EQ(result->hierarchy.num_levels(), 2u);
+    EXPECT_EQ(result->hierarchy.cluster_count(1), 40u);
+    EXPECT_LT(result->hierarchy.energy(1), result->hierarchy.energy(0));
+    MeshEnergyOptions planar;
+    planar.kind = MeshEnergyKind::kPlanar;
+    EXPECT_NEAR(result->hierarchy.energy(1),
+                MeshEnergyOfLabels(planar, mesh_, *result->hierarchy.LabelsAt(1)),
+                1e-9 * result->hierarchy.energy(1));
+  }
+}
+
+TEST_F(AlgorithmsTest, BadOptionsAreRefusedNamingTheOption) {
+  struct Case {
+    v1::Algorithm algorithm;
+    uint32_t clusters;
+    std::map<std::string, std::string> options;
+    absl::StatusCode code;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {v1::ALGORITHM_EMLO, 0, {}, absl::StatusCode::kInvalidArgument, "clusters"},
+      {v1::ALGORITHM_EMLO, 100000, {}, absl::StatusCode::kInvalidArgument, "clusters"},
+      {v1::ALGORITHM_EMLO, 10, {{"gamma", "-1"}}, absl::StatusCode::kInvalidArgument, "gamma"},
+      {v1::ALGORITHM_EMLO, 10, {{"init", "magic"}}, absl::StatusCode::kInvalidArgument, "init"},
+      {v1::ALGORITHM_BB, 10, {{"threads", "x"}}, absl::StatusCode::kInvalidArgument, "threads"},
+      {v1::ALGORITHM_ML,
+       0,
+       {{"p-percent", "120"}},
+       absl::StatusCode::kInvalidArgument,
+       "p-percent"},
+      {v1::ALGORITHM_ML, 0, {{"optimizer", "sa"}}, absl::StatusCode::kInvalidArgument, "optimizer"},
+      {v1::ALGORITHM_ML, 0, {{"colour", "red"}}, absl::StatusCode::kInvalidArgument, "colour"},
+      {v1::ALGORITHM_KMEANS, 10, {}, absl::StatusCode::kUnimplemented, "ALGORITHM_KMEANS"},
+  };
+  for (const Case& c : cases) {
+    v1::JobSpec spec = Spec(c.algorithm);
+    spec.set_clusters(c.clusters);
+    for (const auto& [name, value] : c.options) (*spec.mutable_options())[name] = value;
+    absl::Status status = Run(spec).status();
+    EXPECT_EQ(status.code(), c.code) << c.message << ": " << status;
+    EXPECT_THAT(std::string(status.message()), HasSubstr(c.message));
+  }
+}
+
+TEST_F(AlgorithmsTest, ElbowIsReported) {
+  absl::StatusOr<client::JobResult> result = Run(Spec(v1::ALGORITHM_ML));
+  ASSERT_TRUE(result.ok());
+  // Whatever the mesh, the summary names at most five elbows, each a level's count.
+  EXPECT_LE(result->done.elbow_cluster_counts_size(), 5);
+  for (uint32_t k : result->done.elbow_cluster_counts()) {
+    EXPECT_TRUE(result->hierarchy.LastLevelWith(k).has_value()) << k;
+  }
 }
 
 }  // namespace
