@@ -5,8 +5,8 @@
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
 #include "core/face_measures.h"
-#include "core/hierarchical_clustering.h"
 #include "core/mesh_io.h"
+#include "core/multilevel.h"
 
 namespace {
 
@@ -58,21 +58,22 @@ int main(int argc, char** argv) {
   std::printf("%s: %zu faces, %zu vertices\n", argv[1], mesh->num_faces(), mesh->num_vertices());
   std::printf("read %.3f s, validate %.3f s, adjacency %.3f s, measures %.3f s\n", read, validate,
               adjacency_s, measures_s);
+  const mlclust::MeshProblem problem{&*mesh, &*adjacency, &measures, {}};
+  mlclust::MultilevelOptions hc;
+  hc.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
   double best_count = 1e30, best_log = 1e30;
   uint64_t moves = 0;
   size_t log_bytes = 0;
   for (int r = 0; r < repeats; ++r) {
     CountingSink counting;
-    best_count =
-        std::min(best_count, Seconds([&] {
-                   auto s = mlclust::RunHierarchicalClustering(measures, *adjacency, {}, counting);
-                   if (!s.ok()) std::abort();
-                 }));
+    best_count = std::min(best_count, Seconds([&] {
+                            auto s = mlclust::RunMultilevel(problem, hc, counting);
+                            if (!s.ok()) std::abort();
+                          }));
     moves = counting.moves;
     mlclust::HierarchyLog log;
     best_log = std::min(best_log, Seconds([&] {
-                          auto s =
-                              mlclust::RunHierarchicalClustering(measures, *adjacency, {}, log);
+                          auto s = mlclust::RunMultilevel(problem, hc, log);
                           if (!s.ok()) std::abort();
                         }));
     log_bytes = log.num_moves() * 12 + log.num_levels() * 20;

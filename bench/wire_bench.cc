@@ -10,8 +10,8 @@
 #include "client/client.h"
 #include "core/draco_codec.h"
 #include "core/face_measures.h"
-#include "core/hierarchical_clustering.h"
 #include "core/mesh_io.h"
+#include "core/multilevel.h"
 #include "server/server.h"
 
 namespace {
@@ -24,7 +24,9 @@ double NoWireSeconds(const std::string& bytes, uint64_t* triplets) {
   absl::StatusOr<mlclust::FaceAdjacency> adjacency = mlclust::BuildFaceAdjacency(*mesh);
   const mlclust::FaceMeasures measures = mlclust::ComputeFaceMeasures(*mesh);
   mlclust::HierarchyLog log;
-  if (!mlclust::RunHierarchicalClustering(measures, *adjacency, {}, log).ok()) std::abort();
+  mlclust::MultilevelOptions hc;
+  hc.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
+  if (!mlclust::RunMultilevel({&*mesh, &*adjacency, &measures, {}}, hc, log).ok()) std::abort();
   *triplets = log.num_moves();
   return absl::ToDoubleSeconds(absl::Now() - start);
 }

@@ -15,12 +15,14 @@
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
-#include "core/energies.h"
+#include "core/coarsening.h"
 #include "core/draco_codec.h"
+#include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/job_options.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -32,15 +34,36 @@ usage:
   mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
       Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
 
-  mlclust mesh INPUT [--server ADDR] [--algo hc] [--energy cvd] [--clusters K]
-                     [--labels FILE] [--levels-csv FILE] [--ply FILE]
-                     [--device auto|gpu|cpu] [--quiet]
+  mlclust mesh INPUT [--server ADDR] [--algo hc|emlo|bb] [--energy E] [--clusters K]
+                     [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
+                     [--device auto|gpu|cpu] [--quiet] [algorithm options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
-      --clusters K     the level written by --labels and --ply (the level with K clusters)
+      --algo           hc: the merge hierarchy without optimisation (default); ml: the
+                       multilevel hierarchy (merge, then optimise locally); pml: parallel
+                       ML; emlo: energy minimisation by local optimisation at one K;
+                       bb: boundary-based optimisation at one K (parallel)
+      --energy E       cvd (default), cvd-adaptive, mwcvd-area, mwcvd-variance, mwcvd-max,
+                       planar, sphere
+      --clusters K     the level written by --labels, --ply and --coarse (for emlo and bb
+                       the number of clusters to compute)
       --labels FILE    one line per input face: its cluster (0..K-1) at that level
       --levels-csv F   a row "clusters,energy" per level received
       --ply FILE       the mesh with one colour per cluster at that level
+      --coarse FILE    the coarse mesh of that level: one vertex per cluster, a triangle
+                       where three clusters meet (format by extension: .ply, .obj, .off)
+      --coarse-placement centroid|qem   where coarse vertices go (default centroid)
+    hierarchy options (hc, ml, pml):
+      --levels K_HI:K_LO  only the levels with K_LO..K_HI clusters (a snapshot, then deltas)
+      --optimizer emlo|bb|none  ML's local optimiser;  --p-percent P  merge P% first without it
+      --pml-until K       PML down to K clusters, then ML;  --threads T  PML's threads
+    algorithm options (emlo, bb):
+      --init lneigh|random  initial seeds (default lneigh);  --level L  l of lneigh (0: auto)
+      --seed S              random seed (default 1);  --guard on|off  connectivity guard
+      --threads T, --max-iterations N   bb only
+    energy options:
+      --density power|linear, --gamma G, --delta D (power: (rho'+D)^G), --rho-max R
+      (linear: onto [1, R]), --mwcvd-p P, --planar-tolerance T
 
   mlclust energy INPUT --labels FILE [--energy cvd]
       Computes the energy of a labelling directly from the mesh file (a check).
@@ -223,6 +246,30 @@ class ProgressLine {
   absl::Time last_ = absl::InfinitePast();
 };
 
+// Builds the wire energy and its options from the command line (shared by mesh and
+// energy, so both accept and check the same names).
+absl::Status SetEnergy(const Arguments& args, v1::JobSpec& spec) {
+  const std::string energy = args.get("energy", "cvd");
+  const std::map<std::string, v1::Energy> energies = {{"cvd", v1::ENERGY_CVD},
+                                                      {"cvd-adaptive", v1::ENERGY_CVD_ADAPTIVE},
+                                                      {"mwcvd-area", v1::ENERGY_MWCVD_AREA},
+                                                      {"mwcvd-variance", v1::ENERGY_MWCVD_VARIANCE},
+                                                      {"mwcvd-max", v1::ENERGY_MWCVD_MAX},
+                                                      {"planar", v1::ENERGY_PLANAR},
+                                                      {"sphere", v1::ENERGY_SPHERE}};
+  if (energies.count(energy) == 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--energy: '", energy,
+        "' is not one of cvd, cvd-adaptive, mwcvd-area, mwcvd-variance, mwcvd-max, planar, "
+        "sphere"));
+  }
+  spec.set_energy(energies.at(energy));
+  for (const char* name : {"density", "gamma", "delta", "rho-max", "mwcvd-p", "planar-tolerance"}) {
+    if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
+  }
+  return absl::OkStatus();
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -236,17 +283,53 @@ int Mesh(const Arguments& args) {
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
   const std::string algo = args.get("algo", "hc");
-  if (algo == "hc") {
-    spec.set_algorithm(v1::ALGORITHM_HC);
-  } else {
-    return Fail(absl::InvalidArgumentError(absl::StrCat("--algo: '", algo, "' is not one of: hc")));
+  const std::map<std::string, v1::Algorithm> algorithms = {{"hc", v1::ALGORITHM_HC},
+                                                           {"ml", v1::ALGORITHM_ML},
+                                                           {"pml", v1::ALGORITHM_PML},
+                                                           {"emlo", v1::ALGORITHM_EMLO},
+                                                           {"bb", v1::ALGORITHM_BB}};
+  if (algorithms.count(algo) == 0) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--algo: '", algo, "' is not one of hc, ml, pml, emlo, bb")));
   }
-  const std::string energy = args.get("energy", "cvd");
-  if (energy == "cvd") {
-    spec.set_energy(v1::ENERGY_CVD);
-  } else {
-    return Fail(
-        absl::InvalidArgumentError(absl::StrCat("--energy: '", energy, "' is not one of: cvd")));
+  const bool hierarchy = algo == "hc" || algo == "ml" || algo == "pml";
+  spec.set_algorithm(algorithms.at(algo));
+  if (absl::Status status = SetEnergy(args, spec); !status.ok()) return Fail(status);
+  if (!hierarchy && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
+  }
+  if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
+  if (args.has("levels")) {
+    // K_HI:K_LO, either end may be empty: the levels with cluster counts in [K_LO, K_HI].
+    const std::string range = args.get("levels");
+    const size_t colon = range.find(':');
+    uint32_t high = 0, low = 0;
+    const std::string high_text = range.substr(0, colon);
+    const std::string low_text = colon == std::string::npos ? "" : range.substr(colon + 1);
+    if (!hierarchy || colon == std::string::npos ||
+        (!high_text.empty() && !absl::SimpleAtoi(high_text, &high)) ||
+        (!low_text.empty() && !absl::SimpleAtoi(low_text, &low))) {
+      return Fail(absl::InvalidArgumentError(
+          "--levels: give K_HI:K_LO (cluster counts) with --algo hc, ml or pml"));
+    }
+    spec.set_levels_high(high);
+    spec.set_levels_low(low);
+  }
+  absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
+  if (!seed.ok()) return Fail(seed.status());
+  spec.set_seed(*seed);
+  // Algorithm and energy options travel as text; the server checks them and names any
+  // that is out of range.
+  for (const char* name : {"init", "level", "guard", "threads", "max-iterations", "optimizer",
+                           "p-percent", "pml-until"}) {
+    if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
+  }
+  const std::string placement = args.get("coarse-placement", "centroid");
+  if (placement != "centroid" && placement != "qem") {
+    return Fail(absl::InvalidArgumentError("--coarse-placement must be centroid or qem"));
+  }
+  if (args.has("coarse") && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--coarse needs --clusters K (K >= 1)"));
   }
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
@@ -291,7 +374,10 @@ int Mesh(const Arguments& args) {
   }
   std::string level_note;
   if (*clusters > 0) {
-    std::optional<size_t> level = log.FirstLevelWithAtMost(static_cast<uint32_t>(*clusters));
+    // The last level with exactly K clusters (a single-level algorithm's result follows
+    // its start at the same K), else the first with fewer (PML may skip counts).
+    std::optional<size_t> level = log.LastLevelWith(static_cast<uint32_t>(*clusters));
+    if (!level.has_value()) level = log.FirstLevelWithAtMost(static_cast<uint32_t>(*clusters));
     if (!level.has_value()) {
       return Fail(absl::NotFoundError(absl::StrCat("no level has ", *clusters,
                                                    " clusters or fewer (the last has ",
@@ -303,20 +389,34 @@ int Mesh(const Arguments& args) {
     if (args.has("labels")) {
       if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
     }
+    std::vector<ClusterId> ids(compact.size());
+    for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
     if (args.has("ply")) {
-      std::vector<ClusterId> ids(compact.size());
-      for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
       if (absl::Status s = WriteClusteredPly(args.get("ply"), *mesh, ids); !s.ok()) {
         return Fail(s);
       }
     }
+    if (args.has("coarse")) {
+      CoarseningOptions options;
+      options.placement = placement == "qem" ? CoarseningOptions::Placement::kQuadric
+                                             : CoarseningOptions::Placement::kCentroid;
+      absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+      if (!adjacency.ok()) return Fail(adjacency.status());
+      absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(*mesh, *adjacency, ids, options);
+      if (!coarse.ok()) return Fail(coarse.status());
+      if (absl::Status s = WriteMeshFile(args.get("coarse"), *coarse); !s.ok()) return Fail(s);
+    }
     level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
                                  log.cluster_count(*level), log.energy(*level));
   }
-  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s\n",
+  std::string elbows;
+  for (uint32_t k : result->done.elbow_cluster_counts()) {
+    absl::StrAppend(&elbows, elbows.empty() ? "; elbows at " : ", ", k);
+  }
+  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
               input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
               result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-              level_note.c_str());
+              level_note.c_str(), elbows.c_str());
   return 0;
 }
 
@@ -324,14 +424,18 @@ int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  if (args.get("energy", "cvd") != "cvd") {
-    return Fail(absl::InvalidArgumentError("--energy: only cvd so far"));
-  }
+  v1::JobSpec spec;
+  if (absl::Status s = SetEnergy(args, spec); !s.ok()) return Fail(s);
+  absl::StatusOr<MeshEnergyOptions> options = server::PlanMeshEnergy(spec);
+  if (!options.ok()) return Fail(options.status());
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(args.positional()[0]);
   if (!mesh.ok()) return Fail(mesh.status());
   absl::StatusOr<std::vector<ClusterId>> labels = ReadLabels(args.get("labels"), mesh->num_faces());
   if (!labels.ok()) return Fail(labels.status());
-  const double energy = CvdEnergyDirect(ComputeFaceMeasures(*mesh), *labels);
+  // By definition: every face against its cluster's best proxy (not the sums' shortcut).
+  const FaceMeasures measures = ComputeFaceMeasures(*mesh);
+  const double energy = WithMeshEnergy(
+      *options, *mesh, measures, [&](const auto& e) { return EnergyFromProxies(e, *labels); });
   std::printf("%.17g\n", energy);
   return 0;
 }
@@ -364,10 +468,16 @@ int main(int argc, char** argv) {
   std::vector<std::string> known;
   if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
   if (command == "mesh") {
-    known = {"server",     "algo", "energy", "clusters", "labels",
-             "levels-csv", "ply",  "device", "quiet"};
+    known = {"server",    "algo",      "energy",  "clusters", "labels",           "levels-csv",
+             "ply",       "device",    "quiet",   "coarse",   "coarse-placement", "seed",
+             "init",      "level",     "guard",   "threads",  "max-iterations",   "density",
+             "gamma",     "delta",     "rho-max", "mwcvd-p",  "planar-tolerance", "optimizer",
+             "p-percent", "pml-until", "levels"};
   }
-  if (command == "energy") known = {"labels", "energy"};
+  if (command == "energy") {
+    known = {"labels", "energy",  "density", "gamma",
+             "delta",  "rho-max", "mwcvd-p", "planar-tolerance"};
+  }
   if (command == "stats") known = {"server"};
   if (known.empty()) {
     std::fprintf(stderr, "mlclust: unknown command '%s'\n\n%s", command.c_str(),

@@ -16,9 +16,9 @@
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "core/face_measures.h"
-#include "core/hierarchical_clustering.h"
 #include "core/hierarchy.h"
 #include "core/mesh_io.h"
+#include "core/multilevel.h"
 #include "tests/core/test_meshes.h"
 
 namespace mlclust {
@@ -142,8 +142,11 @@ std::vector<ClusterId> GrowClusters(const FaceAdjacency& adjacency, size_t k, ui
 // The CVD clustering with k clusters that HC finds (k >= the number of components).
 std::vector<ClusterId> HcClusters(const Prepared& p, uint32_t k) {
   HierarchyLog log;
-  auto summary =
-      RunHierarchicalClustering(ComputeFaceMeasures(p.mesh), p.adjacency, {.min_clusters = k}, log);
+  const FaceMeasures measures = ComputeFaceMeasures(p.mesh);
+  MultilevelOptions options;
+  options.optimizer = MultilevelOptions::Optimizer::kNone;  // HC
+  options.min_clusters = k;
+  auto summary = RunMultilevel({&p.mesh, &p.adjacency, &measures, {}}, options, log);
   EXPECT_TRUE(summary.ok()) << summary.status();
   return *log.LabelsAt(log.num_levels() - 1);
 }
