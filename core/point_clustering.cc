@@ -1,0 +1,969 @@
+#include "core/point_clustering.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numeric>
+
+#include "absl/container/flat_hash_map.h"
+#include "absl/strings/str_cat.h"
+#include "core/random.h"
+#include "tbb/parallel_for.h"
+#include "tbb/task_arena.h"
+
+namespace mlclust {
+namespace {
+
+constexpr uint32_t kNone = 0xffffffffu;
+
+// Kahan summation for the running energy of a hierarchy.
+class CompensatedSum {
+ public:
+  void Add(double x) {
+    const double y = x - compensation_;
+    const double t = sum_ + y;
+    compensation_ = (t - sum_) - y;
+    sum_ = t;
+  }
+  double value() const { return sum_; }
+  void Reset(double v) { sum_ = v, compensation_ = 0; }
+
+ private:
+  double sum_ = 0, compensation_ = 0;
+};
+
+// Clusters of points with their sums, centroids and local neighbours. Coordinates are
+// taken relative to the data's mean (`origin`) so that the energy from sums,
+// sum |x|^2 - |sum x|^2 / n, keeps its precision.
+class PointClusters {
+ public:
+  PointClusters(const PointSet& points, std::span<const uint32_t> labels, uint32_t capacity)
+      : points_(points),
+        d_(points.dims),
+        labels_(labels.begin(), labels.end()),
+        count_(capacity, 0),
+        sum_(size_t{capacity} * d_, 0.0),
+        square_(capacity, 0.0),
+        centroid_(size_t{capacity} * d_, 0.0),
+        neighbours_(size_t{capacity} * 2 * d_, kNone),
+        origin_(d_, 0.0) {
+    const size_t m = points.num_points();
+    for (size_t i = 0; i < m; ++i) {
+      for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
+    }
+    for (double& o : origin_) o /= static_cast<double>(std::max<size_t>(m, 1));
+    for (size_t i = 0; i < m; ++i) Add(labels_[i], i, +1);
+    for (uint32_t c = 0; c < capacity; ++c) UpdateCentroid(c);
+  }
+
+  uint32_t dims() const { return d_; }
+  uint32_t capacity() const { return static_cast<uint32_t>(count_.size()); }
+  uint32_t label(size_t i) const { return labels_[i]; }
+  std::span<const uint32_t> labels() const { return labels_; }
+  uint64_t count(uint32_t c) const { return count_[c]; }
+  std::span<const double> centroid(uint32_t c) const { return {&centroid_[size_t{c} * d_], d_}; }
+  std::span<uint32_t> neighbours(uint32_t c) { return {&neighbours_[size_t{c} * 2 * d_], 2 * d_}; }
+  std::span<const uint32_t> neighbours(uint32_t c) const {
+    return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
+  }
+
+  double Energy(uint32_t c) const {
+    if (count_[c] == 0) return 0;
+    double s2 = 0;
+    for (uint32_t j = 0; j < d_; ++j) s2 += sum_[size_t{c} * d_ + j] * sum_[size_t{c} * d_ + j];
+    return std::max(0.0, square_[c] - s2 / static_cast<double>(count_[c]));
+  }
+  double MergeCost(uint32_t a, uint32_t b) const {
+    const double na = static_cast<double>(count_[a]), nb = static_cast<double>(count_[b]);
+    if (na == 0 || nb == 0) return 0;
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = centroid_[size_t{a} * d_ + j] - centroid_[size_t{b} * d_ + j];
+      dist += diff * diff;
+    }
+    return na * nb / (na + nb) * dist;
+  }
+  // |x_i - c|^2 with x_i relative to the origin.
+  double Distance(size_t i, uint32_t c) const {
+    const float* x = &points_.values[i * d_];
+    const double* cc = &centroid_[size_t{c} * d_];
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = (x[j] - origin_[j]) - cc[j];
+      dist += diff * diff;
+    }
+    return dist;
+  }
+  void Relative(size_t i, std::vector<double>& out) const {
+    out.resize(d_);
+    for (uint32_t j = 0; j < d_; ++j) out[j] = points_.values[i * d_ + j] - origin_[j];
+  }
+
+  void Move(size_t i, uint32_t to) {
+    Add(labels_[i], i, -1);
+    labels_[i] = to;
+    Add(to, i, +1);
+  }
+  // All of `gone`'s sums into `keep` (labels are the caller's, via SetLabel).
+  void MergeSums(uint32_t keep, uint32_t gone) {
+    count_[keep] += count_[gone];
+    square_[keep] += square_[gone];
+    for (uint32_t j = 0; j < d_; ++j) sum_[size_t{keep} * d_ + j] += sum_[size_t{gone} * d_ + j];
+    count_[gone] = 0;
+    square_[gone] = 0;
+    std::fill(&sum_[size_t{gone} * d_], &sum_[size_t{gone} * d_] + d_, 0.0);
+    UpdateCentroid(keep);
+  }
+  void SetLabel(size_t i, uint32_t c) { labels_[i] = c; }
+  void UpdateCentroid(uint32_t c) {
+    const double n = static_cast<double>(count_[c]);
+    for (uint32_t j = 0; j < d_; ++j) {
+      centroid_[size_t{c} * d_ + j] = n > 0 ? sum_[size_t{c} * d_ + j] / n : 0.0;
+    }
+  }
+
+  // Eq. 6.1 neighbours of `c` from `candidates` (its own and the second-order ones, or
+  // any others the caller adds): the nearest candidate centroid in each subspace.
+  void RefreshNeighbours(uint32_t c, std::vector<uint32_t>& candidates) {
+    std::span<uint32_t> out = neighbours(c);
+    for (uint32_t n : out) {
+      if (n == kNone) continue;
+      candidates.push_back(n);
+      for (uint32_t nn : neighbours(n)) {
+        if (nn != kNone) candidates.push_back(nn);
+      }
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    std::fill(out.begin(), out.end(), kNone);
+    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
+    for (uint32_t n : candidates) {
+      if (n == c || n == kNone || count_[n] == 0) continue;
+      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
+      double dist = 0;
+      for (uint32_t j = 0; j < d_; ++j) {
+        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
+        dist += diff * diff;
+      }
+      if (dist < best[s] || (dist == best[s] && n < out[s])) {
+        best[s] = dist;
+        out[s] = n;
+      }
+    }
+    candidates.clear();
+  }
+
+  double TotalEnergy() const {
+    double total = 0;
+    for (uint32_t c = 0; c < capacity(); ++c) total += Energy(c);
+    return total;
+  }
+
+ private:
+  void Add(uint32_t c, size_t i, int sign) {
+    const float* x = &points_.values[i * d_];
+    double s2 = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double v = x[j] - origin_[j];
+      sum_[size_t{c} * d_ + j] += sign * v;
+      s2 += v * v;
+    }
+    square_[c] += sign * s2;
+    count_[c] += sign;
+  }
+
+  const PointSet& points_;
+  const uint32_t d_;
+  std::vector<uint32_t> labels_;
+  std::vector<uint64_t> count_;
+  std::vector<double> sum_;
+  std::vector<double> square_;
+  std::vector<double> centroid_;
+  std::vector<uint32_t> neighbours_;
+  std::vector<double> origin_;
+};
+
+// First neighbours from brute force over all clusters (for seeded starts of moderate k)
+// or from a voxel hash of the centroids (large k).
+void InitialNeighbours(PointClusters& clusters) {
+  const uint32_t k = clusters.capacity();
+  const uint32_t d = clusters.dims();
+  std::vector<double> best(2 * d);
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
+    std::vector<double> best_local(2 * d);
+    for (uint32_t c = range.begin(); c != range.end(); ++c) {
+      std::span<uint32_t> out = clusters.neighbours(c);
+      std::fill(out.begin(), out.end(), kNone);
+      if (clusters.count(c) == 0) continue;
+      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
+      for (uint32_t n = 0; n < k; ++n) {
+        if (n == c || clusters.count(n) == 0) continue;
+        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
+        double dist = 0;
+        for (uint32_t j = 0; j < d; ++j) {
+          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
+          dist += diff * diff;
+        }
+        if (dist < best_local[s]) {
+          best_local[s] = dist;
+          out[s] = n;
+        }
+      }
+    }
+  });
+}
+
+// One LN k-means pass over `points_to_check` (indices): each point's best cluster among
+// its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
+// Returns the points that want to move, with their targets.
+void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
+                   std::vector<uint32_t>& target) {
+  const uint32_t d = clusters.dims();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, points_to_check.size(), 1024),
+                    [&](const auto& range) {
+                      std::vector<double> x;
+                      uint32_t candidates[256];
+                      for (size_t r = range.begin(); r != range.end(); ++r) {
+                        const uint32_t i = points_to_check[r];
+                        const uint32_t own = clusters.label(i);
+                        target[r] = kNone;
+                        clusters.Relative(i, x);
+                        const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
+                        int count = 0;
+                        for (uint32_t n : clusters.neighbours(own)) {
+                          if (n != kNone && count < 256) candidates[count++] = n;
+                        }
+                        const uint32_t towards = clusters.neighbours(own)[s];
+                        if (towards != kNone) {
+                          for (uint32_t n : clusters.neighbours(towards)) {
+                            if (n != kNone && n != own && count < 256) candidates[count++] = n;
+                          }
+                        }
+                        double best = clusters.Distance(i, own);
+                        uint32_t best_cluster = own;
+                        for (int c = 0; c < count; ++c) {
+                          const uint32_t n = candidates[c];
+                          if (n == best_cluster || clusters.count(n) == 0) continue;
+                          const double dist = clusters.Distance(i, n);
+                          if (dist < best || (dist == best && n < best_cluster && n != own)) {
+                            best = dist;
+                            best_cluster = n;
+                          }
+                        }
+                        (void)d;
+                        if (best_cluster != own) target[r] = best_cluster;
+                      }
+                    });
+}
+
+// Applies the chosen moves (a cluster's last point stays) and returns the clusters that
+// changed. Centroids of changed clusters are updated.
+std::vector<uint32_t> ApplyMoves(PointClusters& clusters, std::span<const uint32_t> points,
+                                 std::span<const uint32_t> target, std::vector<uint8_t>& mark,
+                                 uint64_t& moved,
+                                 const std::function<void(uint32_t, uint32_t, uint32_t)>& on_move) {
+  std::vector<uint32_t> changed;
+  for (size_t r = 0; r < points.size(); ++r) {
+    if (target[r] == kNone) continue;
+    const uint32_t i = points[r];
+    const uint32_t from = clusters.label(i);
+    if (clusters.count(from) <= 1) continue;
+    clusters.Move(i, target[r]);
+    ++moved;
+    if (on_move) on_move(i, from, target[r]);
+    for (uint32_t c : {from, target[r]}) {
+      if (!mark[c]) {
+        mark[c] = 1;
+        changed.push_back(c);
+      }
+    }
+  }
+  for (uint32_t c : changed) {
+    mark[c] = 0;
+    clusters.UpdateCentroid(c);
+  }
+  return changed;
+}
+
+// Refreshes the neighbours of the changed clusters and of their neighbours.
+void RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
+                   std::vector<uint8_t>& mark) {
+  std::vector<uint32_t> affected;
+  for (uint32_t c : changed) {
+    if (!mark[c]) {
+      mark[c] = 1;
+      affected.push_back(c);
+    }
+    for (uint32_t n : clusters.neighbours(c)) {
+      if (n != kNone && !mark[n]) {
+        mark[n] = 1;
+        affected.push_back(n);
+      }
+    }
+  }
+  std::vector<uint32_t> candidates;
+  for (uint32_t c : affected) {
+    mark[c] = 0;
+    if (clusters.count(c) == 0) continue;
+    // A changed cluster may now be nearest to any cluster that sees it: offer the changed
+    // ones as candidates too.
+    candidates.assign(changed.begin(), changed.end());
+    clusters.RefreshNeighbours(c, candidates);
+  }
+}
+
+// Occupied voxel cells: per point its cell's cluster, per cluster its cell coordinates.
+struct VoxelCells {
+  std::vector<uint32_t> labels;
+  std::vector<std::vector<uint32_t>> cell;  // per cluster
+};
+
+VoxelCells OccupiedCells(const PointSet& points, uint32_t grid) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  std::vector<float> lo(d, std::numeric_limits<float>::max());
+  std::vector<float> hi(d, -std::numeric_limits<float>::max());
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      lo[j] = std::min(lo[j], points.values[i * d + j]);
+      hi[j] = std::max(hi[j], points.values[i * d + j]);
+    }
+  }
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+  VoxelCells cells;
+  cells.labels.resize(m);
+  std::vector<uint32_t> cell(d);
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      const double span = static_cast<double>(hi[j]) - lo[j];
+      const double t = span > 0 ? (points.values[i * d + j] - lo[j]) / span : 0.0;
+      cell[j] = std::min(grid - 1, static_cast<uint32_t>(t * grid));
+    }
+    auto [it, inserted] = index.try_emplace(cell, static_cast<uint32_t>(cells.cell.size()));
+    if (inserted) cells.cell.push_back(cell);
+    cells.labels[i] = it->second;
+  }
+  return cells;
+}
+
+// The multilevel engine for points: the mesh engine's structure with local neighbours in
+// place of face adjacency and LN k-means in place of EMLO.
+class PointEngine {
+ public:
+  PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
+              uint32_t grid)
+      : points_(points), options_(options), sink_(sink), d_(points.dims) {
+    VoxelCells cells = OccupiedCells(points, grid);
+    k0_ = static_cast<uint32_t>(cells.cell.size());
+    clusters_ = std::make_unique<PointClusters>(points, cells.labels, k0_);
+    members_.resize(k0_);
+    position_.resize(points.num_points());
+    for (size_t i = 0; i < cells.labels.size(); ++i) {
+      position_[i] = static_cast<uint32_t>(members_[cells.labels[i]].size());
+      members_[cells.labels[i]].push_back(static_cast<uint32_t>(i));
+    }
+    // First neighbours: the face-sharing occupied cells, then the refresh picks the
+    // nearest per subspace from them and their neighbours.
+    absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+    for (uint32_t c = 0; c < k0_; ++c) index[cells.cell[c]] = c;
+    std::vector<uint32_t> probe(d_);
+    for (uint32_t c = 0; c < k0_; ++c) {
+      std::span<uint32_t> out = clusters_->neighbours(c);
+      for (uint32_t j = 0; j < d_; ++j) {
+        for (int side = 0; side < 2; ++side) {
+          probe = cells.cell[c];
+          if (side == 0) {
+            ++probe[j];
+          } else {
+            if (probe[j] == 0) continue;
+            --probe[j];
+          }
+          auto it = index.find(probe);
+          if (it != index.end()) out[2 * j + side] = it->second;
+        }
+      }
+    }
+    std::vector<uint32_t> candidates;
+    for (uint32_t c = 0; c < k0_; ++c) clusters_->RefreshNeighbours(c, candidates);
+    reverse_.resize(k0_);
+    for (uint32_t c = 0; c < k0_; ++c) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone) reverse_[n].push_back(c);
+      }
+    }
+    ode_.assign(k0_, kNone);
+    ode_cost_.assign(k0_, std::numeric_limits<double>::infinity());
+    version_.assign(k0_, 0);
+    origin_.assign(points.num_points(), kNone);
+    mark_.assign(k0_, 0);
+    affected_mark_.assign(k0_, 0);
+    energy_before_.assign(k0_, 0.0);
+  }
+
+  absl::StatusOr<PointMultilevelSummary> Run() {
+    PointMultilevelSummary summary;
+    summary.start_clusters = k0_;
+    std::vector<ClusterId> start(points_.num_points());
+    for (size_t i = 0; i < start.size(); ++i) start[i] = ClusterId(clusters_->label(i));
+    energy_.Reset(clusters_->TotalEnergy());
+    if (absl::Status s = sink_.OnStart(start, k0_, energy_.value()); !s.ok()) return s;
+    if (options_.inspect_level) options_.inspect_level(0, clusters_->labels());
+    alive_ = k0_;
+    levels_ = 1;
+    for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
+    while (alive_ > options_.min_clusters) {
+      bool merged;
+      if (options_.parallel && alive_ > options_.pml_until) {
+        merged = ParallelStep();
+      } else {
+        merged = SequentialStep();
+      }
+      if (!merged) {
+        // No neighbour pairs left but several clusters: groups the local neighbours never
+        // connected (far-apart data). Link the survivors by brute force and go on.
+        if (!ConnectSurvivors()) break;
+        continue;
+      }
+      if (absl::Status s = FinishLevel(); !s.ok()) return s;
+    }
+    summary.levels = levels_;
+    summary.final_clusters = alive_;
+    summary.moves = moves_;
+    return summary;
+  }
+
+ private:
+  // ---- ODEs -----------------------------------------------------------------------------
+  void RecomputeOde(uint32_t c) {
+    double best = std::numeric_limits<double>::infinity();
+    uint32_t best_d = kNone;
+    if (clusters_->count(c) > 0) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n == kNone || clusters_->count(n) == 0) continue;
+        const double cost = clusters_->MergeCost(c, n);
+        if (cost < best || (cost == best && n > best_d)) {
+          best = cost;
+          best_d = n;
+        }
+      }
+    }
+    ode_[c] = best_d;
+    ode_cost_[c] = best;
+    ++version_[c];
+    if (best_d != kNone) {
+      heap_.push_back({best, c, version_[c]});
+      std::push_heap(heap_.begin(), heap_.end(), Later{});
+    }
+  }
+
+  // ---- neighbour bookkeeping --------------------------------------------------------------
+  void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
+    std::span<uint32_t> out = clusters_->neighbours(c);
+    std::vector<uint32_t> before(out.begin(), out.end());
+    clusters_->RefreshNeighbours(c, candidates);
+    for (uint32_t n : before) {
+      if (n == kNone) continue;
+      auto& list = reverse_[n];
+      auto it = std::find(list.begin(), list.end(), c);
+      if (it != list.end()) {
+        *it = list.back();
+        list.pop_back();
+      }
+    }
+    for (uint32_t n : out) {
+      if (n != kNone) reverse_[n].push_back(c);
+    }
+  }
+
+  void Touch(uint32_t c) {
+    if (affected_mark_[c]) return;
+    affected_mark_[c] = 1;
+    affected_.push_back(c);
+    energy_before_[c] = clusters_->Energy(c);
+  }
+  void Record(uint32_t i, uint32_t from) {
+    if (origin_[i] == kNone) {
+      origin_[i] = from;
+      touched_.push_back(i);
+    }
+  }
+
+  void Merge(uint32_t a, uint32_t b) {
+    uint32_t keep = a, gone = b;
+    if (clusters_->count(b) > clusters_->count(a) ||
+        (clusters_->count(b) == clusters_->count(a) && b < a)) {
+      std::swap(keep, gone);
+    }
+    Touch(keep);
+    Touch(gone);
+    for (uint32_t i : members_[gone]) {
+      Record(i, gone);
+      clusters_->SetLabel(i, keep);
+      position_[i] = static_cast<uint32_t>(members_[keep].size());
+      members_[keep].push_back(i);
+    }
+    std::vector<uint32_t>().swap(members_[gone]);
+    clusters_->MergeSums(keep, gone);
+    --alive_;
+    merged_.push_back(keep);
+    gone_.push_back(gone);
+  }
+
+  // LN k-means around the merged clusters: their points and their neighbours' points.
+  void Optimise() {
+    if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
+    std::vector<uint32_t> region;
+    for (uint32_t c : merged_) {
+      if (!mark_[c] && clusters_->count(c) > 0) {
+        mark_[c] = 1;
+        region.push_back(c);
+      }
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) {
+          mark_[n] = 1;
+          region.push_back(n);
+        }
+      }
+    }
+    for (uint32_t c : region) mark_[c] = 0;
+    for (int round = 0; round < 8 && !region.empty(); ++round) {
+      points_to_check_.clear();
+      for (uint32_t c : region) {
+        points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+      }
+      target_.resize(points_to_check_.size());
+      ChooseTargets(*clusters_, points_to_check_, target_);
+      std::vector<uint32_t> changed;
+      for (size_t r = 0; r < points_to_check_.size(); ++r) {
+        if (target_[r] == kNone) continue;
+        const uint32_t i = points_to_check_[r];
+        const uint32_t from = clusters_->label(i), to = target_[r];
+        if (clusters_->count(from) <= 1) continue;
+        Touch(from);
+        Touch(to);
+        Record(i, from);
+        clusters_->Move(i, to);
+        auto& list = members_[from];
+        const uint32_t at = position_[i];
+        list[at] = list.back();
+        position_[list[at]] = at;
+        list.pop_back();
+        position_[i] = static_cast<uint32_t>(members_[to].size());
+        members_[to].push_back(i);
+        for (uint32_t c : {from, to}) {
+          if (!mark_[c]) {
+            mark_[c] = 1;
+            changed.push_back(c);
+          }
+        }
+      }
+      for (uint32_t c : changed) {
+        mark_[c] = 0;
+        clusters_->UpdateCentroid(c);
+      }
+      if (changed.empty()) break;
+      region = changed;
+    }
+  }
+
+  absl::Status FinishLevel() {
+    // Neighbours: of every cluster that changed, of those that saw a changed or gone
+    // cluster, and their ODEs.
+    std::vector<uint32_t> refresh;
+    auto add = [&](uint32_t c) {
+      if (!mark_[c] && clusters_->count(c) > 0) {
+        mark_[c] = 1;
+        refresh.push_back(c);
+      }
+    };
+    std::vector<uint32_t> candidates;
+    for (uint32_t gone : gone_) {
+      for (uint32_t x : std::vector<uint32_t>(reverse_[gone])) add(x);
+    }
+    for (uint32_t c : affected_) {
+      add(c);
+      for (uint32_t x : reverse_[c]) add(x);
+    }
+    for (uint32_t c : refresh) {
+      mark_[c] = 0;
+      // Offer the merged clusters and the gone ones' neighbours as candidates too.
+      candidates.assign(merged_.begin(), merged_.end());
+      for (uint32_t gone : gone_) {
+        for (uint32_t n : clusters_->neighbours(gone)) {
+          if (n != kNone) candidates.push_back(n);
+        }
+      }
+      Refresh(c, candidates);
+    }
+    for (uint32_t gone : gone_) {
+      for (uint32_t n : clusters_->neighbours(gone)) {
+        if (n == kNone) continue;
+        auto& list = reverse_[n];
+        auto it = std::find(list.begin(), list.end(), gone);
+        if (it != list.end()) {
+          *it = list.back();
+          list.pop_back();
+        }
+      }
+      std::span<uint32_t> out = clusters_->neighbours(gone);
+      std::fill(out.begin(), out.end(), kNone);
+      ++version_[gone];
+    }
+    for (uint32_t c : refresh) RecomputeOde(c);
+    if (heap_.size() > 4 * static_cast<size_t>(alive_) + 4096) RebuildHeap();
+
+    for (uint32_t c : affected_) {
+      energy_.Add(clusters_->Energy(c) - energy_before_[c]);
+      affected_mark_[c] = 0;
+    }
+    affected_.clear();
+    element_.clear();
+    to_.clear();
+    from_.clear();
+    for (uint32_t i : touched_) {
+      if (clusters_->label(i) != origin_[i]) {
+        element_.push_back(i);
+        to_.push_back(clusters_->label(i));
+        from_.push_back(origin_[i]);
+      }
+      origin_[i] = kNone;
+    }
+    touched_.clear();
+    merged_.clear();
+    gone_.clear();
+    LevelMoves level;
+    level.level = levels_;
+    level.cluster_count = alive_;
+    level.energy = energy_.value();
+    level.element = element_;
+    level.to_cluster = to_;
+    level.from_cluster = from_;
+    moves_ += element_.size();
+    if (absl::Status s = sink_.OnLevel(level); !s.ok()) return s;
+    if (options_.inspect_level) options_.inspect_level(levels_, clusters_->labels());
+    ++levels_;
+    return absl::OkStatus();
+  }
+
+  void RebuildHeap() {
+    heap_.clear();
+    for (uint32_t c = 0; c < k0_; ++c) {
+      if (clusters_->count(c) > 0 && ode_[c] != kNone)
+        heap_.push_back({ode_cost_[c], c, version_[c]});
+    }
+    std::make_heap(heap_.begin(), heap_.end(), Later{});
+  }
+
+  bool SequentialStep() {
+    while (!heap_.empty()) {
+      std::pop_heap(heap_.begin(), heap_.end(), Later{});
+      const Entry e = heap_.back();
+      heap_.pop_back();
+      if (clusters_->count(e.cluster) == 0 || version_[e.cluster] != e.version) continue;
+      const uint32_t other = ode_[e.cluster];
+      if (other == kNone || clusters_->count(other) == 0) {
+        RecomputeOde(e.cluster);
+        continue;
+      }
+      Merge(e.cluster, other);
+      Optimise();
+      return true;
+    }
+    return false;
+  }
+
+  bool ParallelStep() {
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    for (uint32_t c = 0; c < k0_; ++c) {
+      const uint32_t o = ode_[c];
+      if (clusters_->count(c) > 0 && o != kNone && c < o && clusters_->count(o) > 0 &&
+          ode_[o] == c) {
+        pairs.push_back({c, o});
+      }
+    }
+    if (pairs.empty()) return SequentialStep();
+    const uint32_t floor = std::max(options_.min_clusters, 1u);
+    if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
+    for (const auto& [a, b] : pairs) Merge(a, b);
+    Optimise();
+    return true;
+  }
+
+  // When the local neighbours split the clusters into groups that never see each other,
+  // give each surviving cluster its nearest cluster in each subspace among all survivors.
+  bool ConnectSurvivors() {
+    std::vector<uint32_t> survivors;
+    for (uint32_t c = 0; c < k0_; ++c) {
+      if (clusters_->count(c) > 0) survivors.push_back(c);
+    }
+    if (survivors.size() <= 1 || survivors.size() > 20000) return false;
+    for (uint32_t c : survivors) {
+      std::vector<uint32_t> candidates = survivors;
+      Refresh(c, candidates);
+    }
+    bool any = false;
+    for (uint32_t c : survivors) {
+      RecomputeOde(c);
+      any = any || ode_[c] != kNone;
+    }
+    return any;
+  }
+
+  struct Entry {
+    double cost;
+    uint32_t cluster, version;
+  };
+  struct Later {
+    bool operator()(const Entry& x, const Entry& y) const {
+      return x.cost != y.cost ? x.cost > y.cost : x.cluster > y.cluster;
+    }
+  };
+
+  const PointSet& points_;
+  const PointMultilevelOptions& options_;
+  LevelSink& sink_;
+  const uint32_t d_;
+  uint32_t k0_ = 0, alive_ = 0, levels_ = 0;
+  uint64_t moves_ = 0;
+  std::unique_ptr<PointClusters> clusters_;
+  std::vector<std::vector<uint32_t>> members_, reverse_;
+  std::vector<uint32_t> position_, ode_, version_, origin_, touched_, affected_;
+  std::vector<double> ode_cost_, energy_before_;
+  std::vector<uint8_t> mark_, affected_mark_;
+  std::vector<Entry> heap_;
+  std::vector<uint32_t> merged_, gone_, element_, to_, from_, points_to_check_, target_;
+  CompensatedSum energy_;
+};
+
+uint32_t DefaultGrid(size_t m, uint32_t d) {
+  // About eight points per occupied cell in the worst case, capped for high d.
+  const double cells = std::max(1.0, static_cast<double>(m) / 8.0);
+  const double a = std::pow(cells, 1.0 / d);
+  return static_cast<uint32_t>(std::clamp(a, 1.0, 4096.0));
+}
+
+}  // namespace
+
+uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to) {
+  uint32_t axis = 0;
+  double largest = -1;
+  for (uint32_t j = 0; j < from.size(); ++j) {
+    const double diff = std::abs(to[j] - from[j]);
+    if (diff > largest) {
+      largest = diff;
+      axis = j;
+    }
+  }
+  return 2 * axis + (to[axis] > from[axis] ? 0 : 1);
+}
+
+absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  if (grid < 1 || grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is not in [1, 2^20]"));
+  }
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  std::vector<float> lo(d, std::numeric_limits<float>::max()),
+      hi(d, -std::numeric_limits<float>::max());
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      lo[j] = std::min(lo[j], points.values[i * d + j]);
+      hi[j] = std::max(hi[j], points.values[i * d + j]);
+    }
+  }
+  // Only occupied cells exist: a hash from the cell's coordinates to its cluster.
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> cells;
+  VoxelStart start;
+  start.labels.resize(m);
+  std::vector<uint32_t> cell(d);
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      const double span = static_cast<double>(hi[j]) - lo[j];
+      const double t = span > 0 ? (points.values[i * d + j] - lo[j]) / span : 0.0;
+      cell[j] = std::min(grid - 1, static_cast<uint32_t>(t * grid));
+    }
+    auto [it, inserted] = cells.try_emplace(cell, static_cast<uint32_t>(cells.size()));
+    start.labels[i] = ClusterId(it->second);
+  }
+  start.clusters = static_cast<uint32_t>(cells.size());
+  return start;
+}
+
+absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
+                                           const LnKmeansOptions& options) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  const size_t m = points.num_points();
+  if (labels.size() != m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for ", m, " points"));
+  }
+  // Compact ids; remember the caller's.
+  absl::flat_hash_map<uint32_t, uint32_t> compact_of;
+  std::vector<uint32_t> compact(m);
+  std::vector<ClusterId> original;
+  for (size_t i = 0; i < m; ++i) {
+    auto [it, inserted] =
+        compact_of.try_emplace(labels[i].value(), static_cast<uint32_t>(original.size()));
+    if (inserted) original.push_back(labels[i]);
+    compact[i] = it->second;
+  }
+  const uint32_t k = static_cast<uint32_t>(original.size());
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  LnKmeansResult result;
+  arena.execute([&] {
+    PointClusters clusters(points, compact, k);
+    InitialNeighbours(clusters);
+    result.initial_energy = clusters.TotalEnergy();
+    std::vector<uint32_t> all(m), target(m);
+    std::iota(all.begin(), all.end(), 0);
+    std::vector<uint8_t> mark(k, 0);
+    for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+      ChooseTargets(clusters, all, target);
+      uint64_t moved = 0;
+      const std::vector<uint32_t> changed = ApplyMoves(clusters, all, target, mark, moved, {});
+      result.iterations = iteration;
+      result.moves += moved;
+      if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
+      if (moved == 0) {
+        result.converged = true;
+        break;
+      }
+      RefreshAround(clusters, changed, mark);
+    }
+    result.energy = clusters.TotalEnergy();
+    result.labels.resize(m);
+    for (size_t i = 0; i < m; ++i) result.labels[i] = original[clusters.label(i)];
+  });
+  return result;
+}
+
+absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points, uint32_t k,
+                                                         bool kmeans_plus_plus, uint64_t seed,
+                                                         int threads) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  const size_t m = points.num_points();
+  if (k < 1 || k > m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
+  }
+  const uint32_t d = points.dims;
+  Random random(seed);
+  std::vector<uint32_t> seeds;
+  std::vector<double> nearest(m, std::numeric_limits<double>::infinity());
+  auto distance = [&](size_t i, size_t s) {
+    double dist = 0;
+    for (uint32_t j = 0; j < d; ++j) {
+      const double diff = static_cast<double>(points.values[i * d + j]) - points.values[s * d + j];
+      dist += diff * diff;
+    }
+    return dist;
+  };
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  std::vector<uint32_t> labels(m, 0);
+  arena.execute([&] {
+    if (!kmeans_plus_plus) {
+      std::vector<uint32_t> all(m);
+      std::iota(all.begin(), all.end(), 0);
+      for (uint32_t c = 0; c < k; ++c) {
+        const size_t j = c + random.Below(m - c);
+        std::swap(all[c], all[j]);
+        seeds.push_back(all[c]);
+      }
+    } else {
+      // k-means++ (D^2 sampling): each next seed drawn with probability proportional to
+      // the squared distance to the nearest seed so far.
+      seeds.push_back(static_cast<uint32_t>(random.Below(m)));
+      for (uint32_t c = 1; c <= k; ++c) {
+        const size_t last = seeds.back();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const auto& range) {
+          for (size_t i = range.begin(); i != range.end(); ++i) {
+            nearest[i] = std::min(nearest[i], distance(i, last));
+          }
+        });
+        if (c == k) break;
+        double total = 0;
+        for (double v : nearest) total += v;
+        double pick = random.Unit() * total;
+        size_t chosen = m - 1;
+        for (size_t i = 0; i < m; ++i) {
+          pick -= nearest[i];
+          if (pick < 0) {
+            chosen = i;
+            break;
+          }
+        }
+        seeds.push_back(static_cast<uint32_t>(chosen));
+      }
+    }
+    // Every point to its nearest seed (brute force, parallel).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 1024), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        double best = std::numeric_limits<double>::infinity();
+        for (uint32_t c = 0; c < k; ++c) {
+          const double dist = distance(i, seeds[c]);
+          if (dist < best) {
+            best = dist;
+            labels[i] = c;
+          }
+        }
+      }
+    });
+  });
+  // A seed that coincides with an earlier one can end up empty: keep exactly k clusters
+  // by giving each seed point its own cluster.
+  for (uint32_t c = 0; c < k; ++c) labels[seeds[c]] = c;
+  std::vector<ClusterId> out(m);
+  for (size_t i = 0; i < m; ++i) out[i] = ClusterId(labels[i]);
+  return out;
+}
+
+absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
+                                                          const PointMultilevelOptions& options,
+                                                          LevelSink& sink) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  if (options.min_clusters < 1) {
+    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  const uint32_t grid =
+      options.grid != 0 ? options.grid : DefaultGrid(points.num_points(), points.dims);
+  if (grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
+  }
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
+    PointEngine engine(points, options, sink, grid);
+    absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
+    if (summary.ok()) summary->grid = grid;
+    return summary;
+  });
+}
+
+double PointEnergy(const PointSet& points, std::span<const ClusterId> labels) {
+  const uint32_t d = points.dims;
+  absl::flat_hash_map<uint32_t, std::pair<uint64_t, std::vector<double>>> means;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    auto& [count, sum] = means[labels[i].value()];
+    if (sum.empty()) sum.assign(d, 0.0);
+    ++count;
+    for (uint32_t j = 0; j < d; ++j) sum[j] += points.values[i * d + j];
+  }
+  for (auto& [c, entry] : means) {
+    for (double& v : entry.second) v /= static_cast<double>(entry.first);
+  }
+  double energy = 0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const std::vector<double>& mean = means[labels[i].value()].second;
+    for (uint32_t j = 0; j < d; ++j) {
+      const double diff = points.values[i * d + j] - mean[j];
+      energy += diff * diff;
+    }
+  }
+  return energy;
+}
+
+}  // namespace mlclust
