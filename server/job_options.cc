@@ -228,4 +228,79 @@ absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec) {
   return plan;
 }
 
+absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
+  PointJobPlan plan;
+  plan.algorithm =
+      spec.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : spec.algorithm();
+  const std::string algorithm_name = v1::Algorithm_Name(plan.algorithm);
+  if (spec.energy() != v1::ENERGY_UNSPECIFIED && spec.energy() != v1::ENERGY_VARIANCE) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "energy: ", v1::Energy_Name(spec.energy()),
+        " is a mesh energy; points use the within-cluster variance (ENERGY_VARIANCE)"));
+  }
+  OptionReader reader(spec.options());
+  plan.seed = spec.seed();
+  switch (plan.algorithm) {
+    case v1::ALGORITHM_HC:
+    case v1::ALGORITHM_ML:
+    case v1::ALGORITHM_PML: {
+      PointMultilevelOptions& ml = plan.multilevel;
+      ml.min_clusters = std::max<uint32_t>({1, spec.clusters(), spec.levels_low()});
+      if (absl::Status s = reader.Integer<uint32_t>("grid", ml.grid, 0, 1u << 20); !s.ok()) {
+        return s;
+      }
+      if (absl::Status s = reader.Integer<int>("threads", ml.threads, 0, 1024); !s.ok()) return s;
+      if (plan.algorithm == v1::ALGORITHM_HC) {
+        ml.optimizer = PointMultilevelOptions::Optimizer::kNone;
+      } else {
+        std::string optimizer = "lnkmeans";
+        if (absl::Status s = reader.Choice("optimizer", {"lnkmeans", "none"}, optimizer); !s.ok()) {
+          return s;
+        }
+        ml.optimizer = optimizer == "none" ? PointMultilevelOptions::Optimizer::kNone
+                                           : PointMultilevelOptions::Optimizer::kLnKmeans;
+      }
+      if (plan.algorithm == v1::ALGORITHM_PML) {
+        ml.parallel = true;
+        if (absl::Status s = reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31);
+            !s.ok()) {
+          return s;
+        }
+      }
+      if (spec.levels_high() != 0 && spec.levels_high() < spec.levels_low()) {
+        return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", spec.levels_high(),
+                                                       " is below the low end ",
+                                                       spec.levels_low()));
+      }
+      break;
+    }
+    case v1::ALGORITHM_LN_KMEANS: {
+      if (spec.clusters() < 1) {
+        return absl::InvalidArgumentError("clusters: ALGORITHM_LN_KMEANS needs k >= 1 clusters");
+      }
+      plan.clusters = spec.clusters();
+      std::string init = "kmeans++";
+      if (absl::Status s = reader.Choice("init", {"kmeans++", "random"}, init); !s.ok()) return s;
+      plan.kmeans_plus_plus = init == "kmeans++";
+      if (absl::Status s = reader.Integer<int>("threads", plan.ln_kmeans.threads, 0, 1024);
+          !s.ok()) {
+        return s;
+      }
+      if (absl::Status s =
+              reader.Integer<uint32_t>("max-iterations", plan.ln_kmeans.max_iterations, 1, 1000000);
+          !s.ok()) {
+        return s;
+      }
+      break;
+    }
+    default:
+      return absl::UnimplementedError(
+          absl::StrCat("algorithm ", algorithm_name,
+                       " is not available for points on this server yet (available: ALGORITHM_HC, "
+                       "ALGORITHM_ML, ALGORITHM_PML, ALGORITHM_LN_KMEANS)"));
+  }
+  if (absl::Status s = reader.CheckAllUsed(algorithm_name); !s.ok()) return s;
+  return plan;
+}
+
 }  // namespace mlclust::server

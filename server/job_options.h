@@ -8,6 +8,7 @@
 #include "core/energies.h"
 #include "core/mesh_clustering.h"
 #include "core/multilevel.h"
+#include "core/point_clustering.h"
 #include "mlclust/v1/mlclust.pb.h"
 
 namespace mlclust::server {
@@ -37,6 +38,19 @@ struct MeshJobPlan {
 };
 
 absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec);
+
+// Point jobs. Options: grid (voxels per dimension of the start, 0 = from m and d),
+// optimizer lnkmeans | none, pml-until, threads, init kmeans++ | random (LN k-means),
+// max-iterations (LN k-means).
+struct PointJobPlan {
+  v1::Algorithm algorithm = v1::ALGORITHM_ML;
+  PointMultilevelOptions multilevel;  // HC, ML, PML
+  LnKmeansOptions ln_kmeans;
+  bool kmeans_plus_plus = true;
+  uint32_t clusters = 0;
+  uint64_t seed = 1;
+};
+absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec);
 
 // The energy part alone (spec.energy and the energy options; other options ignored).
 absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec);

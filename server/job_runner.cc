@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
@@ -10,6 +11,8 @@
 #include "core/mesh.h"
 #include "core/mesh_clustering.h"
 #include "core/multilevel.h"
+#include "core/point_clustering.h"
+#include "core/points.h"
 #include "server/job_options.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/face_measures_gpu.h"
@@ -294,6 +297,75 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
   return outcome;
 }
 
+absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& context) {
+  const v1::JobSpec& spec = job.spec;
+  EventChannel& events = *job.events;
+  absl::StatusOr<PointJobPlan> plan = PlanPointJob(spec);
+  if (!plan.ok()) return plan.status();
+  const bool hierarchy = plan->algorithm != v1::ALGORITHM_LN_KMEANS;
+  if (!hierarchy && (spec.levels_high() != 0 || spec.levels_low() != 0)) {
+    return absl::InvalidArgumentError(
+        "levels: a level range applies to the hierarchies of HC, ML and PML only");
+  }
+  // m x d float32, little-endian, row-major.
+  const uint32_t d = spec.point_dims();
+  if (d == 0) return absl::InvalidArgumentError("point_dims: d = 0");
+  if (job.input.size() % (size_t{4} * d) != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("points: ", job.input.size(), " bytes are not a whole number of ", d,
+                     "-dimensional float32 points (", 4 * d, " bytes each)"));
+  }
+  PointSet points;
+  points.dims = d;
+  points.values.resize(job.input.size() / 4);
+  std::memcpy(points.values.data(), job.input.data(), job.input.size());
+  std::string().swap(job.input);
+  if (absl::Status valid = ValidatePoints(points); !valid.ok()) return valid;
+  if (spec.clusters() > points.num_points()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "clusters: ", spec.clusters(), " is more than the ", points.num_points(), " points"));
+  }
+  EmitProgress(events, "cluster",
+               absl::StrCat(points.num_points(), " points in ", d,
+                            " dimensions: ", v1::Algorithm_Name(plan->algorithm)));
+  StreamingLevelSink sink(
+      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
+      hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+  JobOutcome outcome;
+  outcome.done.set_device("cpu");
+  if (hierarchy) {
+    absl::StatusOr<PointMultilevelSummary> summary =
+        RunPointMultilevel(points, plan->multilevel, sink);
+    if (!summary.ok()) return summary.status();
+    if (!sink.started()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("levels: no level has a cluster count in [", spec.levels_low(), ", ",
+                       spec.levels_high(), "]; the hierarchy starts at ", summary->start_clusters,
+                       " voxel clusters (option grid) and ends at ", summary->final_clusters));
+    }
+    if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
+    outcome.done.set_final_clusters(summary->final_clusters);
+    for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
+      outcome.done.add_elbow_cluster_counts(k);
+    }
+  } else {
+    absl::StatusOr<std::vector<ClusterId>> initial = SeedPointClusters(
+        points, plan->clusters, plan->kmeans_plus_plus, plan->seed, plan->ln_kmeans.threads);
+    if (!initial.ok()) return initial.status();
+    absl::StatusOr<LnKmeansResult> result = RunLnKmeans(points, *initial, plan->ln_kmeans);
+    if (!result.ok()) return result.status();
+    if (absl::Status s = StreamSingleLevel(*initial, result->initial_energy, result->labels,
+                                           result->energy, plan->clusters, sink);
+        !s.ok()) {
+      return s;
+    }
+    outcome.done.set_final_clusters(plan->clusters);
+  }
+  outcome.done.set_levels(sink.levels_sent());
+  outcome.done.set_triplets(sink.triplets_sent());
+  return outcome;
+}
+
 }  // namespace
 
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
@@ -301,9 +373,10 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
     case v1::INPUT_KIND_DRACO_MESH:
       return RunMeshJob(job, context);
     case v1::INPUT_KIND_POINTS_F32:
-      return absl::UnimplementedError("point batches are not supported by this server yet");
+      return RunPointsJob(job, context);
     default:
-      return absl::InvalidArgumentError("spec.input_kind: unspecified (send a Draco mesh)");
+      return absl::InvalidArgumentError(
+          "spec.input_kind: unspecified (a Draco mesh or float32 points)");
   }
 }
 

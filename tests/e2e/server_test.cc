@@ -16,6 +16,7 @@
 #include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
+#include "core/point_clustering.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -477,6 +478,99 @@ TEST_F(AlgorithmsTest, ElbowIsReported) {
   for (uint32_t k : result->done.elbow_cluster_counts()) {
     EXPECT_TRUE(result->hierarchy.LastLevelWith(k).has_value()) << k;
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+std::string Float32Bytes(const PointSet& points) {
+  return std::string(reinterpret_cast<const char*>(points.values.data()),
+                     points.values.size() * sizeof(float));
+}
+
+PointSet Grid3d(int n) {
+  PointSet points;
+  points.dims = 3;
+  for (int x = 0; x < n; ++x) {
+    for (int y = 0; y < n; ++y) {
+      for (int z = 0; z < n; ++z) {
+        // Two well separated groups along x.
+        points.values.insert(points.values.end(), {static_cast<float>(x + (x >= n / 2 ? 40 : 0)),
+                                                   static_cast<float>(y), static_cast<float>(z)});
+      }
+    }
+  }
+  return points;
+}
+
+TEST_F(AlgorithmsTest, PointHierarchiesAndLnKmeansOverTheWire) {
+  const PointSet points = Grid3d(12);  // 1728 points
+  for (v1::Algorithm algorithm : {v1::ALGORITHM_HC, v1::ALGORITHM_ML, v1::ALGORITHM_PML}) {
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+    spec.set_point_dims(3);
+    spec.set_algorithm(algorithm);
+    (*spec.mutable_options())["grid"] = "6";
+    absl::StatusOr<client::JobResult> result = client::RunJob(channel_, spec, Float32Bytes(points));
+    ASSERT_TRUE(result.ok()) << result.status();
+    const HierarchyLog& log = result->hierarchy;
+    EXPECT_EQ(log.cluster_count(log.num_levels() - 1), 1u);
+    const std::optional<size_t> two = log.FirstLevelWithAtMost(2);
+    ASSERT_TRUE(two.has_value());
+    auto labels = log.LabelsAt(*two);
+    ASSERT_TRUE(labels.ok());
+    EXPECT_NEAR(log.energy(*two), PointEnergy(points, *labels), 1e-6 * log.energy(*two));
+    if (log.cluster_count(*two) == 2) {
+      // The two groups, 40 apart, are the two clusters.
+      EXPECT_NE((*labels)[0], (*labels)[points.num_points() - 1]);
+    }
+  }
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  spec.set_point_dims(3);
+  spec.set_algorithm(v1::ALGORITHM_LN_KMEANS);
+  spec.set_clusters(8);
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel_, spec, Float32Bytes(points));
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_EQ(result->hierarchy.num_levels(), 2u);
+  EXPECT_LE(result->hierarchy.energy(1), result->hierarchy.energy(0));
+}
+
+TEST_F(AlgorithmsTest, BadPointBatchesAreRefused) {
+  PointSet points = Grid3d(4);
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  spec.set_point_dims(3);
+  spec.set_algorithm(v1::ALGORITHM_ML);
+  std::string bytes = Float32Bytes(points);
+  // Not a whole number of points.
+  absl::Status status = client::RunJob(channel_, spec, bytes.substr(0, bytes.size() - 4)).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("whole number"));
+  // A NaN, named by point and coordinate.
+  points.values[3 * 5 + 1] = std::numeric_limits<float>::quiet_NaN();
+  status = client::RunJob(channel_, spec, Float32Bytes(points)).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("point 5 coordinate 1"));
+  // d = 0, a mesh energy, k > m.
+  spec.set_point_dims(0);
+  EXPECT_EQ(client::RunJob(channel_, spec, bytes).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  spec.set_point_dims(3);
+  spec.set_energy(v1::ENERGY_PLANAR);
+  EXPECT_EQ(client::RunJob(channel_, spec, bytes).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  spec.set_energy(v1::ENERGY_UNSPECIFIED);
+  spec.set_algorithm(v1::ALGORITHM_LN_KMEANS);
+  spec.set_clusters(1000);
+  status = client::RunJob(channel_, spec, bytes).status();
+  EXPECT_THAT(std::string(status.message()), HasSubstr("clusters"));
+  // The server is still serving.
+  spec.set_clusters(4);
+  EXPECT_TRUE(client::RunJob(channel_, spec, bytes).ok());
 }
 
 }  // namespace
