@@ -131,6 +131,17 @@ def section_b():
            "E ours/CGAL", "target", "load1 ours / CGAL"], rows)
     print("Energy within 5%% (or lower): %d of %d; not slower: %d of %d.\n" %
           (met_e, total, met_t, total))
+    so = read("issue3b_seeds_vsa_bench.csv")
+    sc = {r["rep"]: r for r in read("issue3b_seeds_cgal_vsa.csv")}
+    if so and sc:
+        print("Random seeding, fandisk, k = 200, seeds 1..%d (the rep column is the seed; "
+              "CGAL's std::srand(seed), our own generator):\n" % len(so))
+        rows = [[r["rep"], e(r["energy"]), e(sc[r["rep"]]["energy_l21"]),
+                 "%.3f" % (float(r["energy"]) / float(sc[r["rep"]]["energy_l21"]))] for r in so]
+        mo = sum(float(r["energy"]) for r in so) / len(so)
+        mc = sum(float(r["energy_l21"]) for r in sc.values()) / len(sc)
+        rows.append(["mean", e(mo), e(mc), "%.3f" % (mo / mc)])
+        table(["seed", "E ours", "E CGAL", "ours/CGAL"], rows)
 
 
 def section_c():
@@ -217,7 +228,9 @@ def ml_best(rows, keys=("mesh", "algo", "energy", "pml_until", "threads")):
     for r in rows:
         # Rows come in the order of --at (1000,200,50 or 1000 alone); the k column holds
         # the level reached (PML skips counts: its first level with at most k clusters).
-        by_k = runs.setdefault(tuple(r[k] for k in keys) + (r["rep"],), {})
+        # Runs without the optimiser (other than HC) get "none" appended to their key.
+        extra = ("none",) if r["optimizer"] == "none" and r["algo"] != "hc" else ()
+        by_k = runs.setdefault(tuple(r[k] for k in keys) + extra + (r["rep"],), {})
         by_k[str(REQUESTED_K[len(by_k)])] = r
     out = {}
     for key, by_k in runs.items():
@@ -261,6 +274,29 @@ def section_g():
                          load(next(iter(r.values())), threads)])
     table(["mesh", "run", "time", "of ML's", "E at k=1000", "vs ML", "E at 200", "E at 50",
            "target (≤ 25% time, E within 2%)", "load1"], rows)
+    rows = []
+    for mesh in sorted({k[0] for k in b}, key=mesh_key):
+        ml = b[(mesh, "ml", "cvd", "0", "0")]
+        pml = b[(mesh, "pml", "cvd", "2000", "0")]
+        hc = b.get((mesh, "hc", "cvd", "0", "0"))
+        pml_hc = b.get((mesh, "pml", "cvd", "2000", "0", "none"))
+        if hc is None or pml_hc is None:
+            continue
+        t = {name: float(at(r, 1000, "seconds")) for name, r in
+             [("ml", ml), ("pml", pml), ("hc", hc), ("pml_hc", pml_hc)]}
+        first = {name: next(iter(r.values())) for name, r in [("ml", ml), ("pml", pml)]}
+        rows.append([mesh, s(t["hc"]), s(t["pml_hc"]), "%.0f%%" % (100 * t["pml_hc"] / t["hc"]),
+                     s(t["ml"] - t["hc"]), s(t["pml"] - t["pml_hc"]),
+                     "{:,} / {:,}".format(int(first["ml"]["evaluations"]),
+                                          int(first["pml"]["evaluations"])),
+                     "%.0f%%" % (100 * (t["ml"] - t["hc"]) / t["ml"])])
+    if rows:
+        print("Where the time goes: the same runs without the optimiser (HC = ML's merges "
+              "alone; PML→2000, HC = PML's merges alone), and the optimiser's share "
+              "(the difference):\n")
+        table(["mesh", "HC", "PML→2000, HC", "of HC's", "optimiser in ML",
+               "optimiser in PML→2000, ML", "optimiser evaluations ML / PML",
+               "optimiser share of ML"], rows)
 
 
 def section_h():

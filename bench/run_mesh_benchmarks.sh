@@ -9,12 +9,14 @@
 #   bench/run_mesh_benchmarks.sh --repeats 1 --no-build --cli build-me/client/mlclust
 #
 #   a  EMLO (CVD, k=1000, l-neighbourhood and random initial clusters) vs CGAL VSA k=1000
-#   b  our VSA vs CGAL VSA: L2,1 energy and time, k=50/200/1000, 4 meshes, 2 seedings
+#   b  our VSA vs CGAL VSA: L2,1 energy and time, k=50/200/1000, 4 meshes, 2 seedings;
+#      and random seeding over seeds 1..6 on fandisk k=200 (energies only)
 #   c  BB: time per sweep, threads 1 vs 2 (bunny00 k=1000, armadillo_1m k=10000)
 #   d  "Table 3.1": l-neighbourhood init, MWCVD (w^A, w^V, w^M) + CVD EMLO time and energy
 #   e  "Fig. 3.13": fandisk k=200 through the CLI (--algo emlo), rendered to PNG
 #   f  the full ML hierarchy of bunny00 vs one CGAL VSA partition at k=1000
-#   g  PML down to 2000 clusters then ML vs ML (bunny00, armadillo)
+#   g  PML down to 2000 clusters then ML vs ML (bunny00, armadillo), and both without
+#      the optimiser (HC, PML->2000 then HC) to show where the time goes
 #   h  planar (L2,1) ML/HC/PML hierarchies (ML at k=200 vs CGAL's best seeding from b)
 #   i  CVD ML/HC/PML/PML->ML hierarchies on 5 meshes: times, energies, curves, scaling
 #
@@ -52,7 +54,7 @@ while [ $# -gt 0 ]; do
     --only) only="${2:?--only needs a list such as a,b}"; shift 2 ;;
     --no-build) build=0; shift ;;
     --cli) cli="$(realpath "${2:?--cli needs a path}")"; cli_given=1; shift 2 ;;
-    -h | --help) sed -n '2,36p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run_mesh_benchmarks: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -83,17 +85,20 @@ trap 'rm -rf "$work"' EXIT
 
 load1() { cut -d' ' -f1 /proc/loadavg; }
 
-# machine.txt: what ran where.
+# machine.txt: what ran where; a run of every section starts it afresh, a run of some
+# sections (--only) adds its own block.
+[ "$only" = "a,b,c,d,e,f,g,h,i" ] && rm -f "$results/machine.txt"
 {
+  echo "--- sections $only"
   echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
   echo "cpu: $(lscpu | sed -n 's/^Model name: *//p') x $(nproc) cores"
   echo "memory: $(free -g | awk '/^Mem:/ { print $2 " GiB" }')"
   echo "os: $(. /etc/os-release && echo "$PRETTY_NAME"), $(g++ --version | head -1)"
   echo "commit: $(git rev-parse --short HEAD) (working tree changes outside bench/:" \
     "$(git status --short -- . ':!bench' ':!BENCHMARKS.md' | awk '{ printf "%s ", $2 }'))"
-  echo "repeats: $repeats, sections: $only"
+  echo "repeats: $repeats$([ "$build" -eq 0 ] && echo ", --no-build: the binaries as last built")"
   echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
-} >"$results/machine.txt"
+} >>"$results/machine.txt"
 
 # run FILE HEADER REP COMMAND...: runs COMMAND once under /usr/bin/time and appends its CSV
 # rows (stdout; several for ml_bench) to FILE as "rep,load1,proc_wall_s,proc_cpu_s,ROW".
@@ -109,14 +114,21 @@ run() {
     say "failed: $*"
     exit 1
   fi
-  local wall cpu
+  local wall cpu suffix=""
   read -r wall cpu < <(awk '{ printf "%s %.2f\n", $1, $2 + $3 }' "$work/time")
-  grep -v '^mesh,' "$work/out" | sed "s/^/$rep,$load,$wall,$cpu,/" | tee -a "$file" >&2
+  if [[ "$header" == *",optimiser_moves,evaluations" ]]; then
+    # ml_bench's stderr: "run 0: 0.751 s, 75408 levels, 859281 triplets, 494869 optimiser
+    # moves, 1639264 evaluations".
+    suffix=",$(sed -n 's/.* \([0-9]*\) optimiser moves, \([0-9]*\) evaluations.*/\1,\2/p' \
+      "$work/err" | head -1)"
+  fi
+  grep -v '^mesh,' "$work/out" | sed "s/^/$rep,$load,$wall,$cpu,/; s/\$/$suffix/" |
+    tee -a "$file" >&2
 }
 
 readonly MB_HEADER="mesh,faces,k,energy,init,algo,threads,init_s,opt_s,total_s,initial_energy,final_energy,moves,iterations"
 readonly VSA_HEADER="mesh,faces,k,seeding,iterations,seconds,energy"
-readonly ML_HEADER="mesh,faces,algo,energy,optimizer,p_percent,pml_until,threads,seconds,levels,k,energy_at_k"
+readonly ML_HEADER="mesh,faces,algo,energy,optimizer,p_percent,pml_until,threads,seconds,levels,k,energy_at_k,optimiser_moves,evaluations"
 readonly CGAL_HEADER="mesh,faces,k,k_obtained,seeding,iterations,seed_seconds,iterate_seconds,total_seconds,energy_l21,cgal_error"
 
 mesh_bench() { run "$1" "$MB_HEADER" "$2" "$bench_bin/mesh_bench" "${@:3}" --repeats 1; }
@@ -166,6 +178,17 @@ if want b; then
         done
       done
     done
+  done
+fi
+
+if want b; then
+  # Random seeding is luck: the energy over seeds 1..6 (fandisk k=200: the one miss).
+  fresh issue3b_seeds_vsa_bench.csv issue3b_seeds_cgal_vsa.csv
+  for seed in 1 2 3 4 5 6; do
+    vsa_bench "$results/issue3b_seeds_vsa_bench.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
+      --seeding random --seed "$seed"
+    cgal_vsa "$results/issue3b_seeds_cgal_vsa.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
+      --seeding random --seed "$seed"
   done
 fi
 
@@ -246,6 +269,11 @@ if want g; then
         ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
           --pml-until 2000 --threads "$threads" --at 1000,200,50
       done
+      # Where the time goes: the same merges without the optimiser (HC; PML->2000 then HC).
+      ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo hc \
+        --at 1000,200,50
+      ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
+        --pml-until 2000 --optimizer none --at 1000,200,50
     done
   done
 fi
