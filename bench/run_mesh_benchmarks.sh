@@ -54,7 +54,7 @@ while [ $# -gt 0 ]; do
     --only) only="${2:?--only needs a list such as a,b}"; shift 2 ;;
     --no-build) build=0; shift ;;
     --cli) cli="$(realpath "${2:?--cli needs a path}")"; cli_given=1; shift 2 ;;
-    -h | --help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,36p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run_mesh_benchmarks: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
