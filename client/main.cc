@@ -20,6 +20,8 @@
 #include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
+#include "core/model_selection.h"
+#include "core/points_io.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
@@ -64,6 +66,15 @@ usage:
     energy options:
       --density power|linear, --gamma G, --delta D (power: (rho'+D)^G), --rho-max R
       (linear: onto [1, R]), --mwcvd-p P, --planar-tolerance T
+
+  mlclust points INPUT [--dims D] [--server ADDR] [--algo ml|pml|hc|lnkmeans|kmeans]
+                       [--clusters K | --auto-k bic|elbow] [--labels FILE] [--levels-csv FILE]
+                       [--grid A] [--seed S] [--init kmeans++|random] [--levels K_HI:K_LO]
+      Clusters the points of INPUT: .npy (float32/float64, m x d), .csv/.txt, or raw
+      float32 (.f32/.bin/.raw, with --dims D). Energy: the within-cluster sum of squares.
+      ml/pml/hc: every level from the voxel-grid start (--grid A voxels per dimension) to
+      one cluster; lnkmeans: Local Neighbours k-means at K; kmeans: Lloyd with k-means++.
+      --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
 
   mlclust energy INPUT --labels FILE [--energy cvd]
       Computes the energy of a labelling directly from the mesh file (a check).
@@ -246,6 +257,72 @@ class ProgressLine {
   absl::Time last_ = absl::InfinitePast();
 };
 
+// Runs `spec` on the server --server names, or on one started inside this process, with a
+// progress line on a terminal.
+absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
+                                              const std::string& payload, double* seconds) {
+  std::unique_ptr<server::Server> embedded;
+  std::shared_ptr<grpc::Channel> channel;
+  if (args.has("server")) {
+    channel = client::Connect(args.get("server"));
+  } else {
+    server::ServerOptions options;
+    options.log = false;
+    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    if (!started.ok()) return started.status();
+    embedded = *std::move(started);
+    channel = embedded->InProcessChannel();
+  }
+  ProgressLine progress(!args.has("quiet"));
+  client::RunOptions run_options;
+  run_options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
+  const absl::Time started_at = absl::Now();
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
+  *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  return result;
+}
+
+// The level --clusters K writes: the last level with exactly K clusters (a single-level
+// algorithm's result follows its start at the same K), else the first with fewer (PML
+// may skip counts).
+absl::StatusOr<size_t> ChooseLevel(const HierarchyLog& log, uint32_t k) {
+  std::optional<size_t> level = log.LastLevelWith(k);
+  if (!level.has_value()) level = log.FirstLevelWithAtMost(k);
+  if (!level.has_value()) {
+    return absl::NotFoundError(absl::StrCat("no level has ", k, " clusters or fewer (the last has ",
+                                            log.cluster_count(log.num_levels() - 1), ")"));
+  }
+  return *level;
+}
+
+std::string ElbowNote(const v1::Done& done) {
+  std::string elbows;
+  for (uint32_t k : done.elbow_cluster_counts()) {
+    absl::StrAppend(&elbows, elbows.empty() ? "; elbows at " : ", ", k);
+  }
+  return elbows;
+}
+
+// --levels K_HI:K_LO (either end may be empty): the levels with cluster counts in
+// [K_LO, K_HI].
+absl::Status SetLevels(const Arguments& args, bool hierarchy, v1::JobSpec& spec) {
+  if (!args.has("levels")) return absl::OkStatus();
+  const std::string range = args.get("levels");
+  const size_t colon = range.find(':');
+  uint32_t high = 0, low = 0;
+  const std::string high_text = range.substr(0, colon);
+  const std::string low_text = colon == std::string::npos ? "" : range.substr(colon + 1);
+  if (!hierarchy || colon == std::string::npos ||
+      (!high_text.empty() && !absl::SimpleAtoi(high_text, &high)) ||
+      (!low_text.empty() && !absl::SimpleAtoi(low_text, &low))) {
+    return absl::InvalidArgumentError(
+        "--levels: give K_HI:K_LO (cluster counts) with --algo hc, ml or pml");
+  }
+  spec.set_levels_high(high);
+  spec.set_levels_low(low);
+  return absl::OkStatus();
+}
+
 // Builds the wire energy and its options from the command line (shared by mesh and
 // energy, so both accept and check the same names).
 absl::Status SetEnergy(const Arguments& args, v1::JobSpec& spec) {
@@ -299,22 +376,7 @@ int Mesh(const Arguments& args) {
     return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
   }
   if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
-  if (args.has("levels")) {
-    // K_HI:K_LO, either end may be empty: the levels with cluster counts in [K_LO, K_HI].
-    const std::string range = args.get("levels");
-    const size_t colon = range.find(':');
-    uint32_t high = 0, low = 0;
-    const std::string high_text = range.substr(0, colon);
-    const std::string low_text = colon == std::string::npos ? "" : range.substr(colon + 1);
-    if (!hierarchy || colon == std::string::npos ||
-        (!high_text.empty() && !absl::SimpleAtoi(high_text, &high)) ||
-        (!low_text.empty() && !absl::SimpleAtoi(low_text, &low))) {
-      return Fail(absl::InvalidArgumentError(
-          "--levels: give K_HI:K_LO (cluster counts) with --algo hc, ml or pml"));
-    }
-    spec.set_levels_high(high);
-    spec.set_levels_low(low);
-  }
+  if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
   absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
   if (!seed.ok()) return Fail(seed.status());
   spec.set_seed(*seed);
@@ -343,25 +405,8 @@ int Mesh(const Arguments& args) {
                                             : EncodeMeshToDraco(*mesh);
   if (!payload.ok()) return Fail(payload.status());
 
-  std::unique_ptr<server::Server> embedded;
-  std::shared_ptr<grpc::Channel> channel;
-  if (args.has("server")) {
-    channel = client::Connect(args.get("server"));
-  } else {
-    server::ServerOptions options;
-    options.log = false;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    if (!started.ok()) return Fail(started.status());
-    embedded = *std::move(started);
-    channel = embedded->InProcessChannel();
-  }
-
-  ProgressLine progress(!args.has("quiet"));
-  client::RunOptions run_options;
-  run_options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
-  const absl::Time started_at = absl::Now();
-  absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, *payload, run_options);
-  const double seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  double seconds = 0;
+  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != mesh->num_faces()) {
@@ -374,15 +419,8 @@ int Mesh(const Arguments& args) {
   }
   std::string level_note;
   if (*clusters > 0) {
-    // The last level with exactly K clusters (a single-level algorithm's result follows
-    // its start at the same K), else the first with fewer (PML may skip counts).
-    std::optional<size_t> level = log.LastLevelWith(static_cast<uint32_t>(*clusters));
-    if (!level.has_value()) level = log.FirstLevelWithAtMost(static_cast<uint32_t>(*clusters));
-    if (!level.has_value()) {
-      return Fail(absl::NotFoundError(absl::StrCat("no level has ", *clusters,
-                                                   " clusters or fewer (the last has ",
-                                                   log.cluster_count(log.num_levels() - 1), ")")));
-    }
+    absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
+    if (!level.ok()) return Fail(level.status());
     absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
     if (!labels.ok()) return Fail(labels.status());
     const std::vector<uint32_t> compact = client::CompactLabels(*labels);
@@ -409,14 +447,125 @@ int Mesh(const Arguments& args) {
     level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
                                  log.cluster_count(*level), log.energy(*level));
   }
-  std::string elbows;
-  for (uint32_t k : result->done.elbow_cluster_counts()) {
-    absl::StrAppend(&elbows, elbows.empty() ? "; elbows at " : ", ", k);
-  }
   std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
               input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
               result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-              level_note.c_str(), elbows.c_str());
+              level_note.c_str(), ElbowNote(result->done).c_str());
+  return 0;
+}
+
+int Points(const Arguments& args) {
+  if (args.positional().size() != 1) {
+    return Fail(absl::InvalidArgumentError("points: give exactly one INPUT file"));
+  }
+  const std::string& input_path = args.positional()[0];
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  absl::StatusOr<uint64_t> dims = args.GetUint("dims", 0);
+  absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
+  for (const auto* value : {&clusters, &dims, &seed}) {
+    if (!value->ok()) return Fail(value->status());
+  }
+  const std::string algo = args.get("algo", "ml");
+  const std::map<std::string, v1::Algorithm> algorithms = {{"hc", v1::ALGORITHM_HC},
+                                                           {"ml", v1::ALGORITHM_ML},
+                                                           {"pml", v1::ALGORITHM_PML},
+                                                           {"lnkmeans", v1::ALGORITHM_LN_KMEANS},
+                                                           {"kmeans", v1::ALGORITHM_KMEANS}};
+  if (algorithms.count(algo) == 0) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--algo: '", algo, "' is not one of ml, pml, hc, lnkmeans, kmeans")));
+  }
+  const bool hierarchy = algo == "hc" || algo == "ml" || algo == "pml";
+  const std::string auto_k = args.get("auto-k", "");
+  if (!auto_k.empty() && auto_k != "bic" && auto_k != "elbow") {
+    return Fail(absl::InvalidArgumentError("--auto-k must be bic or elbow"));
+  }
+  if (!auto_k.empty() && !hierarchy) {
+    return Fail(absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml or hc"));
+  }
+  if (!hierarchy && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
+  }
+  if (args.has("labels") && *clusters == 0 && auto_k.empty()) {
+    return Fail(absl::InvalidArgumentError("--labels needs --clusters K or --auto-k"));
+  }
+  if (*dims > 4096) return Fail(absl::InvalidArgumentError("--dims: over 4096"));
+
+  PointReadOptions read;
+  read.dims = static_cast<uint32_t>(*dims);
+  absl::StatusOr<PointSet> points = ReadPointsFile(input_path, read);
+  if (!points.ok()) return Fail(points.status());
+
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  spec.set_point_dims(points->dims);
+  spec.set_algorithm(algorithms.at(algo));
+  spec.set_energy(v1::ENERGY_VARIANCE);
+  spec.set_label(input_path);
+  spec.set_seed(*seed);
+  if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
+  if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
+  for (const char* name : {"grid", "optimizer", "pml-until", "threads", "init", "max-iterations"}) {
+    if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
+  }
+  const std::string payload(reinterpret_cast<const char*>(points->values.data()),
+                            points->values.size() * sizeof(float));
+  double seconds = 0;
+  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, payload, &seconds);
+  if (!result.ok()) return Fail(result.status());
+  const HierarchyLog& log = result->hierarchy;
+  if (log.num_elements() != points->num_points()) {
+    return Fail(absl::DataLossError(absl::StrCat("the server sent labels for ", log.num_elements(),
+                                                 " points; the input has ", points->num_points())));
+  }
+  if (args.has("levels-csv")) {
+    if (absl::Status s = WriteLevelsCsv(args.get("levels-csv"), log); !s.ok()) return Fail(s);
+  }
+  // The level to write: --clusters K, or the one --auto-k chooses.
+  std::optional<size_t> level;
+  std::string chosen;
+  if (auto_k == "elbow") {
+    if (result->done.elbow_cluster_counts().empty()) {
+      return Fail(absl::NotFoundError("--auto-k elbow: the energy curve has no elbow"));
+    }
+    const uint32_t k = result->done.elbow_cluster_counts(0);
+    level = log.LastLevelWith(k);
+    chosen = absl::StrCat("; elbow at ", k, " clusters");
+  } else if (auto_k == "bic") {
+    // Replay the levels into the BIC's size bookkeeping (O(moves)).
+    BicLevelRecorder recorder;
+    absl::Status replay = recorder.OnStart(log.start_labels(), log.cluster_count(0), log.energy(0));
+    for (size_t l = 1; replay.ok() && l < log.num_levels(); ++l)
+      replay = recorder.OnLevel(log.level(l));
+    if (!replay.ok()) return Fail(replay);
+    absl::StatusOr<BicChoice> choice =
+        ChooseByBic(recorder.levels(), recorder.num_points(), points->dims);
+    if (!choice.ok()) return Fail(choice.status());
+    level = choice->best_level;
+    chosen = absl::StrCat("; BIC highest at ", choice->best_k, " clusters, first decrease after ",
+                          choice->first_decrease_k);
+  } else if (*clusters > 0) {
+    absl::StatusOr<size_t> by_k = ChooseLevel(log, static_cast<uint32_t>(*clusters));
+    if (!by_k.ok()) return Fail(by_k.status());
+    level = *by_k;
+  }
+  std::string level_note;
+  if (level.has_value()) {
+    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
+    if (!labels.ok()) return Fail(labels.status());
+    if (args.has("labels")) {
+      if (absl::Status s = WriteLabels(args.get("labels"), client::CompactLabels(*labels));
+          !s.ok()) {
+        return Fail(s);
+      }
+    }
+    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
+                                 log.cluster_count(*level), log.energy(*level));
+  }
+  std::printf("%s: %zu points in %u dimensions, %zu levels, %zu triplets in %.3f s (%s)%s%s%s\n",
+              input_path.c_str(), points->num_points(), points->dims, log.num_levels(),
+              log.num_moves(), seconds, args.has("server") ? "remote" : "embedded",
+              level_note.c_str(), chosen.c_str(), ElbowNote(result->done).c_str());
   return 0;
 }
 
@@ -474,6 +623,11 @@ int main(int argc, char** argv) {
              "gamma",     "delta",     "rho-max", "mwcvd-p",  "planar-tolerance", "optimizer",
              "p-percent", "pml-until", "levels"};
   }
+  if (command == "points") {
+    known = {"server",         "algo",   "clusters",  "labels",    "levels-csv", "dims",
+             "seed",           "grid",   "optimizer", "pml-until", "threads",    "init",
+             "max-iterations", "auto-k", "levels",    "quiet"};
+  }
   if (command == "energy") {
     known = {"labels", "energy",  "density", "gamma",
              "delta",  "rho-max", "mwcvd-p", "planar-tolerance"};
@@ -489,5 +643,6 @@ int main(int argc, char** argv) {
   if (command == "serve") return mlclust::cli::Serve(*args);
   if (command == "mesh") return mlclust::cli::Mesh(*args);
   if (command == "energy") return mlclust::cli::Energy(*args);
+  if (command == "points") return mlclust::cli::Points(*args);
   return mlclust::cli::Stats(*args);
 }

@@ -8,6 +8,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/kmeans.h"
 #include "core/random.h"
 #include "tbb/parallel_for.h"
 #include "tbb/task_arena.h"
@@ -839,6 +840,28 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
   return result;
 }
 
+absl::StatusOr<std::vector<float>> RandomPointCentres(const PointSet& points, uint32_t k,
+                                                      uint64_t seed) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  const size_t m = points.num_points();
+  if (k < 1 || k > m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
+  }
+  Random random(seed);
+  std::vector<uint32_t> all(m);
+  std::iota(all.begin(), all.end(), 0);
+  std::vector<float> centres;
+  centres.reserve(size_t{k} * points.dims);
+  for (uint32_t c = 0; c < k; ++c) {  // a partial Fisher-Yates shuffle
+    const size_t j = c + random.Below(m - c);
+    std::swap(all[c], all[j]);
+    const std::span<const float> p = points.point(all[c]);
+    centres.insert(centres.end(), p.begin(), p.end());
+  }
+  return centres;
+}
+
 absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points, uint32_t k,
                                                          bool kmeans_plus_plus, uint64_t seed,
                                                          int threads) {
@@ -849,60 +872,31 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
         absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
   }
   const uint32_t d = points.dims;
-  Random random(seed);
-  std::vector<uint32_t> seeds;
-  std::vector<double> nearest(m, std::numeric_limits<double>::infinity());
-  auto distance = [&](size_t i, size_t s) {
+  // The centres: greedy k-means++ (core/kmeans.h), or k distinct random points.
+  absl::StatusOr<std::vector<float>> chosen = kmeans_plus_plus
+                                                  ? KmeansPlusPlusCentres(points, k, seed, threads)
+                                                  : RandomPointCentres(points, k, seed);
+  if (!chosen.ok()) return chosen.status();
+  const std::vector<float> centres = *std::move(chosen);
+  // Every point to its nearest centre (parallel); then each centre's nearest point keeps
+  // a cluster of its own if it was left empty, so there are exactly k clusters.
+  std::vector<uint32_t> labels(m, 0);
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  auto distance = [&](size_t i, uint32_t c) {
     double dist = 0;
     for (uint32_t j = 0; j < d; ++j) {
-      const double diff = static_cast<double>(points.values[i * d + j]) - points.values[s * d + j];
+      const double diff =
+          static_cast<double>(points.values[i * d + j]) - centres[size_t{c} * d + j];
       dist += diff * diff;
     }
     return dist;
   };
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  std::vector<uint32_t> labels(m, 0);
   arena.execute([&] {
-    if (!kmeans_plus_plus) {
-      std::vector<uint32_t> all(m);
-      std::iota(all.begin(), all.end(), 0);
-      for (uint32_t c = 0; c < k; ++c) {
-        const size_t j = c + random.Below(m - c);
-        std::swap(all[c], all[j]);
-        seeds.push_back(all[c]);
-      }
-    } else {
-      // k-means++ (D^2 sampling): each next seed drawn with probability proportional to
-      // the squared distance to the nearest seed so far.
-      seeds.push_back(static_cast<uint32_t>(random.Below(m)));
-      for (uint32_t c = 1; c <= k; ++c) {
-        const size_t last = seeds.back();
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 4096), [&](const auto& range) {
-          for (size_t i = range.begin(); i != range.end(); ++i) {
-            nearest[i] = std::min(nearest[i], distance(i, last));
-          }
-        });
-        if (c == k) break;
-        double total = 0;
-        for (double v : nearest) total += v;
-        double pick = random.Unit() * total;
-        size_t chosen = m - 1;
-        for (size_t i = 0; i < m; ++i) {
-          pick -= nearest[i];
-          if (pick < 0) {
-            chosen = i;
-            break;
-          }
-        }
-        seeds.push_back(static_cast<uint32_t>(chosen));
-      }
-    }
-    // Every point to its nearest seed (brute force, parallel).
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 1024), [&](const auto& range) {
       for (size_t i = range.begin(); i != range.end(); ++i) {
         double best = std::numeric_limits<double>::infinity();
         for (uint32_t c = 0; c < k; ++c) {
-          const double dist = distance(i, seeds[c]);
+          const double dist = distance(i, c);
           if (dist < best) {
             best = dist;
             labels[i] = c;
@@ -911,9 +905,23 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
       }
     });
   });
-  // A seed that coincides with an earlier one can end up empty: keep exactly k clusters
-  // by giving each seed point its own cluster.
-  for (uint32_t c = 0; c < k; ++c) labels[seeds[c]] = c;
+  std::vector<uint64_t> size(k, 0);
+  for (uint32_t l : labels) ++size[l];
+  for (uint32_t c = 0; c < k; ++c) {
+    if (size[c] > 0) continue;
+    // Duplicate centres: give the empty cluster the nearest point whose cluster can spare it.
+    double best = std::numeric_limits<double>::infinity();
+    size_t chosen = 0;
+    for (size_t i = 0; i < m; ++i) {
+      if (size[labels[i]] > 1 && distance(i, c) < best) {
+        best = distance(i, c);
+        chosen = i;
+      }
+    }
+    --size[labels[chosen]];
+    labels[chosen] = c;
+    ++size[c];
+  }
   std::vector<ClusterId> out(m);
   for (size_t i = 0; i < m; ++i) out[i] = ClusterId(labels[i]);
   return out;

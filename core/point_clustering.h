@@ -62,8 +62,13 @@ struct LnKmeansResult {
 absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
                                            const LnKmeansOptions& options = {});
 
-// Exactly k starting clusters: each point joins its nearest seed, seeds being k-means++
-// or random points (`kmeans_plus_plus`), reproducible with `seed`.
+// k distinct points, uniformly at random (reproducible with `seed`), as k x d centres.
+// INVALID_ARGUMENT naming 'clusters' for k < 1 or k > m.
+absl::StatusOr<std::vector<float>> RandomPointCentres(const PointSet& points, uint32_t k,
+                                                      uint64_t seed);
+
+// Exactly k starting clusters: each point joins its nearest centre, the centres being
+// greedy k-means++ (core/kmeans.h) or k distinct random points, reproducible with `seed`.
 absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points, uint32_t k,
                                                          bool kmeans_plus_plus, uint64_t seed,
                                                          int threads = 0);

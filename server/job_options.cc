@@ -274,9 +274,11 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
       }
       break;
     }
+    case v1::ALGORITHM_KMEANS:
     case v1::ALGORITHM_LN_KMEANS: {
       if (spec.clusters() < 1) {
-        return absl::InvalidArgumentError("clusters: ALGORITHM_LN_KMEANS needs k >= 1 clusters");
+        return absl::InvalidArgumentError(
+            absl::StrCat("clusters: ", algorithm_name, " needs k >= 1 clusters"));
       }
       plan.clusters = spec.clusters();
       std::string init = "kmeans++";

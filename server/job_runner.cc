@@ -8,6 +8,7 @@
 #include "absl/time/clock.h"
 #include "core/draco_codec.h"
 #include "core/face_measures.h"
+#include "core/kmeans.h"
 #include "core/mesh.h"
 #include "core/mesh_clustering.h"
 #include "core/multilevel.h"
@@ -302,7 +303,9 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
   EventChannel& events = *job.events;
   absl::StatusOr<PointJobPlan> plan = PlanPointJob(spec);
   if (!plan.ok()) return plan.status();
-  const bool hierarchy = plan->algorithm != v1::ALGORITHM_LN_KMEANS;
+  const bool hierarchy = plan->algorithm == v1::ALGORITHM_HC ||
+                         plan->algorithm == v1::ALGORITHM_ML ||
+                         plan->algorithm == v1::ALGORITHM_PML;
   if (!hierarchy && (spec.levels_high() != 0 || spec.levels_low() != 0)) {
     return absl::InvalidArgumentError(
         "levels: a level range applies to the hierarchies of HC, ML and PML only");
@@ -347,6 +350,31 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
     outcome.done.set_final_clusters(summary->final_clusters);
     for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
       outcome.done.add_elbow_cluster_counts(k);
+    }
+  } else if (plan->algorithm == v1::ALGORITHM_KMEANS) {
+    // Lloyd from k-means++ (or random) centres; level 0 is the assignment to the centres.
+    KmeansOptions options;
+    options.clusters = plan->clusters;
+    options.seed = plan->seed;
+    options.threads = plan->ln_kmeans.threads;
+    options.max_iterations = plan->ln_kmeans.max_iterations;
+    options.init = plan->kmeans_plus_plus ? KmeansOptions::Init::kKmeansPlusPlus
+                                          : KmeansOptions::Init::kRandom;
+    absl::StatusOr<std::vector<float>> centres =
+        plan->kmeans_plus_plus
+            ? KmeansPlusPlusCentres(points, plan->clusters, plan->seed, options.threads)
+            : RandomPointCentres(points, plan->clusters, plan->seed);
+    if (!centres.ok()) return centres.status();
+    KmeansOptions once = options;
+    once.max_iterations = 1;
+    absl::StatusOr<KmeansResult> start = RunLloyd(points, *centres, once);
+    if (!start.ok()) return start.status();
+    absl::StatusOr<KmeansResult> result = RunLloyd(points, *centres, options);
+    if (!result.ok()) return result.status();
+    if (absl::Status s = StreamSingleLevel(start->labels, start->inertia, result->labels,
+                                           result->inertia, plan->clusters, sink);
+        !s.ok()) {
+      return s;
     }
   } else {
     absl::StatusOr<std::vector<ClusterId>> initial = SeedPointClusters(

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "absl/container/flat_hash_set.h"
+#include "core/model_selection.h"
 #include "core/random.h"
 
 namespace mlclust {
@@ -221,6 +222,25 @@ TEST(PointMultilevelTest, PmlReachesOneClusterAndFarApartGroupsStillMerge) {
   ASSERT_TRUE(summary.ok());
   EXPECT_EQ(summary->final_clusters, 1u);
   EXPECT_TRUE(SamePartition(*log.LabelsAt(*log.FirstLevelWithAtMost(2)), truth));
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Section 6.6: the ML hierarchy's BIC recovers the number of well separated Gaussians.
+TEST(PointMultilevelTest, BicOfTheMlHierarchyRecoversTheNumberOfBlobs) {
+  for (uint32_t k : {5u, 12u, 30u}) {
+    auto [points, truth] = Blobs(k, 200, 3, 100 + k, 8);
+    BicLevelRecorder recorder;
+    ASSERT_TRUE(RunPointMultilevel(points, {}, recorder).ok());
+    absl::StatusOr<BicChoice> choice =
+        ChooseByBic(recorder.levels(), recorder.num_points(), points.dims);
+    ASSERT_TRUE(choice.ok()) << choice.status();
+    EXPECT_EQ(choice->best_k, k);
+  }
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The CLI end to end: the embedded server and a separate `mlclust serve` give the same
 # levels; the labels' energy, recomputed from the mesh file alone, equals the reported
-# one; bad input gets a message and a non-zero exit while the server keeps serving.
+# one; bad input gets a message and a non-zero exit while the server keeps serving; points
+# with --auto-k bic recover the number of blobs.
 #   cli_test.sh MLCLUST_BINARY DATA_DIR
 set -euo pipefail
 mlclust=$1
@@ -65,6 +66,27 @@ fi
 if "$mlclust" mesh "$data/fandisk.off" --bogus 1 2> "$work/opt.err"; then fail "--bogus accepted"; fi
 grep -q "unknown option --bogus" "$work/opt.err" || fail "no message for --bogus"
 if "$mlclust" mesh "$work/missing.off" --quiet 2> /dev/null; then fail "missing file accepted"; fi
+
+# Points: 6 Gaussian blobs (sigma 1, 300 points each, centres 20 apart) as CSV with a
+# header; BIC finds 6, through the separate server too.
+awk 'BEGIN { srand(7); print "x,y,z";
+  for (b = 0; b < 6; ++b) for (i = 0; i < 300; ++i) {
+    line = "";
+    for (j = 0; j < 3; ++j) {
+      u = rand(); if (u < 1e-12) u = 1e-12; v = rand();
+      c = (j == b % 3 ? 20 * (1 + int(b / 3)) : 0);
+      line = line (j ? "," : "") (c + sqrt(-2 * log(u)) * cos(6.283185307 * v));
+    }
+    print line } }' > "$work/blobs.csv"
+"$mlclust" points "$work/blobs.csv" --algo ml --auto-k bic --labels "$work/blobs.labels" \
+  --levels-csv "$work/blobs_levels.csv" --server "127.0.0.1:$port" --quiet > "$work/points.out"
+grep -q "BIC highest at 6 clusters" "$work/points.out" || fail "BIC did not find 6: $(cat "$work/points.out")"
+[ "$(sort -un "$work/blobs.labels" | wc -l)" -eq 6 ] || fail "points labels: not 6 clusters"
+[ "$(wc -l < "$work/blobs.labels")" -eq 1800 ] || fail "points labels: not one line per point"
+# A ragged CSV is refused naming the row.
+printf '1,2,3\n4,5\n' > "$work/ragged.csv"
+if "$mlclust" points "$work/ragged.csv" --quiet 2> "$work/ragged.err"; then fail "ragged CSV accepted"; fi
+grep -q "2" "$work/ragged.err" || fail "no row named for the ragged CSV: $(cat "$work/ragged.err")"
 
 kill -TERM "$server_pid"
 wait "$server_pid" || fail "server exited with an error on SIGTERM"
