@@ -211,10 +211,12 @@ TEST_F(ServerTest, BadSpecsAreRefused) {
   EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(result.status().message(), HasSubstr("device"));
 
+  // Mesh bytes sent as points without their dimension.
   spec = HcSpec();
   spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
-  EXPECT_EQ(client::RunJob(channel_, spec, *bytes).status().code(),
-            absl::StatusCode::kUnimplemented);
+  result = client::RunJob(channel_, spec, *bytes);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("point_dims"));
 
   // The hierarchy stops early at `clusters`.
   spec = HcSpec();
