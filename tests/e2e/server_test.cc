@@ -214,6 +214,7 @@ TEST_F(ServerTest, BadSpecsAreRefused) {
   // Mesh bytes sent as points without their dimension.
   spec = HcSpec();
   spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  spec.set_energy(v1::ENERGY_UNSPECIFIED);
   result = client::RunJob(channel_, spec, *bytes);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(result.status().message(), HasSubstr("point_dims"));
