@@ -53,24 +53,15 @@ std::vector<double> ComputeFaceDensity(const TriangleMesh& mesh, const FaceMeasu
                                        const DensityOptions& options) {
   const size_t num_faces = mesh.num_faces();
   const size_t num_vertices = mesh.num_vertices();
-  // Faces around each vertex (compressed rows).
-  std::vector<uint32_t> offset(num_vertices + 1, 0);
-  for (uint32_t v : mesh.indices) ++offset[v + 1];
-  std::partial_sum(offset.begin(), offset.end(), offset.begin());
-  std::vector<uint32_t> faces_of(mesh.indices.size());
-  std::vector<uint32_t> cursor(offset.begin(), offset.end() - 1);
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    faces_of[cursor[mesh.indices[i]]++] = static_cast<uint32_t>(i / 3);
-  }
+  const VertexFaceTable table = BuildVertexFaceTable(mesh);
   // rho'_f: mean |n_f - n_g| over the distinct faces g != f around f's three vertices.
   std::vector<double> raw(num_faces, 0.0);
   std::vector<uint32_t> ring;
   for (uint32_t f = 0; f < num_faces; ++f) {
     ring.clear();
     for (int c = 0; c < 3; ++c) {
-      const uint32_t v = mesh.indices[3 * size_t{f} + c];
-      for (uint32_t i = offset[v]; i < offset[v + 1]; ++i) {
-        if (faces_of[i] != f) ring.push_back(faces_of[i]);
+      for (uint32_t g : table.faces_around(mesh.indices[3 * size_t{f} + c])) {
+        if (g != f) ring.push_back(g);
       }
     }
     std::sort(ring.begin(), ring.end());

@@ -10,29 +10,14 @@
 namespace mlclust {
 namespace {
 
-// Vertex-to-face incidence in compressed rows: faces around vertex v are
-// face_of[offset[v] .. offset[v + 1]). Built by a counting sort, O(faces + vertices).
+// The table of mesh.h, with pointer access for the hot loops below.
 struct VertexFaces {
-  std::vector<uint32_t> offset;
-  std::vector<uint32_t> face_of;
-
-  const uint32_t* begin(uint32_t v) const { return face_of.data() + offset[v]; }
-  const uint32_t* end(uint32_t v) const { return face_of.data() + offset[v + 1]; }
+  VertexFaceTable table;
+  const uint32_t* begin(uint32_t v) const { return table.faces.data() + table.offset[v]; }
+  const uint32_t* end(uint32_t v) const { return table.faces.data() + table.offset[v + 1]; }
 };
 
-VertexFaces BuildVertexFaces(const TriangleMesh& mesh) {
-  VertexFaces table;
-  const size_t num_vertices = mesh.num_vertices();
-  table.offset.assign(num_vertices + 1, 0);
-  for (uint32_t v : mesh.indices) ++table.offset[v + 1];
-  std::partial_sum(table.offset.begin(), table.offset.end(), table.offset.begin());
-  table.face_of.resize(mesh.indices.size());
-  std::vector<uint32_t> cursor(table.offset.begin(), table.offset.end() - 1);
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    table.face_of[cursor[mesh.indices[i]]++] = static_cast<uint32_t>(i / 3);
-  }
-  return table;
-}
+VertexFaces BuildVertexFaces(const TriangleMesh& mesh) { return {BuildVertexFaceTable(mesh)}; }
 
 bool FaceHasVertex(const TriangleMesh& mesh, uint32_t face, uint32_t vertex) {
   const uint32_t* f = &mesh.indices[3 * static_cast<size_t>(face)];
@@ -105,6 +90,20 @@ absl::StatusOr<FaceAdjacency> BuildFaceAdjacencyFrom(const TriangleMesh& mesh,
 }
 
 }  // namespace
+
+VertexFaceTable BuildVertexFaceTable(const TriangleMesh& mesh) {
+  VertexFaceTable table;
+  const size_t num_vertices = mesh.num_vertices();
+  table.offset.assign(num_vertices + 1, 0);
+  for (uint32_t v : mesh.indices) ++table.offset[v + 1];
+  std::partial_sum(table.offset.begin(), table.offset.end(), table.offset.begin());
+  table.faces.resize(mesh.indices.size());
+  std::vector<uint32_t> cursor(table.offset.begin(), table.offset.end() - 1);
+  for (size_t i = 0; i < mesh.indices.size(); ++i) {
+    table.faces[cursor[mesh.indices[i]]++] = static_cast<uint32_t>(i / 3);
+  }
+  return table;
+}
 
 absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh) {
   return BuildFaceAdjacencyFrom(mesh, BuildVertexFaces(mesh));

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -51,6 +52,19 @@ absl::Status ValidateMesh(const TriangleMesh& mesh);
 // vertex index is not below num_vertices(). Part of ValidateMesh; for writers and encoders
 // that must not index out of bounds but accept what ValidateMesh would refuse.
 absl::Status CheckVertexIndices(const TriangleMesh& mesh);
+
+// The faces around each vertex, in compressed rows: the faces of vertex v are
+// faces[offset[v] .. offset[v + 1]), in increasing face order. Built by a counting sort in
+// O(faces + vertices); expects indices in range.
+struct VertexFaceTable {
+  std::vector<uint32_t> offset;
+  std::vector<uint32_t> faces;
+
+  std::span<const uint32_t> faces_around(uint32_t vertex) const {
+    return {faces.data() + offset[vertex], faces.data() + offset[vertex + 1]};
+  }
+};
+VertexFaceTable BuildVertexFaceTable(const TriangleMesh& mesh);
 
 // For each face, the face across each of its three edges; edge i runs from corner i to
 // corner (i + 1) % 3. FaceId::Invalid() across a boundary edge.

@@ -115,20 +115,12 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
   }
   // Distinct clusters around each vertex, from its faces.
   const size_t num_vertices = mesh.num_vertices();
-  std::vector<uint32_t> offset(num_vertices + 1, 0);
-  for (uint32_t v : mesh.indices) ++offset[v + 1];
-  std::partial_sum(offset.begin(), offset.end(), offset.begin());
-  std::vector<uint32_t> faces_of(mesh.indices.size());
-  {
-    std::vector<uint32_t> cursor(offset.begin(), offset.end() - 1);
-    for (size_t i = 0; i < mesh.indices.size(); ++i) {
-      faces_of[cursor[mesh.indices[i]]++] = static_cast<uint32_t>(i / 3);
-    }
-  }
+  const VertexFaceTable table = BuildVertexFaceTable(mesh);
   auto clusters_at = [&](uint32_t v, uint32_t out[4]) {
     int count = 0;
-    for (uint32_t i = offset[v]; i < offset[v + 1] && count < 4; ++i) {
-      const uint32_t c = find(labels[faces_of[i]]);
+    for (uint32_t face : table.faces_around(v)) {
+      if (count == 4) break;
+      const uint32_t c = find(labels[face]);
       if (std::find(out, out + count, c) == out + count) out[count++] = c;
     }
     return count;

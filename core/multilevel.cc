@@ -7,6 +7,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
 #include "core/connectivity_guard.h"
+#include "core/detail/compensated_sum.h"
 #include "core/detail/emlo_impl.h"
 #include "core/partition.h"
 #include "tbb/parallel_for.h"
@@ -17,20 +18,7 @@ namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-// Kahan summation keeps the running energy, a sum of many small changes, accurate.
-class CompensatedSum {
- public:
-  void Add(double x) {
-    const double y = x - compensation_;
-    const double t = sum_ + y;
-    compensation_ = (t - sum_) - y;
-    sum_ = t;
-  }
-  double value() const { return sum_; }
-
- private:
-  double sum_ = 0, compensation_ = 0;
-};
+using detail::CompensatedSum;
 
 // A cluster's optimal dual edge (Def. 4.2) as it was when pushed: stale once the cluster's
 // ODE has been recomputed since (lazy invalidation by version numbers, instead of the

@@ -8,6 +8,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/detail/compensated_sum.h"
 #include "core/kmeans.h"
 #include "core/random.h"
 #include "tbb/parallel_for.h"
@@ -18,21 +19,7 @@ namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
 
-// Kahan summation for the running energy of a hierarchy.
-class CompensatedSum {
- public:
-  void Add(double x) {
-    const double y = x - compensation_;
-    const double t = sum_ + y;
-    compensation_ = (t - sum_) - y;
-    sum_ = t;
-  }
-  double value() const { return sum_; }
-  void Reset(double v) { sum_ = v, compensation_ = 0; }
-
- private:
-  double sum_ = 0, compensation_ = 0;
-};
+using detail::CompensatedSum;
 
 // Clusters of points with their sums, centroids and local neighbours. Coordinates are
 // taken relative to the data's mean (`origin`) so that the energy from sums,
