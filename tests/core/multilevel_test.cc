@@ -15,34 +15,10 @@
 namespace mlclust {
 namespace {
 
-struct Loaded {
-  TriangleMesh mesh;
-  FaceAdjacency adjacency;
-  FaceMeasures measures;
-  MeshProblem problem(MeshEnergyKind kind = MeshEnergyKind::kCvd) const {
-    MeshProblem p{&mesh, &adjacency, &measures, {}};
-    p.energy.kind = kind;
-    return p;
-  }
-};
+using Loaded = testing::LoadedMesh;
+using testing::Load;
 
-Loaded Load(TriangleMesh mesh) {
-  Loaded l;
-  l.mesh = std::move(mesh);
-  EXPECT_TRUE(ValidateMesh(l.mesh).ok());
-  l.adjacency = *BuildFaceAdjacency(l.mesh);
-  l.measures = ComputeFaceMeasures(l.mesh);
-  return l;
-}
-
-const Loaded& File(const std::string& name) {
-  static auto* cache = new std::map<std::string, Loaded>;
-  auto it = cache->find(name);
-  if (it == cache->end()) {
-    it = cache->emplace(name, Load(*ReadMeshFile(testing::DataPath(name)))).first;
-  }
-  return it->second;
-}
+const Loaded& File(const std::string& name) { return testing::LoadDataFile(name); }
 
 MultilevelOptions Hc() {
   MultilevelOptions options;

@@ -2,12 +2,18 @@
 #ifndef MLCLUST_TESTS_CORE_TEST_MESHES_H_
 #define MLCLUST_TESTS_CORE_TEST_MESHES_H_
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "core/face_measures.h"
 #include "core/mesh.h"
+#include "core/mesh_clustering.h"
+#include "core/mesh_io.h"
 
 namespace mlclust::testing {
 
@@ -223,6 +229,39 @@ inline SphericalPatchModel SphericalBeads(int patches, int rings, int segments) 
 
 inline std::string DataPath(const std::string& name) {
   return std::string(MLCLUST_DATA_DIR) + "/" + name;
+}
+
+// A validated mesh with its adjacency and face measures, ready for the drivers.
+struct LoadedMesh {
+  TriangleMesh mesh;
+  FaceAdjacency adjacency;
+  FaceMeasures measures;
+  MeshProblem problem(MeshEnergyKind kind = MeshEnergyKind::kCvd) const {
+    MeshProblem p{&mesh, &adjacency, &measures, {}};
+    p.energy.kind = kind;
+    return p;
+  }
+};
+
+inline LoadedMesh Load(TriangleMesh mesh) {
+  LoadedMesh l;
+  l.mesh = std::move(mesh);
+  EXPECT_TRUE(ValidateMesh(l.mesh).ok());
+  l.adjacency = *BuildFaceAdjacency(l.mesh);
+  l.measures = ComputeFaceMeasures(l.mesh);
+  return l;
+}
+
+// A mesh of data/, loaded once per test binary.
+inline const LoadedMesh& LoadDataFile(const std::string& name) {
+  static auto* cache = new std::map<std::string, LoadedMesh>;
+  auto it = cache->find(name);
+  if (it == cache->end()) {
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(DataPath(name));
+    EXPECT_TRUE(mesh.ok()) << mesh.status();
+    it = cache->emplace(name, Load(mesh.ok() ? *std::move(mesh) : TriangleMesh{})).first;
+  }
+  return it->second;
 }
 
 }  // namespace mlclust::testing

@@ -20,25 +20,8 @@ using Seeding = VsaOptions::Seeding;
 constexpr Seeding kAllSeedings[] = {Seeding::kRandom, Seeding::kIncremental,
                                     Seeding::kHierarchical};
 
-struct Loaded {
-  TriangleMesh mesh;
-  FaceAdjacency adjacency;
-  FaceMeasures measures;
-  MeshProblem problem(MeshEnergyKind kind = MeshEnergyKind::kPlanar) const {
-    MeshProblem p{&mesh, &adjacency, &measures, {}};
-    p.energy.kind = kind;
-    return p;
-  }
-};
-
-Loaded Load(TriangleMesh mesh) {
-  Loaded l;
-  l.mesh = std::move(mesh);
-  EXPECT_TRUE(ValidateMesh(l.mesh).ok());
-  l.adjacency = *BuildFaceAdjacency(l.mesh);
-  l.measures = ComputeFaceMeasures(l.mesh);
-  return l;
-}
+using Loaded = testing::LoadedMesh;
+using testing::Load;
 
 const Loaded& Elephant() {
   static const Loaded* elephant =
@@ -177,7 +160,8 @@ TEST(VsaTest, CubeGivesOneRegionPerSideAndZeroEnergy) {
       for (uint64_t seed = 1; seed <= (seeding == Seeding::kRandom ? 100 : 1); ++seed) {
         SCOPED_TRACE(::testing::Message()
                      << "n " << n << " " << VsaSeedingName(seeding) << " seed " << seed);
-        absl::StatusOr<VsaResult> result = RunVsa(l.problem(), Options(6, seeding, seed));
+        absl::StatusOr<VsaResult> result =
+            RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(6, seeding, seed));
         ASSERT_TRUE(result.ok()) << result.status();
         ExpectValidPartition(l, *result, 6);
         EXPECT_NEAR(result->energy, 0.0, 1e-9);
@@ -197,7 +181,7 @@ TEST(VsaTest, WithoutTeleportationLloydStaysInALocalMinimum) {
   for (uint64_t seed = 1; seed <= 50; ++seed) {
     VsaOptions options = Options(6, Seeding::kRandom, seed);
     options.teleport = false;
-    absl::StatusOr<VsaResult> result = RunVsa(l.problem(), options);
+    absl::StatusOr<VsaResult> result = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
     ASSERT_TRUE(result.ok()) << result.status();
     ExpectValidPartition(l, *result, 6);
     EXPECT_EQ(result->teleports, 0u);
@@ -221,7 +205,8 @@ TEST(VsaTest, TwoComponentsGetARegionEachAndKBelowComponentsIsRefused) {
   for (Seeding seeding : kAllSeedings) {
     for (uint32_t k : {2u, 3u, 12u}) {
       SCOPED_TRACE(::testing::Message() << "k " << k << " " << VsaSeedingName(seeding));
-      absl::StatusOr<VsaResult> result = RunVsa(l.problem(), Options(k, seeding));
+      absl::StatusOr<VsaResult> result =
+          RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding));
       ASSERT_TRUE(result.ok()) << result.status();
       ExpectValidPartition(l, *result, k);
       // No region spans both cubes (the faces of the first cube come first).
@@ -235,13 +220,15 @@ TEST(VsaTest, TwoComponentsGetARegionEachAndKBelowComponentsIsRefused) {
       EXPECT_FALSE(second.empty());
     }
     // With k = 12 both cubes are cut into their six sides.
-    absl::StatusOr<VsaResult> twelve = RunVsa(l.problem(), Options(12, seeding, 2));
+    absl::StatusOr<VsaResult> twelve =
+        RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(12, seeding, 2));
     ASSERT_TRUE(twelve.ok());
     if (seeding != Seeding::kRandom) {
       EXPECT_NEAR(twelve->energy, 0.0, 1e-9);
     }
   }
-  absl::StatusOr<VsaResult> one = RunVsa(l.problem(), Options(1, Seeding::kHierarchical));
+  absl::StatusOr<VsaResult> one =
+      RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(1, Seeding::kHierarchical));
   EXPECT_EQ(one.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(one.status().message(), HasSubstr("clusters"));
   EXPECT_THAT(one.status().message(), HasSubstr("2 connected components"));
@@ -253,7 +240,8 @@ TEST(VsaTest, ExactlyKConnectedRegionsOnARealMesh) {
     for (uint32_t k : {1u, 7u, 50u, 300u}) {
       if (seeding == Seeding::kIncremental && k > 50) continue;  // k x 5 iterations
       SCOPED_TRACE(::testing::Message() << "k " << k << " " << VsaSeedingName(seeding));
-      absl::StatusOr<VsaResult> result = RunVsa(l.problem(), Options(k, seeding));
+      absl::StatusOr<VsaResult> result =
+          RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding));
       ASSERT_TRUE(result.ok()) << result.status();
       ExpectValidPartition(l, *result, k);
       EXPECT_LE(result->energy, result->initial_energy);
@@ -273,7 +261,7 @@ TEST(VsaTest, NoIterationsStillGiveConnectedRegions) {
     VsaOptions options = Options(30, seeding);
     options.inner_iterations = 0;
     options.iterations = 0;
-    absl::StatusOr<VsaResult> result = RunVsa(l.problem(), options);
+    absl::StatusOr<VsaResult> result = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
     ASSERT_TRUE(result.ok()) << result.status();
     ExpectValidPartition(l, *result, 30);
     EXPECT_EQ(result->iterations, 0u);
@@ -289,7 +277,8 @@ TEST(VsaTest, KUpToTheFaceCount) {
   for (Seeding seeding : kAllSeedings) {
     for (uint32_t k : {faces - 1, faces}) {
       SCOPED_TRACE(::testing::Message() << "k " << k << " " << VsaSeedingName(seeding));
-      absl::StatusOr<VsaResult> result = RunVsa(l.problem(), Options(k, seeding));
+      absl::StatusOr<VsaResult> result =
+          RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding));
       ASSERT_TRUE(result.ok()) << result.status();
       ExpectValidPartition(l, *result, k);
       EXPECT_NEAR(result->energy, 0.0, 1e-12);  // a plane
@@ -311,7 +300,7 @@ TEST(VsaTest, EnergyNeverIncreasesWithMoreIterations) {
       EXPECT_EQ(iteration, reported.size() + 1);
       reported.push_back(energy);
     };
-    absl::StatusOr<VsaResult> full = RunVsa(l.problem(), options);
+    absl::StatusOr<VsaResult> full = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
     ASSERT_TRUE(full.ok());
     ASSERT_EQ(reported.size(), full->iterations);
     ASSERT_GE(reported.size(), 2u);
@@ -321,7 +310,7 @@ TEST(VsaTest, EnergyNeverIncreasesWithMoreIterations) {
     double previous = full->initial_energy;
     for (uint32_t n = 0; n <= full->iterations; ++n) {
       options.iterations = n;
-      absl::StatusOr<VsaResult> result = RunVsa(l.problem(), options);
+      absl::StatusOr<VsaResult> result = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
       ASSERT_TRUE(result.ok());
       EXPECT_LE(result->energy, previous) << n << " iterations";
       if (n > 0) {
@@ -345,14 +334,14 @@ TEST(VsaTest, StopsAtAFixedPointAndOnASmallDecrease) {
   const Loaded cube = Load(Cube(3));
   VsaOptions options = Options(6, Seeding::kHierarchical);
   options.iterations = 1000;
-  absl::StatusOr<VsaResult> result = RunVsa(cube.problem(), options);
+  absl::StatusOr<VsaResult> result = RunVsa(cube.problem(MeshEnergyKind::kPlanar), options);
   ASSERT_TRUE(result.ok());
   EXPECT_TRUE(result->converged);
   EXPECT_LT(result->iterations, 10u);
   // Running on past the fixed point changes nothing.
   VsaOptions more = options;
   more.iterations = result->iterations + 5;
-  absl::StatusOr<VsaResult> again = RunVsa(cube.problem(), more);
+  absl::StatusOr<VsaResult> again = RunVsa(cube.problem(MeshEnergyKind::kPlanar), more);
   ASSERT_TRUE(again.ok());
   EXPECT_EQ(again->labels, result->labels);
   EXPECT_EQ(again->iterations, result->iterations);
@@ -365,7 +354,7 @@ TEST(VsaTest, StopsAtAFixedPointAndOnASmallDecrease) {
   options.min_relative_decrease = 0.05;
   options.teleport = false;
   options.on_iteration = [&](uint32_t, double energy) { energies.push_back(energy); };
-  absl::StatusOr<VsaResult> early = RunVsa(l.problem(), options);
+  absl::StatusOr<VsaResult> early = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
   ASSERT_TRUE(early.ok());
   EXPECT_TRUE(early->converged);
   ASSERT_EQ(energies.size(), early->iterations);
@@ -382,13 +371,16 @@ TEST(VsaTest, SameSeedSameResultOtherSeedOtherResult) {
   for (Seeding seeding : kAllSeedings) {
     SCOPED_TRACE(VsaSeedingName(seeding));
     const uint32_t k = seeding == Seeding::kIncremental ? 20 : 100;
-    absl::StatusOr<VsaResult> a = RunVsa(l.problem(), Options(k, seeding, 7));
-    absl::StatusOr<VsaResult> b = RunVsa(l.problem(), Options(k, seeding, 7));
+    absl::StatusOr<VsaResult> a =
+        RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding, 7));
+    absl::StatusOr<VsaResult> b =
+        RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding, 7));
     ASSERT_TRUE(a.ok() && b.ok());
     EXPECT_EQ(a->labels, b->labels);
     EXPECT_EQ(a->energy, b->energy);
     if (seeding == Seeding::kRandom) {
-      absl::StatusOr<VsaResult> c = RunVsa(l.problem(), Options(k, seeding, 8));
+      absl::StatusOr<VsaResult> c =
+          RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, seeding, 8));
       ASSERT_TRUE(c.ok());
       EXPECT_NE(a->labels, c->labels);
     }
@@ -402,13 +394,15 @@ TEST(VsaTest, BadOptionsAreRefusedNamingTheOption) {
   EXPECT_EQ(cvd.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(cvd.status().message(), HasSubstr("energy"));
   for (uint32_t k : {0u, faces + 1}) {
-    absl::StatusOr<VsaResult> bad = RunVsa(l.problem(), Options(k, Seeding::kHierarchical));
+    absl::StatusOr<VsaResult> bad =
+        RunVsa(l.problem(MeshEnergyKind::kPlanar), Options(k, Seeding::kHierarchical));
     EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument) << k;
     EXPECT_THAT(bad.status().message(), HasSubstr("clusters")) << k;
   }
   VsaOptions negative = Options(10, Seeding::kHierarchical);
   negative.min_relative_decrease = -1;
-  EXPECT_EQ(RunVsa(l.problem(), negative).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(RunVsa(l.problem(MeshEnergyKind::kPlanar), negative).status().code(),
+            absl::StatusCode::kInvalidArgument);
   MeshProblem empty;
   EXPECT_EQ(RunVsa(empty, Options(10, {})).status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_FALSE(ParseVsaSeeding("lloyd").ok());
