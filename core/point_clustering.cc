@@ -275,8 +275,8 @@ std::vector<uint32_t> ApplyMoves(PointClusters& clusters, std::span<const uint32
 }
 
 // Refreshes the neighbours of the changed clusters and of their neighbours.
-void RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
-                   std::vector<uint8_t>& mark) {
+std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
+                                    std::vector<uint8_t>& mark) {
   std::vector<uint32_t> affected;
   for (uint32_t c : changed) {
     if (!mark[c]) {
@@ -290,15 +290,14 @@ void RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
       }
     }
   }
+  // Each refresh looks at the cluster's neighbours and their neighbours (second order),
+  // which is where a changed cluster next to it can be.
   std::vector<uint32_t> candidates;
   for (uint32_t c : affected) {
     mark[c] = 0;
-    if (clusters.count(c) == 0) continue;
-    // A changed cluster may now be nearest to any cluster that sees it: offer the changed
-    // ones as candidates too.
-    candidates.assign(changed.begin(), changed.end());
-    clusters.RefreshNeighbours(c, candidates);
+    if (clusters.count(c) > 0) clusters.RefreshNeighbours(c, candidates);
   }
+  return affected;
 }
 
 // Occupied voxel cells: per point its cell's cluster, per cluster its cell coordinates.
@@ -804,13 +803,17 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
     PointClusters clusters(points, compact, k);
     InitialNeighbours(clusters);
     result.initial_energy = clusters.TotalEnergy();
-    std::vector<uint32_t> all(m), target(m);
-    std::iota(all.begin(), all.end(), 0);
-    std::vector<uint8_t> mark(k, 0);
+    // Only points whose candidate clusters changed can move: after the first iteration a
+    // point is checked again only if its cluster, a neighbour of it or a neighbour's
+    // neighbour changed (its centroid or its neighbour list) in the last iteration.
+    std::vector<uint32_t> check(m), target(m);
+    std::iota(check.begin(), check.end(), 0);
+    std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
     for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
-      ChooseTargets(clusters, all, target);
+      target.resize(check.size());
+      ChooseTargets(clusters, check, target);
       uint64_t moved = 0;
-      const std::vector<uint32_t> changed = ApplyMoves(clusters, all, target, mark, moved, {});
+      const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
       result.iterations = iteration;
       result.moves += moved;
       if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
@@ -818,7 +821,25 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
         result.converged = true;
         break;
       }
-      RefreshAround(clusters, changed, mark);
+      const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+      std::fill(dirty.begin(), dirty.end(), 0);
+      for (uint32_t c : changed) dirty[c] = 1;
+      for (uint32_t c : refreshed) dirty[c] = 1;
+      for (uint32_t c = 0; c < k; ++c) {
+        bool any = dirty[c];
+        for (uint32_t n : clusters.neighbours(c)) {
+          if (any || n == kNone) continue;
+          any = dirty[n];
+          for (uint32_t nn : clusters.neighbours(n)) {
+            if (nn != kNone && dirty[nn]) any = true;
+          }
+        }
+        active[c] = any;
+      }
+      check.clear();
+      for (size_t i = 0; i < m; ++i) {
+        if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
+      }
     }
     result.energy = clusters.TotalEnergy();
     result.labels.resize(m);
@@ -858,60 +879,21 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
     return absl::InvalidArgumentError(
         absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
   }
-  const uint32_t d = points.dims;
   // The centres: greedy k-means++ (core/kmeans.h), or k distinct random points.
   absl::StatusOr<std::vector<float>> chosen = kmeans_plus_plus
                                                   ? KmeansPlusPlusCentres(points, k, seed, threads)
                                                   : RandomPointCentres(points, k, seed);
   if (!chosen.ok()) return chosen.status();
   const std::vector<float> centres = *std::move(chosen);
-  // Every point to its nearest centre (parallel); then each centre's nearest point keeps
-  // a cluster of its own if it was left empty, so there are exactly k clusters.
-  std::vector<uint32_t> labels(m, 0);
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  auto distance = [&](size_t i, uint32_t c) {
-    double dist = 0;
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff =
-          static_cast<double>(points.values[i * d + j]) - centres[size_t{c} * d + j];
-      dist += diff * diff;
-    }
-    return dist;
-  };
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 1024), [&](const auto& range) {
-      for (size_t i = range.begin(); i != range.end(); ++i) {
-        double best = std::numeric_limits<double>::infinity();
-        for (uint32_t c = 0; c < k; ++c) {
-          const double dist = distance(i, c);
-          if (dist < best) {
-            best = dist;
-            labels[i] = c;
-          }
-        }
-      }
-    });
-  });
-  std::vector<uint64_t> size(k, 0);
-  for (uint32_t l : labels) ++size[l];
-  for (uint32_t c = 0; c < k; ++c) {
-    if (size[c] > 0) continue;
-    // Duplicate centres: give the empty cluster the nearest point whose cluster can spare it.
-    double best = std::numeric_limits<double>::infinity();
-    size_t chosen = 0;
-    for (size_t i = 0; i < m; ++i) {
-      if (size[labels[i]] > 1 && distance(i, c) < best) {
-        best = distance(i, c);
-        chosen = i;
-      }
-    }
-    --size[labels[chosen]];
-    labels[chosen] = c;
-    ++size[c];
-  }
-  std::vector<ClusterId> out(m);
-  for (size_t i = 0; i < m; ++i) out[i] = ClusterId(labels[i]);
-  return out;
+  // Every point to its nearest centre: one assignment of core/kmeans.h's Lloyd (its
+  // vectorised kernel; it also gives an empty cluster a point, so there are exactly k).
+  KmeansOptions assign;
+  assign.clusters = k;
+  assign.max_iterations = 1;
+  assign.threads = threads;
+  absl::StatusOr<KmeansResult> assigned = RunLloyd(points, centres, assign);
+  if (!assigned.ok()) return assigned.status();
+  return std::move(assigned->labels);
 }
 
 absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
