@@ -516,11 +516,38 @@ class PointEngine {
     for (uint32_t c : region) mark_[c] = 0;
     for (int round = 0; round < 8 && !region.empty(); ++round) {
       points_to_check_.clear();
+      // After a single merge only the merged cluster changed: its points need the full
+      // check, but a neighbour's point can only gain by moving to the merged cluster (its
+      // other candidates are as they were), so it is compared with that one alone.
+      const bool single_merge = round == 0 && merged_.size() == 1;
+      const uint32_t keep = single_merge ? merged_[0] : kNone;
       for (uint32_t c : region) {
+        if (single_merge && c != keep) continue;
         points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
       }
+      const size_t full = points_to_check_.size();
+      if (single_merge) {
+        for (uint32_t c : region) {
+          if (c != keep) {
+            points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+          }
+        }
+      }
       target_.resize(points_to_check_.size());
-      ChooseTargets(*clusters_, points_to_check_, target_);
+      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full), target_);
+      if (single_merge) {
+        const PointClusters& clusters = *clusters_;
+        tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
+                          [&](const auto& range) {
+                            for (size_t r = range.begin(); r != range.end(); ++r) {
+                              const uint32_t i = points_to_check_[r];
+                              target_[r] = clusters.Distance(i, keep) <
+                                                   clusters.Distance(i, clusters.label(i))
+                                               ? keep
+                                               : kNone;
+                            }
+                          });
+      }
       std::vector<uint32_t> changed;
       for (size_t r = 0; r < points_to_check_.size(); ++r) {
         if (target_[r] == kNone) continue;
