@@ -13,28 +13,13 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "bench/curve_sink.h"
 #include "core/mesh_io.h"
 #include "core/multilevel.h"
 
 namespace {
 
-// Keeps each level's cluster count and energy, not the triplets.
-class CurveSink : public mlclust::LevelSink {
- public:
-  absl::Status OnStart(std::span<const mlclust::ClusterId>, uint32_t count,
-                       double energy) override {
-    counts.assign(1, count);
-    energies.assign(1, energy);
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> counts;
-  std::vector<double> energies;
-};
+using CurveSink = mlclust::bench::CurveSink;
 
 }  // namespace
 

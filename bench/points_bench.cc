@@ -9,27 +9,13 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
+#include "bench/curve_sink.h"
 #include "core/point_clustering.h"
 #include "core/random.h"
 
 namespace {
 
-class CurveSink : public mlclust::LevelSink {
- public:
-  absl::Status OnStart(std::span<const mlclust::ClusterId>, uint32_t count,
-                       double energy) override {
-    counts.assign(1, count);
-    energies.assign(1, energy);
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> counts;
-  std::vector<double> energies;
-};
+using CurveSink = mlclust::bench::CurveSink;
 
 }  // namespace
 

@@ -777,31 +777,12 @@ absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid)
   if (grid < 1 || grid > (1u << 20)) {
     return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is not in [1, 2^20]"));
   }
-  const uint32_t d = points.dims;
-  const size_t m = points.num_points();
-  std::vector<float> lo(d, std::numeric_limits<float>::max()),
-      hi(d, -std::numeric_limits<float>::max());
-  for (size_t i = 0; i < m; ++i) {
-    for (uint32_t j = 0; j < d; ++j) {
-      lo[j] = std::min(lo[j], points.values[i * d + j]);
-      hi[j] = std::max(hi[j], points.values[i * d + j]);
-    }
-  }
-  // Only occupied cells exist: a hash from the cell's coordinates to its cluster.
-  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> cells;
+  // The engine's own start (OccupiedCells), without the cell coordinates.
+  VoxelCells cells = OccupiedCells(points, grid);
   VoxelStart start;
-  start.labels.resize(m);
-  std::vector<uint32_t> cell(d);
-  for (size_t i = 0; i < m; ++i) {
-    for (uint32_t j = 0; j < d; ++j) {
-      const double span = static_cast<double>(hi[j]) - lo[j];
-      const double t = span > 0 ? (points.values[i * d + j] - lo[j]) / span : 0.0;
-      cell[j] = std::min(grid - 1, static_cast<uint32_t>(t * grid));
-    }
-    auto [it, inserted] = cells.try_emplace(cell, static_cast<uint32_t>(cells.size()));
-    start.labels[i] = ClusterId(it->second);
-  }
-  start.clusters = static_cast<uint32_t>(cells.size());
+  start.clusters = static_cast<uint32_t>(cells.cell.size());
+  start.labels.resize(cells.labels.size());
+  for (size_t i = 0; i < cells.labels.size(); ++i) start.labels[i] = ClusterId(cells.labels[i]);
   return start;
 }
 
