@@ -1,28 +1,55 @@
-// Times point clustering on synthetic Gaussian blobs (or a raw float32 file).
-//   points_bench --algo ml|pml|hc|lnkmeans [--m M] [--d D] [--blobs K] [--k K]
-//                [--grid A] [--threads T] [--seed S] [--raw FILE --dims D]
-// Prints one CSV row: algo,m,d,blobs,k,grid,threads,seconds,levels_or_iterations,energy
+// Times point clustering on synthetic Gaussian blobs, or on a file (.npy, .csv, or raw
+// float32 with --dims: the files bench/points_data.py writes, which the Python peers read).
+//   points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K]
+//                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
+//                [--input FILE [--dims D]] [--until K]
+// --until K stops the hierarchy at K clusters (for time per step at high d).
+// Prints one CSV row:
+//   algo,m,d,blobs,k,grid,threads,seconds,init_seconds,steps,energy,start_clusters
+// seconds: end to end (for lnkmeans/kmeans the seeding included, init_seconds of it);
+// steps: levels of the hierarchy or iterations; energy: at the first level with at most k
+// clusters, or of the k-means result.
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <string>
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
 #include "bench/curve_sink.h"
+#include "core/kmeans.h"
 #include "core/point_clustering.h"
+#include "core/points_io.h"
 #include "core/random.h"
 
 namespace {
 
 using CurveSink = mlclust::bench::CurveSink;
 
+// Blobs: centres uniform in [-25, 25]^d, sigma 1, each point from a random centre.
+mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
+  mlclust::Random random(seed);
+  mlclust::PointSet points;
+  points.dims = d;
+  std::vector<double> centres(size_t{blobs} * d);
+  for (double& c : centres) c = -25 + 50 * random.Unit();
+  points.values.resize(m * d);
+  for (uint64_t i = 0; i < m; ++i) {
+    const uint64_t b = random.Below(blobs);
+    for (uint32_t j = 0; j < d; ++j) {
+      const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
+      points.values[i * d + j] = static_cast<float>(
+          centres[b * d + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
+    }
+  }
+  return points;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string algo = "ml", raw;
+  std::string algo = "ml", input, init = "kmeans++";
   uint64_t m = 100000, seed = 1;
-  uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0;
+  uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1;
   int threads = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string arg = argv[i], value = argv[i + 1];
@@ -37,66 +64,78 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtoi(value, &blobs);
     else if (arg == "--k")
       ok = absl::SimpleAtoi(value, &k);
+    else if (arg == "--init")
+      init = value;
     else if (arg == "--grid")
       ok = absl::SimpleAtoi(value, &grid);
     else if (arg == "--threads")
       ok = absl::SimpleAtoi(value, &threads);
     else if (arg == "--seed")
       ok = absl::SimpleAtoi(value, &seed);
-    else if (arg == "--raw")
-      raw = value;
+    else if (arg == "--input")
+      input = value;
     else if (arg == "--dims")
       ok = absl::SimpleAtoi(value, &dims);
+    else if (arg == "--until")
+      ok = absl::SimpleAtoi(value, &until);
     else
       ok = false;
-    if (!ok) {
+    if (!ok || (init != "kmeans++" && init != "random")) {
       std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
       return 2;
     }
   }
   mlclust::PointSet points;
-  if (!raw.empty()) {
-    std::ifstream in(raw, std::ios::binary);
-    in.seekg(0, std::ios::end);
-    points.values.resize(static_cast<size_t>(in.tellg()) / 4);
-    in.seekg(0);
-    in.read(reinterpret_cast<char*>(points.values.data()), points.values.size() * 4);
-    points.dims = dims;
-    m = points.num_points();
-    d = dims;
-  } else {
-    // Blobs: centres uniform in [-25, 25]^d, sigma 1.
-    mlclust::Random random(seed);
-    points.dims = d;
-    std::vector<double> centres(size_t{blobs} * d);
-    for (double& c : centres) c = -25 + 50 * random.Unit();
-    points.values.resize(m * d);
-    for (uint64_t i = 0; i < m; ++i) {
-      const uint64_t b = random.Below(blobs);
-      for (uint32_t j = 0; j < d; ++j) {
-        const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
-        points.values[i * d + j] = static_cast<float>(
-            centres[b * d + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
-      }
+  if (!input.empty()) {
+    mlclust::PointReadOptions read;
+    read.dims = dims;
+    absl::StatusOr<mlclust::PointSet> loaded = mlclust::ReadPointsFile(input, read);
+    if (!loaded.ok()) {
+      std::fprintf(stderr, "%s\n", loaded.status().ToString().c_str());
+      return 1;
     }
+    points = *std::move(loaded);
+    m = points.num_points();
+    d = points.dims;
+    blobs = 0;
+  } else {
+    points = Blobs(m, d, blobs, seed);
   }
   const absl::Time start = absl::Now();
   uint64_t steps = 0;
-  double energy = 0;
-  uint32_t used_grid = grid;
-  if (algo == "lnkmeans") {
-    auto labels = mlclust::SeedPointClusters(points, k, true, seed, threads);
-    if (!labels.ok()) return 1;
-    mlclust::LnKmeansOptions options;
-    options.threads = threads;
-    auto result = mlclust::RunLnKmeans(points, *labels, options);
-    if (!result.ok()) return 1;
-    steps = result->iterations;
-    energy = result->energy;
+  double energy = 0, init_seconds = 0;
+  uint32_t used_grid = grid, start_clusters = 0;
+  if (algo == "lnkmeans" || algo == "kmeans") {
+    auto centres = init == "kmeans++" ? mlclust::KmeansPlusPlusCentres(points, k, seed, threads)
+                                      : mlclust::RandomPointCentres(points, k, seed);
+    if (!centres.ok()) {
+      std::fprintf(stderr, "%s\n", centres.status().ToString().c_str());
+      return 1;
+    }
+    init_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    mlclust::KmeansOptions lloyd;
+    lloyd.clusters = k;
+    lloyd.threads = threads;
+    if (algo == "lnkmeans") lloyd.max_iterations = 1;  // the assignment to the seeds
+    auto assigned = mlclust::RunLloyd(points, *centres, lloyd);
+    if (!assigned.ok()) return 1;
+    start_clusters = k;
+    if (algo == "kmeans") {
+      steps = assigned->iterations;
+      energy = mlclust::PointEnergy(points, assigned->labels);
+    } else {
+      mlclust::LnKmeansOptions options;
+      options.threads = threads;
+      auto result = mlclust::RunLnKmeans(points, assigned->labels, options);
+      if (!result.ok()) return 1;
+      steps = result->iterations;
+      energy = result->energy;
+    }
   } else {
     mlclust::PointMultilevelOptions options;
     options.grid = grid;
     options.threads = threads;
+    options.min_clusters = until;
     options.parallel = algo == "pml";
     if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
     CurveSink sink;
@@ -107,17 +146,17 @@ int main(int argc, char** argv) {
     }
     steps = summary->levels;
     used_grid = summary->grid;
+    start_clusters = summary->start_clusters;
     for (size_t l = 0; l < sink.counts.size(); ++l) {
       if (sink.counts[l] <= k) {
         energy = sink.energies[l];
         break;
       }
     }
-    std::fprintf(stderr, "start clusters %u\n", summary->start_clusters);
   }
   const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  std::printf("%s,%llu,%u,%u,%u,%u,%d,%.3f,%llu,%.10g\n", algo.c_str(),
+  std::printf("%s,%llu,%u,%u,%u,%u,%d,%.3f,%.3f,%llu,%.10g,%u\n", algo.c_str(),
               static_cast<unsigned long long>(m), d, blobs, k, used_grid, threads, seconds,
-              static_cast<unsigned long long>(steps), energy);
+              init_seconds, static_cast<unsigned long long>(steps), energy, start_clusters);
   return 0;
 }

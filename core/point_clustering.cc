@@ -18,6 +18,9 @@ namespace mlclust {
 namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
+// LN k-means rounds after a merge (the first checks the merged clusters and their
+// neighbours, the others the clusters that changed).
+constexpr int kOptimiseRounds = 8;
 
 using detail::CompensatedSum;
 
@@ -82,6 +85,11 @@ class PointClusters {
       dist += diff * diff;
     }
     return dist;
+  }
+  // Asks the caches for point i's coordinates and label, which are read in random order.
+  void Prefetch(size_t i) const {
+    __builtin_prefetch(&points_.values[i * d_]);
+    __builtin_prefetch(&labels_[i]);
   }
   void Relative(size_t i, std::vector<double>& out) const {
     out.resize(d_);
@@ -204,45 +212,56 @@ void InitialNeighbours(PointClusters& clusters) {
 
 // One LN k-means pass over `points_to_check` (indices): each point's best cluster among
 // its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
-// Returns the points that want to move, with their targets.
+// Writes the point's target (kNone: stays). With `margin`, also how far the point is from
+// changing its mind: for a point that stays, the distance to its second-best candidate
+// minus the distance to its own centroid (so it stays while its own centroid and the
+// candidates move by less than that in all); -infinity for a point that moves.
 void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
-                   std::vector<uint32_t>& target) {
-  const uint32_t d = clusters.dims();
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, points_to_check.size(), 1024),
-                    [&](const auto& range) {
-                      std::vector<double> x;
-                      uint32_t candidates[256];
-                      for (size_t r = range.begin(); r != range.end(); ++r) {
-                        const uint32_t i = points_to_check[r];
-                        const uint32_t own = clusters.label(i);
-                        target[r] = kNone;
-                        clusters.Relative(i, x);
-                        const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
-                        int count = 0;
-                        for (uint32_t n : clusters.neighbours(own)) {
-                          if (n != kNone && count < 256) candidates[count++] = n;
-                        }
-                        const uint32_t towards = clusters.neighbours(own)[s];
-                        if (towards != kNone) {
-                          for (uint32_t n : clusters.neighbours(towards)) {
-                            if (n != kNone && n != own && count < 256) candidates[count++] = n;
-                          }
-                        }
-                        double best = clusters.Distance(i, own);
-                        uint32_t best_cluster = own;
-                        for (int c = 0; c < count; ++c) {
-                          const uint32_t n = candidates[c];
-                          if (n == best_cluster || clusters.count(n) == 0) continue;
-                          const double dist = clusters.Distance(i, n);
-                          if (dist < best || (dist == best && n < best_cluster && n != own)) {
-                            best = dist;
-                            best_cluster = n;
-                          }
-                        }
-                        (void)d;
-                        if (best_cluster != own) target[r] = best_cluster;
-                      }
-                    });
+                   std::span<uint32_t> target, std::span<double> margin = {}) {
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
+        std::vector<double> x;
+        uint32_t candidates[256];
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          const uint32_t i = points_to_check[r];
+          if (r + 8 < range.end()) clusters.Prefetch(points_to_check[r + 8]);
+          const uint32_t own = clusters.label(i);
+          target[r] = kNone;
+          clusters.Relative(i, x);
+          const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
+          int count = 0;
+          for (uint32_t n : clusters.neighbours(own)) {
+            if (n != kNone && count < 256) candidates[count++] = n;
+          }
+          const uint32_t towards = clusters.neighbours(own)[s];
+          if (towards != kNone) {
+            for (uint32_t n : clusters.neighbours(towards)) {
+              if (n != kNone && n != own && count < 256) candidates[count++] = n;
+            }
+          }
+          const double own_distance = clusters.Distance(i, own);
+          double best = own_distance;
+          double second = std::numeric_limits<double>::infinity();
+          uint32_t best_cluster = own;
+          for (int c = 0; c < count; ++c) {
+            const uint32_t n = candidates[c];
+            if (n == best_cluster || clusters.count(n) == 0) continue;
+            const double dist = clusters.Distance(i, n);
+            if (dist < best || (dist == best && n < best_cluster && n != own)) {
+              second = best;
+              best = dist;
+              best_cluster = n;
+            } else if (dist < second) {
+              second = dist;
+            }
+          }
+          if (best_cluster != own) target[r] = best_cluster;
+          if (!margin.empty()) {
+            margin[r] = best_cluster != own ? -std::numeric_limits<double>::infinity()
+                                            : std::sqrt(second) - std::sqrt(own_distance);
+          }
+        }
+      });
 }
 
 // Applies the chosen moves (a cluster's last point stays) and returns the clusters that
@@ -306,26 +325,38 @@ struct VoxelCells {
   std::vector<std::vector<uint32_t>> cell;  // per cluster
 };
 
-VoxelCells OccupiedCells(const PointSet& points, uint32_t grid) {
+// The bounding box of the points, per axis.
+struct Bounds {
+  std::vector<float> lo, hi;
+};
+Bounds BoundsOf(const PointSet& points) {
   const uint32_t d = points.dims;
-  const size_t m = points.num_points();
-  std::vector<float> lo(d, std::numeric_limits<float>::max());
-  std::vector<float> hi(d, -std::numeric_limits<float>::max());
-  for (size_t i = 0; i < m; ++i) {
+  Bounds bounds{std::vector<float>(d, std::numeric_limits<float>::max()),
+                std::vector<float>(d, -std::numeric_limits<float>::max())};
+  for (size_t i = 0; i < points.num_points(); ++i) {
     for (uint32_t j = 0; j < d; ++j) {
-      lo[j] = std::min(lo[j], points.values[i * d + j]);
-      hi[j] = std::max(hi[j], points.values[i * d + j]);
+      bounds.lo[j] = std::min(bounds.lo[j], points.values[i * d + j]);
+      bounds.hi[j] = std::max(bounds.hi[j], points.values[i * d + j]);
     }
   }
+  return bounds;
+}
+
+// The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j.
+VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
+                         std::span<const uint32_t> cells_per_axis) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
   absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
   VoxelCells cells;
   cells.labels.resize(m);
   std::vector<uint32_t> cell(d);
   for (size_t i = 0; i < m; ++i) {
     for (uint32_t j = 0; j < d; ++j) {
-      const double span = static_cast<double>(hi[j]) - lo[j];
-      const double t = span > 0 ? (points.values[i * d + j] - lo[j]) / span : 0.0;
-      cell[j] = std::min(grid - 1, static_cast<uint32_t>(t * grid));
+      const uint32_t a = cells_per_axis[j];
+      const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
+      const double t = span > 0 ? (points.values[i * d + j] - bounds.lo[j]) / span : 0.0;
+      cell[j] = std::min(a - 1, static_cast<uint32_t>(t * a));
     }
     auto [it, inserted] = index.try_emplace(cell, static_cast<uint32_t>(cells.cell.size()));
     if (inserted) cells.cell.push_back(cell);
@@ -334,21 +365,82 @@ VoxelCells OccupiedCells(const PointSet& points, uint32_t grid) {
   return cells;
 }
 
+// The cells per axis of the start. A given grid: that many on every axis. Otherwise, aiming
+// at eight points per cell: a = (m / 8)^(1/d) on every axis where that is at least 4 (low
+// d: the dissertation's uniform grid, whose empty cells cost nothing); in higher
+// dimensions, where a few cells per axis would already make far more cells than points (or,
+// at a = 2 or 3, cells too coarse to be a start), the widest cells are halved, a few axes at
+// a time, until about m / 8 cells are occupied (each pass counts them in one sweep).
+std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  if (grid != 0) return std::vector<uint32_t>(d, grid);
+  const double target = std::max(1.0, static_cast<double>(m) / 8.0);
+  const double a = std::pow(target, 1.0 / d);
+  if (a >= 4) {
+    return std::vector<uint32_t>(d, static_cast<uint32_t>(std::min(a, 4096.0)));
+  }
+  std::vector<uint32_t> counts(d, 1);
+  for (int pass = 0; pass < 64; ++pass) {
+    const double occupied =
+        static_cast<double>(OccupiedCells(points, bounds, counts).cell.size());
+    if (occupied >= target) break;
+    // Halve the widest cells on enough axes to multiply the cells by target / occupied.
+    const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / occupied))));
+    bool any = false;
+    for (int step = 0; step < axes; ++step) {
+      uint32_t widest = d;
+      double width = 0;
+      for (uint32_t j = 0; j < d; ++j) {
+        const double w = (static_cast<double>(bounds.hi[j]) - bounds.lo[j]) / counts[j];
+        if (w > width && counts[j] < 4096) {
+          width = w;
+          widest = j;
+        }
+      }
+      if (widest == d) break;
+      counts[widest] *= 2;
+      any = true;
+    }
+    if (!any) break;
+  }
+  return counts;
+}
+
 // The multilevel engine for points: the mesh engine's structure with local neighbours in
 // place of face adjacency and LN k-means in place of EMLO.
 class PointEngine {
  public:
   PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
-              uint32_t grid)
+              const Bounds& bounds, std::span<const uint32_t> cells_per_axis)
       : points_(points), options_(options), sink_(sink), d_(points.dims) {
-    VoxelCells cells = OccupiedCells(points, grid);
+    VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis);
     k0_ = static_cast<uint32_t>(cells.cell.size());
-    clusters_ = std::make_unique<PointClusters>(points, cells.labels, k0_);
+    // The engine works on a copy of the points ordered by starting cell, so that a
+    // cluster's points lie together in memory (clusters grow by merging, so they stay in a
+    // few runs); original_ maps back to the caller's indices.
+    const size_t m = points.num_points();
+    std::vector<uint32_t> first(k0_ + 1, 0);
+    for (uint32_t c : cells.labels) ++first[c + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    original_.resize(m);
+    std::vector<uint32_t> sorted_labels(m);
+    for (size_t i = 0; i < m; ++i) {
+      const uint32_t at = first[cells.labels[i]]++;
+      original_[at] = static_cast<uint32_t>(i);
+      sorted_labels[at] = cells.labels[i];
+    }
+    sorted_.dims = d_;
+    sorted_.values.resize(points.values.size());
+    for (size_t at = 0; at < m; ++at) {
+      std::copy_n(&points.values[size_t{original_[at]} * d_], d_, &sorted_.values[at * d_]);
+    }
+    clusters_ = std::make_unique<PointClusters>(sorted_, sorted_labels, k0_);
     members_.resize(k0_);
-    position_.resize(points.num_points());
-    for (size_t i = 0; i < cells.labels.size(); ++i) {
-      position_[i] = static_cast<uint32_t>(members_[cells.labels[i]].size());
-      members_[cells.labels[i]].push_back(static_cast<uint32_t>(i));
+    position_.resize(m);
+    for (size_t i = 0; i < m; ++i) {
+      position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
+      members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
     }
     // First neighbours: the face-sharing occupied cells, then the refresh picks the
     // nearest per subspace from them and their neighbours.
@@ -386,16 +478,20 @@ class PointEngine {
     mark_.assign(k0_, 0);
     affected_mark_.assign(k0_, 0);
     energy_before_.assign(k0_, 0.0);
+    stamp_.assign(points.num_points(), 0);
+    threshold_.assign(points.num_points(), 0.0);
+    drift_epoch_.assign(k0_, 0);
+    drift_.assign(k0_, 0.0);
   }
 
   absl::StatusOr<PointMultilevelSummary> Run() {
     PointMultilevelSummary summary;
     summary.start_clusters = k0_;
     std::vector<ClusterId> start(points_.num_points());
-    for (size_t i = 0; i < start.size(); ++i) start[i] = ClusterId(clusters_->label(i));
+    for (size_t i = 0; i < start.size(); ++i) start[original_[i]] = ClusterId(clusters_->label(i));
     energy_.Reset(clusters_->TotalEnergy());
     if (absl::Status s = sink_.OnStart(start, k0_, energy_.value()); !s.ok()) return s;
-    if (options_.inspect_level) options_.inspect_level(0, clusters_->labels());
+    Inspect(0);
     alive_ = k0_;
     levels_ = 1;
     for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
@@ -497,7 +593,27 @@ class PointEngine {
     gone_.push_back(gone);
   }
 
-  // LN k-means around the merged clusters: their points and their neighbours' points.
+  // LN k-means around the merged clusters: their points and their neighbours' points,
+  // then, for up to 8 rounds, the points of the clusters that changed. A point checked in
+  // this call keeps a margin (ChooseTargets) and is checked again only once its own
+  // centroid's drift plus the largest drift of any centroid since then could have used it
+  // up (Hamerly's bound); the rest of a changed cluster is skipped.
+  // How far cluster c's centroid has moved in this call of Optimise (a sum of steps).
+  double Drift(uint32_t c) const { return drift_epoch_[c] == epoch_ ? drift_[c] : 0.0; }
+  // The largest drift among the clusters a point of c can be compared with: c's
+  // neighbours and theirs.
+  double NeighbourhoodDrift(uint32_t c) const {
+    double largest = 0;
+    for (uint32_t n : clusters_->neighbours(c)) {
+      if (n == kNone) continue;
+      largest = std::max(largest, Drift(n));
+      for (uint32_t nn : clusters_->neighbours(n)) {
+        if (nn != kNone && nn != c) largest = std::max(largest, Drift(nn));
+      }
+    }
+    return largest;
+  }
+
   void Optimise() {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
     std::vector<uint32_t> region;
@@ -514,7 +630,10 @@ class PointEngine {
       }
     }
     for (uint32_t c : region) mark_[c] = 0;
-    for (int round = 0; round < 8 && !region.empty(); ++round) {
+    ++epoch_;
+    std::vector<uint32_t> changed;
+    std::vector<double> old_centroids;
+    for (int round = 0; round < kOptimiseRounds && !region.empty(); ++round) {
       points_to_check_.clear();
       // After a single merge only the merged cluster changed: its points need the full
       // check, but a neighbour's point can only gain by moving to the merged cluster (its
@@ -523,7 +642,14 @@ class PointEngine {
       const uint32_t keep = single_merge ? merged_[0] : kNone;
       for (uint32_t c : region) {
         if (single_merge && c != keep) continue;
-        points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+        if (round == 0) {
+          points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+          continue;
+        }
+        const double drift = Drift(c) + NeighbourhoodDrift(c);
+        for (uint32_t i : members_[c]) {
+          if (stamp_[i] != epoch_ || drift > threshold_[i]) points_to_check_.push_back(i);
+        }
       }
       const size_t full = points_to_check_.size();
       if (single_merge) {
@@ -534,7 +660,14 @@ class PointEngine {
         }
       }
       target_.resize(points_to_check_.size());
-      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full), target_);
+      margin_.resize(full);
+      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full),
+                    std::span<uint32_t>(target_).first(full), margin_);
+      for (size_t r = 0; r < full; ++r) {
+        const uint32_t i = points_to_check_[r];
+        stamp_[i] = epoch_;
+        threshold_[i] = margin_[r] + Drift(clusters_->label(i));
+      }
       if (single_merge) {
         const PointClusters& clusters = *clusters_;
         tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
@@ -548,16 +681,30 @@ class PointEngine {
                             }
                           });
       }
-      std::vector<uint32_t> changed;
+      changed.clear();
+      old_centroids.clear();
       for (size_t r = 0; r < points_to_check_.size(); ++r) {
         if (target_[r] == kNone) continue;
         const uint32_t i = points_to_check_[r];
         const uint32_t from = clusters_->label(i), to = target_[r];
         if (clusters_->count(from) <= 1) continue;
+        for (uint32_t c : {from, to}) {
+          if (!mark_[c]) {
+            mark_[c] = 1;
+            changed.push_back(c);
+            const std::span<const double> centroid = clusters_->centroid(c);
+            old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
+            if (drift_epoch_[c] != epoch_) {
+              drift_epoch_[c] = epoch_;
+              drift_[c] = 0;
+            }
+          }
+        }
         Touch(from);
         Touch(to);
         Record(i, from);
         clusters_->Move(i, to);
+        stamp_[i] = 0;  // its candidates are another cluster's now: check it again
         auto& list = members_[from];
         const uint32_t at = position_[i];
         list[at] = list.back();
@@ -565,16 +712,19 @@ class PointEngine {
         list.pop_back();
         position_[i] = static_cast<uint32_t>(members_[to].size());
         members_[to].push_back(i);
-        for (uint32_t c : {from, to}) {
-          if (!mark_[c]) {
-            mark_[c] = 1;
-            changed.push_back(c);
-          }
-        }
       }
-      for (uint32_t c : changed) {
+      for (size_t n = 0; n < changed.size(); ++n) {
+        const uint32_t c = changed[n];
         mark_[c] = 0;
         clusters_->UpdateCentroid(c);
+        const std::span<const double> centroid = clusters_->centroid(c);
+        double squared = 0;
+        for (uint32_t j = 0; j < d_; ++j) {
+          const double diff = centroid[j] - old_centroids[n * d_ + j];
+          squared += diff * diff;
+        }
+        const double drift = std::sqrt(squared) * (1 + 1e-12);
+        drift_[c] += drift;
       }
       if (changed.empty()) break;
       region = changed;
@@ -637,7 +787,7 @@ class PointEngine {
     from_.clear();
     for (uint32_t i : touched_) {
       if (clusters_->label(i) != origin_[i]) {
-        element_.push_back(i);
+        element_.push_back(original_[i]);
         to_.push_back(clusters_->label(i));
         from_.push_back(origin_[i]);
       }
@@ -655,9 +805,17 @@ class PointEngine {
     level.from_cluster = from_;
     moves_ += element_.size();
     if (absl::Status s = sink_.OnLevel(level); !s.ok()) return s;
-    if (options_.inspect_level) options_.inspect_level(levels_, clusters_->labels());
+    Inspect(levels_);
     ++levels_;
     return absl::OkStatus();
+  }
+
+  // The labels of the level, in the caller's point order, to options_.inspect_level.
+  void Inspect(size_t level) {
+    if (!options_.inspect_level) return;
+    std::vector<uint32_t> labels(original_.size());
+    for (size_t i = 0; i < labels.size(); ++i) labels[original_[i]] = clusters_->label(i);
+    options_.inspect_level(level, labels);
   }
 
   void RebuildHeap() {
@@ -735,6 +893,8 @@ class PointEngine {
   };
 
   const PointSet& points_;
+  PointSet sorted_;                 // points_ ordered by starting cell
+  std::vector<uint32_t> original_;  // sorted_'s point -> points_'s
   const PointMultilevelOptions& options_;
   LevelSink& sink_;
   const uint32_t d_;
@@ -747,15 +907,13 @@ class PointEngine {
   std::vector<uint8_t> mark_, affected_mark_;
   std::vector<Entry> heap_;
   std::vector<uint32_t> merged_, gone_, element_, to_, from_, points_to_check_, target_;
+  // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
+  // per cluster its centroid's drift in the current epoch.
+  uint32_t epoch_ = 0;
+  std::vector<uint32_t> stamp_, drift_epoch_;
+  std::vector<double> threshold_, drift_, margin_;
   CompensatedSum energy_;
 };
-
-uint32_t DefaultGrid(size_t m, uint32_t d) {
-  // About eight points per occupied cell in the worst case, capped for high d.
-  const double cells = std::max(1.0, static_cast<double>(m) / 8.0);
-  const double a = std::pow(cells, 1.0 / d);
-  return static_cast<uint32_t>(std::clamp(a, 1.0, 4096.0));
-}
 
 }  // namespace
 
@@ -778,7 +936,8 @@ absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid)
     return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is not in [1, 2^20]"));
   }
   // The engine's own start (OccupiedCells), without the cell coordinates.
-  VoxelCells cells = OccupiedCells(points, grid);
+  const std::vector<uint32_t> cells_per_axis(points.dims, grid);
+  VoxelCells cells = OccupiedCells(points, BoundsOf(points), cells_per_axis);
   VoxelStart start;
   start.clusters = static_cast<uint32_t>(cells.cell.size());
   start.labels.resize(cells.labels.size());
@@ -914,16 +1073,18 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
   if (options.threads < 0) {
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
-  const uint32_t grid =
-      options.grid != 0 ? options.grid : DefaultGrid(points.num_points(), points.dims);
-  if (grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
+  if (options.grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
   }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
-    PointEngine engine(points, options, sink, grid);
+    const Bounds bounds = BoundsOf(points);
+    const std::vector<uint32_t> cells_per_axis = StartCells(points, bounds, options.grid);
+    PointEngine engine(points, options, sink, bounds, cells_per_axis);
     absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
-    if (summary.ok()) summary->grid = grid;
+    if (summary.ok()) {
+      summary->grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());
+    }
     return summary;
   });
 }

@@ -79,7 +79,11 @@ struct PointMultilevelOptions {
   bool parallel = false;   // PML: all mutual optimal dual edges per level
   uint32_t pml_until = 0;  // then ML below this many clusters
   uint32_t min_clusters = 1;
-  uint32_t grid = 0;  // voxels per dimension of the start; 0: chosen from m and d
+  // Voxels per dimension of the start. 0: aiming at eight points per cell: (m / 8)^(1/d)
+  // per dimension where that is at least 4; in higher dimensions the widest cells are
+  // halved, axis by axis, until about m / 8 cells are occupied (so a 64-D set still starts
+  // from many clusters, not from one).
+  uint32_t grid = 0;
   int threads = 0;
   std::function<void(size_t level, std::span<const uint32_t> labels)> inspect_level;
 };
@@ -89,7 +93,7 @@ struct PointMultilevelSummary {
   uint32_t start_clusters = 0;
   uint32_t final_clusters = 0;
   uint64_t moves = 0;
-  uint32_t grid = 0;
+  uint32_t grid = 0;  // the largest number of cells on an axis of the start
 };
 
 // ML / PML / HC for points from the voxel-grid start; every level to `sink` (level 0: the

@@ -16,13 +16,14 @@ packages=(
 )
 
 if [ "${1:-}" = "--bench" ]; then
-  # peers and plotting for bench/ (CGAL VSA, scikit-learn, fastcluster, matplotlib)
-  packages+=(libcgal-dev libcgal-demo /usr/bin/python3 python3-numpy python3-matplotlib)
+  # peers and plotting for bench/ (CGAL VSA, scikit-learn, fastcluster, faiss, matplotlib;
+  # the Python peers run under Debian's /usr/bin/python3)
+  packages+=(libcgal-dev libcgal-demo python3-numpy python3-matplotlib
+             python3-sklearn python3-fastcluster python3-faiss)
 fi
 
 missing=()
 for p in "${packages[@]}"; do
-  [ "${p#/}" != "$p" ] && continue
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 

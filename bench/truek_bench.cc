@@ -1,0 +1,111 @@
+// The true-number-of-clusters experiment of the dissertation's Fig. 6.15: K Gaussian blobs
+// in 3-D, sigma 1, exactly `per-blob` points each, centres uniform in [-25, 25]^3; the ML
+// hierarchy of each data set (RunPointMultilevel, LN k-means optimiser, default voxel start)
+// and the textbook spherical-Gaussian BIC of every level (core/model_selection.h).
+//
+//   truek_bench [--ks 10,25,50,100,150,200,250] [--sets 10] [--per-blob 500] [--seed S]
+//               [--algo ml|hc|pml] [--write-npy DIR]
+//
+// Prints one CSV row per data set:
+//   algo,K,set,m,seconds,levels,best_k,first_decrease_k
+// seconds: the hierarchy and the BIC of all its levels. --write-npy DIR also writes each data
+// set to DIR/truek_K<K>_s<set>.npy, for the Ward + BIC peer (bench/peers/points_peers.py).
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "absl/time/clock.h"
+#include "core/model_selection.h"
+#include "core/point_clustering.h"
+#include "core/points_io.h"
+#include "core/random.h"
+
+int main(int argc, char** argv) {
+  std::vector<uint32_t> ks = {10, 25, 50, 100, 150, 200, 250};
+  uint32_t sets = 10, per_blob = 500;
+  uint64_t seed = 1;
+  std::string algo = "ml", npy_dir;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string arg = argv[i], value = argv[i + 1];
+    bool ok = true;
+    if (arg == "--ks") {
+      ks.clear();
+      for (absl::string_view part : absl::StrSplit(value, ',')) {
+        uint32_t k = 0;
+        ok = ok && absl::SimpleAtoi(part, &k) && k > 0;
+        ks.push_back(k);
+      }
+    } else if (arg == "--sets") {
+      ok = absl::SimpleAtoi(value, &sets);
+    } else if (arg == "--per-blob") {
+      ok = absl::SimpleAtoi(value, &per_blob) && per_blob > 0;
+    } else if (arg == "--seed") {
+      ok = absl::SimpleAtoi(value, &seed);
+    } else if (arg == "--algo") {
+      algo = value;
+      ok = algo == "ml" || algo == "hc" || algo == "pml";
+    } else if (arg == "--write-npy") {
+      npy_dir = value;
+    } else {
+      ok = false;
+    }
+    if (!ok) {
+      std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
+      return 2;
+    }
+  }
+  std::printf("algo,K,set,m,seconds,levels,best_k,first_decrease_k\n");
+  for (uint32_t k : ks) {
+    for (uint32_t set = 0; set < sets; ++set) {
+      mlclust::Random random(seed * 1000003 + k * 1009 + set);
+      std::vector<double> centres(size_t{k} * 3);
+      for (double& c : centres) c = -25 + 50 * random.Unit();
+      mlclust::PointSet points;
+      points.dims = 3;
+      points.values.resize(size_t{k} * per_blob * 3);
+      size_t at = 0;
+      for (uint32_t b = 0; b < k; ++b) {
+        for (uint32_t p = 0; p < per_blob; ++p) {
+          for (uint32_t j = 0; j < 3; ++j) {
+            const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
+            points.values[at++] = static_cast<float>(
+                centres[b * 3 + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
+          }
+        }
+      }
+      if (!npy_dir.empty()) {
+        const std::string path = absl::StrCat(npy_dir, "/truek_K", k, "_s", set, ".npy");
+        if (absl::Status s = mlclust::WritePointsNpy(path, points); !s.ok()) {
+          std::fprintf(stderr, "%s\n", s.ToString().c_str());
+          return 1;
+        }
+      }
+      const absl::Time start = absl::Now();
+      mlclust::PointMultilevelOptions options;
+      options.parallel = algo == "pml";
+      if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
+      mlclust::BicLevelRecorder recorder;
+      absl::StatusOr<mlclust::PointMultilevelSummary> summary =
+          mlclust::RunPointMultilevel(points, options, recorder);
+      if (!summary.ok()) {
+        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
+        return 1;
+      }
+      absl::StatusOr<mlclust::BicChoice> choice =
+          mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), 3);
+      if (!choice.ok()) {
+        std::fprintf(stderr, "%s\n", choice.status().ToString().c_str());
+        return 1;
+      }
+      const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+      std::printf("%s,%u,%u,%zu,%.3f,%u,%u,%u\n", algo.c_str(), k, set, points.num_points(),
+                  seconds, summary->levels, choice->best_k, choice->first_decrease_k);
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
