@@ -2,13 +2,15 @@
 // float32 with --dims: the files bench/points_data.py writes, which the Python peers read).
 //   points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K]
 //                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
-//                [--input FILE [--dims D]] [--until K]
-// --until K stops the hierarchy at K clusters (for time per step at high d).
+//                [--input FILE [--dims D]] [--until K] [--curve CSV]
+// --until K stops the hierarchy at K clusters (for time per step at high d); --curve writes
+// every level's clusters,energy.
 // Prints one CSV row:
 //   algo,m,d,blobs,k,grid,threads,seconds,init_seconds,steps,energy,start_clusters
 // seconds: end to end (for lnkmeans/kmeans the seeding included, init_seconds of it);
 // steps: levels of the hierarchy or iterations; energy: at the first level with at most k
 // clusters, or of the k-means result.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -47,7 +49,7 @@ mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string algo = "ml", input, init = "kmeans++";
+  std::string algo = "ml", input, init = "kmeans++", curve;
   uint64_t m = 100000, seed = 1;
   uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1;
   int threads = 0;
@@ -78,6 +80,8 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtoi(value, &dims);
     else if (arg == "--until")
       ok = absl::SimpleAtoi(value, &until);
+    else if (arg == "--curve")
+      curve = value;
     else
       ok = false;
     if (!ok || (init != "kmeans++" && init != "random")) {
@@ -122,12 +126,32 @@ int main(int argc, char** argv) {
     start_clusters = k;
     if (algo == "kmeans") {
       steps = assigned->iterations;
+      std::fprintf(stderr, "kmeans: %u iterations in %.3f s (mean %.4f s)\n",
+                   assigned->iterations, assigned->seconds_iterations,
+                   assigned->seconds_iterations / std::max(assigned->iterations, 1u));
       energy = mlclust::PointEnergy(points, assigned->labels);
     } else {
       mlclust::LnKmeansOptions options;
       options.threads = threads;
+      // Per-iteration times (the on_iteration callback's own energy sum excluded).
+      std::vector<double> iteration_seconds;
+      absl::Time last = absl::Now();
+      options.on_iteration = [&](uint32_t, uint64_t, double) {
+        iteration_seconds.push_back(absl::ToDoubleSeconds(absl::Now() - last));
+        last = absl::Now();
+      };
+      const absl::Time iterations_start = absl::Now();
       auto result = mlclust::RunLnKmeans(points, assigned->labels, options);
       if (!result.ok()) return 1;
+      const double iterate = absl::ToDoubleSeconds(absl::Now() - iterations_start);
+      if (!iteration_seconds.empty()) {
+        std::fprintf(stderr,
+                     "lnkmeans: %zu iterations in %.3f s (first %.4f s, mean %.4f s, "
+                     "slowest %.4f s)\n",
+                     iteration_seconds.size(), iterate, iteration_seconds.front(),
+                     iterate / iteration_seconds.size(),
+                     *std::max_element(iteration_seconds.begin(), iteration_seconds.end()));
+      }
       steps = result->iterations;
       energy = result->energy;
     }
@@ -147,6 +171,15 @@ int main(int argc, char** argv) {
     steps = summary->levels;
     used_grid = summary->grid;
     start_clusters = summary->start_clusters;
+    if (!curve.empty()) {
+      std::FILE* out = std::fopen(curve.c_str(), "w");
+      if (out == nullptr) return 1;
+      std::fprintf(out, "clusters,energy\n");
+      for (size_t l = 0; l < sink.counts.size(); ++l) {
+        std::fprintf(out, "%u,%.10g\n", sink.counts[l], sink.energies[l]);
+      }
+      std::fclose(out);
+    }
     for (size_t l = 0; l < sink.counts.size(); ++l) {
       if (sink.counts[l] <= k) {
         energy = sink.energies[l];

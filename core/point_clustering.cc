@@ -471,6 +471,12 @@ class PointEngine {
         if (n != kNone) reverse_[n].push_back(c);
       }
     }
+    for (uint32_t c = 0; c < k0_; ++c) {
+      std::span<const uint32_t> out = clusters_->neighbours(c);
+      if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
+        LinkIsolated(c);
+      }
+    }
     ode_.assign(k0_, kNone);
     ode_cost_.assign(k0_, std::numeric_limits<double>::infinity());
     version_.assign(k0_, 0);
@@ -555,6 +561,26 @@ class PointEngine {
       }
     }
     for (uint32_t n : out) {
+      if (n != kNone) reverse_[n].push_back(c);
+    }
+    if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
+      LinkIsolated(c);
+    }
+  }
+
+  // A live cluster left with no neighbours at all (an isolated occupied cell of the start,
+  // or a group of clusters the others never listed that has merged into one) could never
+  // merge again: it gets the nearest cluster in each subspace among all live clusters.
+  // Rare (once per outlier cell or per such group), so a scan of all clusters is fine.
+  void LinkIsolated(uint32_t c) {
+    if (clusters_->count(c) == 0) return;
+    std::vector<uint32_t> all;
+    for (uint32_t n = 0; n < k0_; ++n) {
+      if (n != c && clusters_->count(n) > 0) all.push_back(n);
+    }
+    if (all.empty()) return;
+    clusters_->RefreshNeighbours(c, all);
+    for (uint32_t n : clusters_->neighbours(c)) {
       if (n != kNone) reverse_[n].push_back(c);
     }
   }

@@ -224,6 +224,56 @@ TEST(PointMultilevelTest, PmlReachesOneClusterAndFarApartGroupsStillMerge) {
   EXPECT_TRUE(SamePartition(*log.LabelsAt(*log.FirstLevelWithAtMost(2)), truth));
 }
 
+TEST(PointMultilevelTest, AnIsolatedOutlierCellStillMergesWhereItIsCheapest) {
+  // Two dense groups joined by a bridge of points (so their cells touch face to face) and
+  // one outlier whose cell touches no occupied cell. Once the groups have merged into
+  // each other's neighbourhood, the outlier must join the nearer group at 2 clusters: a
+  // cluster with no neighbours at all would otherwise never be offered a merge, and the
+  // groups would merge with each other at a far higher cost first.
+  PointSet points;
+  points.dims = 3;
+  Random random(3);
+  auto add = [&](double x, double y, double z) {
+    points.values.insert(points.values.end(), {static_cast<float>(x), static_cast<float>(y),
+                                               static_cast<float>(z)});
+  };
+  for (int i = 0; i < 200; ++i) add(0.5 * random.Unit(), 0.5 * random.Unit(), 0.5 * random.Unit());
+  for (int i = 0; i < 200; ++i) {
+    add(9.5 + 0.5 * random.Unit(), 0.5 * random.Unit(), 0.5 * random.Unit());
+  }
+  for (double x = 0.5; x < 9.5; x += 0.25) add(x, 0.25, 0.25);
+  const size_t outlier = points.num_points();
+  add(0.25, 4.0, 0.25);
+  add(10.0, 10.0, 10.0);  // stretches the box so the grid below has cells of size 1
+  PointMultilevelOptions options;
+  options.grid = 10;
+  HierarchyLog log;
+  ASSERT_TRUE(RunPointMultilevel(points, options, log).ok());
+  const std::optional<size_t> two = log.LastLevelWith(3);
+  ASSERT_TRUE(two.has_value());
+  const std::vector<ClusterId> labels = *log.LabelsAt(*two);
+  size_t with_outlier = 0;
+  for (size_t i = 0; i < labels.size(); ++i) with_outlier += labels[i] == labels[outlier];
+  EXPECT_GT(with_outlier, 1u) << "the outlier is still alone at 3 clusters";
+  // And the energy never drops by more than rounding from one level to the next coarser.
+  for (size_t l = 1; l < log.num_levels(); ++l) {
+    EXPECT_GE(log.energy(l), log.energy(l - 1) * (1 - 1e-9) - 1e-9) << l;
+  }
+}
+
+TEST(PointMultilevelTest, HighDimensionalDataStartsFromManyCellsAndFindsTheBlobs) {
+  // At d = 64 no uniform grid fits eight points a cell (2^64 cells); the default start
+  // halves the widest cells axis by axis instead, and ML still separates the blobs.
+  auto [points, truth] = Blobs(6, 300, 64, 7, 20);
+  HierarchyLog log;
+  absl::StatusOr<PointMultilevelSummary> summary = RunPointMultilevel(points, {}, log);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_GT(summary->start_clusters, 6u * 10);
+  const std::optional<size_t> six = log.LastLevelWith(6);
+  ASSERT_TRUE(six.has_value());
+  EXPECT_TRUE(SamePartition(*log.LabelsAt(*six), truth));
+}
+
 }  // namespace
 }  // namespace mlclust
 
