@@ -20,7 +20,6 @@
 #include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
-#include "core/model_selection.h"
 #include "core/points_io.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -532,18 +531,17 @@ int Points(const Arguments& args) {
     level = log.LastLevelWith(k);
     chosen = absl::StrCat("; elbow at ", k, " clusters");
   } else if (auto_k == "bic") {
-    // Replay the levels into the BIC's size bookkeeping (O(moves)).
-    BicLevelRecorder recorder;
-    absl::Status replay = recorder.OnStart(log.start_labels(), log.cluster_count(0), log.energy(0));
-    for (size_t l = 1; replay.ok() && l < log.num_levels(); ++l)
-      replay = recorder.OnLevel(log.level(l));
-    if (!replay.ok()) return Fail(replay);
-    absl::StatusOr<BicChoice> choice =
-        ChooseByBic(recorder.levels(), recorder.num_points(), points->dims);
-    if (!choice.ok()) return Fail(choice.status());
-    level = choice->best_level;
-    chosen = absl::StrCat("; BIC highest at ", choice->best_k, " clusters, first decrease after ",
-                          choice->first_decrease_k);
+    // The server scores every level of the hierarchy (Done's BIC fields).
+    const uint32_t k = result->done.bic_best_cluster_count();
+    if (k == 0) return Fail(absl::NotFoundError("--auto-k bic: the server sent no BIC"));
+    level = log.LastLevelWith(k);
+    if (!level.has_value()) {
+      return Fail(absl::NotFoundError(absl::StrCat(
+          "--auto-k bic: the BIC is highest at ", k,
+          " clusters, a level outside the range that was sent")));
+    }
+    chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
+                          result->done.bic_first_decrease_cluster_count());
   } else if (*clusters > 0) {
     absl::StatusOr<size_t> by_k = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!by_k.ok()) return Fail(by_k.status());

@@ -11,6 +11,7 @@
 #include "core/kmeans.h"
 #include "core/mesh.h"
 #include "core/mesh_clustering.h"
+#include "core/model_selection.h"
 #include "core/multilevel.h"
 #include "core/point_clustering.h"
 #include "core/points.h"
@@ -31,6 +32,25 @@ namespace {
 // are sent: the sink follows the labels through the levels before it, and the first level
 // in range goes out as the snapshot. It also keeps every level's cluster count and energy
 // for the elbow of the summary.
+// Hands every call to two sinks; the first error wins.
+class TeeSink : public LevelSink {
+ public:
+  TeeSink(LevelSink& first, LevelSink& second) : first_(first), second_(second) {}
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
+                       double energy) override {
+    if (absl::Status s = first_.OnStart(labels, cluster_count, energy); !s.ok()) return s;
+    return second_.OnStart(labels, cluster_count, energy);
+  }
+  absl::Status OnLevel(const LevelMoves& level) override {
+    if (absl::Status s = first_.OnLevel(level); !s.ok()) return s;
+    return second_.OnLevel(level);
+  }
+
+ private:
+  LevelSink& first_;
+  LevelSink& second_;
+};
+
 class StreamingLevelSink : public LevelSink {
  public:
   StreamingLevelSink(EventChannel& events, uint32_t batch_triplets, uint32_t high = 0,
@@ -337,8 +357,12 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
   JobOutcome outcome;
   outcome.done.set_device("cpu");
   if (hierarchy) {
+    // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary
+    // names the BIC's choice over the whole hierarchy, whatever range is sent.
+    BicLevelRecorder bic;
+    TeeSink both(sink, bic);
     absl::StatusOr<PointMultilevelSummary> summary =
-        RunPointMultilevel(points, plan->multilevel, sink);
+        RunPointMultilevel(points, plan->multilevel, both);
     if (!summary.ok()) return summary.status();
     if (!sink.started()) {
       return absl::FailedPreconditionError(
@@ -351,6 +375,11 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
     for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
       outcome.done.add_elbow_cluster_counts(k);
     }
+    absl::StatusOr<BicChoice> choice = ChooseByBic(bic.levels(), bic.num_points(), d);
+    if (!choice.ok()) return choice.status();
+    outcome.done.set_bic_best_cluster_count(choice->best_k);
+    outcome.done.set_bic_first_decrease_cluster_count(choice->first_decrease_k);
+    outcome.done.set_bic_best(choice->bic[choice->best_level]);
   } else if (plan->algorithm == v1::ALGORITHM_KMEANS) {
     // Lloyd from k-means++ (or random) centres; level 0 is the assignment to the centres.
     KmeansOptions options;

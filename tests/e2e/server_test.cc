@@ -16,6 +16,7 @@
 #include "core/energies.h"
 #include "core/face_measures.h"
 #include "core/mesh_io.h"
+#include "core/model_selection.h"
 #include "core/point_clustering.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
@@ -540,6 +541,36 @@ TEST_F(AlgorithmsTest, PointHierarchiesAndLnKmeansOverTheWire) {
   ASSERT_TRUE(result.ok()) << result.status();
   ASSERT_EQ(result->hierarchy.num_levels(), 2u);
   EXPECT_LE(result->hierarchy.energy(1), result->hierarchy.energy(0));
+}
+
+TEST_F(AlgorithmsTest, PointSummaryNamesTheBicOfEveryLevelEvenOutsideTheRangeSent) {
+  const PointSet points = Grid3d(12);
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  spec.set_point_dims(3);
+  spec.set_algorithm(v1::ALGORITHM_ML);
+  (*spec.mutable_options())["grid"] = "6";
+  absl::StatusOr<client::JobResult> full = client::RunJob(channel_, spec, Float32Bytes(points));
+  ASSERT_TRUE(full.ok()) << full.status();
+  // The same choice from the levels the client received.
+  const HierarchyLog& log = full->hierarchy;
+  BicLevelRecorder recorder;
+  ASSERT_TRUE(recorder.OnStart(log.start_labels(), log.cluster_count(0), log.energy(0)).ok());
+  for (size_t l = 1; l < log.num_levels(); ++l) ASSERT_TRUE(recorder.OnLevel(log.level(l)).ok());
+  absl::StatusOr<BicChoice> choice = ChooseByBic(recorder.levels(), recorder.num_points(), 3);
+  ASSERT_TRUE(choice.ok()) << choice.status();
+  EXPECT_EQ(full->done.bic_best_cluster_count(), choice->best_k);
+  EXPECT_EQ(full->done.bic_first_decrease_cluster_count(), choice->first_decrease_k);
+  EXPECT_NEAR(full->done.bic_best(), choice->bic[choice->best_level],
+              1e-9 * std::abs(choice->bic[choice->best_level]));
+  ASSERT_GT(choice->best_k, 3u);
+  // Only the levels with at most 3 clusters sent: the summary still scores every level.
+  spec.set_levels_high(3);
+  absl::StatusOr<client::JobResult> part = client::RunJob(channel_, spec, Float32Bytes(points));
+  ASSERT_TRUE(part.ok()) << part.status();
+  EXPECT_LE(part->hierarchy.cluster_count(0), 3u);
+  EXPECT_EQ(part->done.bic_best_cluster_count(), choice->best_k);
+  EXPECT_EQ(part->done.bic_first_decrease_cluster_count(), choice->first_decrease_k);
 }
 
 TEST_F(AlgorithmsTest, BadPointBatchesAreRefused) {
