@@ -74,6 +74,8 @@ usage:
       ml/pml/hc: every level from the voxel-grid start (--grid A voxels per dimension) to
       one cluster; lnkmeans: Local Neighbours k-means at K; kmeans: Lloyd with k-means++.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
+      pml: --pml-until K (then ML), --pml-pairs cheaper-half|all (mutual pairs collapsed
+      per level: those at most the median cost (default), or all as in Alg. 5.3).
 
   mlclust energy INPUT --labels FILE [--energy cvd]
       Computes the energy of a labelling directly from the mesh file (a check).
@@ -504,7 +506,8 @@ int Points(const Arguments& args) {
   spec.set_seed(*seed);
   if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
   if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
-  for (const char* name : {"grid", "optimizer", "pml-until", "threads", "init", "max-iterations"}) {
+  for (const char* name :
+       {"grid", "optimizer", "pml-until", "pml-pairs", "threads", "init", "max-iterations"}) {
     if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
   }
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
@@ -623,8 +626,8 @@ int main(int argc, char** argv) {
   }
   if (command == "points") {
     known = {"server",         "algo",   "clusters",  "labels",    "levels-csv", "dims",
-             "seed",           "grid",   "optimizer", "pml-until", "threads",    "init",
-             "max-iterations", "auto-k", "levels",    "quiet"};
+             "seed",           "grid",   "optimizer", "pml-until", "pml-pairs",  "threads",
+             "init",           "max-iterations",      "auto-k",    "levels",     "quiet"};
   }
   if (command == "energy") {
     known = {"labels", "energy",  "density", "gamma",

@@ -484,6 +484,8 @@ class PointEngine {
     mark_.assign(k0_, 0);
     affected_mark_.assign(k0_, 0);
     energy_before_.assign(k0_, 0.0);
+    into_.assign(k0_, kNone);
+    partner_.assign(k0_, kNone);
     stamp_.assign(points.num_points(), 0);
     threshold_.assign(points.num_points(), 0.0);
     drift_epoch_.assign(k0_, 0);
@@ -528,14 +530,20 @@ class PointEngine {
     double best = std::numeric_limits<double>::infinity();
     uint32_t best_d = kNone;
     if (clusters_->count(c) > 0) {
-      for (uint32_t n : clusters_->neighbours(c)) {
-        if (n == kNone || clusters_->count(n) == 0) continue;
+      // Its neighbours and the clusters that list it as theirs: the dual edges are
+      // symmetric, so when x's ODE is y, y sees x too and a chain of cheaper ODEs ends in
+      // a mutual pair (PML merges only those; with one-sided edges a small cluster could
+      // wait behind far costlier mutual pairs).
+      auto consider = [&](uint32_t n) {
+        if (n == kNone || clusters_->count(n) == 0) return;
         const double cost = clusters_->MergeCost(c, n);
         if (cost < best || (cost == best && n > best_d)) {
           best = cost;
           best_d = n;
         }
-      }
+      };
+      for (uint32_t n : clusters_->neighbours(c)) consider(n);
+      for (uint32_t n : reverse_[c]) consider(n);
     }
     ode_[c] = best_d;
     ode_cost_[c] = best;
@@ -614,6 +622,8 @@ class PointEngine {
     }
     std::vector<uint32_t>().swap(members_[gone]);
     clusters_->MergeSums(keep, gone);
+    into_[gone] = keep;
+    partner_[keep] = gone;
     --alive_;
     merged_.push_back(keep);
     gone_.push_back(gone);
@@ -642,32 +652,34 @@ class PointEngine {
 
   void Optimise() {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
+    // Round 0: the merged clusters' points get the full check. A point of a cluster next
+    // to a merged one can only gain by moving to a merged cluster (its other candidates
+    // are as they were), so it is compared with the merged clusters that list its cluster
+    // as a neighbour, and with nothing else.
     std::vector<uint32_t> region;
     for (uint32_t c : merged_) {
       if (!mark_[c] && clusters_->count(c) > 0) {
         mark_[c] = 1;
         region.push_back(c);
       }
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> next_to;  // (cluster, merged cluster)
+    for (uint32_t c : merged_) {
       for (uint32_t n : clusters_->neighbours(c)) {
-        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) {
-          mark_[n] = 1;
-          region.push_back(n);
-        }
+        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) next_to.push_back({n, c});
       }
     }
     for (uint32_t c : region) mark_[c] = 0;
+    std::sort(next_to.begin(), next_to.end());
+    next_to.erase(std::unique(next_to.begin(), next_to.end()), next_to.end());
     ++epoch_;
     std::vector<uint32_t> changed;
     std::vector<double> old_centroids;
+    // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
+    std::vector<std::pair<uint32_t, uint32_t>> compare_with;
     for (int round = 0; round < kOptimiseRounds && !region.empty(); ++round) {
       points_to_check_.clear();
-      // After a single merge only the merged cluster changed: its points need the full
-      // check, but a neighbour's point can only gain by moving to the merged cluster (its
-      // other candidates are as they were), so it is compared with that one alone.
-      const bool single_merge = round == 0 && merged_.size() == 1;
-      const uint32_t keep = single_merge ? merged_[0] : kNone;
       for (uint32_t c : region) {
-        if (single_merge && c != keep) continue;
         if (round == 0) {
           points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
           continue;
@@ -678,11 +690,16 @@ class PointEngine {
         }
       }
       const size_t full = points_to_check_.size();
-      if (single_merge) {
-        for (uint32_t c : region) {
-          if (c != keep) {
-            points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+      compare_with.clear();
+      if (round == 0) {
+        for (size_t g = 0; g < next_to.size();) {
+          size_t end = g;
+          while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
+          for (uint32_t i : members_[next_to[g].first]) {
+            points_to_check_.push_back(i);
+            compare_with.push_back({static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
           }
+          g = end;
         }
       }
       target_.resize(points_to_check_.size());
@@ -694,18 +711,27 @@ class PointEngine {
         stamp_[i] = epoch_;
         threshold_[i] = margin_[r] + Drift(clusters_->label(i));
       }
-      if (single_merge) {
+      if (!compare_with.empty()) {
         const PointClusters& clusters = *clusters_;
-        tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
-                          [&](const auto& range) {
-                            for (size_t r = range.begin(); r != range.end(); ++r) {
-                              const uint32_t i = points_to_check_[r];
-                              target_[r] = clusters.Distance(i, keep) <
-                                                   clusters.Distance(i, clusters.label(i))
-                                               ? keep
-                                               : kNone;
-                            }
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
+            [&](const auto& range) {
+              for (size_t r = range.begin(); r != range.end(); ++r) {
+                const uint32_t i = points_to_check_[r];
+                if (r + 8 < range.end()) clusters.Prefetch(points_to_check_[r + 8]);
+                double best = clusters.Distance(i, clusters.label(i));
+                uint32_t to = kNone;
+                const auto [begin, end] = compare_with[r - full];
+                for (uint32_t g = begin; g < end; ++g) {
+                  const double dist = clusters.Distance(i, next_to[g].second);
+                  if (dist < best) {
+                    best = dist;
+                    to = next_to[g].second;
+                  }
+                }
+                target_[r] = to;
+              }
+            });
       }
       changed.clear();
       old_centroids.clear();
@@ -775,16 +801,36 @@ class PointEngine {
       add(c);
       for (uint32_t x : reverse_[c]) add(x);
     }
+    // Candidates beyond a cluster's own second-order neighbours: after a few merges (ML),
+    // every merged cluster and the gone ones' neighbours; after many (a PML step), where
+    // offering all of them to every refreshed cluster would cost merges x refreshes, the
+    // cluster each gone neighbour merged into and that one's neighbours, and to a merged
+    // cluster its partner's neighbours.
+    const bool few = merged_.size() <= 8;
+    auto offer_neighbours_of = [&](uint32_t x) {
+      for (uint32_t n : clusters_->neighbours(x)) {
+        if (n != kNone) candidates.push_back(n);
+      }
+    };
     for (uint32_t c : refresh) {
       mark_[c] = 0;
-      // Offer the merged clusters and the gone ones' neighbours as candidates too.
-      candidates.assign(merged_.begin(), merged_.end());
-      for (uint32_t gone : gone_) {
-        for (uint32_t n : clusters_->neighbours(gone)) {
-          if (n != kNone) candidates.push_back(n);
+      candidates.clear();
+      if (few) {
+        candidates.assign(merged_.begin(), merged_.end());
+        for (uint32_t gone : gone_) offer_neighbours_of(gone);
+      } else {
+        if (partner_[c] != kNone) offer_neighbours_of(partner_[c]);
+        for (uint32_t n : clusters_->neighbours(c)) {
+          if (n == kNone || into_[n] == kNone) continue;
+          candidates.push_back(into_[n]);
+          offer_neighbours_of(n);
         }
       }
       Refresh(c, candidates);
+    }
+    for (uint32_t gone : gone_) {
+      partner_[into_[gone]] = kNone;
+      into_[gone] = kNone;
     }
     for (uint32_t gone : gone_) {
       for (uint32_t n : clusters_->neighbours(gone)) {
@@ -800,7 +846,27 @@ class PointEngine {
       std::fill(out.begin(), out.end(), kNone);
       ++version_[gone];
     }
-    for (uint32_t c : refresh) RecomputeOde(c);
+    // ODEs: of the refreshed clusters, and of the clusters the changed ones list (to
+    // which they are reverse neighbours).
+    for (uint32_t c : affected_) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) {
+          mark_[n] = 1;
+          refresh_odes_.push_back(n);
+        }
+      }
+    }
+    for (uint32_t c : refresh) {
+      if (!mark_[c]) {
+        mark_[c] = 1;
+        refresh_odes_.push_back(c);
+      }
+    }
+    for (uint32_t c : refresh_odes_) {
+      mark_[c] = 0;
+      RecomputeOde(c);
+    }
+    refresh_odes_.clear();
     if (heap_.size() > 4 * static_cast<size_t>(alive_) + 4096) RebuildHeap();
 
     for (uint32_t c : affected_) {
@@ -881,6 +947,20 @@ class PointEngine {
       }
     }
     if (pairs.empty()) return SequentialStep();
+    // Cheapest first (ties by id), so that the floor below keeps the cheapest.
+    std::sort(pairs.begin(), pairs.end(), [&](const auto& x, const auto& y) {
+      return ode_cost_[x.first] != ode_cost_[y.first] ? ode_cost_[x.first] < ode_cost_[y.first]
+                                                      : x < y;
+    });
+    if (options_.pml_pairs == PointMultilevelOptions::PmlPairs::kCheaperHalf) {
+      // Only the mutual pairs that cost at most the median: near the data's own scale the
+      // mutual pairs mix pieces of one cluster (cheap) with whole clusters (dear), and
+      // collapsing them all in one level merges whole clusters while pieces remain.
+      const double limit = ode_cost_[pairs[pairs.size() / 2].first];
+      size_t keep = 1;
+      while (keep < pairs.size() && ode_cost_[pairs[keep].first] <= limit) ++keep;
+      pairs.resize(keep);
+    }
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
     for (const auto& [a, b] : pairs) Merge(a, b);
@@ -933,6 +1013,10 @@ class PointEngine {
   std::vector<uint8_t> mark_, affected_mark_;
   std::vector<Entry> heap_;
   std::vector<uint32_t> merged_, gone_, element_, to_, from_, points_to_check_, target_;
+  // In the current level: the cluster each gone one merged into, and each merged one's
+  // partner (kNone elsewhere).
+  std::vector<uint32_t> into_, partner_;
+  std::vector<uint32_t> refresh_odes_;
   // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;

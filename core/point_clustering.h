@@ -76,8 +76,16 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
 struct PointMultilevelOptions {
   enum class Optimizer { kLnKmeans, kNone };
   Optimizer optimizer = Optimizer::kLnKmeans;
-  bool parallel = false;   // PML: all mutual optimal dual edges per level
+  bool parallel = false;   // PML: mutual optimal dual edges collapsed together per level
   uint32_t pml_until = 0;  // then ML below this many clusters
+  // Which mutual pairs a PML level collapses. kAll: every one (Alg. 5.3). kCheaperHalf
+  // (default): those that cost at most the median mutual pair of the level; near the
+  // data's own scale the mutual pairs mix pieces of one cluster with whole clusters, and
+  // collapsing all of them merges whole clusters while pieces remain (on 100 blobs of
+  // 1,000 points: 1.5x ML's energy at 86 clusters with kAll, within 7% of ML at every
+  // level with kCheaperHalf, in about half ML's time).
+  enum class PmlPairs { kCheaperHalf, kAll };
+  PmlPairs pml_pairs = PmlPairs::kCheaperHalf;
   uint32_t min_clusters = 1;
   // Voxels per dimension of the start. 0: aiming at eight points per cell: (m / 8)^(1/d)
   // per dimension where that is at least 4; in higher dimensions the widest cells are

@@ -266,6 +266,12 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
             !s.ok()) {
           return s;
         }
+        std::string pairs = "cheaper-half";
+        if (absl::Status s = reader.Choice("pml-pairs", {"cheaper-half", "all"}, pairs); !s.ok()) {
+          return s;
+        }
+        ml.pml_pairs = pairs == "all" ? PointMultilevelOptions::PmlPairs::kAll
+                                      : PointMultilevelOptions::PmlPairs::kCheaperHalf;
       }
       if (spec.levels_high() != 0 && spec.levels_high() < spec.levels_low()) {
         return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", spec.levels_high(),

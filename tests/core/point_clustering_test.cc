@@ -224,6 +224,24 @@ TEST(PointMultilevelTest, PmlReachesOneClusterAndFarApartGroupsStillMerge) {
   EXPECT_TRUE(SamePartition(*log.LabelsAt(*log.FirstLevelWithAtMost(2)), truth));
 }
 
+TEST(PointMultilevelTest, PmlStaysCloseToMlAtEveryLevel) {
+  // Blobs of unequal spacing: near the blobs' own scale the mutual pairs of a PML level mix
+  // pieces of one blob with whole blobs. Collapsing only the cheaper half keeps PML's
+  // energy near ML's at every level PML produces, in far fewer levels.
+  auto [points, truth] = Blobs(40, 250, 3, 17, 3);
+  PointMultilevelOptions ml_options, pml_options;
+  pml_options.parallel = true;
+  HierarchyLog ml, pml;
+  ASSERT_TRUE(RunPointMultilevel(points, ml_options, ml).ok());
+  ASSERT_TRUE(RunPointMultilevel(points, pml_options, pml).ok());
+  const auto ml_energy = EnergyByCount(ml);
+  EXPECT_LT(pml.num_levels() * 4, ml.num_levels());
+  for (size_t l = 0; l < pml.num_levels(); ++l) {
+    const uint32_t k = pml.cluster_count(l);
+    EXPECT_LE(pml.energy(l), 1.25 * ml_energy.at(k)) << k << " clusters";
+  }
+}
+
 TEST(PointMultilevelTest, AnIsolatedOutlierCellStillMergesWhereItIsCheapest) {
   // Two dense groups joined by a bridge of points (so their cells touch face to face) and
   // one outlier whose cell touches no occupied cell. Once the groups have merged into
