@@ -38,7 +38,8 @@ class PointClusters {
         square_(capacity, 0.0),
         centroid_(size_t{capacity} * d_, 0.0),
         neighbours_(size_t{capacity} * 2 * d_, kNone),
-        origin_(d_, 0.0) {
+        origin_(d_, 0.0),
+        seen_(capacity, 0) {
     const size_t m = points.num_points();
     for (size_t i = 0; i < m; ++i) {
       for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
@@ -130,8 +131,19 @@ class PointClusters {
         if (nn != kNone) candidates.push_back(nn);
       }
     }
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    // Each candidate once (a stamp per cluster instead of sorting: with 2d neighbours
+    // each, there are up to 4d^2 of them, mostly repeats).
+    if (++stamp_now_ == 0) {
+      std::fill(seen_.begin(), seen_.end(), 0);
+      stamp_now_ = 1;
+    }
+    size_t unique = 0;
+    for (uint32_t n : candidates) {
+      if (n == kNone || seen_[n] == stamp_now_) continue;
+      seen_[n] = stamp_now_;
+      candidates[unique++] = n;
+    }
+    candidates.resize(unique);
     std::fill(out.begin(), out.end(), kNone);
     std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
     for (uint32_t n : candidates) {
@@ -178,6 +190,8 @@ class PointClusters {
   std::vector<double> centroid_;
   std::vector<uint32_t> neighbours_;
   std::vector<double> origin_;
+  std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
+  uint32_t stamp_now_ = 0;
 };
 
 // First neighbours from brute force over all clusters (for seeded starts of moderate k)
