@@ -68,11 +68,12 @@ usage:
 
   mlclust points INPUT [--dims D] [--server ADDR] [--algo ml|pml|hc|lnkmeans|kmeans]
                        [--clusters K | --auto-k bic|elbow] [--labels FILE] [--levels-csv FILE]
-                       [--grid A] [--seed S] [--init kmeans++|random] [--levels K_HI:K_LO]
+                       [--grid A] [--seed S] [--init kmeans++|random|grid] [--levels K_HI:K_LO]
       Clusters the points of INPUT: .npy (float32/float64, m x d), .csv/.txt, or raw
       float32 (.f32/.bin/.raw, with --dims D). Energy: the within-cluster sum of squares.
       ml/pml/hc: every level from the voxel-grid start (--grid A voxels per dimension) to
-      one cluster; lnkmeans: Local Neighbours k-means at K; kmeans: Lloyd with k-means++.
+      one cluster; lnkmeans: Local Neighbours k-means at K (or, with --init grid, from one
+      cluster per occupied voxel); kmeans: Lloyd with k-means++.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
       pml: --pml-until K (then ML), --pml-pairs cheaper-half|all (mutual pairs collapsed
       per level: those at most the median cost (default), or all as in Alg. 5.3).
@@ -484,10 +485,16 @@ int Points(const Arguments& args) {
   if (!auto_k.empty() && !hierarchy) {
     return Fail(absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml or hc"));
   }
-  if (!hierarchy && *clusters == 0) {
+  // LN k-means from the voxel grid: one cluster per occupied cell, no K.
+  const bool grid_start = algo == "lnkmeans" && args.get("init", "") == "grid";
+  if (grid_start && *clusters != 0) {
+    return Fail(absl::InvalidArgumentError(
+        "--clusters: --init grid starts from one cluster per occupied voxel (--grid A)"));
+  }
+  if (!hierarchy && !grid_start && *clusters == 0) {
     return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
   }
-  if (args.has("labels") && *clusters == 0 && auto_k.empty()) {
+  if (args.has("labels") && *clusters == 0 && auto_k.empty() && !grid_start) {
     return Fail(absl::InvalidArgumentError("--labels needs --clusters K or --auto-k"));
   }
   if (*dims > 4096) return Fail(absl::InvalidArgumentError("--dims: over 4096"));
@@ -545,6 +552,8 @@ int Points(const Arguments& args) {
     }
     chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
                           result->done.bic_first_decrease_cluster_count());
+  } else if (grid_start) {
+    level = log.num_levels() - 1;
   } else if (*clusters > 0) {
     absl::StatusOr<size_t> by_k = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!by_k.ok()) return Fail(by_k.status());

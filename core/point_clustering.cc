@@ -421,6 +421,82 @@ std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, u
   return counts;
 }
 
+// First neighbours of a voxel start: the face-sharing occupied cells, then the refresh
+// picks the nearest per subspace from them and their neighbours.
+void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
+  const uint32_t k = static_cast<uint32_t>(cells.cell.size());
+  const uint32_t d = clusters.dims();
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+  for (uint32_t c = 0; c < k; ++c) index[cells.cell[c]] = c;
+  std::vector<uint32_t> probe(d);
+  for (uint32_t c = 0; c < k; ++c) {
+    std::span<uint32_t> out = clusters.neighbours(c);
+    for (uint32_t j = 0; j < d; ++j) {
+      for (int side = 0; side < 2; ++side) {
+        probe = cells.cell[c];
+        if (side == 0) {
+          ++probe[j];
+        } else {
+          if (probe[j] == 0) continue;
+          --probe[j];
+        }
+        auto it = index.find(probe);
+        if (it != index.end()) out[2 * j + side] = it->second;
+      }
+    }
+  }
+  std::vector<uint32_t> candidates;
+  for (uint32_t c = 0; c < k; ++c) clusters.RefreshNeighbours(c, candidates);
+}
+
+// Alg. 6.1's iterations on clusters whose neighbours are set; fills result's energies,
+// iterations, moves and converged (not labels).
+void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
+                        LnKmeansResult& result) {
+  const size_t m = clusters.labels().size();
+  const uint32_t k = clusters.capacity();
+  result.initial_energy = clusters.TotalEnergy();
+  // Only points whose candidate clusters changed can move: after the first iteration a
+  // point is checked again only if its cluster, a neighbour of it or a neighbour's
+  // neighbour changed (its centroid or its neighbour list) in the last iteration.
+  std::vector<uint32_t> check(m), target(m);
+  std::iota(check.begin(), check.end(), 0);
+  std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
+  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    target.resize(check.size());
+    ChooseTargets(clusters, check, target);
+    uint64_t moved = 0;
+    const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
+    result.iterations = iteration;
+    result.moves += moved;
+    if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
+    if (moved == 0) {
+      result.converged = true;
+      break;
+    }
+    const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+    std::fill(dirty.begin(), dirty.end(), 0);
+    for (uint32_t c : changed) dirty[c] = 1;
+    for (uint32_t c : refreshed) dirty[c] = 1;
+    for (uint32_t c = 0; c < k; ++c) {
+      bool any = dirty[c];
+      for (uint32_t n : clusters.neighbours(c)) {
+        if (any || n == kNone) continue;
+        any = dirty[n];
+        for (uint32_t nn : clusters.neighbours(n)) {
+          if (nn != kNone && dirty[nn]) any = true;
+        }
+      }
+      active[c] = any;
+    }
+    check.clear();
+    for (size_t i = 0; i < m; ++i) {
+      if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
+    }
+  }
+  result.energy = clusters.TotalEnergy();
+}
+
 // The multilevel engine for points: the mesh engine's structure with local neighbours in
 // place of face adjacency and LN k-means in place of EMLO.
 class PointEngine {
@@ -456,29 +532,7 @@ class PointEngine {
       position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
       members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
     }
-    // First neighbours: the face-sharing occupied cells, then the refresh picks the
-    // nearest per subspace from them and their neighbours.
-    absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
-    for (uint32_t c = 0; c < k0_; ++c) index[cells.cell[c]] = c;
-    std::vector<uint32_t> probe(d_);
-    for (uint32_t c = 0; c < k0_; ++c) {
-      std::span<uint32_t> out = clusters_->neighbours(c);
-      for (uint32_t j = 0; j < d_; ++j) {
-        for (int side = 0; side < 2; ++side) {
-          probe = cells.cell[c];
-          if (side == 0) {
-            ++probe[j];
-          } else {
-            if (probe[j] == 0) continue;
-            --probe[j];
-          }
-          auto it = index.find(probe);
-          if (it != index.end()) out[2 * j + side] = it->second;
-        }
-      }
-    }
-    std::vector<uint32_t> candidates;
-    for (uint32_t c = 0; c < k0_; ++c) clusters_->RefreshNeighbours(c, candidates);
+    VoxelNeighbours(cells, *clusters_);
     reverse_.resize(k0_);
     for (uint32_t c = 0; c < k0_; ++c) {
       for (uint32_t n : clusters_->neighbours(c)) {
@@ -1056,12 +1110,12 @@ uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to)
 
 absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid) {
   if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
-  if (grid < 1 || grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is not in [1, 2^20]"));
+  if (grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
   }
   // The engine's own start (OccupiedCells), without the cell coordinates.
-  const std::vector<uint32_t> cells_per_axis(points.dims, grid);
-  VoxelCells cells = OccupiedCells(points, BoundsOf(points), cells_per_axis);
+  const Bounds bounds = BoundsOf(points);
+  VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
   VoxelStart start;
   start.clusters = static_cast<uint32_t>(cells.cell.size());
   start.labels.resize(cells.labels.size());
@@ -1093,48 +1147,32 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
   arena.execute([&] {
     PointClusters clusters(points, compact, k);
     InitialNeighbours(clusters);
-    result.initial_energy = clusters.TotalEnergy();
-    // Only points whose candidate clusters changed can move: after the first iteration a
-    // point is checked again only if its cluster, a neighbour of it or a neighbour's
-    // neighbour changed (its centroid or its neighbour list) in the last iteration.
-    std::vector<uint32_t> check(m), target(m);
-    std::iota(check.begin(), check.end(), 0);
-    std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
-    for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
-      target.resize(check.size());
-      ChooseTargets(clusters, check, target);
-      uint64_t moved = 0;
-      const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
-      result.iterations = iteration;
-      result.moves += moved;
-      if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
-      if (moved == 0) {
-        result.converged = true;
-        break;
-      }
-      const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
-      std::fill(dirty.begin(), dirty.end(), 0);
-      for (uint32_t c : changed) dirty[c] = 1;
-      for (uint32_t c : refreshed) dirty[c] = 1;
-      for (uint32_t c = 0; c < k; ++c) {
-        bool any = dirty[c];
-        for (uint32_t n : clusters.neighbours(c)) {
-          if (any || n == kNone) continue;
-          any = dirty[n];
-          for (uint32_t nn : clusters.neighbours(n)) {
-            if (nn != kNone && dirty[nn]) any = true;
-          }
-        }
-        active[c] = any;
-      }
-      check.clear();
-      for (size_t i = 0; i < m; ++i) {
-        if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
-      }
-    }
-    result.energy = clusters.TotalEnergy();
+    LnKmeansIterations(clusters, options, result);
     result.labels.resize(m);
     for (size_t i = 0; i < m; ++i) result.labels[i] = original[clusters.label(i)];
+  });
+  return result;
+}
+
+absl::StatusOr<LnKmeansResult> RunLnKmeansFromGrid(const PointSet& points, uint32_t grid,
+                                                   const LnKmeansOptions& options) {
+  if (absl::Status s = ValidatePoints(points); !s.ok()) return s;
+  if (grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
+  }
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  LnKmeansResult result;
+  arena.execute([&] {
+    const Bounds bounds = BoundsOf(points);
+    const VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+    const uint32_t k = static_cast<uint32_t>(cells.cell.size());
+    PointClusters clusters(points, cells.labels, k);
+    VoxelNeighbours(cells, clusters);
+    LnKmeansIterations(clusters, options, result);
+    result.labels.resize(points.num_points());
+    for (size_t i = 0; i < result.labels.size(); ++i) {
+      result.labels[i] = ClusterId(clusters.label(i));
+    }
   });
   return result;
 }

@@ -30,9 +30,10 @@ namespace mlclust {
 uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to);
 
 // The voxel-grid start (section 6.2): the bounding box cut into `grid` cells per
-// dimension; each occupied cell is a cluster (only occupied cells exist: a hash of cells,
-// so a^d never matters); face-sharing occupied cells are the first local neighbours.
-// Labels numbered 0..k-1 in order of first occupied point.
+// dimension (0: chosen as PointMultilevelOptions::grid says); each occupied cell is a
+// cluster (only occupied cells exist: a hash of cells, so a^d never matters);
+// face-sharing occupied cells are the first local neighbours. Labels numbered 0..k-1 in
+// order of first occupied point. INVALID_ARGUMENT for a grid over 2^20.
 struct VoxelStart {
   std::vector<ClusterId> labels;
   uint32_t clusters = 0;
@@ -61,6 +62,12 @@ struct LnKmeansResult {
 // moves. A cluster's last point never leaves, so k stays. The energy never increases.
 absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
                                            const LnKmeansOptions& options = {});
+
+// LN k-means from the voxel-grid start (section 6.2): one cluster per occupied cell
+// (`grid` cells per dimension; 0 chooses as PointMultilevelOptions::grid says), the
+// face-sharing occupied cells as first neighbours. Labels 0..k-1, k the occupied cells.
+absl::StatusOr<LnKmeansResult> RunLnKmeansFromGrid(const PointSet& points, uint32_t grid,
+                                                   const LnKmeansOptions& options = {});
 
 // k distinct points, uniformly at random (reproducible with `seed`), as k x d centres.
 // INVALID_ARGUMENT naming 'clusters' for k < 1 or k > m.

@@ -282,14 +282,33 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
     }
     case v1::ALGORITHM_KMEANS:
     case v1::ALGORITHM_LN_KMEANS: {
-      if (spec.clusters() < 1) {
+      std::string init = "kmeans++";
+      const bool ln = plan.algorithm == v1::ALGORITHM_LN_KMEANS;
+      if (absl::Status s = reader.Choice("init",
+                                         ln ? std::vector<std::string>{"kmeans++", "random", "grid"}
+                                            : std::vector<std::string>{"kmeans++", "random"},
+                                         init);
+          !s.ok()) {
+        return s;
+      }
+      plan.kmeans_plus_plus = init == "kmeans++";
+      plan.grid_start = init == "grid";
+      if (absl::Status s = reader.Integer<uint32_t>("grid", plan.grid, 0, 1u << 20); !s.ok()) {
+        return s;
+      }
+      if (plan.grid_start && spec.clusters() != 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "clusters: init grid starts from one cluster per occupied voxel (option grid); ",
+            spec.clusters(), " clusters cannot be asked for with it"));
+      }
+      if (!plan.grid_start && spec.clusters() < 1) {
         return absl::InvalidArgumentError(
             absl::StrCat("clusters: ", algorithm_name, " needs k >= 1 clusters"));
       }
+      if (!plan.grid_start && plan.grid != 0) {
+        return absl::InvalidArgumentError("grid: applies to init grid (and the hierarchies)");
+      }
       plan.clusters = spec.clusters();
-      std::string init = "kmeans++";
-      if (absl::Status s = reader.Choice("init", {"kmeans++", "random"}, init); !s.ok()) return s;
-      plan.kmeans_plus_plus = init == "kmeans++";
       if (absl::Status s = reader.Integer<int>("threads", plan.ln_kmeans.threads, 0, 1024);
           !s.ok()) {
         return s;

@@ -47,6 +47,10 @@ struct PointJobPlan {
   PointMultilevelOptions multilevel;  // HC, ML, PML
   LnKmeansOptions ln_kmeans;
   bool kmeans_plus_plus = true;
+  // LN k-means from the voxel grid (option init=grid, with option grid): one cluster per
+  // occupied cell, so clusters is 0.
+  bool grid_start = false;
+  uint32_t grid = 0;
   uint32_t clusters = 0;
   uint64_t seed = 1;
 };

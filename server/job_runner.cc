@@ -405,6 +405,19 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
         !s.ok()) {
       return s;
     }
+  } else if (plan->grid_start) {
+    // LN k-means from the voxel grid: level 0 is the voxel clusters, level 1 the result.
+    absl::StatusOr<VoxelStart> start = VoxelGridStart(points, plan->grid);
+    if (!start.ok()) return start.status();
+    absl::StatusOr<LnKmeansResult> result =
+        RunLnKmeansFromGrid(points, plan->grid, plan->ln_kmeans);
+    if (!result.ok()) return result.status();
+    if (absl::Status s = StreamSingleLevel(start->labels, result->initial_energy, result->labels,
+                                           result->energy, start->clusters, sink);
+        !s.ok()) {
+      return s;
+    }
+    outcome.done.set_final_clusters(start->clusters);
   } else {
     absl::StatusOr<std::vector<ClusterId>> initial = SeedPointClusters(
         points, plan->clusters, plan->kmeans_plus_plus, plan->seed, plan->ln_kmeans.threads);

@@ -4,10 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <iostream>
 #include <map>
 #include <numbers>
 #include <random>
@@ -782,38 +780,6 @@ TEST(CoarseningTest, OpenGridClusteredByGrowthKeepsItsBoundary) {
     const Topology topology = TopologyOf(*coarse);
     EXPECT_EQ(topology.euler, 1) << k;
     EXPECT_GT(topology.boundary_edges, 0) << k;
-  }
-}
-
-// Not a test: the time to coarsen bunny00 (75,408 faces) at k = 1,000 and 10,000 from HC's
-// clusterings, best of 5, printed for BENCHMARKS.md. Run with
-//   coarsening_test --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_TimeBunny*'
-TEST(CoarseningTest, DISABLED_TimeBunny) {
-  const std::string path = MeshPath("bunny00.off");
-  if (path.empty()) GTEST_SKIP() << "bunny00.off not found";
-  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
-  ASSERT_TRUE(mesh.ok()) << mesh.status();
-  const Prepared p = Prepare(*std::move(mesh));
-  for (uint32_t k : {1000u, 10000u}) {
-    const std::vector<ClusterId> labels = HcClusters(p, k);
-    for (auto placement :
-         {CoarseningOptions::Placement::kCentroid, CoarseningOptions::Placement::kQuadric}) {
-      double best = std::numeric_limits<double>::infinity();
-      absl::StatusOr<CoarseMesh> coarse;
-      for (int repeat = 0; repeat < 5; ++repeat) {
-        const auto start = std::chrono::steady_clock::now();
-        coarse = CoarsenMeshWithReport(p.mesh, p.adjacency, labels, {.placement = placement});
-        best = std::min(
-            best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-      }
-      ASSERT_TRUE(coarse.ok()) << coarse.status();
-      std::cout << "bunny00 k=" << k
-                << (placement == CoarseningOptions::Placement::kQuadric ? " quadric "
-                                                                        : " centroid ")
-                << best * 1e3 << " ms, " << coarse->mesh.num_faces() << " triangles, "
-                << coarse->repaired_clusters << " clusters repaired, " << coarse->edge_flips
-                << " flips\n";
-    }
   }
 }
 

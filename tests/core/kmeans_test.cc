@@ -422,46 +422,5 @@ TEST(KmeansTest, RejectsBadArguments) {
               HasSubstr("clusters"));
 }
 
-// Timings for the record (not a pass/fail check; the best of 3 runs): run with
-//   build-km/tests/kmeans_test --gtest_also_run_disabled_tests --gtest_filter='*Timing*'
-TEST(KmeansTest, DISABLED_Timing) {
-  struct Case {
-    size_t m;
-    uint32_t k;
-    uint32_t iterations;
-  };
-  for (const Case& c : {Case{100000, 100, 10}, Case{1000000, 1000, 3}}) {
-    const PointSet points = UniformPoints(c.m, 3, 1);
-    for (int threads : {1, 0}) {
-      for (detail::KmeansKernels kernels :
-           {detail::KmeansKernels::kAuto, detail::KmeansKernels::kBaseline}) {
-        if (kernels == detail::KmeansKernels::kBaseline && (c.k > 100 || threads != 1)) continue;
-        detail::SetKmeansKernelsForTesting(kernels);
-        KmeansOptions options;
-        options.clusters = c.k;
-        options.max_iterations = c.iterations;
-        options.tolerance = 0;
-        options.threads = threads;
-        double init = std::numeric_limits<double>::infinity();
-        double iteration = std::numeric_limits<double>::infinity();
-        for (int run = 0; run < 3; ++run) {
-          absl::StatusOr<KmeansResult> result = RunKmeans(points, options);
-          ASSERT_TRUE(result.ok()) << result.status();
-          ASSERT_EQ(result->iterations, c.iterations);
-          init = std::min(init, result->seconds_init);
-          iteration = std::min(iteration, result->seconds_iterations / result->iterations);
-        }
-        std::printf(
-            "m=%zu k=%u d=3 threads=%s kernels=%s: k-means++ %.3f s, Lloyd %.4f s per "
-            "iteration (%.3f ns per point-centre pair)\n",
-            c.m, c.k, threads == 0 ? "all" : "1",
-            kernels == detail::KmeansKernels::kAuto ? "auto" : "baseline", init, iteration,
-            iteration / (double(c.m) * c.k) * 1e9);
-      }
-    }
-  }
-  detail::SetKmeansKernelsForTesting(detail::KmeansKernels::kAuto);
-}
-
 }  // namespace
 }  // namespace mlclust

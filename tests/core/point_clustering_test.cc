@@ -90,7 +90,28 @@ TEST(VoxelGridStartTest, OnlyOccupiedCellsBecomeClusters) {
   absl::StatusOr<VoxelStart> high = VoxelGridStart(blobs, 10);
   ASSERT_TRUE(high.ok());
   EXPECT_LE(high->clusters, blobs.num_points());
-  EXPECT_EQ(VoxelGridStart(points, 0).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(VoxelGridStart(points, (1u << 20) + 1).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // grid 0: the default, about eight points per occupied cell (here 6 points: one cell).
+  absl::StatusOr<VoxelStart> chosen = VoxelGridStart(points, 0);
+  ASSERT_TRUE(chosen.ok());
+  EXPECT_EQ(chosen->clusters, 1u);
+}
+
+TEST(LnKmeansTest, FromTheVoxelGridKeepsOneClusterPerOccupiedCellAndLowersTheEnergy) {
+  auto [points, truth] = Blobs(5, 300, 3, 31, 8);
+  absl::StatusOr<VoxelStart> start = VoxelGridStart(points, 6);
+  ASSERT_TRUE(start.ok());
+  absl::StatusOr<LnKmeansResult> result = RunLnKmeansFromGrid(points, 6);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_TRUE(result->converged);
+  EXPECT_NEAR(result->initial_energy, PointEnergy(points, start->labels),
+              1e-9 * result->initial_energy);
+  EXPECT_NEAR(result->energy, PointEnergy(points, result->labels), 1e-9 * result->energy);
+  EXPECT_LT(result->energy, result->initial_energy);
+  std::set<uint32_t> distinct;
+  for (ClusterId c : result->labels) distinct.insert(c.value());
+  EXPECT_EQ(distinct.size(), start->clusters);
 }
 
 // A plain Lloyd from the same start, for comparison.

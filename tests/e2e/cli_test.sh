@@ -83,6 +83,14 @@ awk 'BEGIN { srand(7); print "x,y,z";
 grep -q "BIC highest at 6 clusters" "$work/points.out" || fail "BIC did not find 6: $(cat "$work/points.out")"
 [ "$(sort -un "$work/blobs.labels" | wc -l)" -eq 6 ] || fail "points labels: not 6 clusters"
 [ "$(wc -l < "$work/blobs.labels")" -eq 1800 ] || fail "points labels: not one line per point"
+# LN k-means from the voxel grid: one cluster per occupied voxel, no K; K with it is refused.
+"$mlclust" points "$work/blobs.csv" --algo lnkmeans --init grid --grid 4 --labels "$work/grid.labels" \
+  --server "127.0.0.1:$port" --quiet > "$work/grid.out" || fail "lnkmeans --init grid failed"
+[ "$(sort -un "$work/grid.labels" | wc -l)" -gt 6 ] || fail "lnkmeans --init grid: too few clusters"
+if "$mlclust" points "$work/blobs.csv" --algo lnkmeans --init grid --clusters 5 --quiet 2> "$work/grid.err"; then
+  fail "--init grid with --clusters accepted"
+fi
+grep -q "voxel" "$work/grid.err" || fail "no reason given: $(cat "$work/grid.err")"
 # A ragged CSV is refused naming the row.
 printf '1,2,3\n4,5\n' > "$work/ragged.csv"
 if "$mlclust" points "$work/ragged.csv" --quiet 2> "$work/ragged.err"; then fail "ragged CSV accepted"; fi
