@@ -573,6 +573,40 @@ TEST_F(AlgorithmsTest, PointSummaryNamesTheBicOfEveryLevelEvenOutsideTheRangeSen
   EXPECT_EQ(part->done.bic_first_decrease_cluster_count(), choice->first_decrease_k);
 }
 
+TEST_F(AlgorithmsTest, PointsFromOneTo64DimensionsOverTheWire) {
+  // Three groups 30 apart along the first axis (and noise on every axis).
+  for (uint32_t d : {1u, 64u}) {
+    PointSet points;
+    points.dims = d;
+    std::mt19937 random(d);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    for (int i = 0; i < 900; ++i) {
+      for (uint32_t j = 0; j < d; ++j) {
+        points.values.push_back(noise(random) + (j == 0 ? 30.0f * (i % 3) : 0.0f));
+      }
+    }
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+    spec.set_point_dims(d);
+    spec.set_algorithm(v1::ALGORITHM_ML);
+    absl::StatusOr<client::JobResult> ml = client::RunJob(channel_, spec, Float32Bytes(points));
+    ASSERT_TRUE(ml.ok()) << d << ": " << ml.status();
+    EXPECT_EQ(ml->done.bic_best_cluster_count(), 3u) << d;
+    const std::optional<size_t> three = ml->hierarchy.LastLevelWith(3);
+    ASSERT_TRUE(three.has_value()) << d;
+    const std::vector<ClusterId> labels = *ml->hierarchy.LabelsAt(*three);
+    for (int i = 3; i < 900; ++i) EXPECT_EQ(labels[i], labels[i % 3]) << d << " point " << i;
+    spec.set_algorithm(v1::ALGORITHM_LN_KMEANS);
+    spec.set_clusters(3);
+    absl::StatusOr<client::JobResult> ln = client::RunJob(channel_, spec, Float32Bytes(points));
+    ASSERT_TRUE(ln.ok()) << d << ": " << ln.status();
+    const HierarchyLog& log = ln->hierarchy;
+    EXPECT_NEAR(log.energy(log.num_levels() - 1), ml->hierarchy.energy(*three),
+                1e-6 * ml->hierarchy.energy(*three))
+        << d;
+  }
+}
+
 TEST_F(AlgorithmsTest, BadPointBatchesAreRefused) {
   PointSet points = Grid3d(4);
   v1::JobSpec spec;
