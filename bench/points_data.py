@@ -7,6 +7,10 @@ centre (uniformly at random, or exactly `per_blob` points each) with standard de
 
   bench/points_data.py --m 1000000 --d 3 --blobs 1000 --seed 1 --out data/bench/p.npy
   bench/points_data.py --per-blob 500 --d 3 --blobs 200 --seed 4 --out /tmp/k200.npy
+  bench/points_data.py --from-off data/bench/armadillo.off --out /tmp/armadillo.npy
+
+--from-off writes the vertices of an OFF mesh instead: a real 3-D point cloud (a scanned
+surface: dense, thin, no blobs).
 """
 import argparse
 
@@ -24,6 +28,21 @@ def blobs(m, d, k, sigma, half_range, seed, per_blob=0):
     return points.astype(np.float32), which
 
 
+def off_vertices(path):
+    """The vertex positions of an OFF file (header OFF, counts line, vertices)."""
+    with open(path) as f:
+        words = [line.split("#")[0].split() for line in f]
+    words = [w for w in words if w]
+    first = words[0]
+    if first[0] != "OFF":
+        raise SystemExit(f"{path}: not an OFF file")
+    counts = first[1:] if len(first) > 1 else words[1]
+    start = 1 if len(first) > 1 else 2
+    vertices = int(counts[0])
+    return np.array([[float(v) for v in w[:3]] for w in words[start:start + vertices]],
+                    dtype=np.float32)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -34,8 +53,12 @@ def main():
     parser.add_argument("--sigma", type=float, default=1.0)
     parser.add_argument("--range", type=float, default=25.0, help="centres in [-range, range]^d")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--from-off", help="write this OFF mesh's vertices instead of blobs")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
+    if args.from_off:
+        np.save(args.out, off_vertices(args.from_off))
+        return
     if args.m < 1 or args.d < 1 or args.blobs < 1 or args.per_blob < 0:
         parser.error("m, d and blobs must be >= 1, per-blob >= 0")
     points, _ = blobs(args.m, args.d, args.blobs, args.sigma, args.range, args.seed,

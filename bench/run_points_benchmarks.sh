@@ -19,10 +19,12 @@
 #   e  Fig. 6.11: time vs k at m = 1M (LN k-means, Lloyd)
 #   f  Fig. 6.12: time vs m at k = 1000 (LN k-means, Lloyd) and of the full hierarchies
 #   g  Fig. 6.13: time per ML step vs d = 2..64 (m = 20,000, 50 blobs)
+#   h  a real point cloud: the 416,002 vertices of armadillo_1m (scripts/fetch-bench-meshes.sh)
+#      as 3-D points: the hierarchies, LN k-means and Lloyd at k = 1000 vs scikit-learn
 #
 # Every row of ours carries the 1-minute load average when it ran (load1). Output
-# (bench/results/): issue5{a..g}_*.csv / *.jsonl, issue5_truek.png, issue5_fig6_1{1,2,3}.png
-# (bench/plot_points.py), machine5.txt.
+# (bench/results/): issue5{a..h}_*.csv / *.jsonl, issue5_truek.png, issue5_fig6_1{1,2,3}.png
+# (bench/plot_points.py), machine5.txt (appended to: one record per run).
 set -euo pipefail
 
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -32,13 +34,13 @@ data="$repo_root/data/bench/points"
 bin="$repo_root/build-bench/bench"
 python=/usr/bin/python3
 peers="$python $repo_root/bench/peers/points_peers.py"
-only="a,b,c,d,e,f,g"
+only="a,b,c,d,e,f,g,h"
 build=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --only) only="${2:?--only needs a list such as a,b}"; shift 2 ;;
     --bin) bin="$(realpath "${2:?--bin needs a directory}")"; build=0; shift 2 ;;
-    -h | --help) sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run_points_benchmarks: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -56,11 +58,12 @@ if [ "$build" = 1 ]; then
 fi
 mkdir -p "$results" "$data"
 {
+  echo "--- sections $only"
   echo "date: $(date -u +%FT%TZ)"
   echo "commit: $(git rev-parse --short HEAD)"
   echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //') x $(nproc)"
   echo "load before: $(cat /proc/loadavg)"
-} > "$results/machine5.txt"
+} >> "$results/machine5.txt"
 
 blobs() {  # m d blobs seed file
   [ -f "$5" ] || "$python" bench/points_data.py --m "$1" --d "$2" --blobs "$3" --seed "$4" --out "$5"
@@ -154,6 +157,17 @@ if wants g; then
     blobs 20000 "$d" 50 1 "$f"
     for algo in ml hc; do ours "$results/issue5g_time_vs_d.csv" --algo "$algo" --input "$f" --k 50; done
   done
+fi
+
+if wants h; then
+  echo "h: a real point cloud, armadillo_1m's vertices"
+  [ -f data/bench/armadillo_1m.off ] || bash scripts/fetch-bench-meshes.sh
+  f="$data/armadillo_1m_vertices.npy"
+  [ -f "$f" ] || "$python" bench/points_data.py --from-off data/bench/armadillo_1m.off --out "$f"
+  echo "$header" > "$results/issue5h_ours.csv"
+  for algo in ml pml hc; do ours "$results/issue5h_ours.csv" --algo "$algo" --input "$f" --k 1000; done
+  for algo in lnkmeans kmeans; do ours "$results/issue5h_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
+  $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/issue5h_peers.jsonl"
 fi
 
 echo "load after: $(cat /proc/loadavg)" >> "$results/machine5.txt"
