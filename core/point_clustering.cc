@@ -87,6 +87,16 @@ class PointClusters {
     }
     return dist;
   }
+  // |x - c|^2 for x already relative to the origin (Relative).
+  double DistanceTo(const double* x, uint32_t c) const {
+    const double* cc = &centroid_[size_t{c} * d_];
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = x[j] - cc[j];
+      dist += diff * diff;
+    }
+    return dist;
+  }
   // Asks the caches for point i's coordinates and label, which are read in random order.
   void Prefetch(size_t i) const {
     __builtin_prefetch(&points_.values[i * d_]);
@@ -253,14 +263,14 @@ void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> poin
               if (n != kNone && n != own && count < 256) candidates[count++] = n;
             }
           }
-          const double own_distance = clusters.Distance(i, own);
+          const double own_distance = clusters.DistanceTo(x.data(), own);
           double best = own_distance;
           double second = std::numeric_limits<double>::infinity();
           uint32_t best_cluster = own;
           for (int c = 0; c < count; ++c) {
             const uint32_t n = candidates[c];
             if (n == best_cluster || clusters.count(n) == 0) continue;
-            const double dist = clusters.Distance(i, n);
+            const double dist = clusters.DistanceTo(x.data(), n);
             if (dist < best || (dist == best && n < best_cluster && n != own)) {
               second = best;
               best = dist;
