@@ -204,12 +204,11 @@ class PointClusters {
   uint32_t stamp_now_ = 0;
 };
 
-// First neighbours from brute force over all clusters (for seeded starts of moderate k)
-// or from a voxel hash of the centroids (large k).
+// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
+// (O(k^2 d); voxel starts use VoxelNeighbours instead).
 void InitialNeighbours(PointClusters& clusters) {
   const uint32_t k = clusters.capacity();
   const uint32_t d = clusters.dims();
-  std::vector<double> best(2 * d);
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
     std::vector<double> best_local(2 * d);
     for (uint32_t c = range.begin(); c != range.end(); ++c) {
