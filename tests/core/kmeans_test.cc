@@ -11,56 +11,18 @@
 #include <numbers>
 
 #include "core/random.h"
+#include "tests/core/test_points.h"
 
 namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
 
-struct Blobs {
-  PointSet points;
-  std::vector<uint32_t> truth;  // generating cluster per point
-};
+using testing::Blobs;
 
-// `clusters` spherical Gaussians (sigma 1) of `per_cluster` points each in 3-D, centres
-// uniform in [-25, 25]^3 and at least `separation` apart; points listed cluster after
-// cluster, shuffled so that blocks mix clusters.
+// Blobs whose rows are shuffled, so that blocks of rows mix clusters.
 Blobs GaussianBlobs(uint32_t clusters, uint32_t per_cluster, double separation, uint64_t seed) {
-  Random random(seed);
-  std::vector<double> centres;
-  while (centres.size() < 3 * clusters) {
-    double c[3];
-    for (double& v : c) v = -25 + 50 * random.Unit();
-    bool far = true;
-    for (size_t o = 0; o < centres.size(); o += 3) {
-      double d2 = 0;
-      for (int j = 0; j < 3; ++j) d2 += (c[j] - centres[o + j]) * (c[j] - centres[o + j]);
-      far = far && d2 >= separation * separation;
-    }
-    if (far) centres.insert(centres.end(), c, c + 3);
-  }
-  auto normal = [&] {
-    const double u1 = 1 - random.Unit();
-    const double u2 = random.Unit();
-    return std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
-  };
-  const size_t m = size_t{clusters} * per_cluster;
-  std::vector<uint32_t> order(m);
-  for (size_t i = 0; i < m; ++i) order[i] = static_cast<uint32_t>(i);
-  for (size_t i = m; i > 1; --i) std::swap(order[i - 1], order[random.Below(i)]);
-  Blobs blobs;
-  blobs.points.dims = 3;
-  blobs.points.values.resize(3 * m);
-  blobs.truth.resize(m);
-  for (size_t n = 0; n < m; ++n) {
-    const uint32_t c = static_cast<uint32_t>(n / per_cluster);
-    const size_t i = order[n];
-    blobs.truth[i] = c;
-    for (int j = 0; j < 3; ++j) {
-      blobs.points.values[3 * i + j] = static_cast<float>(centres[3 * c + j] + normal());
-    }
-  }
-  return blobs;
+  return testing::GaussianBlobs(clusters, per_cluster, separation, seed, /*shuffle=*/true);
 }
 
 PointSet UniformPoints(size_t m, uint32_t d, uint64_t seed) {

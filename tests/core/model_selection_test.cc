@@ -9,6 +9,7 @@
 
 #include "core/kmeans.h"
 #include "core/random.h"
+#include "tests/core/test_points.h"
 
 namespace mlclust {
 namespace {
@@ -17,42 +18,8 @@ using ::testing::HasSubstr;
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-struct Blobs {
-  PointSet points;
-  std::vector<uint32_t> truth;  // generating cluster per point, 0..K-1
-};
-
-// `clusters` spherical Gaussians (sigma 1) of `per_cluster` points each in 3-D, centres
-// uniform in [-25, 25]^3 and at least `separation` apart (rejection sampling).
-Blobs GaussianBlobs(uint32_t clusters, uint32_t per_cluster, double separation, uint64_t seed) {
-  Random random(seed);
-  std::vector<double> centres;
-  while (centres.size() < 3 * clusters) {
-    double c[3];
-    for (double& v : c) v = -25 + 50 * random.Unit();
-    bool far = true;
-    for (size_t o = 0; o < centres.size(); o += 3) {
-      double d2 = 0;
-      for (int j = 0; j < 3; ++j) d2 += (c[j] - centres[o + j]) * (c[j] - centres[o + j]);
-      far = far && d2 >= separation * separation;
-    }
-    if (far) centres.insert(centres.end(), c, c + 3);
-  }
-  Blobs blobs;
-  blobs.points.dims = 3;
-  for (uint32_t c = 0; c < clusters; ++c) {
-    for (uint32_t n = 0; n < per_cluster; ++n) {
-      for (int j = 0; j < 3; ++j) {
-        const double u1 = 1 - random.Unit();
-        const double u2 = random.Unit();
-        const double normal = std::sqrt(-2 * std::log(u1)) * std::cos(2 * std::numbers::pi * u2);
-        blobs.points.values.push_back(static_cast<float>(centres[3 * c + j] + normal));
-      }
-      blobs.truth.push_back(c);
-    }
-  }
-  return blobs;
-}
+using testing::Blobs;
+using testing::GaussianBlobs;
 
 // Cluster sizes and SSE (about the double-precision means) of a labelling with labels 0..k-1.
 struct Partition {
