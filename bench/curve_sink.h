@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "core/hierarchy.h"
+#include "core/hierarchy/hierarchy.h"
 
 namespace mlclust::bench {
 

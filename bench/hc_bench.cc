@@ -4,9 +4,9 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
-#include "core/face_measures.h"
-#include "core/mesh_io.h"
-#include "core/multilevel.h"
+#include "core/cluster/multilevel.h"
+#include "core/io/mesh_io.h"
+#include "core/mesh/face_measures.h"
 
 namespace {
 

@@ -9,8 +9,8 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
-#include "core/mesh_clustering.h"
-#include "core/mesh_io.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/io/mesh_io.h"
 
 int main(int argc, char** argv) {
   if (argc < 2) {

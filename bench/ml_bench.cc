@@ -14,8 +14,8 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "bench/curve_sink.h"
-#include "core/mesh_io.h"
-#include "core/multilevel.h"
+#include "core/cluster/multilevel.h"
+#include "core/io/mesh_io.h"
 
 namespace {
 

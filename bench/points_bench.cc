@@ -18,10 +18,10 @@
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
 #include "bench/curve_sink.h"
-#include "core/kmeans.h"
-#include "core/point_clustering.h"
-#include "core/points_io.h"
-#include "core/random.h"
+#include "core/base/random.h"
+#include "core/cluster/kmeans.h"
+#include "core/cluster/point_clustering.h"
+#include "core/io/points_io.h"
 
 namespace {
 
@@ -126,8 +126,8 @@ int main(int argc, char** argv) {
     start_clusters = k;
     if (algo == "kmeans") {
       steps = assigned->iterations;
-      std::fprintf(stderr, "kmeans: %u iterations in %.3f s (mean %.4f s)\n",
-                   assigned->iterations, assigned->seconds_iterations,
+      std::fprintf(stderr, "kmeans: %u iterations in %.3f s (mean %.4f s)\n", assigned->iterations,
+                   assigned->seconds_iterations,
                    assigned->seconds_iterations / std::max(assigned->iterations, 1u));
       energy = mlclust::PointEnergy(points, assigned->labels);
     } else {

@@ -19,10 +19,10 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
-#include "core/model_selection.h"
-#include "core/point_clustering.h"
-#include "core/points_io.h"
-#include "core/random.h"
+#include "core/base/random.h"
+#include "core/cluster/point_clustering.h"
+#include "core/hierarchy/model_selection.h"
+#include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
   std::vector<uint32_t> ks = {10, 25, 50, 100, 150, 200, 250};

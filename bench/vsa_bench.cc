@@ -14,10 +14,10 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
-#include "core/energies.h"
-#include "core/face_measures.h"
-#include "core/mesh_io.h"
-#include "core/vsa.h"
+#include "core/cluster/vsa.h"
+#include "core/energy/energies.h"
+#include "core/io/mesh_io.h"
+#include "core/mesh/face_measures.h"
 
 namespace {
 

@@ -8,10 +8,10 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
-#include "core/draco_codec.h"
-#include "core/face_measures.h"
-#include "core/mesh_io.h"
-#include "core/multilevel.h"
+#include "core/cluster/multilevel.h"
+#include "core/io/draco_codec.h"
+#include "core/io/mesh_io.h"
+#include "core/mesh/face_measures.h"
 #include "server/server.h"
 
 namespace {

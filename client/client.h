@@ -11,7 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
-#include "core/hierarchy.h"
+#include "core/hierarchy/hierarchy.h"
 #include "grpcpp/channel.h"
 #include "mlclust/v1/mlclust.pb.h"
 

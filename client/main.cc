@@ -15,12 +15,12 @@
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
-#include "core/coarsening.h"
-#include "core/draco_codec.h"
-#include "core/energies.h"
-#include "core/face_measures.h"
-#include "core/mesh_io.h"
-#include "core/points_io.h"
+#include "core/coarsening/coarsening.h"
+#include "core/energy/energies.h"
+#include "core/io/draco_codec.h"
+#include "core/io/mesh_io.h"
+#include "core/io/points_io.h"
+#include "core/mesh/face_measures.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
@@ -546,9 +546,9 @@ int Points(const Arguments& args) {
     if (k == 0) return Fail(absl::NotFoundError("--auto-k bic: the server sent no BIC"));
     level = log.LastLevelWith(k);
     if (!level.has_value()) {
-      return Fail(absl::NotFoundError(absl::StrCat(
-          "--auto-k bic: the BIC is highest at ", k,
-          " clusters, a level outside the range that was sent")));
+      return Fail(
+          absl::NotFoundError(absl::StrCat("--auto-k bic: the BIC is highest at ", k,
+                                           " clusters, a level outside the range that was sent")));
     }
     chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
                           result->done.bic_first_decrease_cluster_count());
@@ -634,9 +634,9 @@ int main(int argc, char** argv) {
              "p-percent", "pml-until", "levels"};
   }
   if (command == "points") {
-    known = {"server",         "algo",   "clusters",  "labels",    "levels-csv", "dims",
-             "seed",           "grid",   "optimizer", "pml-until", "pml-pairs",  "threads",
-             "init",           "max-iterations",      "auto-k",    "levels",     "quiet"};
+    known = {"server", "algo",           "clusters",  "labels",    "levels-csv", "dims",
+             "seed",   "grid",           "optimizer", "pml-until", "pml-pairs",  "threads",
+             "init",   "max-iterations", "auto-k",    "levels",    "quiet"};
   }
   if (command == "energy") {
     known = {"labels", "energy",  "density", "gamma",

@@ -6,9 +6,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "core/base/status_macros.h"
 #include "gpu/compute.h"
 #include "gpu/gl_functions.h"
-#include "gpu/status_macros.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -115,8 +115,8 @@ std::vector<uint8_t> FlagBoundaryFacesCpu(const FaceAdjacency& adjacency,
 absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
                                                        const FaceAdjacency& adjacency,
                                                        std::span<const ClusterId> labels) {
-  MLCLUST_GPU_RETURN_IF_ERROR(CheckInputs(adjacency, labels));
-  MLCLUST_GPU_RETURN_IF_ERROR(context.MakeCurrent());
+  MLCLUST_RETURN_IF_ERROR(CheckInputs(adjacency, labels));
+  MLCLUST_RETURN_IF_ERROR(context.MakeCurrent());
   const uint64_t num_faces = adjacency.num_faces();
   std::vector<uint8_t> flags(num_faces, 0);
   if (num_faces == 0) return flags;
@@ -133,17 +133,17 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
         " bytes in one storage buffer; the limit is ", context.max_storage_buffer_bytes()));
   }
 
-  MLCLUST_GPU_ASSIGN_OR_RETURN(
+  MLCLUST_ASSIGN_OR_RETURN(
       const uint32_t program,
       GetComputeProgram(context, "flag_boundary_faces",
                         absl::StrCat(kComputeShaderPrelude, kBoundaryShaderBody)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer labels_buffer,
-                               StorageBuffer::Create(context, num_faces * sizeof(uint32_t)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer neighbours_buffer,
-                               StorageBuffer::Create(context, chunk * 3 * sizeof(uint32_t)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer flags_buffer,
-                               StorageBuffer::Create(context, FlagBytes(chunk)));
-  MLCLUST_GPU_RETURN_IF_ERROR(labels_buffer.Upload(labels));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer labels_buffer,
+                           StorageBuffer::Create(context, num_faces * sizeof(uint32_t)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer neighbours_buffer,
+                           StorageBuffer::Create(context, chunk * 3 * sizeof(uint32_t)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer flags_buffer,
+                           StorageBuffer::Create(context, FlagBytes(chunk)));
+  MLCLUST_RETURN_IF_ERROR(labels_buffer.Upload(labels));
 
   const detail::GlFunctions& gl = context.gl();
   gl.UseProgram(program);
@@ -152,16 +152,15 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
   flags_buffer.Bind(2);
   for (uint64_t begin = 0; begin < num_faces; begin += chunk) {
     const uint64_t count = std::min(chunk, num_faces - begin);
-    MLCLUST_GPU_RETURN_IF_ERROR(neighbours_buffer.Upload(
+    MLCLUST_RETURN_IF_ERROR(neighbours_buffer.Upload(
         std::span<const std::array<FaceId, 3>>(adjacency.neighbours).subspan(begin, count)));
     gl.ProgramUniform1ui(program, 0, static_cast<GLuint>(begin));
     gl.ProgramUniform1ui(program, 1, static_cast<GLuint>(count));
-    MLCLUST_GPU_RETURN_IF_ERROR(
-        DispatchLinear(context, (count + kFacesPerWord - 1) / kFacesPerWord));
-    MLCLUST_GPU_RETURN_IF_ERROR(flags_buffer.Download(0, flags.data() + begin, count));
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, (count + kFacesPerWord - 1) / kFacesPerWord));
+    MLCLUST_RETURN_IF_ERROR(flags_buffer.Download(0, flags.data() + begin, count));
   }
   gl.UseProgram(0);
-  MLCLUST_GPU_RETURN_IF_ERROR(CheckGlError(context, "flag boundary faces"));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(context, "flag boundary faces"));
   return flags;
 }
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "core/ids.h"
-#include "core/mesh.h"
+#include "core/base/ids.h"
+#include "core/mesh/mesh.h"
 #include "gpu/gl_context.h"
 
 namespace mlclust::gpu {

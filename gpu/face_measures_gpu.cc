@@ -6,9 +6,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "core/base/status_macros.h"
 #include "gpu/compute.h"
 #include "gpu/gl_functions.h"
-#include "gpu/status_macros.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -97,8 +97,8 @@ uint64_t ComputeFaceMeasuresGpuMemoryBound(const GlContext& context, uint64_t nu
 }
 
 absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const TriangleMesh& mesh) {
-  MLCLUST_GPU_RETURN_IF_ERROR(CheckMesh(mesh));
-  MLCLUST_GPU_RETURN_IF_ERROR(context.MakeCurrent());
+  MLCLUST_RETURN_IF_ERROR(CheckMesh(mesh));
+  MLCLUST_RETURN_IF_ERROR(context.MakeCurrent());
   const uint64_t num_faces = mesh.num_faces();
   FaceMeasures measures;
   measures.area.resize(num_faces);
@@ -119,21 +119,21 @@ absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const Tr
                      " bytes cannot hold the measures of one face"));
   }
 
-  MLCLUST_GPU_ASSIGN_OR_RETURN(
+  MLCLUST_ASSIGN_OR_RETURN(
       const uint32_t program,
       GetComputeProgram(context, "face_measures",
                         absl::StrCat(kComputeShaderPrelude, kFaceMeasuresShaderBody)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer positions_buffer,
-                               StorageBuffer::Create(context, position_bytes));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer indices_buffer,
-                               StorageBuffer::Create(context, chunk * 3 * sizeof(uint32_t)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer areas_buffer,
-                               StorageBuffer::Create(context, chunk * sizeof(double)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer centroids_buffer,
-                               StorageBuffer::Create(context, chunk * 3 * sizeof(double)));
-  MLCLUST_GPU_ASSIGN_OR_RETURN(StorageBuffer normals_buffer,
-                               StorageBuffer::Create(context, chunk * 3 * sizeof(double)));
-  MLCLUST_GPU_RETURN_IF_ERROR(positions_buffer.Upload(std::span<const float>(mesh.positions)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer positions_buffer,
+                           StorageBuffer::Create(context, position_bytes));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer indices_buffer,
+                           StorageBuffer::Create(context, chunk * 3 * sizeof(uint32_t)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer areas_buffer,
+                           StorageBuffer::Create(context, chunk * sizeof(double)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer centroids_buffer,
+                           StorageBuffer::Create(context, chunk * 3 * sizeof(double)));
+  MLCLUST_ASSIGN_OR_RETURN(StorageBuffer normals_buffer,
+                           StorageBuffer::Create(context, chunk * 3 * sizeof(double)));
+  MLCLUST_RETURN_IF_ERROR(positions_buffer.Upload(std::span<const float>(mesh.positions)));
 
   const detail::GlFunctions& gl = context.gl();
   gl.UseProgram(program);
@@ -144,19 +144,19 @@ absl::StatusOr<FaceMeasures> ComputeFaceMeasuresGpu(GlContext& context, const Tr
   normals_buffer.Bind(4);
   for (uint64_t begin = 0; begin < num_faces; begin += chunk) {
     const uint64_t count = std::min(chunk, num_faces - begin);
-    MLCLUST_GPU_RETURN_IF_ERROR(indices_buffer.Upload(
+    MLCLUST_RETURN_IF_ERROR(indices_buffer.Upload(
         std::span<const uint32_t>(mesh.indices).subspan(3 * begin, 3 * count)));
     gl.ProgramUniform1ui(program, 0, static_cast<GLuint>(count));
-    MLCLUST_GPU_RETURN_IF_ERROR(DispatchLinear(context, count));
-    MLCLUST_GPU_RETURN_IF_ERROR(
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, count));
+    MLCLUST_RETURN_IF_ERROR(
         areas_buffer.Download(0, measures.area.data() + begin, count * sizeof(double)));
-    MLCLUST_GPU_RETURN_IF_ERROR(
+    MLCLUST_RETURN_IF_ERROR(
         centroids_buffer.Download(0, measures.centroid.data() + begin, count * 3 * sizeof(double)));
-    MLCLUST_GPU_RETURN_IF_ERROR(normals_buffer.Download(0, measures.unit_normal.data() + begin,
-                                                        count * 3 * sizeof(double)));
+    MLCLUST_RETURN_IF_ERROR(normals_buffer.Download(0, measures.unit_normal.data() + begin,
+                                                    count * 3 * sizeof(double)));
   }
   gl.UseProgram(0);
-  MLCLUST_GPU_RETURN_IF_ERROR(CheckGlError(context, "face measures"));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(context, "face measures"));
   return measures;
 }
 

@@ -5,8 +5,8 @@
 #define MLCLUST_GPU_FACE_MEASURES_GPU_H_
 
 #include "absl/status/statusor.h"
-#include "core/face_measures.h"
-#include "core/mesh.h"
+#include "core/mesh/face_measures.h"
+#include "core/mesh/mesh.h"
 #include "gpu/gl_context.h"
 
 namespace mlclust::gpu {

@@ -13,8 +13,8 @@
 #include <functional>
 #include <string_view>
 
-#include "core/face_measures.h"
-#include "core/mesh.h"
+#include "core/mesh/face_measures.h"
+#include "core/mesh/mesh.h"
 #include "gpu/boundary_faces.h"
 #include "gpu/face_measures_gpu.h"
 #include "gpu/gl_context.h"

@@ -11,8 +11,8 @@
 #include <utility>
 #include <vector>
 
-#include "core/ids.h"
-#include "core/mesh.h"
+#include "core/base/ids.h"
+#include "core/mesh/mesh.h"
 
 namespace mlclust::gpu::testing {
 

@@ -13,6 +13,8 @@ packages=(
   libegl-dev libegl1 libgl1-mesa-dri libopengl-dev libgl-dev
   # tests
   libgtest-dev libgmock-dev
+  # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)
+  clang-format clang-tidy
 )
 
 if [ "${1:-}" = "--bench" ]; then

@@ -7,6 +7,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/base/status_macros.h"
 
 namespace mlclust::server {
 namespace {
@@ -125,7 +126,7 @@ absl::StatusOr<MeshEnergyOptions> ReadEnergyOptions(const v1::JobSpec& spec, Opt
        }) {
     if (!s.ok()) return s;
   }
-  if (absl::Status s = ValidateMeshEnergyOptions(energy); !s.ok()) return s;
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(energy));
   return energy;
 }
 
@@ -166,17 +167,12 @@ absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec) {
         std::string guard = "on";
         if (absl::Status s = reader.Choice("guard", {"on", "off"}, guard); !s.ok()) return s;
         ml.connectivity_guard = guard == "on";
-        if (absl::Status s = reader.Double("p-percent", ml.p_percent, 0, 100); !s.ok()) return s;
+        MLCLUST_RETURN_IF_ERROR(reader.Double("p-percent", ml.p_percent, 0, 100));
       }
       if (plan.algorithm == v1::ALGORITHM_PML) {
         ml.parallel = true;
-        if (absl::Status s = reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31);
-            !s.ok()) {
-          return s;
-        }
-        if (absl::Status s = reader.Integer<int>("threads", ml.threads, 0, 1024); !s.ok()) {
-          return s;
-        }
+        MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31));
+        MLCLUST_RETURN_IF_ERROR(reader.Integer<int>("threads", ml.threads, 0, 1024));
       }
       if (spec.levels_high() != 0 && spec.levels_high() < spec.levels_low()) {
         return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", spec.levels_high(),
@@ -197,24 +193,16 @@ absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec) {
       if (absl::Status s = reader.Choice("init", {"lneigh", "random"}, init); !s.ok()) return s;
       plan.seeds.method =
           init == "random" ? SeedOptions::Method::kRandom : SeedOptions::Method::kLNeighbourhood;
-      if (absl::Status s = reader.Integer<uint32_t>("level", plan.seeds.level, 0, 1u << 20);
-          !s.ok()) {
-        return s;
-      }
+      MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>("level", plan.seeds.level, 0, 1u << 20));
       std::string guard = "on";
       if (absl::Status s = reader.Choice("guard", {"on", "off"}, guard); !s.ok()) return s;
       plan.emlo.connectivity_guard = guard == "on";
       plan.boundary_based.connectivity_guard = guard == "on";
       if (plan.algorithm == v1::ALGORITHM_BB) {
-        if (absl::Status s = reader.Integer<int>("threads", plan.boundary_based.threads, 0, 1024);
-            !s.ok()) {
-          return s;
-        }
-        if (absl::Status s = reader.Integer<uint32_t>(
-                "max-iterations", plan.boundary_based.max_iterations, 1, 1000000);
-            !s.ok()) {
-          return s;
-        }
+        MLCLUST_RETURN_IF_ERROR(
+            reader.Integer<int>("threads", plan.boundary_based.threads, 0, 1024));
+        MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>(
+            "max-iterations", plan.boundary_based.max_iterations, 1, 1000000));
       }
       break;
     }
@@ -224,7 +212,7 @@ absl::StatusOr<MeshJobPlan> PlanMeshJob(const v1::JobSpec& spec) {
                        " is not available for meshes on this server yet (available: ALGORITHM_HC, "
                        "ALGORITHM_EMLO, ALGORITHM_BB)"));
   }
-  if (absl::Status s = reader.CheckAllUsed(algorithm_name); !s.ok()) return s;
+  MLCLUST_RETURN_IF_ERROR(reader.CheckAllUsed(algorithm_name));
   return plan;
 }
 
@@ -246,10 +234,8 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
     case v1::ALGORITHM_PML: {
       PointMultilevelOptions& ml = plan.multilevel;
       ml.min_clusters = std::max<uint32_t>({1, spec.clusters(), spec.levels_low()});
-      if (absl::Status s = reader.Integer<uint32_t>("grid", ml.grid, 0, 1u << 20); !s.ok()) {
-        return s;
-      }
-      if (absl::Status s = reader.Integer<int>("threads", ml.threads, 0, 1024); !s.ok()) return s;
+      MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>("grid", ml.grid, 0, 1u << 20));
+      MLCLUST_RETURN_IF_ERROR(reader.Integer<int>("threads", ml.threads, 0, 1024));
       if (plan.algorithm == v1::ALGORITHM_HC) {
         ml.optimizer = PointMultilevelOptions::Optimizer::kNone;
       } else {
@@ -262,10 +248,7 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
       }
       if (plan.algorithm == v1::ALGORITHM_PML) {
         ml.parallel = true;
-        if (absl::Status s = reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31);
-            !s.ok()) {
-          return s;
-        }
+        MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>("pml-until", ml.pml_until, 0, 1u << 31));
         std::string pairs = "cheaper-half";
         if (absl::Status s = reader.Choice("pml-pairs", {"cheaper-half", "all"}, pairs); !s.ok()) {
           return s;
@@ -293,9 +276,7 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
       }
       plan.kmeans_plus_plus = init == "kmeans++";
       plan.grid_start = init == "grid";
-      if (absl::Status s = reader.Integer<uint32_t>("grid", plan.grid, 0, 1u << 20); !s.ok()) {
-        return s;
-      }
+      MLCLUST_RETURN_IF_ERROR(reader.Integer<uint32_t>("grid", plan.grid, 0, 1u << 20));
       if (plan.grid_start && spec.clusters() != 0) {
         return absl::InvalidArgumentError(absl::StrCat(
             "clusters: init grid starts from one cluster per occupied voxel (option grid); ",
@@ -309,15 +290,9 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
         return absl::InvalidArgumentError("grid: applies to init grid (and the hierarchies)");
       }
       plan.clusters = spec.clusters();
-      if (absl::Status s = reader.Integer<int>("threads", plan.ln_kmeans.threads, 0, 1024);
-          !s.ok()) {
-        return s;
-      }
-      if (absl::Status s =
-              reader.Integer<uint32_t>("max-iterations", plan.ln_kmeans.max_iterations, 1, 1000000);
-          !s.ok()) {
-        return s;
-      }
+      MLCLUST_RETURN_IF_ERROR(reader.Integer<int>("threads", plan.ln_kmeans.threads, 0, 1024));
+      MLCLUST_RETURN_IF_ERROR(
+          reader.Integer<uint32_t>("max-iterations", plan.ln_kmeans.max_iterations, 1, 1000000));
       break;
     }
     default:
@@ -326,7 +301,7 @@ absl::StatusOr<PointJobPlan> PlanPointJob(const v1::JobSpec& spec) {
                        " is not available for points on this server yet (available: ALGORITHM_HC, "
                        "ALGORITHM_ML, ALGORITHM_PML, ALGORITHM_LN_KMEANS)"));
   }
-  if (absl::Status s = reader.CheckAllUsed(algorithm_name); !s.ok()) return s;
+  MLCLUST_RETURN_IF_ERROR(reader.CheckAllUsed(algorithm_name));
   return plan;
 }
 

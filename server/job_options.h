@@ -5,10 +5,10 @@
 #define MLCLUST_SERVER_JOB_OPTIONS_H_
 
 #include "absl/status/statusor.h"
-#include "core/energies.h"
-#include "core/mesh_clustering.h"
-#include "core/multilevel.h"
-#include "core/point_clustering.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/cluster/multilevel.h"
+#include "core/cluster/point_clustering.h"
+#include "core/energy/energies.h"
 #include "mlclust/v1/mlclust.pb.h"
 
 namespace mlclust::server {

@@ -6,15 +6,16 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "core/draco_codec.h"
-#include "core/face_measures.h"
-#include "core/kmeans.h"
-#include "core/mesh.h"
-#include "core/mesh_clustering.h"
-#include "core/model_selection.h"
-#include "core/multilevel.h"
-#include "core/point_clustering.h"
-#include "core/points.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/kmeans.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/cluster/multilevel.h"
+#include "core/cluster/point_clustering.h"
+#include "core/hierarchy/model_selection.h"
+#include "core/io/draco_codec.h"
+#include "core/mesh/face_measures.h"
+#include "core/mesh/mesh.h"
+#include "core/points/points.h"
 #include "server/job_options.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/face_measures_gpu.h"
@@ -38,11 +39,11 @@ class TeeSink : public LevelSink {
   TeeSink(LevelSink& first, LevelSink& second) : first_(first), second_(second) {}
   absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
                        double energy) override {
-    if (absl::Status s = first_.OnStart(labels, cluster_count, energy); !s.ok()) return s;
+    MLCLUST_RETURN_IF_ERROR(first_.OnStart(labels, cluster_count, energy));
     return second_.OnStart(labels, cluster_count, energy);
   }
   absl::Status OnLevel(const LevelMoves& level) override {
-    if (absl::Status s = first_.OnLevel(level); !s.ok()) return s;
+    MLCLUST_RETURN_IF_ERROR(first_.OnLevel(level));
     return second_.OnLevel(level);
   }
 
@@ -138,7 +139,7 @@ class StreamingLevelSink : public LevelSink {
       snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
       snapshot->mutable_labels()->Reserve(static_cast<int>(end - first));
       for (size_t i = first; i < end; ++i) snapshot->add_labels(labels[i].value());
-      if (absl::Status s = Send(std::move(event)); !s.ok()) return s;
+      MLCLUST_RETURN_IF_ERROR(Send(std::move(event)));
       if (end == labels.size()) break;
     }
     started_ = true;
@@ -208,7 +209,7 @@ absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const v1::Jo
 absl::Status StreamSingleLevel(const std::vector<ClusterId>& initial, double initial_energy,
                                const std::vector<ClusterId>& result, double energy,
                                uint32_t clusters, StreamingLevelSink& sink) {
-  if (absl::Status s = sink.OnStart(initial, clusters, initial_energy); !s.ok()) return s;
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(initial, clusters, initial_energy));
   std::vector<uint32_t> element, to, from;
   for (uint32_t f = 0; f < result.size(); ++f) {
     if (result[f] != initial[f]) {
@@ -223,7 +224,7 @@ absl::Status StreamSingleLevel(const std::vector<ClusterId>& initial, double ini
   level.element = element;
   level.to_cluster = to;
   level.from_cluster = from;
-  if (absl::Status s = sink.OnLevel(level); !s.ok()) return s;
+  MLCLUST_RETURN_IF_ERROR(sink.OnLevel(level));
   return sink.Flush();
 }
 
@@ -306,11 +307,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
     }
     if (!result.ok()) return result.status();
     if (events.cancelled()) return absl::CancelledError("the call was cancelled");
-    if (absl::Status s = StreamSingleLevel(*initial, result->initial_energy, labels, result->energy,
-                                           spec.clusters(), sink);
-        !s.ok()) {
-      return s;
-    }
+    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(*initial, result->initial_energy, labels,
+                                              result->energy, spec.clusters(), sink));
     outcome.done.set_final_clusters(spec.clusters());
   }
   outcome.done.set_levels(sink.levels_sent());
@@ -400,11 +398,8 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
     if (!start.ok()) return start.status();
     absl::StatusOr<KmeansResult> result = RunLloyd(points, *centres, options);
     if (!result.ok()) return result.status();
-    if (absl::Status s = StreamSingleLevel(start->labels, start->inertia, result->labels,
-                                           result->inertia, plan->clusters, sink);
-        !s.ok()) {
-      return s;
-    }
+    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(start->labels, start->inertia, result->labels,
+                                              result->inertia, plan->clusters, sink));
   } else if (plan->grid_start) {
     // LN k-means from the voxel grid: level 0 is the voxel clusters, level 1 the result.
     absl::StatusOr<VoxelStart> start = VoxelGridStart(points, plan->grid);
@@ -412,11 +407,8 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
     absl::StatusOr<LnKmeansResult> result =
         RunLnKmeansFromGrid(points, plan->grid, plan->ln_kmeans);
     if (!result.ok()) return result.status();
-    if (absl::Status s = StreamSingleLevel(start->labels, result->initial_energy, result->labels,
-                                           result->energy, start->clusters, sink);
-        !s.ok()) {
-      return s;
-    }
+    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(start->labels, result->initial_energy, result->labels,
+                                              result->energy, start->clusters, sink));
     outcome.done.set_final_clusters(start->clusters);
   } else {
     absl::StatusOr<std::vector<ClusterId>> initial = SeedPointClusters(
@@ -424,11 +416,8 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
     if (!initial.ok()) return initial.status();
     absl::StatusOr<LnKmeansResult> result = RunLnKmeans(points, *initial, plan->ln_kmeans);
     if (!result.ok()) return result.status();
-    if (absl::Status s = StreamSingleLevel(*initial, result->initial_energy, result->labels,
-                                           result->energy, plan->clusters, sink);
-        !s.ok()) {
-      return s;
-    }
+    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(*initial, result->initial_energy, result->labels,
+                                              result->energy, plan->clusters, sink));
     outcome.done.set_final_clusters(plan->clusters);
   }
   outcome.done.set_levels(sink.levels_sent());

@@ -12,17 +12,17 @@
 
 #include "absl/container/flat_hash_set.h"
 #include "client/client.h"
-#include "core/draco_codec.h"
-#include "core/energies.h"
-#include "core/face_measures.h"
-#include "core/mesh_io.h"
-#include "core/model_selection.h"
-#include "core/point_clustering.h"
+#include "core/cluster/point_clustering.h"
+#include "core/energy/energies.h"
+#include "core/hierarchy/model_selection.h"
+#include "core/io/draco_codec.h"
+#include "core/io/mesh_io.h"
+#include "core/mesh/face_measures.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
-#include "tests/core/test_meshes.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {

@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/mesh.h"
+#include "core/mesh/mesh.h"
 #include "gpu/gl_context.h"
 #include "gpu/test_meshes.h"
 

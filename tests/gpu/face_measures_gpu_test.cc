@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "core/face_measures.h"
-#include "core/mesh.h"
+#include "core/mesh/face_measures.h"
+#include "core/mesh/mesh.h"
 #include "gpu/gl_context.h"
 #include "gpu/test_meshes.h"
 

@@ -1,0 +1,500 @@
+#include "core/cluster/mesh_clustering.h"
+
+#include <algorithm>
+#include <numeric>
+#include <queue>
+
+#include "absl/strings/str_cat.h"
+#include "core/base/random.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/partition.h"
+#include "core/mesh/connectivity_guard.h"
+#include "tbb/global_control.h"
+#include "tbb/parallel_for.h"
+#include "tbb/task_arena.h"
+
+namespace mlclust {
+namespace {
+
+constexpr uint32_t kUnassigned = 0xffffffffu;
+
+absl::Status CheckProblem(const MeshProblem& problem) {
+  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
+    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+  }
+  if (problem.adjacency->num_faces() != problem.mesh->num_faces() ||
+      problem.measures->num_faces() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError("adjacency or measures do not match the mesh");
+  }
+  return ValidateMeshEnergyOptions(problem.energy);
+}
+
+// Connected component id per face, and the count.
+uint32_t FaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component) {
+  const size_t n = adjacency.num_faces();
+  component.assign(n, kUnassigned);
+  uint32_t count = 0;
+  std::vector<uint32_t> stack;
+  for (uint32_t start = 0; start < n; ++start) {
+    if (component[start] != kUnassigned) continue;
+    component[start] = count;
+    stack.push_back(start);
+    while (!stack.empty()) {
+      const uint32_t f = stack.back();
+      stack.pop_back();
+      for (FaceId g : adjacency.neighbours[f]) {
+        if (g.valid() && component[g.value()] == kUnassigned) {
+          component[g.value()] = count;
+          stack.push_back(g.value());
+        }
+      }
+    }
+    ++count;
+  }
+  return count;
+}
+
+// Alg. 2.2's flood: each seed's proxy is fitted to the seed face; faces join the region
+// whose proxy fits them best among regions that reach them, cheapest first.
+template <typename Energy>
+std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& adjacency,
+                                    std::span<const uint32_t> seeds) {
+  using Proxy = typename Energy::Proxy;
+  std::vector<uint32_t> labels(adjacency.num_faces(), kUnassigned);
+  std::vector<Proxy> proxies;
+  proxies.reserve(seeds.size());
+  struct Candidate {
+    double cost;
+    uint64_t order;  // ties: first pushed first, so the flood is deterministic
+    uint32_t face, cluster;
+    bool operator>(const Candidate& o) const {
+      return cost != o.cost ? cost > o.cost : order > o.order;
+    }
+  };
+  std::priority_queue<Candidate, std::vector<Candidate>, std::greater<>> queue;
+  uint64_t order = 0;
+  auto push_neighbours = [&](uint32_t face, uint32_t cluster) {
+    for (FaceId g : adjacency.neighbours[face]) {
+      if (g.valid() && labels[g.value()] == kUnassigned) {
+        queue.push({energy.FaceCost(g.value(), proxies[cluster]), order++, g.value(), cluster});
+      }
+    }
+  };
+  for (uint32_t c = 0; c < seeds.size(); ++c) {
+    proxies.push_back(energy.FitProxy(energy.face_sums(seeds[c])));
+    labels[seeds[c]] = c;
+  }
+  for (uint32_t c = 0; c < seeds.size(); ++c) push_neighbours(seeds[c], c);
+  while (!queue.empty()) {
+    const Candidate next = queue.top();
+    queue.pop();
+    if (labels[next.face] != kUnassigned) continue;
+    labels[next.face] = next.cluster;
+    push_neighbours(next.face, next.cluster);
+  }
+  return labels;
+}
+
+// Section 3.1.5: merge the three clusters meeting at a vertex with the smallest summed
+// area until `target` clusters are left (a pair across an edge for the last step when the
+// parity needs it). Returns labels renumbered 0..target-1.
+std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
+                                const FaceMeasures& measures, std::vector<uint32_t> labels,
+                                uint32_t clusters, uint32_t target) {
+  std::vector<uint32_t> parent(clusters);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](uint32_t c) {
+    while (parent[c] != c) c = parent[c] = parent[parent[c]];
+    return c;
+  };
+  std::vector<double> area(clusters, 0.0);
+  std::vector<std::vector<uint32_t>> members(clusters);
+  for (uint32_t f = 0; f < labels.size(); ++f) {
+    area[labels[f]] += measures.area[f];
+    members[labels[f]].push_back(f);
+  }
+  // Distinct clusters around each vertex, from its faces.
+  const size_t num_vertices = mesh.num_vertices();
+  const VertexFaceTable table = BuildVertexFaceTable(mesh);
+  auto clusters_at = [&](uint32_t v, uint32_t out[4]) {
+    int count = 0;
+    for (uint32_t face : table.faces_around(v)) {
+      if (count == 4) break;
+      const uint32_t c = find(labels[face]);
+      if (std::find(out, out + count, c) == out + count) out[count++] = c;
+    }
+    return count;
+  };
+  using Entry = std::pair<double, uint32_t>;  // summed area, vertex
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> triples;
+  auto consider = [&](uint32_t v) {
+    uint32_t around[4];
+    if (clusters_at(v, around) == 3) {
+      triples.push({area[around[0]] + area[around[1]] + area[around[2]], v});
+    }
+  };
+  for (uint32_t v = 0; v < num_vertices; ++v) consider(v);
+  auto merge_into = [&](uint32_t keep, uint32_t gone) {
+    if (members[gone].size() > members[keep].size()) std::swap(keep, gone);
+    parent[gone] = keep;
+    area[keep] += area[gone];
+    for (uint32_t f : members[gone]) labels[f] = keep;
+    members[keep].insert(members[keep].end(), members[gone].begin(), members[gone].end());
+    std::vector<uint32_t>().swap(members[gone]);
+    return keep;
+  };
+  uint32_t count = clusters;
+  while (count >= target + 2 && !triples.empty()) {
+    const auto [key, v] = triples.top();
+    triples.pop();
+    uint32_t around[4];
+    if (clusters_at(v, around) != 3) continue;
+    const double sum = area[around[0]] + area[around[1]] + area[around[2]];
+    if (sum != key) {
+      triples.push({sum, v});  // stale: areas only grow, so re-queue with the real sum
+      continue;
+    }
+    uint32_t keep = merge_into(around[0], around[1]);
+    keep = merge_into(keep, around[2]);
+    count -= 2;
+    for (uint32_t f : members[keep]) {
+      for (int c = 0; c < 3; ++c) consider(mesh.indices[3 * size_t{f} + c]);
+    }
+  }
+  // Pairs: the last step for parity, or all steps where no vertex joins three clusters.
+  while (count > target) {
+    double best = std::numeric_limits<double>::infinity();
+    uint32_t best_a = 0, best_b = 0;
+    for (uint32_t f = 0; f < labels.size(); ++f) {
+      for (FaceId g : adjacency.neighbours[f]) {
+        if (!g.valid()) continue;
+        const uint32_t a = find(labels[f]), b = find(labels[g.value()]);
+        if (a != b && area[a] + area[b] < best) {
+          best = area[a] + area[b];
+          best_a = a;
+          best_b = b;
+        }
+      }
+    }
+    if (best == std::numeric_limits<double>::infinity()) break;
+    merge_into(best_a, best_b);
+    --count;
+  }
+  std::vector<uint32_t> compact(clusters, kUnassigned);
+  uint32_t next = 0;
+  for (uint32_t& l : labels) {
+    const uint32_t root = find(l);
+    if (compact[root] == kUnassigned) compact[root] = next++;
+    l = compact[root];
+  }
+  return labels;
+}
+
+std::vector<ClusterId> ToClusterIds(std::span<const uint32_t> labels) {
+  std::vector<ClusterId> out(labels.size());
+  for (size_t i = 0; i < labels.size(); ++i) out[i] = ClusterId(labels[i]);
+  return out;
+}
+
+// The caller's cluster id of each compact id (the inverse of CompactClusterIds).
+std::vector<ClusterId> OriginalIds(std::span<const ClusterId> labels,
+                                   std::span<const uint32_t> compact, uint32_t k) {
+  std::vector<ClusterId> original(k);
+  for (size_t f = 0; f < labels.size(); ++f) original[compact[f]] = labels[f];
+  return original;
+}
+
+void WriteBack(std::span<const uint32_t> compact_labels, std::span<const ClusterId> original,
+               std::vector<ClusterId>& labels) {
+  for (size_t f = 0; f < labels.size(); ++f) labels[f] = original[compact_labels[f]];
+}
+
+}  // namespace
+
+std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+  const size_t n = adjacency.num_faces();
+  std::vector<uint8_t> valid(n, 1);
+  std::vector<uint32_t> seeds, frontier, next, visited;
+  std::vector<uint32_t> stamp(n, 0);
+  uint32_t stamp_value = 0;
+  // The faces within `level` edge-steps of `face`, into `visited`; false as soon as one is
+  // already invalid (then `face` cannot be a seed).
+  auto neighbourhood_valid = [&](uint32_t face) {
+    ++stamp_value;
+    visited.assign(1, face);
+    stamp[face] = stamp_value;
+    frontier.assign(1, face);
+    for (uint32_t step = 0; step < level && !frontier.empty(); ++step) {
+      next.clear();
+      for (uint32_t f : frontier) {
+        for (FaceId g : adjacency.neighbours[f]) {
+          if (!g.valid() || stamp[g.value()] == stamp_value) continue;
+          if (!valid[g.value()]) return false;
+          stamp[g.value()] = stamp_value;
+          visited.push_back(g.value());
+          next.push_back(g.value());
+        }
+      }
+      frontier.swap(next);
+    }
+    return true;
+  };
+  for (uint32_t f = 0; f < n; ++f) {
+    if (!valid[f] || !neighbourhood_valid(f)) continue;
+    for (uint32_t g : visited) valid[g] = 0;
+    seeds.push_back(f);
+  }
+  return seeds;
+}
+
+absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
+                                                       const SeedOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  const FaceAdjacency& adjacency = *problem.adjacency;
+  const size_t n = adjacency.num_faces();
+  const uint32_t k = options.clusters;
+  if (k < 1 || k > n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " must be between 1 and the mesh's ", n, " faces"));
+  }
+  std::vector<uint32_t> component;
+  const uint32_t components = FaceComponents(adjacency, component);
+  if (k < components) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " is fewer than the mesh's ", components,
+                     " connected components (a cluster cannot span two components)"));
+  }
+  std::vector<uint32_t> seeds;
+  if (options.method == SeedOptions::Method::kRandom) {
+    // One seed in every component, then the rest uniformly among the other faces.
+    Random random(options.seed);
+    std::vector<std::vector<uint32_t>> faces_of(components);
+    for (uint32_t f = 0; f < n; ++f) faces_of[component[f]].push_back(f);
+    std::vector<uint8_t> chosen(n, 0);
+    for (const auto& faces : faces_of) {
+      const uint32_t f = faces[random.Below(faces.size())];
+      chosen[f] = 1;
+      seeds.push_back(f);
+    }
+    // Partial Fisher-Yates over the faces not chosen yet.
+    std::vector<uint32_t> pool;
+    pool.reserve(n - seeds.size());
+    for (uint32_t f = 0; f < n; ++f) {
+      if (!chosen[f]) pool.push_back(f);
+    }
+    for (size_t i = 0; seeds.size() < k; ++i) {
+      const size_t j = i + random.Below(pool.size() - i);
+      std::swap(pool[i], pool[j]);
+      seeds.push_back(pool[i]);
+    }
+  } else {
+    uint32_t level = options.level;
+    if (level == 0) {
+      // The largest l that still gives k seeds: grow l by doubling, then bisect.
+      uint32_t good = 0, bad = 0;
+      for (uint32_t l = 1;; l *= 2) {
+        if (LNeighbourhoodSeeds(adjacency, l).size() >= k) {
+          good = l;
+        } else {
+          bad = l;
+          break;
+        }
+        if (l > n) break;
+      }
+      while (bad > good + 1) {
+        const uint32_t mid = good + (bad - good) / 2;
+        (LNeighbourhoodSeeds(adjacency, mid).size() >= k ? good : bad) = mid;
+      }
+      level = good;
+    }
+    seeds = LNeighbourhoodSeeds(adjacency, level);
+    if (seeds.size() < k) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "level: l = ", level, " gives only ", seeds.size(), " seeds, fewer than the ", k,
+          " clusters asked for; use a smaller level (or 0 to choose it)"));
+    }
+  }
+  // The CVD family grows by distance (each seed's centroid): geodesic Voronoi regions are
+  // compact discs, which the connectivity guard then keeps and coarsening needs. The
+  // planar and sphere energies grow by their own proxies, as VSA does: regions follow
+  // the shape's faces, and a feature may legitimately sit inside another region.
+  std::vector<uint32_t> labels;
+  if (problem.energy.kind == MeshEnergyKind::kPlanar) {
+    labels =
+        WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                       [&](const auto& energy) { return GrowFromSeeds(energy, adjacency, seeds); });
+  } else {
+    labels = GrowFromSeeds(CvdEnergy(*problem.measures), adjacency, seeds);
+  }
+  if (seeds.size() > k) {
+    labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
+                       static_cast<uint32_t>(seeds.size()), k);
+  }
+  return ToClusterIds(labels);
+}
+
+absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
+                                            std::vector<ClusterId>& labels,
+                                            const EmloOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  if (labels.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
+  }
+  std::vector<uint32_t> compact;
+  const uint32_t k = CompactClusterIds(labels, compact);
+  const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+        using Energy = std::decay_t<decltype(energy)>;
+        Partition<Energy> partition(energy, compact, k);
+        const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
+        OptimizeResult result;
+        result.initial_energy = partition.TotalEnergy();
+        const uint64_t max_moves = options.max_moves != 0 ? options.max_moves : 1000 * n;
+        uint64_t since_report = 0;
+        const uint64_t every = std::max<uint64_t>(1, options.progress_moves);
+        detail::EmloScratch scratch;
+        const std::vector<uint32_t> boundary = detail::BoundaryFaces(*problem.adjacency, partition);
+        const detail::EmloCounters counters = detail::RunEmloOn(
+            *problem.adjacency, options.connectivity_guard ? &guard : nullptr, partition, boundary,
+            max_moves, scratch, [&](uint32_t, uint32_t, uint32_t) {
+              if (options.on_progress && ++since_report == every) {
+                since_report = 0;
+                ++result.iterations;
+                options.on_progress(result.moves + 1, partition.TotalEnergy());
+              }
+              ++result.moves;
+            });
+        result.converged = !counters.hit_move_limit;
+        result.energy = partition.TotalEnergy();
+        if (options.on_progress) options.on_progress(result.moves, result.energy);
+        WriteBack(partition.labels(), original, labels);
+        return result;
+      });
+}
+
+absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
+                                                     std::vector<ClusterId>& labels,
+                                                     const BoundaryBasedOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  if (labels.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  std::vector<uint32_t> compact;
+  const uint32_t k = CompactClusterIds(labels, compact);
+  const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
+  const FaceAdjacency& adjacency = *problem.adjacency;
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+        using Energy = std::decay_t<decltype(energy)>;
+        using Proxy = typename Energy::Proxy;
+        Partition<Energy> partition(energy, compact, k);
+        const ConnectivityGuard guard(*problem.mesh, adjacency);
+        OptimizeResult result;
+        result.initial_energy = partition.TotalEnergy();
+        double current = result.initial_energy;
+        std::vector<Proxy> proxies(k);
+        std::vector<uint32_t> target(n, kUnassigned);
+        std::vector<uint32_t> moving;
+        std::vector<std::pair<uint32_t, uint32_t>> applied;  // face, previous cluster
+        result.converged = false;
+        for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+          for (uint32_t c = 0; c < k; ++c) proxies[c] = energy.FitProxy(partition.sums(c));
+          // Every face decides alone against the fixed proxies (parallel).
+          arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint32_t>(0, static_cast<uint32_t>(n), 4096),
+                              [&](const tbb::blocked_range<uint32_t>& range) {
+                                for (uint32_t f = range.begin(); f != range.end(); ++f) {
+                                  target[f] = kUnassigned;
+                                  const uint32_t own = partition.label(f);
+                                  double best = energy.FaceCost(f, proxies[own]);
+                                  const double own_cost = best;
+                                  uint32_t best_cluster = own;
+                                  for (FaceId g : adjacency.neighbours[f]) {
+                                    if (!g.valid()) continue;
+                                    const uint32_t c = partition.label(g.value());
+                                    if (c == own || c == best_cluster) continue;
+                                    const double cost = energy.FaceCost(f, proxies[c]);
+                                    if (cost < best) {
+                                      best = cost;
+                                      best_cluster = c;
+                                    }
+                                  }
+                                  if (best_cluster != own && own_cost - best > 1e-12 * own_cost) {
+                                    target[f] = best_cluster;
+                                  }
+                                }
+                              });
+          });
+          // Faces that share a vertex do not move in the same sweep: the smaller id wins.
+          moving.clear();
+          for (uint32_t f = 0; f < n; ++f) {
+            if (target[f] != kUnassigned) moving.push_back(f);
+          }
+          std::vector<uint8_t> accept(moving.size(), 0);
+          arena.execute([&] {
+            tbb::parallel_for(
+                tbb::blocked_range<size_t>(0, moving.size(), 256),
+                [&](const tbb::blocked_range<size_t>& range) {
+                  for (size_t i = range.begin(); i != range.end(); ++i) {
+                    const uint32_t f = moving[i];
+                    bool first = true;
+                    for (uint32_t g : guard.Ring(f)) {
+                      if (g != ConnectivityGuard::kGap && g < f && target[g] != kUnassigned) {
+                        first = false;
+                        break;
+                      }
+                    }
+                    if (!first) continue;
+                    if (options.connectivity_guard &&
+                        !guard.CanMove(f, target[f], partition.labels(), partition.sizes())) {
+                      continue;
+                    }
+                    accept[i] = 1;
+                  }
+                });
+          });
+          applied.clear();
+          for (size_t i = 0; i < moving.size(); ++i) {
+            if (!accept[i]) continue;
+            const uint32_t f = moving[i];
+            if (partition.size(partition.label(f)) <= 1) continue;
+            applied.push_back({f, partition.label(f)});
+            partition.Move(f, target[f]);
+          }
+          result.iterations = iteration;
+          if (applied.empty()) {
+            result.converged = true;
+            break;
+          }
+          const double next = partition.TotalEnergy();
+          if (next > current) {
+            // Possible only for energies whose proxy is not a minimiser (MWCVD): undo.
+            for (auto it = applied.rbegin(); it != applied.rend(); ++it) {
+              partition.Move(it->first, it->second);
+            }
+            result.converged = true;
+            break;
+          }
+          current = next;
+          result.moves += applied.size();
+          if (options.on_iteration) options.on_iteration(iteration, current);
+        }
+        result.energy = partition.TotalEnergy();
+        WriteBack(partition.labels(), original, labels);
+        return result;
+      });
+}
+
+}  // namespace mlclust

@@ -1,0 +1,103 @@
+// Single-level mesh clustering: initial clusters, EMLO and boundary-based optimisation.
+//
+// Every function takes the mesh, its adjacency and face measures (a MeshProblem), an energy
+// (MeshEnergyOptions: any energy in core/energies.h) and an options struct, and returns an
+// absl::Status or result. Labels are one cluster id per face; functions that produce
+// labels number clusters 0..k-1.
+#ifndef MLCLUST_CORE_CLUSTER_MESH_CLUSTERING_H_
+#define MLCLUST_CORE_CLUSTER_MESH_CLUSTERING_H_
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/base/ids.h"
+#include "core/energy/energies.h"
+#include "core/mesh/face_measures.h"
+#include "core/mesh/mesh.h"
+
+namespace mlclust {
+
+// The data every mesh algorithm needs. The pointers must outlive the call; the mesh must
+// have passed ValidateMesh, and adjacency and measures must be the mesh's.
+struct MeshProblem {
+  const TriangleMesh* mesh = nullptr;
+  const FaceAdjacency* adjacency = nullptr;
+  const FaceMeasures* measures = nullptr;
+  MeshEnergyOptions energy;
+};
+
+struct SeedOptions {
+  enum class Method {
+    kRandom,          // k distinct faces, at least one per connected component
+    kLNeighbourhood,  // Alg. 3.1: faces whose l-neighbourhoods do not overlap, reduced to k
+  };
+  Method method = Method::kLNeighbourhood;
+  uint32_t clusters = 0;  // k, in [1, faces] and >= the number of connected components
+  // l for kLNeighbourhood: the seeds' neighbourhoods of l edge-steps do not overlap.
+  // 0 picks the largest l that still yields at least k seeds.
+  uint32_t level = 0;
+  uint64_t seed = 1;  // random generator seed: same seed, same result on every platform
+};
+
+// Seeds and grows them to a full partition of exactly `clusters` connected clusters.
+// Growing floods from the seeds in order of each face's cost against its seed's proxy
+// (the VSA-style flood of Alg. 2.2, with the chosen energy). With kLNeighbourhood the
+// seeds' regions are reduced to exactly k by repeatedly merging the three clusters that
+// meet at a vertex with the smallest summed area (section 3.1.5), the last step merging
+// a pair if k differs in parity. INVALID_ARGUMENT names the option that is out of range
+// (k < 1, k > faces, k < connected components, l too large for k).
+absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
+                                                       const SeedOptions& options);
+
+// Alg. 3.1 alone: the seed faces for neighbourhood size `level`, in face order.
+std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);
+
+struct OptimizeResult {
+  double initial_energy = 0;
+  double energy = 0;
+  uint64_t moves = 0;
+  uint32_t iterations = 0;  // BB sweeps; for EMLO the number of progress reports
+  bool converged = true;    // false if a move or iteration cap stopped it
+};
+
+struct EmloOptions {
+  // The connectivity guard (Alg. 3.2's purpose): no cluster splits or gains a hole.
+  bool connectivity_guard = true;
+  // Stop after this many moves (0: 1000 x faces, a safety net only).
+  uint64_t max_moves = 0;
+  // Called every `progress_moves` moves and at the end with the total energy.
+  std::function<void(uint64_t moves, double energy)> on_progress;
+  uint64_t progress_moves = 10000;
+};
+
+// EMLO (Alg. 3.3) from `labels` until no boundary move lowers the energy. `labels` is
+// replaced by the result; clusters keep their ids (no cluster disappears).
+// INVALID_ARGUMENT if labels.size() differs from the face count.
+absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
+                                            std::vector<ClusterId>& labels,
+                                            const EmloOptions& options = {});
+
+struct BoundaryBasedOptions {
+  uint32_t max_iterations = 200;
+  int threads = 0;  // 0: all cores
+  bool connectivity_guard = true;
+  // Called after each sweep with its number (1-based) and the total energy.
+  std::function<void(uint32_t iteration, double energy)> on_iteration;
+};
+
+// Boundary-based optimisation (Alg. 5.1): proxies are fixed for a sweep; every boundary
+// face decides on its own, in parallel, whether a neighbouring cluster's proxy fits it
+// better; moves of faces that share a vertex are not applied in the same sweep (the one
+// with the smaller id wins; the other retries next sweep) so each move's connectivity
+// check stays valid. A sweep that would raise the energy (possible for MWCVD, whose
+// weights are not fitted) is undone and ends the run. Stops when nothing moves or after
+// max_iterations. Clusters keep their ids, as for OptimizeEmlo.
+absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
+                                                     std::vector<ClusterId>& labels,
+                                                     const BoundaryBasedOptions& options = {});
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_CLUSTER_MESH_CLUSTERING_H_

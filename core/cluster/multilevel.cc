@@ -1,0 +1,594 @@
+#include "core/cluster/multilevel.h"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+#include "absl/container/flat_hash_map.h"
+#include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/partition.h"
+#include "core/mesh/connectivity_guard.h"
+#include "tbb/parallel_for.h"
+#include "tbb/task_arena.h"
+
+namespace mlclust {
+namespace {
+
+constexpr uint32_t kNone = 0xffffffffu;
+
+using detail::CompensatedSum;
+
+// A cluster's optimal dual edge (Def. 4.2) as it was when pushed: stale once the cluster's
+// ODE has been recomputed since (lazy invalidation by version numbers, instead of the
+// dissertation's O(k) scan for the cheapest ODE per merge).
+struct OdeEntry {
+  double cost;
+  uint32_t cluster;
+  uint32_t version;
+};
+struct CheaperLast {
+  bool operator()(const OdeEntry& x, const OdeEntry& y) const {
+    if (x.cost != y.cost) return x.cost > y.cost;
+    return x.cluster > y.cluster;
+  }
+};
+
+template <typename Energy>
+class Engine {
+ public:
+  using Sums = typename Energy::Sums;
+  using Proxy = typename Energy::Proxy;
+
+  Engine(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options,
+         LevelSink& sink)
+      : adjacency_(*problem.adjacency),
+        options_(options),
+        sink_(sink),
+        guard_(*problem.mesh, *problem.adjacency),
+        n_(static_cast<uint32_t>(problem.mesh->num_faces())),
+        partition_(energy, Identity(n_), n_),
+        members_(n_),
+        position_(n_, 0),
+        neighbours_(n_),
+        version_(n_, 0),
+        ode_(n_, kNone),
+        ode_cost_(n_, std::numeric_limits<double>::infinity()),
+        dirty_mark_(n_, 0),
+        origin_(n_, kNone),
+        affected_mark_(n_, 0),
+        energy_before_(n_, 0.0) {
+    for (uint32_t f = 0; f < n_; ++f) {
+      members_[f] = {f};
+      for (FaceId g : adjacency_.neighbours[f]) {
+        // Each face edge is seen from both faces: one side each time.
+        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
+      }
+    }
+  }
+
+  absl::StatusOr<MultilevelSummary> Run() {
+    std::vector<ClusterId> start(n_);
+    for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
+    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
+    std::vector<ClusterId>().swap(start);
+    summary_.levels = 1;
+    if (options_.inspect_level) options_.inspect_level(0, partition_.labels());
+
+    clusters_ = n_;
+    // Alg. 4.2: below this count the merges are optimised.
+    const double unoptimised = std::clamp(options_.p_percent, 0.0, 100.0) / 100.0;
+    optimise_below_ = static_cast<uint32_t>(std::floor(n_ * (1.0 - unoptimised)));
+    if (options_.optimizer == MultilevelOptions::Optimizer::kNone) optimise_below_ = 0;
+
+    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    bool odes_current = false;
+    if (options_.parallel) {
+      arena.execute([&] { ComputeAllOdes(); });
+      odes_current = true;
+      while (clusters_ > options_.min_clusters && clusters_ > options_.pml_until) {
+        absl::StatusOr<bool> progressed = arena.execute([&] { return ParallelStep(); });
+        if (!progressed.ok()) return progressed.status();
+        if (!*progressed) break;
+      }
+    }
+    if (odes_current) {
+      RebuildHeap();  // from the ODEs PML kept up to date
+    } else {
+      BuildHeap();
+    }
+    while (clusters_ > options_.min_clusters) {
+      absl::StatusOr<bool> progressed = SequentialStep();
+      if (!progressed.ok()) return progressed.status();
+      if (!*progressed) break;  // no adjacent pair left: one cluster per component
+    }
+    summary_.final_clusters = clusters_;
+    summary_.final_energy = energy_.value();
+    return summary_;
+  }
+
+ private:
+  static std::vector<uint32_t> Identity(uint32_t n) {
+    std::vector<uint32_t> ids(n);
+    for (uint32_t i = 0; i < n; ++i) ids[i] = i;
+    return ids;
+  }
+
+  // ---- cluster adjacency: per cluster, (neighbour, number of shared face edges) --------
+
+  void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta) {
+    auto& list = neighbours_[x];
+    for (size_t i = 0; i < list.size(); ++i) {
+      if (list[i].first == z) {
+        list[i].second += delta;
+        if (list[i].second == 0) {
+          list[i] = list.back();
+          list.pop_back();
+          MarkDirty(x);  // x's ODE may have been the neighbour it no longer touches
+        }
+        return;
+      }
+    }
+    if (delta > 0) list.push_back({z, static_cast<uint32_t>(delta)});
+  }
+
+  // Face f moved from y to x: each of its edges now borders x instead of y.
+  void OnFaceMoved(uint32_t f, uint32_t y, uint32_t x) {
+    for (FaceId g : adjacency_.neighbours[f]) {
+      if (!g.valid()) continue;
+      const uint32_t z = partition_.label(g.value());
+      if (y != z) {
+        AddEdgesOneSide(y, z, -1);
+        AddEdgesOneSide(z, y, -1);
+      }
+      if (x != z) {
+        AddEdgesOneSide(x, z, 1);
+        AddEdgesOneSide(z, x, 1);
+      }
+    }
+    // Members: swap-remove from y, append to x.
+    auto& from = members_[y];
+    const uint32_t at = position_[f];
+    from[at] = from.back();
+    position_[from[at]] = at;
+    from.pop_back();
+    position_[f] = static_cast<uint32_t>(members_[x].size());
+    members_[x].push_back(f);
+  }
+
+  // ---- level bookkeeping ------------------------------------------------------------
+
+  void Touch(uint32_t cluster) {
+    if (affected_mark_[cluster]) return;
+    affected_mark_[cluster] = 1;
+    affected_.push_back(cluster);
+    energy_before_[cluster] = partition_.cluster_energy(cluster);
+  }
+  void RecordMove(uint32_t face, uint32_t from) {
+    if (origin_[face] == kNone) {
+      origin_[face] = from;
+      touched_.push_back(face);
+    }
+  }
+
+  // Merges `gone` into `keep` with all bookkeeping.
+  void Merge(uint32_t keep, uint32_t gone) {
+    Touch(keep);
+    Touch(gone);
+    for (uint32_t f : members_[gone]) RecordMove(f, gone);
+    partition_.Merge(keep, gone, members_[gone]);
+    for (uint32_t f : members_[gone]) {
+      position_[f] = static_cast<uint32_t>(members_[keep].size());
+      members_[keep].push_back(f);
+    }
+    std::vector<uint32_t>().swap(members_[gone]);
+    for (const auto& [c, count] : neighbours_[gone]) {
+      MarkDirty(c);  // its ODE may have been `gone`
+      AddEdgesOneSide(c, gone, -static_cast<int32_t>(count));
+      if (c == keep) continue;
+      AddEdgesOneSide(keep, c, static_cast<int32_t>(count));
+      AddEdgesOneSide(c, keep, static_cast<int32_t>(count));
+    }
+    std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+    --clusters_;
+  }
+  // The larger cluster keeps its id (fewest faces move); the smaller id on a tie.
+  std::pair<uint32_t, uint32_t> KeepAndGone(uint32_t a, uint32_t b) const {
+    const uint32_t size_a = partition_.size(a), size_b = partition_.size(b);
+    if (size_a > size_b || (size_a == size_b && a < b)) return {a, b};
+    return {b, a};
+  }
+
+  // Local optimisation around the `merged` clusters, from their boundary faces outward.
+  void Optimise(std::span<const uint32_t> merged) {
+    if (clusters_ >= optimise_below_) return;
+    worklist_.clear();
+    for (uint32_t c : merged) {
+      for (uint32_t f : members_[c]) {
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid() && partition_.label(g.value()) != c) {
+            worklist_.push_back(f);
+            break;
+          }
+        }
+      }
+    }
+    const ConnectivityGuard* guard = options_.connectivity_guard ? &guard_ : nullptr;
+    // Touch (before each move) keeps the clusters' energies from before the level; this
+    // runs after the move.
+    auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
+      RecordMove(face, from);
+      OnFaceMoved(face, from, to);
+      ++summary_.optimisation_moves;
+    };
+    const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
+    if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
+      summary_.evaluations += detail::RunEmloOn(adjacency_, guard, partition_, worklist_, max_moves,
+                                                emlo_scratch_, on_move,
+                                                [&](uint32_t from, uint32_t to) {
+                                                  Touch(from);
+                                                  Touch(to);
+                                                })
+                                  .evaluations;
+    } else {
+      OptimiseBoundaryBased(guard, on_move);
+    }
+  }
+
+  // Local boundary-based optimisation: sweeps over the worklist with the touched
+  // clusters' proxies fixed per sweep; the faces that moved put their neighbours on the
+  // next sweep's list. At most a few sweeps per level.
+  template <typename OnMove>
+  void OptimiseBoundaryBased(const ConnectivityGuard* guard, OnMove& on_move) {
+    std::vector<uint32_t> next;
+    for (int sweep = 0; sweep < 8 && !worklist_.empty(); ++sweep) {
+      proxy_cache_.clear();
+      auto proxy = [&](uint32_t c) -> const Proxy& {
+        auto it = proxy_cache_.find(c);
+        if (it == proxy_cache_.end()) {
+          it = proxy_cache_.emplace(c, partition_.energy().FitProxy(partition_.sums(c))).first;
+        }
+        return it->second;
+      };
+      next.clear();
+      for (uint32_t f : worklist_) {
+        const uint32_t own = partition_.label(f);
+        double best = partition_.energy().FaceCost(f, proxy(own));
+        const double own_cost = best;
+        uint32_t target = own;
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (!g.valid()) continue;
+          const uint32_t c = partition_.label(g.value());
+          if (c == own || c == target) continue;
+          const double cost = partition_.energy().FaceCost(f, proxy(c));
+          if (cost < best) {
+            best = cost;
+            target = c;
+          }
+        }
+        if (target == own || own_cost - best <= 1e-12 * own_cost) continue;
+        if (partition_.size(own) <= 1) continue;
+        if (guard != nullptr &&
+            !guard->CanMove(f, target, partition_.labels(), partition_.sizes())) {
+          continue;
+        }
+        Touch(own);
+        Touch(target);
+        partition_.Move(f, target);
+        on_move(f, own, target);
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid()) next.push_back(g.value());
+        }
+      }
+      std::sort(next.begin(), next.end());
+      next.erase(std::unique(next.begin(), next.end()), next.end());
+      worklist_.swap(next);
+    }
+  }
+
+  // Ends a level: squashes the moves into triplets, updates the energy, re-queues the
+  // dual edges of every cluster that changed, and reports the level.
+  absl::Status FinishLevel() {
+    for (uint32_t c : affected_) {
+      energy_.Add(partition_.cluster_energy(c) - energy_before_[c]);
+      affected_mark_[c] = 0;
+    }
+    element_.clear();
+    to_.clear();
+    from_.clear();
+    for (uint32_t f : touched_) {
+      if (partition_.label(f) != origin_[f]) {
+        element_.push_back(f);
+        to_.push_back(partition_.label(f));
+        from_.push_back(origin_[f]);
+      }
+      origin_[f] = kNone;
+    }
+    touched_.clear();
+    UpdateOptimalDualEdges();
+    for (uint32_t c : dirty_) dirty_mark_[c] = 0;
+    dirty_.clear();
+    affected_.clear();
+    LevelMoves level;
+    level.level = summary_.levels;
+    level.cluster_count = clusters_;
+    level.energy = energy_.value();
+    level.element = element_;
+    level.to_cluster = to_;
+    level.from_cluster = from_;
+    summary_.moves += element_.size();
+    MLCLUST_RETURN_IF_ERROR(sink_.OnLevel(level));
+    if (options_.inspect_level) options_.inspect_level(summary_.levels, partition_.labels());
+    ++summary_.levels;
+    return absl::OkStatus();
+  }
+
+  // ---- ML: optimal dual edges and the cheapest of them from a heap ---------------------
+
+  void MarkDirty(uint32_t c) {
+    if (dirty_mark_[c]) return;
+    dirty_mark_[c] = 1;
+    dirty_.push_back(c);
+  }
+
+  double Cost(uint32_t a, uint32_t b) const {
+    return partition_.energy().MergeCost(partition_.sums(a), partition_.sums(b));
+  }
+
+  // Equal costs go to the larger id (as PML's rule), so every choice is deterministic.
+  static bool Better(double cost, uint32_t d, double best, uint32_t best_d) {
+    return cost < best || (cost == best && best_d != kNone && d > best_d) ||
+           (best_d == kNone && cost <= best);
+  }
+
+  void SetOde(uint32_t c, uint32_t d, double cost) {
+    ode_[c] = d;
+    ode_cost_[c] = cost;
+    ++version_[c];
+    if (d != kNone && !in_parallel_phase_) {
+      heap_.push_back({cost, c, version_[c]});
+      std::push_heap(heap_.begin(), heap_.end(), CheaperLast{});
+    }
+  }
+
+  void RecomputeOde(uint32_t c) {
+    double best = std::numeric_limits<double>::infinity();
+    uint32_t best_d = kNone;
+    for (const auto& [d, count] : neighbours_[c]) {
+      const double cost = Cost(c, d);
+      if (Better(cost, d, best, best_d)) {
+        best = cost;
+        best_d = d;
+      }
+    }
+    SetOde(c, best_d, best);
+  }
+
+  // Section 4.2.2's flags: only clusters whose configuration changed (sums changed, or
+  // their ODE partner changed or left) get their ODE recomputed; a neighbour of a changed
+  // cluster only compares the one edge that changed, unless its ODE was that edge.
+  void UpdateOptimalDualEdges() {
+    for (uint32_t c : affected_) MarkDirty(c);
+    for (uint32_t c : dirty_) {
+      if (partition_.size(c) > 0) RecomputeOde(c);
+    }
+    for (uint32_t c : affected_) {
+      if (partition_.size(c) == 0) continue;
+      for (const auto& [d, count] : neighbours_[c]) {
+        if (dirty_mark_[d]) continue;  // recomputed in full above
+        if (ode_[d] == c) {
+          MarkDirty(d);  // its best edge changed: it may no longer be the best
+          RecomputeOde(d);
+          continue;
+        }
+        const double cost = Cost(d, c);
+        if (Better(cost, c, ode_cost_[d], ode_[d])) SetOde(d, c, cost);
+      }
+    }
+    if (!in_parallel_phase_) MaybeCompactHeap();
+  }
+
+  void BuildHeap() {
+    heap_.clear();
+    for (uint32_t c = 0; c < n_; ++c) {
+      if (partition_.size(c) > 0) RecomputeOde(c);
+    }
+  }
+
+  // Stale entries pile up; rebuild from the live ODEs when they outnumber the clusters
+  // four to one, keeping the heap O(clusters).
+  void MaybeCompactHeap() {
+    if (heap_.size() <= 4 * static_cast<size_t>(clusters_) + 4096) return;
+    RebuildHeap();
+  }
+  void RebuildHeap() {
+    heap_.clear();
+    for (uint32_t c = 0; c < n_; ++c) {
+      if (partition_.size(c) > 0 && ode_[c] != kNone)
+        heap_.push_back({ode_cost_[c], c, version_[c]});
+    }
+    std::make_heap(heap_.begin(), heap_.end(), CheaperLast{});
+  }
+
+  absl::StatusOr<bool> SequentialStep() {
+    while (!heap_.empty()) {
+      std::pop_heap(heap_.begin(), heap_.end(), CheaperLast{});
+      const OdeEntry entry = heap_.back();
+      heap_.pop_back();
+      if (partition_.size(entry.cluster) == 0 || version_[entry.cluster] != entry.version) {
+        continue;
+      }
+      const auto [keep, gone] = KeepAndGone(entry.cluster, ode_[entry.cluster]);
+      Merge(keep, gone);
+      const uint32_t merged[1] = {keep};
+      Optimise(merged);
+      MLCLUST_RETURN_IF_ERROR(FinishLevel());
+      return true;
+    }
+    return false;
+  }
+
+  // ---- PML: all mutual optimal dual edges at once --------------------------------------
+
+  // All ODEs at once, in parallel (PML's start); no heap entries.
+  void ComputeAllOdes() {
+    alive_.clear();
+    for (uint32_t c = 0; c < n_; ++c) {
+      if (partition_.size(c) > 0) alive_.push_back(c);
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, alive_.size(), 512),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          const uint32_t c = alive_[i];
+                          double best = std::numeric_limits<double>::infinity();
+                          uint32_t best_d = kNone;
+                          for (const auto& [d, count] : neighbours_[c]) {
+                            const double cost = Cost(c, d);
+                            if (Better(cost, d, best, best_d)) {
+                              best = cost;
+                              best_d = d;
+                            }
+                          }
+                          ode_[c] = best_d;
+                          ode_cost_[c] = best;
+                        }
+                      });
+  }
+
+  // One PML level: every cluster's ODE is up to date (ComputeAllOdes, then the flags of
+  // each level); the mutual pairs collapse together. Equal costs go to the larger id,
+  // which makes the order total, so the globally cheapest edge is always mutual.
+  absl::StatusOr<bool> ParallelStep() {
+    in_parallel_phase_ = true;
+    size_t alive = 0;
+    for (uint32_t c : alive_) {
+      if (partition_.size(c) > 0) alive_[alive++] = c;
+    }
+    alive_.resize(alive);
+    pairs_.clear();
+    for (uint32_t c : alive_) {
+      const uint32_t d = ode_[c];
+      if (d != kNone && c < d && ode_[d] == c) pairs_.push_back({c, d});
+    }
+    if (pairs_.empty()) {
+      in_parallel_phase_ = false;
+      return false;
+    }
+    // Do not merge past min_clusters / pml_until: the cheapest pairs first.
+    const uint32_t floor = std::max(options_.min_clusters, 1u);
+    if (clusters_ - pairs_.size() < floor) {
+      std::sort(pairs_.begin(), pairs_.end(), [&](const auto& x, const auto& y) {
+        return partition_.energy().MergeCost(partition_.sums(x.first), partition_.sums(x.second)) <
+               partition_.energy().MergeCost(partition_.sums(y.first), partition_.sums(y.second));
+      });
+      pairs_.resize(clusters_ - floor);
+    }
+    merged_.clear();
+    for (const auto& [a, b] : pairs_) {
+      const auto [keep, gone] = KeepAndGone(a, b);
+      Merge(keep, gone);
+      merged_.push_back(keep);
+    }
+    if (clusters_ <= options_.pml_until) {
+      // The hand-over to ML: one optimisation over every cluster's boundary, so that ML
+      // continues from a state optimised as a whole, not only around the last merges.
+      Optimise(alive_);
+    } else {
+      Optimise(merged_);
+    }
+    absl::Status s = FinishLevel();
+    in_parallel_phase_ = false;
+    if (!s.ok()) return s;
+    return true;
+  }
+
+  const FaceAdjacency& adjacency_;
+  const MultilevelOptions& options_;
+  LevelSink& sink_;
+  ConnectivityGuard guard_;
+  const uint32_t n_;
+  Partition<Energy> partition_;
+  std::vector<std::vector<uint32_t>> members_;
+  std::vector<uint32_t> position_;
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;
+  std::vector<uint32_t> version_;
+  std::vector<OdeEntry> heap_;
+  std::vector<uint32_t> ode_;
+  std::vector<double> ode_cost_;
+  std::vector<uint8_t> dirty_mark_;
+  std::vector<uint32_t> dirty_;
+
+  // Level bookkeeping.
+  std::vector<uint32_t> origin_, touched_;
+  std::vector<uint8_t> affected_mark_;
+  std::vector<uint32_t> affected_;
+  std::vector<double> energy_before_;
+  std::vector<uint32_t> element_, to_, from_;
+  CompensatedSum energy_;
+  uint32_t clusters_ = 0;
+  uint32_t optimise_below_ = 0;
+  bool in_parallel_phase_ = false;
+  MultilevelSummary summary_;
+
+  // Optimisation scratch.
+  std::vector<uint32_t> worklist_;
+  detail::EmloScratch emlo_scratch_;
+  absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
+
+  // PML scratch.
+  std::vector<uint32_t> alive_, merged_;
+  std::vector<std::pair<uint32_t, uint32_t>> pairs_;
+};
+
+}  // namespace
+
+absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
+                                                const MultilevelOptions& options, LevelSink& sink) {
+  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
+    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+  }
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(problem.energy));
+  if (options.min_clusters < 1) {
+    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
+  }
+  if (!(options.p_percent >= 0 && options.p_percent <= 100)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("p-percent: ", options.p_percent, " is not in [0, 100]"));
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                        [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
+                          using Energy = std::decay_t<decltype(energy)>;
+                          Engine<Energy> engine(problem, energy, options, sink);
+                          return engine.Run();
+                        });
+}
+
+std::vector<uint32_t> FindElbows(std::span<const uint32_t> cluster_count,
+                                 std::span<const double> energy, double jump, double significance,
+                                 size_t max_elbows) {
+  std::vector<std::pair<double, uint32_t>> candidates;  // strength, cluster count
+  if (energy.empty()) return {};
+  const double largest = *std::max_element(energy.begin(), energy.end());
+  for (size_t l = 0; l + 1 < energy.size(); ++l) {
+    // Levels whose energy is a negligible share of the largest are rounding noise: there
+    // every merge multiplies the energy.
+    if (!(energy[l] > significance * largest)) continue;
+    const double strength = energy[l + 1] / energy[l];
+    if (strength > jump) candidates.push_back({strength, cluster_count[l]});
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& x, const auto& y) { return x.first > y.first; });
+  std::vector<uint32_t> elbows;
+  for (const auto& [strength, k] : candidates) {
+    if (elbows.size() == max_elbows) break;
+    elbows.push_back(k);
+  }
+  return elbows;
+}
+
+}  // namespace mlclust

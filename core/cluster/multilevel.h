@@ -1,0 +1,76 @@
+// The multilevel engine: ML (Alg. 4.1), its p% variant (Alg. 4.2), PML (Alg. 5.3) and HC
+// (Alg. 2.3, the same engine without optimisation), over every mesh energy.
+//
+// Start: one cluster per face (cluster id = face id). ML repeats: merge the pair of
+// adjacent clusters with the smallest dual-edge cost E(A u B) - E(A) - E(B) (eq. 4.1),
+// then optimise locally around the merged cluster (EMLO for energies with an incremental
+// form, BB for proxy-only ones, or none), spreading outward only while something
+// changes. Every level goes to a LevelSink as the faces whose cluster changed, with the
+// cluster count and the energy (kept from sums, never re-scanned).
+#ifndef MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
+#define MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/hierarchy/hierarchy.h"
+
+namespace mlclust {
+
+struct MultilevelOptions {
+  enum class Optimizer {
+    kEmlo,           // local EMLO after each merge (the default)
+    kBoundaryBased,  // local boundary-based sweeps with proxies fixed per sweep
+    kNone,           // HC: merges only
+  };
+  Optimizer optimizer = Optimizer::kEmlo;
+  // Alg. 4.2: merge this percentage of the clusters first without optimisation (HC), then
+  // continue as ML. 0 (the default) is plain ML; 100 is HC.
+  double p_percent = 0;
+  // PML (Alg. 5.3): collapse all mutual optimal dual edges at once per level (ties to the
+  // larger id) while more than `pml_until` clusters are left, then continue as ML. 0: PML
+  // to the end.
+  bool parallel = false;
+  uint32_t pml_until = 0;
+  // Stop at this many clusters (>= 1); a mesh with C components stops at C at the least.
+  uint32_t min_clusters = 1;
+  bool connectivity_guard = true;
+  // Worker threads for PML's parallel steps, 0 = all cores.
+  int threads = 0;
+  // Called at each level after it is reported, with the engine's own labels (one cluster
+  // id per face). For tests that check the log against the engine; costs O(faces) a call.
+  std::function<void(size_t level, std::span<const uint32_t> labels)> inspect_level;
+};
+
+struct MultilevelSummary {
+  uint32_t levels = 0;  // level 0 included
+  uint32_t final_clusters = 0;
+  uint64_t moves = 0;               // triplets reported
+  uint64_t optimisation_moves = 0;  // face moves made by the optimiser, before squashing
+  uint64_t evaluations = 0;         // boundary edges the optimiser compared
+  double final_energy = 0;
+};
+
+// Runs the engine and reports every level to `sink` (level 0: every face its own cluster,
+// energy 0 for every energy here). INVALID_ARGUMENT for out-of-range options; the sink's
+// status if it stops the run (e.g. CANCELLED).
+absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
+                                                const MultilevelOptions& options, LevelSink& sink);
+
+// Section 4.4: the cluster counts where the energy curve bends, strongest first. A level
+// with k clusters is an elbow when the next level's energy is more than `jump` times its
+// own (the curve is at its flattest before a natural grouping is broken up); levels whose
+// energy is below `significance` times the largest are rounding noise and skipped. At most
+// `max_elbows`, ordered by the size of the jump. `cluster_count` and `energy` are per
+// level, in level order (cluster counts falling).
+std::vector<uint32_t> FindElbows(std::span<const uint32_t> cluster_count,
+                                 std::span<const double> energy, double jump = 2.0,
+                                 double significance = 1e-4, size_t max_elbows = 5);
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_CLUSTER_MULTILEVEL_H_

@@ -1,0 +1,1285 @@
+#include "core/cluster/point_clustering.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numeric>
+
+#include "absl/container/flat_hash_map.h"
+#include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
+#include "core/base/random.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/kmeans.h"
+#include "tbb/parallel_for.h"
+#include "tbb/task_arena.h"
+
+namespace mlclust {
+namespace {
+
+constexpr uint32_t kNone = 0xffffffffu;
+// LN k-means rounds after a merge (the first checks the merged clusters and their
+// neighbours, the others the clusters that changed).
+constexpr int kOptimiseRounds = 8;
+
+using detail::CompensatedSum;
+
+// Clusters of points with their sums, centroids and local neighbours. Coordinates are
+// taken relative to the data's mean (`origin`) so that the energy from sums,
+// sum |x|^2 - |sum x|^2 / n, keeps its precision.
+class PointClusters {
+ public:
+  PointClusters(const PointSet& points, std::span<const uint32_t> labels, uint32_t capacity)
+      : points_(points),
+        d_(points.dims),
+        labels_(labels.begin(), labels.end()),
+        count_(capacity, 0),
+        sum_(size_t{capacity} * d_, 0.0),
+        square_(capacity, 0.0),
+        centroid_(size_t{capacity} * d_, 0.0),
+        neighbours_(size_t{capacity} * 2 * d_, kNone),
+        origin_(d_, 0.0),
+        seen_(capacity, 0) {
+    const size_t m = points.num_points();
+    for (size_t i = 0; i < m; ++i) {
+      for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
+    }
+    for (double& o : origin_) o /= static_cast<double>(std::max<size_t>(m, 1));
+    for (size_t i = 0; i < m; ++i) Add(labels_[i], i, +1);
+    for (uint32_t c = 0; c < capacity; ++c) UpdateCentroid(c);
+  }
+
+  uint32_t dims() const { return d_; }
+  uint32_t capacity() const { return static_cast<uint32_t>(count_.size()); }
+  uint32_t label(size_t i) const { return labels_[i]; }
+  std::span<const uint32_t> labels() const { return labels_; }
+  uint64_t count(uint32_t c) const { return count_[c]; }
+  std::span<const double> centroid(uint32_t c) const { return {&centroid_[size_t{c} * d_], d_}; }
+  std::span<uint32_t> neighbours(uint32_t c) { return {&neighbours_[size_t{c} * 2 * d_], 2 * d_}; }
+  std::span<const uint32_t> neighbours(uint32_t c) const {
+    return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
+  }
+
+  double Energy(uint32_t c) const {
+    if (count_[c] == 0) return 0;
+    double s2 = 0;
+    for (uint32_t j = 0; j < d_; ++j) s2 += sum_[size_t{c} * d_ + j] * sum_[size_t{c} * d_ + j];
+    return std::max(0.0, square_[c] - s2 / static_cast<double>(count_[c]));
+  }
+  double MergeCost(uint32_t a, uint32_t b) const {
+    const double na = static_cast<double>(count_[a]), nb = static_cast<double>(count_[b]);
+    if (na == 0 || nb == 0) return 0;
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = centroid_[size_t{a} * d_ + j] - centroid_[size_t{b} * d_ + j];
+      dist += diff * diff;
+    }
+    return na * nb / (na + nb) * dist;
+  }
+  // |x_i - c|^2 with x_i relative to the origin.
+  double Distance(size_t i, uint32_t c) const {
+    const float* x = &points_.values[i * d_];
+    const double* cc = &centroid_[size_t{c} * d_];
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = (x[j] - origin_[j]) - cc[j];
+      dist += diff * diff;
+    }
+    return dist;
+  }
+  // |x - c|^2 for x already relative to the origin (Relative).
+  double DistanceTo(const double* x, uint32_t c) const {
+    const double* cc = &centroid_[size_t{c} * d_];
+    double dist = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = x[j] - cc[j];
+      dist += diff * diff;
+    }
+    return dist;
+  }
+  // Asks the caches for point i's coordinates and label, which are read in random order.
+  void Prefetch(size_t i) const {
+    __builtin_prefetch(&points_.values[i * d_]);
+    __builtin_prefetch(&labels_[i]);
+  }
+  void Relative(size_t i, std::vector<double>& out) const {
+    out.resize(d_);
+    for (uint32_t j = 0; j < d_; ++j) out[j] = points_.values[i * d_ + j] - origin_[j];
+  }
+
+  void Move(size_t i, uint32_t to) {
+    Add(labels_[i], i, -1);
+    labels_[i] = to;
+    Add(to, i, +1);
+  }
+  // All of `gone`'s sums into `keep` (labels are the caller's, via SetLabel).
+  void MergeSums(uint32_t keep, uint32_t gone) {
+    count_[keep] += count_[gone];
+    square_[keep] += square_[gone];
+    for (uint32_t j = 0; j < d_; ++j) sum_[size_t{keep} * d_ + j] += sum_[size_t{gone} * d_ + j];
+    count_[gone] = 0;
+    square_[gone] = 0;
+    std::fill(&sum_[size_t{gone} * d_], &sum_[size_t{gone} * d_] + d_, 0.0);
+    UpdateCentroid(keep);
+  }
+  void SetLabel(size_t i, uint32_t c) { labels_[i] = c; }
+  void UpdateCentroid(uint32_t c) {
+    const double n = static_cast<double>(count_[c]);
+    for (uint32_t j = 0; j < d_; ++j) {
+      centroid_[size_t{c} * d_ + j] = n > 0 ? sum_[size_t{c} * d_ + j] / n : 0.0;
+    }
+  }
+
+  // Eq. 6.1 neighbours of `c` from `candidates` (its own and the second-order ones, or
+  // any others the caller adds): the nearest candidate centroid in each subspace.
+  void RefreshNeighbours(uint32_t c, std::vector<uint32_t>& candidates) {
+    std::span<uint32_t> out = neighbours(c);
+    for (uint32_t n : out) {
+      if (n == kNone) continue;
+      candidates.push_back(n);
+      for (uint32_t nn : neighbours(n)) {
+        if (nn != kNone) candidates.push_back(nn);
+      }
+    }
+    // Each candidate once (a stamp per cluster instead of sorting: with 2d neighbours
+    // each, there are up to 4d^2 of them, mostly repeats).
+    if (++stamp_now_ == 0) {
+      std::fill(seen_.begin(), seen_.end(), 0);
+      stamp_now_ = 1;
+    }
+    size_t unique = 0;
+    for (uint32_t n : candidates) {
+      if (n == kNone || seen_[n] == stamp_now_) continue;
+      seen_[n] = stamp_now_;
+      candidates[unique++] = n;
+    }
+    candidates.resize(unique);
+    std::fill(out.begin(), out.end(), kNone);
+    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
+    for (uint32_t n : candidates) {
+      if (n == c || n == kNone || count_[n] == 0) continue;
+      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
+      double dist = 0;
+      for (uint32_t j = 0; j < d_; ++j) {
+        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
+        dist += diff * diff;
+      }
+      if (dist < best[s] || (dist == best[s] && n < out[s])) {
+        best[s] = dist;
+        out[s] = n;
+      }
+    }
+    candidates.clear();
+  }
+
+  double TotalEnergy() const {
+    double total = 0;
+    for (uint32_t c = 0; c < capacity(); ++c) total += Energy(c);
+    return total;
+  }
+
+ private:
+  void Add(uint32_t c, size_t i, int sign) {
+    const float* x = &points_.values[i * d_];
+    double s2 = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double v = x[j] - origin_[j];
+      sum_[size_t{c} * d_ + j] += sign * v;
+      s2 += v * v;
+    }
+    square_[c] += sign * s2;
+    count_[c] += sign;
+  }
+
+  const PointSet& points_;
+  const uint32_t d_;
+  std::vector<uint32_t> labels_;
+  std::vector<uint64_t> count_;
+  std::vector<double> sum_;
+  std::vector<double> square_;
+  std::vector<double> centroid_;
+  std::vector<uint32_t> neighbours_;
+  std::vector<double> origin_;
+  std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
+  uint32_t stamp_now_ = 0;
+};
+
+// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
+// (O(k^2 d); voxel starts use VoxelNeighbours instead).
+void InitialNeighbours(PointClusters& clusters) {
+  const uint32_t k = clusters.capacity();
+  const uint32_t d = clusters.dims();
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
+    std::vector<double> best_local(2 * d);
+    for (uint32_t c = range.begin(); c != range.end(); ++c) {
+      std::span<uint32_t> out = clusters.neighbours(c);
+      std::fill(out.begin(), out.end(), kNone);
+      if (clusters.count(c) == 0) continue;
+      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
+      for (uint32_t n = 0; n < k; ++n) {
+        if (n == c || clusters.count(n) == 0) continue;
+        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
+        double dist = 0;
+        for (uint32_t j = 0; j < d; ++j) {
+          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
+          dist += diff * diff;
+        }
+        if (dist < best_local[s]) {
+          best_local[s] = dist;
+          out[s] = n;
+        }
+      }
+    }
+  });
+}
+
+// One LN k-means pass over `points_to_check` (indices): each point's best cluster among
+// its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
+// Writes the point's target (kNone: stays). With `margin`, also how far the point is from
+// changing its mind: for a point that stays, the distance to its second-best candidate
+// minus the distance to its own centroid (so it stays while its own centroid and the
+// candidates move by less than that in all); -infinity for a point that moves.
+void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
+                   std::span<uint32_t> target, std::span<double> margin = {}) {
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
+        std::vector<double> x;
+        uint32_t candidates[256];
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          const uint32_t i = points_to_check[r];
+          if (r + 8 < range.end()) clusters.Prefetch(points_to_check[r + 8]);
+          const uint32_t own = clusters.label(i);
+          target[r] = kNone;
+          clusters.Relative(i, x);
+          const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
+          int count = 0;
+          for (uint32_t n : clusters.neighbours(own)) {
+            if (n != kNone && count < 256) candidates[count++] = n;
+          }
+          const uint32_t towards = clusters.neighbours(own)[s];
+          if (towards != kNone) {
+            for (uint32_t n : clusters.neighbours(towards)) {
+              if (n != kNone && n != own && count < 256) candidates[count++] = n;
+            }
+          }
+          const double own_distance = clusters.DistanceTo(x.data(), own);
+          double best = own_distance;
+          double second = std::numeric_limits<double>::infinity();
+          uint32_t best_cluster = own;
+          for (int c = 0; c < count; ++c) {
+            const uint32_t n = candidates[c];
+            if (n == best_cluster || clusters.count(n) == 0) continue;
+            const double dist = clusters.DistanceTo(x.data(), n);
+            if (dist < best || (dist == best && n < best_cluster && n != own)) {
+              second = best;
+              best = dist;
+              best_cluster = n;
+            } else if (dist < second) {
+              second = dist;
+            }
+          }
+          if (best_cluster != own) target[r] = best_cluster;
+          if (!margin.empty()) {
+            margin[r] = best_cluster != own ? -std::numeric_limits<double>::infinity()
+                                            : std::sqrt(second) - std::sqrt(own_distance);
+          }
+        }
+      });
+}
+
+// Applies the chosen moves (a cluster's last point stays) and returns the clusters that
+// changed. Centroids of changed clusters are updated.
+std::vector<uint32_t> ApplyMoves(PointClusters& clusters, std::span<const uint32_t> points,
+                                 std::span<const uint32_t> target, std::vector<uint8_t>& mark,
+                                 uint64_t& moved,
+                                 const std::function<void(uint32_t, uint32_t, uint32_t)>& on_move) {
+  std::vector<uint32_t> changed;
+  for (size_t r = 0; r < points.size(); ++r) {
+    if (target[r] == kNone) continue;
+    const uint32_t i = points[r];
+    const uint32_t from = clusters.label(i);
+    if (clusters.count(from) <= 1) continue;
+    clusters.Move(i, target[r]);
+    ++moved;
+    if (on_move) on_move(i, from, target[r]);
+    for (uint32_t c : {from, target[r]}) {
+      if (!mark[c]) {
+        mark[c] = 1;
+        changed.push_back(c);
+      }
+    }
+  }
+  for (uint32_t c : changed) {
+    mark[c] = 0;
+    clusters.UpdateCentroid(c);
+  }
+  return changed;
+}
+
+// Refreshes the neighbours of the changed clusters and of their neighbours.
+std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
+                                    std::vector<uint8_t>& mark) {
+  std::vector<uint32_t> affected;
+  for (uint32_t c : changed) {
+    if (!mark[c]) {
+      mark[c] = 1;
+      affected.push_back(c);
+    }
+    for (uint32_t n : clusters.neighbours(c)) {
+      if (n != kNone && !mark[n]) {
+        mark[n] = 1;
+        affected.push_back(n);
+      }
+    }
+  }
+  // Each refresh looks at the cluster's neighbours and their neighbours (second order),
+  // which is where a changed cluster next to it can be.
+  std::vector<uint32_t> candidates;
+  for (uint32_t c : affected) {
+    mark[c] = 0;
+    if (clusters.count(c) > 0) clusters.RefreshNeighbours(c, candidates);
+  }
+  return affected;
+}
+
+// Occupied voxel cells: per point its cell's cluster, per cluster its cell coordinates.
+struct VoxelCells {
+  std::vector<uint32_t> labels;
+  std::vector<std::vector<uint32_t>> cell;  // per cluster
+};
+
+// The bounding box of the points, per axis.
+struct Bounds {
+  std::vector<float> lo, hi;
+};
+Bounds BoundsOf(const PointSet& points) {
+  const uint32_t d = points.dims;
+  Bounds bounds{std::vector<float>(d, std::numeric_limits<float>::max()),
+                std::vector<float>(d, -std::numeric_limits<float>::max())};
+  for (size_t i = 0; i < points.num_points(); ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      bounds.lo[j] = std::min(bounds.lo[j], points.values[i * d + j]);
+      bounds.hi[j] = std::max(bounds.hi[j], points.values[i * d + j]);
+    }
+  }
+  return bounds;
+}
+
+// The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j.
+VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
+                         std::span<const uint32_t> cells_per_axis) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+  VoxelCells cells;
+  cells.labels.resize(m);
+  std::vector<uint32_t> cell(d);
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      const uint32_t a = cells_per_axis[j];
+      const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
+      const double t = span > 0 ? (points.values[i * d + j] - bounds.lo[j]) / span : 0.0;
+      cell[j] = std::min(a - 1, static_cast<uint32_t>(t * a));
+    }
+    auto [it, inserted] = index.try_emplace(cell, static_cast<uint32_t>(cells.cell.size()));
+    if (inserted) cells.cell.push_back(cell);
+    cells.labels[i] = it->second;
+  }
+  return cells;
+}
+
+// The cells per axis of the start. A given grid: that many on every axis. Otherwise, aiming
+// at eight points per cell: a = (m / 8)^(1/d) on every axis where that is at least 4 (low
+// d: the dissertation's uniform grid, whose empty cells cost nothing); in higher
+// dimensions, where a few cells per axis would already make far more cells than points (or,
+// at a = 2 or 3, cells too coarse to be a start), the widest cells are halved, a few axes at
+// a time, until about m / 8 cells are occupied (each pass counts them in one sweep).
+std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  if (grid != 0) return std::vector<uint32_t>(d, grid);
+  const double target = std::max(1.0, static_cast<double>(m) / 8.0);
+  const double a = std::pow(target, 1.0 / d);
+  if (a >= 4) {
+    return std::vector<uint32_t>(d, static_cast<uint32_t>(std::min(a, 4096.0)));
+  }
+  std::vector<uint32_t> counts(d, 1);
+  for (int pass = 0; pass < 64; ++pass) {
+    const double occupied = static_cast<double>(OccupiedCells(points, bounds, counts).cell.size());
+    if (occupied >= target) break;
+    // Halve the widest cells on enough axes to multiply the cells by target / occupied.
+    const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / occupied))));
+    bool any = false;
+    for (int step = 0; step < axes; ++step) {
+      uint32_t widest = d;
+      double width = 0;
+      for (uint32_t j = 0; j < d; ++j) {
+        const double w = (static_cast<double>(bounds.hi[j]) - bounds.lo[j]) / counts[j];
+        if (w > width && counts[j] < 4096) {
+          width = w;
+          widest = j;
+        }
+      }
+      if (widest == d) break;
+      counts[widest] *= 2;
+      any = true;
+    }
+    if (!any) break;
+  }
+  return counts;
+}
+
+// First neighbours of a voxel start: the face-sharing occupied cells, then the refresh
+// picks the nearest per subspace from them and their neighbours.
+void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
+  const uint32_t k = static_cast<uint32_t>(cells.cell.size());
+  const uint32_t d = clusters.dims();
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+  for (uint32_t c = 0; c < k; ++c) index[cells.cell[c]] = c;
+  std::vector<uint32_t> probe(d);
+  for (uint32_t c = 0; c < k; ++c) {
+    std::span<uint32_t> out = clusters.neighbours(c);
+    for (uint32_t j = 0; j < d; ++j) {
+      for (int side = 0; side < 2; ++side) {
+        probe = cells.cell[c];
+        if (side == 0) {
+          ++probe[j];
+        } else {
+          if (probe[j] == 0) continue;
+          --probe[j];
+        }
+        auto it = index.find(probe);
+        if (it != index.end()) out[2 * j + side] = it->second;
+      }
+    }
+  }
+  std::vector<uint32_t> candidates;
+  for (uint32_t c = 0; c < k; ++c) clusters.RefreshNeighbours(c, candidates);
+}
+
+// Alg. 6.1's iterations on clusters whose neighbours are set; fills result's energies,
+// iterations, moves and converged (not labels).
+void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
+                        LnKmeansResult& result) {
+  const size_t m = clusters.labels().size();
+  const uint32_t k = clusters.capacity();
+  result.initial_energy = clusters.TotalEnergy();
+  // Only points whose candidate clusters changed can move: after the first iteration a
+  // point is checked again only if its cluster, a neighbour of it or a neighbour's
+  // neighbour changed (its centroid or its neighbour list) in the last iteration.
+  std::vector<uint32_t> check(m), target(m);
+  std::iota(check.begin(), check.end(), 0);
+  std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
+  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    target.resize(check.size());
+    ChooseTargets(clusters, check, target);
+    uint64_t moved = 0;
+    const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
+    result.iterations = iteration;
+    result.moves += moved;
+    if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
+    if (moved == 0) {
+      result.converged = true;
+      break;
+    }
+    const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+    std::fill(dirty.begin(), dirty.end(), 0);
+    for (uint32_t c : changed) dirty[c] = 1;
+    for (uint32_t c : refreshed) dirty[c] = 1;
+    for (uint32_t c = 0; c < k; ++c) {
+      bool any = dirty[c];
+      for (uint32_t n : clusters.neighbours(c)) {
+        if (any || n == kNone) continue;
+        any = dirty[n];
+        for (uint32_t nn : clusters.neighbours(n)) {
+          if (nn != kNone && dirty[nn]) any = true;
+        }
+      }
+      active[c] = any;
+    }
+    check.clear();
+    for (size_t i = 0; i < m; ++i) {
+      if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
+    }
+  }
+  result.energy = clusters.TotalEnergy();
+}
+
+// The multilevel engine for points: the mesh engine's structure with local neighbours in
+// place of face adjacency and LN k-means in place of EMLO.
+class PointEngine {
+ public:
+  PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
+              const Bounds& bounds, std::span<const uint32_t> cells_per_axis)
+      : points_(points), options_(options), sink_(sink), d_(points.dims) {
+    VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis);
+    k0_ = static_cast<uint32_t>(cells.cell.size());
+    // The engine works on a copy of the points ordered by starting cell, so that a
+    // cluster's points lie together in memory (clusters grow by merging, so they stay in a
+    // few runs); original_ maps back to the caller's indices.
+    const size_t m = points.num_points();
+    std::vector<uint32_t> first(k0_ + 1, 0);
+    for (uint32_t c : cells.labels) ++first[c + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    original_.resize(m);
+    std::vector<uint32_t> sorted_labels(m);
+    for (size_t i = 0; i < m; ++i) {
+      const uint32_t at = first[cells.labels[i]]++;
+      original_[at] = static_cast<uint32_t>(i);
+      sorted_labels[at] = cells.labels[i];
+    }
+    sorted_.dims = d_;
+    sorted_.values.resize(points.values.size());
+    for (size_t at = 0; at < m; ++at) {
+      std::copy_n(&points.values[size_t{original_[at]} * d_], d_, &sorted_.values[at * d_]);
+    }
+    clusters_ = std::make_unique<PointClusters>(sorted_, sorted_labels, k0_);
+    members_.resize(k0_);
+    position_.resize(m);
+    for (size_t i = 0; i < m; ++i) {
+      position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
+      members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
+    }
+    VoxelNeighbours(cells, *clusters_);
+    reverse_.resize(k0_);
+    for (uint32_t c = 0; c < k0_; ++c) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone) reverse_[n].push_back(c);
+      }
+    }
+    for (uint32_t c = 0; c < k0_; ++c) {
+      std::span<const uint32_t> out = clusters_->neighbours(c);
+      if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
+        LinkIsolated(c);
+      }
+    }
+    ode_.assign(k0_, kNone);
+    ode_cost_.assign(k0_, std::numeric_limits<double>::infinity());
+    version_.assign(k0_, 0);
+    origin_.assign(points.num_points(), kNone);
+    mark_.assign(k0_, 0);
+    affected_mark_.assign(k0_, 0);
+    energy_before_.assign(k0_, 0.0);
+    into_.assign(k0_, kNone);
+    partner_.assign(k0_, kNone);
+    stamp_.assign(points.num_points(), 0);
+    threshold_.assign(points.num_points(), 0.0);
+    drift_epoch_.assign(k0_, 0);
+    drift_.assign(k0_, 0.0);
+  }
+
+  absl::StatusOr<PointMultilevelSummary> Run() {
+    PointMultilevelSummary summary;
+    summary.start_clusters = k0_;
+    std::vector<ClusterId> start(points_.num_points());
+    for (size_t i = 0; i < start.size(); ++i) start[original_[i]] = ClusterId(clusters_->label(i));
+    energy_.Reset(clusters_->TotalEnergy());
+    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, k0_, energy_.value()));
+    Inspect(0);
+    alive_ = k0_;
+    levels_ = 1;
+    for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
+    while (alive_ > options_.min_clusters) {
+      bool merged;
+      if (options_.parallel && alive_ > options_.pml_until) {
+        merged = ParallelStep();
+      } else {
+        merged = SequentialStep();
+      }
+      if (!merged) {
+        // No neighbour pairs left but several clusters: groups the local neighbours never
+        // connected (far-apart data). Link the survivors by brute force and go on.
+        if (!ConnectSurvivors()) break;
+        continue;
+      }
+      MLCLUST_RETURN_IF_ERROR(FinishLevel());
+    }
+    summary.levels = levels_;
+    summary.final_clusters = alive_;
+    summary.moves = moves_;
+    return summary;
+  }
+
+ private:
+  // ---- ODEs -----------------------------------------------------------------------------
+  void RecomputeOde(uint32_t c) {
+    double best = std::numeric_limits<double>::infinity();
+    uint32_t best_d = kNone;
+    if (clusters_->count(c) > 0) {
+      // Its neighbours and the clusters that list it as theirs: the dual edges are
+      // symmetric, so when x's ODE is y, y sees x too and a chain of cheaper ODEs ends in
+      // a mutual pair (PML merges only those; with one-sided edges a small cluster could
+      // wait behind far costlier mutual pairs).
+      auto consider = [&](uint32_t n) {
+        if (n == kNone || clusters_->count(n) == 0) return;
+        const double cost = clusters_->MergeCost(c, n);
+        if (cost < best || (cost == best && n > best_d)) {
+          best = cost;
+          best_d = n;
+        }
+      };
+      for (uint32_t n : clusters_->neighbours(c)) consider(n);
+      for (uint32_t n : reverse_[c]) consider(n);
+    }
+    ode_[c] = best_d;
+    ode_cost_[c] = best;
+    ++version_[c];
+    if (best_d != kNone) {
+      heap_.push_back({best, c, version_[c]});
+      std::push_heap(heap_.begin(), heap_.end(), Later{});
+    }
+  }
+
+  // ---- neighbour bookkeeping --------------------------------------------------------------
+  void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
+    std::span<uint32_t> out = clusters_->neighbours(c);
+    std::vector<uint32_t> before(out.begin(), out.end());
+    clusters_->RefreshNeighbours(c, candidates);
+    for (uint32_t n : before) {
+      if (n == kNone) continue;
+      auto& list = reverse_[n];
+      auto it = std::find(list.begin(), list.end(), c);
+      if (it != list.end()) {
+        *it = list.back();
+        list.pop_back();
+      }
+    }
+    for (uint32_t n : out) {
+      if (n != kNone) reverse_[n].push_back(c);
+    }
+    if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
+      LinkIsolated(c);
+    }
+  }
+
+  // A live cluster left with no neighbours at all (an isolated occupied cell of the start,
+  // or a group of clusters the others never listed that has merged into one) could never
+  // merge again: it gets the nearest cluster in each subspace among all live clusters.
+  // Rare (once per outlier cell or per such group), so a scan of all clusters is fine.
+  void LinkIsolated(uint32_t c) {
+    if (clusters_->count(c) == 0) return;
+    std::vector<uint32_t> all;
+    for (uint32_t n = 0; n < k0_; ++n) {
+      if (n != c && clusters_->count(n) > 0) all.push_back(n);
+    }
+    if (all.empty()) return;
+    clusters_->RefreshNeighbours(c, all);
+    for (uint32_t n : clusters_->neighbours(c)) {
+      if (n != kNone) reverse_[n].push_back(c);
+    }
+  }
+
+  void Touch(uint32_t c) {
+    if (affected_mark_[c]) return;
+    affected_mark_[c] = 1;
+    affected_.push_back(c);
+    energy_before_[c] = clusters_->Energy(c);
+  }
+  void Record(uint32_t i, uint32_t from) {
+    if (origin_[i] == kNone) {
+      origin_[i] = from;
+      touched_.push_back(i);
+    }
+  }
+
+  void Merge(uint32_t a, uint32_t b) {
+    uint32_t keep = a, gone = b;
+    if (clusters_->count(b) > clusters_->count(a) ||
+        (clusters_->count(b) == clusters_->count(a) && b < a)) {
+      std::swap(keep, gone);
+    }
+    Touch(keep);
+    Touch(gone);
+    for (uint32_t i : members_[gone]) {
+      Record(i, gone);
+      clusters_->SetLabel(i, keep);
+      position_[i] = static_cast<uint32_t>(members_[keep].size());
+      members_[keep].push_back(i);
+    }
+    std::vector<uint32_t>().swap(members_[gone]);
+    clusters_->MergeSums(keep, gone);
+    into_[gone] = keep;
+    partner_[keep] = gone;
+    --alive_;
+    merged_.push_back(keep);
+    gone_.push_back(gone);
+  }
+
+  // LN k-means around the merged clusters: their points and their neighbours' points,
+  // then, for up to 8 rounds, the points of the clusters that changed. A point checked in
+  // this call keeps a margin (ChooseTargets) and is checked again only once its own
+  // centroid's drift plus the largest drift of any centroid since then could have used it
+  // up (Hamerly's bound); the rest of a changed cluster is skipped.
+  // How far cluster c's centroid has moved in this call of Optimise (a sum of steps).
+  double Drift(uint32_t c) const { return drift_epoch_[c] == epoch_ ? drift_[c] : 0.0; }
+  // The largest drift among the clusters a point of c can be compared with: c's
+  // neighbours and theirs.
+  double NeighbourhoodDrift(uint32_t c) const {
+    double largest = 0;
+    for (uint32_t n : clusters_->neighbours(c)) {
+      if (n == kNone) continue;
+      largest = std::max(largest, Drift(n));
+      for (uint32_t nn : clusters_->neighbours(n)) {
+        if (nn != kNone && nn != c) largest = std::max(largest, Drift(nn));
+      }
+    }
+    return largest;
+  }
+
+  void Optimise() {
+    if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
+    // Round 0: the merged clusters' points get the full check. A point of a cluster next
+    // to a merged one can only gain by moving to a merged cluster (its other candidates
+    // are as they were), so it is compared with the merged clusters that list its cluster
+    // as a neighbour, and with nothing else.
+    std::vector<uint32_t> region;
+    for (uint32_t c : merged_) {
+      if (!mark_[c] && clusters_->count(c) > 0) {
+        mark_[c] = 1;
+        region.push_back(c);
+      }
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> next_to;  // (cluster, merged cluster)
+    for (uint32_t c : merged_) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) next_to.push_back({n, c});
+      }
+    }
+    for (uint32_t c : region) mark_[c] = 0;
+    std::sort(next_to.begin(), next_to.end());
+    next_to.erase(std::unique(next_to.begin(), next_to.end()), next_to.end());
+    ++epoch_;
+    std::vector<uint32_t> changed;
+    std::vector<double> old_centroids;
+    // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
+    std::vector<std::pair<uint32_t, uint32_t>> compare_with;
+    for (int round = 0; round < kOptimiseRounds && !region.empty(); ++round) {
+      points_to_check_.clear();
+      for (uint32_t c : region) {
+        if (round == 0) {
+          points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
+          continue;
+        }
+        const double drift = Drift(c) + NeighbourhoodDrift(c);
+        for (uint32_t i : members_[c]) {
+          if (stamp_[i] != epoch_ || drift > threshold_[i]) points_to_check_.push_back(i);
+        }
+      }
+      const size_t full = points_to_check_.size();
+      compare_with.clear();
+      if (round == 0) {
+        for (size_t g = 0; g < next_to.size();) {
+          size_t end = g;
+          while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
+          for (uint32_t i : members_[next_to[g].first]) {
+            points_to_check_.push_back(i);
+            compare_with.push_back({static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
+          }
+          g = end;
+        }
+      }
+      target_.resize(points_to_check_.size());
+      margin_.resize(full);
+      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full),
+                    std::span<uint32_t>(target_).first(full), margin_);
+      for (size_t r = 0; r < full; ++r) {
+        const uint32_t i = points_to_check_[r];
+        stamp_[i] = epoch_;
+        threshold_[i] = margin_[r] + Drift(clusters_->label(i));
+      }
+      if (!compare_with.empty()) {
+        const PointClusters& clusters = *clusters_;
+        tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
+                          [&](const auto& range) {
+                            for (size_t r = range.begin(); r != range.end(); ++r) {
+                              const uint32_t i = points_to_check_[r];
+                              if (r + 8 < range.end()) clusters.Prefetch(points_to_check_[r + 8]);
+                              double best = clusters.Distance(i, clusters.label(i));
+                              uint32_t to = kNone;
+                              const auto [begin, end] = compare_with[r - full];
+                              for (uint32_t g = begin; g < end; ++g) {
+                                const double dist = clusters.Distance(i, next_to[g].second);
+                                if (dist < best) {
+                                  best = dist;
+                                  to = next_to[g].second;
+                                }
+                              }
+                              target_[r] = to;
+                            }
+                          });
+      }
+      changed.clear();
+      old_centroids.clear();
+      for (size_t r = 0; r < points_to_check_.size(); ++r) {
+        if (target_[r] == kNone) continue;
+        const uint32_t i = points_to_check_[r];
+        const uint32_t from = clusters_->label(i), to = target_[r];
+        if (clusters_->count(from) <= 1) continue;
+        for (uint32_t c : {from, to}) {
+          if (!mark_[c]) {
+            mark_[c] = 1;
+            changed.push_back(c);
+            const std::span<const double> centroid = clusters_->centroid(c);
+            old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
+            if (drift_epoch_[c] != epoch_) {
+              drift_epoch_[c] = epoch_;
+              drift_[c] = 0;
+            }
+          }
+        }
+        Touch(from);
+        Touch(to);
+        Record(i, from);
+        clusters_->Move(i, to);
+        stamp_[i] = 0;  // its candidates are another cluster's now: check it again
+        auto& list = members_[from];
+        const uint32_t at = position_[i];
+        list[at] = list.back();
+        position_[list[at]] = at;
+        list.pop_back();
+        position_[i] = static_cast<uint32_t>(members_[to].size());
+        members_[to].push_back(i);
+      }
+      for (size_t n = 0; n < changed.size(); ++n) {
+        const uint32_t c = changed[n];
+        mark_[c] = 0;
+        clusters_->UpdateCentroid(c);
+        const std::span<const double> centroid = clusters_->centroid(c);
+        double squared = 0;
+        for (uint32_t j = 0; j < d_; ++j) {
+          const double diff = centroid[j] - old_centroids[n * d_ + j];
+          squared += diff * diff;
+        }
+        const double drift = std::sqrt(squared) * (1 + 1e-12);
+        drift_[c] += drift;
+      }
+      if (changed.empty()) break;
+      region = changed;
+    }
+  }
+
+  absl::Status FinishLevel() {
+    // Neighbours: of every cluster that changed, of those that saw a changed or gone
+    // cluster, and their ODEs.
+    std::vector<uint32_t> refresh;
+    auto add = [&](uint32_t c) {
+      if (!mark_[c] && clusters_->count(c) > 0) {
+        mark_[c] = 1;
+        refresh.push_back(c);
+      }
+    };
+    std::vector<uint32_t> candidates;
+    for (uint32_t gone : gone_) {
+      for (uint32_t x : std::vector<uint32_t>(reverse_[gone])) add(x);
+    }
+    for (uint32_t c : affected_) {
+      add(c);
+      for (uint32_t x : reverse_[c]) add(x);
+    }
+    // Candidates beyond a cluster's own second-order neighbours: after a few merges (ML),
+    // every merged cluster and the gone ones' neighbours; after many (a PML step), where
+    // offering all of them to every refreshed cluster would cost merges x refreshes, the
+    // cluster each gone neighbour merged into and that one's neighbours, and to a merged
+    // cluster its partner's neighbours.
+    const bool few = merged_.size() <= 8;
+    auto offer_neighbours_of = [&](uint32_t x) {
+      for (uint32_t n : clusters_->neighbours(x)) {
+        if (n != kNone) candidates.push_back(n);
+      }
+    };
+    for (uint32_t c : refresh) {
+      mark_[c] = 0;
+      candidates.clear();
+      if (few) {
+        candidates.assign(merged_.begin(), merged_.end());
+        for (uint32_t gone : gone_) offer_neighbours_of(gone);
+      } else {
+        if (partner_[c] != kNone) offer_neighbours_of(partner_[c]);
+        for (uint32_t n : clusters_->neighbours(c)) {
+          if (n == kNone || into_[n] == kNone) continue;
+          candidates.push_back(into_[n]);
+          offer_neighbours_of(n);
+        }
+      }
+      Refresh(c, candidates);
+    }
+    for (uint32_t gone : gone_) {
+      partner_[into_[gone]] = kNone;
+      into_[gone] = kNone;
+    }
+    for (uint32_t gone : gone_) {
+      for (uint32_t n : clusters_->neighbours(gone)) {
+        if (n == kNone) continue;
+        auto& list = reverse_[n];
+        auto it = std::find(list.begin(), list.end(), gone);
+        if (it != list.end()) {
+          *it = list.back();
+          list.pop_back();
+        }
+      }
+      std::span<uint32_t> out = clusters_->neighbours(gone);
+      std::fill(out.begin(), out.end(), kNone);
+      ++version_[gone];
+    }
+    // ODEs: of the refreshed clusters, and of the clusters the changed ones list (to
+    // which they are reverse neighbours).
+    for (uint32_t c : affected_) {
+      for (uint32_t n : clusters_->neighbours(c)) {
+        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) {
+          mark_[n] = 1;
+          refresh_odes_.push_back(n);
+        }
+      }
+    }
+    for (uint32_t c : refresh) {
+      if (!mark_[c]) {
+        mark_[c] = 1;
+        refresh_odes_.push_back(c);
+      }
+    }
+    for (uint32_t c : refresh_odes_) {
+      mark_[c] = 0;
+      RecomputeOde(c);
+    }
+    refresh_odes_.clear();
+    if (heap_.size() > 4 * static_cast<size_t>(alive_) + 4096) RebuildHeap();
+
+    for (uint32_t c : affected_) {
+      energy_.Add(clusters_->Energy(c) - energy_before_[c]);
+      affected_mark_[c] = 0;
+    }
+    affected_.clear();
+    element_.clear();
+    to_.clear();
+    from_.clear();
+    for (uint32_t i : touched_) {
+      if (clusters_->label(i) != origin_[i]) {
+        element_.push_back(original_[i]);
+        to_.push_back(clusters_->label(i));
+        from_.push_back(origin_[i]);
+      }
+      origin_[i] = kNone;
+    }
+    touched_.clear();
+    merged_.clear();
+    gone_.clear();
+    LevelMoves level;
+    level.level = levels_;
+    level.cluster_count = alive_;
+    level.energy = energy_.value();
+    level.element = element_;
+    level.to_cluster = to_;
+    level.from_cluster = from_;
+    moves_ += element_.size();
+    MLCLUST_RETURN_IF_ERROR(sink_.OnLevel(level));
+    Inspect(levels_);
+    ++levels_;
+    return absl::OkStatus();
+  }
+
+  // The labels of the level, in the caller's point order, to options_.inspect_level.
+  void Inspect(size_t level) {
+    if (!options_.inspect_level) return;
+    std::vector<uint32_t> labels(original_.size());
+    for (size_t i = 0; i < labels.size(); ++i) labels[original_[i]] = clusters_->label(i);
+    options_.inspect_level(level, labels);
+  }
+
+  void RebuildHeap() {
+    heap_.clear();
+    for (uint32_t c = 0; c < k0_; ++c) {
+      if (clusters_->count(c) > 0 && ode_[c] != kNone)
+        heap_.push_back({ode_cost_[c], c, version_[c]});
+    }
+    std::make_heap(heap_.begin(), heap_.end(), Later{});
+  }
+
+  bool SequentialStep() {
+    while (!heap_.empty()) {
+      std::pop_heap(heap_.begin(), heap_.end(), Later{});
+      const Entry e = heap_.back();
+      heap_.pop_back();
+      if (clusters_->count(e.cluster) == 0 || version_[e.cluster] != e.version) continue;
+      const uint32_t other = ode_[e.cluster];
+      if (other == kNone || clusters_->count(other) == 0) {
+        RecomputeOde(e.cluster);
+        continue;
+      }
+      Merge(e.cluster, other);
+      Optimise();
+      return true;
+    }
+    return false;
+  }
+
+  bool ParallelStep() {
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    for (uint32_t c = 0; c < k0_; ++c) {
+      const uint32_t o = ode_[c];
+      if (clusters_->count(c) > 0 && o != kNone && c < o && clusters_->count(o) > 0 &&
+          ode_[o] == c) {
+        pairs.push_back({c, o});
+      }
+    }
+    if (pairs.empty()) return SequentialStep();
+    // Cheapest first (ties by id), so that the floor below keeps the cheapest.
+    std::sort(pairs.begin(), pairs.end(), [&](const auto& x, const auto& y) {
+      return ode_cost_[x.first] != ode_cost_[y.first] ? ode_cost_[x.first] < ode_cost_[y.first]
+                                                      : x < y;
+    });
+    if (options_.pml_pairs == PointMultilevelOptions::PmlPairs::kCheaperHalf) {
+      // Only the mutual pairs that cost at most the median: near the data's own scale the
+      // mutual pairs mix pieces of one cluster (cheap) with whole clusters (dear), and
+      // collapsing them all in one level merges whole clusters while pieces remain.
+      const double limit = ode_cost_[pairs[pairs.size() / 2].first];
+      size_t keep = 1;
+      while (keep < pairs.size() && ode_cost_[pairs[keep].first] <= limit) ++keep;
+      pairs.resize(keep);
+    }
+    const uint32_t floor = std::max(options_.min_clusters, 1u);
+    if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
+    for (const auto& [a, b] : pairs) Merge(a, b);
+    Optimise();
+    return true;
+  }
+
+  // When the local neighbours split the clusters into groups that never see each other,
+  // give each surviving cluster its nearest cluster in each subspace among all survivors.
+  bool ConnectSurvivors() {
+    std::vector<uint32_t> survivors;
+    for (uint32_t c = 0; c < k0_; ++c) {
+      if (clusters_->count(c) > 0) survivors.push_back(c);
+    }
+    if (survivors.size() <= 1 || survivors.size() > 20000) return false;
+    for (uint32_t c : survivors) {
+      std::vector<uint32_t> candidates = survivors;
+      Refresh(c, candidates);
+    }
+    bool any = false;
+    for (uint32_t c : survivors) {
+      RecomputeOde(c);
+      any = any || ode_[c] != kNone;
+    }
+    return any;
+  }
+
+  struct Entry {
+    double cost;
+    uint32_t cluster, version;
+  };
+  struct Later {
+    bool operator()(const Entry& x, const Entry& y) const {
+      return x.cost != y.cost ? x.cost > y.cost : x.cluster > y.cluster;
+    }
+  };
+
+  const PointSet& points_;
+  PointSet sorted_;                 // points_ ordered by starting cell
+  std::vector<uint32_t> original_;  // sorted_'s point -> points_'s
+  const PointMultilevelOptions& options_;
+  LevelSink& sink_;
+  const uint32_t d_;
+  uint32_t k0_ = 0, alive_ = 0, levels_ = 0;
+  uint64_t moves_ = 0;
+  std::unique_ptr<PointClusters> clusters_;
+  std::vector<std::vector<uint32_t>> members_, reverse_;
+  std::vector<uint32_t> position_, ode_, version_, origin_, touched_, affected_;
+  std::vector<double> ode_cost_, energy_before_;
+  std::vector<uint8_t> mark_, affected_mark_;
+  std::vector<Entry> heap_;
+  std::vector<uint32_t> merged_, gone_, element_, to_, from_, points_to_check_, target_;
+  // In the current level: the cluster each gone one merged into, and each merged one's
+  // partner (kNone elsewhere).
+  std::vector<uint32_t> into_, partner_;
+  std::vector<uint32_t> refresh_odes_;
+  // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
+  // per cluster its centroid's drift in the current epoch.
+  uint32_t epoch_ = 0;
+  std::vector<uint32_t> stamp_, drift_epoch_;
+  std::vector<double> threshold_, drift_, margin_;
+  CompensatedSum energy_;
+};
+
+}  // namespace
+
+uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to) {
+  uint32_t axis = 0;
+  double largest = -1;
+  for (uint32_t j = 0; j < from.size(); ++j) {
+    const double diff = std::abs(to[j] - from[j]);
+    if (diff > largest) {
+      largest = diff;
+      axis = j;
+    }
+  }
+  return 2 * axis + (to[axis] > from[axis] ? 0 : 1);
+}
+
+absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  if (grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
+  }
+  // The engine's own start (OccupiedCells), without the cell coordinates.
+  const Bounds bounds = BoundsOf(points);
+  VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+  VoxelStart start;
+  start.clusters = static_cast<uint32_t>(cells.cell.size());
+  start.labels.resize(cells.labels.size());
+  for (size_t i = 0; i < cells.labels.size(); ++i) start.labels[i] = ClusterId(cells.labels[i]);
+  return start;
+}
+
+absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
+                                           const LnKmeansOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  const size_t m = points.num_points();
+  if (labels.size() != m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for ", m, " points"));
+  }
+  // Compact ids; remember the caller's.
+  absl::flat_hash_map<uint32_t, uint32_t> compact_of;
+  std::vector<uint32_t> compact(m);
+  std::vector<ClusterId> original;
+  for (size_t i = 0; i < m; ++i) {
+    auto [it, inserted] =
+        compact_of.try_emplace(labels[i].value(), static_cast<uint32_t>(original.size()));
+    if (inserted) original.push_back(labels[i]);
+    compact[i] = it->second;
+  }
+  const uint32_t k = static_cast<uint32_t>(original.size());
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  LnKmeansResult result;
+  arena.execute([&] {
+    PointClusters clusters(points, compact, k);
+    InitialNeighbours(clusters);
+    LnKmeansIterations(clusters, options, result);
+    result.labels.resize(m);
+    for (size_t i = 0; i < m; ++i) result.labels[i] = original[clusters.label(i)];
+  });
+  return result;
+}
+
+absl::StatusOr<LnKmeansResult> RunLnKmeansFromGrid(const PointSet& points, uint32_t grid,
+                                                   const LnKmeansOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  if (grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
+  }
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  LnKmeansResult result;
+  arena.execute([&] {
+    const Bounds bounds = BoundsOf(points);
+    const VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+    const uint32_t k = static_cast<uint32_t>(cells.cell.size());
+    PointClusters clusters(points, cells.labels, k);
+    VoxelNeighbours(cells, clusters);
+    LnKmeansIterations(clusters, options, result);
+    result.labels.resize(points.num_points());
+    for (size_t i = 0; i < result.labels.size(); ++i) {
+      result.labels[i] = ClusterId(clusters.label(i));
+    }
+  });
+  return result;
+}
+
+absl::StatusOr<std::vector<float>> RandomPointCentres(const PointSet& points, uint32_t k,
+                                                      uint64_t seed) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  const size_t m = points.num_points();
+  if (k < 1 || k > m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
+  }
+  Random random(seed);
+  std::vector<uint32_t> all(m);
+  std::iota(all.begin(), all.end(), 0);
+  std::vector<float> centres;
+  centres.reserve(size_t{k} * points.dims);
+  for (uint32_t c = 0; c < k; ++c) {  // a partial Fisher-Yates shuffle
+    const size_t j = c + random.Below(m - c);
+    std::swap(all[c], all[j]);
+    const std::span<const float> p = points.point(all[c]);
+    centres.insert(centres.end(), p.begin(), p.end());
+  }
+  return centres;
+}
+
+absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points, uint32_t k,
+                                                         bool kmeans_plus_plus, uint64_t seed,
+                                                         int threads) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  const size_t m = points.num_points();
+  if (k < 1 || k > m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("clusters: ", k, " must be between 1 and the ", m, " points"));
+  }
+  // The centres: greedy k-means++ (core/kmeans.h), or k distinct random points.
+  absl::StatusOr<std::vector<float>> chosen = kmeans_plus_plus
+                                                  ? KmeansPlusPlusCentres(points, k, seed, threads)
+                                                  : RandomPointCentres(points, k, seed);
+  if (!chosen.ok()) return chosen.status();
+  const std::vector<float> centres = *std::move(chosen);
+  // Every point to its nearest centre: one assignment of core/kmeans.h's Lloyd (its
+  // vectorised kernel; it also gives an empty cluster a point, so there are exactly k).
+  KmeansOptions assign;
+  assign.clusters = k;
+  assign.max_iterations = 1;
+  assign.threads = threads;
+  absl::StatusOr<KmeansResult> assigned = RunLloyd(points, centres, assign);
+  if (!assigned.ok()) return assigned.status();
+  return std::move(assigned->labels);
+}
+
+absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
+                                                          const PointMultilevelOptions& options,
+                                                          LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  if (options.min_clusters < 1) {
+    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  if (options.grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
+  }
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
+    const Bounds bounds = BoundsOf(points);
+    const std::vector<uint32_t> cells_per_axis = StartCells(points, bounds, options.grid);
+    PointEngine engine(points, options, sink, bounds, cells_per_axis);
+    absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
+    if (summary.ok()) {
+      summary->grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());
+    }
+    return summary;
+  });
+}
+
+double PointEnergy(const PointSet& points, std::span<const ClusterId> labels) {
+  const uint32_t d = points.dims;
+  absl::flat_hash_map<uint32_t, std::pair<uint64_t, std::vector<double>>> means;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    auto& [count, sum] = means[labels[i].value()];
+    if (sum.empty()) sum.assign(d, 0.0);
+    ++count;
+    for (uint32_t j = 0; j < d; ++j) sum[j] += points.values[i * d + j];
+  }
+  for (auto& [c, entry] : means) {
+    for (double& v : entry.second) v /= static_cast<double>(entry.first);
+  }
+  double energy = 0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const std::vector<double>& mean = means[labels[i].value()].second;
+    for (uint32_t j = 0; j < d; ++j) {
+      const double diff = points.values[i * d + j] - mean[j];
+      energy += diff * diff;
+    }
+  }
+  return energy;
+}
+
+}  // namespace mlclust

@@ -1,0 +1,36 @@
+// Point sets: m points in d dimensions, float32, row-major (point i is values[i*d .. i*d+d)).
+// A point's index is its id on the wire and in every output.
+#ifndef MLCLUST_CORE_POINTS_POINTS_H_
+#define MLCLUST_CORE_POINTS_POINTS_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "absl/status/status.h"
+
+namespace mlclust {
+
+struct PointSet {
+  uint32_t dims = 0;
+  std::vector<float> values;  // num_points() * dims floats
+
+  size_t num_points() const { return dims == 0 ? 0 : values.size() / dims; }
+  std::span<const float> point(size_t i) const { return {values.data() + i * dims, dims}; }
+};
+
+// Limits for untrusted point sets.
+struct PointLimits {
+  uint32_t max_dims = 1024;
+  uint64_t max_values = uint64_t{1} << 31;  // m * d
+};
+
+// OK, or INVALID_ARGUMENT naming the problem: d = 0 or over the limit, m = 0, values not a
+// whole number of points, m * d over the limit, a NaN or infinite value (which point and
+// which coordinate).
+absl::Status ValidatePoints(const PointSet& points, const PointLimits& limits = {});
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_POINTS_POINTS_H_

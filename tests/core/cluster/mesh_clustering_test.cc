@@ -1,0 +1,306 @@
+#include "core/cluster/mesh_clustering.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+
+#include "absl/container/flat_hash_set.h"
+#include "core/io/mesh_io.h"
+#include "core/mesh/connectivity_guard.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+using Loaded = testing::LoadedMesh;
+using testing::Load;
+
+const Loaded& File(const std::string& name) { return testing::LoadDataFile(name); }
+
+uint32_t CountClusters(const std::vector<ClusterId>& labels) {
+  absl::flat_hash_set<uint32_t> ids;
+  for (ClusterId c : labels) ids.insert(c.value());
+  return static_cast<uint32_t>(ids.size());
+}
+
+// Per cluster: number of edge-connected pieces and Euler characteristic V - E + F of its
+// faces (1 for a disc; each hole or handle lowers it).
+struct ClusterTopology {
+  int pieces = 0;
+  int euler = 0;
+};
+std::map<uint32_t, ClusterTopology> Topology(const Loaded& l,
+                                             const std::vector<ClusterId>& labels) {
+  std::map<uint32_t, ClusterTopology> result;
+  std::map<uint32_t, std::set<uint32_t>> vertices;
+  std::map<uint32_t, std::set<std::pair<uint32_t, uint32_t>>> edges;
+  std::map<uint32_t, int> faces;
+  for (uint32_t f = 0; f < labels.size(); ++f) {
+    const uint32_t c = labels[f].value();
+    ++faces[c];
+    for (int i = 0; i < 3; ++i) {
+      const uint32_t a = l.mesh.indices[3 * f + i], b = l.mesh.indices[3 * f + (i + 1) % 3];
+      vertices[c].insert(a);
+      edges[c].insert(std::minmax(a, b));
+    }
+  }
+  for (auto& [c, count] : faces) {
+    result[c].euler =
+        static_cast<int>(vertices[c].size()) - static_cast<int>(edges[c].size()) + count;
+  }
+  std::vector<bool> seen(labels.size(), false);
+  for (uint32_t f = 0; f < labels.size(); ++f) {
+    if (seen[f]) continue;
+    ++result[labels[f].value()].pieces;
+    std::vector<uint32_t> stack = {f};
+    seen[f] = true;
+    while (!stack.empty()) {
+      const uint32_t g = stack.back();
+      stack.pop_back();
+      for (FaceId h : l.adjacency.neighbours[g]) {
+        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[f]) {
+          seen[h.value()] = true;
+          stack.push_back(h.value());
+        }
+      }
+    }
+  }
+  return result;
+}
+
+TEST(InitialClustersTest, RandomAndLNeighbourhoodGiveExactlyKConnectedClusters) {
+  const Loaded& l = File("fandisk.off");
+  for (auto method : {SeedOptions::Method::kRandom, SeedOptions::Method::kLNeighbourhood}) {
+    for (uint32_t k : {1u, 7u, 100u, 1000u}) {
+      SeedOptions options;
+      options.method = method;
+      options.clusters = k;
+      absl::StatusOr<std::vector<ClusterId>> labels = InitialClusters(l.problem(), options);
+      ASSERT_TRUE(labels.ok()) << labels.status();
+      EXPECT_EQ(CountClusters(*labels), k);
+      for (const auto& [c, t] : Topology(l, *labels)) ASSERT_EQ(t.pieces, 1) << "cluster " << c;
+    }
+  }
+}
+
+TEST(InitialClustersTest, RandomSeedIsReproducible) {
+  const Loaded& l = File("elephant.off");
+  SeedOptions options{SeedOptions::Method::kRandom, 50, 0, 42};
+  auto a = InitialClusters(l.problem(), options);
+  auto b = InitialClusters(l.problem(), options);
+  options.seed = 43;
+  auto c = InitialClusters(l.problem(), options);
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  EXPECT_EQ(*a, *b);
+  EXPECT_NE(*a, *c);
+}
+
+TEST(InitialClustersTest, LNeighbourhoodSeedsDoNotOverlap) {
+  const Loaded& l = Load(testing::Grid(20));
+  // l = 0: every face a seed; larger l: fewer seeds, each pair at least 2l+1 steps apart.
+  EXPECT_EQ(LNeighbourhoodSeeds(l.adjacency, 0).size(), l.mesh.num_faces());
+  size_t previous = l.mesh.num_faces();
+  for (uint32_t level = 1; level <= 4; ++level) {
+    const std::vector<uint32_t> seeds = LNeighbourhoodSeeds(l.adjacency, level);
+    EXPECT_LT(seeds.size(), previous);
+    previous = seeds.size();
+  }
+  SeedOptions options{SeedOptions::Method::kLNeighbourhood, 300, 6, 1};
+  absl::Status status = InitialClusters(l.problem(), options).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("level"));
+}
+
+TEST(InitialClustersTest, BadKIsRefusedNamingTheOption) {
+  const Loaded& l = File("elephant.off");
+  for (uint32_t k : {0u, 100000u}) {
+    absl::Status status = InitialClusters(l.problem(), {SeedOptions::Method::kRandom, k}).status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(std::string(status.message()), HasSubstr("clusters"));
+  }
+  // Two components need two clusters at least.
+  const Loaded split = Load(testing::Grid(4, {1, 5, 9, 13}));
+  absl::Status status =
+      InitialClusters(split.problem(), {SeedOptions::Method::kRandom, 1}).status();
+  EXPECT_THAT(std::string(status.message()), HasSubstr("connected components"));
+  EXPECT_TRUE(InitialClusters(split.problem(), {SeedOptions::Method::kRandom, 2}).ok());
+}
+
+class OptimizerTest : public ::testing::TestWithParam<MeshEnergyKind> {};
+
+TEST_P(OptimizerTest, EmloNeverRaisesTheEnergyAndKeepsClustersConnectedDiscs) {
+  const Loaded& l = File("elephant-with-holes.off");
+  const MeshProblem problem = l.problem(GetParam());
+  absl::StatusOr<std::vector<ClusterId>> labels =
+      InitialClusters(problem, {SeedOptions::Method::kRandom, 60, 0, 3});
+  ASSERT_TRUE(labels.ok()) << labels.status();
+  const auto before = Topology(l, *labels);
+  std::vector<double> energies;
+  EmloOptions options;
+  options.progress_moves = 50;
+  options.on_progress = [&](uint64_t, double e) { energies.push_back(e); };
+  absl::StatusOr<OptimizeResult> result = OptimizeEmlo(problem, *labels, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_TRUE(result->converged);
+  EXPECT_GT(result->moves, 0u);
+  EXPECT_LT(result->energy, result->initial_energy);
+  for (size_t i = 1; i < energies.size(); ++i) {
+    EXPECT_LE(energies[i], energies[i - 1] * (1 + 1e-12)) << i;
+  }
+  EXPECT_NEAR(result->energy, MeshEnergyOfLabels(problem.energy, l.mesh, *labels),
+              1e-9 * result->energy);
+  EXPECT_EQ(CountClusters(*labels), 60u);
+  // No cluster split, none gained a hole or a handle.
+  for (const auto& [c, t] : Topology(l, *labels)) {
+    EXPECT_EQ(t.pieces, 1) << "cluster " << c;
+    ASSERT_TRUE(before.count(c));
+    EXPECT_GE(t.euler, std::min(1, before.at(c).euler)) << "cluster " << c;
+  }
+}
+
+TEST_P(OptimizerTest, BoundaryBasedNeverRaisesTheEnergyAndKeepsClustersConnected) {
+  const Loaded& l = File("elephant-with-holes.off");
+  const MeshProblem problem = l.problem(GetParam());
+  absl::StatusOr<std::vector<ClusterId>> labels =
+      InitialClusters(problem, {SeedOptions::Method::kRandom, 60, 0, 4});
+  ASSERT_TRUE(labels.ok());
+  std::vector<double> energies;
+  BoundaryBasedOptions options;
+  options.on_iteration = [&](uint32_t, double e) { energies.push_back(e); };
+  absl::StatusOr<OptimizeResult> result = OptimizeBoundaryBased(problem, *labels, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_LE(result->energy, result->initial_energy);
+  double previous = result->initial_energy;
+  for (double e : energies) {
+    EXPECT_LE(e, previous * (1 + 1e-12));
+    previous = e;
+  }
+  EXPECT_EQ(CountClusters(*labels), 60u);
+  for (const auto& [c, t] : Topology(l, *labels)) EXPECT_EQ(t.pieces, 1) << "cluster " << c;
+}
+
+INSTANTIATE_TEST_SUITE_P(AllMeshEnergies, OptimizerTest,
+                         ::testing::Values(MeshEnergyKind::kCvd, MeshEnergyKind::kCvdAdaptive,
+                                           MeshEnergyKind::kMwcvdArea,
+                                           MeshEnergyKind::kMwcvdVariance,
+                                           MeshEnergyKind::kMwcvdMax, MeshEnergyKind::kPlanar,
+                                           MeshEnergyKind::kSphere),
+                         [](const auto& info) {
+                           std::string name = MeshEnergyName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
+
+TEST(OptimizerTest, GuardOffCanSplitClustersGuardOnNever) {
+  // Without the guard EMLO is free to split; the guarded run on the same start must not.
+  const Loaded& l = File("fandisk.off");
+  const MeshProblem problem = l.problem(MeshEnergyKind::kPlanar);
+  absl::StatusOr<std::vector<ClusterId>> start =
+      InitialClusters(problem, {SeedOptions::Method::kRandom, 200, 0, 11});
+  ASSERT_TRUE(start.ok());
+  std::vector<ClusterId> guarded = *start, free = *start;
+  ASSERT_TRUE(OptimizeEmlo(problem, guarded).ok());
+  EmloOptions no_guard;
+  no_guard.connectivity_guard = false;
+  ASSERT_TRUE(OptimizeEmlo(problem, free, no_guard).ok());
+  auto split = [&](const std::vector<ClusterId>& labels) {
+    int count = 0;
+    for (const auto& [c, t] : Topology(l, labels)) count += t.pieces > 1 || t.euler < 1;
+    return count;
+  };
+  // The flood can leave a few clusters with holes; the guard never adds one.
+  EXPECT_LE(split(guarded), split(*start));
+  for (const auto& [c, t] : Topology(l, guarded)) EXPECT_EQ(t.pieces, 1);
+  EXPECT_GT(split(free), split(*start));  // the guard is what keeps them whole
+}
+
+// A cube split into 12 triangles, clustered into 6 by EMLO with the planar energy: each
+// side becomes one cluster and the energy is 0.
+TEST(OptimizerTest, CubeGivesSixPlanarClustersOfEnergyZero) {
+  // A cube with each side a 3 x 3 grid of squares (108 faces), so seeds can land anywhere.
+  TriangleMesh cube;
+  auto vertex = [&](float x, float y, float z) {
+    for (size_t v = 0; v < cube.num_vertices(); ++v) {
+      if (cube.positions[3 * v] == x && cube.positions[3 * v + 1] == y &&
+          cube.positions[3 * v + 2] == z) {
+        return static_cast<uint32_t>(v);
+      }
+    }
+    cube.positions.insert(cube.positions.end(), {x, y, z});
+    return static_cast<uint32_t>(cube.num_vertices() - 1);
+  };
+  const int n = 3;
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int side = 0; side < 2; ++side) {
+      for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+          auto point = [&](int a, int b) {
+            float p[3];
+            p[axis] = static_cast<float>(side * n);
+            p[(axis + 1) % 3] = static_cast<float>(a);
+            p[(axis + 2) % 3] = static_cast<float>(b);
+            return vertex(p[0], p[1], p[2]);
+          };
+          uint32_t q[4] = {point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1)};
+          if (side == 0) std::swap(q[1], q[3]);
+          cube.indices.insert(cube.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+        }
+      }
+    }
+  }
+  const Loaded l = Load(cube);
+  ASSERT_EQ(l.mesh.num_faces(), 108u);
+  const MeshProblem problem = l.problem(MeshEnergyKind::kPlanar);
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    absl::StatusOr<std::vector<ClusterId>> labels =
+        InitialClusters(problem, {SeedOptions::Method::kLNeighbourhood, 6, 0, seed});
+    ASSERT_TRUE(labels.ok()) << labels.status();
+    absl::StatusOr<OptimizeResult> result = OptimizeEmlo(problem, *labels);
+    ASSERT_TRUE(result.ok());
+    EXPECT_NEAR(result->energy, 0.0, 1e-9) << "seed " << seed;
+    EXPECT_EQ(CountClusters(*labels), 6u);
+  }
+}
+
+TEST(OptimizerTest, BadLabelsAreRefused) {
+  const Loaded& l = File("elephant.off");
+  std::vector<ClusterId> labels(3, ClusterId(0));
+  EXPECT_EQ(OptimizeEmlo(l.problem(), labels).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(OptimizeBoundaryBased(l.problem(), labels).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// k spherical patches, clustered into k by EMLO with the sphere energy from an
+// l-neighbourhood start: the energy falls to that of the true patches (what is left comes
+// from triangles that straddle patch borders), far below the start's and one cluster's.
+TEST(SphereEnergyTest, SphericalPatchesReachNearZeroEnergyAtK) {
+  const testing::SphericalPatchModel model = testing::SphericalPatches(3, 2, 32);
+  const Loaded l = Load(model.mesh);  // 6 patches, 12288 faces
+  const MeshProblem problem = l.problem(MeshEnergyKind::kSphere);
+  const double truth = MeshEnergyOfLabels(problem.energy, l.mesh, model.patch);
+  const double one = MeshEnergyOfLabels(problem.energy, l.mesh,
+                                        std::vector<ClusterId>(l.mesh.num_faces(), ClusterId(0)));
+  absl::StatusOr<std::vector<ClusterId>> labels =
+      InitialClusters(problem, {SeedOptions::Method::kLNeighbourhood, 6, 0, 1});
+  ASSERT_TRUE(labels.ok()) << labels.status();
+  absl::StatusOr<OptimizeResult> result = OptimizeEmlo(problem, *labels);
+  ASSERT_TRUE(result.ok());
+  std::printf("sphere energy: one cluster %.4g, start %.4g, EMLO %.4g, true patches %.4g\n", one,
+              result->initial_energy, result->energy, truth);
+  EXPECT_LT(truth, 0.05 * one);  // the model is what it claims to be
+  EXPECT_LT(result->energy, 1.1 * truth);
+  EXPECT_LT(result->energy, 0.1 * result->initial_energy);
+}
+
+}  // namespace
+}  // namespace mlclust

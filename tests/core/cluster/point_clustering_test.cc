@@ -1,0 +1,336 @@
+#include "core/cluster/point_clustering.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+
+#include "absl/container/flat_hash_set.h"
+#include "core/base/random.h"
+#include "core/hierarchy/model_selection.h"
+
+namespace mlclust {
+namespace {
+
+// `k` Gaussian blobs of `per` points with sigma 1 in d dimensions, centres uniform in
+// [-25, 25]^d at least `separation` apart. Returns the points and the true labels.
+std::pair<PointSet, std::vector<ClusterId>> Blobs(uint32_t k, uint32_t per, uint32_t d,
+                                                  uint64_t seed, double separation = 10) {
+  Random random(seed);
+  std::vector<std::vector<double>> centres;
+  while (centres.size() < k) {
+    std::vector<double> c(d);
+    for (double& v : c) v = -25 + 50 * random.Unit();
+    bool far = true;
+    for (const auto& o : centres) {
+      double dist = 0;
+      for (uint32_t j = 0; j < d; ++j) dist += (c[j] - o[j]) * (c[j] - o[j]);
+      far = far && dist > separation * separation;
+    }
+    if (far) centres.push_back(c);
+  }
+  PointSet points;
+  points.dims = d;
+  std::vector<ClusterId> truth;
+  for (uint32_t c = 0; c < k; ++c) {
+    for (uint32_t i = 0; i < per; ++i) {
+      for (uint32_t j = 0; j < d; ++j) {
+        // Box-Muller.
+        const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
+        points.values.push_back(static_cast<float>(
+            centres[c][j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v)));
+      }
+      truth.push_back(ClusterId(c));
+    }
+  }
+  return {points, truth};
+}
+
+// Same partition up to renaming.
+bool SamePartition(const std::vector<ClusterId>& a, const std::vector<ClusterId>& b) {
+  std::map<uint32_t, uint32_t> ab, ba;
+  for (size_t i = 0; i < a.size(); ++i) {
+    auto [x, ix] = ab.emplace(a[i].value(), b[i].value());
+    auto [y, iy] = ba.emplace(b[i].value(), a[i].value());
+    if (x->second != b[i].value() || y->second != a[i].value()) return false;
+  }
+  return true;
+}
+
+TEST(SubspaceIndexTest, HandMadeCasesIn2DAnd3D) {
+  const std::vector<double> o2 = {0, 0};
+  EXPECT_EQ(SubspaceIndex(o2, std::vector<double>{3, 1}), 0u);   // +x dominates
+  EXPECT_EQ(SubspaceIndex(o2, std::vector<double>{-3, 1}), 1u);  // -x
+  EXPECT_EQ(SubspaceIndex(o2, std::vector<double>{1, 3}), 2u);   // +y
+  EXPECT_EQ(SubspaceIndex(o2, std::vector<double>{1, -3}), 3u);  // -y
+  EXPECT_EQ(SubspaceIndex(o2, std::vector<double>{2, 2}), 0u);   // tie: the lower axis
+  const std::vector<double> o3 = {1, 1, 1};
+  EXPECT_EQ(SubspaceIndex(o3, std::vector<double>{1, 1, 5}), 4u);    // +z
+  EXPECT_EQ(SubspaceIndex(o3, std::vector<double>{1, 1, -5}), 5u);   // -z
+  EXPECT_EQ(SubspaceIndex(o3, std::vector<double>{0.5, 4, 2}), 2u);  // +y
+  // Seen from the other side the subspace flips sign.
+  EXPECT_EQ(SubspaceIndex(std::vector<double>{1, 1, 5}, o3), 5u);
+}
+
+TEST(VoxelGridStartTest, OnlyOccupiedCellsBecomeClusters) {
+  PointSet points;
+  points.dims = 2;
+  // A 4 x 4 grid over [0, 4]^2: points in cells (0,0) x2, (3,3), (0,3); the rest empty.
+  points.values = {0.1f, 0.1f, 0.2f, 0.3f, 3.9f, 3.9f, 0.5f, 3.5f, 4.0f, 4.0f, 0.0f, 0.0f};
+  absl::StatusOr<VoxelStart> start = VoxelGridStart(points, 4);
+  ASSERT_TRUE(start.ok()) << start.status();
+  EXPECT_EQ(start->clusters, 3u);
+  EXPECT_EQ(start->labels[0], start->labels[1]);
+  EXPECT_EQ(start->labels[2], start->labels[4]);  // 4.0 falls in the last cell
+  EXPECT_EQ(start->labels[0], start->labels[5]);
+  EXPECT_NE(start->labels[0], start->labels[3]);
+  // 16 dimensions with a = 10 would be 10^16 cells: only the occupied ones exist.
+  auto [blobs, truth] = Blobs(4, 50, 16, 3);
+  absl::StatusOr<VoxelStart> high = VoxelGridStart(blobs, 10);
+  ASSERT_TRUE(high.ok());
+  EXPECT_LE(high->clusters, blobs.num_points());
+  EXPECT_EQ(VoxelGridStart(points, (1u << 20) + 1).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // grid 0: the default, about eight points per occupied cell (here 6 points: one cell).
+  absl::StatusOr<VoxelStart> chosen = VoxelGridStart(points, 0);
+  ASSERT_TRUE(chosen.ok());
+  EXPECT_EQ(chosen->clusters, 1u);
+}
+
+TEST(LnKmeansTest, FromTheVoxelGridKeepsOneClusterPerOccupiedCellAndLowersTheEnergy) {
+  auto [points, truth] = Blobs(5, 300, 3, 31, 8);
+  absl::StatusOr<VoxelStart> start = VoxelGridStart(points, 6);
+  ASSERT_TRUE(start.ok());
+  absl::StatusOr<LnKmeansResult> result = RunLnKmeansFromGrid(points, 6);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_TRUE(result->converged);
+  EXPECT_NEAR(result->initial_energy, PointEnergy(points, start->labels),
+              1e-9 * result->initial_energy);
+  EXPECT_NEAR(result->energy, PointEnergy(points, result->labels), 1e-9 * result->energy);
+  EXPECT_LT(result->energy, result->initial_energy);
+  std::set<uint32_t> distinct;
+  for (ClusterId c : result->labels) distinct.insert(c.value());
+  EXPECT_EQ(distinct.size(), start->clusters);
+}
+
+// A plain Lloyd from the same start, for comparison.
+std::vector<ClusterId> Lloyd(const PointSet& points, std::vector<ClusterId> labels, uint32_t k) {
+  const uint32_t d = points.dims;
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    std::vector<double> sum(k * d, 0.0);
+    std::vector<double> count(k, 0.0);
+    for (size_t i = 0; i < labels.size(); ++i) {
+      count[labels[i].value()] += 1;
+      for (uint32_t j = 0; j < d; ++j) sum[labels[i].value() * d + j] += points.values[i * d + j];
+    }
+    bool moved = false;
+    for (size_t i = 0; i < labels.size(); ++i) {
+      double best = 1e300;
+      uint32_t best_c = labels[i].value();
+      for (uint32_t c = 0; c < k; ++c) {
+        if (count[c] == 0) continue;
+        double dist = 0;
+        for (uint32_t j = 0; j < d; ++j) {
+          const double diff = points.values[i * d + j] - sum[c * d + j] / count[c];
+          dist += diff * diff;
+        }
+        if (dist < best) {
+          best = dist;
+          best_c = c;
+        }
+      }
+      moved = moved || best_c != labels[i].value();
+      labels[i] = ClusterId(best_c);
+    }
+    if (!moved) break;
+  }
+  return labels;
+}
+
+TEST(LnKmeansTest, ReachesLloydsPartitionOnSeparatedDataAndNeverRaisesTheEnergy) {
+  for (uint32_t d : {2u, 3u, 8u}) {
+    auto [points, truth] = Blobs(12, 200, d, d);
+    absl::StatusOr<std::vector<ClusterId>> start = SeedPointClusters(points, 12, true, 5);
+    ASSERT_TRUE(start.ok());
+    std::vector<double> energies;
+    LnKmeansOptions options;
+    options.on_iteration = [&](uint32_t, uint64_t, double e) { energies.push_back(e); };
+    absl::StatusOr<LnKmeansResult> result = RunLnKmeans(points, *start, options);
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_TRUE(result->converged);
+    double previous = result->initial_energy;
+    for (double e : energies) {
+      EXPECT_LE(e, previous * (1 + 1e-12));
+      previous = e;
+    }
+    EXPECT_TRUE(SamePartition(result->labels, Lloyd(points, *start, 12))) << "d=" << d;
+    EXPECT_NEAR(result->energy, PointEnergy(points, result->labels), 1e-6 * result->energy);
+  }
+}
+
+TEST(LnKmeansTest, BadInputIsRefused) {
+  PointSet points;
+  points.dims = 2;
+  points.values = {0, 0, 1, std::numeric_limits<float>::quiet_NaN()};
+  EXPECT_EQ(RunLnKmeans(points, {ClusterId(0), ClusterId(0)}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  points.values = {0, 0, 1, 1};
+  EXPECT_EQ(RunLnKmeans(points, {ClusterId(0)}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(SeedPointClusters(points, 3, true, 1).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+std::map<uint32_t, double> EnergyByCount(const HierarchyLog& log) {
+  std::map<uint32_t, double> energy;
+  for (size_t l = 0; l < log.num_levels(); ++l) energy[log.cluster_count(l)] = log.energy(l);
+  return energy;
+}
+
+TEST(PointMultilevelTest, RebuildsTheEnginesLabelsAndReportsTheirEnergy) {
+  auto [points, truth] = Blobs(8, 300, 3, 11);
+  std::map<size_t, std::vector<ClusterId>> engine;
+  PointMultilevelOptions options;
+  options.grid = 12;
+  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
+    if (level % 97 != 3) return;
+    std::vector<ClusterId>& copy = engine[level];
+    for (uint32_t c : labels) copy.push_back(ClusterId(c));
+  };
+  HierarchyLog log;
+  absl::StatusOr<PointMultilevelSummary> summary = RunPointMultilevel(points, options, log);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_EQ(summary->final_clusters, 1u);
+  EXPECT_EQ(log.cluster_count(0), summary->start_clusters);
+  ASSERT_FALSE(engine.empty());
+  for (const auto& [level, labels] : engine) {
+    ASSERT_EQ(*log.LabelsAt(level), labels) << level;
+    const double direct = PointEnergy(points, labels);
+    EXPECT_NEAR(log.energy(level), direct, 1e-6 * direct + 1e-9) << level;
+  }
+  // The 8 blobs are recovered exactly at 8 clusters.
+  const std::optional<size_t> eight = log.LastLevelWith(8);
+  ASSERT_TRUE(eight.has_value());
+  EXPECT_TRUE(SamePartition(*log.LabelsAt(*eight), truth));
+}
+
+TEST(PointMultilevelTest, MlIsAtMostHcAtNearlyEveryLevel) {
+  auto [points, truth] = Blobs(6, 400, 3, 21, 6);
+  PointMultilevelOptions ml_options, hc_options;
+  ml_options.grid = hc_options.grid = 16;
+  hc_options.optimizer = PointMultilevelOptions::Optimizer::kNone;
+  HierarchyLog ml, hc;
+  ASSERT_TRUE(RunPointMultilevel(points, ml_options, ml).ok());
+  ASSERT_TRUE(RunPointMultilevel(points, hc_options, hc).ok());
+  const auto ml_energy = EnergyByCount(ml), hc_energy = EnergyByCount(hc);
+  size_t worse = 0;
+  for (const auto& [k, e] : ml_energy) worse += e > hc_energy.at(k) * (1 + 1e-9);
+  EXPECT_LE(worse, ml_energy.size() / 100);
+  for (uint32_t k : {6u, 20u, 100u}) {
+    EXPECT_LE(ml_energy.at(k), hc_energy.at(k) * (1 + 1e-9)) << k;
+  }
+}
+
+TEST(PointMultilevelTest, PmlReachesOneClusterAndFarApartGroupsStillMerge) {
+  // Two blobs 1000 apart: their voxels never touch, yet the hierarchy ends at one cluster.
+  auto [points, truth] = Blobs(2, 100, 3, 5);
+  for (size_t i = 0; i < 100 * 3; i += 3) points.values[i] += 1000;
+  PointMultilevelOptions options;
+  options.parallel = true;
+  HierarchyLog log;
+  absl::StatusOr<PointMultilevelSummary> summary = RunPointMultilevel(points, options, log);
+  ASSERT_TRUE(summary.ok());
+  EXPECT_EQ(summary->final_clusters, 1u);
+  EXPECT_TRUE(SamePartition(*log.LabelsAt(*log.FirstLevelWithAtMost(2)), truth));
+}
+
+TEST(PointMultilevelTest, PmlStaysCloseToMlAtEveryLevel) {
+  // Blobs of unequal spacing: near the blobs' own scale the mutual pairs of a PML level mix
+  // pieces of one blob with whole blobs. Collapsing only the cheaper half keeps PML's
+  // energy near ML's at every level PML produces, in far fewer levels.
+  auto [points, truth] = Blobs(40, 250, 3, 17, 3);
+  PointMultilevelOptions ml_options, pml_options;
+  pml_options.parallel = true;
+  HierarchyLog ml, pml;
+  ASSERT_TRUE(RunPointMultilevel(points, ml_options, ml).ok());
+  ASSERT_TRUE(RunPointMultilevel(points, pml_options, pml).ok());
+  const auto ml_energy = EnergyByCount(ml);
+  EXPECT_LT(pml.num_levels() * 4, ml.num_levels());
+  for (size_t l = 0; l < pml.num_levels(); ++l) {
+    const uint32_t k = pml.cluster_count(l);
+    EXPECT_LE(pml.energy(l), 1.25 * ml_energy.at(k)) << k << " clusters";
+  }
+}
+
+TEST(PointMultilevelTest, AnIsolatedOutlierCellStillMergesWhereItIsCheapest) {
+  // Two dense groups joined by a bridge of points (so their cells touch face to face) and
+  // one outlier whose cell touches no occupied cell. Once the groups have merged into
+  // each other's neighbourhood, the outlier must join the nearer group at 2 clusters: a
+  // cluster with no neighbours at all would otherwise never be offered a merge, and the
+  // groups would merge with each other at a far higher cost first.
+  PointSet points;
+  points.dims = 3;
+  Random random(3);
+  auto add = [&](double x, double y, double z) {
+    points.values.insert(points.values.end(),
+                         {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)});
+  };
+  for (int i = 0; i < 200; ++i) add(0.5 * random.Unit(), 0.5 * random.Unit(), 0.5 * random.Unit());
+  for (int i = 0; i < 200; ++i) {
+    add(9.5 + 0.5 * random.Unit(), 0.5 * random.Unit(), 0.5 * random.Unit());
+  }
+  for (double x = 0.5; x < 9.5; x += 0.25) add(x, 0.25, 0.25);
+  const size_t outlier = points.num_points();
+  add(0.25, 4.0, 0.25);
+  add(10.0, 10.0, 10.0);  // stretches the box so the grid below has cells of size 1
+  PointMultilevelOptions options;
+  options.grid = 10;
+  HierarchyLog log;
+  ASSERT_TRUE(RunPointMultilevel(points, options, log).ok());
+  const std::optional<size_t> two = log.LastLevelWith(3);
+  ASSERT_TRUE(two.has_value());
+  const std::vector<ClusterId> labels = *log.LabelsAt(*two);
+  size_t with_outlier = 0;
+  for (size_t i = 0; i < labels.size(); ++i) with_outlier += labels[i] == labels[outlier];
+  EXPECT_GT(with_outlier, 1u) << "the outlier is still alone at 3 clusters";
+  // And the energy never drops by more than rounding from one level to the next coarser.
+  for (size_t l = 1; l < log.num_levels(); ++l) {
+    EXPECT_GE(log.energy(l), log.energy(l - 1) * (1 - 1e-9) - 1e-9) << l;
+  }
+}
+
+TEST(PointMultilevelTest, HighDimensionalDataStartsFromManyCellsAndFindsTheBlobs) {
+  // At d = 64 no uniform grid fits eight points a cell (2^64 cells); the default start
+  // halves the widest cells axis by axis instead, and ML still separates the blobs.
+  auto [points, truth] = Blobs(6, 300, 64, 7, 20);
+  HierarchyLog log;
+  absl::StatusOr<PointMultilevelSummary> summary = RunPointMultilevel(points, {}, log);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_GT(summary->start_clusters, 6u * 10);
+  const std::optional<size_t> six = log.LastLevelWith(6);
+  ASSERT_TRUE(six.has_value());
+  EXPECT_TRUE(SamePartition(*log.LabelsAt(*six), truth));
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Section 6.6: the ML hierarchy's BIC recovers the number of well separated Gaussians.
+TEST(PointMultilevelTest, BicOfTheMlHierarchyRecoversTheNumberOfBlobs) {
+  for (uint32_t k : {5u, 12u, 30u}) {
+    auto [points, truth] = Blobs(k, 200, 3, 100 + k, 8);
+    BicLevelRecorder recorder;
+    ASSERT_TRUE(RunPointMultilevel(points, {}, recorder).ok());
+    absl::StatusOr<BicChoice> choice =
+        ChooseByBic(recorder.levels(), recorder.num_points(), points.dims);
+    ASSERT_TRUE(choice.ok()) << choice.status();
+    EXPECT_EQ(choice->best_k, k);
+  }
+}
+
+}  // namespace
+}  // namespace mlclust

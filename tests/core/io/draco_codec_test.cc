@@ -1,0 +1,343 @@
+#include "core/io/draco_codec.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/io/mesh_io.h"
+#include "core/mesh/mesh.h"
+#include "draco/attributes/geometry_attribute.h"
+#include "draco/compression/config/compression_shared.h"
+#include "draco/compression/expert_encode.h"
+#include "draco/core/encoder_buffer.h"
+#include "draco/mesh/mesh.h"
+#include "draco/point_cloud/point_cloud.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using testing::DataPath;
+using testing::Grid;
+using ::testing::HasSubstr;
+using testing::MakeMesh;
+using testing::Tetrahedron;
+
+std::string Message(const absl::Status& status) { return std::string(status.message()); }
+
+TriangleMesh Fandisk() {
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(DataPath("fandisk.off"));
+  EXPECT_TRUE(mesh.ok()) << mesh.status();
+  return mesh.ok() ? *std::move(mesh) : TriangleMesh();
+}
+
+bool SameBits(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+absl::StatusOr<TriangleMesh> RoundTrip(const TriangleMesh& mesh,
+                                       const DracoEncodeOptions& options = {}) {
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(mesh, options);
+  if (!bytes.ok()) return bytes.status();
+  return DecodeDracoMesh(*bytes);
+}
+
+// Encodes with Draco directly (for methods and geometry EncodeMeshToDraco never makes).
+std::string EncodeWithDraco(const TriangleMesh& mesh, int method, int quantization_bits) {
+  draco::Mesh draco_mesh;
+  draco_mesh.set_num_points(static_cast<uint32_t>(mesh.num_vertices()));
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
+                sizeof(float) * 3, 0);
+  const int id = draco_mesh.AddAttribute(position, true, mesh.num_vertices());
+  for (uint32_t v = 0; v < mesh.num_vertices(); ++v) {
+    draco_mesh.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(v),
+                                                &mesh.positions[3 * v]);
+  }
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    draco_mesh.AddFace({draco::PointIndex(mesh.indices[3 * f]),
+                        draco::PointIndex(mesh.indices[3 * f + 1]),
+                        draco::PointIndex(mesh.indices[3 * f + 2])});
+  }
+  draco::ExpertEncoder encoder(draco_mesh);
+  encoder.SetEncodingMethod(method);
+  if (quantization_bits > 0) encoder.SetAttributeQuantization(id, quantization_bits);
+  draco::EncoderBuffer buffer;
+  EXPECT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
+  return std::string(buffer.data(), buffer.size());
+}
+
+// ---------------------------------------------------------------------------------------
+// Round trips.
+
+TEST(DracoCodecTest, FandiskRoundTripIsBitExact) {
+  const TriangleMesh fandisk = Fandisk();
+  ASSERT_EQ(fandisk.num_faces(), 12946u);
+  absl::StatusOr<TriangleMesh> decoded = RoundTrip(fandisk);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->num_vertices(), 6475u);  // No deduplication, no reordering.
+  EXPECT_TRUE(SameBits(decoded->positions, fandisk.positions));
+  EXPECT_EQ(decoded->indices, fandisk.indices);
+}
+
+TEST(DracoCodecTest, EverySpeedIsLossless) {
+  const TriangleMesh fandisk = Fandisk();
+  for (int speed : {0, 5, 10}) {
+    DracoEncodeOptions options;
+    options.speed = speed;
+    absl::StatusOr<TriangleMesh> decoded = RoundTrip(fandisk, options);
+    ASSERT_TRUE(decoded.ok()) << "speed " << speed << ": " << decoded.status();
+    EXPECT_TRUE(SameBits(decoded->positions, fandisk.positions)) << "speed " << speed;
+    EXPECT_EQ(decoded->indices, fandisk.indices) << "speed " << speed;
+  }
+}
+
+TEST(DracoCodecTest, ShuffledFacesComeBackInTheirShuffledOrder) {
+  TriangleMesh shuffled = Fandisk();
+  std::vector<uint32_t> order(shuffled.num_faces());
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(42));
+  std::vector<uint32_t> indices(shuffled.indices.size());
+  for (size_t k = 0; k < order.size(); ++k) {
+    std::copy_n(&shuffled.indices[3 * order[k]], 3, &indices[3 * k]);
+  }
+  shuffled.indices = indices;
+  absl::StatusOr<TriangleMesh> decoded = RoundTrip(shuffled);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->indices, shuffled.indices);
+  EXPECT_TRUE(SameBits(decoded->positions, shuffled.positions));
+}
+
+TEST(DracoCodecTest, QuantizedIsSmallerAndWithinOneStep) {
+  const TriangleMesh fandisk = Fandisk();
+  absl::StatusOr<std::string> lossless = EncodeMeshToDraco(fandisk);
+  DracoEncodeOptions options;
+  options.position_quantization_bits = 14;
+  absl::StatusOr<std::string> quantized = EncodeMeshToDraco(fandisk, options);
+  ASSERT_TRUE(lossless.ok() && quantized.ok());
+  EXPECT_LT(quantized->size(), lossless->size() * 3 / 4);
+
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(*quantized);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->indices, fandisk.indices);
+  ASSERT_EQ(decoded->positions.size(), fandisk.positions.size());
+  // Draco quantizes all axes on one grid spanning the largest extent.
+  float low[3], high[3];
+  for (int a = 0; a < 3; ++a) {
+    low[a] = std::numeric_limits<float>::max();
+    high[a] = std::numeric_limits<float>::lowest();
+  }
+  for (size_t i = 0; i < fandisk.positions.size(); ++i) {
+    low[i % 3] = std::min(low[i % 3], fandisk.positions[i]);
+    high[i % 3] = std::max(high[i % 3], fandisk.positions[i]);
+  }
+  const float extent = std::max({high[0] - low[0], high[1] - low[1], high[2] - low[2]});
+  const float step = extent / ((1 << 14) - 1);
+  float worst = 0;
+  for (size_t i = 0; i < fandisk.positions.size(); ++i) {
+    worst = std::max(worst, std::abs(decoded->positions[i] - fandisk.positions[i]));
+  }
+  EXPECT_LE(worst, step) << "extent " << extent;
+  EXPECT_GT(worst, 0) << "14 bits cannot be exact on fandisk";
+}
+
+TEST(DracoCodecTest, EncodedSizesOfFandisk) {
+  // Recorded for the design notes; the assertions only pin the ordering.
+  const TriangleMesh fandisk = Fandisk();
+  DracoEncodeOptions q14;
+  q14.position_quantization_bits = 14;
+  const size_t lossless = EncodeMeshToDraco(fandisk)->size();
+  const size_t quantized = EncodeMeshToDraco(fandisk, q14)->size();
+  const size_t edgebreaker_lossless =
+      EncodeWithDraco(fandisk, draco::MESH_EDGEBREAKER_ENCODING, 0).size();
+  const size_t edgebreaker_q14 =
+      EncodeWithDraco(fandisk, draco::MESH_EDGEBREAKER_ENCODING, 14).size();
+  const size_t raw = fandisk.positions.size() * 4 + fandisk.indices.size() * 4;
+  std::cout << "fandisk (" << fandisk.num_vertices() << " vertices, " << fandisk.num_faces()
+            << " faces): raw arrays " << raw << " B, sequential lossless " << lossless
+            << " B, sequential 14-bit " << quantized << " B, edgebreaker lossless "
+            << edgebreaker_lossless << " B, edgebreaker 14-bit " << edgebreaker_q14 << " B\n";
+  ::testing::Test::RecordProperty("sequential_lossless_bytes", static_cast<int>(lossless));
+  ::testing::Test::RecordProperty("sequential_q14_bytes", static_cast<int>(quantized));
+  ::testing::Test::RecordProperty("edgebreaker_q14_bytes", static_cast<int>(edgebreaker_q14));
+  EXPECT_LT(lossless, raw);
+  EXPECT_LT(quantized, lossless);
+  EXPECT_LT(edgebreaker_q14, quantized);
+}
+
+TEST(DracoCodecTest, NothingIsCleanedUpOnTheWay) {
+  // A degenerate face (vertex 0 twice), the same face twice, two vertices at one
+  // position (1 and 4) and an unused vertex (5): all must reach ValidateMesh.
+  const TriangleMesh mesh = MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 7, 7, 7},
+                                     {0, 2, 1, 0, 0, 3, 1, 2, 3, 1, 2, 3, 0, 4, 3});
+  for (int bits : {0, 3}) {  // 3 bits over the extent 7: the integer grid, exact.
+    DracoEncodeOptions options;
+    options.position_quantization_bits = bits;
+    absl::StatusOr<TriangleMesh> decoded = RoundTrip(mesh, options);
+    ASSERT_TRUE(decoded.ok()) << decoded.status();
+    EXPECT_EQ(decoded->indices, mesh.indices) << "bits " << bits;
+    EXPECT_EQ(decoded->positions, mesh.positions) << "bits " << bits;
+    const absl::Status validation = ValidateMesh(*decoded);
+    EXPECT_EQ(validation.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(Message(validation), HasSubstr("face 1"));
+  }
+}
+
+TEST(DracoCodecTest, LosslessCarriesNanForValidationToName) {
+  const TriangleMesh mesh =
+      MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, std::numeric_limits<float>::quiet_NaN()}, {0, 1, 2});
+  absl::StatusOr<TriangleMesh> decoded = RoundTrip(mesh);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_TRUE(std::isnan(decoded->positions[8]));
+
+  DracoEncodeOptions options;
+  options.position_quantization_bits = 12;
+  absl::StatusOr<std::string> quantized = EncodeMeshToDraco(mesh, options);
+  EXPECT_EQ(quantized.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(quantized.status()), HasSubstr("vertex 2 has a non-finite coordinate"));
+}
+
+TEST(DracoCodecTest, EncoderRefusesBadOptionsAndIndices) {
+  DracoEncodeOptions options;
+  options.position_quantization_bits = 31;
+  EXPECT_THAT(Message(EncodeMeshToDraco(Tetrahedron(), options).status()),
+              HasSubstr("position_quantization_bits"));
+  options.position_quantization_bits = -1;
+  EXPECT_EQ(EncodeMeshToDraco(Tetrahedron(), options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  options = {};
+  options.speed = 11;
+  EXPECT_THAT(Message(EncodeMeshToDraco(Tetrahedron(), options).status()),
+              HasSubstr("speed must be 0..10, got 11"));
+
+  TriangleMesh broken = Tetrahedron();
+  broken.indices[7] = 4;
+  EXPECT_THAT(
+      Message(EncodeMeshToDraco(broken).status()),
+      HasSubstr("face 2 corner 1: vertex index 4 is out of range (the mesh has 4 vertices)"));
+  broken = Tetrahedron();
+  broken.indices.pop_back();
+  EXPECT_EQ(EncodeMeshToDraco(broken).status().code(), absl::StatusCode::kInvalidArgument);
+
+  const TriangleMesh no_faces = MakeMesh({0, 0, 0, 1, 0, 0, 0, 1, 0}, {});
+  EXPECT_THAT(Message(EncodeMeshToDraco(no_faces).status()), HasSubstr("no faces"));
+}
+
+TEST(DracoCodecTest, EdgebreakerBytesDecodeInTheirOwnOrder) {
+  // Not what EncodeMeshToDraco makes, but a client may send it: all faces arrive, in
+  // the order edgebreaker chose.
+  const TriangleMesh fandisk = Fandisk();
+  absl::StatusOr<TriangleMesh> decoded =
+      DecodeDracoMesh(EncodeWithDraco(fandisk, draco::MESH_EDGEBREAKER_ENCODING, 0));
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->num_faces(), fandisk.num_faces());
+  EXPECT_EQ(decoded->num_vertices(), fandisk.num_vertices());
+  EXPECT_NE(decoded->indices, fandisk.indices);
+  EXPECT_TRUE(ValidateMesh(*decoded).ok());
+}
+
+// ---------------------------------------------------------------------------------------
+// Untrusted bytes.
+
+TEST(DracoCodecTest, RefusesEmptyAndNonDracoBytes) {
+  EXPECT_THAT(Message(DecodeDracoMesh("").status()), HasSubstr("empty"));
+  for (const std::string& bytes : {std::string("DRACO"), std::string("DRAC"),
+                                   std::string("OFF\n3 1 0\n"), std::string(1000, '\0')}) {
+    EXPECT_EQ(DecodeDracoMesh(bytes).status().code(), absl::StatusCode::kInvalidArgument) << bytes;
+  }
+}
+
+TEST(DracoCodecTest, RefusesPointClouds) {
+  draco::PointCloud cloud;
+  cloud.set_num_points(3);
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
+                sizeof(float) * 3, 0);
+  const int id = cloud.AddAttribute(position, true, 3);
+  const float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  for (uint32_t p = 0; p < 3; ++p) {
+    cloud.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(p), &xyz[3 * p]);
+  }
+  draco::ExpertEncoder encoder(cloud);
+  draco::EncoderBuffer buffer;
+  ASSERT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(std::string(buffer.data(), buffer.size()));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("point cloud"));
+}
+
+// Every decode below must return (ok or not) without crashing; run this binary under
+// ASan or valgrind to catch the quiet memory errors too.
+TEST(DracoCodecTest, SurvivesRandomBytes) {
+  std::mt19937 random(1);
+  const std::string valid = *EncodeMeshToDraco(Grid(5));
+  for (int i = 0; i < 3000; ++i) {
+    std::string bytes(std::uniform_int_distribution<size_t>(0, 300)(random), '\0');
+    for (char& c : bytes) c = static_cast<char>(random());
+    // Half of them get a valid header, so that they reach the decoders proper.
+    if (i % 2 == 1) bytes = valid.substr(0, 11) + bytes;
+    absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(bytes);
+    if (!decoded.ok()) {
+      EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+    }
+  }
+}
+
+TEST(DracoCodecTest, RefusesEveryTruncation) {
+  DracoEncodeOptions q10, raw_indices;
+  q10.position_quantization_bits = 10;
+  raw_indices.speed = 10;
+  const TriangleMesh fandisk = Fandisk();
+  for (const std::string& valid :
+       {*EncodeMeshToDraco(Tetrahedron()), *EncodeMeshToDraco(Grid(8)),
+        *EncodeMeshToDraco(Grid(8), raw_indices), *EncodeMeshToDraco(Grid(8), q10),
+        *EncodeMeshToDraco(fandisk), *EncodeMeshToDraco(fandisk, q10),
+        EncodeWithDraco(fandisk, draco::MESH_EDGEBREAKER_ENCODING, 10)}) {
+    const size_t stride = std::max<size_t>(1, valid.size() / 400);
+    for (size_t length = 0; length < valid.size(); length += stride) {
+      absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(valid.substr(0, length));
+      EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument)
+          << length << " of " << valid.size() << " bytes";
+    }
+  }
+}
+
+TEST(DracoCodecTest, SurvivesCorruptedBytes) {
+  DracoEncodeOptions q12, raw_indices;
+  q12.position_quantization_bits = 12;
+  raw_indices.speed = 10;
+  const TriangleMesh grid = Grid(12);
+  std::mt19937 random(3);
+  for (const std::string& valid : {*EncodeMeshToDraco(grid), *EncodeMeshToDraco(grid, q12),
+                                   *EncodeMeshToDraco(grid, raw_indices),
+                                   EncodeWithDraco(grid, draco::MESH_EDGEBREAKER_ENCODING, 12)}) {
+    for (int i = 0; i < 1500; ++i) {
+      std::string bytes = valid;
+      const int changes = 1 + i % 4;
+      for (int k = 0; k < changes; ++k) {
+        const size_t at = std::uniform_int_distribution<size_t>(0, bytes.size() - 1)(random);
+        bytes[at] = static_cast<char>(random());
+      }
+      absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(bytes);
+      if (decoded.ok()) {
+        // Whatever came back is an indexed mesh whose indices are in range.
+        for (uint32_t index : decoded->indices) ASSERT_LT(index, decoded->num_vertices());
+      } else {
+        EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mlclust

@@ -1,0 +1,777 @@
+#include "core/io/mesh_io.h"
+
+#include <assimp/scene.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <assimp/Importer.hpp>
+#include <bit>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "core/io/draco_codec.h"
+#include "core/mesh/mesh.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using testing::DataPath;
+using testing::Grid;
+using ::testing::HasSubstr;
+using testing::MakeMesh;
+using testing::Tetrahedron;
+
+// ---------------------------------------------------------------------------------------
+// Helpers.
+
+class MeshIoTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    directory_ = std::filesystem::path(::testing::TempDir()) /
+                 absl::StrCat("mesh_io_test_", info->name(), "_", ::getpid());
+    std::filesystem::create_directories(directory_);
+  }
+  void TearDown() override { std::filesystem::remove_all(directory_); }
+
+  // Writes `content` to a file named `name` in the test's directory; returns its path.
+  std::string Write(const std::string& name, const std::string& content) {
+    const std::string path = (directory_ / name).string();
+    std::ofstream file(path, std::ios::binary);
+    file.write(content.data(), static_cast<std::streamsize>(content.size()));
+    EXPECT_TRUE(file.good()) << path;
+    return path;
+  }
+  std::string Path(const std::string& name) const { return (directory_ / name).string(); }
+
+  std::filesystem::path directory_;
+};
+
+std::string ReadAll(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(file), {});
+}
+
+std::array<float, 3> CornerPosition(const TriangleMesh& mesh, size_t face, int corner) {
+  const float* p = &mesh.positions[3 * size_t{mesh.indices[3 * face + corner]}];
+  return {p[0], p[1], p[2]};
+}
+
+// Face i of `actual` has the same three positions, in the same corner order, as face i of
+// `expected`, bit for bit.
+void ExpectSameFacePositions(const TriangleMesh& expected, const TriangleMesh& actual) {
+  ASSERT_EQ(actual.num_faces(), expected.num_faces());
+  for (size_t f = 0; f < expected.num_faces(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const auto want = CornerPosition(expected, f, c);
+      const auto got = CornerPosition(actual, f, c);
+      ASSERT_EQ(std::memcmp(want.data(), got.data(), sizeof(want)), 0)
+          << "face " << f << " corner " << c << ": want (" << want[0] << ", " << want[1] << ", "
+          << want[2] << ") got (" << got[0] << ", " << got[1] << ", " << got[2] << ")";
+    }
+  }
+}
+
+// Twice the signed area of face f projected on z = 0 (positive: counter-clockwise seen
+// from +z).
+double SignedAreaXy(const TriangleMesh& mesh, size_t f) {
+  const auto a = CornerPosition(mesh, f, 0), b = CornerPosition(mesh, f, 1),
+             c = CornerPosition(mesh, f, 2);
+  return (double{b[0]} - a[0]) * (double{c[1]} - a[1]) -
+         (double{b[1]} - a[1]) * (double{c[0]} - a[0]);
+}
+
+// A 4 x 4 grid (32 faces, 25 vertices) with its faces shuffled and each face's corners
+// rotated, so that neither face order nor corner order is the natural one. Coordinates
+// are exact in decimal (multiples of 1/8), so text formats reproduce them bit for bit.
+TriangleMesh ShuffledGrid() {
+  TriangleMesh grid = Grid(4);
+  for (size_t i = 0; i < grid.positions.size(); ++i) {
+    grid.positions[i] = grid.positions[i] * 0.5f + 0.125f * static_cast<float>(i % 3);
+  }
+  std::mt19937 random(7);
+  std::vector<size_t> order(grid.num_faces());
+  std::iota(order.begin(), order.end(), 0);
+  for (size_t i = order.size() - 1; i > 0; --i) {
+    std::swap(order[i], order[std::uniform_int_distribution<size_t>(0, i)(random)]);
+  }
+  TriangleMesh shuffled{grid.positions, {}};
+  for (size_t k = 0; k < order.size(); ++k) {
+    const int rotation = static_cast<int>(k % 3);
+    for (int c = 0; c < 3; ++c) {
+      shuffled.indices.push_back(grid.indices[3 * order[k] + (c + rotation) % 3]);
+    }
+  }
+  return shuffled;
+}
+
+std::string ToOff(const TriangleMesh& mesh) {
+  std::string out = absl::StrCat("OFF\n", mesh.num_vertices(), " ", mesh.num_faces(), " 0\n");
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    absl::StrAppendFormat(&out, "%.9g %.9g %.9g\n", mesh.positions[3 * v],
+                          mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
+  }
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    absl::StrAppend(&out, "3 ", mesh.indices[3 * f], " ", mesh.indices[3 * f + 1], " ",
+                    mesh.indices[3 * f + 2], "\n");
+  }
+  return out;
+}
+
+std::string ToObj(const TriangleMesh& mesh) {
+  std::string out = "# written by mesh_io_test\n";
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    absl::StrAppendFormat(&out, "v %.9g %.9g %.9g\n", mesh.positions[3 * v],
+                          mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
+  }
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {  // OBJ indices are 1-based.
+    absl::StrAppend(&out, "f ", mesh.indices[3 * f] + 1, " ", mesh.indices[3 * f + 1] + 1, " ",
+                    mesh.indices[3 * f + 2] + 1, "\n");
+  }
+  return out;
+}
+
+std::string ToPlyAscii(const TriangleMesh& mesh) {
+  std::string out =
+      absl::StrCat("ply\nformat ascii 1.0\nelement vertex ", mesh.num_vertices(),
+                   "\nproperty float x\nproperty float y\nproperty float z\nelement face ",
+                   mesh.num_faces(), "\nproperty list uchar int vertex_indices\nend_header\n");
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    absl::StrAppendFormat(&out, "%.9g %.9g %.9g\n", mesh.positions[3 * v],
+                          mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
+  }
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    absl::StrAppend(&out, "3 ", mesh.indices[3 * f], " ", mesh.indices[3 * f + 1], " ",
+                    mesh.indices[3 * f + 2], "\n");
+  }
+  return out;
+}
+
+template <typename T>
+void AppendRaw(std::string& out, T value) {  // The tests run on little-endian hosts.
+  static_assert(std::endian::native == std::endian::little);
+  out.append(reinterpret_cast<const char*>(&value), sizeof(value));
+}
+
+std::string ToPlyBinary(const TriangleMesh& mesh) {
+  std::string out =
+      absl::StrCat("ply\nformat binary_little_endian 1.0\nelement vertex ", mesh.num_vertices(),
+                   "\nproperty float x\nproperty float y\nproperty float z\nelement face ",
+                   mesh.num_faces(), "\nproperty list uchar int vertex_indices\nend_header\n");
+  for (float x : mesh.positions) AppendRaw(out, x);
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    AppendRaw<uint8_t>(out, 3);
+    for (int c = 0; c < 3; ++c) AppendRaw<int32_t>(out, mesh.indices[3 * f + c]);
+  }
+  return out;
+}
+
+std::string ToStlAscii(const TriangleMesh& mesh) {
+  std::string out = "solid test\n";
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    out += "facet normal 0 0 1\n outer loop\n";
+    for (int c = 0; c < 3; ++c) {
+      const auto p = CornerPosition(mesh, f, c);
+      absl::StrAppendFormat(&out, "  vertex %.9g %.9g %.9g\n", p[0], p[1], p[2]);
+    }
+    out += " endloop\nendfacet\n";
+  }
+  return out + "endsolid test\n";
+}
+
+std::string ToStlBinary(const TriangleMesh& mesh) {
+  std::string out(80, ' ');  // Must not start with "solid", or readers take it for ASCII.
+  out.replace(0, 6, "binary");
+  AppendRaw<uint32_t>(out, static_cast<uint32_t>(mesh.num_faces()));
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    for (int i = 0; i < 3; ++i) AppendRaw<float>(out, i == 2 ? 1.0f : 0.0f);
+    for (int c = 0; c < 3; ++c) {
+      for (float x : CornerPosition(mesh, f, c)) AppendRaw(out, x);
+    }
+    AppendRaw<uint16_t>(out, 0);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// OFF.
+
+// A tiny OFF reader independent of the one under test: whitespace tokens, strtof.
+TriangleMesh ReadTriangleOffIndependently(const std::string& path) {
+  std::istringstream in(ReadAll(path));
+  std::string keyword;
+  size_t num_vertices = 0, num_faces = 0, num_edges = 0;
+  in >> keyword >> num_vertices >> num_faces >> num_edges;
+  TriangleMesh mesh;
+  std::string token;
+  for (size_t i = 0; i < 3 * num_vertices && in >> token; ++i) {
+    mesh.positions.push_back(std::strtof(token.c_str(), nullptr));
+  }
+  for (size_t f = 0; f < num_faces; ++f) {
+    int corners = 0;
+    in >> corners;
+    EXPECT_EQ(corners, 3) << "face " << f;
+    for (int c = 0; c < 3; ++c) {
+      uint32_t index = 0;
+      in >> index;
+      mesh.indices.push_back(index);
+    }
+  }
+  return mesh;
+}
+
+TEST_F(MeshIoTest, FandiskMatchesAnIndependentReadingFaceByFace) {
+  const std::string path = DataPath("fandisk.off");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->num_vertices(), 6475u);
+  EXPECT_EQ(mesh->num_faces(), 12946u);
+  EXPECT_TRUE(ValidateMesh(*mesh).ok()) << ValidateMesh(*mesh);
+
+  const TriangleMesh reference = ReadTriangleOffIndependently(path);
+  ASSERT_EQ(reference.num_vertices(), 6475u);
+  ASSERT_EQ(reference.num_faces(), 12946u);
+  ExpectSameFacePositions(reference, *mesh);
+  // OFF indexes its vertices, so they are kept as written: same ids, same bits.
+  EXPECT_EQ(mesh->indices, reference.indices);
+  ASSERT_EQ(mesh->positions.size(), reference.positions.size());
+  EXPECT_EQ(std::memcmp(mesh->positions.data(), reference.positions.data(),
+                        reference.positions.size() * sizeof(float)),
+            0);
+}
+
+TEST_F(MeshIoTest, OffVerticesAtOnePositionStayDistinct) {
+  // elephant-with-holes.off lists 65 vertices twice at one position around its holes;
+  // welding them would pinch the surface into non-manifold vertices.
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(DataPath("elephant-with-holes.off"));
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->num_vertices(), 2798u);
+  EXPECT_EQ(mesh->num_faces(), 4463u);
+  EXPECT_TRUE(ValidateMesh(*mesh).ok()) << ValidateMesh(*mesh);
+}
+
+TEST_F(MeshIoTest, OffPolygonsBecomeTrianglesInPlace) {
+  // A triangle, a convex quad, a concave quad (reflex corner at vertex 7), a pentagon,
+  // a line and a point (dropped), then a triangle again.
+  const std::string path = Write("polygons.off",
+                                 "OFF\n"
+                                 "13 7 0\n"
+                                 "0 0 0\n1 0 0\n1 1 0\n0 1 0\n"             // 0-3: unit square
+                                 "4 0 0\n8 0 0\n8 4 0\n7 1 0\n"             // 4-7: dart
+                                 "10 0 0\n12 0 0\n13 1 0\n11 2 0\n9 1 0\n"  // 8-12: pentagon
+                                 "3 0 1 2\n"
+                                 "4 0 1 2 3\n"
+                                 "4 4 5 6 7\n"
+                                 "5 8 9 10 11 12\n"
+                                 "2 0 1\n"
+                                 "1 0\n"
+                                 "3 2 3 0\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  // 1 + 2 + 2 + 3 + 1 triangles; the dart is cut along 5-7, the only diagonal inside it.
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2,                         // triangle
+                                                  0, 1, 2,  0, 2,  3,              // convex quad
+                                                  5, 6, 7,  4, 5,  7,              // dart
+                                                  8, 9, 10, 8, 10, 11, 8, 11, 12,  // fan
+                                                  2, 3, 0}));
+  EXPECT_EQ(mesh->num_vertices(), 13u);
+  for (size_t f = 0; f < mesh->num_faces(); ++f) {
+    EXPECT_GT(SignedAreaXy(*mesh, f), 0) << "face " << f << " lost its winding";
+  }
+}
+
+TEST_F(MeshIoTest, OffHeaderVariantsCommentsAndColours) {
+  // Keyword and counts on one line, comments, CRLF, blank lines, vertex colours (COFF)
+  // and face colours after the indices.
+  const std::string path = Write("variants.off",
+                                 "# a comment before the keyword\r\n"
+                                 "COFF 4 2 5 # counts on the keyword's line\r\n"
+                                 "\r\n"
+                                 "0 0 0 255 0 0 255\r\n"
+                                 "1.5e0 0 0 0 255 0 255  # exponent\r\n"
+                                 "\t0 +1 0 0 0 255 255\r\n"
+                                 "-0.25 -0.5 2 10 10 10 255\r\n"
+                                 "3 0 1 2 0.5 0.5 0.5\r\n"
+                                 "# between faces\r\n"
+                                 "3 1 3 2\r\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->positions, (std::vector<float>{0, 0, 0, 1.5f, 0, 0, 0, 1, 0, -0.25f, -0.5f, 2}));
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2, 1, 3, 2}));
+}
+
+TEST_F(MeshIoTest, OffHomogeneousCoordinatesAreDivided) {
+  const std::string path = Write("h.off", "4OFF\n3 1 0\n2 0 0 2\n4 0 0 2\n0 8 0 4\n3 0 1 2\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->positions, (std::vector<float>{1, 0, 0, 2, 0, 0, 0, 2, 0}));
+}
+
+TEST_F(MeshIoTest, OffKeywordIsRecognisedUnderAnyExtension) {
+  // Assimp would otherwise take it, and its OFF reader drops faces of 10 corners.
+  const std::string path = Write("decagon.txt",
+                                 "OFF\n10 1 0\n"
+                                 "2 0 0\n1.6 1.2 0\n0.6 1.9 0\n-0.6 1.9 0\n-1.6 1.2 0\n"
+                                 "-2 0 0\n-1.6 -1.2 0\n-0.6 -1.9 0\n0.6 -1.9 0\n1.6 -1.2 0\n"
+                                 "10 0 1 2 3 4 5 6 7 8 9\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->num_faces(), 8u);
+  EXPECT_EQ(mesh->num_vertices(), 10u);
+}
+
+struct BadOff {
+  const char* name;
+  const char* text;
+  const char* message;
+};
+
+TEST_F(MeshIoTest, OffRejectsWhatItCannotPlace) {
+  const BadOff cases[] = {
+      {"index_out_of_range", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 7\n",
+       "line 7: face 1 corner 2 refers to vertex 7, but the file has 3 vertices"},
+      {"missing_index", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n",
+       "face 0 has 2 of its 3 vertex indices"},
+      {"negative_index", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n",
+       "'-1' is not a vertex index"},
+      {"too_few_faces", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+       "the file ends after 1 of 2 faces"},
+      {"too_few_vertices", "OFF\n4 1 0\n0 0 0\n1 0 0\n", "the file ends after 2 of 4 vertices"},
+      {"two_vertices_per_line", "OFF\n3 1 0\n0 0 0 1 0 0\n0 1 0\n3 0 1 2\n",
+       // Line-based, as CGAL reads it: "3 0 1 2" is taken for vertex 2.
+       "line 5: the file ends after 0 of 1 faces"},
+      {"short_vertex", "OFF\n3 1 0\n0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+       "vertex 0 has 2 coordinates, 3 are needed"},
+      {"bad_coordinate", "OFF\n3 1 0\n0 0 zero\n1 0 0\n0 1 0\n3 0 1 2\n",
+       "vertex 0: 'zero' is not a float coordinate"},
+      {"float_overflow", "OFF\n3 1 0\n0 0 1e39\n1 0 0\n0 1 0\n3 0 1 2\n",
+       "'1e39' is not a float coordinate"},
+      {"bad_count", "OFF\nthree 1 0\n", "expected a count, found 'three'"},
+      {"not_off", "COFFEE 3 1 0\n", "expected the OFF keyword or the vertex count"},
+      {"binary", "OFF BINARY\n", "binary OFF is not supported"},
+      {"dimension", "nOFF\n4\n3 1 0\n", "only 3-dimensional OFF is supported"},
+      {"header_only", "OFF\n", "the file ends inside the header"},
+      {"empty", "", "empty OFF file"},
+      {"huge_counts", "OFF\n99999999999 1 0\n", "too many elements"},
+      {"no_triangles", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "holds no triangles"},
+  };
+  for (const BadOff& bad : cases) {
+    const std::string path = Write(absl::StrCat(bad.name, ".off"), bad.text);
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+    EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Face order and positions through every format.
+
+TEST_F(MeshIoTest, EveryFormatKeepsFaceOrderCornerOrderAndPositions) {
+  const TriangleMesh source = ShuffledGrid();
+  ASSERT_TRUE(ValidateMesh(source).ok());
+  struct Format {
+    std::string file;
+    std::string content;
+    bool keeps_vertex_ids;  // Indexed formats keep the file's vertices.
+  };
+  const Format formats[] = {
+      {"grid.off", ToOff(source), true},       {"grid.obj", ToObj(source), false},
+      {"grid.ply", ToPlyAscii(source), true},  {"grid_binary.ply", ToPlyBinary(source), true},
+      {"grid.stl", ToStlAscii(source), false}, {"grid_binary.stl", ToStlBinary(source), false},
+  };
+  for (const Format& format : formats) {
+    SCOPED_TRACE(format.file);
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Write(format.file, format.content));
+    ASSERT_TRUE(mesh.ok()) << mesh.status();
+    ExpectSameFacePositions(source, *mesh);
+    // Either way the 25 grid vertices come back once each: kept or welded.
+    EXPECT_EQ(mesh->num_vertices(), 25u);
+    EXPECT_TRUE(ValidateMesh(*mesh).ok()) << ValidateMesh(*mesh);
+    if (format.keeps_vertex_ids) {
+      EXPECT_EQ(mesh->indices, source.indices);
+    }
+  }
+}
+
+TEST_F(MeshIoTest, BinaryPlyPositionsArriveBitForBit) {
+  // Values no decimal printing would keep: a subnormal, -0, and neighbours of 1.
+  // Two faces share vertices, so the file's vertices are kept, the unused one too.
+  TriangleMesh mesh = MakeMesh({std::nextafter(1.0f, 2.0f), 1e-40f, -0.0f,       //
+                                std::nextafter(1.0f, 0.0f), 3.14159274f, 1e30f,  //
+                                -7.0e-8f, 0.1f, 0.2f,                            //
+                                42, 42, 42,                                      // unused
+                                5, 6, 7},
+                               {0, 1, 2, 2, 1, 4});
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(Write("bits.ply", ToPlyBinary(mesh)));
+  ASSERT_TRUE(read.ok()) << read.status();
+  ASSERT_EQ(read->positions.size(), mesh.positions.size());
+  EXPECT_EQ(std::memcmp(read->positions.data(), mesh.positions.data(),
+                        mesh.positions.size() * sizeof(float)),
+            0);
+  EXPECT_EQ(read->indices, mesh.indices);
+}
+
+// ---------------------------------------------------------------------------------------
+// OBJ, STL, glTF.
+
+TEST_F(MeshIoTest, ObjQuadBecomesTwoTrianglesInOrder) {
+  const std::string path = Write("quad.obj",
+                                 "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\n"
+                                 "f 1 2 5\n"
+                                 "f 1 2 3 4\n"
+                                 "l 1 5\n"
+                                 "f 4 3 5\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  // Welded in first-seen order: 0 0 0, 1 0 0, 0 0 1, 1 1 0, 0 1 0.
+  EXPECT_EQ(mesh->positions, (std::vector<float>{0, 0, 0, 1, 0, 0, 0, 0, 1, 1, 1, 0, 0, 1, 0}));
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2,           // f 1 2 5
+                                                  0, 1, 3, 0, 3, 4,  // the quad, fanned
+                                                  4, 3, 2}));        // f 4 3 5; l dropped
+}
+
+TEST_F(MeshIoTest, ObjConcaveQuadIsCutInside) {
+  // Reflex corner at the 4th vertex: the fan from the 1st corner would cover area
+  // outside the quad; the cut must run from the reflex corner.
+  const std::string path = Write("dart.obj", "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 3 1 0\nf 1 2 3 4\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{1, 2, 3, 0, 1, 3}));
+  // Both counter-clockwise, and together exactly the quad's area (twice 4).
+  EXPECT_DOUBLE_EQ(SignedAreaXy(*mesh, 0) + SignedAreaXy(*mesh, 1), 8.0);
+  EXPECT_GT(SignedAreaXy(*mesh, 0), 0);
+  EXPECT_GT(SignedAreaXy(*mesh, 1), 0);
+}
+
+TEST_F(MeshIoTest, ObjMaterialGroupsKeepFileOrder) {
+  // Assimp makes a mesh per material run and per group; the faces must still come back
+  // in file order. The .mtl file is missing, which is not an error.
+  const std::string path = Write("groups.obj",
+                                 "mtllib missing.mtl\n"
+                                 "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\n"
+                                 "usemtl A\nf 1 2 3\n"
+                                 "usemtl B\nf 1 2 5\n"
+                                 "usemtl A\nf 2 3 5\n"
+                                 "g second\nf 3 4 5\n"
+                                 "g first\nf 1 4 5\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->num_vertices(), 5u);
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2, 0, 1, 3, 1, 2, 3, 2, 4, 3, 0, 4, 3}));
+}
+
+TEST_F(MeshIoTest, StlCornersAreWeldedIntoSharedVertices) {
+  const std::string path = Write("square.stl",
+                                 "solid square\n"
+                                 "facet normal 0 0 1\n outer loop\n"
+                                 "  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n"
+                                 " endloop\nendfacet\n"
+                                 "facet normal 0 0 1\n outer loop\n"
+                                 "  vertex 1 0 0\n  vertex 1 1 0\n  vertex 0 1 0\n"
+                                 " endloop\nendfacet\n"
+                                 "endsolid square\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->positions, (std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}));
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2, 1, 3, 2}));
+  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+  ASSERT_TRUE(adjacency.ok()) << adjacency.status();
+  EXPECT_EQ(adjacency->neighbours[0][1], FaceId(1));  // Across the shared edge (1, 2).
+}
+
+TEST_F(MeshIoTest, StlNegativeZeroWeldsWithZero) {
+  const std::string path = Write("zeros.stl",
+                                 "solid z\nfacet normal 0 0 1\n outer loop\n"
+                                 "  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n"
+                                 " endloop\nendfacet\nfacet normal 0 0 1\n outer loop\n"
+                                 "  vertex -0 -0 -0\n  vertex 0 1 0\n  vertex -1 0 0\n"
+                                 " endloop\nendfacet\nendsolid z\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  EXPECT_EQ(mesh->num_vertices(), 4u);
+  EXPECT_EQ(mesh->indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+}
+
+// A unit quad (two triangles: 0 1 2, 0 2 3) used by three nodes: as it is, moved by
+// +10 in x, and mirrored in x. The buffer holds six uint16 indices, then four float
+// positions: (0 0 0) (1 0 0) (1 1 0) (0 1 0).
+constexpr char kQuadGltf[] = R"({
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0, 1, 2]}],
+  "nodes": [
+    {"name": "plain", "mesh": 0},
+    {"name": "moved", "mesh": 0, "translation": [10, 0, 0]},
+    {"name": "mirrored", "mesh": 0, "scale": [-1, 1, 1]}
+  ],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}],
+  "buffers": [{"byteLength": 60, "uri": "data:application/octet-stream;base64,AAABAAIAAAACAAMAAAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAACAPwAAgD8AAAAAAAAAAAAAgD8AAAAA"}],
+  "bufferViews": [
+    {"buffer": 0, "byteOffset": 0, "byteLength": 12, "target": 34963},
+    {"buffer": 0, "byteOffset": 12, "byteLength": 48, "target": 34962}
+  ],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5123, "count": 6, "type": "SCALAR"},
+    {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3",
+     "min": [0, 0, 0], "max": [1, 1, 0]}
+  ]
+})";
+
+TEST_F(MeshIoTest, GltfNodesPlaceInstanceAndMirrorTheMesh) {
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Write("quad.gltf", kQuadGltf));
+  ASSERT_TRUE(mesh.ok()) << mesh.status();
+  ASSERT_EQ(mesh->num_faces(), 6u);
+  // The quad indexes shared vertices, so each instance keeps its own four.
+  EXPECT_EQ(mesh->num_vertices(), 12u);
+  const std::array<float, 3> expected_first_corner[6] = {{0, 0, 0},  {0, 0, 0}, {10, 0, 0},
+                                                         {10, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  for (size_t f = 0; f < 6; ++f) {
+    EXPECT_EQ(CornerPosition(*mesh, f, 0), expected_first_corner[f]) << "face " << f;
+    // The mirrored copy has its corners swapped back to counter-clockwise.
+    EXPECT_DOUBLE_EQ(SignedAreaXy(*mesh, f), 1.0) << "face " << f;
+  }
+  EXPECT_EQ(CornerPosition(*mesh, 2, 1), (std::array<float, 3>{11, 0, 0}));
+  EXPECT_EQ(CornerPosition(*mesh, 4, 2), (std::array<float, 3>{-1, 0, 0}));
+  EXPECT_EQ(CornerPosition(*mesh, 4, 1), (std::array<float, 3>{-1, 1, 0}));
+}
+
+// ---------------------------------------------------------------------------------------
+// Draco files and errors.
+
+TEST_F(MeshIoTest, DracoFilesAreDecodedWhateverTheExtensionCase) {
+  const TriangleMesh tetrahedron = Tetrahedron();
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(tetrahedron);
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
+  for (const char* name : {"tet.drc", "tet.DRC", "tet.bin"}) {  // .bin: by magic.
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Write(name, *bytes));
+    ASSERT_TRUE(mesh.ok()) << name << ": " << mesh.status();
+    EXPECT_EQ(mesh->positions, tetrahedron.positions) << name;
+    EXPECT_EQ(mesh->indices, tetrahedron.indices) << name;
+  }
+  absl::StatusOr<TriangleMesh> bad = ReadMeshFile(Write("bad.drc", "not draco at all"));
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(bad.status().message()), HasSubstr("bad.drc"));
+}
+
+TEST_F(MeshIoTest, MissingFileIsNotFound) {
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Path("nothing-here.obj"));
+  EXPECT_EQ(mesh.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("nothing-here.obj"));
+}
+
+TEST_F(MeshIoTest, DirectoryIsInvalidArgument) {
+  std::filesystem::create_directories(directory_ / "folder.obj");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Path("folder.obj"));
+  EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("not a regular file"));
+}
+
+TEST_F(MeshIoTest, UnreadableContentNamesFileAndImporterMessage) {
+  const std::string path = Write("noise.xyz123", "\x01\x02 this is no mesh format \xff\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path));
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("cannot be read: "));
+  EXPECT_GT(mesh.status().message().size(), path.size() + 20) << "no importer message";
+}
+
+TEST_F(MeshIoTest, FilesWithoutTrianglesAreRefused) {
+  for (const auto& [name, content] : std::vector<std::pair<std::string, std::string>>{
+           {"lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\np 1\n"},
+           {"points.ply",
+            "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+            "property float z\nend_header\n0 0 0\n1 1 1\n"},
+       }) {
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(Write(name, content));
+    EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(name));
+  }
+}
+
+TEST_F(MeshIoTest, PlyIndexOutOfRangeIsRefused) {
+  const std::string path = Write("oor.ply",
+                                 "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                 "property float y\nproperty float z\nelement face 2\n"
+                                 "property list uchar int vertex_indices\nend_header\n"
+                                 "0 0 0\n1 0 0\n1 1 0\n3 0 1 2\n3 0 1 9\n");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("polygon 1 refers to vertex 9"));
+}
+
+TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
+  // Each of these made Assimp 5.2's PLY reader loop forever.
+  const BadOff cases[] = {
+      {"truncated", "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n",
+       "no end_header line"},
+      {"unknown_type", "ply\nformat ascii 1.0\nelement vertex 1\nproperty flaot x\nend_header\n0\n",
+       "PLY header line 4: unknown property 'property flaot x'"},
+      {"unknown_keyword", "ply\nformat ascii 1.0\nprop4rty float x\nend_header\n",
+       "unknown keyword 'prop4rty'"},
+      {"no_format", "ply\nelement vertex 0\nend_header\n", "no format line"},
+      {"bad_element", "ply\nformat ascii 1.0\nelement vertex many\nend_header\n",
+       "expected 'element NAME COUNT'"},
+  };
+  for (const BadOff& bad : cases) {
+    const std::string path = Write(absl::StrCat(bad.name, ".ply"), bad.text);
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+    EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Clustered PLY output and colours.
+
+TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
+  // A 4 x 4 grid: the left two columns of squares are cluster 7, the rest cluster 2, and
+  // the last face is unlabelled. The 5 vertices on the column boundary x = 2 appear
+  // twice; the unlabelled face adds a copy of each of its corners (one of which, the
+  // grid's corner (4, 4), no other face uses).
+  const TriangleMesh mesh = Grid(4);
+  std::vector<ClusterId> labels;
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    const size_t column = (f / 2) % 4;
+    labels.push_back(ClusterId(column < 2 ? 7 : 2));
+  }
+  labels[31] = ClusterId::Invalid();  // Top right square's second triangle: (c, b, d).
+  std::set<std::pair<uint32_t, uint32_t>> pairs;
+  for (size_t i = 0; i < mesh.indices.size(); ++i) {
+    pairs.insert({mesh.indices[i], labels[i / 3].value()});
+  }
+  ASSERT_EQ(pairs.size(), 24u + 5u + 3u);
+
+  const std::string path = Path("clusters.ply");
+  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
+
+  // The exact layout: header, then 15 bytes per vertex and 16 per face.
+  const std::string bytes = ReadAll(path);
+  const std::string header_end = "end_header\n";
+  const size_t body = bytes.find(header_end) + header_end.size();
+  ASSERT_NE(body, std::string::npos);
+  const std::string header = bytes.substr(0, body);
+  EXPECT_THAT(header, HasSubstr("format binary_little_endian 1.0\n"));
+  EXPECT_THAT(header, HasSubstr(absl::StrCat("element vertex ", pairs.size(), "\n")));
+  EXPECT_THAT(header, HasSubstr("element face 32\nproperty list uchar int vertex_indices\n"
+                                "property uchar red\nproperty uchar green\n"
+                                "property uchar blue\n"));
+  ASSERT_EQ(bytes.size(), body + pairs.size() * 15 + 32 * 16);
+  // Face 0's record: count 3, three indices, then cluster 7's colour.
+  const size_t face0 = body + pairs.size() * 15;
+  EXPECT_EQ(bytes[face0], 3);
+  const auto colour7 = ClusterColour(7);
+  EXPECT_EQ(std::memcmp(&bytes[face0 + 13], colour7.data(), 3), 0);
+  const size_t face31 = face0 + 31 * 16;
+  EXPECT_EQ(bytes.substr(face31 + 13, 3), std::string("\x80\x80\x80"));  // Grey.
+
+  // Assimp reads it back with the same faces and the split vertices.
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->num_vertices(), pairs.size());
+  ExpectSameFacePositions(mesh, *read);
+
+  // Its vertex colours are the clusters' colours.
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile(path, 0);
+  ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+  ASSERT_EQ(scene->mNumMeshes, 1u);
+  const aiMesh& ai = *scene->mMeshes[0];
+  ASSERT_NE(ai.mColors[0], nullptr);
+  ASSERT_EQ(ai.mNumFaces, 32u);
+  for (unsigned f = 0; f < ai.mNumFaces; ++f) {
+    const std::array<uint8_t, 3> want = labels[f].valid() ? ClusterColour(labels[f].value())
+                                                          : std::array<uint8_t, 3>{128, 128, 128};
+    for (unsigned c = 0; c < 3; ++c) {
+      const aiColor4D& got = ai.mColors[0][ai.mFaces[f].mIndices[c]];
+      EXPECT_EQ(std::lround(got.r * 255), want[0]) << "face " << f;
+      EXPECT_EQ(std::lround(got.g * 255), want[1]) << "face " << f;
+      EXPECT_EQ(std::lround(got.b * 255), want[2]) << "face " << f;
+    }
+  }
+}
+
+TEST_F(MeshIoTest, ClusteredPlyRefusesWrongLabelCountAndBadIndices) {
+  const TriangleMesh mesh = Tetrahedron();
+  std::vector<ClusterId> three(3, ClusterId(0));
+  absl::Status status = WriteClusteredPly(Path("a.ply"), mesh, three);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("got 3 labels for 4 faces"));
+
+  TriangleMesh broken = mesh;
+  broken.indices[5] = 9;
+  std::vector<ClusterId> four(4, ClusterId(0));
+  status = WriteClusteredPly(Path("b.ply"), broken, four);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()),
+              HasSubstr("face 1 corner 2: vertex index 9 is out of range"));
+
+  status = WriteClusteredPly(Path("no/such/folder/c.ply"), mesh, four);
+  EXPECT_FALSE(status.ok());
+  EXPECT_THAT(std::string(status.message()), HasSubstr("no/such/folder/c.ply"));
+}
+
+TEST(ClusterColourTest, StableSpreadAndDistinctForNeighbours) {
+  // Id 0 has hue 0: pure red at saturation 0.65, value 0.95.
+  EXPECT_EQ(ClusterColour(0), (std::array<uint8_t, 3>{242, 85, 85}));
+  EXPECT_EQ(ClusterColour(12345), ClusterColour(12345));
+  std::set<std::array<uint8_t, 3>> first_hundred;
+  for (uint32_t id = 0; id < 100; ++id) first_hundred.insert(ClusterColour(id));
+  EXPECT_EQ(first_hundred.size(), 100u);
+  // Consecutive ids are 137.5 degrees of hue apart: clearly different colours.
+  for (uint32_t id = 0; id < 10000; ++id) {
+    const auto a = ClusterColour(id), b = ClusterColour(id + 1);
+    int largest = 0;
+    for (int c = 0; c < 3; ++c) largest = std::max(largest, std::abs(a[c] - b[c]));
+    EXPECT_GE(largest, 100) << "ids " << id << " and " << id + 1;
+  }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+TEST(WriteMeshFileTest, RoundTripsThroughOurReaders) {
+  absl::StatusOr<TriangleMesh> fandisk = ReadMeshFile(testing::DataPath("fandisk.off"));
+  ASSERT_TRUE(fandisk.ok());
+  for (const char* extension : {".ply", ".off", ".obj"}) {
+    const std::string path = ::testing::TempDir() + "/roundtrip" + extension;
+    ASSERT_TRUE(WriteMeshFile(path, *fandisk).ok()) << extension;
+    absl::StatusOr<TriangleMesh> back = ReadMeshFile(path);
+    ASSERT_TRUE(back.ok()) << extension << ": " << back.status();
+    ASSERT_EQ(back->num_faces(), fandisk->num_faces()) << extension;
+    // Every face has the same three corner positions in the same order.
+    for (size_t f = 0; f < fandisk->num_faces(); f += 97) {
+      for (int c = 0; c < 3; ++c) {
+        const Vec3 a = fandisk->position(fandisk->corner(FaceId(f), c));
+        const Vec3 b = back->position(back->corner(FaceId(f), c));
+        EXPECT_NEAR(a.x, b.x, 1e-6) << extension;
+        EXPECT_NEAR(a.y, b.y, 1e-6) << extension;
+        EXPECT_NEAR(a.z, b.z, 1e-6) << extension;
+      }
+    }
+  }
+  EXPECT_EQ(WriteMeshFile(::testing::TempDir() + "/x.stl", *fandisk).code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace mlclust
