@@ -9,7 +9,7 @@ curves_MESH.png  energy vs number of clusters, log-log: left CVD (ML, HC, PML, P
 scaling.png      time of the whole hierarchy vs faces (ML, HC, PML, PML->ML; CVD), with
                  CGAL VSA at k = 1000 (one partition, faster seeding) for reference.
 Curves come from RESULTS/curves/MESH_ENERGY_ALGO.csv (clusters,energy), times from
-issue4i_ml_bench.csv and issue3b_cgal_vsa.csv (best repeat).
+cvd_hierarchies.csv and vsa_vs_cgal_cgal_vsa.csv (best repeat).
 """
 import csv
 import os
@@ -50,9 +50,9 @@ def best_rows(rows, keys, time_col):
 
 
 def plot_curves():
-    cgal = best_rows(read(os.path.join(RESULTS, "issue3b_cgal_vsa.csv")),
+    cgal = best_rows(read(os.path.join(RESULTS, "vsa_vs_cgal_cgal_vsa.csv")),
                      ["mesh", "k", "seeding"], "total_seconds")
-    ours = best_rows(read(os.path.join(RESULTS, "issue3b_vsa_bench.csv")),
+    ours = best_rows(read(os.path.join(RESULTS, "vsa_vs_cgal_vsa_bench.csv")),
                      ["mesh", "k", "seeding"], "seconds")
     for mesh in MESHES:
         panels = [("cvd", "CVD")]
@@ -96,7 +96,7 @@ def plot_curves():
 
 
 def plot_scaling():
-    rows = read(os.path.join(RESULTS, "issue4i_ml_bench.csv"))
+    rows = read(os.path.join(RESULTS, "cvd_hierarchies.csv"))
     if not rows:
         return
     # One time per run (ml_bench repeats it on each k row; PML's k is the level it reached).
@@ -109,7 +109,7 @@ def plot_scaling():
         label, colour, dash = STYLE[name]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], linestyle=dash, marker="o",
                 color=colour, label=label + " (all levels)")
-    cgal = best_rows(read(os.path.join(RESULTS, "issue3b_cgal_vsa.csv")),
+    cgal = best_rows(read(os.path.join(RESULTS, "vsa_vs_cgal_cgal_vsa.csv")),
                      ["mesh", "k", "seeding"], "total_seconds")
     pts = {}
     for (mesh, k, _), r in cgal.items():

@@ -3,8 +3,8 @@
 
   bench/plot_points.py [RESULTS_DIR]
 
-Writes, for the CSVs present: issue5_truek.png (Fig. 6.15), issue5_fig6_11.png (time vs k),
-issue5_fig6_12.png (time vs m), issue5_fig6_13.png (time per ML step vs d).
+Writes, for the CSVs present: points_true_k.png (Fig. 6.15), points_fig6_11.png (time vs k),
+points_fig6_12.png (time vs m), points_fig6_13.png (time per ML step vs d).
 """
 import collections
 import csv
@@ -25,7 +25,7 @@ def rows(path):
 
 
 def truek(results):
-    path = os.path.join(results, "issue5d_truek_ml.csv")
+    path = os.path.join(results, "points_true_k_ml.csv")
     if not os.path.exists(path):
         return
     by_k = collections.defaultdict(list)
@@ -41,7 +41,7 @@ def truek(results):
     ax.errorbar(ks, means, yerr=sds, fmt="o-", capsize=3, label="ML + BIC (mean, sd)")
     ax.scatter([k for k in ks for _ in by_k[k]], [v for k in ks for v in by_k[k]], s=6,
                color="C0", alpha=0.4, label="ML + BIC (each set)")
-    ward = os.path.join(results, "issue5d_truek_ward.jsonl")
+    ward = os.path.join(results, "points_true_k_ward.jsonl")
     if os.path.exists(ward):
         points = collections.defaultdict(list)
         with open(ward) as f:
@@ -58,7 +58,7 @@ def truek(results):
     ax.set_title("True number of clusters (Fig. 6.15), 10 data sets per K")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(os.path.join(results, "issue5_truek.png"), dpi=120)
+    fig.savefig(os.path.join(results, "points_true_k.png"), dpi=120)
 
 
 def lines(results, name, x, out, title, xlabel, ylabel, per_step=False, logx=False):
@@ -91,11 +91,11 @@ def main():
     results = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
         os.path.dirname(os.path.abspath(__file__)), "results")
     truek(results)
-    lines(results, "issue5e_time_vs_k.csv", "k", "issue5_fig6_11.png",
+    lines(results, "points_time_vs_k.csv", "k", "points_fig6_11.png",
           "Time vs k, m = 1M 3-D points (Fig. 6.11)", "k", "seconds, end to end")
-    lines(results, "issue5f_time_vs_m.csv", "m", "issue5_fig6_12.png",
+    lines(results, "points_time_vs_m.csv", "m", "points_fig6_12.png",
           "Time vs m, k = 1000 (Fig. 6.12)", "m (points)", "seconds, end to end", logx=True)
-    lines(results, "issue5g_time_vs_d.csv", "d", "issue5_fig6_13.png",
+    lines(results, "points_time_vs_d.csv", "d", "points_fig6_13.png",
           "Time per hierarchy step vs d, m = 20,000 (Fig. 6.13)", "d",
           "seconds per level", per_step=True, logx=True)
 

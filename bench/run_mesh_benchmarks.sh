@@ -26,11 +26,12 @@
 # repeat of each. Every row records the 1-minute load average when it ran (load1) and the
 # process's wall-clock and CPU seconds (proc_wall_s, proc_cpu_s from /usr/bin/time), so a
 # row whose process waited for a core (wall > 1.1 x CPU for a one-thread tool) shows it.
-# bench/results/machine.txt records the machine, the commit and the load before and after.
+# bench/results/machine_mesh.txt records the machine, the commit and the load before and after.
 #
-# Output (bench/results/): issue3{a,b,c,d}_*.csv, issue3e_cli.csv and fig313_*.png,
-# issue4{f,g,h,i}_*.csv, curves/*.csv (energy per level, thinned to ~60 levels per decade),
-# curves_*.png, scaling.png, tables.md (bench/plot_mesh_tables.py), machine.txt.
+# Output (bench/results/): emlo_vs_cgal_*, vsa_vs_cgal_*, vsa_seeds_vs_cgal_*, bb_sweep_threads,
+# table3_1_mwcvd, fig3_13_cli.csv and fig313_*.png, ml_hierarchy_vs_cgal_*, pml_then_ml,
+# planar_hierarchies, cvd_hierarchies.csv, curves/*.csv (energy per level, thinned to ~60
+# levels per decade), curves_*.png, scaling.png, tables.md (bench/plot_mesh_tables.py), machine_mesh.txt.
 # Needs: CMake, Ninja, g++, libcgal-dev and libcgal-demo (installed through
 # scripts/bench-peers.sh / scripts/fetch-bench-meshes.sh when missing), /usr/bin/time,
 # /usr/bin/python3 with numpy and matplotlib.
@@ -85,9 +86,9 @@ trap 'rm -rf "$work"' EXIT
 
 load1() { cut -d' ' -f1 /proc/loadavg; }
 
-# machine.txt: what ran where; a run of every section starts it afresh, a run of some
+# machine_mesh.txt: what ran where; a run of every section starts it afresh, a run of some
 # sections (--only) adds its own block.
-[ "$only" = "a,b,c,d,e,f,g,h,i" ] && rm -f "$results/machine.txt"
+[ "$only" = "a,b,c,d,e,f,g,h,i" ] && rm -f "$results/machine_mesh.txt"
 {
   echo "--- sections $only"
   echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
@@ -98,7 +99,7 @@ load1() { cut -d' ' -f1 /proc/loadavg; }
     "$(git status --short -- . ':!bench' ':!BENCHMARKS.md' | awk '{ printf "%s ", $2 }'))"
   echo "repeats: $repeats$([ "$build" -eq 0 ] && echo ", --no-build: the binaries as last built")"
   echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
-} >>"$results/machine.txt"
+} >>"$results/machine_mesh.txt"
 
 # run FILE HEADER REP COMMAND...: runs COMMAND once under /usr/bin/time and appends its CSV
 # rows (stdout; several for ml_bench) to FILE as "rep,load1,proc_wall_s,proc_cpu_s,ROW".
@@ -151,14 +152,14 @@ M4=(fandisk bunny00 armadillo elephant)
 # --- Issue 3 -----------------------------------------------------------------------------
 if want a; then
   say "(a) EMLO k=1000 vs CGAL VSA k=1000 on bunny00"
-  fresh issue3a_mesh_bench.csv issue3a_cgal_vsa.csv
+  fresh emlo_vs_cgal_mesh_bench.csv emlo_vs_cgal_cgal_vsa.csv
   for rep in $(seq 1 "$repeats"); do
     for init in lneigh random; do
-      mesh_bench "$results/issue3a_mesh_bench.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
+      mesh_bench "$results/emlo_vs_cgal_mesh_bench.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
         --energy cvd --init "$init" --algo emlo
     done
     for seeding in random hierarchical; do
-      cgal_vsa "$results/issue3a_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
+      cgal_vsa "$results/emlo_vs_cgal_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
         --seeding "$seeding"
     done
   done
@@ -166,14 +167,14 @@ fi
 
 if want b; then
   say "(b) our VSA vs CGAL VSA"
-  fresh issue3b_vsa_bench.csv issue3b_cgal_vsa.csv
+  fresh vsa_vs_cgal_vsa_bench.csv vsa_vs_cgal_cgal_vsa.csv
   for mesh in "${M4[@]}"; do
     for k in 50 200 1000; do
       for seeding in hierarchical random; do
         for rep in $(seq 1 "$repeats"); do
-          vsa_bench "$results/issue3b_vsa_bench.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
+          vsa_bench "$results/vsa_vs_cgal_vsa_bench.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
             --seeding "$seeding"
-          cgal_vsa "$results/issue3b_cgal_vsa.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
+          cgal_vsa "$results/vsa_vs_cgal_cgal_vsa.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
             --seeding "$seeding"
         done
       done
@@ -183,26 +184,26 @@ fi
 
 if want b; then
   # Random seeding is luck: the energy over seeds 1..6 (fandisk k=200: the one miss).
-  fresh issue3b_seeds_vsa_bench.csv issue3b_seeds_cgal_vsa.csv
+  fresh vsa_seeds_vs_cgal_vsa_bench.csv vsa_seeds_vs_cgal_cgal_vsa.csv
   for seed in 1 2 3 4 5 6; do
-    vsa_bench "$results/issue3b_seeds_vsa_bench.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
+    vsa_bench "$results/vsa_seeds_vs_cgal_vsa_bench.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
       --seeding random --seed "$seed"
-    cgal_vsa "$results/issue3b_seeds_cgal_vsa.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
+    cgal_vsa "$results/vsa_seeds_vs_cgal_cgal_vsa.csv" "$seed" "$meshes_dir/fandisk.off" --k 200 \
       --seeding random --seed "$seed"
   done
 fi
 
 if want c; then
   say "(c) BB sweeps, threads 1 vs 2"
-  fresh issue3c_bb.csv
+  fresh bb_sweep_threads.csv
   for spec in bunny00:1000 armadillo_1m:10000; do
     mesh="${spec%%:*}" k="${spec##*:}"
     for rep in $(seq 1 "$repeats"); do
       for threads in 1 2; do
-        mesh_bench "$results/issue3c_bb.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
+        mesh_bench "$results/bb_sweep_threads.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
           --energy cvd --init lneigh --algo bb --threads "$threads"
       done
-      mesh_bench "$results/issue3c_bb.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
+      mesh_bench "$results/bb_sweep_threads.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
         --energy cvd --init lneigh --algo emlo
     done
   done
@@ -210,12 +211,12 @@ fi
 
 if want d; then
   say "(d) Table 3.1: l-neighbourhood + MWCVD EMLO"
-  fresh issue3d_table31.csv
+  fresh table3_1_mwcvd.csv
   for spec in fandisk:1000 fandisk:100 bunny00:1000 armadillo:1000 elephant:1000 elephant:100; do
     mesh="${spec%%:*}" k="${spec##*:}"
     for rep in $(seq 1 "$repeats"); do
       for energy in mwcvd-area mwcvd-variance mwcvd-max cvd; do
-        mesh_bench "$results/issue3d_table31.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
+        mesh_bench "$results/table3_1_mwcvd.csv" "$rep" "$meshes_dir/$mesh.off" --k "$k" \
           --energy "$energy" --init lneigh --algo emlo
       done
     done
@@ -224,11 +225,11 @@ fi
 
 if want e; then
   say "(e) Fig. 3.13: fandisk k=200 through the CLI ($cli)"
-  fresh issue3e_cli.csv
+  fresh fig3_13_cli.csv
   if [ ! -x "$cli" ]; then
     say "no CLI at $cli: (e) skipped (build with -DMLCLUST_WITH_SERVER=ON or pass --cli)"
   else
-    echo "energy,clusters,cli_seconds,energy_value,png_bytes" >"$results/issue3e_cli.csv"
+    echo "energy,clusters,cli_seconds,energy_value,png_bytes" >"$results/fig3_13_cli.csv"
     for energy in cvd cvd-adaptive mwcvd-area mwcvd-variance mwcvd-max; do
       ply="$work/fandisk_$energy.ply" png="$results/fig313_fandisk_$energy.png"
       "$cli" mesh data/fandisk.off --algo emlo --energy "$energy" --clusters 200 \
@@ -239,7 +240,7 @@ if want e; then
       seconds="$(sed -n 's/.* in \([0-9.]*\) s on .*/\1/p' "$work/cli.log" | tail -1)"
       value="$(sed -n 's/.*clusters, energy \([-0-9.e+]*\).*/\1/p' "$work/cli.log" | tail -1)"
       "$python" bench/plot_render.py "$ply" "$png" --dpi 80 --title "fandisk, $energy, k=200"
-      echo "$energy,200,$seconds,$value,$(stat -c %s "$png")" >>"$results/issue3e_cli.csv"
+      echo "$energy,200,$seconds,$value,$(stat -c %s "$png")" >>"$results/fig3_13_cli.csv"
     done
   fi
 fi
@@ -247,12 +248,12 @@ fi
 # --- Issue 4 -----------------------------------------------------------------------------
 if want f; then
   say "(f) ML full hierarchy of bunny00 vs CGAL VSA k=1000"
-  fresh issue4f_ml_bench.csv issue4f_cgal_vsa.csv
+  fresh ml_hierarchy_vs_cgal_ml_bench.csv ml_hierarchy_vs_cgal_cgal_vsa.csv
   for rep in $(seq 1 "$repeats"); do
-    ml_bench "$results/issue4f_ml_bench.csv" "$rep" "$meshes_dir/bunny00.off" --algo ml \
+    ml_bench "$results/ml_hierarchy_vs_cgal_ml_bench.csv" "$rep" "$meshes_dir/bunny00.off" --algo ml \
       --energy cvd --optimizer emlo --at 1000
     for seeding in random hierarchical; do
-      cgal_vsa "$results/issue4f_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
+      cgal_vsa "$results/ml_hierarchy_vs_cgal_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
         --seeding "$seeding"
     done
   done
@@ -260,19 +261,19 @@ fi
 
 if want g; then
   say "(g) PML down to 2000 then ML vs ML"
-  fresh issue4g_ml_bench.csv
+  fresh pml_then_ml.csv
   for mesh in bunny00 armadillo; do
     for rep in $(seq 1 "$repeats"); do
-      ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo ml \
+      ml_bench "$results/pml_then_ml.csv" "$rep" "$meshes_dir/$mesh.off" --algo ml \
         --at 1000,200,50
       for threads in 0 1; do
-        ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
+        ml_bench "$results/pml_then_ml.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
           --pml-until 2000 --threads "$threads" --at 1000,200,50
       done
       # Where the time goes: the same merges without the optimiser (HC; PML->2000 then HC).
-      ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo hc \
+      ml_bench "$results/pml_then_ml.csv" "$rep" "$meshes_dir/$mesh.off" --algo hc \
         --at 1000,200,50
-      ml_bench "$results/issue4g_ml_bench.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
+      ml_bench "$results/pml_then_ml.csv" "$rep" "$meshes_dir/$mesh.off" --algo pml \
         --pml-until 2000 --optimizer none --at 1000,200,50
     done
   done
@@ -304,17 +305,17 @@ ml_runs() {
 
 if want h; then
   say "(h) planar ML/HC/PML hierarchies"
-  fresh issue4h_ml_bench.csv
-  ml_runs "$results/issue4h_ml_bench.csv" planar "${M4[@]}"
+  fresh planar_hierarchies.csv
+  ml_runs "$results/planar_hierarchies.csv" planar "${M4[@]}"
 fi
 
 if want i; then
   say "(i) CVD ML/HC/PML hierarchies, 5 meshes"
-  fresh issue4i_ml_bench.csv
-  ml_runs "$results/issue4i_ml_bench.csv" cvd elephant fandisk armadillo bunny00 armadillo_1m
+  fresh cvd_hierarchies.csv
+  ml_runs "$results/cvd_hierarchies.csv" cvd elephant fandisk armadillo bunny00 armadillo_1m
 fi
 
-echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" >>"$results/machine.txt"
+echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" >>"$results/machine_mesh.txt"
 
 # --- Tables and plots --------------------------------------------------------------------
 "$python" bench/plot_mesh_curves.py "$results"

@@ -23,8 +23,8 @@
 #      as 3-D points: the hierarchies, LN k-means and Lloyd at k = 1000 vs scikit-learn
 #
 # Every row of ours carries the 1-minute load average when it ran (load1). Output
-# (bench/results/): issue5{a..h}_*.csv / *.jsonl, issue5_truek.png, issue5_fig6_1{1,2,3}.png
-# (bench/plot_points.py), machine5.txt (appended to: one record per run).
+# (bench/results/): points_*.csv / *.jsonl, points_true_k.png, points_fig6_1{1,2,3}.png
+# (bench/plot_points.py), machine_points.txt (appended to: one record per run).
 set -euo pipefail
 
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -63,7 +63,7 @@ mkdir -p "$results" "$data"
   echo "commit: $(git rev-parse --short HEAD)"
   echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //') x $(nproc)"
   echo "load before: $(cat /proc/loadavg)"
-} >> "$results/machine5.txt"
+} >> "$results/machine_points.txt"
 
 blobs() {  # m d blobs seed file
   [ -f "$5" ] || "$python" bench/points_data.py --m "$1" --d "$2" --blobs "$3" --seed "$4" --out "$5"
@@ -81,27 +81,27 @@ if wants a; then
   echo "a: LN k-means vs scikit-learn and faiss, 1M x 3, k = 1000"
   f="$data/blobs_1m_d3_k1000.npy"
   blobs 1000000 3 1000 1 "$f"
-  echo "$header" > "$results/issue5a_ours.csv"
-  for algo in lnkmeans kmeans; do ours "$results/issue5a_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
+  echo "$header" > "$results/points_lnkmeans_1m_ours.csv"
+  for algo in lnkmeans kmeans; do ours "$results/points_lnkmeans_1m_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
   "$bin/points_bench" --algo lnkmeans --input "$f" --k 1000 --seed 1 2>&1 >/dev/null |
-    tee "$results/issue5a_lnkmeans_iterations.txt"
-  $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/issue5a_peers.jsonl"
-  $peers faiss-kmeans "$f" --k 1000 --iterations 25 --seed 1 | tee -a "$results/issue5a_peers.jsonl"
+    tee "$results/points_lnkmeans_1m_lnkmeans_iterations.txt"
+  $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/points_lnkmeans_1m_peers.jsonl"
+  $peers faiss-kmeans "$f" --k 1000 --iterations 25 --seed 1 | tee -a "$results/points_lnkmeans_1m_peers.jsonl"
 fi
 
 if wants b; then
   echo "b: hierarchies of 100k x 3 vs fastcluster Ward"
-  echo "$header" > "$results/issue5b_ours.csv"
-  : > "$results/issue5b_ward.jsonl"
+  echo "$header" > "$results/points_ml_vs_ward_ours.csv"
+  : > "$results/points_ml_vs_ward_ward.jsonl"
   for seed in 1 2 3; do
     f="$data/blobs_100k_d3_k100_s$seed.npy"
     blobs 100000 3 100 "$seed" "$f"
     for algo in ml pml hc; do
-      for k in 10 50 100; do ours "$results/issue5b_ours.csv" --algo "$algo" --input "$f" --k "$k"; done
+      for k in 10 50 100; do ours "$results/points_ml_vs_ward_ours.csv" --algo "$algo" --input "$f" --k "$k"; done
     done
-    "$bin/points_bench" --algo ml --input "$f" --k 1 --curve "$results/issue5b_ml_curve_s$seed.csv" > /dev/null
-    "$bin/points_bench" --algo pml --input "$f" --k 1 --curve "$results/issue5b_pml_curve_s$seed.csv" > /dev/null
-    $peers fastcluster-ward "$f" --ks 10,20,30,40,50,60,80,100 | tee -a "$results/issue5b_ward.jsonl"
+    "$bin/points_bench" --algo ml --input "$f" --k 1 --curve "$results/points_ml_vs_ward_ml_curve_s$seed.csv" > /dev/null
+    "$bin/points_bench" --algo pml --input "$f" --k 1 --curve "$results/points_ml_vs_ward_pml_curve_s$seed.csv" > /dev/null
+    $peers fastcluster-ward "$f" --ks 10,20,30,40,50,60,80,100 | tee -a "$results/points_ml_vs_ward_ward.jsonl"
   done
 fi
 
@@ -109,18 +109,18 @@ if wants c; then
   echo "c: hierarchies of 1M x 3"
   f="$data/blobs_1m_d3_k1000.npy"
   blobs 1000000 3 1000 1 "$f"
-  echo "$header" > "$results/issue5c_ours.csv"
-  for algo in ml pml hc; do ours "$results/issue5c_ours.csv" --algo "$algo" --input "$f" --k 1000; done
+  echo "$header" > "$results/points_ml_1m.csv"
+  for algo in ml pml hc; do ours "$results/points_ml_1m.csv" --algo "$algo" --input "$f" --k 1000; done
 fi
 
 if wants d; then
   echo "d: true-K experiment (Fig. 6.15)"
   mkdir -p "$data/truek"
-  "$bin/truek_bench" --sets 10 --write-npy "$data/truek" | tee "$results/issue5d_truek_ml.csv"
-  : > "$results/issue5d_truek_ward.jsonl"
+  "$bin/truek_bench" --sets 10 --write-npy "$data/truek" | tee "$results/points_true_k_ml.csv"
+  : > "$results/points_true_k_ward.jsonl"
   for K in 200 250; do
     for s in 0 1 2; do
-      $peers ward-bic "$data/truek/truek_K${K}_s$s.npy" --max-k 320 | tee -a "$results/issue5d_truek_ward.jsonl"
+      $peers ward-bic "$data/truek/truek_K${K}_s$s.npy" --max-k 320 | tee -a "$results/points_true_k_ward.jsonl"
     done
   done
 fi
@@ -129,21 +129,21 @@ if wants e; then
   echo "e: time vs k (Fig. 6.11), m = 1M"
   f="$data/blobs_1m_d3_k1000.npy"
   blobs 1000000 3 1000 1 "$f"
-  echo "$header" > "$results/issue5e_time_vs_k.csv"
+  echo "$header" > "$results/points_time_vs_k.csv"
   for k in 100 250 500 1000 2000; do
-    for algo in lnkmeans kmeans; do ours "$results/issue5e_time_vs_k.csv" --algo "$algo" --input "$f" --k "$k"; done
+    for algo in lnkmeans kmeans; do ours "$results/points_time_vs_k.csv" --algo "$algo" --input "$f" --k "$k"; done
   done
 fi
 
 if wants f; then
   echo "f: time vs m (Fig. 6.12), k = 1000"
-  echo "$header" > "$results/issue5f_time_vs_m.csv"
+  echo "$header" > "$results/points_time_vs_m.csv"
   for m in 100000 200000 500000 1000000 2000000; do
     f="$data/blobs_m${m}_d3_k1000.npy"
     blobs "$m" 3 1000 1 "$f"
-    for algo in lnkmeans kmeans; do ours "$results/issue5f_time_vs_m.csv" --algo "$algo" --input "$f" --k 1000; done
+    for algo in lnkmeans kmeans; do ours "$results/points_time_vs_m.csv" --algo "$algo" --input "$f" --k 1000; done
     if [ "$m" -le 1000000 ]; then
-      for algo in ml pml hc; do ours "$results/issue5f_time_vs_m.csv" --algo "$algo" --input "$f" --k 1000; done
+      for algo in ml pml hc; do ours "$results/points_time_vs_m.csv" --algo "$algo" --input "$f" --k 1000; done
     fi
     [ "$m" -le 1000000 ] || rm -f "$f"
   done
@@ -151,11 +151,11 @@ fi
 
 if wants g; then
   echo "g: time per ML step vs d (Fig. 6.13), m = 20,000, 50 blobs"
-  echo "$header" > "$results/issue5g_time_vs_d.csv"
+  echo "$header" > "$results/points_time_vs_d.csv"
   for d in 2 3 4 8 16 32 64; do
     f="$data/blobs_20k_d${d}_k50.npy"
     blobs 20000 "$d" 50 1 "$f"
-    for algo in ml hc; do ours "$results/issue5g_time_vs_d.csv" --algo "$algo" --input "$f" --k 50; done
+    for algo in ml hc; do ours "$results/points_time_vs_d.csv" --algo "$algo" --input "$f" --k 50; done
   done
 fi
 
@@ -164,11 +164,11 @@ if wants h; then
   [ -f data/bench/armadillo_1m.off ] || bash scripts/fetch-bench-meshes.sh
   f="$data/armadillo_1m_vertices.npy"
   [ -f "$f" ] || "$python" bench/points_data.py --from-off data/bench/armadillo_1m.off --out "$f"
-  echo "$header" > "$results/issue5h_ours.csv"
-  for algo in ml pml hc; do ours "$results/issue5h_ours.csv" --algo "$algo" --input "$f" --k 1000; done
-  for algo in lnkmeans kmeans; do ours "$results/issue5h_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
-  $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/issue5h_peers.jsonl"
+  echo "$header" > "$results/points_armadillo_ours.csv"
+  for algo in ml pml hc; do ours "$results/points_armadillo_ours.csv" --algo "$algo" --input "$f" --k 1000; done
+  for algo in lnkmeans kmeans; do ours "$results/points_armadillo_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
+  $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/points_armadillo_peers.jsonl"
 fi
 
-echo "load after: $(cat /proc/loadavg)" >> "$results/machine5.txt"
+echo "load after: $(cat /proc/loadavg)" >> "$results/machine_points.txt"
 "$python" bench/plot_points.py "$results"
