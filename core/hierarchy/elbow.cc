@@ -1,29 +1,23 @@
 #include "core/hierarchy/elbow.h"
 
 #include <algorithm>
-#include <utility>
 
 namespace mlclust {
 
 std::vector<uint32_t> FindElbows(std::span<const uint32_t> cluster_count,
-                                 std::span<const double> energy, double jump, double significance,
-                                 size_t max_elbows) {
-  std::vector<std::pair<double, uint32_t>> candidates;  // strength, cluster count
-  if (energy.empty()) return {};
-  const double largest = *std::max_element(energy.begin(), energy.end());
-  for (size_t l = 0; l + 1 < energy.size(); ++l) {
-    // Levels whose energy is a negligible share of the largest are rounding noise: there
-    // every merge multiplies the energy.
-    if (!(energy[l] > significance * largest)) continue;
-    const double strength = energy[l + 1] / energy[l];
-    if (strength > jump) candidates.push_back({strength, cluster_count[l]});
-  }
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const auto& x, const auto& y) { return x.first > y.first; });
+                                 std::span<const double> energy, const ElbowOptions& options) {
+  const size_t levels = std::min(cluster_count.size(), energy.size());
   std::vector<uint32_t> elbows;
-  for (const auto& [strength, k] : candidates) {
-    if (elbows.size() == max_elbows) break;
-    elbows.push_back(k);
+  if (levels < 2 || options.max_elbows == 0) return elbows;
+  const double largest = *std::max_element(energy.begin(), energy.begin() + levels);
+  if (!(largest > 0)) return elbows;  // a flat zero curve has no elbow
+  const double floor = options.significance * largest;
+  for (size_t l = 0; l + 1 < levels && elbows.size() < options.max_elbows; ++l) {
+    const double here = std::max(energy[l], floor);
+    const double next = energy[l + 1];
+    if (next > options.jump * here && next >= options.rise * largest) {
+      elbows.push_back(cluster_count[l]);
+    }
   }
   return elbows;
 }
