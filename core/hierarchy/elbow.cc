@@ -15,7 +15,7 @@ std::vector<uint32_t> FindElbows(std::span<const uint32_t> cluster_count,
   for (size_t l = 0; l + 1 < levels && elbows.size() < options.max_elbows; ++l) {
     const double here = std::max(energy[l], floor);
     const double next = energy[l + 1];
-    if (next > options.jump * here && next >= options.rise * largest) {
+    if (next > options.jump * here) {
       elbows.push_back(cluster_count[l]);
     }
   }

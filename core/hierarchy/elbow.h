@@ -13,11 +13,9 @@ struct ElbowOptions {
   // The next coarser level's energy must be more than `jump` times this level's.
   double jump = 2.0;
   // Energies below `significance` times the largest count as zero: they are floored there
-  // (not skipped), so the ratio against a zero level is large but finite.
-  double significance = 1e-4;
-  // The next coarser level's energy must be at least `rise` times the largest: a step
-  // from rounding noise to more rounding noise is no elbow.
-  double rise = 1e-2;
+  // (not skipped), so the ratio against a zero level is large but finite, and a step from
+  // rounding noise to more rounding noise is no elbow.
+  double significance = 1e-3;
   size_t max_elbows = 5;
 };
 
@@ -25,7 +23,7 @@ struct ElbowOptions {
 // number of clusters present in the model is reached, followed by a fast increase as the
 // number of clusters decreases". A level with k clusters is an elbow when, with E_max the
 // largest energy and floor = significance * E_max,
-//   E(next level) > jump * max(E(level), floor)  and  E(next level) >= rise * E_max.
+//   E(next level) > jump * max(E(level), floor).
 // So the end of a (near) zero plateau is an elbow: a cube with the planar energy at 6, a
 // solid of s spheres and planes with the sphere energy at s + planes.
 //

@@ -37,7 +37,7 @@ TEST(FindElbowsTest, ElbowsComeInLevelOrderNotByStrength) {
 
 TEST(FindElbowsTest, RoundingNoiseIsNoElbowAndAFlatCurveHasNone) {
   const std::vector<uint32_t> counts = {8, 7, 6, 5, 4, 3, 2, 1};
-  // 1e-9 -> 1e-3 is a big ratio but stays below 1% of the largest: no elbow at 6.
+  // 2e-9 -> 1e-3 is a big ratio, but both are at most 0.1% of the largest: no elbow at 6.
   const std::vector<double> energy = {0, 1e-9, 2e-9, 0.001, 0.5, 0.7, 0.9, 1.0};
   EXPECT_THAT(FindElbows(counts, energy), ElementsAre(5u));
   EXPECT_TRUE(FindElbows(counts, std::vector<double>(8, 0.0)).empty());
