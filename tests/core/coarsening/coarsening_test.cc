@@ -45,51 +45,8 @@ std::vector<ClusterId> Labels(std::initializer_list<uint32_t> values) {
   return labels;
 }
 
-// A cube [-0.5, 0.5]^3 with n x n squares (two triangles each) per side, outward
-// counter-clockwise faces, vertices shared. Records for each face its side (0..5: +x, +y,
-// +z, -x, -y, -z) and its square (i, j) on that side.
-struct SubdividedCube {
-  TriangleMesh mesh;
-  std::vector<int> side;
-  std::vector<std::array<int, 2>> square;
-};
-
-SubdividedCube MakeCube(int n) {
-  SubdividedCube cube;
-  std::map<std::array<int, 3>, uint32_t> index;
-  auto vertex = [&](std::array<int, 3> lattice) {
-    auto [it, inserted] = index.try_emplace(lattice, static_cast<uint32_t>(index.size()));
-    if (inserted) {
-      for (int c : lattice) cube.mesh.positions.push_back(static_cast<float>(c) / n - 0.5f);
-    }
-    return it->second;
-  };
-  for (int side = 0; side < 6; ++side) {
-    const int a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;  // e_u x e_w = e_a
-    const bool positive = side < 3;
-    for (int i = 0; i < n; ++i) {
-      for (int j = 0; j < n; ++j) {
-        auto at = [&](int di, int dj) {
-          std::array<int, 3> lattice;
-          lattice[a] = positive ? n : 0;
-          lattice[u] = i + di;
-          lattice[w] = j + dj;
-          return vertex(lattice);
-        };
-        const uint32_t p00 = at(0, 0), p10 = at(1, 0), p01 = at(0, 1), p11 = at(1, 1);
-        const std::array<std::array<uint32_t, 3>, 2> triangles =
-            positive ? std::array<std::array<uint32_t, 3>, 2>{{{p00, p10, p11}, {p00, p11, p01}}}
-                     : std::array<std::array<uint32_t, 3>, 2>{{{p00, p11, p10}, {p00, p01, p11}}};
-        for (const auto& t : triangles) {
-          cube.mesh.indices.insert(cube.mesh.indices.end(), t.begin(), t.end());
-          cube.side.push_back(side);
-          cube.square.push_back({i, j});
-        }
-      }
-    }
-  }
-  return cube;
-}
+using testing::MakeCube;
+using testing::SubdividedCube;
 
 // A torus of n x m squares (two triangles each), consistently oriented.
 TriangleMesh MakeTorus(int n, int m) {

@@ -8,6 +8,8 @@
 #include <numeric>
 #include <random>
 
+#include "core/cluster/multilevel.h"
+#include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
 #include "tests/fixtures/test_meshes.h"
@@ -289,40 +291,8 @@ TriangleMesh RegularTetrahedron() {
                            {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2});
 }
 
-// The cube [0, 2]^3 with each side split into 2 x 2 squares, two triangles each.
-TriangleMesh SmallCube() {
-  TriangleMesh mesh;
-  std::map<std::array<int, 3>, uint32_t> vertex_of;
-  auto vertex = [&](std::array<int, 3> p) {
-    auto [it, inserted] = vertex_of.try_emplace(p, static_cast<uint32_t>(vertex_of.size()));
-    if (inserted) {
-      for (int c = 0; c < 3; ++c) mesh.positions.push_back(static_cast<float>(p[c]));
-    }
-    return it->second;
-  };
-  for (int axis = 0; axis < 3; ++axis) {
-    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-    for (int side : {0, 2}) {
-      for (int i = 0; i < 2; ++i) {
-        for (int j = 0; j < 2; ++j) {
-          std::array<int, 3> p00{}, p10{}, p01{}, p11{};
-          for (auto* p : {&p00, &p10, &p01, &p11}) (*p)[axis] = side;
-          p00[u] = i, p00[v] = j;
-          p10[u] = i + 1, p10[v] = j;
-          p01[u] = i, p01[v] = j + 1;
-          p11[u] = i + 1, p11[v] = j + 1;
-          const uint32_t a = vertex(p00), b = vertex(p10), c = vertex(p01), d = vertex(p11);
-          if (side == 2) {
-            mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
-          } else {
-            mesh.indices.insert(mesh.indices.end(), {a, d, b, a, c, d});
-          }
-        }
-      }
-    }
-  }
-  return mesh;
-}
+// The cube [-0.5, 0.5]^3 with each side split into 2 x 2 squares, two triangles each.
+TriangleMesh SmallCube() { return testing::MakeCube(2).mesh; }
 
 // Eq. 3.17 by brute force: for each vertex of f, every face that has that vertex.
 std::vector<double> RawDensityByDefinition(const TriangleMesh& mesh, const FaceMeasures& m) {
@@ -484,6 +454,29 @@ TEST_P(MwcvdByDefinitionTest, ReportedEnergyIsEq321OnACubeAndOnARealMesh) {
   EXPECT_NEAR(MeshEnergyOfLabels(options, elephant.mesh, labels), expected, 1e-9 * expected);
 }
 
+// The energy the ML engine reports per level is eq. 3.21 of that level's labels.
+TEST_P(MwcvdByDefinitionTest, EngineReportsEq321AtEveryLevelItStops) {
+  const testing::LoadedMesh cube = testing::Load(testing::MakeCube(3).mesh);
+  MeshEnergyOptions options;
+  options.kind = GetParam();
+  const std::vector<double> raw = RawDensityByDefinition(cube.mesh, cube.measures);
+  const double lo = *std::min_element(raw.begin(), raw.end());
+  const double hi = *std::max_element(raw.begin(), raw.end());
+  const double rho_new = options.kind == MeshEnergyKind::kMwcvdVariance ? 3 : 50;
+  std::vector<double> rho(raw.size());
+  for (size_t f = 0; f < raw.size(); ++f) {
+    rho[f] = (hi - raw[f]) / (hi - lo) + rho_new * (raw[f] - lo) / (hi - lo);
+  }
+  HierarchyLog log;
+  ASSERT_TRUE(RunMultilevel(cube.problem(options.kind), MultilevelOptions{}, log).ok());
+  for (size_t level : {size_t{10}, log.num_levels() / 2, log.num_levels() - 3}) {
+    const std::vector<ClusterId> labels = *log.LabelsAt(level);
+    const double expected =
+        MwcvdByDefinition(cube.measures, rho, labels, options.kind, options.mwcvd_p);
+    EXPECT_NEAR(log.energy(level), expected, 1e-9 * expected + 1e-15) << level;
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Weights, MwcvdByDefinitionTest,
                          ::testing::Values(MeshEnergyKind::kMwcvdArea,
                                            MeshEnergyKind::kMwcvdVariance,
@@ -534,6 +527,18 @@ TEST(SphereByDefinitionTest, ReportedEnergyIsEq340WithTheRadiusOfEq345) {
   }
 }
 
+TEST(SphereByDefinitionTest, EngineReportsEq340AtEveryLevelItStops) {
+  const testing::LoadedMesh sphere = testing::Load(UnitSphere(2));
+  HierarchyLog log;
+  ASSERT_TRUE(
+      RunMultilevel(sphere.problem(MeshEnergyKind::kSphere), MultilevelOptions{}, log).ok());
+  for (size_t level : {size_t{10}, log.num_levels() / 2, log.num_levels() - 2}) {
+    const std::vector<ClusterId> labels = *log.LabelsAt(level);
+    const double expected = SphereByDefinition(sphere.measures, labels);
+    EXPECT_NEAR(log.energy(level), expected, 1e-8 * expected + 1e-12) << level;
+  }
+}
+
 TEST(SphereByDefinitionTest, RadiusOfEq345MinimisesEq340) {
   const TriangleMesh sphere = UnitSphere(2);
   const FaceMeasures m = ComputeFaceMeasures(sphere);
@@ -562,15 +567,18 @@ TEST(SphereByDefinitionTest, RadiusOfEq345MinimisesEq340) {
 }
 
 TEST(SphereByDefinitionTest, PlanarClustersCostNothingAndMergeFirst) {
-  const TriangleMesh cube = SmallCube();  // 8 faces per side
+  const testing::SubdividedCube small = testing::MakeCube(2);  // 8 faces per side
+  const TriangleMesh& cube = small.mesh;
   const FaceMeasures m = ComputeFaceMeasures(cube);
   const SphereEnergy energy(m);
-  // Faces 0..7 are one side, 8..15 the opposite one (same axis, other normal).
+  // Faces 0..7 are one side; face 40 is on another.
+  ASSERT_EQ(small.side[7], small.side[0]);
+  ASSERT_NE(small.side[40], small.side[0]);
   SphereEnergy::Sums side, pair, across;
   for (uint32_t f = 0; f < 8; ++f) side += energy.face_sums(f);
   pair = energy.face_sums(0) + energy.face_sums(1);
   EXPECT_TRUE(energy.IsPlanar(side));
-  EXPECT_EQ(energy.Energy(side), 0);  // although its centroids spread over a 2 x 2 square
+  EXPECT_EQ(energy.Energy(side), 0);  // although its centroids spread over the side
   EXPECT_EQ(energy.MergeCost(pair, energy.face_sums(2)), 0);
   // A face of another side joins at a positive cost; a planar merge costs nothing, so ML
   // fits planes first.

@@ -52,42 +52,6 @@ TEST(FindElbowsTest, RoundingNoiseIsNoElbowAndAFlatCurveHasNone) {
 // ---------------------------------------------------------------------------------------
 // The real engine on solids whose true shapes are known.
 
-// The cube [0, n]^3, each side an n x n grid of squares split in two: 12 n^2 faces, six
-// planes. Outward counter-clockwise faces.
-TriangleMesh SubdividedCube(int n) {
-  TriangleMesh mesh;
-  std::map<std::array<int, 3>, uint32_t> vertex_of;
-  auto vertex = [&](std::array<int, 3> p) {
-    auto [it, inserted] = vertex_of.try_emplace(p, static_cast<uint32_t>(vertex_of.size()));
-    if (inserted) {
-      for (int c = 0; c < 3; ++c) mesh.positions.push_back(static_cast<float>(p[c]));
-    }
-    return it->second;
-  };
-  for (int axis = 0; axis < 3; ++axis) {
-    const int u = (axis + 1) % 3, v = (axis + 2) % 3;  // e_u x e_v = e_axis
-    for (int side : {0, n}) {
-      for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < n; ++j) {
-          std::array<int, 3> p00{}, p10{}, p01{}, p11{};
-          for (auto* p : {&p00, &p10, &p01, &p11}) (*p)[axis] = side;
-          p00[u] = i, p00[v] = j;
-          p10[u] = i + 1, p10[v] = j;
-          p01[u] = i, p01[v] = j + 1;
-          p11[u] = i + 1, p11[v] = j + 1;
-          const uint32_t a = vertex(p00), b = vertex(p10), c = vertex(p01), d = vertex(p11);
-          if (side == n) {  // normal +e_axis: (b - a) x (c - a) = e_u x e_v
-            mesh.indices.insert(mesh.indices.end(), {a, b, d, a, d, c});
-          } else {
-            mesh.indices.insert(mesh.indices.end(), {a, d, b, a, c, d});
-          }
-        }
-      }
-    }
-  }
-  return mesh;
-}
-
 // A solid of revolution about the z axis made of three smooth shapes: a cap of sphere 1
 // (centre z = -0.6, through the circle r = 1 at z = 0), a zone of sphere 2 (centre z = 0.2,
 // through the same circle) from z = 0 down to z = -0.5, and the flat disc closing it there.
@@ -199,7 +163,7 @@ std::string Tail(const Curve& curve, size_t n) {
 // Section 4.4 with the planar energy: the six sides of a cube merge at no cost, the
 // seventh-to-last merge is the first that costs, so the first elbow is 6.
 TEST(ElbowOfTheEngineTest, CubeWithThePlanarEnergyHasItsElbowAtSix) {
-  const testing::LoadedMesh cube = testing::Load(SubdividedCube(4));
+  const testing::LoadedMesh cube = testing::Load(testing::MakeCube(4).mesh);
   ASSERT_EQ(cube.mesh.num_faces(), 192u);
   const Curve curve = MultilevelCurve(cube, MeshEnergyKind::kPlanar);
   const std::vector<uint32_t> elbows = FindElbows(curve.counts, curve.energies);
