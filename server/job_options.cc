@@ -113,10 +113,12 @@ absl::StatusOr<MeshEnergyOptions> ReadEnergyOptions(const v1::JobSpec& spec, Opt
   absl::StatusOr<MeshEnergyKind> kind = MeshEnergyFromWire(spec.energy());
   if (!kind.ok()) return kind.status();
   energy.kind = *kind;
-  std::string density = "power";
+  std::string density;  // not given: the energy's own (ResolveDensityOptions)
   if (absl::Status s = reader.Choice("density", {"power", "linear"}, density); !s.ok()) return s;
-  energy.density.mapping =
-      density == "linear" ? DensityOptions::Mapping::kLinear : DensityOptions::Mapping::kPower;
+  if (!density.empty()) {
+    energy.density.mapping =
+        density == "linear" ? DensityOptions::Mapping::kLinear : DensityOptions::Mapping::kPower;
+  }
   for (absl::Status s : {
            reader.Double("gamma", energy.density.gamma, 1e-6, 100),
            reader.Double("delta", energy.density.delta, 1e-12, 100),

@@ -16,11 +16,13 @@ namespace mlclust::server {
 // Option names accepted in JobSpec.options (values are text):
 //   init              random | lneigh               (EMLO, BB; default lneigh)
 //   level             l of the l-neighbourhood seeds, 0 = chosen from k (default 0)
-//   density           power | linear                (cvd-adaptive, mwcvd-*; default power)
-//   gamma, delta      the power mapping (rho' + delta)^gamma (defaults 2, 0.1)
-//   rho-max           the linear mapping's upper end (default 10)
+//   density           power | linear                (cvd-adaptive, mwcvd-*; default linear for
+//                     mwcvd-*, power for cvd-adaptive: ResolveDensityOptions)
+//   gamma, delta      the power mapping (rho' + delta)^gamma (defaults 2, 1e-2)
+//   rho-max           rho^new, the linear mapping's upper end (default 50 for mwcvd-area/max,
+//                     3 for mwcvd-variance, 10 for cvd-adaptive)
 //   mwcvd-p           the p of w^M (default 10)
-//   planar-tolerance  the sphere energy's planar limit (default 1e-9)
+//   planar-tolerance  the sphere energy's Delta_zero (default 5e-5)
 //   threads           BB worker threads, 0 = all cores (default 0)
 //   max-iterations    BB sweeps (default 200)
 //   guard             on | off: the connectivity guard (default on)

@@ -11,6 +11,7 @@
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
 #include "core/cluster/point_clustering.h"
+#include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/draco_codec.h"
 #include "core/mesh/face_measures.h"

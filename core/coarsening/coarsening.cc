@@ -667,11 +667,14 @@ std::vector<Vec3> PlaceCoarseVertices(const TriangleMesh& mesh, const DenseClust
   const FaceMeasures measures = ComputeFaceMeasures(mesh);
   std::vector<ClusterSums> sums(dense.size());
   const bool quadric = options.placement == CoarseningOptions::Placement::kQuadric;
+  const bool weighted = !options.face_density.empty();
   for (size_t face = 0; face < measures.num_faces(); ++face) {
     ClusterSums& s = sums[dense.of_face[face]];
     const double area = measures.area[face];
-    s.area += area;
-    s.weighted_centroid += area * measures.centroid[face];
+    // Eq. 3.6 / 3.22: the mass of a face is rho_j A_j.
+    const double mass = weighted ? options.face_density[face] * area : area;
+    s.area += mass;
+    s.weighted_centroid += mass * measures.centroid[face];
     s.centroid_sum += measures.centroid[face];
     ++s.faces;
     if (quadric) {
@@ -687,6 +690,27 @@ std::vector<Vec3> PlaceCoarseVertices(const TriangleMesh& mesh, const DenseClust
     const ClusterSums& s = sums[cluster];
     centroids[cluster] =
         s.area > 0 ? s.weighted_centroid / s.area : s.centroid_sum / static_cast<double>(s.faces);
+  }
+  if (options.placement == CoarseningOptions::Placement::kClosestVertex) {
+    // [VC04]: the cluster's own mesh vertex nearest to its centroid.
+    std::vector<double> best(dense.size(), std::numeric_limits<double>::infinity());
+    std::vector<uint32_t> best_vertex(dense.size(), 0);
+    for (size_t face = 0; face < measures.num_faces(); ++face) {
+      const uint32_t cluster = dense.of_face[face];
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t vertex = mesh.indices[3 * face + c];
+        const double d = SquaredNorm(mesh.position(VertexId(vertex)) - centroids[cluster]);
+        if (d < best[cluster] || (d == best[cluster] && vertex < best_vertex[cluster])) {
+          best[cluster] = d;
+          best_vertex[cluster] = vertex;
+        }
+      }
+    }
+    std::vector<Vec3> positions(dense.size());
+    for (size_t cluster = 0; cluster < dense.size(); ++cluster) {
+      positions[cluster] = mesh.position(VertexId(best_vertex[cluster]));
+    }
+    return positions;
   }
   if (!quadric) return centroids;
   for (size_t face = 0; face < measures.num_faces(); ++face) {
@@ -1237,6 +1261,20 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   if (options.max_repair_rounds < 0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "max_repair_rounds is ", options.max_repair_rounds, "; it must not be negative"));
+  }
+  if (!options.face_density.empty()) {
+    if (options.face_density.size() != mesh.num_faces()) {
+      return absl::InvalidArgumentError(absl::StrCat("face_density holds ",
+                                                     options.face_density.size(), " values for ",
+                                                     mesh.num_faces(), " faces"));
+    }
+    for (size_t face = 0; face < options.face_density.size(); ++face) {
+      const double rho = options.face_density[face];
+      if (!(rho > 0) || !std::isfinite(rho)) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("face_density of face ", face, " is ", rho, "; it must be positive"));
+      }
+    }
   }
   const DenseClusters dense = Densify(labels);
   const uint32_t k = dense.size();

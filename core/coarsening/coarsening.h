@@ -35,8 +35,11 @@ namespace mlclust {
 
 struct CoarseningOptions {
   enum class Placement {
-    // The cluster's area-weighted centroid of face centroids, sum_j A_j g_j / sum_j A_j
-    // (the CVD generator ḡ_i); the plain mean of face centroids if the cluster's area is 0.
+    // The cluster's centroid, sum_j rho_j A_j g_j / sum_j rho_j A_j (eq. 3.6 / 3.22): with
+    // `face_density` empty rho_j = 1 and this is the uniform CVD generator (l. 715); with the
+    // densities of adaptive CVD or MWCVD it is the density-weighted centroid those
+    // clusterings already have, which the text uses as the coarse vertex (l. 783, 937). The
+    // plain mean of face centroids if the cluster's mass is 0.
     kCentroid,
     // The point minimising the cluster's Garland-Heckbert quadric: the sum over its faces
     // of A_j times the squared distance to face j's plane. The 3x3 system is solved by an
@@ -46,8 +49,15 @@ struct CoarseningOptions {
     // centroid (which lies on the plane), a cluster along a crease moves only across the
     // crease onto it, and a cluster around a corner gets the corner.
     kQuadric,
+    // [VC04] (l. 763): the original mesh vertex closest to the centroid above, among the
+    // vertices of the cluster's faces (ties to the lower vertex index).
+    kClosestVertex,
   };
   Placement placement = Placement::kCentroid;
+  // Per-face density rho_j (one positive finite value per face) for the centroid, e.g.
+  // EnergyFaceDensity of the clustering's energy options; empty: rho_j = 1. Not owned: it
+  // must outlive the call.
+  std::span<const double> face_density;
   // Only for kQuadric: eigenvalues up to this fraction of the largest count as zero.
   double quadric_relative_eigenvalue = 1e-3;
 

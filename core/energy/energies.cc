@@ -49,38 +49,52 @@ Vec3 CentroidBoxCentre(const FaceMeasures& measures) {
 // ---------------------------------------------------------------------------------------
 // Density.
 
+DensityOptions ResolveDensityOptions(MeshEnergyKind kind, const DensityOptions& options) {
+  DensityOptions resolved = options;
+  const bool mwcvd = kind == MeshEnergyKind::kMwcvdArea || kind == MeshEnergyKind::kMwcvdVariance ||
+                     kind == MeshEnergyKind::kMwcvdMax;
+  if (resolved.mapping == DensityOptions::Mapping::kDefault) {
+    // Fig. 3.13 and Table 3.1 (MWCVD) use the linear mapping.
+    resolved.mapping = mwcvd ? DensityOptions::Mapping::kLinear : DensityOptions::Mapping::kPower;
+  }
+  if (resolved.rho_max == 0) {
+    // Table 3.1: rho^new = 50 for w^A and w^M, 3 for w^V (Fandisk, Cube, Bunny).
+    resolved.rho_max = kind == MeshEnergyKind::kMwcvdVariance ? 3.0 : mwcvd ? 50.0 : 10.0;
+  }
+  return resolved;
+}
+
 std::vector<double> ComputeFaceDensity(const TriangleMesh& mesh, const FaceMeasures& measures,
                                        const DensityOptions& options) {
   const size_t num_faces = mesh.num_faces();
-  const size_t num_vertices = mesh.num_vertices();
   const VertexFaceTable table = BuildVertexFaceTable(mesh);
-  // rho'_f: mean |n_f - n_g| over the distinct faces g != f around f's three vertices.
+  // Eq. 3.17: rho'_f, the mean |n_f - n_k| over the (vertex, face) incidences around f's
+  // three vertices; f itself is among them (|n_f - n_f| = 0 counts towards n).
   std::vector<double> raw(num_faces, 0.0);
-  std::vector<uint32_t> ring;
   for (uint32_t f = 0; f < num_faces; ++f) {
-    ring.clear();
+    double sum = 0;
+    size_t incidences = 0;
     for (int c = 0; c < 3; ++c) {
-      for (uint32_t g : table.faces_around(mesh.indices[3 * size_t{f} + c])) {
-        if (g != f) ring.push_back(g);
+      for (uint32_t k : table.faces_around(mesh.indices[3 * size_t{f} + c])) {
+        sum += Norm(measures.unit_normal[f] - measures.unit_normal[k]);
+        ++incidences;
       }
     }
-    std::sort(ring.begin(), ring.end());
-    ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-    if (ring.empty()) continue;
-    double sum = 0;
-    for (uint32_t g : ring) sum += Norm(measures.unit_normal[f] - measures.unit_normal[g]);
-    raw[f] = sum / static_cast<double>(ring.size());
+    if (incidences > 0) raw[f] = sum / static_cast<double>(incidences);
   }
   std::vector<double> density(num_faces);
-  if (options.mapping == DensityOptions::Mapping::kPower) {
-    for (size_t f = 0; f < num_faces; ++f) {
-      density[f] = std::pow(raw[f] + options.delta, options.gamma);
-    }
-  } else {
+  if (options.mapping == DensityOptions::Mapping::kLinear) {
+    // l. 933: [min rho', max rho'] onto [1, rho^new].
+    const double rho_new = options.rho_max == 0 ? 10.0 : options.rho_max;
     const auto [lo, hi] = std::minmax_element(raw.begin(), raw.end());
     const double span = num_faces == 0 ? 0 : *hi - *lo;
     for (size_t f = 0; f < num_faces; ++f) {
-      density[f] = span > 0 ? 1.0 + (raw[f] - *lo) / span * (options.rho_max - 1.0) : 1.0;
+      density[f] = span > 0 ? (*hi - raw[f]) / span + rho_new * (raw[f] - *lo) / span : 1.0;
+    }
+  } else {
+    // l. 931: (rho' + Delta)^gamma.
+    for (size_t f = 0; f < num_faces; ++f) {
+      density[f] = std::pow(raw[f] + options.delta, options.gamma);
     }
   }
   return density;
@@ -108,7 +122,6 @@ CvdEnergy::Proxy CvdEnergy::FitProxy(const Sums& sums) const {
 MwcvdEnergy::Sums& MwcvdEnergy::Sums::operator+=(const Sums& o) {
   cvd += o.cvd;
   count += o.count;
-  density_area += o.density_area;
   density += o.density;
   density_squared += o.density_squared;
   density_power += o.density_power;
@@ -118,7 +131,6 @@ MwcvdEnergy::Sums& MwcvdEnergy::Sums::operator+=(const Sums& o) {
 MwcvdEnergy::Sums& MwcvdEnergy::Sums::operator-=(const Sums& o) {
   cvd -= o.cvd;
   count -= o.count;
-  density_area -= o.density_area;
   density -= o.density;
   density_squared -= o.density_squared;
   density_power -= o.density_power;
@@ -127,15 +139,14 @@ MwcvdEnergy::Sums& MwcvdEnergy::Sums::operator-=(const Sums& o) {
 
 MwcvdEnergy::MwcvdEnergy(const FaceMeasures& measures, std::span<const double> density,
                          Weight weight, double p)
-    : weight_(weight), p_(p) {
-  const Vec3 origin = CentroidBoxCentre(measures);
+    : weight_(weight), p_(p), origin_(CentroidBoxCentre(measures)) {
   face_sums_.resize(measures.num_faces());
   for (size_t f = 0; f < face_sums_.size(); ++f) {
     const double rho = density.empty() ? 1.0 : density[f];
     Sums& s = face_sums_[f];
-    s.cvd = CvdFaceSums(measures.area[f], measures.centroid[f], origin);
+    // Eq. 3.23: the density sits inside the sums, with the area.
+    s.cvd = CvdFaceSums(rho * measures.area[f], measures.centroid[f], origin_);
     s.count = 1;
-    s.density_area = rho * measures.area[f];
     s.density = rho;
     s.density_squared = rho * rho;
     s.density_power = std::pow(rho, p_);
@@ -144,12 +155,12 @@ MwcvdEnergy::MwcvdEnergy(const FaceMeasures& measures, std::span<const double> d
 
 double MwcvdEnergy::ClusterWeight(const Sums& sums) const {
   switch (weight_) {
-    case Weight::kArea:
-      return std::max(0.0, sums.density_area);
-    case Weight::kVariance:
+    case Weight::kArea:  // eq. 3.24: sum rho A, already the CVD mass
+      return std::max(0.0, sums.cvd.area);
+    case Weight::kVariance:  // eq. 3.27
       if (sums.count <= 0) return 1.0;
       return 1.0 + std::max(0.0, sums.density_squared - sums.density * sums.density / sums.count);
-    case Weight::kMax:
+    case Weight::kMax:  // eq. 3.28
     default:
       return std::pow(std::max(0.0, sums.density_power), 1.0 / p_);
   }
@@ -157,6 +168,7 @@ double MwcvdEnergy::ClusterWeight(const Sums& sums) const {
 
 MwcvdEnergy::Proxy MwcvdEnergy::FitProxy(const Sums& sums) const {
   Proxy proxy;
+  // Eq. 3.22: the density-weighted centroid.
   proxy.centroid = sums.cvd.area > 0 ? sums.cvd.weighted_centroid / sums.cvd.area : Vec3{};
   proxy.weight = ClusterWeight(sums);
   return proxy;
@@ -178,9 +190,94 @@ PlanarEnergy::Proxy PlanarEnergy::FitProxy(const Sums& sums) const {
 }
 
 // ---------------------------------------------------------------------------------------
-// Sphere.
+// Sphere fit (eqs. 3.40-3.46).
 
 SphereEnergy::Sums& SphereEnergy::Sums::operator+=(const Sums& o) {
+  count += o.count;
+  position += o.position;
+  normal += o.normal;
+  position_dot_normal += o.position_dot_normal;
+  position_squared += o.position_squared;
+  return *this;
+}
+
+SphereEnergy::Sums& SphereEnergy::Sums::operator-=(const Sums& o) {
+  count -= o.count;
+  position -= o.position;
+  normal -= o.normal;
+  position_dot_normal -= o.position_dot_normal;
+  position_squared -= o.position_squared;
+  return *this;
+}
+
+SphereEnergy::SphereEnergy(const FaceMeasures& measures, double zero_tolerance)
+    : origin_(CentroidBoxCentre(measures)), zero_tolerance_(zero_tolerance) {
+  face_sums_.resize(measures.num_faces());
+  for (size_t f = 0; f < face_sums_.size(); ++f) {
+    // Positions relative to an origin near the mesh: E_i is translation invariant
+    // (c_j - Cbar_i does not change) and the sums stay small.
+    const Vec3 p = measures.centroid[f] - origin_;
+    const Vec3& n = measures.unit_normal[f];
+    face_sums_[f] = {1.0, p, n, Dot(p, n), SquaredNorm(p)};
+  }
+}
+
+bool SphereEnergy::IsPlanar(const Sums& sums) const {
+  // l. 1333: |k_i^2 - |sum n|^2| < Delta_zero.
+  return sums.count <= 0 ||
+         std::abs(sums.count * sums.count - SquaredNorm(sums.normal)) < zero_tolerance_;
+}
+
+double SphereEnergy::Radius(const Sums& sums) const {
+  if (IsPlanar(sums)) return 0;
+  // Eq. 3.45.
+  const double k = sums.count;
+  return (k * sums.position_dot_normal - Dot(sums.position, sums.normal)) /
+         (k * k - SquaredNorm(sums.normal));
+}
+
+double SphereEnergy::Energy(const Sums& sums) const {
+  if (IsPlanar(sums)) return 0;  // l. 1333: planar clusters fit at no cost
+  // Eq. 3.46.
+  const double k = sums.count;
+  const double coupling = k * sums.position_dot_normal - Dot(sums.position, sums.normal);
+  const double spread = k * k - SquaredNorm(sums.normal);
+  const double energy =
+      sums.position_squared - SquaredNorm(sums.position) / k - coupling * coupling / (k * spread);
+  return std::max(0.0, energy);
+}
+
+SphereEnergy::Proxy SphereEnergy::FitProxy(const Sums& sums) const {
+  Proxy proxy;
+  if (sums.count <= 0) return proxy;
+  if (IsPlanar(sums)) {
+    proxy.planar = true;
+    proxy.centre = sums.position / sums.count;
+    const double length = Norm(sums.normal);
+    proxy.plane_normal = length > 0 ? sums.normal / length : Vec3{};
+    return proxy;
+  }
+  proxy.planar = false;
+  proxy.radius = Radius(sums);
+  proxy.centre = (sums.position - sums.normal * proxy.radius) / sums.count;  // eq. 3.42
+  return proxy;
+}
+
+double SphereEnergy::FaceCost(uint32_t face, const Proxy& proxy) const {
+  const Sums& s = face_sums_[face];
+  if (proxy.planar) {
+    // Ours (see the header): squared distance of p_j to the cluster's plane.
+    const double distance = Dot(s.position - proxy.centre, proxy.plane_normal);
+    return distance * distance;
+  }
+  // Eq. 3.40 with eq. 3.41: |p_j - R_i n_j - Cbar_i|^2.
+  return SquaredNorm(s.position - s.normal * proxy.radius - proxy.centre);
+}
+
+// ---------------------------------------------------------------------------------------
+// Sphere normal fit (ours).
+
+SphereNormalFitEnergy::Sums& SphereNormalFitEnergy::Sums::operator+=(const Sums& o) {
   area += o.area;
   weighted_centroid += o.weighted_centroid;
   weighted_normal += o.weighted_normal;
@@ -189,7 +286,7 @@ SphereEnergy::Sums& SphereEnergy::Sums::operator+=(const Sums& o) {
   return *this;
 }
 
-SphereEnergy::Sums& SphereEnergy::Sums::operator-=(const Sums& o) {
+SphereNormalFitEnergy::Sums& SphereNormalFitEnergy::Sums::operator-=(const Sums& o) {
   area -= o.area;
   weighted_centroid -= o.weighted_centroid;
   weighted_normal -= o.weighted_normal;
@@ -198,7 +295,7 @@ SphereEnergy::Sums& SphereEnergy::Sums::operator-=(const Sums& o) {
   return *this;
 }
 
-SphereEnergy::SphereEnergy(const FaceMeasures& measures, double planar_tolerance)
+SphereNormalFitEnergy::SphereNormalFitEnergy(const FaceMeasures& measures, double planar_tolerance)
     : origin_(CentroidBoxCentre(measures)), planar_tolerance_(planar_tolerance) {
   const size_t n = measures.num_faces();
   face_sums_.resize(n);
@@ -225,7 +322,7 @@ struct SphereTerms {
   double scatter;   // Q - |X|^2/W
 };
 
-SphereTerms Terms(const SphereEnergy::Sums& s, double planar_tolerance) {
+SphereTerms Terms(const SphereNormalFitEnergy::Sums& s, double planar_tolerance) {
   SphereTerms t{true, 0, 0, 0};
   if (s.area <= 0) return t;
   const double w = s.area;
@@ -239,13 +336,13 @@ SphereTerms Terms(const SphereEnergy::Sums& s, double planar_tolerance) {
 
 }  // namespace
 
-double SphereEnergy::Energy(const Sums& sums) const {
+double SphereNormalFitEnergy::Energy(const Sums& sums) const {
   const SphereTerms t = Terms(sums, planar_tolerance_);
   if (t.planar) return t.spread;
   return std::max(0.0, t.spread - t.coupling * t.coupling / t.scatter);
 }
 
-SphereEnergy::Proxy SphereEnergy::FitProxy(const Sums& sums) const {
+SphereNormalFitEnergy::Proxy SphereNormalFitEnergy::FitProxy(const Sums& sums) const {
   Proxy proxy;
   proxy.origin = origin_;
   if (sums.area <= 0) return proxy;
@@ -255,7 +352,7 @@ SphereEnergy::Proxy SphereEnergy::FitProxy(const Sums& sums) const {
   return proxy;
 }
 
-double SphereEnergy::FaceCost(uint32_t face, const Proxy& proxy) const {
+double SphereNormalFitEnergy::FaceCost(uint32_t face, const Proxy& proxy) const {
   return area_[face] *
          SquaredNorm(normal_[face] - centroid_[face] * proxy.curvature - proxy.offset);
 }
@@ -275,6 +372,7 @@ constexpr struct {
     {MeshEnergyKind::kMwcvdMax, "mwcvd-max"},
     {MeshEnergyKind::kPlanar, "planar"},
     {MeshEnergyKind::kSphere, "sphere"},
+    {MeshEnergyKind::kSphereNormals, "sphere-normals"},
 };
 }  // namespace
 
@@ -302,8 +400,9 @@ absl::Status ValidateMeshEnergyOptions(const MeshEnergyOptions& options) {
   if (!(d.gamma > 0) || !std::isfinite(d.gamma)) {
     return absl::InvalidArgumentError(absl::StrCat("gamma: ", d.gamma, " must be > 0"));
   }
-  if (!(d.rho_max > 1) || !std::isfinite(d.rho_max)) {
-    return absl::InvalidArgumentError(absl::StrCat("rho-max: ", d.rho_max, " must be > 1"));
+  if (d.rho_max != 0 && (!(d.rho_max > 1) || !std::isfinite(d.rho_max))) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("rho-max: ", d.rho_max, " must be > 1 (or 0 for the energy's default)"));
   }
   if (!(options.mwcvd_p >= 1) || !std::isfinite(options.mwcvd_p) || options.mwcvd_p > 64) {
     return absl::InvalidArgumentError(
@@ -324,6 +423,20 @@ uint32_t CompactClusterIds(std::span<const ClusterId> labels, std::vector<uint32
     compact[f] = it->second;
   }
   return static_cast<uint32_t>(ids.size());
+}
+
+std::vector<double> EnergyFaceDensity(const MeshEnergyOptions& options, const TriangleMesh& mesh,
+                                      const FaceMeasures& measures) {
+  switch (options.kind) {
+    case MeshEnergyKind::kCvdAdaptive:
+    case MeshEnergyKind::kMwcvdArea:
+    case MeshEnergyKind::kMwcvdVariance:
+    case MeshEnergyKind::kMwcvdMax:
+      return ComputeFaceDensity(mesh, measures,
+                                ResolveDensityOptions(options.kind, options.density));
+    default:
+      return {};
+  }
 }
 
 double MeshEnergyOfLabels(const MeshEnergyOptions& options, const TriangleMesh& mesh,

@@ -15,8 +15,9 @@
 // PML and HC accept every energy below; all of them have a proxy, so BB accepts every one
 // too; VSA is defined for the planar (L2,1) energy only.
 //
-// Equation numbers refer to the dissertation. Where its text was not available to us the
-// reconstruction is stated at the energy.
+// Equation numbers and line numbers (l.) refer to the dissertation's text
+// (shared/seed/000_a22f6fdceb60dfb0.txt). An energy named after the dissertation implements
+// its definition; our own variants are named as ours.
 #ifndef MLCLUST_CORE_ENERGY_ENERGIES_H_
 #define MLCLUST_CORE_ENERGY_ENERGIES_H_
 
@@ -86,21 +87,46 @@ double CvdEnergyDirect(const FaceMeasures& measures, std::span<const ClusterId> 
 Vec3 CentroidBoxCentre(const FaceMeasures& measures);
 
 // ---------------------------------------------------------------------------------------
+// The energies by name.
+
+enum class MeshEnergyKind {
+  kCvd,            // eq. 3.7, uniform density
+  kCvdAdaptive,    // eq. 3.7 with the face density of section 3.2.1
+  kMwcvdArea,      // eq. 3.23 with w^A (eq. 3.24)
+  kMwcvdVariance,  // eq. 3.23 with w^V (eq. 3.27)
+  kMwcvdMax,       // eq. 3.23 with w^M (eq. 3.28)
+  kPlanar,         // L2,1, eq. 3.38
+  kSphere,         // sphere fit, eqs. 3.40-3.46 with the planar rule of l. 1333
+  kSphereNormals,  // ours: normal-field least squares (SphereNormalFitEnergy)
+};
+
+// ---------------------------------------------------------------------------------------
 // Face density for adaptive CVD and MWCVD (section 3.2.1).
 
 struct DensityOptions {
   enum class Mapping {
-    kPower,   // rho = (rho' + delta)^gamma
-    kLinear,  // rho' mapped linearly from [min rho', max rho'] onto [1, rho_max]
+    kDefault,  // the energy's own: kLinear for mwcvd-* (as the text's Fig. 3.13 and
+               // Table 3.1), kPower for cvd-adaptive
+    kPower,    // rho = (rho' + delta)^gamma (l. 931)
+    kLinear,   // rho' mapped linearly from [min rho', max rho'] onto [1, rho^new] (l. 933)
   };
-  Mapping mapping = Mapping::kPower;
-  double delta = 0.1;     // > 0: keeps flat regions (rho' = 0) at a positive density
-  double gamma = 2.0;     // > 0
-  double rho_max = 10.0;  // > 1
+  Mapping mapping = Mapping::kDefault;
+  double delta = 1e-2;  // > 0: keeps flat regions (rho' = 0) at a positive density (l. 931)
+  double gamma = 2.0;   // > 0
+  // rho^new, > 1; 0 picks the energy's default: the text's Table 3.1 uses 50 (w^A, w^M) and
+  // 3 (w^V) on Fandisk, Cube and Bunny (also the Fandisk of Fig. 3.13), and 100 / 5 on the
+  // larger Horse and Armadillo; we default to 50 (mwcvd-area, mwcvd-max) and 3
+  // (mwcvd-variance), and 10 for cvd-adaptive's linear mapping.
+  double rho_max = 0;
 };
 
-// Eq. 3.17 as we read it: rho'_f = the mean of |n_f - n_g| over the faces g != f that
-// share a vertex with f (0 for an isolated face), then the chosen mapping.
+// `options` with kDefault and rho_max = 0 replaced by `kind`'s defaults (see above).
+DensityOptions ResolveDensityOptions(MeshEnergyKind kind, const DensityOptions& options);
+
+// Eq. 3.17: rho'_f = (1/n) sum_{i = 1..3} sum_{F_k adjacent to V_i} |n_f - n_k|, the mean
+// over the (vertex, face) incidences of f's three vertices, f itself included (it adds 0
+// to the sum and 1 to n) and a face sharing an edge with f counted twice; then the chosen
+// mapping (kDefault reads as kPower, rho_max = 0 as 10: resolve the options first).
 std::vector<double> ComputeFaceDensity(const TriangleMesh& mesh, const FaceMeasures& measures,
                                        const DensityOptions& options);
 
@@ -135,21 +161,23 @@ class CvdEnergy {
   std::vector<Sums> face_sums_;
 };
 
-// Multiplicatively weighted CVD (eq. 3.23 as we reconstruct it): E_i = w_i * sum_{j in C_i}
-// A_j |g_j - gbar_i|^2, the uniform CVD term of the cluster scaled by a cluster weight
-// computed from the face densities rho_j of its faces:
+// Multiplicatively weighted CVD, eqs. 3.21-3.23:
+//   E = sum_i w_i ( sum_{j in C_i} rho_j A_j |g_j|^2 - |sum rho_j A_j g_j|^2 / sum rho_j A_j )
+// i.e. E_i = w_i sum_{j in C_i} rho_j A_j |g_j - gbar_i|^2 with the density-weighted
+// centroid gbar_i = sum rho_j A_j g_j / sum rho_j A_j (eq. 3.22). The cluster weight w_i
+// comes from the densities of the cluster's faces:
 //   w^A = sum rho_j A_j                               (eq. 3.24, "area")
-//   w^V = 1 + sum rho_j^2 - (sum rho_j)^2 / n         (eq. 3.27, "variance"; n faces)
-//   w^M = (sum rho_j^p)^(1/p), p = 10 by default      (eq. 3.28, a smooth maximum)
-// A larger weight makes a cluster costlier, so clusters shrink where density is high
-// (w^A, w^M) or where it varies (w^V). Proxy: the centroid and the weight.
+//   w^V = 1 + sum rho_j^2 - (sum rho_j)^2 / n_i       (eq. 3.27 = 3.25, "variance")
+//   w^M = (sum rho_j^p)^(1/p), p = 10 by default      (eq. 3.28, the text's stand-in for
+//                                                      max rho_j of eq. 3.26)
+// Proxy: gbar_i and w_i; the cost of face f against it is w_i rho_f A_f |g_f - gbar_i|^2,
+// the term of eq. 3.21 (l. 971 writes it per unit area).
 class MwcvdEnergy {
  public:
   enum class Weight { kArea, kVariance, kMax };
   struct Sums {
-    CvdSums cvd;
+    CvdSums cvd;  // with mass rho_j A_j: sum rho A, sum rho A g, sum rho A |g|^2
     double count = 0;
-    double density_area = 0;     // sum rho A
     double density = 0;          // sum rho
     double density_squared = 0;  // sum rho^2
     double density_power = 0;    // sum rho^p
@@ -159,10 +187,11 @@ class MwcvdEnergy {
     friend Sums operator+(Sums a, const Sums& b) { return a += b; }
   };
   struct Proxy {
-    Vec3 centroid;
+    Vec3 centroid;  // gbar_i, relative to origin()
     double weight = 1;
   };
 
+  // `density` empty: rho = 1 for every face; else one positive density per face.
   MwcvdEnergy(const FaceMeasures& measures, std::span<const double> density, Weight weight,
               double p = 10);
 
@@ -179,10 +208,12 @@ class MwcvdEnergy {
     return proxy.weight * s.area * SquaredNorm(s.weighted_centroid / s.area - proxy.centroid);
   }
   size_t num_faces() const { return face_sums_.size(); }
+  const Vec3& origin() const { return origin_; }
 
  private:
   Weight weight_;
   double p_;
+  Vec3 origin_;
   std::vector<Sums> face_sums_;
 };
 
@@ -232,15 +263,73 @@ class PlanarEnergy {
   std::vector<Sums> face_sums_;
 };
 
-// Sphere fit (section 3.3.2, eqs. 3.44-3.46 as we reconstruct them): a sphere of centre c
-// and curvature kappa = 1/r has normal n(x) = kappa (x - c) = kappa x + d at x. A cluster's
-// energy is the area-weighted least-squares misfit of its face normals to the best sphere,
+// Sphere fit, eqs. 3.40-3.46 (section 3.3.2): with p_j the centroid and n_j the unit normal
+// of face j, and k_i the number of faces of cluster C_i (every face counts once, whatever
+// its area),
+//   E_i = sum_{j in C_i} |c_j - Cbar_i|^2,  c_j = p_j - R_i n_j,  Cbar_i = sum c_j / k_i,
+// with the radius R_i that minimises it (eq. 3.45):
+//   R_i = (k_i sum p.n - sum p . sum n) / (k_i^2 - |sum n|^2),
+// which gives eq. 3.46:
+//   E_i = sum |p|^2 - |sum p|^2 / k_i - (k_i sum p.n - sum p . sum n)^2 / (k_i (k_i^2 - |sum
+//   n|^2)).
+// Planar rule (l. 1333): when |k_i^2 - |sum n|^2| < Delta_zero (5e-5) the cluster is planar
+// (R_i = infinity) and E_i = 0, so planar regions fit first: the text's reduced energy is
+// -infinity there, and here a merge into a planar cluster costs -E(a) - E(b) <= 0 while every
+// other merge costs >= 0. A single face is planar.
+// Proxy (R_i, Cbar_i). For BB, a planar cluster's proxy is its plane (through sum p / k_i,
+// normal sum n / |sum n|) and a face's cost against it the squared distance of its centroid
+// to that plane: ours, as the text gives no face cost for R = infinity; it is 0 for the
+// cluster's own coplanar faces, so sum_f FaceCost == Energy still holds.
+class SphereEnergy {
+ public:
+  struct Sums {
+    double count = 0;                // k_i
+    Vec3 position;                   // sum p_j (relative to the energy's origin)
+    Vec3 normal;                     // sum n_j
+    double position_dot_normal = 0;  // sum p_j . n_j
+    double position_squared = 0;     // sum |p_j|^2
+
+    Sums& operator+=(const Sums& o);
+    Sums& operator-=(const Sums& o);
+    friend Sums operator+(Sums a, const Sums& b) { return a += b; }
+  };
+  struct Proxy {
+    bool planar = true;
+    double radius = 0;  // R_i (signed: > 0 when normals point away from the centre)
+    Vec3 centre;        // Cbar_i, or a point of the plane when planar
+    Vec3 plane_normal;  // unit normal of the plane when planar
+  };
+
+  explicit SphereEnergy(const FaceMeasures& measures, double zero_tolerance = 5e-5);
+
+  const Sums& face_sums(uint32_t face) const { return face_sums_[face]; }
+  bool IsPlanar(const Sums& sums) const;
+  double Radius(const Sums& sums) const;  // eq. 3.45; 0 when planar or empty
+  double Energy(const Sums& sums) const;  // eq. 3.46, or 0 when planar
+  double MergeCost(const Sums& a, const Sums& b) const {
+    return Energy(a + b) - Energy(a) - Energy(b);
+  }
+  Proxy FitProxy(const Sums& sums) const;
+  double FaceCost(uint32_t face, const Proxy& proxy) const;
+  size_t num_faces() const { return face_sums_.size(); }
+  const Vec3& origin() const { return origin_; }
+
+ private:
+  Vec3 origin_;
+  double zero_tolerance_;
+  std::vector<Sums> face_sums_;
+};
+
+// Ours (not the dissertation's sphere fit): a sphere of centre c and curvature kappa = 1/r
+// has normal n(x) = kappa (x - c) = kappa x + d at x. A cluster's energy is the area-weighted
+// least-squares misfit of its face normals to the best sphere,
 //   E_i = min_{kappa, d} sum_{j in C_i} A_j |n_j - kappa g_j - d|^2,
 // linear in (kappa, d), so it follows from sums of A, A g, A n, A g.n, A |g|^2:
 //   E_i = (W - |N|^2/W) - (P - X.N/W)^2 / (Q - |X|^2/W).
 // Planes are the limit kappa -> 0: when |W^2 - |N|^2| < planar_tolerance * W^2 the
-// cluster is planar and E_i = W - |N|^2/W (~0). Proxy (kappa, d).
-class SphereEnergy {
+// cluster is planar and E_i = W - |N|^2/W (~0). Proxy (kappa, d). Scale-free in the
+// normals and area-weighted, unlike the text's, which is in squared lengths per face.
+class SphereNormalFitEnergy {
  public:
   struct Sums {
     double area = 0;             // W
@@ -259,7 +348,7 @@ class SphereEnergy {
     Vec3 origin;           // positions are relative to this
   };
 
-  SphereEnergy(const FaceMeasures& measures, double planar_tolerance = 1e-9);
+  explicit SphereNormalFitEnergy(const FaceMeasures& measures, double planar_tolerance = 1e-9);
 
   const Sums& face_sums(uint32_t face) const { return face_sums_[face]; }
   double Energy(const Sums& sums) const;
@@ -281,24 +370,16 @@ class SphereEnergy {
 // ---------------------------------------------------------------------------------------
 // Choosing an energy at run time.
 
-enum class MeshEnergyKind {
-  kCvd,
-  kCvdAdaptive,
-  kMwcvdArea,
-  kMwcvdVariance,
-  kMwcvdMax,
-  kPlanar,
-  kSphere,
-};
-
 struct MeshEnergyOptions {
   MeshEnergyKind kind = MeshEnergyKind::kCvd;
   DensityOptions density;          // cvd-adaptive and mwcvd-*
-  double mwcvd_p = 10;             // mwcvd-max: the p of the p-norm (>= 1)
-  double planar_tolerance = 1e-9;  // sphere: relative threshold of the planar limit
+  double mwcvd_p = 10;             // mwcvd-max: the p of eq. 3.28 (>= 1; the text uses 10)
+  double planar_tolerance = 5e-5;  // sphere: Delta_zero of l. 1333, |k^2 - |sum n|^2| below it
+                                   // is planar (sphere-normals keeps its own 1e-9 relative)
 };
 
-// "cvd", "cvd-adaptive", "mwcvd-area", "mwcvd-variance", "mwcvd-max", "planar", "sphere".
+// "cvd", "cvd-adaptive", "mwcvd-area", "mwcvd-variance", "mwcvd-max", "planar", "sphere",
+// "sphere-normals" (ours).
 absl::StatusOr<MeshEnergyKind> ParseMeshEnergyKind(absl::string_view name);
 const char* MeshEnergyName(MeshEnergyKind kind);
 
@@ -309,7 +390,9 @@ absl::Status ValidateMeshEnergyOptions(const MeshEnergyOptions& options);
 template <typename F>
 decltype(auto) WithMeshEnergy(const MeshEnergyOptions& options, const TriangleMesh& mesh,
                               const FaceMeasures& measures, F&& f) {
-  auto density = [&] { return ComputeFaceDensity(mesh, measures, options.density); };
+  auto density = [&] {
+    return ComputeFaceDensity(mesh, measures, ResolveDensityOptions(options.kind, options.density));
+  };
   switch (options.kind) {
     case MeshEnergyKind::kCvdAdaptive:
       return f(CvdEnergy(measures, density()));
@@ -323,6 +406,8 @@ decltype(auto) WithMeshEnergy(const MeshEnergyOptions& options, const TriangleMe
       return f(PlanarEnergy(measures));
     case MeshEnergyKind::kSphere:
       return f(SphereEnergy(measures, options.planar_tolerance));
+    case MeshEnergyKind::kSphereNormals:
+      return f(SphereNormalFitEnergy(measures));
     case MeshEnergyKind::kCvd:
     default:
       return f(CvdEnergy(measures));
@@ -340,6 +425,12 @@ double EnergyFromSums(const Energy& energy, std::span<const ClusterId> labels);
 // Sum over faces of FaceCost(face, FitProxy(its cluster's sums)): the definition.
 template <typename Energy>
 double EnergyFromProxies(const Energy& energy, std::span<const ClusterId> labels);
+
+// The face densities `options` uses (cvd-adaptive, mwcvd-*), resolved as WithMeshEnergy
+// does; empty for the energies without a density. Coarsening places vertices at the
+// density-weighted centroids with them (l. 783, 937).
+std::vector<double> EnergyFaceDensity(const MeshEnergyOptions& options, const TriangleMesh& mesh,
+                                      const FaceMeasures& measures);
 
 // The energy `options` names of a labelling of `mesh`, from sums.
 double MeshEnergyOfLabels(const MeshEnergyOptions& options, const TriangleMesh& mesh,

@@ -1,6 +1,7 @@
 #include "core/mesh/connectivity_guard.h"
 
 #include <algorithm>
+#include <array>
 
 namespace mlclust {
 namespace {
@@ -103,6 +104,79 @@ bool ConnectivityGuard::CanMove(uint32_t face, uint32_t to, std::span<const uint
   if (any_from && from_runs == 0) from_runs = 1;  // the whole ring is one cluster
   if (any_to && to_runs == 0) to_runs = 1;
   return from_runs == 1 && to_runs == 1;
+}
+
+// ---------------------------------------------------------------------------------------
+// Alg. 3.2.
+
+VertexBoundaryEdgeCountGuard::VertexBoundaryEdgeCountGuard(const TriangleMesh& mesh,
+                                                           const FaceAdjacency& adjacency)
+    : mesh_(mesh),
+      adjacency_(adjacency),
+      vertex_faces_(BuildVertexFaceTable(mesh)),
+      count_(mesh.num_vertices(), 0) {}
+
+void VertexBoundaryEdgeCountGuard::Reset(std::span<const uint32_t> labels) {
+  std::fill(count_.begin(), count_.end(), 0);
+  for (uint32_t face = 0; face < adjacency_.num_faces(); ++face) {
+    for (int e = 0; e < 3; ++e) {
+      const FaceId across = adjacency_.neighbours[face][e];
+      // Each interior edge once (from its lower face); border edges from their only face.
+      if (across.valid() && (across.value() < face || labels[across.value()] == labels[face])) {
+        continue;
+      }
+      ++count_[mesh_.indices[3 * size_t{face} + e]];
+      ++count_[mesh_.indices[3 * size_t{face} + (e + 1) % 3]];
+    }
+  }
+}
+
+bool VertexBoundaryEdgeCountGuard::CanMove(uint32_t face, uint32_t to,
+                                           std::span<const uint32_t> labels,
+                                           std::span<const uint32_t> cluster_sizes) const {
+  const uint32_t from = labels[face];
+  if (from == to || cluster_sizes[from] <= 1) return false;
+  const std::array<FaceId, 3>& across = adjacency_.neighbours[face];
+  auto in = [&](FaceId f, uint32_t cluster) { return f.valid() && labels[f.value()] == cluster; };
+  // c: the first edge whose neighbour is in `to`; edge i runs from corner i to i + 1.
+  int c = 0;
+  while (c < 3 && !in(across[c], to)) ++c;
+  if (c == 3) return false;
+  const FaceId n = across[(c + 1) % 3];  // V3 -> V2
+  const FaceId p = across[(c + 2) % 3];  // V2 -> V1
+  const uint32_t v2 = mesh_.indices[3 * size_t{face} + (c + 2) % 3];
+  if (count_[v2] == 0) return true;              // case 0
+  if (in(n, to) != in(p, to)) return true;       // cases 1, 2
+  if (in(n, from) == in(p, from)) return false;  // isBoundary(n) XOR isBoundary(p) fails
+  // Cases 3, 4: V2 must have no boundary edge of `to` (else `to` would close a loop around
+  // a non-`to` region, Fig. 3.9 (c)). An edge of a `to` face at V2 is a boundary of `to`
+  // when the face across it is not in `to` (or there is none).
+  for (uint32_t g : vertex_faces_.faces_around(v2)) {
+    if (labels[g] != to) continue;
+    const uint32_t* corners = &mesh_.indices[3 * size_t{g}];
+    const int at = corners[0] == v2 ? 0 : corners[1] == v2 ? 1 : 2;
+    for (int e : {at, (at + 2) % 3}) {  // the two edges of g that contain V2
+      if (!in(adjacency_.neighbours[g][e], to)) return false;
+    }
+  }
+  return true;
+}
+
+void VertexBoundaryEdgeCountGuard::OnMove(uint32_t face, uint32_t from,
+                                          std::span<const uint32_t> labels_after) {
+  const uint32_t to = labels_after[face];
+  for (int e = 0; e < 3; ++e) {
+    const FaceId across = adjacency_.neighbours[face][e];
+    if (!across.valid()) continue;  // a border edge stays a boundary edge
+    const uint32_t other = labels_after[across.value()];
+    const int before = other != from;
+    const int after = other != to;
+    if (before == after) continue;
+    const uint32_t a = mesh_.indices[3 * size_t{face} + e];
+    const uint32_t b = mesh_.indices[3 * size_t{face} + (e + 1) % 3];
+    count_[a] += after - before;
+    count_[b] += after - before;
+  }
 }
 
 }  // namespace mlclust

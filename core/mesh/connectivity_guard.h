@@ -8,9 +8,12 @@
 // to B is allowed iff A keeps another face, the faces of A in the ring form exactly one
 // run and the faces of B in the ring form exactly one run (consecutive ring faces share
 // an edge, so a run is edge-connected; a mesh boundary breaks runs). This is the
-// simple-point test of digital topology applied to faces. The dissertation's Alg. 3.2
-// tracks per-vertex counts of boundary edges (cases 0-4) to reach the same decision; its
-// text was not available to us, so this is our formulation of the same guarantee.
+// simple-point test of digital topology applied to faces: ours, and the default.
+//
+// VertexBoundaryEdgeCountGuard below is the dissertation's Alg. 3.2 (l. 870-890), kept
+// beside it: per-vertex counts of cluster boundary edges with O(1) updates, and the test
+// of cases 0-4 at the vertex opposite the boundary edge the move crosses. BENCHMARKS.md
+// ("Connectivity guards") compares the moves each allows and what they leave behind.
 #ifndef MLCLUST_CORE_MESH_CONNECTIVITY_GUARD_H_
 #define MLCLUST_CORE_MESH_CONNECTIVITY_GUARD_H_
 
@@ -43,6 +46,49 @@ class ConnectivityGuard {
  private:
   std::vector<uint64_t> ring_offset_;
   std::vector<uint32_t> ring_faces_;
+};
+
+// Alg. 3.2, the Vertex Boundary-Edge Count check (l. 870-890). A face F = (V1, V2, V3) of
+// cluster A may join the cluster `curr` across a boundary edge c = V1 -> V3 (F's edge whose
+// neighbour is in curr; the first such in F's edge order), with n = V3 -> V2 the next and
+// p = V2 -> V1 the previous edge of F, iff
+//   count(V2) == 0                                                        (case 0)
+//   or isBoundaryOfCurr(n) XOR isBoundaryOfCurr(p)                        (cases 1, 2)
+//   or (isBoundary(n) XOR isBoundary(p)) and V2 has no boundary edge of curr (cases 3, 4)
+// and A keeps another face (the text's "implicit deletion of one cluster"). count(V) is the
+// number of cluster boundary edges at V: edges whose two faces differ in cluster, and, our
+// reading for open meshes, mesh border edges (so a vertex on a hole never passes case 0).
+// isBoundaryOfCurr(e): the face across e is in curr; isBoundary(e): the face across e is
+// not in A or there is none.
+//
+// Stateful: Reset(labels) computes the counts, OnMove keeps them in O(1) per move (each of
+// the moved face's three edges changes its boundary status at most once; this reduces to
+// the text's case updates, e.g. case 0: count(V2) = 2, V1 and V3 unchanged).
+class VertexBoundaryEdgeCountGuard {
+ public:
+  // Needs a mesh that passed ValidateMesh and its adjacency; both must outlive the guard.
+  VertexBoundaryEdgeCountGuard(const TriangleMesh& mesh, const FaceAdjacency& adjacency);
+
+  // Counts the boundary edges of the clustering `labels` (one cluster id per face).
+  void Reset(std::span<const uint32_t> labels);
+
+  // Alg. 3.2 for moving `face` from labels[face] to `to`; `labels` must be those the
+  // counts were last brought up to date with. False when `to` is the face's own cluster, no
+  // edge of the face borders `to`, or the face is its cluster's last.
+  bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
+               std::span<const uint32_t> cluster_sizes) const;
+
+  // After `face` moved from `from` to labels_after[face]: the counts of its three edges'
+  // ends, updated in O(1).
+  void OnMove(uint32_t face, uint32_t from, std::span<const uint32_t> labels_after);
+
+  uint32_t count(uint32_t vertex) const { return count_[vertex]; }
+
+ private:
+  const TriangleMesh& mesh_;
+  const FaceAdjacency& adjacency_;
+  VertexFaceTable vertex_faces_;
+  std::vector<uint32_t> count_;
 };
 
 }  // namespace mlclust

@@ -9,6 +9,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/container/flat_hash_set.h"
+#include "core/hierarchy/elbow.h"
 #include "core/io/mesh_io.h"
 #include "tests/fixtures/test_meshes.h"
 

@@ -9,11 +9,13 @@
 #include <map>
 #include <numbers>
 #include <random>
+#include <set>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "core/cluster/multilevel.h"
+#include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
@@ -43,51 +45,8 @@ std::vector<ClusterId> Labels(std::initializer_list<uint32_t> values) {
   return labels;
 }
 
-// A cube [-0.5, 0.5]^3 with n x n squares (two triangles each) per side, outward
-// counter-clockwise faces, vertices shared. Records for each face its side (0..5: +x, +y,
-// +z, -x, -y, -z) and its square (i, j) on that side.
-struct SubdividedCube {
-  TriangleMesh mesh;
-  std::vector<int> side;
-  std::vector<std::array<int, 2>> square;
-};
-
-SubdividedCube MakeCube(int n) {
-  SubdividedCube cube;
-  std::map<std::array<int, 3>, uint32_t> index;
-  auto vertex = [&](std::array<int, 3> lattice) {
-    auto [it, inserted] = index.try_emplace(lattice, static_cast<uint32_t>(index.size()));
-    if (inserted) {
-      for (int c : lattice) cube.mesh.positions.push_back(static_cast<float>(c) / n - 0.5f);
-    }
-    return it->second;
-  };
-  for (int side = 0; side < 6; ++side) {
-    const int a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;  // e_u x e_w = e_a
-    const bool positive = side < 3;
-    for (int i = 0; i < n; ++i) {
-      for (int j = 0; j < n; ++j) {
-        auto at = [&](int di, int dj) {
-          std::array<int, 3> lattice;
-          lattice[a] = positive ? n : 0;
-          lattice[u] = i + di;
-          lattice[w] = j + dj;
-          return vertex(lattice);
-        };
-        const uint32_t p00 = at(0, 0), p10 = at(1, 0), p01 = at(0, 1), p11 = at(1, 1);
-        const std::array<std::array<uint32_t, 3>, 2> triangles =
-            positive ? std::array<std::array<uint32_t, 3>, 2>{{{p00, p10, p11}, {p00, p11, p01}}}
-                     : std::array<std::array<uint32_t, 3>, 2>{{{p00, p11, p10}, {p00, p01, p11}}};
-        for (const auto& t : triangles) {
-          cube.mesh.indices.insert(cube.mesh.indices.end(), t.begin(), t.end());
-          cube.side.push_back(side);
-          cube.square.push_back({i, j});
-        }
-      }
-    }
-  }
-  return cube;
-}
+using testing::MakeCube;
+using testing::SubdividedCube;
 
 // A torus of n x m squares (two triangles each), consistently oriented.
 TriangleMesh MakeTorus(int n, int m) {
@@ -781,6 +740,124 @@ TEST(CoarseningTest, OpenGridClusteredByGrowthKeepsItsBoundary) {
     EXPECT_EQ(topology.euler, 1) << k;
     EXPECT_GT(topology.boundary_edges, 0) << k;
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// An MWCVD clustering of fandisk (ML with the w^M weight, stopped at k clusters) and the
+// densities its energy uses.
+struct MwcvdClustering {
+  Prepared p;
+  FaceMeasures measures;
+  MeshEnergyOptions energy;
+  std::vector<double> density;
+  std::vector<ClusterId> labels;
+};
+
+const MwcvdClustering& FandiskMwcvd() {
+  static const MwcvdClustering* clustering = [] {
+    auto* c = new MwcvdClustering;
+    c->p = Prepare(*ReadMeshFile(testing::DataPath("fandisk.off")));
+    c->measures = ComputeFaceMeasures(c->p.mesh);
+    c->energy.kind = MeshEnergyKind::kMwcvdMax;
+    c->density = EnergyFaceDensity(c->energy, c->p.mesh, c->measures);
+    HierarchyLog log;
+    MultilevelOptions options;
+    options.min_clusters = 300;
+    auto summary =
+        RunMultilevel({&c->p.mesh, &c->p.adjacency, &c->measures, c->energy}, options, log);
+    EXPECT_TRUE(summary.ok()) << summary.status();
+    c->labels = *log.LabelsAt(log.num_levels() - 1);
+    return c;
+  }();
+  return *clustering;
+}
+
+// l. 783, 937: the coarse vertices of an adaptive clustering are the density-weighted
+// centroids it already has (eq. 3.22), not the area-weighted ones.
+TEST(CoarseVertexPlacementTest, MwcvdVerticesAreTheDensityWeightedCentroids) {
+  const MwcvdClustering& c = FandiskMwcvd();
+  ASSERT_EQ(CountDistinct(c.labels), 300u);
+  CoarseningOptions options;
+  options.face_density = c.density;
+  absl::StatusOr<CoarseMesh> coarse =
+      CoarsenMeshWithReport(c.p.mesh, c.p.adjacency, c.labels, options);
+  ASSERT_TRUE(coarse.ok()) << coarse.status();
+  ASSERT_EQ(coarse->mesh.num_vertices(), 300u);
+  // Eq. 3.22 here, face by face, and the proxy of the MWCVD energy itself.
+  const MwcvdEnergy energy(c.measures, c.density, MwcvdEnergy::Weight::kMax);
+  std::map<ClusterId, MwcvdEnergy::Sums> sums;
+  std::map<ClusterId, std::pair<Vec3, double>> weighted, plain;  // sum m g, sum m
+  for (size_t f = 0; f < c.labels.size(); ++f) {
+    sums[c.labels[f]] += energy.face_sums(f);
+    const double mass = c.density[f] * c.measures.area[f];
+    weighted[c.labels[f]].first += c.measures.centroid[f] * mass;
+    weighted[c.labels[f]].second += mass;
+    plain[c.labels[f]].first += c.measures.centroid[f] * c.measures.area[f];
+    plain[c.labels[f]].second += c.measures.area[f];
+  }
+  int moved = 0;
+  for (size_t v = 0; v < coarse->vertex_cluster.size(); ++v) {
+    const ClusterId cluster = coarse->vertex_cluster[v];
+    const Vec3 position = coarse->mesh.position(VertexId(static_cast<uint32_t>(v)));
+    const Vec3 expected = weighted[cluster].first / weighted[cluster].second;
+    const Vec3 proxy = energy.FitProxy(sums[cluster]).centroid + energy.origin();
+    EXPECT_LT(Norm(position - expected), 1e-5) << v;
+    EXPECT_LT(Norm(proxy - expected), 1e-9) << v;
+    if (Norm(expected - plain[cluster].first / plain[cluster].second) > 1e-3) ++moved;
+  }
+  // The density matters: many vertices are away from the area-weighted centroid.
+  EXPECT_GT(moved, 30);
+}
+
+TEST(CoarseVertexPlacementTest, ClosestVertexIsTheClustersMeshVertexNearestItsCentroid) {
+  const MwcvdClustering& c = FandiskMwcvd();
+  CoarseningOptions options;
+  options.face_density = c.density;
+  options.placement = CoarseningOptions::Placement::kClosestVertex;
+  absl::StatusOr<CoarseMesh> coarse =
+      CoarsenMeshWithReport(c.p.mesh, c.p.adjacency, c.labels, options);
+  ASSERT_TRUE(coarse.ok()) << coarse.status();
+  std::map<ClusterId, std::pair<Vec3, double>> weighted;
+  std::map<ClusterId, std::set<uint32_t>> vertices;
+  for (size_t f = 0; f < c.labels.size(); ++f) {
+    const double mass = c.density[f] * c.measures.area[f];
+    weighted[c.labels[f]].first += c.measures.centroid[f] * mass;
+    weighted[c.labels[f]].second += mass;
+    for (int i = 0; i < 3; ++i) vertices[c.labels[f]].insert(c.p.mesh.indices[3 * f + i]);
+  }
+  for (size_t v = 0; v < coarse->vertex_cluster.size(); ++v) {
+    const ClusterId cluster = coarse->vertex_cluster[v];
+    const Vec3 position = coarse->mesh.position(VertexId(static_cast<uint32_t>(v)));
+    const Vec3 centroid = weighted[cluster].first / weighted[cluster].second;
+    double nearest = std::numeric_limits<double>::infinity();
+    bool on_a_vertex = false;
+    for (uint32_t u : vertices[cluster]) {
+      const Vec3 p = c.p.mesh.position(VertexId(u));
+      nearest = std::min(nearest, Norm(p - centroid));
+      on_a_vertex |= Norm(p - position) == 0;
+    }
+    EXPECT_TRUE(on_a_vertex) << v;
+    EXPECT_NEAR(Norm(position - centroid), nearest, 1e-12) << v;
+  }
+}
+
+TEST(CoarseVertexPlacementTest, RejectsADensityOfTheWrongSizeOrSign) {
+  const Prepared p = Prepare(testing::Tetrahedron());
+  const std::vector<ClusterId> labels = Labels({0, 1, 2, 3});
+  const std::vector<double> short_density = {1, 1};
+  const std::vector<double> negative = {1, 1, -1, 1};
+  CoarseningOptions options;
+  options.face_density = short_density;
+  EXPECT_THAT(std::string(CoarsenMesh(p.mesh, p.adjacency, labels, options).status().message()),
+              HasSubstr("face_density holds 2"));
+  options.face_density = negative;
+  EXPECT_THAT(std::string(CoarsenMesh(p.mesh, p.adjacency, labels, options).status().message()),
+              HasSubstr("face 2"));
 }
 
 }  // namespace

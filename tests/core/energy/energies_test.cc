@@ -3,10 +3,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <map>
 #include <numeric>
 #include <random>
 
+#include "core/cluster/multilevel.h"
+#include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
 #include "tests/fixtures/test_meshes.h"
@@ -149,7 +152,7 @@ INSTANTIATE_TEST_SUITE_P(AllMeshEnergies, EveryEnergyTest,
                                            MeshEnergyKind::kMwcvdArea,
                                            MeshEnergyKind::kMwcvdVariance,
                                            MeshEnergyKind::kMwcvdMax, MeshEnergyKind::kPlanar,
-                                           MeshEnergyKind::kSphere),
+                                           MeshEnergyKind::kSphere, MeshEnergyKind::kSphereNormals),
                          [](const auto& info) {
                            std::string name = MeshEnergyName(info.param);
                            std::replace(name.begin(), name.end(), '-', '_');
@@ -199,15 +202,23 @@ TEST(EnergiesTest, SphereEnergyIsNearZeroOnASphereAndFindsItsRadius) {
   const FaceMeasures m = ComputeFaceMeasures(sphere);
   const SphereEnergy energy(m);
   const std::vector<ClusterId> one(m.num_faces(), ClusterId(0));
-  const double total_area = std::accumulate(m.area.begin(), m.area.end(), 0.0);
-  // Chords put centroids slightly inside the sphere: small, not zero, misfit.
-  EXPECT_LT(EnergyFromSums(energy, one), 1e-3 * total_area);
+  // Chords put centroids slightly inside the sphere, by different amounts: a small, not
+  // zero, misfit, against the centroids' spread of about 1 per face when R = 0.
+  EXPECT_LT(EnergyFromSums(energy, one), 1e-3 * m.num_faces());
   SphereEnergy::Sums sums;
   for (uint32_t f = 0; f < m.num_faces(); ++f) sums += energy.face_sums(f);
   const SphereEnergy::Proxy proxy = energy.FitProxy(sums);
-  EXPECT_NEAR(proxy.curvature, 1.0, 0.02);  // radius 1, normals outward
+  EXPECT_FALSE(proxy.planar);
+  EXPECT_NEAR(proxy.radius, 1.0, 0.02);  // radius 1, normals outward
+  EXPECT_NEAR(Norm(proxy.centre + energy.origin()), 0.0, 1e-6);
   // The planar energy of the whole sphere is large: its normals point everywhere.
+  const double total_area = std::accumulate(m.area.begin(), m.area.end(), 0.0);
   EXPECT_GT(EnergyFromSums(PlanarEnergy(m), one), total_area);
+  // Ours, the normal fit, finds the same sphere as a curvature.
+  SphereNormalFitEnergy::Sums normal_sums;
+  const SphereNormalFitEnergy normal_fit(m);
+  for (uint32_t f = 0; f < m.num_faces(); ++f) normal_sums += normal_fit.face_sums(f);
+  EXPECT_NEAR(normal_fit.FitProxy(normal_sums).curvature, 1.0, 0.02);
 }
 
 TEST(EnergiesTest, PlanarAndSphereEnergiesAreZeroOnAPlane) {
@@ -215,12 +226,14 @@ TEST(EnergiesTest, PlanarAndSphereEnergiesAreZeroOnAPlane) {
   const FaceMeasures m = ComputeFaceMeasures(grid);
   const std::vector<ClusterId> one(m.num_faces(), ClusterId(0));
   EXPECT_NEAR(EnergyFromSums(PlanarEnergy(m), one), 0, 1e-12);
-  EXPECT_NEAR(EnergyFromSums(SphereEnergy(m), one), 0, 1e-12);
+  // l. 1333: a planar cluster's sphere energy is 0 by rule (its centroids spread far).
+  EXPECT_EQ(EnergyFromSums(SphereEnergy(m), one), 0);
+  EXPECT_NEAR(EnergyFromSums(SphereNormalFitEnergy(m), one), 0, 1e-12);
   EXPECT_GT(EnergyFromSums(CvdEnergy(m), one), 1.0);
 }
 
 TEST(EnergiesTest, MwcvdWeightsFollowTheirFormulas) {
-  // Two faces of area 1/2 with densities 1 and 3.
+  // Two faces of area 1/2 with densities 1 and 3, centroids (1/3, 1/3) and (2/3, 2/3).
   const FaceMeasures m = ComputeFaceMeasures(testing::TwoTriangles());
   const std::vector<double> density = {1.0, 3.0};
   const MwcvdEnergy area(m, density, MwcvdEnergy::Weight::kArea);
@@ -231,8 +244,13 @@ TEST(EnergiesTest, MwcvdWeightsFollowTheirFormulas) {
   EXPECT_DOUBLE_EQ(variance.ClusterWeight(both(variance)), 1 + (1 + 9) - 16.0 / 2);
   EXPECT_NEAR(max.ClusterWeight(both(max)), std::pow(1 + std::pow(3.0, 10), 0.1), 1e-12);
   EXPECT_DOUBLE_EQ(variance.ClusterWeight(variance.face_sums(1)), 1.0);
-  // Energy = weight x uniform CVD term: 1/18 for these two faces (see the HC test).
-  EXPECT_NEAR(area.Energy(both(area)), 2.0 / 18, 1e-15);
+  // Eq. 3.23 by hand: masses rho A = 1/2 and 3/2, |g_0 - g_1|^2 = 2/9, so the CVD term is
+  // (1/2 * 3/2) / 2 * 2/9 = 1/12, and E = w^A / 12 = 1/6. The density-weighted centroid is
+  // (1/2 g_0 + 3/2 g_1) / 2 = (7/12, 7/12).
+  EXPECT_NEAR(area.Energy(both(area)), 1.0 / 6, 1e-15);
+  const MwcvdEnergy::Proxy proxy = area.FitProxy(both(area));
+  EXPECT_NEAR((proxy.centroid + area.origin()).x, 7.0 / 12, 1e-15);
+  EXPECT_NEAR((proxy.centroid + area.origin()).y, 7.0 / 12, 1e-15);
 }
 
 TEST(EnergiesTest, DensityIsHigherOnCreasesThanOnFlatParts) {
@@ -250,9 +268,10 @@ TEST(EnergiesTest, DensityIsHigherOnCreasesThanOnFlatParts) {
   ASSERT_TRUE(ValidateMesh(mesh).ok());
   const FaceMeasures m = ComputeFaceMeasures(mesh);
   DensityOptions power;
+  power.mapping = DensityOptions::Mapping::kPower;
   const std::vector<double> rho = ComputeFaceDensity(mesh, m, power);
   // Face 0 is in the flat corner (x in [0,1]); faces of column 2 touch the crease at x = 3.
-  EXPECT_DOUBLE_EQ(rho[0], std::pow(0.1, 2.0));
+  EXPECT_DOUBLE_EQ(rho[0], std::pow(1e-2, 2.0));
   EXPECT_GT(rho[2 * 2 + 1], rho[0] * 10);
   DensityOptions linear;
   linear.mapping = DensityOptions::Mapping::kLinear;
@@ -262,9 +281,315 @@ TEST(EnergiesTest, DensityIsHigherOnCreasesThanOnFlatParts) {
   EXPECT_DOUBLE_EQ(*std::max_element(mapped.begin(), mapped.end()), 5.0);
 }
 
+// ---------------------------------------------------------------------------------------
+// Each energy from its definition in the text, computed here face by face (not from the
+// sums the energies keep), against what the library reports.
+
+// A regular tetrahedron: every face meets the three others along an edge.
+TriangleMesh RegularTetrahedron() {
+  return testing::MakeMesh({1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1},
+                           {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2});
+}
+
+// The cube [-0.5, 0.5]^3 with each side split into 2 x 2 squares, two triangles each.
+TriangleMesh SmallCube() { return testing::MakeCube(2).mesh; }
+
+// Eq. 3.17 by brute force: for each vertex of f, every face that has that vertex.
+std::vector<double> RawDensityByDefinition(const TriangleMesh& mesh, const FaceMeasures& m) {
+  std::vector<double> raw(mesh.num_faces());
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < 3; ++i) {
+      const uint32_t v = mesh.indices[3 * f + i];
+      for (size_t k = 0; k < mesh.num_faces(); ++k) {
+        for (int c = 0; c < 3; ++c) {
+          if (mesh.indices[3 * k + c] != v) continue;
+          sum += Norm(m.unit_normal[f] - m.unit_normal[k]);
+          ++n;
+        }
+      }
+    }
+    raw[f] = sum / n;
+  }
+  return raw;
+}
+
+TEST(DensityByDefinitionTest, TetrahedronCountsEdgeNeighboursTwiceAndItselfThrice) {
+  const TriangleMesh tetrahedron = RegularTetrahedron();
+  ASSERT_TRUE(ValidateMesh(tetrahedron).ok());
+  const FaceMeasures m = ComputeFaceMeasures(tetrahedron);
+  DensityOptions options;
+  options.mapping = DensityOptions::Mapping::kPower;
+  options.gamma = 1;
+  const std::vector<double> rho = ComputeFaceDensity(tetrahedron, m, options);
+  // Normals of a regular tetrahedron meet at acos(-1/3): |n_f - n_k| = sqrt(8/3). Around a
+  // face: 9 incidences, itself 3 times (0) and each other face twice: rho' = 6/9 sqrt(8/3).
+  for (double r : rho) EXPECT_NEAR(r, 2.0 / 3 * std::sqrt(8.0 / 3) + 1e-2, 1e-12);
+}
+
+TEST(DensityByDefinitionTest, BothMappingsAgreeWithEq317OnACube) {
+  const TriangleMesh cube = SmallCube();
+  ASSERT_TRUE(ValidateMesh(cube).ok());
+  const FaceMeasures m = ComputeFaceMeasures(cube);
+  const std::vector<double> raw = RawDensityByDefinition(cube, m);
+  // Power mapping, the text's Delta = 1e-2 by default.
+  DensityOptions power;
+  power.mapping = DensityOptions::Mapping::kPower;
+  EXPECT_EQ(power.delta, 1e-2);
+  const std::vector<double> rho = ComputeFaceDensity(cube, m, power);
+  for (size_t f = 0; f < raw.size(); ++f) {
+    EXPECT_NEAR(rho[f], std::pow(raw[f] + 1e-2, power.gamma), 1e-12) << f;
+  }
+  // Linear mapping onto [1, rho^new].
+  DensityOptions linear;
+  linear.mapping = DensityOptions::Mapping::kLinear;
+  linear.rho_max = 7;
+  const std::vector<double> mapped = ComputeFaceDensity(cube, m, linear);
+  const double lo = *std::min_element(raw.begin(), raw.end());
+  const double hi = *std::max_element(raw.begin(), raw.end());
+  ASSERT_GT(hi, lo);
+  for (size_t f = 0; f < raw.size(); ++f) {
+    EXPECT_NEAR(mapped[f], (hi - raw[f]) / (hi - lo) + 7 * (raw[f] - lo) / (hi - lo), 1e-12);
+  }
+}
+
+TEST(DensityByDefinitionTest, DefaultsAreTheTextsPerEnergy) {
+  const DensityOptions unset;
+  const DensityOptions area = ResolveDensityOptions(MeshEnergyKind::kMwcvdArea, unset);
+  const DensityOptions max = ResolveDensityOptions(MeshEnergyKind::kMwcvdMax, unset);
+  const DensityOptions variance = ResolveDensityOptions(MeshEnergyKind::kMwcvdVariance, unset);
+  const DensityOptions adaptive = ResolveDensityOptions(MeshEnergyKind::kCvdAdaptive, unset);
+  EXPECT_EQ(area.mapping, DensityOptions::Mapping::kLinear);
+  EXPECT_EQ(area.rho_max, 50);
+  EXPECT_EQ(max.mapping, DensityOptions::Mapping::kLinear);
+  EXPECT_EQ(max.rho_max, 50);
+  EXPECT_EQ(variance.mapping, DensityOptions::Mapping::kLinear);
+  EXPECT_EQ(variance.rho_max, 3);
+  EXPECT_EQ(adaptive.mapping, DensityOptions::Mapping::kPower);
+  EXPECT_EQ(adaptive.delta, 1e-2);
+  // A user's choice stays.
+  DensityOptions chosen;
+  chosen.mapping = DensityOptions::Mapping::kPower;
+  chosen.rho_max = 100;
+  EXPECT_EQ(ResolveDensityOptions(MeshEnergyKind::kMwcvdArea, chosen).mapping,
+            DensityOptions::Mapping::kPower);
+  EXPECT_EQ(ResolveDensityOptions(MeshEnergyKind::kMwcvdArea, chosen).rho_max, 100);
+}
+
+// Eqs. 3.21, 3.22 and 3.24-3.26/3.28 in two passes over the faces.
+double MwcvdByDefinition(const FaceMeasures& m, std::span<const double> rho,
+                         std::span<const ClusterId> labels, MeshEnergyKind kind, double p) {
+  std::map<uint32_t, std::vector<size_t>> clusters;
+  for (size_t f = 0; f < labels.size(); ++f) clusters[labels[f].value()].push_back(f);
+  double total = 0;
+  for (const auto& [id, faces] : clusters) {
+    double mass = 0, rho_sum = 0;
+    Vec3 centre;
+    for (size_t f : faces) {
+      mass += rho[f] * m.area[f];
+      centre += m.centroid[f] * (rho[f] * m.area[f]);
+      rho_sum += rho[f];
+    }
+    centre = centre / mass;  // eq. 3.22
+    const double rho_mean = rho_sum / faces.size();
+    double weight = 0;
+    if (kind == MeshEnergyKind::kMwcvdArea) {
+      weight = mass;  // eq. 3.24
+    } else if (kind == MeshEnergyKind::kMwcvdVariance) {
+      weight = 1;  // eq. 3.25
+      for (size_t f : faces) weight += (rho[f] - rho_mean) * (rho[f] - rho_mean);
+    } else {
+      double power = 0, largest = 0;  // eq. 3.28, which stands in for eq. 3.26
+      for (size_t f : faces) {
+        power += std::pow(rho[f], p);
+        largest = std::max(largest, rho[f]);
+      }
+      weight = std::pow(power, 1 / p);
+      EXPECT_GE(weight, largest);
+      EXPECT_LE(weight, largest * std::pow(static_cast<double>(faces.size()), 1 / p) * 1.0001);
+    }
+    for (size_t f : faces) {  // eq. 3.21
+      total += rho[f] * m.area[f] * weight * SquaredNorm(m.centroid[f] - centre);
+    }
+  }
+  return total;
+}
+
+class MwcvdByDefinitionTest : public ::testing::TestWithParam<MeshEnergyKind> {};
+
+TEST_P(MwcvdByDefinitionTest, ReportedEnergyIsEq321OnACubeAndOnARealMesh) {
+  {
+    const TriangleMesh mesh = SmallCube();
+    const FaceMeasures m = ComputeFaceMeasures(mesh);
+    MeshEnergyOptions options;
+    options.kind = GetParam();
+    // The density the energy uses: eq. 3.17 here, then the text's default linear mapping.
+    const std::vector<double> raw = RawDensityByDefinition(mesh, m);
+    const double lo = *std::min_element(raw.begin(), raw.end());
+    const double hi = *std::max_element(raw.begin(), raw.end());
+    ASSERT_GT(hi, lo);
+    const double rho_new = options.kind == MeshEnergyKind::kMwcvdVariance ? 3 : 50;
+    std::vector<double> rho(raw.size());
+    for (size_t f = 0; f < raw.size(); ++f) {
+      rho[f] = (hi - raw[f]) / (hi - lo) + rho_new * (raw[f] - lo) / (hi - lo);
+    }
+    for (uint32_t k : {1u, 3u, 7u}) {
+      const std::vector<ClusterId> labels = RandomLabels(m.num_faces(), k, 11 * k);
+      const double expected = MwcvdByDefinition(m, rho, labels, options.kind, options.mwcvd_p);
+      ASSERT_GT(expected, 0);
+      EXPECT_NEAR(MeshEnergyOfLabels(options, mesh, labels), expected, 1e-9 * expected) << k;
+    }
+  }
+  // The elephant with the library's density (eq. 3.17 is checked above): the energy
+  // reported from sums is still eq. 3.21 face by face.
+  const RealMesh& elephant = Elephant();
+  MeshEnergyOptions options;
+  options.kind = GetParam();
+  const std::vector<double> rho = EnergyFaceDensity(options, elephant.mesh, elephant.measures);
+  ASSERT_EQ(rho.size(), elephant.measures.num_faces());
+  const std::vector<ClusterId> labels = RandomLabels(elephant.measures.num_faces(), 40, 3);
+  const double expected =
+      MwcvdByDefinition(elephant.measures, rho, labels, options.kind, options.mwcvd_p);
+  EXPECT_NEAR(MeshEnergyOfLabels(options, elephant.mesh, labels), expected, 1e-9 * expected);
+}
+
+// The energy the ML engine reports per level is eq. 3.21 of that level's labels.
+TEST_P(MwcvdByDefinitionTest, EngineReportsEq321AtEveryLevelItStops) {
+  const testing::LoadedMesh cube = testing::Load(testing::MakeCube(3).mesh);
+  MeshEnergyOptions options;
+  options.kind = GetParam();
+  const std::vector<double> raw = RawDensityByDefinition(cube.mesh, cube.measures);
+  const double lo = *std::min_element(raw.begin(), raw.end());
+  const double hi = *std::max_element(raw.begin(), raw.end());
+  const double rho_new = options.kind == MeshEnergyKind::kMwcvdVariance ? 3 : 50;
+  std::vector<double> rho(raw.size());
+  for (size_t f = 0; f < raw.size(); ++f) {
+    rho[f] = (hi - raw[f]) / (hi - lo) + rho_new * (raw[f] - lo) / (hi - lo);
+  }
+  HierarchyLog log;
+  ASSERT_TRUE(RunMultilevel(cube.problem(options.kind), MultilevelOptions{}, log).ok());
+  for (size_t level : {size_t{10}, log.num_levels() / 2, log.num_levels() - 3}) {
+    const std::vector<ClusterId> labels = *log.LabelsAt(level);
+    const double expected =
+        MwcvdByDefinition(cube.measures, rho, labels, options.kind, options.mwcvd_p);
+    EXPECT_NEAR(log.energy(level), expected, 1e-9 * expected + 1e-15) << level;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Weights, MwcvdByDefinitionTest,
+                         ::testing::Values(MeshEnergyKind::kMwcvdArea,
+                                           MeshEnergyKind::kMwcvdVariance,
+                                           MeshEnergyKind::kMwcvdMax),
+                         [](const auto& info) {
+                           std::string name = MeshEnergyName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
+
+// Eqs. 3.40-3.42 with R_i from eq. 3.45, and the planar rule of l. 1333, cluster by cluster.
+double SphereByDefinition(const FaceMeasures& m, std::span<const ClusterId> labels) {
+  std::map<uint32_t, std::vector<size_t>> clusters;
+  for (size_t f = 0; f < labels.size(); ++f) clusters[labels[f].value()].push_back(f);
+  double total = 0;
+  for (const auto& [id, faces] : clusters) {
+    const double k = static_cast<double>(faces.size());
+    Vec3 p_sum, n_sum;
+    double pn_sum = 0;
+    for (size_t f : faces) {
+      p_sum += m.centroid[f];
+      n_sum += m.unit_normal[f];
+      pn_sum += Dot(m.centroid[f], m.unit_normal[f]);
+    }
+    if (std::abs(k * k - SquaredNorm(n_sum)) < 5e-5) continue;  // planar: E_i = 0
+    const double radius = (k * pn_sum - Dot(p_sum, n_sum)) / (k * k - SquaredNorm(n_sum));
+    Vec3 centre;  // eq. 3.42
+    for (size_t f : faces) centre += m.centroid[f] - m.unit_normal[f] * radius;
+    centre = centre / k;
+    for (size_t f : faces) {  // eq. 3.40
+      total += SquaredNorm(m.centroid[f] - m.unit_normal[f] * radius - centre);
+    }
+  }
+  return total;
+}
+
+TEST(SphereByDefinitionTest, ReportedEnergyIsEq340WithTheRadiusOfEq345) {
+  MeshEnergyOptions options;
+  options.kind = MeshEnergyKind::kSphere;
+  for (const TriangleMesh& mesh : {UnitSphere(2), SmallCube(), Elephant().mesh}) {
+    const FaceMeasures m = ComputeFaceMeasures(mesh);
+    for (uint32_t k : {1u, 2u, 9u}) {
+      const std::vector<ClusterId> labels = RandomLabels(m.num_faces(), k, 5 * k);
+      const double expected = SphereByDefinition(m, labels);
+      ASSERT_GT(expected, 0);
+      EXPECT_NEAR(MeshEnergyOfLabels(options, mesh, labels), expected, 1e-8 * expected) << k;
+    }
+  }
+}
+
+TEST(SphereByDefinitionTest, EngineReportsEq340AtEveryLevelItStops) {
+  const testing::LoadedMesh sphere = testing::Load(UnitSphere(2));
+  HierarchyLog log;
+  ASSERT_TRUE(
+      RunMultilevel(sphere.problem(MeshEnergyKind::kSphere), MultilevelOptions{}, log).ok());
+  for (size_t level : {size_t{10}, log.num_levels() / 2, log.num_levels() - 2}) {
+    const std::vector<ClusterId> labels = *log.LabelsAt(level);
+    const double expected = SphereByDefinition(sphere.measures, labels);
+    EXPECT_NEAR(log.energy(level), expected, 1e-8 * expected + 1e-12) << level;
+  }
+}
+
+TEST(SphereByDefinitionTest, RadiusOfEq345MinimisesEq340) {
+  const TriangleMesh sphere = UnitSphere(2);
+  const FaceMeasures m = ComputeFaceMeasures(sphere);
+  const SphereEnergy energy(m);
+  SphereEnergy::Sums half;  // the faces above z = 0.2: a cap
+  std::vector<size_t> cap;
+  for (uint32_t f = 0; f < m.num_faces(); ++f) {
+    if (m.centroid[f].z > 0.2) {
+      half += energy.face_sums(f);
+      cap.push_back(f);
+    }
+  }
+  auto energy_at = [&](double radius) {
+    Vec3 centre;
+    for (size_t f : cap) centre += m.centroid[f] - m.unit_normal[f] * radius;
+    centre = centre / static_cast<double>(cap.size());
+    double e = 0;
+    for (size_t f : cap) e += SquaredNorm(m.centroid[f] - m.unit_normal[f] * radius - centre);
+    return e;
+  };
+  const double radius = energy.Radius(half);
+  EXPECT_NEAR(energy.Energy(half), energy_at(radius), 1e-9);
+  EXPECT_LT(energy_at(radius), energy_at(radius * 1.01));
+  EXPECT_LT(energy_at(radius), energy_at(radius * 0.99));
+  EXPECT_NEAR(radius, 1.0, 0.05);
+}
+
+TEST(SphereByDefinitionTest, PlanarClustersCostNothingAndMergeFirst) {
+  const testing::SubdividedCube small = testing::MakeCube(2);  // 8 faces per side
+  const TriangleMesh& cube = small.mesh;
+  const FaceMeasures m = ComputeFaceMeasures(cube);
+  const SphereEnergy energy(m);
+  // Faces 0..7 are one side; face 40 is on another.
+  ASSERT_EQ(small.side[7], small.side[0]);
+  ASSERT_NE(small.side[40], small.side[0]);
+  SphereEnergy::Sums side, pair, across;
+  for (uint32_t f = 0; f < 8; ++f) side += energy.face_sums(f);
+  pair = energy.face_sums(0) + energy.face_sums(1);
+  EXPECT_TRUE(energy.IsPlanar(side));
+  EXPECT_EQ(energy.Energy(side), 0);  // although its centroids spread over the side
+  EXPECT_EQ(energy.MergeCost(pair, energy.face_sums(2)), 0);
+  // A face of another side joins at a positive cost; a planar merge costs nothing, so ML
+  // fits planes first.
+  across = side + energy.face_sums(40);
+  EXPECT_FALSE(energy.IsPlanar(across));
+  EXPECT_GT(energy.MergeCost(side, energy.face_sums(40)), 0);
+}
+
 TEST(EnergiesTest, OptionsAreCheckedAndNamesParse) {
-  for (const char* name :
-       {"cvd", "cvd-adaptive", "mwcvd-area", "mwcvd-variance", "mwcvd-max", "planar", "sphere"}) {
+  for (const char* name : {"cvd", "cvd-adaptive", "mwcvd-area", "mwcvd-variance", "mwcvd-max",
+                           "planar", "sphere", "sphere-normals"}) {
     absl::StatusOr<MeshEnergyKind> kind = ParseMeshEnergyKind(name);
     ASSERT_TRUE(kind.ok());
     EXPECT_STREQ(MeshEnergyName(*kind), name);
