@@ -764,7 +764,8 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
 }
 
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
-                               std::span<const ClusterId> labels) {
+                               std::span<const ClusterId> labels,
+                               const ClusteredPlyOptions& options) {
   if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
     return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
   }
@@ -777,57 +778,77 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
   if (mesh.indices.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
     return absl::InvalidArgumentError("too many faces for PLY's int vertex indices");
   }
+  for (size_t f = 0; f < num_faces; ++f) {
+    if (labels[f].valid() && labels[f].value() > uint32_t{std::numeric_limits<int32_t>::max()}) {
+      return absl::InvalidArgumentError(absl::StrCat("face ", f, ": cluster id ", labels[f].value(),
+                                                     " does not fit PLY's int property"));
+    }
+  }
 
-  // One output vertex per (vertex, cluster) pair, numbered in order of first use, so that
-  // a vertex on a cluster boundary carries each cluster's colour on its own copy.
-  absl::flat_hash_map<uint64_t, uint32_t> split_vertex;
-  split_vertex.reserve(mesh.num_vertices() + mesh.num_vertices() / 4);
+  // Output vertices: the input's, one to one; or, for vertex colours, one per (vertex,
+  // cluster) pair, numbered in order of first use, so that a vertex on a cluster boundary
+  // carries each cluster's colour on its own copy.
   std::vector<uint32_t> source_vertex;
-  std::vector<uint32_t> split_indices(mesh.indices.size());
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    const uint64_t key = (uint64_t{mesh.indices[i]} << 32) | labels[i / 3].value();
-    const auto [it, inserted] =
-        split_vertex.try_emplace(key, static_cast<uint32_t>(source_vertex.size()));
-    if (inserted) source_vertex.push_back(mesh.indices[i]);
-    split_indices[i] = it->second;
+  std::vector<uint32_t> out_indices;
+  if (options.split_vertices) {
+    absl::flat_hash_map<uint64_t, uint32_t> split_vertex;
+    split_vertex.reserve(mesh.num_vertices() + mesh.num_vertices() / 4);
+    out_indices.resize(mesh.indices.size());
+    for (size_t i = 0; i < mesh.indices.size(); ++i) {
+      const uint64_t key = (uint64_t{mesh.indices[i]} << 32) | labels[i / 3].value();
+      const auto [it, inserted] =
+          split_vertex.try_emplace(key, static_cast<uint32_t>(source_vertex.size()));
+      if (inserted) source_vertex.push_back(mesh.indices[i]);
+      out_indices[i] = it->second;
+    }
+  } else {
+    source_vertex.resize(mesh.num_vertices());
+    std::iota(source_vertex.begin(), source_vertex.end(), 0u);
+    out_indices = mesh.indices;
   }
 
   auto colour_of = [](ClusterId label) {
     return label.valid() ? ClusterColour(label.value()) : kUnlabelledColour;
   };
+  const char* vertex_colour = options.split_vertices ? "property uchar red\n"
+                                                       "property uchar green\n"
+                                                       "property uchar blue\n"
+                                                     : "";
   std::string out = absl::StrCat(
       "ply\n"
       "format binary_little_endian 1.0\n"
-      "comment mlclust clusters: face and vertex colour per cluster\n"
+      "comment mlclust clusters: face property cluster (-1: unlabelled), colour per cluster\n"
       "element vertex ",
       source_vertex.size(),
       "\n"
       "property float x\n"
       "property float y\n"
-      "property float z\n"
-      "property uchar red\n"
-      "property uchar green\n"
-      "property uchar blue\n"
-      "element face ",
-      num_faces,
+      "property float z\n",
+      vertex_colour, "element face ", num_faces,
       "\n"
       "property list uchar int vertex_indices\n"
+      "property int cluster\n"
       "property uchar red\n"
       "property uchar green\n"
       "property uchar blue\n"
       "end_header\n");
-  out.reserve(out.size() + source_vertex.size() * 15 + num_faces * 16);
+  out.reserve(out.size() + source_vertex.size() * 15 + num_faces * 20);
   // The cluster of each split vertex: the label of the first face that used it.
-  std::vector<ClusterId> split_label(source_vertex.size());
-  for (size_t i = 0; i < split_indices.size(); ++i) split_label[split_indices[i]] = labels[i / 3];
+  std::vector<ClusterId> split_label;
+  if (options.split_vertices) {
+    split_label.resize(source_vertex.size());
+    for (size_t i = 0; i < out_indices.size(); ++i) split_label[out_indices[i]] = labels[i / 3];
+  }
   for (size_t s = 0; s < source_vertex.size(); ++s) {
     const float* p = &mesh.positions[3 * size_t{source_vertex[s]}];
     for (int c = 0; c < 3; ++c) AppendUint32(out, std::bit_cast<uint32_t>(p[c]));
-    AppendColour(out, colour_of(split_label[s]));
+    if (options.split_vertices) AppendColour(out, colour_of(split_label[s]));
   }
   for (size_t f = 0; f < num_faces; ++f) {
     out.push_back(3);
-    for (int c = 0; c < 3; ++c) AppendUint32(out, split_indices[3 * f + c]);
+    for (int c = 0; c < 3; ++c) AppendUint32(out, out_indices[3 * f + c]);
+    // Two's complement: an unlabelled face's -1 is 0xFFFFFFFF.
+    AppendUint32(out, labels[f].valid() ? labels[f].value() : 0xFFFFFFFFu);
     AppendColour(out, colour_of(labels[f]));
   }
 

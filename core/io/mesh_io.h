@@ -43,14 +43,29 @@ namespace mlclust {
 // first); bytes from the network go through DecodeDracoMesh.
 absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path);
 
-// Writes `mesh` as binary little-endian PLY with one colour per cluster: each face gets
-// its cluster's colour as a face colour (MeshLab) and its vertices are split per cluster
-// so that vertex colours show the same (Blender): a vertex used by faces of k clusters is
-// written k times. Faces keep their order. `labels` has one entry per face
-// (INVALID_ARGUMENT otherwise, or for an index out of range); ClusterId::Invalid() is
-// drawn grey.
+struct ClusteredPlyOptions {
+  // false (the default): the input's vertices, one to one, unsplit, without colour.
+  // true: each vertex is written once per cluster among the faces around it, each copy
+  // with its cluster's colour as a vertex colour (for viewers that draw only vertex
+  // colours, e.g. Blender); face indices then refer to the copies.
+  bool split_vertices = false;
+};
+
+// Writes `mesh` as binary little-endian PLY with the clusters as face properties:
+//
+//   element vertex V          property float x, y, z   (uchar red, green, blue when split)
+//   element face F            property list uchar int vertex_indices
+//                             property int cluster      labels[f]; -1 for ClusterId::Invalid()
+//                             property uchar red, green, blue   ClusterColour(labels[f])
+//
+// Faces keep their order, so face f of the file is face f of `mesh`; without
+// split_vertices, vertex v of the file is vertex v of `mesh` (unused ones included) and
+// positions are copied bit for bit. `labels` has one entry per face. INVALID_ARGUMENT
+// for another count, a vertex index out of range or a cluster id above 2^31 - 1; the
+// file's errno-derived error if it cannot be written.
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
-                               std::span<const ClusterId> labels);
+                               std::span<const ClusterId> labels,
+                               const ClusteredPlyOptions& options = {});
 
 // Writes `mesh` by the path's extension: .ply (binary little-endian), .obj or .off. Face
 // and vertex order are kept. INVALID_ARGUMENT for another extension or indices out of

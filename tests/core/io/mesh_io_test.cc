@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -640,18 +641,149 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
 // ---------------------------------------------------------------------------------------
 // Clustered PLY output and colours.
 
-TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
-  // A 4 x 4 grid: the left two columns of squares are cluster 7, the rest cluster 2, and
-  // the last face is unlabelled. The 5 vertices on the column boundary x = 2 appear
-  // twice; the unlabelled face adds a copy of each of its corners (one of which, the
-  // grid's corner (4, 4), no other face uses).
-  const TriangleMesh mesh = Grid(4);
+// A binary little-endian PLY read by its header alone (float, uchar, int scalars and
+// "list uchar int" lists), so that the tests check what the header promises.
+struct ParsedPly {
+  struct Element {
+    std::string name;
+    size_t count = 0;
+    std::vector<std::pair<std::string, std::string>> properties;  // (type, name)
+    std::vector<std::map<std::string, std::vector<double>>> records;
+  };
+  std::vector<Element> elements;
+  const Element* Find(const std::string& name) const {
+    for (const Element& e : elements) {
+      if (e.name == name) return &e;
+    }
+    return nullptr;
+  }
+};
+
+ParsedPly ParsePly(const std::string& bytes) {
+  ParsedPly ply;
+  const std::string header_end = "end_header\n";
+  const size_t body = bytes.find(header_end);
+  EXPECT_NE(body, std::string::npos);
+  std::istringstream header(bytes.substr(0, body));
+  std::string line;
+  while (std::getline(header, line)) {
+    std::istringstream words(line);
+    std::string word;
+    words >> word;
+    if (word == "element") {
+      ParsedPly::Element element;
+      words >> element.name >> element.count;
+      ply.elements.push_back(element);
+    } else if (word == "property") {
+      std::string type, name;
+      words >> type;
+      if (type == "list") {
+        std::string count_type, item_type;
+        words >> count_type >> item_type;
+        EXPECT_EQ(count_type + " " + item_type, "uchar int");
+      }
+      words >> name;
+      ply.elements.back().properties.push_back({type, name});
+    }
+  }
+  size_t at = body + header_end.size();
+  auto take = [&](size_t n) {
+    EXPECT_LE(at + n, bytes.size());
+    const char* p = bytes.data() + std::min(at, bytes.size() - n);
+    at += n;
+    return p;
+  };
+  for (ParsedPly::Element& element : ply.elements) {
+    for (size_t r = 0; r < element.count; ++r) {
+      std::map<std::string, std::vector<double>> record;
+      for (const auto& [type, name] : element.properties) {
+        if (type == "float") {
+          record[name] = {std::bit_cast<float>(*reinterpret_cast<const uint32_t*>(take(4)))};
+        } else if (type == "int") {
+          int32_t value;
+          std::memcpy(&value, take(4), 4);
+          record[name] = {static_cast<double>(value)};
+        } else if (type == "uchar") {
+          record[name] = {static_cast<double>(static_cast<uint8_t>(*take(1)))};
+        } else {
+          EXPECT_EQ(type, "list");
+          const uint8_t n = static_cast<uint8_t>(*take(1));
+          for (uint8_t i = 0; i < n; ++i) {
+            int32_t value;
+            std::memcpy(&value, take(4), 4);
+            record[name].push_back(value);
+          }
+        }
+      }
+      element.records.push_back(std::move(record));
+    }
+  }
+  EXPECT_EQ(at, bytes.size()) << "bytes after the last element";
+  return ply;
+}
+
+// A 4 x 4 grid: the left two columns of squares are cluster 7, the rest cluster 2, and
+// the last face is unlabelled.
+std::vector<ClusterId> GridTwoClusterLabels(const TriangleMesh& mesh) {
   std::vector<ClusterId> labels;
   for (size_t f = 0; f < mesh.num_faces(); ++f) {
     const size_t column = (f / 2) % 4;
     labels.push_back(ClusterId(column < 2 ? 7 : 2));
   }
   labels[31] = ClusterId::Invalid();  // Top right square's second triangle: (c, b, d).
+  return labels;
+}
+
+TEST_F(MeshIoTest, ClusteredPlyKeepsVerticesAndCarriesClusterIdsAndColours) {
+  TriangleMesh mesh = Grid(4);
+  // An unused vertex stays, so that vertex ids are the input's.
+  mesh.positions.insert(mesh.positions.end(), {9.5f, -1.25f, 3.0f});
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
+  const std::string path = Path("clusters.ply");
+  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
+
+  const ParsedPly ply = ParsePly(ReadAll(path));
+  ASSERT_EQ(ply.elements.size(), 2u);
+  const ParsedPly::Element* vertex = ply.Find("vertex");
+  const ParsedPly::Element* face = ply.Find("face");
+  ASSERT_NE(vertex, nullptr);
+  ASSERT_NE(face, nullptr);
+  ASSERT_EQ(vertex->count, mesh.num_vertices());
+  ASSERT_EQ(vertex->properties.size(), 3u);  // x, y, z: no colour on shared vertices.
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    EXPECT_EQ(vertex->records[v].at("x")[0], mesh.positions[3 * v]);
+    EXPECT_EQ(vertex->records[v].at("y")[0], mesh.positions[3 * v + 1]);
+    EXPECT_EQ(vertex->records[v].at("z")[0], mesh.positions[3 * v + 2]);
+  }
+  ASSERT_EQ(face->count, mesh.num_faces());
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto& record = face->records[f];
+    const std::vector<double> corners = {double(mesh.indices[3 * f]),
+                                         double(mesh.indices[3 * f + 1]),
+                                         double(mesh.indices[3 * f + 2])};
+    EXPECT_EQ(record.at("vertex_indices"), corners) << "face " << f;
+    EXPECT_EQ(record.at("cluster")[0], labels[f].valid() ? double(labels[f].value()) : -1.0)
+        << "face " << f;
+    const std::array<uint8_t, 3> want = labels[f].valid() ? ClusterColour(labels[f].value())
+                                                          : std::array<uint8_t, 3>{128, 128, 128};
+    EXPECT_EQ(record.at("red")[0], want[0]) << "face " << f;
+    EXPECT_EQ(record.at("green")[0], want[1]) << "face " << f;
+    EXPECT_EQ(record.at("blue")[0], want[2]) << "face " << f;
+  }
+
+  // Our reader (Assimp for PLY) reads it back as the same mesh.
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->num_vertices(), mesh.num_vertices());
+  EXPECT_EQ(read->indices, mesh.indices);
+}
+
+TEST_F(MeshIoTest, ClusteredPlySplitVerticesForVertexColours) {
+  // The 5 vertices on the column boundary x = 2 appear twice; the unlabelled face adds a
+  // copy of each of its corners (one of which, the grid's corner (4, 4), no other face
+  // uses).
+  const TriangleMesh mesh = Grid(4);
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   for (size_t i = 0; i < mesh.indices.size(); ++i) {
     pairs.insert({mesh.indices[i], labels[i / 3].value()});
@@ -659,27 +791,15 @@ TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
   ASSERT_EQ(pairs.size(), 24u + 5u + 3u);
 
   const std::string path = Path("clusters.ply");
-  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
-
-  // The exact layout: header, then 15 bytes per vertex and 16 per face.
-  const std::string bytes = ReadAll(path);
-  const std::string header_end = "end_header\n";
-  const size_t body = bytes.find(header_end) + header_end.size();
-  ASSERT_NE(body, std::string::npos);
-  const std::string header = bytes.substr(0, body);
-  EXPECT_THAT(header, HasSubstr("format binary_little_endian 1.0\n"));
-  EXPECT_THAT(header, HasSubstr(absl::StrCat("element vertex ", pairs.size(), "\n")));
-  EXPECT_THAT(header, HasSubstr("element face 32\nproperty list uchar int vertex_indices\n"
-                                "property uchar red\nproperty uchar green\n"
-                                "property uchar blue\n"));
-  ASSERT_EQ(bytes.size(), body + pairs.size() * 15 + 32 * 16);
-  // Face 0's record: count 3, three indices, then cluster 7's colour.
-  const size_t face0 = body + pairs.size() * 15;
-  EXPECT_EQ(bytes[face0], 3);
-  const auto colour7 = ClusterColour(7);
-  EXPECT_EQ(std::memcmp(&bytes[face0 + 13], colour7.data(), 3), 0);
-  const size_t face31 = face0 + 31 * 16;
-  EXPECT_EQ(bytes.substr(face31 + 13, 3), std::string("\x80\x80\x80"));  // Grey.
+  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels, {.split_vertices = true}).ok());
+  const ParsedPly ply = ParsePly(ReadAll(path));
+  ASSERT_NE(ply.Find("vertex"), nullptr);
+  ASSERT_NE(ply.Find("face"), nullptr);
+  EXPECT_EQ(ply.Find("vertex")->count, pairs.size());
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    EXPECT_EQ(ply.Find("face")->records[f].at("cluster")[0],
+              labels[f].valid() ? double(labels[f].value()) : -1.0);
+  }
 
   // Assimp reads it back with the same faces and the split vertices.
   absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
