@@ -11,6 +11,9 @@ packages=(
   libabsl-dev libdraco-dev libassimp-dev libtbb-dev
   # headless GL: EGL + Mesa (llvmpipe where there is no GPU)
   libegl-dev libegl1 libgl1-mesa-dri libopengl-dev libgl-dev
+  # the Python package (python/): Debian's python3 with gRPC, protobuf and numpy; the
+  # stubs are generated with protoc and grpc_python_plugin (protobuf-compiler-grpc)
+  python3 python3-grpcio python3-protobuf python3-numpy
   # tests
   libgtest-dev libgmock-dev
   # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)
