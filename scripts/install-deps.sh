@@ -9,6 +9,8 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # library support
   libabsl-dev libdraco-dev libassimp-dev libtbb-dev
+  # JSON for rewriting Draco-compressed glTF (core/io/gltf_draco.cc; header only)
+  nlohmann-json3-dev
   # headless GL: EGL + Mesa (llvmpipe where there is no GPU)
   libegl-dev libegl1 libgl1-mesa-dri libopengl-dev libgl-dev
   # the Python package (python/): Debian's python3 with gRPC, protobuf and numpy; the

@@ -29,6 +29,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "core/io/draco_codec.h"
+#include "core/io/gltf_draco.h"
 
 namespace mlclust {
 namespace {
@@ -617,7 +618,9 @@ bool LooksLikePly(absl::string_view head) {
   return absl::StartsWith(head, "ply\n") || absl::StartsWith(head, "ply\r\n");
 }
 
-absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path) {
+// Reads `path` with Assimp, or, where `memory` is given, those bytes as a GLB (`path`
+// then only names the file in messages).
+absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path, std::string_view memory = {}) {
   Assimp::Importer importer;
   // Bones without geometry would otherwise come back as generated "skeleton" meshes.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
@@ -627,7 +630,8 @@ absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path) {
   // installs an Assimp::DefaultLogger, which the library never does.
   const aiScene* scene = nullptr;
   try {
-    scene = importer.ReadFile(path, 0);
+    scene = memory.empty() ? importer.ReadFile(path, 0)
+                           : importer.ReadFileFromMemory(memory.data(), memory.size(), 0, "glb");
   } catch (const std::exception& e) {  // Assimp should catch its own; be sure.
     return absl::InvalidArgumentError(absl::StrCat(path, ": cannot be read: ", e.what()));
   }
@@ -704,6 +708,22 @@ absl::StatusOr<TriangleMesh> ReadOffFile(const std::string& path) {
   return std::move(assembler).Finish();
 }
 
+// glTF / GLB: Assimp reads them, except primitives compressed with
+// KHR_draco_mesh_compression, which are decoded first (gltf_draco.h).
+absl::StatusOr<TriangleMesh> ReadGltfFile(const std::string& path) {
+  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
+  if (!bytes.ok()) return bytes.status();
+  if (!GltfUsesDraco(*bytes)) return ReadWithAssimp(path);
+  const std::string directory = std::filesystem::path(path).parent_path().string();
+  absl::StatusOr<std::string> glb =
+      DecompressDracoGltf(*bytes, directory.empty() ? "." : directory);
+  if (!glb.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": ", glb.status().message()));
+  }
+  std::string().swap(*bytes);
+  return ReadWithAssimp(path, *glb);
+}
+
 absl::StatusOr<TriangleMesh> ReadDracoFile(const std::string& path) {
   absl::StatusOr<std::string> bytes = ReadFileBytes(path);
   if (!bytes.ok()) return bytes.status();
@@ -751,6 +771,8 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
         return absl::InvalidArgumentError(absl::StrCat(path, ": ", status.message()));
       }
       mesh = ReadWithAssimp(path);
+    } else if (extension == ".gltf" || extension == ".glb" || head->starts_with("glTF")) {
+      mesh = ReadGltfFile(path);
     } else {
       mesh = ReadWithAssimp(path);
     }

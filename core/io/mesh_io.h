@@ -16,7 +16,9 @@ namespace mlclust {
 // Reads a triangle mesh. `.drc` files (or files starting with Draco's magic) are decoded
 // with Draco; OFF files (by extension or keyword) are read by our own strict reader,
 // because Assimp's silently clamps bad indices and drops large polygons; every other
-// format goes through Assimp (OBJ, PLY, STL, glTF/GLB and the rest it reads).
+// format goes through Assimp (OBJ, PLY, STL, glTF/GLB and the rest it reads). glTF/GLB
+// primitives compressed with KHR_draco_mesh_compression are decoded with Draco first
+// (vertex i of such a primitive is Draco point i, its faces in the Draco data's order).
 //
 // Faces keep file order: face i of the result is the i-th triangle of the file, which is
 // the id every output uses. A polygon of n corners becomes n - 2 triangles in its place

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/io/draco_codec.h"
@@ -636,6 +637,157 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
   }
+}
+
+// ---------------------------------------------------------------------------------------
+// Draco-compressed glTF (KHR_draco_mesh_compression).
+
+void AppendLe32(std::string& out, uint32_t value) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>(value >> (8 * i)));
+}
+
+// Replaces the first `from` in `text` with `to` (which must be there).
+void ReplaceOnce(std::string& text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+}
+
+// A GLB with `json` and `bin` as its two chunks.
+std::string MakeGlb(std::string json, std::string bin) {
+  while (json.size() % 4 != 0) json.push_back(' ');
+  while (bin.size() % 4 != 0) bin.push_back('\0');
+  std::string glb;
+  AppendLe32(glb, 0x46546C67);
+  AppendLe32(glb, 2);
+  AppendLe32(glb, static_cast<uint32_t>(28 + json.size() + bin.size()));
+  AppendLe32(glb, static_cast<uint32_t>(json.size()));
+  AppendLe32(glb, 0x4E4F534A);
+  glb += json;
+  AppendLe32(glb, static_cast<uint32_t>(bin.size()));
+  AppendLe32(glb, 0x004E4942);
+  return glb + bin;
+}
+
+// The glTF JSON of one mesh, one primitive compressed with Draco in bufferView 0 of
+// buffer 0 (`buffer_json`), the POSITION attribute being Draco's attribute 0.
+std::string DracoGltfJson(size_t draco_bytes, size_t num_vertices, size_t num_faces,
+                          const std::string& buffer_json, const std::string& node_json) {
+  return absl::StrCat(
+      R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],)",
+      R"("extensionsRequired":["KHR_draco_mesh_compression"],"scene":0,"scenes":[{"nodes":[0]}],)",
+      R"("nodes":[)", node_json, R"(],"meshes":[{"primitives":[{"attributes":{"POSITION":0},)",
+      R"("indices":1,"mode":4,"extensions":{"KHR_draco_mesh_compression":{"bufferView":0,)",
+      R"("attributes":{"POSITION":0}}}}]}],"accessors":[{"componentType":5126,"count":)",
+      num_vertices, R"(,"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]},{"componentType":5125,)",
+      R"("count":)", 3 * num_faces, R"(,"type":"SCALAR"}],"bufferViews":[{"buffer":0,)",
+      R"("byteOffset":0,"byteLength":)", draco_bytes, R"(}],"buffers":[)", buffer_json, "]}");
+}
+
+TEST_F(MeshIoTest, DracoGlbReadsAsTheEncodedMesh) {
+  absl::StatusOr<TriangleMesh> fandisk = ReadMeshFile(DataPath("fandisk.off"));
+  ASSERT_TRUE(fandisk.ok()) << fandisk.status();
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(*fandisk);
+  ASSERT_TRUE(draco.ok());
+  const std::string json =
+      DracoGltfJson(draco->size(), fandisk->num_vertices(), fandisk->num_faces(),
+                    absl::StrCat(R"({"byteLength":)", draco->size(), "}"), R"({"mesh":0})");
+  const std::string path = Write("fandisk.glb", MakeGlb(json, *draco));
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  // Sequential Draco keeps every order, so the file is fandisk itself, bit for bit.
+  EXPECT_EQ(read->indices, fandisk->indices);
+  ASSERT_EQ(read->positions.size(), fandisk->positions.size());
+  EXPECT_EQ(std::memcmp(read->positions.data(), fandisk->positions.data(),
+                        fandisk->positions.size() * sizeof(float)),
+            0);
+}
+
+TEST_F(MeshIoTest, DracoGltfWithDataUriTransformAndAPlainMeshFromAFile) {
+  // Mesh 0: an edgebreaker, 12-bit Draco grid in a data: URI, placed 10 along x. Mesh 1:
+  // a plain triangle in an external .bin file, placed as it is.
+  const TriangleMesh grid = Grid(5);
+  DracoEncodeOptions options;
+  options.method = DracoMethod::kEdgebreaker;
+  options.position_quantization_bits = 12;
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(grid, options);
+  ASSERT_TRUE(draco.ok());
+  std::string plain;
+  for (float x : {0.f, 0.f, 5.f, 1.f, 0.f, 5.f, 0.f, 1.f, 5.f}) {
+    AppendLe32(plain, std::bit_cast<uint32_t>(x));
+  }
+  for (uint32_t i : {0u, 1u, 2u}) AppendLe32(plain, i);
+  Write("triangle.bin", plain);
+
+  std::string json = DracoGltfJson(
+      draco->size(), grid.num_vertices(), grid.num_faces(),
+      absl::StrCat(R"({"byteLength":)", draco->size(),
+                   R"(,"uri":"data:application/octet-stream;base64,)", absl::Base64Escape(*draco),
+                   R"("},{"byteLength":48,"uri":"triangle.bin"})"),
+      R"({"mesh":0,"translation":[10,0,0]},{"mesh":1})");
+  // The second mesh: its accessors and views, and node 1 in the scene.
+  ReplaceOnce(json, R"(]}],"accessors")",
+              R"(]},{"primitives":[{"attributes":{"POSITION":2},"indices":3}]}],"accessors")");
+  ReplaceOnce(json, R"("type":"SCALAR"}])",
+              R"("type":"SCALAR"},{"componentType":5126,"count":3,"type":"VEC3",)"
+              R"("bufferView":1,"min":[0,0,5],"max":[1,1,5]},{"componentType":5125,)"
+              R"("count":3,"type":"SCALAR","bufferView":2}])");
+  ReplaceOnce(json, R"(}],"buffers")",
+              R"(},{"buffer":1,"byteOffset":0,"byteLength":36},)"
+              R"({"buffer":1,"byteOffset":36,"byteLength":12}],"buffers")");
+  ReplaceOnce(json, R"("nodes":[0])", R"("nodes":[0,1])");
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(Write("scene.gltf", json));
+  ASSERT_TRUE(read.ok()) << read.status();
+
+  // The grid's faces first, in the order the Draco data holds them, moved by the node.
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(*draco);
+  ASSERT_TRUE(decoded.ok());
+  for (size_t v = 0; v < decoded->num_vertices(); ++v) decoded->positions[3 * v] += 10;
+  ASSERT_EQ(read->num_faces(), grid.num_faces() + 1);
+  TriangleMesh grid_part = *read;
+  grid_part.indices.resize(3 * grid.num_faces());
+  ExpectSameFacePositions(*decoded, grid_part);
+  EXPECT_EQ(CornerPosition(*read, grid.num_faces(), 1), (std::array<float, 3>{1, 0, 5}));
+  EXPECT_EQ(CornerPosition(*read, grid.num_faces(), 2), (std::array<float, 3>{0, 1, 5}));
+}
+
+TEST_F(MeshIoTest, DracoGltfProblemsAreNamed) {
+  const TriangleMesh grid = Grid(3);
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(grid);
+  ASSERT_TRUE(draco.ok());
+  const std::string buffer = absl::StrCat(R"({"byteLength":)", draco->size(), "}");
+  // Bytes that are not Draco.
+  std::string garbage(draco->size(), 'x');
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(
+      Write("garbage.glb", MakeGlb(DracoGltfJson(draco->size(), grid.num_vertices(),
+                                                 grid.num_faces(), buffer, R"({"mesh":0})"),
+                                   garbage)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()),
+              HasSubstr("garbage.glb: mesh 0 primitive 0 (KHR_draco_mesh_compression): invalid "
+                        "Draco data"));
+  // An accessor count that disagrees with the Draco data.
+  read = ReadMeshFile(
+      Write("count.glb", MakeGlb(DracoGltfJson(draco->size(), grid.num_vertices() + 1,
+                                               grid.num_faces(), buffer, R"({"mesh":0})"),
+                                 *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()),
+              HasSubstr("its POSITION accessor counts 17 vertices, its Draco data 16"));
+  // A bufferView past the end of its buffer.
+  read = ReadMeshFile(
+      Write("short.glb", MakeGlb(DracoGltfJson(draco->size() + 100, grid.num_vertices(),
+                                               grid.num_faces(), buffer, R"({"mesh":0})"),
+                                 *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()), HasSubstr("outside its buffer"));
+  // JSON with a member of the wrong type.
+  std::string json =
+      DracoGltfJson(draco->size(), grid.num_vertices(), grid.num_faces(), buffer, R"({"mesh":0})");
+  ReplaceOnce(json, R"("bufferView":0,)", R"("bufferView":"zero",)");
+  read = ReadMeshFile(Write("type.glb", MakeGlb(json, *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()), HasSubstr("type.glb: glTF JSON"));
 }
 
 // ---------------------------------------------------------------------------------------

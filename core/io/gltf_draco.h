@@ -1,0 +1,31 @@
+// Draco-compressed glTF (KHR_draco_mesh_compression), made readable for Assimp, whose
+// Debian build has no Draco: the compressed primitives are decoded with the Draco library
+// we link and the file is rewritten as a plain GLB in memory.
+#ifndef MLCLUST_CORE_IO_GLTF_DRACO_H_
+#define MLCLUST_CORE_IO_GLTF_DRACO_H_
+
+#include <string>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+
+namespace mlclust {
+
+// Whether `file` (a whole .gltf or .glb) names KHR_draco_mesh_compression in its JSON.
+bool GltfUsesDraco(std::string_view file);
+
+// Rewrites a glTF 2.0 file (`file`: its bytes; `directory`: where its relative URIs
+// point) as one GLB with a single embedded buffer: every buffer (the GLB's own, data:
+// URIs, external files) copied into it, and each primitive with KHR_draco_mesh_compression
+// replaced by a plain one: POSITION as float32 VEC3 and the indices as uint32, one vertex
+// per Draco point and the faces in the order the Draco data holds them (as the
+// extension's spec says a decoder must). The primitive's other attributes are dropped
+// (only positions are read); the node tree, transforms and plain primitives stay as
+// they are. INVALID_ARGUMENT naming the mesh and primitive for bad JSON, a missing
+// buffer, Draco data that does not decode, or counts that disagree with the accessors.
+absl::StatusOr<std::string> DecompressDracoGltf(std::string_view file,
+                                                const std::string& directory);
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_IO_GLTF_DRACO_H_
