@@ -69,6 +69,26 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
                                std::span<const ClusterId> labels,
                                const ClusteredPlyOptions& options = {});
 
+// Writes `mesh` as glTF 2.0 with the clusters as vertex attributes, by the path's
+// extension: .glb (binary) or .gltf (JSON, the buffer embedded as a base64 data: URI).
+// One mesh with one triangle primitive:
+//
+//   POSITION   float VEC3
+//   COLOR_0    unsigned byte normalized VEC4: ClusterColour(labels[f]), opaque (grey for
+//              ClusterId::Invalid())
+//   _CLUSTER   float SCALAR: labels[f], -1 for ClusterId::Invalid() (an application-
+//              specific attribute, glTF 2.0 3.7.2.1; float, as core glTF vertex
+//              attributes are float or normalized integers: ids below 2^24 are exact)
+//   indices    uint32; triangle f is face f of `mesh`
+//
+// glTF attributes belong to vertices, so each vertex is written once per cluster among
+// the faces around it, and all three corners of face f carry labels[f]. Positions are
+// copied bit for bit. INVALID_ARGUMENT for a label count other than one per face, a
+// vertex index out of range, a non-finite coordinate, a cluster id of 2^24 or more, or
+// another extension; the file's errno-derived error if it cannot be written.
+absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mesh,
+                                std::span<const ClusterId> labels);
+
 // Writes `mesh` by the path's extension: .ply (binary little-endian), .obj or .off. Face
 // and vertex order are kept. INVALID_ARGUMENT for another extension or indices out of
 // range; UNAVAILABLE if the file cannot be written.

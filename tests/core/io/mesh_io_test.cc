@@ -27,6 +27,7 @@
 #include "absl/strings/str_format.h"
 #include "core/io/draco_codec.h"
 #include "core/mesh/mesh.h"
+#include "nlohmann/json.hpp"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -977,6 +978,83 @@ TEST_F(MeshIoTest, ClusteredPlySplitVerticesForVertexColours) {
       EXPECT_EQ(std::lround(got.b * 255), want[2]) << "face " << f;
     }
   }
+}
+
+// The JSON and the buffer of a glTF file WriteClusteredGltf wrote (.glb or .gltf).
+std::pair<nlohmann::json, std::string> ReadGltfParts(const std::string& bytes) {
+  if (bytes.starts_with("glTF")) {
+    uint32_t json_length;
+    std::memcpy(&json_length, &bytes[12], 4);
+    nlohmann::json json = nlohmann::json::parse(bytes.substr(20, json_length));
+    uint32_t bin_length;
+    std::memcpy(&bin_length, &bytes[20 + json_length], 4);
+    return {json, bytes.substr(28 + json_length, bin_length)};
+  }
+  nlohmann::json json = nlohmann::json::parse(bytes);
+  const std::string uri = json["buffers"][0]["uri"];
+  std::string bin;
+  EXPECT_TRUE(absl::Base64Unescape(uri.substr(uri.find(',') + 1), &bin));
+  return {json, bin};
+}
+
+TEST_F(MeshIoTest, ClusteredGltfCarriesClusterIdsAndColoursPerFace) {
+  const TriangleMesh mesh = Grid(4);
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
+  for (const std::string name : {"clusters.glb", "clusters.gltf"}) {
+    SCOPED_TRACE(name);
+    const std::string path = Path(name);
+    ASSERT_TRUE(WriteClusteredGltf(path, mesh, labels).ok());
+    const auto [json, bin] = ReadGltfParts(ReadAll(path));
+    EXPECT_EQ(json["scenes"][0]["nodes"], nlohmann::json::array({0}));
+    EXPECT_EQ(json["nodes"][0]["mesh"], 0);
+    const nlohmann::json& primitive = json["meshes"][0]["primitives"][0];
+    ASSERT_EQ(primitive["attributes"].size(), 3u);
+    auto accessor_data = [&](int accessor, size_t element_bytes) {
+      const nlohmann::json& a = json["accessors"][accessor];
+      const nlohmann::json& v = json["bufferViews"][a["bufferView"].get<int>()];
+      EXPECT_EQ(v["byteLength"].get<size_t>(), a["count"].get<size_t>() * element_bytes);
+      return bin.substr(v["byteOffset"].get<size_t>(), v["byteLength"].get<size_t>());
+    };
+    const std::string positions = accessor_data(primitive["attributes"]["POSITION"], 12);
+    const std::string colours = accessor_data(primitive["attributes"]["COLOR_0"], 4);
+    const std::string clusters = accessor_data(primitive["attributes"]["_CLUSTER"], 4);
+    const std::string indices = accessor_data(primitive["indices"], 4);
+    EXPECT_EQ(json["accessors"][primitive["attributes"]["_CLUSTER"].get<int>()]["componentType"],
+              5126);
+    ASSERT_EQ(indices.size(), mesh.indices.size() * 4);
+    // The same boundary vertices are doubled as in the split PLY: 24 + 5 + 3 copies.
+    EXPECT_EQ(positions.size() / 12, 24u + 5u + 3u);
+    for (size_t f = 0; f < mesh.num_faces(); ++f) {
+      const float want = labels[f].valid() ? static_cast<float>(labels[f].value()) : -1.0f;
+      const std::array<uint8_t, 3> colour = labels[f].valid()
+                                                ? ClusterColour(labels[f].value())
+                                                : std::array<uint8_t, 3>{128, 128, 128};
+      for (int c = 0; c < 3; ++c) {
+        uint32_t vertex;
+        std::memcpy(&vertex, &indices[4 * (3 * f + c)], 4);
+        float cluster;
+        std::memcpy(&cluster, &clusters[4 * vertex], 4);
+        EXPECT_EQ(cluster, want) << "face " << f;
+        EXPECT_EQ(std::memcmp(&colours[4 * vertex], colour.data(), 3), 0) << "face " << f;
+        EXPECT_EQ(static_cast<uint8_t>(colours[4 * vertex + 3]), 255);
+        // Bit for bit the input's corner.
+        EXPECT_EQ(
+            std::memcmp(&positions[12 * vertex], &mesh.positions[3 * mesh.indices[3 * f + c]], 12),
+            0);
+      }
+    }
+    // Our reader (Assimp) reads the faces back in order.
+    absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+    ASSERT_TRUE(read.ok()) << read.status();
+    ExpectSameFacePositions(mesh, *read);
+  }
+  EXPECT_EQ(WriteClusteredGltf(Path("clusters.obj"), mesh, labels).code(),
+            absl::StatusCode::kInvalidArgument);
+  std::vector<ClusterId> big = labels;
+  big[3] = ClusterId(1u << 24);
+  const absl::Status status = WriteClusteredGltf(Path("big.glb"), mesh, big);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("face 3: cluster id 16777216"));
 }
 
 TEST_F(MeshIoTest, ClusteredPlyRefusesWrongLabelCountAndBadIndices) {
