@@ -1,4 +1,4 @@
-"""Draco encoding through libmlclust_draco_c (our C++ encoder behind a C ABI).
+"""Draco encoding and mesh files through libmlclust_draco_c (core/io behind a C ABI).
 
 Debian has no Python Draco; the shared library is built with the package
 (python/CMakeLists.txt) and sits beside this file, or where MLCLUST_DRACO_LIB says.
@@ -33,6 +33,15 @@ def _library():
             ctypes.c_char_p, ctypes.c_uint64]
         lib.mlclust_draco_free.restype = None
         lib.mlclust_draco_free.argtypes = [ctypes.c_void_p]
+        lib.mlclust_read_mesh.restype = ctypes.c_int
+        lib.mlclust_read_mesh.argtypes = [
+            ctypes.c_char_p, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_uint64),
+            ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_uint64),
+            ctypes.c_char_p, ctypes.c_uint64]
+        lib.mlclust_write_clustered.restype = ctypes.c_int
+        lib.mlclust_write_clustered.argtypes = [
+            ctypes.c_char_p, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_void_p,
+            ctypes.c_uint64, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_uint64]
         _LIB = lib
     return _LIB
 

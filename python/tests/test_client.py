@@ -126,7 +126,8 @@ class ServerTest(unittest.TestCase):
         vertices, faces = self.fandisk
         h = self.client.cluster_mesh(vertices, faces, algo="ml", energy="cvd")
         self.cli("mesh", os.path.join(DATA, "fandisk.off"), "--algo", "ml", "--clusters", "50",
-                 "--levels-csv", self.path("ml.csv"), "--labels", self.path("ml.txt"))
+                 "--levels-csv", self.path("ml.csv"), "--labels", self.path("ml.txt"),
+                 "--ply", self.path("ml.ply"))
         want = read_levels_csv(self.path("ml.csv"))
         self.assertEqual(len(h.levels), len(want))
         self.assertEqual([(l.cluster_count, l.energy) for l in h.levels], want)
@@ -136,6 +137,10 @@ class ServerTest(unittest.TestCase):
         self.assertEqual(len(np.unique(h.labels(50))), 50)
         self.assertEqual(h.energy(50), dict(want)[50])
         self.assertEqual(h.done.final_clusters, h.levels[-1].cluster_count)
+        # The same file as the CLI's --ply, byte for byte.
+        mlclust.write_clustered(self.path("python.ply"), vertices, faces, h.labels(50))
+        with open(self.path("python.ply"), "rb") as a, open(self.path("ml.ply"), "rb") as b:
+            self.assertEqual(a.read(), b.read())
 
     def test_stepping_forward_and_back_gives_the_same_labels(self):
         vertices, faces = self.fandisk
@@ -208,6 +213,27 @@ class ServerTest(unittest.TestCase):
         self.assertGreater(h.num_triplets * 12, 4 << 20)  # the levels need several messages
         self.assertEqual(h.levels[-1].cluster_count, 1)
         self.assertEqual(len(np.unique(h.labels(7))), 7)
+
+    # --- mesh files --------------------------------------------------------------------
+    def test_read_mesh_and_write_clustered(self):
+        vertices, faces = mlclust.read_mesh(os.path.join(DATA, "fandisk.off"))
+        np.testing.assert_array_equal(vertices, self.fandisk[0])
+        np.testing.assert_array_equal(faces, self.fandisk[1])
+        self.assertEqual(faces.dtype, np.uint32)
+        labels = np.arange(len(faces)) % 7 - 1  # -1: unlabelled
+        for name in ("out.ply", "out.glb", "out.gltf"):
+            mlclust.write_clustered(self.path(name), vertices, faces, labels)
+            v, f = mlclust.read_mesh(self.path(name))
+            self.assertEqual(len(f), len(faces))
+            np.testing.assert_array_equal(v[f], vertices[faces])  # each face's corners
+        with self.assertRaises(mlclust.Error) as e:
+            mlclust.read_mesh(self.path("missing.obj"))
+        self.assertEqual(e.exception.code, grpc.StatusCode.NOT_FOUND)
+        with self.assertRaises(mlclust.Error) as e:
+            mlclust.write_clustered(self.path("x.stl"), vertices, faces, labels)
+        self.assertEqual(e.exception.code, grpc.StatusCode.INVALID_ARGUMENT)
+        with self.assertRaises(ValueError):
+            mlclust.write_clustered(self.path("x.ply"), vertices, faces, labels[:-1])
 
     # --- points ------------------------------------------------------------------------
     def test_points_levels_equal_the_clis(self):
