@@ -239,6 +239,26 @@ void RemoveFromList(Json& gltf, const char* list) {
 
 }  // namespace
 
+absl::StatusOr<std::string> PackGlb(std::string json, std::string bin) {
+  PadTo4(json, ' ');
+  PadTo4(bin, '\0');
+  if (12 + 8 + json.size() + 8 + bin.size() > uint64_t{0xFFFFFFFF}) {
+    return absl::InvalidArgumentError("the glTF is over 4 GiB, GLB's limit");
+  }
+  std::string glb;
+  glb.reserve(28 + json.size() + bin.size());
+  AppendU32(glb, kGlbMagic);
+  AppendU32(glb, 2);
+  AppendU32(glb, static_cast<uint32_t>(28 + json.size() + bin.size()));
+  AppendU32(glb, static_cast<uint32_t>(json.size()));
+  AppendU32(glb, kChunkJson);
+  glb += json;
+  AppendU32(glb, static_cast<uint32_t>(bin.size()));
+  AppendU32(glb, kChunkBin);
+  glb += bin;
+  return glb;
+}
+
 bool GltfUsesDraco(std::string_view file) {
   absl::StatusOr<Container> container = SplitContainer(file);
   return container.ok() && container->json.find(kExtension) != std::string_view::npos;
@@ -300,22 +320,7 @@ absl::StatusOr<std::string> DecompressDracoGltf(std::string_view file,
     gltf["buffers"] = Json::array({Json{{"byteLength", bin.size()}}});
     PadTo4(bin, '\0');
 
-    std::string json = gltf.dump();
-    PadTo4(json, ' ');
-    if (12 + 8 + json.size() + 8 + bin.size() > uint64_t{0xFFFFFFFF}) {
-      return absl::InvalidArgumentError("the decompressed glTF is over 4 GiB, GLB's limit");
-    }
-    std::string glb;
-    AppendU32(glb, kGlbMagic);
-    AppendU32(glb, 2);
-    AppendU32(glb, static_cast<uint32_t>(12 + 8 + json.size() + 8 + bin.size()));
-    AppendU32(glb, static_cast<uint32_t>(json.size()));
-    AppendU32(glb, kChunkJson);
-    glb += json;
-    AppendU32(glb, static_cast<uint32_t>(bin.size()));
-    AppendU32(glb, kChunkBin);
-    glb += bin;
-    return glb;
+    return PackGlb(gltf.dump(), std::move(bin));
   } catch (const Json::exception& e) {
     // A member missing or of the wrong type, wherever it is.
     return absl::InvalidArgumentError(absl::StrCat("glTF JSON: ", e.what()));

@@ -26,6 +26,10 @@ bool GltfUsesDraco(std::string_view file);
 absl::StatusOr<std::string> DecompressDracoGltf(std::string_view file,
                                                 const std::string& directory);
 
+// A GLB (glTF 2.0, 4.4) of `json` and `bin`, each padded to 4 bytes (spaces, zeros).
+// INVALID_ARGUMENT if the whole is over GLB's 4 GiB.
+absl::StatusOr<std::string> PackGlb(std::string json, std::string bin);
+
 }  // namespace mlclust
 
 #endif  // MLCLUST_CORE_IO_GLTF_DRACO_H_

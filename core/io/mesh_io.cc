@@ -29,6 +29,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "core/base/status_macros.h"
 #include "core/io/draco_codec.h"
 #include "core/io/gltf_draco.h"
 #include "nlohmann/json.hpp"
@@ -752,6 +753,28 @@ void AppendColour(std::string& out, const std::array<uint8_t, 3>& colour) {
 // Faces whose label is ClusterId::Invalid() (not clustered) are drawn in this grey.
 constexpr std::array<uint8_t, 3> kUnlabelledColour = {128, 128, 128};
 
+// The checks both clustered writers make: whole triples, one label per face, indices in
+// range.
+absl::Status CheckLabelledMesh(const TriangleMesh& mesh, std::span<const ClusterId> labels) {
+  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
+    return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
+  }
+  if (labels.size() != mesh.num_faces()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "got ", labels.size(), " labels for ", mesh.num_faces(), " faces; one per face is needed"));
+  }
+  return CheckVertexIndices(mesh);
+}
+
+absl::Status WriteWholeFile(const std::string& path, const std::string& bytes) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  if (!file) return FileError(path, errno, "cannot open for writing");
+  file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  file.close();
+  if (!file) return FileError(path, errno, "write failed");
+  return absl::OkStatus();
+}
+
 // One output vertex per (vertex, cluster) pair, numbered in order of first use, so that
 // a vertex on a cluster boundary carries each cluster's colour (or id) on its own copy:
 // source_vertex[s] is the input vertex of copy s, out_indices the faces over the copies.
@@ -808,15 +831,8 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
                                std::span<const ClusterId> labels,
                                const ClusteredPlyOptions& options) {
-  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
-    return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
-  }
+  MLCLUST_RETURN_IF_ERROR(CheckLabelledMesh(mesh, labels));
   const size_t num_faces = mesh.num_faces();
-  if (labels.size() != num_faces) {
-    return absl::InvalidArgumentError(absl::StrCat("got ", labels.size(), " labels for ", num_faces,
-                                                   " faces; one per face is needed"));
-  }
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   if (mesh.indices.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
     return absl::InvalidArgumentError("too many faces for PLY's int vertex indices");
   }
@@ -884,12 +900,7 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
     AppendColour(out, colour_of(labels[f]));
   }
 
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) return FileError(path, errno, "cannot open for writing");
-  file.write(out.data(), static_cast<std::streamsize>(out.size()));
-  file.close();
-  if (!file) return FileError(path, errno, "write failed");
-  return absl::OkStatus();
+  return WriteWholeFile(path, out);
 }
 
 absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mesh,
@@ -899,15 +910,8 @@ absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mes
     return absl::InvalidArgumentError(
         absl::StrCat(path, ": a glTF file name ends in .glb or .gltf"));
   }
-  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
-    return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
-  }
+  MLCLUST_RETURN_IF_ERROR(CheckLabelledMesh(mesh, labels));
   const size_t num_faces = mesh.num_faces();
-  if (labels.size() != num_faces) {
-    return absl::InvalidArgumentError(absl::StrCat("got ", labels.size(), " labels for ", num_faces,
-                                                   " faces; one per face is needed"));
-  }
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   if (mesh.indices.size() > std::numeric_limits<uint32_t>::max() / 4) {
     return absl::InvalidArgumentError("too many faces for one glTF buffer");
   }
@@ -1004,27 +1008,9 @@ absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mes
     out = gltf.dump(1);
   } else {
     gltf["buffers"] = Json::array({Json{{"byteLength", bin.size()}}});
-    std::string json = gltf.dump();
-    while (json.size() % 4 != 0) json.push_back(' ');
-    if (28 + json.size() + bin.size() > std::numeric_limits<uint32_t>::max()) {
-      return absl::InvalidArgumentError("the mesh is over GLB's 4 GiB");
-    }
-    AppendUint32(out, 0x46546C67);  // "glTF"
-    AppendUint32(out, 2);
-    AppendUint32(out, static_cast<uint32_t>(28 + json.size() + bin.size()));
-    AppendUint32(out, static_cast<uint32_t>(json.size()));
-    AppendUint32(out, 0x4E4F534A);  // "JSON"
-    out += json;
-    AppendUint32(out, static_cast<uint32_t>(bin.size()));
-    AppendUint32(out, 0x004E4942);  // "BIN"
-    out += bin;
+    MLCLUST_ASSIGN_OR_RETURN(out, PackGlb(gltf.dump(), std::move(bin)));
   }
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) return FileError(path, errno, "cannot open for writing");
-  file.write(out.data(), static_cast<std::streamsize>(out.size()));
-  file.close();
-  if (!file) return FileError(path, errno, "write failed");
-  return absl::OkStatus();
+  return WriteWholeFile(path, out);
 }
 
 std::array<uint8_t, 3> ClusterColour(uint32_t id) {
