@@ -6,7 +6,7 @@ from typing import Callable, NamedTuple, Optional
 import grpc
 import numpy as np
 
-from . import _draco
+from . import _draco, _wire
 from .hierarchy import Hierarchy
 from .v1 import mlclust_pb2 as pb
 from .v1 import mlclust_pb2_grpc as pb_grpc
@@ -55,7 +55,10 @@ class _Assembler:
         self._have = 0
         self._total = None
         self._started = False
+        # Per level, in pieces (one numpy array per batch) joined at the end.
         self._counts, self._energies, self._sources, self._ends = [], [], [], []
+        self._num_levels = 0
+        self._last_count = 0
         self._element, self._to, self._from = [], [], []
         self._triplets = 0
         self.job_id = ""
@@ -63,6 +66,19 @@ class _Assembler:
         self.done = None
         self.failed = None
         self._stage, self._fraction, self._message = "", 0.0, ""
+
+    def add_bytes(self, data):
+        """One JobEvent as its wire bytes: level batches and snapshots by the numpy fast
+        path (_wire), everything else through the protobuf runtime."""
+        parsed = _wire.parse_bulk_event(data)
+        if parsed is None:
+            self.add(pb.JobEvent.FromString(data))
+        elif parsed[0] == "levels":
+            self._levels(**parsed[1])
+            self._report("levels")
+        else:
+            self._snapshot(**parsed[1])
+            self._report("snapshot")
 
     def add(self, event):
         kind = event.WhichOneof("event")
@@ -74,68 +90,80 @@ class _Assembler:
             p = event.progress
             self._stage, self._fraction, self._message = p.stage, p.fraction, p.message
         elif kind == "snapshot":
-            self._snapshot(event.snapshot)
-            self._stage = "levels"
+            s = event.snapshot
+            self._snapshot(s.level, s.cluster_count, s.energy, np.array(s.labels, dtype=np.uint32),
+                           s.first_element, s.total_elements)
         elif kind == "levels":
-            self._levels(event.levels)
-            self._stage = "levels"
+            b = event.levels
+            self._levels(b.first_level, *(np.array(a, dtype=t) for a, t in (
+                (b.cluster_count, np.uint32), (b.energy, np.float64), (b.triplet_end, np.uint32),
+                (b.element, np.uint32), (b.to_cluster, np.uint32), (b.from_cluster, np.uint32),
+                (b.source_level, np.uint32))))
         elif kind == "done":
             self.done = event.done
         elif kind == "failed":
             self.failed = event.failed
+        self._report(kind)
+
+    def _report(self, kind):
+        if kind in ("snapshot", "levels"):
+            self._stage = "levels"
         if self._progress is not None and kind not in ("done", "failed"):
             self._progress(Progress(self._stage, self._fraction, self._message,
-                                    len(self._counts),
-                                    self._counts[-1] if self._counts else 0,
+                                    self._num_levels, self._last_count,
                                     self.queue_position))
 
-    def _snapshot(self, s):
+    def _snapshot(self, level, cluster_count, energy, labels, first_element, total_elements):
         if self._started:
             raise Error(grpc.StatusCode.DATA_LOSS, "a snapshot after the hierarchy had started")
-        if s.first_element != self._have:
+        if first_element != self._have:
             raise Error(grpc.StatusCode.DATA_LOSS,
-                        f"snapshot piece starts at element {s.first_element}, expected {self._have}")
-        piece = np.array(s.labels, dtype=np.uint32)
-        self._pieces.append(piece)
-        self._have += piece.size
-        if self._have > s.total_elements:
+                        f"snapshot piece starts at element {first_element}, expected {self._have}")
+        self._pieces.append(labels)
+        self._have += labels.size
+        if self._have > total_elements:
             raise Error(grpc.StatusCode.DATA_LOSS, "snapshot holds more labels than its total_elements")
-        if self._have == s.total_elements:
+        if self._have == total_elements:
             self._started = True
-            self._counts.append(s.cluster_count)
-            self._energies.append(s.energy)
-            self._sources.append(s.level)
-            self._ends.append(0)
+            self._counts.append(np.array([cluster_count], dtype=np.int64))
+            self._energies.append(np.array([energy], dtype=np.float64))
+            self._sources.append(np.array([level], dtype=np.int64))
+            self._ends.append(np.zeros(1, dtype=np.int64))
+            self._num_levels = 1
+            self._last_count = cluster_count
 
-    def _levels(self, b):
+    def _levels(self, first_level, cluster_count, energy, triplet_end, element, to_cluster,
+                from_cluster, source_level):
         if not self._started:
             raise Error(grpc.StatusCode.DATA_LOSS, "levels arrived before the snapshot")
-        n = len(b.cluster_count)
-        if len(b.energy) != n or len(b.triplet_end) != n:
+        n = len(cluster_count)
+        if len(energy) != n or len(triplet_end) != n:
             raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with arrays of different lengths")
-        if b.first_level != len(self._counts):
+        if first_level != self._num_levels:
             raise Error(grpc.StatusCode.DATA_LOSS,
-                        f"levels from {b.first_level} arrived, expected level {len(self._counts)}")
-        m = len(b.element)
-        if len(b.to_cluster) != m or len(b.from_cluster) != m:
+                        f"levels from {first_level} arrived, expected level {self._num_levels}")
+        m = len(element)
+        if len(to_cluster) != m or len(from_cluster) != m:
             raise Error(grpc.StatusCode.DATA_LOSS,
                         "a level batch with triplet arrays of different lengths")
-        ends = np.array(b.triplet_end, dtype=np.int64)
+        ends = triplet_end.astype(np.int64)
         if n and (np.any(np.diff(ends) < 0) or ends[0] < 0 or ends[-1] > m):
             raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with triplet_end out of order")
-        element = np.array(b.element, dtype=np.uint32)
-        if element.size and int(element.max()) >= self._have:
+        if m and int(element.max()) >= self._have:
             raise Error(grpc.StatusCode.DATA_LOSS,
                         f"a triplet names element {int(element.max())} of {self._have}")
         self._element.append(element)
-        self._to.append(np.array(b.to_cluster, dtype=np.uint32))
-        self._from.append(np.array(b.from_cluster, dtype=np.uint32))
-        self._counts.extend(b.cluster_count)
-        self._energies.extend(b.energy)
-        sources = list(b.source_level)
-        self._sources.extend(sources if len(sources) == n else [-1] * n)
-        self._ends.extend((ends + self._triplets).tolist())
+        self._to.append(to_cluster)
+        self._from.append(from_cluster)
+        self._counts.append(cluster_count.astype(np.int64))
+        self._energies.append(energy.astype(np.float64))
+        self._sources.append(source_level.astype(np.int64) if len(source_level) == n
+                             else np.full(n, -1, dtype=np.int64))
+        self._ends.append(ends + self._triplets)
         self._triplets += m
+        self._num_levels += n
+        if n:
+            self._last_count = int(cluster_count[-1])
 
     def finish(self):
         if self.done is None:
@@ -144,8 +172,9 @@ class _Assembler:
             raise Error(grpc.StatusCode.DATA_LOSS, "the job sent no complete snapshot")
         cat = lambda arrays: (np.concatenate(arrays) if arrays
                               else np.empty(0, dtype=np.uint32))
-        return Hierarchy(np.concatenate(self._pieces), self._counts, self._energies,
-                         self._sources, self._ends, cat(self._element), cat(self._to),
+        return Hierarchy(np.concatenate(self._pieces), np.concatenate(self._counts),
+                         np.concatenate(self._energies), np.concatenate(self._sources),
+                         np.concatenate(self._ends), cat(self._element), cat(self._to),
                          cat(self._from), done=self.done, job_id=self.job_id)
 
 
@@ -174,6 +203,10 @@ class Client:
         else:
             self._channel = grpc.secure_channel(address, credentials, options=channel_options)
         self._stub = pb_grpc.ClusteringStub(self._channel)
+        # Run with the events left as bytes, for the assembler's numpy fast path.
+        self._run_raw = self._channel.stream_stream(
+            "/mlclust.v1.Clustering/Run", request_serializer=pb.RunRequest.SerializeToString,
+            response_deserializer=None)
 
     def close(self):
         self._channel.close()
@@ -274,11 +307,11 @@ class Client:
                 if offset >= len(payload):
                     return
 
-        call = self._stub.Run(requests(), timeout=timeout)
+        call = self._run_raw(requests(), timeout=timeout)
         assembler = _Assembler(progress)
         try:
             for event in call:
-                assembler.add(event)
+                assembler.add_bytes(event)
         except grpc.RpcError as e:
             raise Error(e.code(), e.details()) from None
         except Error:
