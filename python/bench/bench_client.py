@@ -1,7 +1,7 @@
 """How much the Python client adds to a job: end-to-end time of cluster_mesh against the
 server's own running time, on a grid mesh.
 
-    PYTHONPATH=build/python /usr/bin/python3 python/bench_client.py --server HOST:PORT [--n 300]
+    PYTHONPATH=build/python /usr/bin/python3 python/bench/bench_client.py --server HOST:PORT [--n 300]
 
 (start the server with `build/client/mlclust serve --listen 127.0.0.1:50051`).
 """
