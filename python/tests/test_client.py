@@ -235,6 +235,14 @@ class ServerTest(unittest.TestCase):
         with self.assertRaises(ValueError):
             mlclust.write_clustered(self.path("x.ply"), vertices, faces, labels[:-1])
 
+    def test_default_limits_client_on_a_million_faces(self):
+        vertices, faces = grid(710)  # 1,008,200 faces
+        h = self.client.cluster_mesh(vertices, faces, algo="emlo", clusters=1000)
+        self.assertEqual(h.num_elements, len(faces))
+        self.assertEqual([l.cluster_count for l in h.levels], [1000, 1000])
+        self.assertEqual(len(np.unique(h.labels(1000))), 1000)
+        self.assertLess(h.levels[-1].energy, h.levels[0].energy)
+
     # --- points ------------------------------------------------------------------------
     def test_points_levels_equal_the_clis(self):
         rng = np.random.default_rng(5)
