@@ -235,8 +235,11 @@ class Client:
         level down to `clusters`, 0 = to one), emlo, bb, vsa (one level at `clusters`,
         after the seeding level at the same count). energy: cvd, cvd-adaptive,
         mwcvd-area, mwcvd-variance, mwcvd-max, planar, sphere. levels=(k_high, k_low)
-        sends only those levels (a snapshot at the first). Algorithm and energy options
-        by name, '-' written '_' (p_percent=10, guard=False, gamma=1.5, ...).
+        sends only those levels (a snapshot at the first). progress(Progress) is called
+        on every event until the levels are complete; if it raises, the job is cancelled
+        and the exception propagates. timeout (seconds) cancels the job when it passes.
+        Algorithm and energy options by name, '-' written '_' (p_percent=10,
+        guard=False, gamma=1.5, ...).
         draco: how the mesh is compressed for the upload: by default sequential and
         lossless (positions bit for bit); {"method": "edgebreaker",
         "quantization_bits": 14} is several times smaller and writes per-face ids so
@@ -314,7 +317,9 @@ class Client:
                 assembler.add_bytes(event)
         except grpc.RpcError as e:
             raise Error(e.code(), e.details()) from None
-        except Error:
+        except BaseException:
+            # A broken stream, or the progress callback raised (Ctrl-C too): the job is
+            # cancelled on the server, not left running for nobody.
             call.cancel()
             raise
         if assembler.failed is not None:

@@ -207,6 +207,21 @@ class ServerTest(unittest.TestCase):
         self.assertEqual(received, sorted(received))
         self.assertGreater(received[-1], 1)
 
+    def test_a_raising_progress_callback_cancels_the_job(self):
+        vertices, faces = grid(300)
+        before = self.client.stats().jobs_cancelled
+
+        def stop(progress):
+            if progress.levels_received > 0:
+                raise KeyboardInterrupt
+
+        with self.assertRaises(KeyboardInterrupt):
+            self.client.cluster_mesh(vertices, faces, algo="ml", progress=stop)
+        deadline = time.time() + 30
+        while self.client.stats().jobs_cancelled == before and time.time() < deadline:
+            time.sleep(0.05)
+        self.assertEqual(self.client.stats().jobs_cancelled, before + 1)
+
     def test_default_limits_client_receives_more_than_4_mib(self):
         vertices, faces = grid(160)  # 51,200 faces
         h = self.client.cluster_mesh(vertices, faces, algo="hc")
