@@ -2,10 +2,8 @@
 
 #include <cstdint>
 #include <cstring>
-#include <fstream>
 #include <memory>
 #include <new>
-#include <sstream>
 #include <vector>
 
 #include "absl/strings/escaping.h"
@@ -84,17 +82,9 @@ absl::StatusOr<Container> SplitContainer(std::string_view file) {
   return container;
 }
 
-absl::StatusOr<std::string> ReadWholeFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::InvalidArgumentError(absl::StrCat("cannot open buffer file ", path));
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
-}
-
 // The bytes of buffer `index`: the GLB's BIN chunk, a base64 data: URI or a file.
 absl::StatusOr<std::string> LoadBuffer(const Json& buffer, size_t index, const Container& container,
-                                       const std::string& directory) {
+                                       const GltfUriReader& read_uri) {
   std::string data;
   if (!buffer.contains("uri")) {
     if (index != 0 || !container.has_bin) {
@@ -113,7 +103,12 @@ absl::StatusOr<std::string> LoadBuffer(const Json& buffer, size_t index, const C
       }
     } else {
       // A relative URI, as glTF allows (percent-escapes are not decoded).
-      MLCLUST_ASSIGN_OR_RETURN(data, ReadWholeFile(directory + "/" + uri));
+      absl::StatusOr<std::string> file = read_uri(uri);
+      if (!file.ok()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("buffer ", index, " (", uri, "): ", file.status().message()));
+      }
+      data = *std::move(file);
     }
   }
   const uint64_t length = buffer.at("byteLength").get<uint64_t>();
@@ -265,7 +260,7 @@ bool GltfUsesDraco(std::string_view file) {
 }
 
 absl::StatusOr<std::string> DecompressDracoGltf(std::string_view file,
-                                                const std::string& directory) {
+                                                const GltfUriReader& read_uri) {
   MLCLUST_ASSIGN_OR_RETURN(Container container, SplitContainer(file));
   Json gltf = Json::parse(container.json, nullptr, /*allow_exceptions=*/false);
   if (gltf.is_discarded() || !gltf.is_object()) {
@@ -279,7 +274,7 @@ absl::StatusOr<std::string> DecompressDracoGltf(std::string_view file,
     if (gltf.contains("buffers")) {
       for (size_t b = 0; b < gltf["buffers"].size(); ++b) {
         MLCLUST_ASSIGN_OR_RETURN(std::string data,
-                                 LoadBuffer(gltf["buffers"][b], b, container, directory));
+                                 LoadBuffer(gltf["buffers"][b], b, container, read_uri));
         PadTo4(bin, '\0');
         base.push_back(bin.size());
         bin += data;

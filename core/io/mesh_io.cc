@@ -717,9 +717,10 @@ absl::StatusOr<TriangleMesh> ReadGltfFile(const std::string& path) {
   absl::StatusOr<std::string> bytes = ReadFileBytes(path);
   if (!bytes.ok()) return bytes.status();
   if (!GltfUsesDraco(*bytes)) return ReadWithAssimp(path);
-  const std::string directory = std::filesystem::path(path).parent_path().string();
-  absl::StatusOr<std::string> glb =
-      DecompressDracoGltf(*bytes, directory.empty() ? "." : directory);
+  // Relative URIs name files beside the glTF (percent-escapes are not decoded).
+  const std::filesystem::path directory = std::filesystem::path(path).parent_path();
+  absl::StatusOr<std::string> glb = DecompressDracoGltf(
+      *bytes, [&](const std::string& uri) { return ReadFileBytes((directory / uri).string()); });
   if (!glb.ok()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": ", glb.status().message()));
   }

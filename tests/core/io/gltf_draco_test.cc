@@ -16,6 +16,10 @@ namespace {
 using testing::Grid;
 using ::testing::HasSubstr;
 
+absl::StatusOr<std::string> NoFiles(const std::string& uri) {
+  return absl::NotFoundError(absl::StrCat("no file ", uri));
+}
+
 // A GLB with one Draco-compressed primitive of a 3 x 3 grid.
 std::string DracoGlb() {
   absl::StatusOr<std::string> draco = EncodeMeshToDraco(Grid(3));
@@ -36,7 +40,7 @@ std::string DracoGlb() {
 TEST(GltfDracoTest, DecompressedGlbHasNoDracoLeft) {
   const std::string glb = DracoGlb();
   EXPECT_TRUE(GltfUsesDraco(glb));
-  absl::StatusOr<std::string> plain = DecompressDracoGltf(glb, ".");
+  absl::StatusOr<std::string> plain = DecompressDracoGltf(glb, NoFiles);
   ASSERT_TRUE(plain.ok()) << plain.status();
   EXPECT_FALSE(GltfUsesDraco(*plain));
   EXPECT_EQ(plain->size() % 4, 0u);
@@ -51,7 +55,7 @@ TEST(GltfDracoTest, PlainGltfIsNotTouched) {
 TEST(GltfDracoTest, RefusesEveryTruncation) {
   const std::string glb = DracoGlb();
   for (size_t length = 0; length < glb.size(); ++length) {
-    absl::StatusOr<std::string> plain = DecompressDracoGltf(glb.substr(0, length), ".");
+    absl::StatusOr<std::string> plain = DecompressDracoGltf(glb.substr(0, length), NoFiles);
     if (!plain.ok()) EXPECT_EQ(plain.status().code(), absl::StatusCode::kInvalidArgument);
   }
 }
@@ -66,7 +70,7 @@ TEST(GltfDracoTest, SurvivesCorruptedBytes) {
       bytes[std::uniform_int_distribution<size_t>(0, bytes.size() - 1)(random)] =
           static_cast<char>(random());
     }
-    absl::StatusOr<std::string> plain = DecompressDracoGltf(bytes, ".");
+    absl::StatusOr<std::string> plain = DecompressDracoGltf(bytes, NoFiles);
     if (!plain.ok()) {
       EXPECT_EQ(plain.status().code(), absl::StatusCode::kInvalidArgument);
       ++refused;
@@ -77,15 +81,20 @@ TEST(GltfDracoTest, SurvivesCorruptedBytes) {
 
 TEST(GltfDracoTest, RefusesAMissingBufferAndABadDataUri) {
   absl::StatusOr<std::string> plain = DecompressDracoGltf(
-      R"({"buffers":[{"byteLength":4,"uri":"no-such.bin"}],"meshes":[]})", "/nonexistent");
+      R"({"buffers":[{"byteLength":4,"uri":"no-such.bin"}],"meshes":[]})", NoFiles);
   EXPECT_EQ(plain.status().code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(std::string(plain.status().message()), HasSubstr("no-such.bin"));
-  plain = DecompressDracoGltf(R"({"buffers":[{"byteLength":4,"uri":"data:,abcd"}]})", ".");
+  EXPECT_THAT(std::string(plain.status().message()),
+              HasSubstr("buffer 0 (no-such.bin): no file no-such.bin"));
+  // A buffer file shorter than its byteLength.
+  plain = DecompressDracoGltf(R"({"buffers":[{"byteLength":4,"uri":"a.bin"}]})",
+                              [](const std::string&) { return std::string("ab"); });
+  EXPECT_THAT(std::string(plain.status().message()), HasSubstr("holds 2 bytes, byteLength says 4"));
+  plain = DecompressDracoGltf(R"({"buffers":[{"byteLength":4,"uri":"data:,abcd"}]})", NoFiles);
   EXPECT_EQ(plain.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(std::string(plain.status().message()), HasSubstr("not base64"));
-  plain = DecompressDracoGltf(R"({"buffers":[{"byteLength":4}]})", ".");
+  plain = DecompressDracoGltf(R"({"buffers":[{"byteLength":4}]})", NoFiles);
   EXPECT_THAT(std::string(plain.status().message()), HasSubstr("no GLB BIN chunk"));
-  plain = DecompressDracoGltf("{not json", ".");
+  plain = DecompressDracoGltf("{not json", NoFiles);
   EXPECT_THAT(std::string(plain.status().message()), HasSubstr("does not parse"));
 }
 
