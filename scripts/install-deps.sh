@@ -9,8 +9,13 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   # library support
   libabsl-dev libdraco-dev libassimp-dev libtbb-dev
+  # JSON for rewriting Draco-compressed glTF (core/io/gltf_draco.cc; header only)
+  nlohmann-json3-dev
   # headless GL: EGL + Mesa (llvmpipe where there is no GPU)
   libegl-dev libegl1 libgl1-mesa-dri libopengl-dev libgl-dev
+  # the Python package (python/): Debian's python3 with gRPC, protobuf and numpy; the
+  # stubs are generated with protoc and grpc_python_plugin (protobuf-compiler-grpc)
+  python3 python3-grpcio python3-protobuf python3-numpy
   # tests
   libgtest-dev libgmock-dev
   # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)

@@ -6,6 +6,7 @@
 #include <new>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/status_macros.h"
 #include "draco/attributes/geometry_attribute.h"
 #include "draco/attributes/point_attribute.h"
 #include "draco/compression/config/compression_shared.h"
@@ -14,6 +15,7 @@
 #include "draco/core/decoder_buffer.h"
 #include "draco/core/encoder_buffer.h"
 #include "draco/mesh/mesh.h"
+#include "draco/metadata/geometry_metadata.h"
 
 namespace mlclust {
 namespace {
@@ -32,6 +34,11 @@ absl::Status CheckOptions(const DracoEncodeOptions& options) {
   if (options.speed < 0 || options.speed > 10) {
     return absl::InvalidArgumentError(absl::StrCat("speed must be 0..10, got ", options.speed));
   }
+  if (options.write_face_ids && options.method == DracoMethod::kSequential) {
+    return absl::InvalidArgumentError(
+        "write_face_ids needs the edgebreaker method (sequential keeps the face order, and "
+        "its per-corner points would lose which corners share a vertex)");
+  }
   return absl::OkStatus();
 }
 
@@ -47,6 +54,26 @@ absl::Status CheckIndices(const TriangleMesh& mesh) {
                                                    " faces (limit ", kMaxMeshElements, ")"));
   }
   if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  return absl::OkStatus();
+}
+
+// The face id attribute: one component of an integer type, so that ids are exact.
+absl::Status CheckFaceIdAttribute(const draco::PointAttribute& ids, size_t num_points) {
+  const draco::DataType type = ids.data_type();
+  const bool integer = type == draco::DT_UINT8 || type == draco::DT_UINT16 ||
+                       type == draco::DT_UINT32 || type == draco::DT_INT8 ||
+                       type == draco::DT_INT16 || type == draco::DT_INT32;
+  if (ids.num_components() != 1 || !integer) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "Draco mesh: the '", kDracoFaceIdAttributeName,
+        "' attribute must have 1 integer component, got ", static_cast<int>(ids.num_components()),
+        " of Draco data type ", static_cast<int>(type)));
+  }
+  if (!ids.is_mapping_identity() && ids.indices_map_size() < num_points) {
+    return absl::InvalidArgumentError(absl::StrCat("Draco mesh: '", kDracoFaceIdAttributeName,
+                                                   "' maps ", ids.indices_map_size(), " of ",
+                                                   num_points, " points"));
+  }
   return absl::OkStatus();
 }
 
@@ -74,31 +101,66 @@ absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
     }
   }
 
-  // One point per vertex with an identity point-to-value mapping: point ids on the
-  // wire are our vertex ids, so the decoder can hand faces back unchanged.
   const uint32_t num_vertices = static_cast<uint32_t>(mesh.num_vertices());
+  const uint32_t num_faces = static_cast<uint32_t>(mesh.num_faces());
   draco::Mesh draco_mesh;
-  draco_mesh.set_num_points(num_vertices);
   draco::GeometryAttribute position;
   position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32,
                 /*normalized=*/false, sizeof(float) * 3, 0);
-  const int position_id =
-      draco_mesh.AddAttribute(position, /*identity_mapping=*/true, num_vertices);
+  int position_id = -1;
+  draco_mesh.SetNumFaces(num_faces);
+  if (!options.write_face_ids) {
+    // One point per vertex with an identity point-to-value mapping: point ids on the
+    // wire are our vertex ids, so the decoder can hand faces back unchanged.
+    draco_mesh.set_num_points(num_vertices);
+    position_id = draco_mesh.AddAttribute(position, /*identity_mapping=*/true, num_vertices);
+    for (uint32_t f = 0; f < num_faces; ++f) {
+      draco::Mesh::Face face;
+      for (int c = 0; c < 3; ++c) face[c] = draco::PointIndex(mesh.indices[3 * f + c]);
+      draco_mesh.SetFace(draco::FaceIndex(f), face);
+    }
+  } else {
+    // A point per corner: position value = our vertex (edgebreaker builds its
+    // connectivity from position values, so corners of one vertex stay one vertex), face
+    // id value = the face. Every edge is a seam of the id attribute, which Draco codes
+    // as a face attribute.
+    draco_mesh.set_num_points(3 * num_faces);
+    position_id = draco_mesh.AddAttribute(position, /*identity_mapping=*/false, num_vertices);
+    draco::GeometryAttribute face_id;
+    face_id.Init(draco::GeometryAttribute::GENERIC, nullptr, 1, draco::DT_UINT32,
+                 /*normalized=*/false, sizeof(uint32_t), 0);
+    const int face_id_id = draco_mesh.AddAttribute(face_id, /*identity_mapping=*/false, num_faces);
+    draco::PointAttribute* ids = draco_mesh.attribute(face_id_id);
+    draco::PointAttribute* positions = draco_mesh.attribute(position_id);
+    ids->SetExplicitMapping(3 * num_faces);
+    positions->SetExplicitMapping(3 * num_faces);
+    for (uint32_t f = 0; f < num_faces; ++f) {
+      ids->SetAttributeValue(draco::AttributeValueIndex(f), &f);
+      draco::Mesh::Face face;
+      for (int c = 0; c < 3; ++c) {
+        const draco::PointIndex point(3 * f + c);
+        face[c] = point;
+        positions->SetPointMapEntry(point, draco::AttributeValueIndex(mesh.indices[3 * f + c]));
+        ids->SetPointMapEntry(point, draco::AttributeValueIndex(f));
+      }
+      draco_mesh.SetFace(draco::FaceIndex(f), face);
+    }
+    draco_mesh.SetAttributeElementType(face_id_id, draco::MESH_FACE_ATTRIBUTE);
+    auto metadata = std::make_unique<draco::AttributeMetadata>();
+    metadata->AddEntryString("name", kDracoFaceIdAttributeName);
+    draco_mesh.AddAttributeMetadata(face_id_id, std::move(metadata));
+  }
   draco::PointAttribute* attribute = draco_mesh.attribute(position_id);
   for (uint32_t v = 0; v < num_vertices; ++v) {
     attribute->SetAttributeValue(draco::AttributeValueIndex(v), &mesh.positions[3 * v]);
   }
-  draco_mesh.SetNumFaces(mesh.num_faces());
-  for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
-    draco::Mesh::Face face;
-    for (int c = 0; c < 3; ++c) face[c] = draco::PointIndex(mesh.indices[3 * f + c]);
-    draco_mesh.SetFace(draco::FaceIndex(f), face);
-  }
 
   draco::ExpertEncoder encoder(draco_mesh);
-  // Sequential keeps face and point order (edgebreaker would reorder both and drop
+  // Sequential keeps face and point order (edgebreaker reorders both and drops
   // degenerate faces, which must reach ValidateMesh so that it can name them).
-  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+  encoder.SetEncodingMethod(options.method == DracoMethod::kSequential
+                                ? draco::MESH_SEQUENTIAL_ENCODING
+                                : draco::MESH_EDGEBREAKER_ENCODING);
   encoder.SetSpeedOptions(options.speed, options.speed);
   // The speed options alone leave sequential connectivity as raw 8/16/32-bit indices
   // (half of a lossless fandisk). Delta plus entropy coding of the indices shrinks it
@@ -117,6 +179,11 @@ absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
 }
 
 absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes) {
+  MLCLUST_ASSIGN_OR_RETURN(DecodedDracoMesh decoded, DecodeDracoMeshWithFaceIds(bytes));
+  return std::move(decoded.mesh);
+}
+
+absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view bytes) {
   if (bytes.empty()) return absl::InvalidArgumentError("Draco data is empty");
   draco::DecoderBuffer buffer;
   buffer.Init(bytes.data(), bytes.size());
@@ -175,21 +242,53 @@ absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes) {
     return absl::InvalidArgumentError(absl::StrCat(
         "Draco mesh: POSITION maps ", position->indices_map_size(), " of ", num_points, " points"));
   }
-
-  TriangleMesh mesh;
-  mesh.positions.resize(3 * num_points);
-  const size_t num_values = position->size();
-  for (uint32_t p = 0; p < num_points; ++p) {
-    // Points map to attribute values; with several attributes Draco may share one
-    // position value between points, so the mapping is followed, not assumed.
-    const draco::AttributeValueIndex value = position->mapped_index(draco::PointIndex(p));
-    if (value.value() >= num_values ||
-        !position->ConvertValue<float>(value, 3, &mesh.positions[3 * size_t{p}])) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("Draco mesh: point ", p, " has no readable position"));
+  const draco::PointAttribute* face_ids = nullptr;
+  if (const int id = decoded->GetAttributeIdByMetadataEntry("name", kDracoFaceIdAttributeName);
+      id >= 0) {
+    face_ids = decoded->attribute(id);
+    MLCLUST_RETURN_IF_ERROR(CheckFaceIdAttribute(*face_ids, num_points));
+    // The header's encoder method, byte 8 after "DRACO", major, minor and type.
+    if (bytes.size() > 8 && bytes[8] == draco::MESH_SEQUENTIAL_ENCODING) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "Draco mesh: the '", kDracoFaceIdAttributeName,
+          "' attribute needs an edgebreaker payload; a sequential one keeps the face order "
+          "without it (send it without the attribute)"));
     }
   }
-  mesh.indices.resize(3 * num_faces);
+
+  DecodedDracoMesh result;
+  TriangleMesh& mesh = result.mesh;
+  const size_t num_values = position->size();
+  // Without face ids a vertex is a Draco point; with them each face has points of its
+  // own, and a vertex is a position value (one per vertex of edgebreaker's connectivity).
+  const size_t num_vertices = face_ids == nullptr ? num_points : num_values;
+  if (num_vertices > kMaxMeshElements) {
+    return absl::InvalidArgumentError(absl::StrCat("Draco mesh too large: ", num_vertices,
+                                                   " positions (limit ", kMaxMeshElements, ")"));
+  }
+  mesh.positions.resize(3 * num_vertices);
+  if (face_ids == nullptr) {
+    for (uint32_t p = 0; p < num_points; ++p) {
+      // Points map to attribute values; with several attributes Draco may share one
+      // position value between points, so the mapping is followed, not assumed.
+      const draco::AttributeValueIndex value = position->mapped_index(draco::PointIndex(p));
+      if (value.value() >= num_values ||
+          !position->ConvertValue<float>(value, 3, &mesh.positions[3 * size_t{p}])) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("Draco mesh: point ", p, " has no readable position"));
+      }
+    }
+  } else {
+    for (uint32_t v = 0; v < num_values; ++v) {
+      if (!position->ConvertValue<float>(draco::AttributeValueIndex(v), 3,
+                                         &mesh.positions[3 * size_t{v}])) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("Draco mesh: position ", v, " is not readable"));
+      }
+    }
+  }
+
+  std::vector<uint32_t> decoded_indices(3 * num_faces);
   for (uint32_t f = 0; f < num_faces; ++f) {
     const draco::Mesh::Face& face = decoded->face(draco::FaceIndex(f));
     for (int c = 0; c < 3; ++c) {
@@ -199,10 +298,59 @@ absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes) {
             absl::StrCat("Draco mesh: face ", f, " corner ", c, " refers to point ", point,
                          ", but the mesh has ", num_points, " points"));
       }
-      mesh.indices[3 * size_t{f} + c] = point;
+      uint32_t vertex = point;
+      if (face_ids != nullptr) {
+        vertex = position->mapped_index(draco::PointIndex(point)).value();
+        if (vertex >= num_values) {
+          return absl::InvalidArgumentError(
+              absl::StrCat("Draco mesh: point ", point, " has no readable position"));
+        }
+      }
+      decoded_indices[3 * size_t{f} + c] = vertex;
     }
   }
-  return mesh;
+  if (face_ids == nullptr) {
+    mesh.indices = std::move(decoded_indices);
+    return result;
+  }
+
+  // Put each face where its id says, checking that the ids are 0..F-1, once each.
+  result.has_face_ids = true;
+  result.original_face.resize(num_faces);
+  mesh.indices.assign(3 * size_t{num_faces}, 0);
+  std::vector<bool> seen(num_faces, false);
+  for (uint32_t f = 0; f < num_faces; ++f) {
+    const draco::Mesh::Face& face = decoded->face(draco::FaceIndex(f));
+    uint32_t id[3];
+    for (int c = 0; c < 3; ++c) {
+      const draco::AttributeValueIndex value = face_ids->mapped_index(face[c]);
+      if (value.value() >= face_ids->size() ||
+          !face_ids->ConvertValue<uint32_t>(value, 1, &id[c])) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "Draco mesh: face ", f, " corner ", c, " has no readable ", kDracoFaceIdAttributeName));
+      }
+    }
+    if (id[0] != id[1] || id[0] != id[2]) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "Draco mesh: face ", f, " has different ", kDracoFaceIdAttributeName,
+          " values on its corners (", id[0], ", ", id[1], ", ", id[2], "); the id is per face"));
+    }
+    if (id[0] >= num_faces) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("Draco mesh: face ", f, " has ", kDracoFaceIdAttributeName, " ", id[0],
+                       ", but the mesh has ", num_faces, " faces (ids must be 0..", num_faces - 1,
+                       "; did the encoder drop degenerate faces?)"));
+    }
+    if (seen[id[0]]) {
+      return absl::InvalidArgumentError(absl::StrCat("Draco mesh: ", kDracoFaceIdAttributeName, " ",
+                                                     id[0], " is on more than one face"));
+    }
+    seen[id[0]] = true;
+    result.original_face[f] = id[0];
+    for (int c = 0; c < 3; ++c)
+      mesh.indices[3 * size_t{id[0]} + c] = decoded_indices[3 * size_t{f} + c];
+  }
+  return result;
 }
 
 }  // namespace mlclust

@@ -25,10 +25,14 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "core/base/status_macros.h"
 #include "core/io/draco_codec.h"
+#include "core/io/gltf_draco.h"
+#include "nlohmann/json.hpp"
 
 namespace mlclust {
 namespace {
@@ -617,7 +621,9 @@ bool LooksLikePly(absl::string_view head) {
   return absl::StartsWith(head, "ply\n") || absl::StartsWith(head, "ply\r\n");
 }
 
-absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path) {
+// Reads `path` with Assimp, or, where `memory` is given, those bytes as a GLB (`path`
+// then only names the file in messages).
+absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path, std::string_view memory = {}) {
   Assimp::Importer importer;
   // Bones without geometry would otherwise come back as generated "skeleton" meshes.
   importer.SetPropertyBool(AI_CONFIG_IMPORT_NO_SKELETON_MESHES, true);
@@ -627,7 +633,8 @@ absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path) {
   // installs an Assimp::DefaultLogger, which the library never does.
   const aiScene* scene = nullptr;
   try {
-    scene = importer.ReadFile(path, 0);
+    scene = memory.empty() ? importer.ReadFile(path, 0)
+                           : importer.ReadFileFromMemory(memory.data(), memory.size(), 0, "glb");
   } catch (const std::exception& e) {  // Assimp should catch its own; be sure.
     return absl::InvalidArgumentError(absl::StrCat(path, ": cannot be read: ", e.what()));
   }
@@ -704,6 +711,23 @@ absl::StatusOr<TriangleMesh> ReadOffFile(const std::string& path) {
   return std::move(assembler).Finish();
 }
 
+// glTF / GLB: Assimp reads them, except primitives compressed with
+// KHR_draco_mesh_compression, which are decoded first (gltf_draco.h).
+absl::StatusOr<TriangleMesh> ReadGltfFile(const std::string& path) {
+  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
+  if (!bytes.ok()) return bytes.status();
+  if (!GltfUsesDraco(*bytes)) return ReadWithAssimp(path);
+  // Relative URIs name files beside the glTF (percent-escapes are not decoded).
+  const std::filesystem::path directory = std::filesystem::path(path).parent_path();
+  absl::StatusOr<std::string> glb = DecompressDracoGltf(
+      *bytes, [&](const std::string& uri) { return ReadFileBytes((directory / uri).string()); });
+  if (!glb.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": ", glb.status().message()));
+  }
+  std::string().swap(*bytes);
+  return ReadWithAssimp(path, *glb);
+}
+
 absl::StatusOr<TriangleMesh> ReadDracoFile(const std::string& path) {
   absl::StatusOr<std::string> bytes = ReadFileBytes(path);
   if (!bytes.ok()) return bytes.status();
@@ -730,6 +754,46 @@ void AppendColour(std::string& out, const std::array<uint8_t, 3>& colour) {
 // Faces whose label is ClusterId::Invalid() (not clustered) are drawn in this grey.
 constexpr std::array<uint8_t, 3> kUnlabelledColour = {128, 128, 128};
 
+// The checks both clustered writers make: whole triples, one label per face, indices in
+// range.
+absl::Status CheckLabelledMesh(const TriangleMesh& mesh, std::span<const ClusterId> labels) {
+  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
+    return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
+  }
+  if (labels.size() != mesh.num_faces()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "got ", labels.size(), " labels for ", mesh.num_faces(), " faces; one per face is needed"));
+  }
+  return CheckVertexIndices(mesh);
+}
+
+absl::Status WriteWholeFile(const std::string& path, const std::string& bytes) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  if (!file) return FileError(path, errno, "cannot open for writing");
+  file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  file.close();
+  if (!file) return FileError(path, errno, "write failed");
+  return absl::OkStatus();
+}
+
+// One output vertex per (vertex, cluster) pair, numbered in order of first use, so that
+// a vertex on a cluster boundary carries each cluster's colour (or id) on its own copy:
+// source_vertex[s] is the input vertex of copy s, out_indices the faces over the copies.
+void SplitByCluster(const TriangleMesh& mesh, std::span<const ClusterId> labels,
+                    std::vector<uint32_t>& source_vertex, std::vector<uint32_t>& out_indices) {
+  absl::flat_hash_map<uint64_t, uint32_t> split_vertex;
+  split_vertex.reserve(mesh.num_vertices() + mesh.num_vertices() / 4);
+  source_vertex.clear();
+  out_indices.resize(mesh.indices.size());
+  for (size_t i = 0; i < mesh.indices.size(); ++i) {
+    const uint64_t key = (uint64_t{mesh.indices[i]} << 32) | labels[i / 3].value();
+    const auto [it, inserted] =
+        split_vertex.try_emplace(key, static_cast<uint32_t>(source_vertex.size()));
+    if (inserted) source_vertex.push_back(mesh.indices[i]);
+    out_indices[i] = it->second;
+  }
+}
+
 }  // namespace
 
 absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
@@ -751,6 +815,8 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
         return absl::InvalidArgumentError(absl::StrCat(path, ": ", status.message()));
       }
       mesh = ReadWithAssimp(path);
+    } else if (extension == ".gltf" || extension == ".glb" || head->starts_with("glTF")) {
+      mesh = ReadGltfFile(path);
     } else {
       mesh = ReadWithAssimp(path);
     }
@@ -764,79 +830,188 @@ absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
 }
 
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
-                               std::span<const ClusterId> labels) {
-  if (mesh.positions.size() % 3 != 0 || mesh.indices.size() % 3 != 0) {
-    return absl::InvalidArgumentError("mesh positions and indices must hold whole triples");
-  }
+                               std::span<const ClusterId> labels,
+                               const ClusteredPlyOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckLabelledMesh(mesh, labels));
   const size_t num_faces = mesh.num_faces();
-  if (labels.size() != num_faces) {
-    return absl::InvalidArgumentError(absl::StrCat("got ", labels.size(), " labels for ", num_faces,
-                                                   " faces; one per face is needed"));
-  }
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
   if (mesh.indices.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
     return absl::InvalidArgumentError("too many faces for PLY's int vertex indices");
   }
+  for (size_t f = 0; f < num_faces; ++f) {
+    if (labels[f].valid() && labels[f].value() > uint32_t{std::numeric_limits<int32_t>::max()}) {
+      return absl::InvalidArgumentError(absl::StrCat("face ", f, ": cluster id ", labels[f].value(),
+                                                     " does not fit PLY's int property"));
+    }
+  }
 
-  // One output vertex per (vertex, cluster) pair, numbered in order of first use, so that
-  // a vertex on a cluster boundary carries each cluster's colour on its own copy.
-  absl::flat_hash_map<uint64_t, uint32_t> split_vertex;
-  split_vertex.reserve(mesh.num_vertices() + mesh.num_vertices() / 4);
+  // Output vertices: the input's, one to one; or, for vertex colours, one per (vertex,
+  // cluster) pair (SplitByCluster).
   std::vector<uint32_t> source_vertex;
-  std::vector<uint32_t> split_indices(mesh.indices.size());
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    const uint64_t key = (uint64_t{mesh.indices[i]} << 32) | labels[i / 3].value();
-    const auto [it, inserted] =
-        split_vertex.try_emplace(key, static_cast<uint32_t>(source_vertex.size()));
-    if (inserted) source_vertex.push_back(mesh.indices[i]);
-    split_indices[i] = it->second;
+  std::vector<uint32_t> out_indices;
+  if (options.split_vertices) {
+    SplitByCluster(mesh, labels, source_vertex, out_indices);
+  } else {
+    source_vertex.resize(mesh.num_vertices());
+    std::iota(source_vertex.begin(), source_vertex.end(), 0u);
+    out_indices = mesh.indices;
   }
 
   auto colour_of = [](ClusterId label) {
     return label.valid() ? ClusterColour(label.value()) : kUnlabelledColour;
   };
+  const char* vertex_colour = options.split_vertices ? "property uchar red\n"
+                                                       "property uchar green\n"
+                                                       "property uchar blue\n"
+                                                     : "";
   std::string out = absl::StrCat(
       "ply\n"
       "format binary_little_endian 1.0\n"
-      "comment mlclust clusters: face and vertex colour per cluster\n"
+      "comment mlclust clusters: face property cluster (-1: unlabelled), colour per cluster\n"
       "element vertex ",
       source_vertex.size(),
       "\n"
       "property float x\n"
       "property float y\n"
-      "property float z\n"
-      "property uchar red\n"
-      "property uchar green\n"
-      "property uchar blue\n"
-      "element face ",
-      num_faces,
+      "property float z\n",
+      vertex_colour, "element face ", num_faces,
       "\n"
       "property list uchar int vertex_indices\n"
+      "property int cluster\n"
       "property uchar red\n"
       "property uchar green\n"
       "property uchar blue\n"
       "end_header\n");
-  out.reserve(out.size() + source_vertex.size() * 15 + num_faces * 16);
+  out.reserve(out.size() + source_vertex.size() * 15 + num_faces * 20);
   // The cluster of each split vertex: the label of the first face that used it.
-  std::vector<ClusterId> split_label(source_vertex.size());
-  for (size_t i = 0; i < split_indices.size(); ++i) split_label[split_indices[i]] = labels[i / 3];
+  std::vector<ClusterId> split_label;
+  if (options.split_vertices) {
+    split_label.resize(source_vertex.size());
+    for (size_t i = 0; i < out_indices.size(); ++i) split_label[out_indices[i]] = labels[i / 3];
+  }
   for (size_t s = 0; s < source_vertex.size(); ++s) {
     const float* p = &mesh.positions[3 * size_t{source_vertex[s]}];
     for (int c = 0; c < 3; ++c) AppendUint32(out, std::bit_cast<uint32_t>(p[c]));
-    AppendColour(out, colour_of(split_label[s]));
+    if (options.split_vertices) AppendColour(out, colour_of(split_label[s]));
   }
   for (size_t f = 0; f < num_faces; ++f) {
     out.push_back(3);
-    for (int c = 0; c < 3; ++c) AppendUint32(out, split_indices[3 * f + c]);
+    for (int c = 0; c < 3; ++c) AppendUint32(out, out_indices[3 * f + c]);
+    // Two's complement: an unlabelled face's -1 is 0xFFFFFFFF.
+    AppendUint32(out, labels[f].valid() ? labels[f].value() : 0xFFFFFFFFu);
     AppendColour(out, colour_of(labels[f]));
   }
 
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) return FileError(path, errno, "cannot open for writing");
-  file.write(out.data(), static_cast<std::streamsize>(out.size()));
-  file.close();
-  if (!file) return FileError(path, errno, "write failed");
-  return absl::OkStatus();
+  return WriteWholeFile(path, out);
+}
+
+absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mesh,
+                                std::span<const ClusterId> labels) {
+  const std::string extension = LowercaseExtension(path);
+  if (extension != ".glb" && extension != ".gltf") {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": a glTF file name ends in .glb or .gltf"));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckLabelledMesh(mesh, labels));
+  const size_t num_faces = mesh.num_faces();
+  if (mesh.indices.size() > std::numeric_limits<uint32_t>::max() / 4) {
+    return absl::InvalidArgumentError("too many faces for one glTF buffer");
+  }
+  constexpr uint32_t kExactFloatIds = 1u << 24;
+  for (size_t f = 0; f < num_faces; ++f) {
+    if (labels[f].valid() && labels[f].value() >= kExactFloatIds) {
+      return absl::InvalidArgumentError(absl::StrCat("face ", f, ": cluster id ", labels[f].value(),
+                                                     " is not exact as glTF's float _CLUSTER"));
+    }
+  }
+  std::vector<uint32_t> source_vertex, out_indices;
+  SplitByCluster(mesh, labels, source_vertex, out_indices);
+  std::vector<ClusterId> vertex_label(source_vertex.size());
+  for (size_t i = 0; i < out_indices.size(); ++i) vertex_label[out_indices[i]] = labels[i / 3];
+
+  // The buffer: positions, colours, cluster ids, indices; each a multiple of 4 bytes.
+  const size_t num_out = source_vertex.size();
+  std::string bin;
+  bin.reserve(num_out * 20 + out_indices.size() * 4);
+  float low[3] = {0, 0, 0}, high[3] = {0, 0, 0};
+  for (size_t s = 0; s < num_out; ++s) {
+    const float* p = &mesh.positions[3 * size_t{source_vertex[s]}];
+    for (int c = 0; c < 3; ++c) {
+      if (!std::isfinite(p[c])) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("vertex ", source_vertex[s], " has a non-finite coordinate"));
+      }
+      low[c] = s == 0 ? p[c] : std::min(low[c], p[c]);
+      high[c] = s == 0 ? p[c] : std::max(high[c], p[c]);
+      AppendUint32(bin, std::bit_cast<uint32_t>(p[c]));
+    }
+  }
+  const size_t colour_offset = bin.size();
+  for (size_t s = 0; s < num_out; ++s) {
+    AppendColour(
+        bin, vertex_label[s].valid() ? ClusterColour(vertex_label[s].value()) : kUnlabelledColour);
+    bin.push_back(static_cast<char>(255));
+  }
+  const size_t cluster_offset = bin.size();
+  for (size_t s = 0; s < num_out; ++s) {
+    const float id = vertex_label[s].valid() ? static_cast<float>(vertex_label[s].value()) : -1.0f;
+    AppendUint32(bin, std::bit_cast<uint32_t>(id));
+  }
+  const size_t index_offset = bin.size();
+  for (uint32_t index : out_indices) AppendUint32(bin, index);
+
+  using Json = nlohmann::json;
+  constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+  auto view = [](size_t offset, size_t length, int target) {
+    return Json{{"buffer", 0}, {"byteOffset", offset}, {"byteLength", length}, {"target", target}};
+  };
+  Json gltf = {
+      {"asset", {{"version", "2.0"}, {"generator", "mlclust"}}},
+      {"scene", 0},
+      {"scenes", Json::array({Json{{"nodes", {0}}}})},
+      {"nodes", Json::array({Json{{"mesh", 0}, {"name", "clusters"}}})},
+      {"meshes",
+       Json::array({Json{
+           {"name", "clusters"},
+           {"primitives",
+            Json::array({Json{{"attributes", {{"POSITION", 0}, {"COLOR_0", 1}, {"_CLUSTER", 2}}},
+                              {"indices", 3},
+                              {"mode", 4}}})}}})},
+      {"accessors",
+       Json::array(
+           {Json{{"bufferView", 0},
+                 {"componentType", 5126},
+                 {"count", num_out},
+                 {"type", "VEC3"},
+                 {"min", {low[0], low[1], low[2]}},
+                 {"max", {high[0], high[1], high[2]}}},
+            Json{{"bufferView", 1},
+                 {"componentType", 5121},
+                 {"normalized", true},
+                 {"count", num_out},
+                 {"type", "VEC4"}},
+            Json{
+                {"bufferView", 2}, {"componentType", 5126}, {"count", num_out}, {"type", "SCALAR"}},
+            Json{{"bufferView", 3},
+                 {"componentType", 5125},
+                 {"count", out_indices.size()},
+                 {"type", "SCALAR"}}})},
+      {"bufferViews",
+       Json::array({view(0, colour_offset, kArrayBuffer),
+                    view(colour_offset, cluster_offset - colour_offset, kArrayBuffer),
+                    view(cluster_offset, index_offset - cluster_offset, kArrayBuffer),
+                    view(index_offset, bin.size() - index_offset, kElementArrayBuffer)})},
+  };
+  std::string out;
+  if (extension == ".gltf") {
+    gltf["buffers"] = Json::array({Json{
+        {"byteLength", bin.size()},
+        {"uri", absl::StrCat("data:application/octet-stream;base64,", absl::Base64Escape(bin))}}});
+    out = gltf.dump(1);
+  } else {
+    gltf["buffers"] = Json::array({Json{{"byteLength", bin.size()}}});
+    MLCLUST_ASSIGN_OR_RETURN(out, PackGlb(gltf.dump(), std::move(bin)));
+  }
+  return WriteWholeFile(path, out);
 }
 
 std::array<uint8_t, 3> ClusterColour(uint32_t id) {

@@ -16,7 +16,9 @@ namespace mlclust {
 // Reads a triangle mesh. `.drc` files (or files starting with Draco's magic) are decoded
 // with Draco; OFF files (by extension or keyword) are read by our own strict reader,
 // because Assimp's silently clamps bad indices and drops large polygons; every other
-// format goes through Assimp (OBJ, PLY, STL, glTF/GLB and the rest it reads).
+// format goes through Assimp (OBJ, PLY, STL, glTF/GLB and the rest it reads). glTF/GLB
+// primitives compressed with KHR_draco_mesh_compression are decoded with Draco first
+// (vertex i of such a primitive is Draco point i, its faces in the Draco data's order).
 //
 // Faces keep file order: face i of the result is the i-th triangle of the file, which is
 // the id every output uses. A polygon of n corners becomes n - 2 triangles in its place
@@ -43,14 +45,49 @@ namespace mlclust {
 // first); bytes from the network go through DecodeDracoMesh.
 absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path);
 
-// Writes `mesh` as binary little-endian PLY with one colour per cluster: each face gets
-// its cluster's colour as a face colour (MeshLab) and its vertices are split per cluster
-// so that vertex colours show the same (Blender): a vertex used by faces of k clusters is
-// written k times. Faces keep their order. `labels` has one entry per face
-// (INVALID_ARGUMENT otherwise, or for an index out of range); ClusterId::Invalid() is
-// drawn grey.
+struct ClusteredPlyOptions {
+  // false (the default): the input's vertices, one to one, unsplit, without colour.
+  // true: each vertex is written once per cluster among the faces around it, each copy
+  // with its cluster's colour as a vertex colour (for viewers that draw only vertex
+  // colours, e.g. Blender); face indices then refer to the copies.
+  bool split_vertices = false;
+};
+
+// Writes `mesh` as binary little-endian PLY with the clusters as face properties:
+//
+//   element vertex V          property float x, y, z   (uchar red, green, blue when split)
+//   element face F            property list uchar int vertex_indices
+//                             property int cluster      labels[f]; -1 for ClusterId::Invalid()
+//                             property uchar red, green, blue   ClusterColour(labels[f])
+//
+// Faces keep their order, so face f of the file is face f of `mesh`; without
+// split_vertices, vertex v of the file is vertex v of `mesh` (unused ones included) and
+// positions are copied bit for bit. `labels` has one entry per face. INVALID_ARGUMENT
+// for another count, a vertex index out of range or a cluster id above 2^31 - 1; the
+// file's errno-derived error if it cannot be written.
 absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh,
-                               std::span<const ClusterId> labels);
+                               std::span<const ClusterId> labels,
+                               const ClusteredPlyOptions& options = {});
+
+// Writes `mesh` as glTF 2.0 with the clusters as vertex attributes, by the path's
+// extension: .glb (binary) or .gltf (JSON, the buffer embedded as a base64 data: URI).
+// One mesh with one triangle primitive:
+//
+//   POSITION   float VEC3
+//   COLOR_0    unsigned byte normalized VEC4: ClusterColour(labels[f]), opaque (grey for
+//              ClusterId::Invalid())
+//   _CLUSTER   float SCALAR: labels[f], -1 for ClusterId::Invalid() (an application-
+//              specific attribute, glTF 2.0 3.7.2.1; float, as core glTF vertex
+//              attributes are float or normalized integers: ids below 2^24 are exact)
+//   indices    uint32; triangle f is face f of `mesh`
+//
+// glTF attributes belong to vertices, so each vertex is written once per cluster among
+// the faces around it, and all three corners of face f carry labels[f]. Positions are
+// copied bit for bit. INVALID_ARGUMENT for a label count other than one per face, a
+// vertex index out of range, a non-finite coordinate, a cluster id of 2^24 or more, or
+// another extension; the file's errno-derived error if it cannot be written.
+absl::Status WriteClusteredGltf(const std::string& path, const TriangleMesh& mesh,
+                                std::span<const ClusterId> labels);
 
 // Writes `mesh` by the path's extension: .ply (binary little-endian), .obj or .off. Face
 // and vertex order are kept. INVALID_ARGUMENT for another extension or indices out of

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -21,6 +22,7 @@
 #include "draco/compression/expert_encode.h"
 #include "draco/core/encoder_buffer.h"
 #include "draco/mesh/mesh.h"
+#include "draco/metadata/geometry_metadata.h"
 #include "draco/point_cloud/point_cloud.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -247,6 +249,204 @@ TEST(DracoCodecTest, EdgebreakerBytesDecodeInTheirOwnOrder) {
 }
 
 // ---------------------------------------------------------------------------------------
+// The per-face id attribute.
+
+// The corners of face f of `mesh` as positions, starting at the corner with the smallest
+// (x, y, z): edgebreaker keeps a face's winding but may start it at another corner.
+std::array<std::array<float, 3>, 3> FaceCorners(const TriangleMesh& mesh, size_t f) {
+  std::array<std::array<float, 3>, 3> corners;
+  for (int c = 0; c < 3; ++c) {
+    for (int k = 0; k < 3; ++k) corners[c][k] = mesh.positions[3 * mesh.indices[3 * f + c] + k];
+  }
+  const int first =
+      static_cast<int>(std::min_element(corners.begin(), corners.end()) - corners.begin());
+  std::rotate(corners.begin(), corners.begin() + first, corners.end());
+  return corners;
+}
+
+// The number of faces f of `decoded` that are not face f of `original` (each coordinate
+// within `tolerance`): 0 when labels computed on `decoded` apply to `original` as they are.
+size_t FacesOutOfPlace(const TriangleMesh& original, const TriangleMesh& decoded, float tolerance) {
+  EXPECT_EQ(decoded.num_faces(), original.num_faces());
+  size_t wrong = 0;
+  for (size_t f = 0; f < std::min(original.num_faces(), decoded.num_faces()); ++f) {
+    const auto want = FaceCorners(original, f);
+    // Quantisation may change which corner is smallest: try the three rotations.
+    bool same = false;
+    for (int r = 0; r < 3 && !same; ++r) {
+      auto got = FaceCorners(decoded, f);
+      std::rotate(got.begin(), got.begin() + r, got.end());
+      same = true;
+      for (int c = 0; c < 3; ++c) {
+        for (int k = 0; k < 3; ++k) same &= std::abs(got[c][k] - want[c][k]) <= tolerance;
+      }
+    }
+    wrong += same ? 0 : 1;
+  }
+  return wrong;
+}
+
+TEST(DracoCodecTest, FaceIdsMapEdgebreakerQuantisedFacesBackToTheClientsOrder) {
+  const TriangleMesh fandisk = Fandisk();
+  DracoEncodeOptions options;
+  options.method = DracoMethod::kEdgebreaker;
+  options.position_quantization_bits = 14;
+  options.write_face_ids = true;
+  absl::StatusOr<std::string> bytes = EncodeMeshToDraco(fandisk, options);
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
+  absl::StatusOr<std::string> sequential = EncodeMeshToDraco(fandisk);
+  ASSERT_TRUE(sequential.ok());
+  std::cout << "fandisk: sequential lossless " << sequential->size()
+            << " bytes, edgebreaker 14-bit with face ids " << bytes->size() << " bytes\n";
+  EXPECT_LT(bytes->size() * 2, sequential->size());
+
+  absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(*bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_TRUE(decoded->has_face_ids);
+  EXPECT_EQ(decoded->mesh.num_vertices(), fandisk.num_vertices());
+  EXPECT_TRUE(ValidateMesh(decoded->mesh).ok());
+  // The bytes held the faces in edgebreaker's order, which is not the client's.
+  ASSERT_EQ(decoded->original_face.size(), fandisk.num_faces());
+  size_t in_place = 0;
+  for (size_t d = 0; d < decoded->original_face.size(); ++d) {
+    in_place += decoded->original_face[d] == d ? 1 : 0;
+  }
+  EXPECT_LT(in_place, fandisk.num_faces() / 10);
+  // Each face is back at its own index, within the quantisation step.
+  float extent = 0;
+  for (float x : fandisk.positions) extent = std::max(extent, std::abs(x));
+  const float step = 2 * extent / (1 << 14);
+  EXPECT_EQ(FacesOutOfPlace(fandisk, decoded->mesh, step), 0u);
+
+  // DecodeDracoMesh gives the same mesh.
+  absl::StatusOr<TriangleMesh> plain = DecodeDracoMesh(*bytes);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_EQ(plain->indices, decoded->mesh.indices);
+
+  // Without the ids the same method leaves the faces in edgebreaker's order.
+  options.write_face_ids = false;
+  absl::StatusOr<DecodedDracoMesh> unordered =
+      DecodeDracoMeshWithFaceIds(*EncodeMeshToDraco(fandisk, options));
+  ASSERT_TRUE(unordered.ok());
+  EXPECT_FALSE(unordered->has_face_ids);
+  EXPECT_TRUE(unordered->original_face.empty());
+  EXPECT_GT(FacesOutOfPlace(fandisk, unordered->mesh, step), fandisk.num_faces() * 9 / 10);
+}
+
+TEST(DracoCodecTest, FaceIdsLosslessEdgebreakerIsExact) {
+  const TriangleMesh grid = Grid(6);
+  DracoEncodeOptions options;
+  options.method = DracoMethod::kEdgebreaker;
+  options.write_face_ids = true;
+  absl::StatusOr<TriangleMesh> decoded = RoundTrip(grid, options);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(FacesOutOfPlace(grid, *decoded, 0.0f), 0u);
+}
+
+// The recipe for other encoders (draco3d, DracoPy): a point per corner with its position
+// and its face's id, then Draco's own deduplication and encoder. `ids` gives each face's
+// id (the recipe: 0..F-1); `method` and `per_corner_ids` let tests break the recipe.
+std::string EncodeLikeForeignEncoder(const TriangleMesh& mesh, std::vector<uint32_t> ids,
+                                     int method = draco::MESH_EDGEBREAKER_ENCODING,
+                                     draco::DataType id_type = draco::DT_UINT32,
+                                     bool corner_ids_differ = false) {
+  const uint32_t num_points = static_cast<uint32_t>(3 * mesh.num_faces());
+  draco::Mesh draco_mesh;
+  draco_mesh.set_num_points(num_points);
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
+                sizeof(float) * 3, 0);
+  const int position_id = draco_mesh.AddAttribute(position, true, num_points);
+  draco::GeometryAttribute face_id;
+  face_id.Init(draco::GeometryAttribute::GENERIC, nullptr, 1, id_type, false,
+               draco::DataTypeLength(id_type), 0);
+  const int id_id = draco_mesh.AddAttribute(face_id, true, num_points);
+  for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
+    for (uint32_t c = 0; c < 3; ++c) {
+      const draco::AttributeValueIndex point(3 * f + c);
+      draco_mesh.attribute(position_id)
+          ->SetAttributeValue(point, &mesh.positions[3 * mesh.indices[3 * f + c]]);
+      const uint32_t id = ids[f] + (corner_ids_differ && c == 2 ? 1 : 0);
+      if (id_type == draco::DT_FLOAT32) {
+        const float value = static_cast<float>(id);
+        draco_mesh.attribute(id_id)->SetAttributeValue(point, &value);
+      } else {
+        draco_mesh.attribute(id_id)->SetAttributeValue(point, &id);
+      }
+    }
+    draco_mesh.AddFace(
+        {draco::PointIndex(3 * f), draco::PointIndex(3 * f + 1), draco::PointIndex(3 * f + 2)});
+  }
+  auto metadata = std::make_unique<draco::AttributeMetadata>();
+  metadata->AddEntryString("name", kDracoFaceIdAttributeName);
+  draco_mesh.AddAttributeMetadata(id_id, std::move(metadata));
+  EXPECT_TRUE(draco_mesh.DeduplicateAttributeValues());
+  draco_mesh.DeduplicatePointIds();
+  draco::ExpertEncoder encoder(draco_mesh);
+  encoder.SetEncodingMethod(method);
+  encoder.SetAttributeQuantization(position_id, 11);
+  draco::EncoderBuffer buffer;
+  EXPECT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
+  return std::string(buffer.data(), buffer.size());
+}
+
+std::vector<uint32_t> Iota(size_t n) {
+  std::vector<uint32_t> ids(n);
+  std::iota(ids.begin(), ids.end(), 0u);
+  return ids;
+}
+
+TEST(DracoCodecTest, FaceIdsFromTheForeignEncoderRecipeMapBackExactly) {
+  const TriangleMesh fandisk = Fandisk();
+  absl::StatusOr<DecodedDracoMesh> decoded =
+      DecodeDracoMeshWithFaceIds(EncodeLikeForeignEncoder(fandisk, Iota(fandisk.num_faces())));
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_TRUE(decoded->has_face_ids);
+  // Fandisk has no two vertices at one position, so welding by position restores them.
+  EXPECT_EQ(decoded->mesh.num_vertices(), fandisk.num_vertices());
+  EXPECT_TRUE(ValidateMesh(decoded->mesh).ok());
+  float extent = 0;
+  for (float x : fandisk.positions) extent = std::max(extent, std::abs(x));
+  EXPECT_EQ(FacesOutOfPlace(fandisk, decoded->mesh, 2 * extent / (1 << 11)), 0u);
+}
+
+TEST(DracoCodecTest, FaceIdsThatAreNotAPermutationAreRefused) {
+  const TriangleMesh grid = Grid(4);
+  std::vector<uint32_t> ids = Iota(grid.num_faces());
+  ids[7] = 3;  // Face 3's id twice, id 7 nowhere.
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(EncodeLikeForeignEncoder(grid, ids));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("mlclust_face_id 3 is on more than one face"));
+
+  ids = Iota(grid.num_faces());
+  ids[5] = 40;  // As if the encoder had dropped a face.
+  decoded = DecodeDracoMesh(EncodeLikeForeignEncoder(grid, ids));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("mlclust_face_id 40, but the mesh has 32"));
+
+  decoded = DecodeDracoMesh(EncodeLikeForeignEncoder(
+      grid, Iota(grid.num_faces()), draco::MESH_EDGEBREAKER_ENCODING, draco::DT_UINT32, true));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("values on its corners"));
+
+  decoded = DecodeDracoMesh(EncodeLikeForeignEncoder(
+      grid, Iota(grid.num_faces()), draco::MESH_EDGEBREAKER_ENCODING, draco::DT_FLOAT32));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("must have 1 integer component"));
+
+  decoded = DecodeDracoMesh(
+      EncodeLikeForeignEncoder(grid, Iota(grid.num_faces()), draco::MESH_SEQUENTIAL_ENCODING));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("needs an edgebreaker payload"));
+
+  // Our encoder refuses ids with the sequential method.
+  DracoEncodeOptions sequential_ids;
+  sequential_ids.write_face_ids = true;
+  EXPECT_EQ(EncodeMeshToDraco(grid, sequential_ids).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+// ---------------------------------------------------------------------------------------
 // Untrusted bytes.
 
 TEST(DracoCodecTest, RefusesEmptyAndNonDracoBytes) {
@@ -313,14 +513,18 @@ TEST(DracoCodecTest, RefusesEveryTruncation) {
 }
 
 TEST(DracoCodecTest, SurvivesCorruptedBytes) {
-  DracoEncodeOptions q12, raw_indices;
+  DracoEncodeOptions q12, raw_indices, face_ids;
   q12.position_quantization_bits = 12;
   raw_indices.speed = 10;
+  face_ids.method = DracoMethod::kEdgebreaker;
+  face_ids.position_quantization_bits = 12;
+  face_ids.write_face_ids = true;
   const TriangleMesh grid = Grid(12);
   std::mt19937 random(3);
   for (const std::string& valid : {*EncodeMeshToDraco(grid), *EncodeMeshToDraco(grid, q12),
                                    *EncodeMeshToDraco(grid, raw_indices),
-                                   EncodeWithDraco(grid, draco::MESH_EDGEBREAKER_ENCODING, 12)}) {
+                                   EncodeWithDraco(grid, draco::MESH_EDGEBREAKER_ENCODING, 12),
+                                   *EncodeMeshToDraco(grid, face_ids)}) {
     for (int i = 0; i < 1500; ++i) {
       std::string bytes = valid;
       const int changes = 1 + i % 4;

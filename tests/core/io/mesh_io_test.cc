@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -21,10 +22,12 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "core/io/draco_codec.h"
 #include "core/mesh/mesh.h"
+#include "nlohmann/json.hpp"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -638,20 +641,302 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
 }
 
 // ---------------------------------------------------------------------------------------
+// Draco-compressed glTF (KHR_draco_mesh_compression).
+
+void AppendLe32(std::string& out, uint32_t value) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>(value >> (8 * i)));
+}
+
+// Replaces the first `from` in `text` with `to` (which must be there).
+void ReplaceOnce(std::string& text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+}
+
+// A GLB with `json` and `bin` as its two chunks.
+std::string MakeGlb(std::string json, std::string bin) {
+  while (json.size() % 4 != 0) json.push_back(' ');
+  while (bin.size() % 4 != 0) bin.push_back('\0');
+  std::string glb;
+  AppendLe32(glb, 0x46546C67);
+  AppendLe32(glb, 2);
+  AppendLe32(glb, static_cast<uint32_t>(28 + json.size() + bin.size()));
+  AppendLe32(glb, static_cast<uint32_t>(json.size()));
+  AppendLe32(glb, 0x4E4F534A);
+  glb += json;
+  AppendLe32(glb, static_cast<uint32_t>(bin.size()));
+  AppendLe32(glb, 0x004E4942);
+  return glb + bin;
+}
+
+// The glTF JSON of one mesh, one primitive compressed with Draco in bufferView 0 of
+// buffer 0 (`buffer_json`), the POSITION attribute being Draco's attribute 0.
+std::string DracoGltfJson(size_t draco_bytes, size_t num_vertices, size_t num_faces,
+                          const std::string& buffer_json, const std::string& node_json) {
+  return absl::StrCat(
+      R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],)",
+      R"("extensionsRequired":["KHR_draco_mesh_compression"],"scene":0,"scenes":[{"nodes":[0]}],)",
+      R"("nodes":[)", node_json, R"(],"meshes":[{"primitives":[{"attributes":{"POSITION":0},)",
+      R"("indices":1,"mode":4,"extensions":{"KHR_draco_mesh_compression":{"bufferView":0,)",
+      R"("attributes":{"POSITION":0}}}}]}],"accessors":[{"componentType":5126,"count":)",
+      num_vertices, R"(,"type":"VEC3","min":[-1,-1,-1],"max":[1,1,1]},{"componentType":5125,)",
+      R"("count":)", 3 * num_faces, R"(,"type":"SCALAR"}],"bufferViews":[{"buffer":0,)",
+      R"("byteOffset":0,"byteLength":)", draco_bytes, R"(}],"buffers":[)", buffer_json, "]}");
+}
+
+TEST_F(MeshIoTest, DracoGlbReadsAsTheEncodedMesh) {
+  absl::StatusOr<TriangleMesh> fandisk = ReadMeshFile(DataPath("fandisk.off"));
+  ASSERT_TRUE(fandisk.ok()) << fandisk.status();
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(*fandisk);
+  ASSERT_TRUE(draco.ok());
+  const std::string json =
+      DracoGltfJson(draco->size(), fandisk->num_vertices(), fandisk->num_faces(),
+                    absl::StrCat(R"({"byteLength":)", draco->size(), "}"), R"({"mesh":0})");
+  const std::string path = Write("fandisk.glb", MakeGlb(json, *draco));
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  // Sequential Draco keeps every order, so the file is fandisk itself, bit for bit.
+  EXPECT_EQ(read->indices, fandisk->indices);
+  ASSERT_EQ(read->positions.size(), fandisk->positions.size());
+  EXPECT_EQ(std::memcmp(read->positions.data(), fandisk->positions.data(),
+                        fandisk->positions.size() * sizeof(float)),
+            0);
+}
+
+TEST_F(MeshIoTest, DracoGltfWithDataUriTransformAndAPlainMeshFromAFile) {
+  // Mesh 0: an edgebreaker, 12-bit Draco grid in a data: URI, placed 10 along x. Mesh 1:
+  // a plain triangle in an external .bin file, placed as it is.
+  const TriangleMesh grid = Grid(5);
+  DracoEncodeOptions options;
+  options.method = DracoMethod::kEdgebreaker;
+  options.position_quantization_bits = 12;
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(grid, options);
+  ASSERT_TRUE(draco.ok());
+  std::string plain;
+  for (float x : {0.f, 0.f, 5.f, 1.f, 0.f, 5.f, 0.f, 1.f, 5.f}) {
+    AppendLe32(plain, std::bit_cast<uint32_t>(x));
+  }
+  for (uint32_t i : {0u, 1u, 2u}) AppendLe32(plain, i);
+  Write("triangle.bin", plain);
+
+  std::string json = DracoGltfJson(
+      draco->size(), grid.num_vertices(), grid.num_faces(),
+      absl::StrCat(R"({"byteLength":)", draco->size(),
+                   R"(,"uri":"data:application/octet-stream;base64,)", absl::Base64Escape(*draco),
+                   R"("},{"byteLength":48,"uri":"triangle.bin"})"),
+      R"({"mesh":0,"translation":[10,0,0]},{"mesh":1})");
+  // The second mesh: its accessors and views, and node 1 in the scene.
+  ReplaceOnce(json, R"(]}],"accessors")",
+              R"(]},{"primitives":[{"attributes":{"POSITION":2},"indices":3}]}],"accessors")");
+  ReplaceOnce(json, R"("type":"SCALAR"}])",
+              R"("type":"SCALAR"},{"componentType":5126,"count":3,"type":"VEC3",)"
+              R"("bufferView":1,"min":[0,0,5],"max":[1,1,5]},{"componentType":5125,)"
+              R"("count":3,"type":"SCALAR","bufferView":2}])");
+  ReplaceOnce(json, R"(}],"buffers")",
+              R"(},{"buffer":1,"byteOffset":0,"byteLength":36},)"
+              R"({"buffer":1,"byteOffset":36,"byteLength":12}],"buffers")");
+  ReplaceOnce(json, R"("nodes":[0])", R"("nodes":[0,1])");
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(Write("scene.gltf", json));
+  ASSERT_TRUE(read.ok()) << read.status();
+
+  // The grid's faces first, in the order the Draco data holds them, moved by the node.
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(*draco);
+  ASSERT_TRUE(decoded.ok());
+  for (size_t v = 0; v < decoded->num_vertices(); ++v) decoded->positions[3 * v] += 10;
+  ASSERT_EQ(read->num_faces(), grid.num_faces() + 1);
+  TriangleMesh grid_part = *read;
+  grid_part.indices.resize(3 * grid.num_faces());
+  ExpectSameFacePositions(*decoded, grid_part);
+  EXPECT_EQ(CornerPosition(*read, grid.num_faces(), 1), (std::array<float, 3>{1, 0, 5}));
+  EXPECT_EQ(CornerPosition(*read, grid.num_faces(), 2), (std::array<float, 3>{0, 1, 5}));
+}
+
+TEST_F(MeshIoTest, DracoGltfProblemsAreNamed) {
+  const TriangleMesh grid = Grid(3);
+  absl::StatusOr<std::string> draco = EncodeMeshToDraco(grid);
+  ASSERT_TRUE(draco.ok());
+  const std::string buffer = absl::StrCat(R"({"byteLength":)", draco->size(), "}");
+  // Bytes that are not Draco.
+  std::string garbage(draco->size(), 'x');
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(
+      Write("garbage.glb", MakeGlb(DracoGltfJson(draco->size(), grid.num_vertices(),
+                                                 grid.num_faces(), buffer, R"({"mesh":0})"),
+                                   garbage)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()),
+              HasSubstr("garbage.glb: mesh 0 primitive 0 (KHR_draco_mesh_compression): invalid "
+                        "Draco data"));
+  // An accessor count that disagrees with the Draco data.
+  read = ReadMeshFile(
+      Write("count.glb", MakeGlb(DracoGltfJson(draco->size(), grid.num_vertices() + 1,
+                                               grid.num_faces(), buffer, R"({"mesh":0})"),
+                                 *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()),
+              HasSubstr("its POSITION accessor counts 17 vertices, its Draco data 16"));
+  // A bufferView past the end of its buffer.
+  read = ReadMeshFile(
+      Write("short.glb", MakeGlb(DracoGltfJson(draco->size() + 100, grid.num_vertices(),
+                                               grid.num_faces(), buffer, R"({"mesh":0})"),
+                                 *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()), HasSubstr("outside its buffer"));
+  // JSON with a member of the wrong type.
+  std::string json =
+      DracoGltfJson(draco->size(), grid.num_vertices(), grid.num_faces(), buffer, R"({"mesh":0})");
+  ReplaceOnce(json, R"("bufferView":0,)", R"("bufferView":"zero",)");
+  read = ReadMeshFile(Write("type.glb", MakeGlb(json, *draco)));
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(read.status().message()), HasSubstr("type.glb: glTF JSON"));
+}
+
+// ---------------------------------------------------------------------------------------
 // Clustered PLY output and colours.
 
-TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
-  // A 4 x 4 grid: the left two columns of squares are cluster 7, the rest cluster 2, and
-  // the last face is unlabelled. The 5 vertices on the column boundary x = 2 appear
-  // twice; the unlabelled face adds a copy of each of its corners (one of which, the
-  // grid's corner (4, 4), no other face uses).
-  const TriangleMesh mesh = Grid(4);
+// A binary little-endian PLY read by its header alone (float, uchar, int scalars and
+// "list uchar int" lists), so that the tests check what the header promises.
+struct ParsedPly {
+  struct Element {
+    std::string name;
+    size_t count = 0;
+    std::vector<std::pair<std::string, std::string>> properties;  // (type, name)
+    std::vector<std::map<std::string, std::vector<double>>> records;
+  };
+  std::vector<Element> elements;
+  const Element* Find(const std::string& name) const {
+    for (const Element& e : elements) {
+      if (e.name == name) return &e;
+    }
+    return nullptr;
+  }
+};
+
+ParsedPly ParsePly(const std::string& bytes) {
+  ParsedPly ply;
+  const std::string header_end = "end_header\n";
+  const size_t body = bytes.find(header_end);
+  EXPECT_NE(body, std::string::npos);
+  std::istringstream header(bytes.substr(0, body));
+  std::string line;
+  while (std::getline(header, line)) {
+    std::istringstream words(line);
+    std::string word;
+    words >> word;
+    if (word == "element") {
+      ParsedPly::Element element;
+      words >> element.name >> element.count;
+      ply.elements.push_back(element);
+    } else if (word == "property") {
+      std::string type, name;
+      words >> type;
+      if (type == "list") {
+        std::string count_type, item_type;
+        words >> count_type >> item_type;
+        EXPECT_EQ(count_type + " " + item_type, "uchar int");
+      }
+      words >> name;
+      ply.elements.back().properties.push_back({type, name});
+    }
+  }
+  size_t at = body + header_end.size();
+  auto take = [&](size_t n) {
+    EXPECT_LE(at + n, bytes.size());
+    const char* p = bytes.data() + std::min(at, bytes.size() - n);
+    at += n;
+    return p;
+  };
+  for (ParsedPly::Element& element : ply.elements) {
+    for (size_t r = 0; r < element.count; ++r) {
+      std::map<std::string, std::vector<double>> record;
+      for (const auto& [type, name] : element.properties) {
+        if (type == "float") {
+          record[name] = {std::bit_cast<float>(*reinterpret_cast<const uint32_t*>(take(4)))};
+        } else if (type == "int") {
+          int32_t value;
+          std::memcpy(&value, take(4), 4);
+          record[name] = {static_cast<double>(value)};
+        } else if (type == "uchar") {
+          record[name] = {static_cast<double>(static_cast<uint8_t>(*take(1)))};
+        } else {
+          EXPECT_EQ(type, "list");
+          const uint8_t n = static_cast<uint8_t>(*take(1));
+          for (uint8_t i = 0; i < n; ++i) {
+            int32_t value;
+            std::memcpy(&value, take(4), 4);
+            record[name].push_back(value);
+          }
+        }
+      }
+      element.records.push_back(std::move(record));
+    }
+  }
+  EXPECT_EQ(at, bytes.size()) << "bytes after the last element";
+  return ply;
+}
+
+// A 4 x 4 grid: the left two columns of squares are cluster 7, the rest cluster 2, and
+// the last face is unlabelled.
+std::vector<ClusterId> GridTwoClusterLabels(const TriangleMesh& mesh) {
   std::vector<ClusterId> labels;
   for (size_t f = 0; f < mesh.num_faces(); ++f) {
     const size_t column = (f / 2) % 4;
     labels.push_back(ClusterId(column < 2 ? 7 : 2));
   }
   labels[31] = ClusterId::Invalid();  // Top right square's second triangle: (c, b, d).
+  return labels;
+}
+
+TEST_F(MeshIoTest, ClusteredPlyKeepsVerticesAndCarriesClusterIdsAndColours) {
+  TriangleMesh mesh = Grid(4);
+  // An unused vertex stays, so that vertex ids are the input's.
+  mesh.positions.insert(mesh.positions.end(), {9.5f, -1.25f, 3.0f});
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
+  const std::string path = Path("clusters.ply");
+  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
+
+  const ParsedPly ply = ParsePly(ReadAll(path));
+  ASSERT_EQ(ply.elements.size(), 2u);
+  const ParsedPly::Element* vertex = ply.Find("vertex");
+  const ParsedPly::Element* face = ply.Find("face");
+  ASSERT_NE(vertex, nullptr);
+  ASSERT_NE(face, nullptr);
+  ASSERT_EQ(vertex->count, mesh.num_vertices());
+  ASSERT_EQ(vertex->properties.size(), 3u);  // x, y, z: no colour on shared vertices.
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    EXPECT_EQ(vertex->records[v].at("x")[0], mesh.positions[3 * v]);
+    EXPECT_EQ(vertex->records[v].at("y")[0], mesh.positions[3 * v + 1]);
+    EXPECT_EQ(vertex->records[v].at("z")[0], mesh.positions[3 * v + 2]);
+  }
+  ASSERT_EQ(face->count, mesh.num_faces());
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto& record = face->records[f];
+    const std::vector<double> corners = {double(mesh.indices[3 * f]),
+                                         double(mesh.indices[3 * f + 1]),
+                                         double(mesh.indices[3 * f + 2])};
+    EXPECT_EQ(record.at("vertex_indices"), corners) << "face " << f;
+    EXPECT_EQ(record.at("cluster")[0], labels[f].valid() ? double(labels[f].value()) : -1.0)
+        << "face " << f;
+    const std::array<uint8_t, 3> want = labels[f].valid() ? ClusterColour(labels[f].value())
+                                                          : std::array<uint8_t, 3>{128, 128, 128};
+    EXPECT_EQ(record.at("red")[0], want[0]) << "face " << f;
+    EXPECT_EQ(record.at("green")[0], want[1]) << "face " << f;
+    EXPECT_EQ(record.at("blue")[0], want[2]) << "face " << f;
+  }
+
+  // Our reader (Assimp for PLY) reads it back as the same mesh.
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->num_vertices(), mesh.num_vertices());
+  EXPECT_EQ(read->indices, mesh.indices);
+}
+
+TEST_F(MeshIoTest, ClusteredPlySplitVerticesForVertexColours) {
+  // The 5 vertices on the column boundary x = 2 appear twice; the unlabelled face adds a
+  // copy of each of its corners (one of which, the grid's corner (4, 4), no other face
+  // uses).
+  const TriangleMesh mesh = Grid(4);
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
   std::set<std::pair<uint32_t, uint32_t>> pairs;
   for (size_t i = 0; i < mesh.indices.size(); ++i) {
     pairs.insert({mesh.indices[i], labels[i / 3].value()});
@@ -659,27 +944,15 @@ TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
   ASSERT_EQ(pairs.size(), 24u + 5u + 3u);
 
   const std::string path = Path("clusters.ply");
-  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
-
-  // The exact layout: header, then 15 bytes per vertex and 16 per face.
-  const std::string bytes = ReadAll(path);
-  const std::string header_end = "end_header\n";
-  const size_t body = bytes.find(header_end) + header_end.size();
-  ASSERT_NE(body, std::string::npos);
-  const std::string header = bytes.substr(0, body);
-  EXPECT_THAT(header, HasSubstr("format binary_little_endian 1.0\n"));
-  EXPECT_THAT(header, HasSubstr(absl::StrCat("element vertex ", pairs.size(), "\n")));
-  EXPECT_THAT(header, HasSubstr("element face 32\nproperty list uchar int vertex_indices\n"
-                                "property uchar red\nproperty uchar green\n"
-                                "property uchar blue\n"));
-  ASSERT_EQ(bytes.size(), body + pairs.size() * 15 + 32 * 16);
-  // Face 0's record: count 3, three indices, then cluster 7's colour.
-  const size_t face0 = body + pairs.size() * 15;
-  EXPECT_EQ(bytes[face0], 3);
-  const auto colour7 = ClusterColour(7);
-  EXPECT_EQ(std::memcmp(&bytes[face0 + 13], colour7.data(), 3), 0);
-  const size_t face31 = face0 + 31 * 16;
-  EXPECT_EQ(bytes.substr(face31 + 13, 3), std::string("\x80\x80\x80"));  // Grey.
+  ASSERT_TRUE(WriteClusteredPly(path, mesh, labels, {.split_vertices = true}).ok());
+  const ParsedPly ply = ParsePly(ReadAll(path));
+  ASSERT_NE(ply.Find("vertex"), nullptr);
+  ASSERT_NE(ply.Find("face"), nullptr);
+  EXPECT_EQ(ply.Find("vertex")->count, pairs.size());
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    EXPECT_EQ(ply.Find("face")->records[f].at("cluster")[0],
+              labels[f].valid() ? double(labels[f].value()) : -1.0);
+  }
 
   // Assimp reads it back with the same faces and the split vertices.
   absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
@@ -705,6 +978,83 @@ TEST_F(MeshIoTest, ClusteredPlySplitsBoundaryVerticesAndColoursFaces) {
       EXPECT_EQ(std::lround(got.b * 255), want[2]) << "face " << f;
     }
   }
+}
+
+// The JSON and the buffer of a glTF file WriteClusteredGltf wrote (.glb or .gltf).
+std::pair<nlohmann::json, std::string> ReadGltfParts(const std::string& bytes) {
+  if (bytes.starts_with("glTF")) {
+    uint32_t json_length;
+    std::memcpy(&json_length, &bytes[12], 4);
+    nlohmann::json json = nlohmann::json::parse(bytes.substr(20, json_length));
+    uint32_t bin_length;
+    std::memcpy(&bin_length, &bytes[20 + json_length], 4);
+    return {json, bytes.substr(28 + json_length, bin_length)};
+  }
+  nlohmann::json json = nlohmann::json::parse(bytes);
+  const std::string uri = json["buffers"][0]["uri"];
+  std::string bin;
+  EXPECT_TRUE(absl::Base64Unescape(uri.substr(uri.find(',') + 1), &bin));
+  return {json, bin};
+}
+
+TEST_F(MeshIoTest, ClusteredGltfCarriesClusterIdsAndColoursPerFace) {
+  const TriangleMesh mesh = Grid(4);
+  const std::vector<ClusterId> labels = GridTwoClusterLabels(mesh);
+  for (const std::string name : {"clusters.glb", "clusters.gltf"}) {
+    SCOPED_TRACE(name);
+    const std::string path = Path(name);
+    ASSERT_TRUE(WriteClusteredGltf(path, mesh, labels).ok());
+    const auto [json, bin] = ReadGltfParts(ReadAll(path));
+    EXPECT_EQ(json["scenes"][0]["nodes"], nlohmann::json::array({0}));
+    EXPECT_EQ(json["nodes"][0]["mesh"], 0);
+    const nlohmann::json& primitive = json["meshes"][0]["primitives"][0];
+    ASSERT_EQ(primitive["attributes"].size(), 3u);
+    auto accessor_data = [&](int accessor, size_t element_bytes) {
+      const nlohmann::json& a = json["accessors"][accessor];
+      const nlohmann::json& v = json["bufferViews"][a["bufferView"].get<int>()];
+      EXPECT_EQ(v["byteLength"].get<size_t>(), a["count"].get<size_t>() * element_bytes);
+      return bin.substr(v["byteOffset"].get<size_t>(), v["byteLength"].get<size_t>());
+    };
+    const std::string positions = accessor_data(primitive["attributes"]["POSITION"], 12);
+    const std::string colours = accessor_data(primitive["attributes"]["COLOR_0"], 4);
+    const std::string clusters = accessor_data(primitive["attributes"]["_CLUSTER"], 4);
+    const std::string indices = accessor_data(primitive["indices"], 4);
+    EXPECT_EQ(json["accessors"][primitive["attributes"]["_CLUSTER"].get<int>()]["componentType"],
+              5126);
+    ASSERT_EQ(indices.size(), mesh.indices.size() * 4);
+    // The same boundary vertices are doubled as in the split PLY: 24 + 5 + 3 copies.
+    EXPECT_EQ(positions.size() / 12, 24u + 5u + 3u);
+    for (size_t f = 0; f < mesh.num_faces(); ++f) {
+      const float want = labels[f].valid() ? static_cast<float>(labels[f].value()) : -1.0f;
+      const std::array<uint8_t, 3> colour = labels[f].valid()
+                                                ? ClusterColour(labels[f].value())
+                                                : std::array<uint8_t, 3>{128, 128, 128};
+      for (int c = 0; c < 3; ++c) {
+        uint32_t vertex;
+        std::memcpy(&vertex, &indices[4 * (3 * f + c)], 4);
+        float cluster;
+        std::memcpy(&cluster, &clusters[4 * vertex], 4);
+        EXPECT_EQ(cluster, want) << "face " << f;
+        EXPECT_EQ(std::memcmp(&colours[4 * vertex], colour.data(), 3), 0) << "face " << f;
+        EXPECT_EQ(static_cast<uint8_t>(colours[4 * vertex + 3]), 255);
+        // Bit for bit the input's corner.
+        EXPECT_EQ(
+            std::memcmp(&positions[12 * vertex], &mesh.positions[3 * mesh.indices[3 * f + c]], 12),
+            0);
+      }
+    }
+    // Our reader (Assimp) reads the faces back in order.
+    absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+    ASSERT_TRUE(read.ok()) << read.status();
+    ExpectSameFacePositions(mesh, *read);
+  }
+  EXPECT_EQ(WriteClusteredGltf(Path("clusters.obj"), mesh, labels).code(),
+            absl::StatusCode::kInvalidArgument);
+  std::vector<ClusterId> big = labels;
+  big[3] = ClusterId(1u << 24);
+  const absl::Status status = WriteClusteredGltf(Path("big.glb"), mesh, big);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("face 3: cluster id 16777216"));
 }
 
 TEST_F(MeshIoTest, ClusteredPlyRefusesWrongLabelCountAndBadIndices) {

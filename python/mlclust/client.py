@@ -1,0 +1,327 @@
+"""A client for the mlclust gRPC service (proto/mlclust/v1/mlclust.proto)."""
+
+import sys
+from typing import Callable, NamedTuple, Optional
+
+import grpc
+import numpy as np
+
+from . import _draco, _wire
+from .hierarchy import Hierarchy
+from .v1 import mlclust_pb2 as pb
+from .v1 import mlclust_pb2_grpc as pb_grpc
+
+ALGORITHMS = {
+    "hc": pb.ALGORITHM_HC, "ml": pb.ALGORITHM_ML, "pml": pb.ALGORITHM_PML,
+    "emlo": pb.ALGORITHM_EMLO, "bb": pb.ALGORITHM_BB, "vsa": pb.ALGORITHM_VSA,
+    "lnkmeans": pb.ALGORITHM_LN_KMEANS, "kmeans": pb.ALGORITHM_KMEANS,
+}
+ENERGIES = {
+    "cvd": pb.ENERGY_CVD, "cvd-adaptive": pb.ENERGY_CVD_ADAPTIVE,
+    "mwcvd-area": pb.ENERGY_MWCVD_AREA, "mwcvd-variance": pb.ENERGY_MWCVD_VARIANCE,
+    "mwcvd-max": pb.ENERGY_MWCVD_MAX, "planar": pb.ENERGY_PLANAR,
+    "sphere": pb.ENERGY_SPHERE, "variance": pb.ENERGY_VARIANCE,
+}
+_CODES = {code.value[0]: code for code in grpc.StatusCode}
+
+
+class Error(Exception):
+    """A failed job or call: `code` is a grpc.StatusCode, `details` the server's message
+    (what is wrong and where)."""
+
+    def __init__(self, code, details):
+        self.code = code if isinstance(code, grpc.StatusCode) else _CODES.get(
+            code, grpc.StatusCode.UNKNOWN)
+        self.details = details
+        super().__init__(f"{self.code.name}: {details}")
+
+
+class Progress(NamedTuple):
+    """What a progress callback receives, on every event before the levels are complete."""
+    stage: str                # "queued", "decode", "measures", "cluster", "levels", ...
+    fraction: float           # 0..1 where the server knows it, else 0
+    message: str
+    levels_received: int
+    cluster_count: int        # of the last level received (0 before the first)
+    queue_position: int       # jobs ahead when accepted
+
+
+class _Assembler:
+    """Collects one job's events into a Hierarchy, checking the stream is consistent."""
+
+    def __init__(self, progress):
+        self._progress = progress
+        self._pieces = []
+        self._have = 0
+        self._total = None
+        self._started = False
+        # Per level, in pieces (one numpy array per batch) joined at the end.
+        self._counts, self._energies, self._sources, self._ends = [], [], [], []
+        self._num_levels = 0
+        self._last_count = 0
+        self._element, self._to, self._from = [], [], []
+        self._triplets = 0
+        self.job_id = ""
+        self.queue_position = 0
+        self.done = None
+        self.failed = None
+        self._stage, self._fraction, self._message = "", 0.0, ""
+
+    def add_bytes(self, data):
+        """One JobEvent as its wire bytes: level batches and snapshots by the numpy fast
+        path (_wire), everything else through the protobuf runtime."""
+        parsed = _wire.parse_bulk_event(data)
+        if parsed is None:
+            self.add(pb.JobEvent.FromString(data))
+        elif parsed[0] == "levels":
+            self._levels(**parsed[1])
+            self._report("levels")
+        else:
+            self._snapshot(**parsed[1])
+            self._report("snapshot")
+
+    def add(self, event):
+        kind = event.WhichOneof("event")
+        if kind == "accepted":
+            self.job_id = event.accepted.job_id
+            self.queue_position = event.accepted.queue_position
+            self._stage = "queued"
+        elif kind == "progress":
+            p = event.progress
+            self._stage, self._fraction, self._message = p.stage, p.fraction, p.message
+        elif kind == "snapshot":
+            s = event.snapshot
+            self._snapshot(s.level, s.cluster_count, s.energy, np.array(s.labels, dtype=np.uint32),
+                           s.first_element, s.total_elements)
+        elif kind == "levels":
+            b = event.levels
+            self._levels(b.first_level, *(np.array(a, dtype=t) for a, t in (
+                (b.cluster_count, np.uint32), (b.energy, np.float64), (b.triplet_end, np.uint32),
+                (b.element, np.uint32), (b.to_cluster, np.uint32), (b.from_cluster, np.uint32),
+                (b.source_level, np.uint32))))
+        elif kind == "done":
+            self.done = event.done
+        elif kind == "failed":
+            self.failed = event.failed
+        self._report(kind)
+
+    def _report(self, kind):
+        if kind in ("snapshot", "levels"):
+            self._stage = "levels"
+        if self._progress is not None and kind not in ("done", "failed"):
+            self._progress(Progress(self._stage, self._fraction, self._message,
+                                    self._num_levels, self._last_count,
+                                    self.queue_position))
+
+    def _snapshot(self, level, cluster_count, energy, labels, first_element, total_elements):
+        if self._started:
+            raise Error(grpc.StatusCode.DATA_LOSS, "a snapshot after the hierarchy had started")
+        if first_element != self._have:
+            raise Error(grpc.StatusCode.DATA_LOSS,
+                        f"snapshot piece starts at element {first_element}, expected {self._have}")
+        self._pieces.append(labels)
+        self._have += labels.size
+        if self._have > total_elements:
+            raise Error(grpc.StatusCode.DATA_LOSS, "snapshot holds more labels than its total_elements")
+        if self._have == total_elements:
+            self._started = True
+            self._counts.append(np.array([cluster_count], dtype=np.int64))
+            self._energies.append(np.array([energy], dtype=np.float64))
+            self._sources.append(np.array([level], dtype=np.int64))
+            self._ends.append(np.zeros(1, dtype=np.int64))
+            self._num_levels = 1
+            self._last_count = cluster_count
+
+    def _levels(self, first_level, cluster_count, energy, triplet_end, element, to_cluster,
+                from_cluster, source_level):
+        if not self._started:
+            raise Error(grpc.StatusCode.DATA_LOSS, "levels arrived before the snapshot")
+        n = len(cluster_count)
+        if len(energy) != n or len(triplet_end) != n:
+            raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with arrays of different lengths")
+        if first_level != self._num_levels:
+            raise Error(grpc.StatusCode.DATA_LOSS,
+                        f"levels from {first_level} arrived, expected level {self._num_levels}")
+        m = len(element)
+        if len(to_cluster) != m or len(from_cluster) != m:
+            raise Error(grpc.StatusCode.DATA_LOSS,
+                        "a level batch with triplet arrays of different lengths")
+        ends = triplet_end.astype(np.int64)
+        if n and (np.any(np.diff(ends) < 0) or ends[0] < 0 or ends[-1] > m):
+            raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with triplet_end out of order")
+        if m and int(element.max()) >= self._have:
+            raise Error(grpc.StatusCode.DATA_LOSS,
+                        f"a triplet names element {int(element.max())} of {self._have}")
+        self._element.append(element)
+        self._to.append(to_cluster)
+        self._from.append(from_cluster)
+        self._counts.append(cluster_count.astype(np.int64))
+        self._energies.append(energy.astype(np.float64))
+        self._sources.append(source_level.astype(np.int64) if len(source_level) == n
+                             else np.full(n, -1, dtype=np.int64))
+        self._ends.append(ends + self._triplets)
+        self._triplets += m
+        self._num_levels += n
+        if n:
+            self._last_count = int(cluster_count[-1])
+
+    def finish(self):
+        if self.done is None:
+            raise Error(grpc.StatusCode.DATA_LOSS, "the job ended without a done event")
+        if not self._started:
+            raise Error(grpc.StatusCode.DATA_LOSS, "the job sent no complete snapshot")
+        cat = lambda arrays: (np.concatenate(arrays) if arrays
+                              else np.empty(0, dtype=np.uint32))
+        return Hierarchy(np.concatenate(self._pieces), np.concatenate(self._counts),
+                         np.concatenate(self._energies), np.concatenate(self._sources),
+                         np.concatenate(self._ends), cat(self._element), cat(self._to),
+                         cat(self._from), done=self.done, job_id=self.job_id)
+
+
+def _option_text(value):
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return str(value)
+
+
+class Client:
+    """A connection to an mlclust server at "host:port" (plaintext).
+
+    Messages over gRPC's default 4 MiB receive limit are refused as by any default
+    client; pass max_receive_message_length=-1 to lift it. `options` are further gRPC
+    channel arguments; `credentials` (grpc.ssl_channel_credentials) makes it TLS.
+    """
+
+    def __init__(self, address: str, *, max_receive_message_length: Optional[int] = None,
+                 options=None, credentials=None):
+        channel_options = list(options or [])
+        if max_receive_message_length is not None:
+            channel_options.append(("grpc.max_receive_message_length",
+                                    max_receive_message_length))
+        if credentials is None:
+            self._channel = grpc.insecure_channel(address, options=channel_options)
+        else:
+            self._channel = grpc.secure_channel(address, credentials, options=channel_options)
+        self._stub = pb_grpc.ClusteringStub(self._channel)
+        # Run with the events left as bytes, for the assembler's numpy fast path.
+        self._run_raw = self._channel.stream_stream(
+            "/mlclust.v1.Clustering/Run", request_serializer=pb.RunRequest.SerializeToString,
+            response_deserializer=None)
+
+    def close(self):
+        self._channel.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def stats(self, timeout: float = 10.0):
+        """The server's Stats message (queue depth, job counts, GL device)."""
+        try:
+            return self._stub.GetStats(pb.GetStatsRequest(), timeout=timeout)
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
+
+    def cluster_mesh(self, vertices, faces, algo: str = "ml", energy: str = "cvd",
+                     clusters: int = 0, *, seed: int = 1, levels=None, device: str = "auto",
+                     label: str = "", progress: Optional[Callable[[Progress], None]] = None,
+                     timeout: Optional[float] = None, draco=None, batch_triplets: int = 0,
+                     chunk_bytes: int = 1 << 20, **options) -> Hierarchy:
+        """Clusters a triangle mesh; element ids are face indices (rows of `faces`).
+
+        vertices (V, 3) floats, faces (F, 3) vertex indices. algo: hc, ml, pml (every
+        level down to `clusters`, 0 = to one), emlo, bb, vsa (one level at `clusters`,
+        after the seeding level at the same count). energy: cvd, cvd-adaptive,
+        mwcvd-area, mwcvd-variance, mwcvd-max, planar, sphere. levels=(k_high, k_low)
+        sends only those levels (a snapshot at the first). progress(Progress) is called
+        on every event until the levels are complete; if it raises, the job is cancelled
+        and the exception propagates. timeout (seconds) cancels the job when it passes.
+        Algorithm and energy options by name, '-' written '_' (p_percent=10,
+        guard=False, gamma=1.5, ...).
+        draco: how the mesh is compressed for the upload: by default sequential and
+        lossless (positions bit for bit); {"method": "edgebreaker",
+        "quantization_bits": 14} is several times smaller and writes per-face ids so
+        that labels still follow `faces` (positions then arrive quantised).
+        Raises Error (with the gRPC status code) on any failure.
+        """
+        draco = dict(draco or {})
+        method = draco.pop("method", "sequential")
+        face_ids = draco.pop("face_ids", method == "edgebreaker")
+        payload, code, message = _draco.encode_mesh(
+            vertices, faces, quantization_bits=draco.pop("quantization_bits", 0),
+            speed=draco.pop("speed", 5), method=method, face_ids=face_ids)
+        if draco:
+            raise ValueError(f"unknown draco settings {sorted(draco)}")
+        if code != 0:
+            raise Error(code, f"encoding the mesh: {message}")
+        spec = self._spec(pb.INPUT_KIND_DRACO_MESH, algo, energy, clusters, seed, levels,
+                          device, label, batch_triplets, options)
+        return self._run(spec, payload, progress, timeout, chunk_bytes)
+
+    def cluster_points(self, points, algo: str = "ml", clusters: int = 0, *, seed: int = 1,
+                       levels=None, device: str = "auto", label: str = "",
+                       progress: Optional[Callable[[Progress], None]] = None,
+                       timeout: Optional[float] = None, batch_triplets: int = 0,
+                       chunk_bytes: int = 1 << 20, **options) -> Hierarchy:
+        """Clusters the rows of `points` (m x d); element ids are row indices. Energy:
+        the within-cluster sum of squares. algo: ml, pml, hc (levels from the voxel grid,
+        grid=A voxels per dimension, down to `clusters`), lnkmeans, kmeans (at
+        `clusters`). Options as for cluster_mesh (grid=8, init="kmeans++", ...)."""
+        x = np.asarray(points)
+        if x.ndim != 2:
+            raise ValueError(f"points must be a 2-d array (m x d), got shape {x.shape}")
+        payload = np.ascontiguousarray(x, dtype="<f4").tobytes()
+        spec = self._spec(pb.INPUT_KIND_POINTS_F32, algo, "variance", clusters, seed, levels,
+                          device, label, batch_triplets, options)
+        spec.point_dims = x.shape[1]
+        return self._run(spec, payload, progress, timeout, chunk_bytes)
+
+    @staticmethod
+    def _spec(kind, algo, energy, clusters, seed, levels, device, label, batch_triplets,
+              options):
+        if algo not in ALGORITHMS:
+            raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {algo!r}")
+        if energy not in ENERGIES:
+            raise ValueError(f"energy must be one of {sorted(ENERGIES)}, got {energy!r}")
+        spec = pb.JobSpec(input_kind=kind, algorithm=ALGORITHMS[algo], energy=ENERGIES[energy],
+                          clusters=int(clusters), seed=int(seed), device=device, label=label,
+                          batch_triplets=int(batch_triplets))
+        if levels is not None:
+            spec.levels_high, spec.levels_low = (int(levels[0] or 0), int(levels[1] or 0))
+        for name, value in options.items():
+            spec.options[name.replace("_", "-")] = _option_text(value)
+        return spec
+
+    def _run(self, spec, payload, progress, timeout, chunk_bytes):
+        spec.input_bytes = len(payload)
+        chunk_bytes = max(1, int(chunk_bytes))
+
+        def requests():
+            view = memoryview(payload)
+            offset = 0
+            while True:
+                request = pb.RunRequest(chunk=bytes(view[offset:offset + chunk_bytes]))
+                if offset == 0:
+                    request.spec.CopyFrom(spec)
+                yield request
+                offset += chunk_bytes
+                if offset >= len(payload):
+                    return
+
+        call = self._run_raw(requests(), timeout=timeout)
+        assembler = _Assembler(progress)
+        try:
+            for event in call:
+                assembler.add_bytes(event)
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
+        except BaseException:
+            # A broken stream, or the progress callback raised (Ctrl-C too): the job is
+            # cancelled on the server, not left running for nobody.
+            call.cancel()
+            raise
+        if assembler.failed is not None:
+            raise Error(assembler.failed.code, assembler.failed.message)
+        return assembler.finish()
