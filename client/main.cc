@@ -1,7 +1,6 @@
 // mlclust: the command-line client. See `mlclust help`.
 #include <unistd.h>
 
-#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -15,6 +14,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/serve_command.h"
 #include "core/coarsening/coarsening.h"
 #include "core/energy/energies.h"
 #include "core/io/draco_codec.h"
@@ -29,12 +29,12 @@
 namespace mlclust::cli {
 namespace {
 
-constexpr char kUsage[] = R"(mlclust — multilevel clustering of meshes and point sets
+constexpr char kUsageTitle[] = R"(mlclust — multilevel clustering of meshes and point sets
 
 usage:
-  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
-      Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
+)";
 
+constexpr char kUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo hc|emlo|bb] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
                      [--device auto|gpu|cpu] [--quiet] [algorithm options]
@@ -84,6 +84,12 @@ usage:
   mlclust stats --server ADDR
       Prints the server's queue depth, job counts and GL device.
 )";
+
+void PrintUsage(std::FILE* out) {
+  std::fputs(kUsageTitle, out);
+  std::fputs(ServeUsage(), out);
+  std::fputs(kUsage, out);
+}
 
 // --name value / --name=value options after the positional arguments.
 class Arguments {
@@ -147,41 +153,6 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   std::ostringstream bytes;
   bytes << in.rdbuf();
   return bytes.str();
-}
-
-int Serve(const Arguments& args) {
-  server::ServerOptions options;
-  options.listen_address = args.get("listen", "0.0.0.0:50051");
-  absl::StatusOr<uint64_t> queue = args.GetUint("queue", options.queue_capacity);
-  absl::StatusOr<uint64_t> max_mb = args.GetUint("max-input-mb", options.max_input_bytes >> 20);
-  if (!queue.ok()) return Fail(queue.status());
-  if (!max_mb.ok()) return Fail(max_mb.status());
-  options.queue_capacity = *queue;
-  options.max_input_bytes = *max_mb << 20;
-  const std::string gpu = args.get("gpu", "auto");
-  if (gpu == "auto")
-    options.gpu = server::GpuMode::kAuto;
-  else if (gpu == "on")
-    options.gpu = server::GpuMode::kOn;
-  else if (gpu == "off")
-    options.gpu = server::GpuMode::kOff;
-  else
-    return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
-
-  absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
-  if (!server.ok()) return Fail(server.status());
-  // Shut down cleanly on SIGINT / SIGTERM: a thread waits for the signal synchronously.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
-  int received = 0;
-  sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, shutting down\n", received);
-  (*server)->Shutdown();
-  return 0;
 }
 
 absl::Status WriteLevelsCsv(const std::string& path, const HierarchyLog& log) {
@@ -620,12 +591,12 @@ int Stats(const Arguments& args) {
 int main(int argc, char** argv) {
   using mlclust::cli::Arguments;
   if (argc < 2 || std::string(argv[1]) == "help" || std::string(argv[1]) == "--help") {
-    std::fputs(mlclust::cli::kUsage, argc < 2 ? stderr : stdout);
+    mlclust::cli::PrintUsage(argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;
   }
   const std::string command = argv[1];
+  if (command == "serve") return mlclust::cli::RunServeCommand(argc - 2, argv + 2);
   std::vector<std::string> known;
-  if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
   if (command == "mesh") {
     known = {"server",    "algo",      "energy",  "clusters", "labels",           "levels-csv",
              "ply",       "device",    "quiet",   "coarse",   "coarse-placement", "seed",
@@ -644,13 +615,12 @@ int main(int argc, char** argv) {
   }
   if (command == "stats") known = {"server"};
   if (known.empty()) {
-    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n%s", command.c_str(),
-                 mlclust::cli::kUsage);
+    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
+    mlclust::cli::PrintUsage(stderr);
     return 2;
   }
   absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, known);
   if (!args.ok()) return mlclust::cli::Fail(args.status());
-  if (command == "serve") return mlclust::cli::Serve(*args);
   if (command == "mesh") return mlclust::cli::Mesh(*args);
   if (command == "energy") return mlclust::cli::Energy(*args);
   if (command == "points") return mlclust::cli::Points(*args);
