@@ -12,6 +12,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/kmeans.h"
+#include "core/energy/variance_energy.h"
 #include "core/hierarchy/level_recorder.h"
 #include "tbb/parallel_for.h"
 #include "tbb/task_arena.h"
@@ -60,21 +61,13 @@ class PointClusters {
     return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
   }
 
+  // Eq. 6.5 and its merge cost (core/energy/variance_energy.h) from the flat sums.
   double Energy(uint32_t c) const {
-    if (count_[c] == 0) return 0;
-    double s2 = 0;
-    for (uint32_t j = 0; j < d_; ++j) s2 += sum_[size_t{c} * d_ + j] * sum_[size_t{c} * d_ + j];
-    return std::max(0.0, square_[c] - s2 / static_cast<double>(count_[c]));
+    return EnergyOfSums(static_cast<double>(count_[c]), {&sum_[size_t{c} * d_], d_}, square_[c]);
   }
   double MergeCost(uint32_t a, uint32_t b) const {
-    const double na = static_cast<double>(count_[a]), nb = static_cast<double>(count_[b]);
-    if (na == 0 || nb == 0) return 0;
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = centroid_[size_t{a} * d_ + j] - centroid_[size_t{b} * d_ + j];
-      dist += diff * diff;
-    }
-    return na * nb / (na + nb) * dist;
+    return WardMergeCost(static_cast<double>(count_[a]), centroid(a),
+                         static_cast<double>(count_[b]), centroid(b));
   }
   // |x_i - c|^2 with x_i relative to the origin.
   double Distance(size_t i, uint32_t c) const {
