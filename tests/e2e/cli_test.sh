@@ -41,7 +41,7 @@ done
 grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
 grep -q "GL" "$work/server.log" || fail "server did not log its GL renderer"
 
-"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --clusters 100 \
+"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo hc --clusters 100 \
   --labels "$work/remote.labels" --levels-csv "$work/remote.csv" --quiet > "$work/remote.out"
 cmp -s "$work/embedded.labels" "$work/remote.labels" || fail "remote labels differ from embedded"
 cmp -s "$work/embedded.csv" "$work/remote.csv" || fail "remote levels differ from embedded"
