@@ -1,7 +1,6 @@
 // mlclust: the command-line client. See `mlclust help`.
 #include <unistd.h>
 
-#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -16,6 +15,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/registry.h"
 #include "core/coarsening/coarsening.h"
@@ -34,11 +34,6 @@ namespace {
 constexpr char kUsageTitle[] = R"(mlclust — multilevel clustering of meshes and point sets
 
 usage:
-)";
-
-constexpr char kServeUsage[] =
-    R"(  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
-      Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
 )";
 
 constexpr char kMeshUsage[] = R"(
@@ -132,7 +127,7 @@ std::string RegistryUsage(InputKind input) {
 
 void PrintUsage(std::FILE* out) {
   std::fputs(kUsageTitle, out);
-  std::fputs(kServeUsage, out);
+  std::fputs(ServeUsage(), out);
   std::fputs(kMeshUsage, out);
   std::fputs(RegistryUsage(InputKind::kMesh).c_str(), out);
   std::fputs(kPointsUsage, out);
@@ -216,41 +211,6 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   std::ostringstream bytes;
   bytes << in.rdbuf();
   return bytes.str();
-}
-
-int Serve(const Arguments& args) {
-  server::ServerOptions options;
-  options.listen_address = args.get("listen", "0.0.0.0:50051");
-  absl::StatusOr<uint64_t> queue = args.GetUint("queue", options.queue_capacity);
-  absl::StatusOr<uint64_t> max_mb = args.GetUint("max-input-mb", options.max_input_bytes >> 20);
-  if (!queue.ok()) return Fail(queue.status());
-  if (!max_mb.ok()) return Fail(max_mb.status());
-  options.queue_capacity = *queue;
-  options.max_input_bytes = *max_mb << 20;
-  const std::string gpu = args.get("gpu", "auto");
-  if (gpu == "auto")
-    options.gpu = server::GpuMode::kAuto;
-  else if (gpu == "on")
-    options.gpu = server::GpuMode::kOn;
-  else if (gpu == "off")
-    options.gpu = server::GpuMode::kOff;
-  else
-    return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
-
-  absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
-  if (!server.ok()) return Fail(server.status());
-  // Shut down cleanly on SIGINT / SIGTERM: a thread waits for the signal synchronously.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
-  int received = 0;
-  sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, shutting down\n", received);
-  (*server)->Shutdown();
-  return 0;
 }
 
 absl::Status WriteLevelsCsv(const std::string& path, const HierarchyLog& log) {
@@ -705,8 +665,8 @@ int main(int argc, char** argv) {
     return argc < 2 ? 2 : 0;
   }
   const std::string command = argv[1];
+  if (command == "serve") return mlclust::cli::RunServeCommand(argc - 2, argv + 2);
   std::vector<std::string> known;
-  if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
   using mlclust::InputKind;
   using mlclust::cli::RegistryOptionNames;
   auto with = [](std::vector<std::string> names, const std::vector<std::string>& more) {
@@ -737,7 +697,6 @@ int main(int argc, char** argv) {
   }
   absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, known);
   if (!args.ok()) return mlclust::cli::Fail(args.status());
-  if (command == "serve") return mlclust::cli::Serve(*args);
   if (command == "mesh") return mlclust::cli::Mesh(*args);
   if (command == "energy") return mlclust::cli::Energy(*args);
   if (command == "points") return mlclust::cli::Points(*args);
