@@ -184,12 +184,19 @@ class Arguments {
     auto it = values_.find(name);
     return it == values_.end() ? fallback : it->second;
   }
-  absl::StatusOr<uint64_t> GetUint(const std::string& name, uint64_t fallback) const {
+  // A non-negative integer up to `max` (a count that travels as uint32 on the wire is
+  // refused above 2^32 - 1, never truncated).
+  absl::StatusOr<uint64_t> GetUint(const std::string& name, uint64_t fallback,
+                                   uint64_t max = UINT64_MAX) const {
     if (!has(name)) return fallback;
     uint64_t value;
     if (!absl::SimpleAtoi(get(name), &value)) {
       return absl::InvalidArgumentError(
           absl::StrCat("--", name, ": '", get(name), "' is not a non-negative integer"));
+    }
+    if (value > max) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--", name, ": ", value, " is over the largest accepted, ", max));
     }
     return value;
   }
@@ -396,7 +403,7 @@ int Mesh(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
   }
   const std::string& input_path = args.positional()[0];
-  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
   if (!clusters.ok()) return Fail(clusters.status());
   if ((args.has("labels") || args.has("ply")) && *clusters == 0) {
     return Fail(absl::InvalidArgumentError("--labels and --ply need --clusters K (K >= 1)"));
@@ -434,6 +441,10 @@ int Mesh(const Arguments& args) {
   // a .drc file is sent as it is.
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(input_path);
   if (!mesh.ok()) return Fail(mesh.status());
+  if (*clusters > mesh->num_faces()) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
   absl::StatusOr<std::string> payload = absl::EndsWithIgnoreCase(input_path, ".drc")
                                             ? ReadFileBytes(input_path)
                                             : EncodeMeshToDraco(*mesh);
@@ -493,7 +504,7 @@ int Points(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("points: give exactly one INPUT file"));
   }
   const std::string& input_path = args.positional()[0];
-  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
   absl::StatusOr<uint64_t> dims = args.GetUint("dims", 0);
   absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
   for (const auto* value : {&clusters, &dims, &seed}) {
@@ -528,6 +539,10 @@ int Points(const Arguments& args) {
   read.dims = static_cast<uint32_t>(*dims);
   absl::StatusOr<PointSet> points = ReadPointsFile(input_path, read);
   if (!points.ok()) return Fail(points.status());
+  if (*clusters > points->num_points()) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--clusters: ", *clusters, " is more than the ", points->num_points(), " points")));
+  }
 
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
