@@ -6,6 +6,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/detail/ode_heap.h"
@@ -39,17 +40,10 @@ class Engine {
         neighbours_(n_),
         odes_(n_),
         dirty_mark_(n_, 0),
-        recorder_(n_, n_) {
-    for (uint32_t f = 0; f < n_; ++f) {
-      members_[f] = {f};
-      for (FaceId g : adjacency_.neighbours[f]) {
-        // Each face edge is seen from both faces: one side each time.
-        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
-      }
-    }
-  }
+        recorder_(n_, n_) {}
 
   absl::StatusOr<MultilevelSummary> Run() {
+    MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
     MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
@@ -69,6 +63,7 @@ class Engine {
       arena.execute([&] { ComputeAllOdes(); });
       odes_current = true;
       while (clusters_ > options_.min_clusters && clusters_ > options_.pml_until) {
+        MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
         absl::StatusOr<bool> progressed = arena.execute([&] { return ParallelStep(); });
         if (!progressed.ok()) return progressed.status();
         if (!*progressed) break;
@@ -77,9 +72,10 @@ class Engine {
     if (odes_current) {
       RebuildHeap();  // from the ODEs PML kept up to date
     } else {
-      BuildHeap();
+      MLCLUST_RETURN_IF_ERROR(BuildHeap());
     }
     while (clusters_ > options_.min_clusters) {
+      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
       absl::StatusOr<bool> progressed = SequentialStep();
       if (!progressed.ok()) return progressed.status();
       if (!*progressed) break;  // no adjacent pair left: one cluster per component
@@ -97,6 +93,24 @@ class Engine {
   }
 
   // ---- cluster adjacency: per cluster, (neighbour, number of shared face edges) --------
+
+  // One cluster per face: the clusters' adjacency is the faces'.
+  absl::Status BuildClusterAdjacency() {
+    for (uint32_t f = 0; f < n_; ++f) {
+      if (f % 65536 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+      members_[f] = {f};
+      for (FaceId g : adjacency_.neighbours[f]) {
+        // Each face edge is seen from both faces: one side each time.
+        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status CheckLevelCancelled() const {
+    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
+    return CheckCancelled(options_.cancel, absl::StrCat("level ", summary_.levels));
+  }
 
   void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta) {
     auto& list = neighbours_[x];
@@ -337,10 +351,14 @@ class Engine {
     }
   }
 
-  void BuildHeap() {
+  absl::Status BuildHeap() {
     for (uint32_t c = 0; c < n_; ++c) {
+      if (c % 65536 == 0) {
+        MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the first optimal dual edges"));
+      }
       if (partition_.size(c) > 0) RecomputeOde(c);
     }
+    return absl::OkStatus();
   }
   void RebuildHeap() {
     odes_.Rebuild([&](uint32_t c) { return Alive(c); });
@@ -402,6 +420,8 @@ class Engine {
       in_parallel_phase_ = false;
       return false;
     }
+    detail::SelectPmlPairs(
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_);
     // Do not merge past min_clusters / pml_until: the cheapest pairs first.
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (clusters_ - pairs_.size() < floor) {

@@ -8,6 +8,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ode_heap.h"
@@ -198,11 +199,13 @@ class PointClusters {
 };
 
 // First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
-// (O(k^2 d); voxel starts use VoxelNeighbours instead).
-void InitialNeighbours(PointClusters& clusters) {
+// (O(k^2 d); voxel starts use VoxelNeighbours instead). Once `cancel` is set the blocks
+// not yet started are skipped (the caller checks it).
+void InitialNeighbours(PointClusters& clusters, const std::atomic<bool>* cancel) {
   const uint32_t k = clusters.capacity();
   const uint32_t d = clusters.dims();
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
+    if (IsCancelled(cancel)) return;
     std::vector<double> best_local(2 * d);
     for (uint32_t c = range.begin(); c != range.end(); ++c) {
       std::span<uint32_t> out = clusters.neighbours(c);
@@ -359,8 +362,10 @@ Bounds BoundsOf(const PointSet& points) {
 }
 
 // The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j.
+// Once `cancel` is set it stops early with no cells (the caller checks it).
 VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
-                         std::span<const uint32_t> cells_per_axis) {
+                         std::span<const uint32_t> cells_per_axis,
+                         const std::atomic<bool>* cancel) {
   const uint32_t d = points.dims;
   const size_t m = points.num_points();
   absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
@@ -368,6 +373,7 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
   cells.labels.resize(m);
   std::vector<uint32_t> cell(d);
   for (size_t i = 0; i < m; ++i) {
+    if (i % 65536 == 0 && IsCancelled(cancel)) return VoxelCells();
     for (uint32_t j = 0; j < d; ++j) {
       const uint32_t a = cells_per_axis[j];
       const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
@@ -387,7 +393,9 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
 // dimensions, where a few cells per axis would already make far more cells than points (or,
 // at a = 2 or 3, cells too coarse to be a start), the widest cells are halved, a few axes at
 // a time, until about m / 8 cells are occupied (each pass counts them in one sweep).
-std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid) {
+// Once `cancel` is set it stops early (the caller checks it).
+std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid,
+                                 const std::atomic<bool>* cancel) {
   const uint32_t d = points.dims;
   const size_t m = points.num_points();
   if (grid != 0) return std::vector<uint32_t>(d, grid);
@@ -398,8 +406,9 @@ std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, u
   }
   std::vector<uint32_t> counts(d, 1);
   for (int pass = 0; pass < 64; ++pass) {
-    const double occupied = static_cast<double>(OccupiedCells(points, bounds, counts).cell.size());
-    if (occupied >= target) break;
+    const double occupied =
+        static_cast<double>(OccupiedCells(points, bounds, counts, cancel).cell.size());
+    if (IsCancelled(cancel) || occupied >= target) break;
     // Halve the widest cells on enough axes to multiply the cells by target / occupied.
     const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / occupied))));
     bool any = false;
@@ -423,8 +432,10 @@ std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, u
 }
 
 // First neighbours of a voxel start: the face-sharing occupied cells, then the refresh
-// picks the nearest per subspace from them and their neighbours.
-void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
+// picks the nearest per subspace from them and their neighbours. Once `cancel` is set it
+// stops early (the caller checks it).
+void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters,
+                     const std::atomic<bool>* cancel) {
   const uint32_t k = static_cast<uint32_t>(cells.cell.size());
   const uint32_t d = clusters.dims();
   absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
@@ -447,13 +458,21 @@ void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
     }
   }
   std::vector<uint32_t> candidates;
-  for (uint32_t c = 0; c < k; ++c) clusters.RefreshNeighbours(c, candidates);
+  for (uint32_t c = 0; c < k; ++c) {
+    if (c % 4096 == 0 && IsCancelled(cancel)) return;
+    clusters.RefreshNeighbours(c, candidates);
+  }
+}
+
+absl::Status CheckLnKmeansCancelled(const std::atomic<bool>* cancel, uint32_t iteration) {
+  if (!IsCancelled(cancel)) return absl::OkStatus();
+  return CheckCancelled(cancel, absl::StrCat("LN k-means iteration ", iteration));
 }
 
 // Alg. 6.1's iterations on clusters whose neighbours are set; fills result's energies,
-// iterations, moves and converged (not labels).
-void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
-                        LnKmeansResult& result) {
+// iterations, moves and converged (not labels). CANCELLED once options.cancel is set.
+absl::Status LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
+                                LnKmeansResult& result) {
   const size_t m = clusters.labels().size();
   const uint32_t k = clusters.capacity();
   result.initial_energy = clusters.TotalEnergy();
@@ -464,8 +483,10 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
   std::iota(check.begin(), check.end(), 0);
   std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     target.resize(check.size());
     ChooseTargets(clusters, check, target);
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     uint64_t moved = 0;
     const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
     result.iterations = iteration;
@@ -476,6 +497,7 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
       break;
     }
     const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     std::fill(dirty.begin(), dirty.end(), 0);
     for (uint32_t c : changed) dirty[c] = 1;
     for (uint32_t c : refreshed) dirty[c] = 1;
@@ -496,16 +518,18 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
     }
   }
   result.energy = clusters.TotalEnergy();
+  return absl::OkStatus();
 }
 
 // The multilevel engine for points: the mesh engine's structure with local neighbours in
 // place of face adjacency and LN k-means in place of EMLO.
 class PointEngine {
  public:
+  // `cells`: the voxel start (OccupiedCells), complete. The set-up stops early once
+  // options.cancel is set; Run then returns CANCELLED.
   PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
-              const Bounds& bounds, std::span<const uint32_t> cells_per_axis)
+              const VoxelCells& cells)
       : points_(points), options_(options), sink_(sink), d_(points.dims) {
-    VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis);
     k0_ = static_cast<uint32_t>(cells.cell.size());
     // The engine works on a copy of the points ordered by starting cell, so that a
     // cluster's points lie together in memory (clusters grow by merging, so they stay in a
@@ -533,14 +557,14 @@ class PointEngine {
       position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
       members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
     }
-    VoxelNeighbours(cells, *clusters_);
+    VoxelNeighbours(cells, *clusters_, options.cancel);
     reverse_.resize(k0_);
     for (uint32_t c = 0; c < k0_; ++c) {
       for (uint32_t n : clusters_->neighbours(c)) {
         if (n != kNone) reverse_[n].push_back(c);
       }
     }
-    for (uint32_t c = 0; c < k0_; ++c) {
+    for (uint32_t c = 0; c < k0_ && !IsCancelled(options.cancel); ++c) {
       std::span<const uint32_t> out = clusters_->neighbours(c);
       if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
         LinkIsolated(c);
@@ -558,6 +582,7 @@ class PointEngine {
   }
 
   absl::StatusOr<PointMultilevelSummary> Run() {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the voxel start"));
     PointMultilevelSummary summary;
     summary.start_clusters = k0_;
     std::vector<ClusterId> start(points_.num_points());
@@ -569,6 +594,7 @@ class PointEngine {
     levels_ = 1;
     for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
     while (alive_ > options_.min_clusters) {
+      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
       bool merged;
       if (options_.parallel && alive_ > options_.pml_until) {
         merged = ParallelStep();
@@ -583,6 +609,7 @@ class PointEngine {
       }
       MLCLUST_RETURN_IF_ERROR(FinishLevel());
     }
+    MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());  // ConnectSurvivors may have stopped
     summary.levels = levels_;
     summary.final_clusters = alive_;
     summary.moves = recorder_.moves();
@@ -729,7 +756,8 @@ class PointEngine {
     std::vector<double> old_centroids;
     // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
     std::vector<std::pair<uint32_t, uint32_t>> compare_with;
-    for (int round = 0; round < kOptimiseRounds && !region.empty(); ++round) {
+    for (int round = 0; round < kOptimiseRounds && !region.empty() && !IsCancelled(options_.cancel);
+         ++round) {
       points_to_check_.clear();
       for (uint32_t c : region) {
         if (round == 0) {
@@ -931,6 +959,11 @@ class PointEngine {
     return absl::OkStatus();
   }
 
+  absl::Status CheckLevelCancelled() const {
+    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
+    return CheckCancelled(options_.cancel, absl::StrCat("level ", levels_));
+  }
+
   // The labels of the level, in the caller's point order, to options_.inspect_level.
   void Inspect(size_t level) {
     if (!options_.inspect_level) return;
@@ -969,15 +1002,8 @@ class PointEngine {
       return odes_.cost(x.first) != odes_.cost(y.first) ? odes_.cost(x.first) < odes_.cost(y.first)
                                                         : x < y;
     });
-    if (options_.pml_pairs == PointMultilevelOptions::PmlPairs::kCheaperHalf) {
-      // Only the mutual pairs that cost at most the median: near the data's own scale the
-      // mutual pairs mix pieces of one cluster (cheap) with whole clusters (dear), and
-      // collapsing them all in one level merges whole clusters while pieces remain.
-      const double limit = odes_.cost(pairs[pairs.size() / 2].first);
-      size_t keep = 1;
-      while (keep < pairs.size() && odes_.cost(pairs[keep].first) <= limit) ++keep;
-      pairs.resize(keep);
-    }
+    detail::SelectPmlPairs(
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs);
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
     for (const auto& [a, b] : pairs) Merge(a, b);
@@ -994,6 +1020,7 @@ class PointEngine {
     }
     if (survivors.size() <= 1 || survivors.size() > 20000) return false;
     for (uint32_t c : survivors) {
+      if (IsCancelled(options_.cancel)) return false;
       std::vector<uint32_t> candidates = survivors;
       Refresh(c, candidates);
     }
@@ -1045,14 +1072,17 @@ uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to)
   return 2 * axis + (to[axis] > from[axis] ? 0 : 1);
 }
 
-absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid) {
+absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid,
+                                          const std::atomic<bool>* cancel) {
   MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
   if (grid > (1u << 20)) {
     return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
   }
   // The engine's own start (OccupiedCells), without the cell coordinates.
   const Bounds bounds = BoundsOf(points);
-  VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+  VoxelCells cells =
+      OccupiedCells(points, bounds, StartCells(points, bounds, grid, cancel), cancel);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "the voxel start"));
   VoxelStart start;
   start.clusters = static_cast<uint32_t>(cells.cell.size());
   start.labels.resize(cells.labels.size());
@@ -1081,13 +1111,15 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
   const uint32_t k = static_cast<uint32_t>(original.size());
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   LnKmeansResult result;
-  arena.execute([&] {
+  MLCLUST_RETURN_IF_ERROR(arena.execute([&]() -> absl::Status {
     PointClusters clusters(points, compact, k);
-    InitialNeighbours(clusters);
-    LnKmeansIterations(clusters, options, result);
+    InitialNeighbours(clusters, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "LN k-means neighbours"));
+    MLCLUST_RETURN_IF_ERROR(LnKmeansIterations(clusters, options, result));
     result.labels.resize(m);
     for (size_t i = 0; i < m; ++i) result.labels[i] = original[clusters.label(i)];
-  });
+    return absl::OkStatus();
+  }));
   return result;
 }
 
@@ -1099,18 +1131,22 @@ absl::StatusOr<LnKmeansResult> RunLnKmeansFromGrid(const PointSet& points, uint3
   }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   LnKmeansResult result;
-  arena.execute([&] {
+  MLCLUST_RETURN_IF_ERROR(arena.execute([&]() -> absl::Status {
     const Bounds bounds = BoundsOf(points);
-    const VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+    const VoxelCells cells = OccupiedCells(
+        points, bounds, StartCells(points, bounds, grid, options.cancel), options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
     const uint32_t k = static_cast<uint32_t>(cells.cell.size());
     PointClusters clusters(points, cells.labels, k);
-    VoxelNeighbours(cells, clusters);
-    LnKmeansIterations(clusters, options, result);
+    VoxelNeighbours(cells, clusters, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
+    MLCLUST_RETURN_IF_ERROR(LnKmeansIterations(clusters, options, result));
     result.labels.resize(points.num_points());
     for (size_t i = 0; i < result.labels.size(); ++i) {
       result.labels[i] = ClusterId(clusters.label(i));
     }
-  });
+    return absl::OkStatus();
+  }));
   return result;
 }
 
@@ -1178,8 +1214,11 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
     const Bounds bounds = BoundsOf(points);
-    const std::vector<uint32_t> cells_per_axis = StartCells(points, bounds, options.grid);
-    PointEngine engine(points, options, sink, bounds, cells_per_axis);
+    const std::vector<uint32_t> cells_per_axis =
+        StartCells(points, bounds, options.grid, options.cancel);
+    const VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
+    PointEngine engine(points, options, sink, cells);
     absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
     if (summary.ok()) {
       summary->grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());

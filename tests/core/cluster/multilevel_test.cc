@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <map>
 #include <set>
 
@@ -301,6 +302,45 @@ TEST(FindElbowsTest, FindsTheJumpAndIgnoresNoise) {
   const std::vector<double> energy = {0, 1e-9, 2e-9, 0.001, 0.5, 0.7, 0.9, 1.0};
   EXPECT_THAT(FindElbows(counts, energy), ::testing::ElementsAre(5u));
   EXPECT_TRUE(FindElbows(counts, std::vector<double>(8, 0.0)).empty());
+}
+
+// A sink that sets `cancel` once it has seen `after` levels after the start.
+class CancelAfter : public HierarchyLog {
+ public:
+  CancelAfter(std::atomic<bool>& cancel, uint32_t after) : cancel_(cancel), after_(after) {}
+  absl::Status OnLevel(const LevelMoves& level) override {
+    if (++seen_ == after_) cancel_ = true;
+    return HierarchyLog::OnLevel(level);
+  }
+
+ private:
+  std::atomic<bool>& cancel_;
+  uint32_t after_, seen_ = 0;
+};
+
+TEST(MultilevelCancelTest, ASetFlagReturnsCancelledBeforeTheStart) {
+  std::atomic<bool> cancel{true};
+  MultilevelOptions options;
+  options.cancel = &cancel;
+  HierarchyLog log;
+  EXPECT_EQ(RunMultilevel(File("fandisk.off").problem(), options, log).status().code(),
+            absl::StatusCode::kCancelled);
+  EXPECT_EQ(log.num_levels(), 0u);
+}
+
+// ML, HC and PML stop at the first level after the flag is set.
+TEST(MultilevelCancelTest, AFlagSetDuringTheRunStopsItAtTheNextLevel) {
+  for (int variant = 0; variant < 3; ++variant) {
+    std::atomic<bool> cancel{false};
+    MultilevelOptions options = variant == 1 ? Hc() : MultilevelOptions();
+    options.parallel = variant == 2;
+    options.cancel = &cancel;
+    CancelAfter log(cancel, 7);
+    EXPECT_EQ(RunMultilevel(File("elephant.off").problem(), options, log).status().code(),
+              absl::StatusCode::kCancelled)
+        << variant;
+    EXPECT_EQ(log.num_levels(), 8u) << variant;
+  }
 }
 
 }  // namespace
