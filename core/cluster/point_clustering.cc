@@ -11,6 +11,7 @@
 #include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/kmeans.h"
 #include "core/energy/variance_energy.h"
@@ -19,215 +20,10 @@
 #include "tbb/task_arena.h"
 
 namespace mlclust {
+namespace detail {
 namespace {
-
-constexpr uint32_t kNone = detail::kNoCluster;
-// LN k-means rounds after a merge (the first checks the merged clusters and their
-// neighbours, the others the clusters that changed).
-constexpr int kOptimiseRounds = 8;
-
-// Clusters of points with their sums, centroids and local neighbours. Coordinates are
-// taken relative to the data's mean (`origin`) so that the energy from sums,
-// sum |x|^2 - |sum x|^2 / n, keeps its precision.
-class PointClusters {
- public:
-  PointClusters(const PointSet& points, std::span<const uint32_t> labels, uint32_t capacity)
-      : points_(points),
-        d_(points.dims),
-        labels_(labels.begin(), labels.end()),
-        count_(capacity, 0),
-        sum_(size_t{capacity} * d_, 0.0),
-        square_(capacity, 0.0),
-        centroid_(size_t{capacity} * d_, 0.0),
-        neighbours_(size_t{capacity} * 2 * d_, kNone),
-        origin_(d_, 0.0),
-        seen_(capacity, 0) {
-    const size_t m = points.num_points();
-    for (size_t i = 0; i < m; ++i) {
-      for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
-    }
-    for (double& o : origin_) o /= static_cast<double>(std::max<size_t>(m, 1));
-    for (size_t i = 0; i < m; ++i) Add(labels_[i], i, +1);
-    for (uint32_t c = 0; c < capacity; ++c) UpdateCentroid(c);
-  }
-
-  uint32_t dims() const { return d_; }
-  uint32_t capacity() const { return static_cast<uint32_t>(count_.size()); }
-  uint32_t label(size_t i) const { return labels_[i]; }
-  std::span<const uint32_t> labels() const { return labels_; }
-  uint64_t count(uint32_t c) const { return count_[c]; }
-  std::span<const double> centroid(uint32_t c) const { return {&centroid_[size_t{c} * d_], d_}; }
-  std::span<uint32_t> neighbours(uint32_t c) { return {&neighbours_[size_t{c} * 2 * d_], 2 * d_}; }
-  std::span<const uint32_t> neighbours(uint32_t c) const {
-    return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
-  }
-
-  // Eq. 6.5 and its merge cost (core/energy/variance_energy.h) from the flat sums.
-  double Energy(uint32_t c) const {
-    return EnergyOfSums(static_cast<double>(count_[c]), {&sum_[size_t{c} * d_], d_}, square_[c]);
-  }
-  double MergeCost(uint32_t a, uint32_t b) const {
-    return WardMergeCost(static_cast<double>(count_[a]), centroid(a),
-                         static_cast<double>(count_[b]), centroid(b));
-  }
-  // |x_i - c|^2 with x_i relative to the origin.
-  double Distance(size_t i, uint32_t c) const {
-    const float* x = &points_.values[i * d_];
-    const double* cc = &centroid_[size_t{c} * d_];
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = (x[j] - origin_[j]) - cc[j];
-      dist += diff * diff;
-    }
-    return dist;
-  }
-  // |x - c|^2 for x already relative to the origin (Relative).
-  double DistanceTo(const double* x, uint32_t c) const {
-    const double* cc = &centroid_[size_t{c} * d_];
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = x[j] - cc[j];
-      dist += diff * diff;
-    }
-    return dist;
-  }
-  // Asks the caches for point i's coordinates and label, which are read in random order.
-  void Prefetch(size_t i) const {
-    __builtin_prefetch(&points_.values[i * d_]);
-    __builtin_prefetch(&labels_[i]);
-  }
-  void Relative(size_t i, std::vector<double>& out) const {
-    out.resize(d_);
-    for (uint32_t j = 0; j < d_; ++j) out[j] = points_.values[i * d_ + j] - origin_[j];
-  }
-
-  void Move(size_t i, uint32_t to) {
-    Add(labels_[i], i, -1);
-    labels_[i] = to;
-    Add(to, i, +1);
-  }
-  // All of `gone`'s sums into `keep` (labels are the caller's, via SetLabel).
-  void MergeSums(uint32_t keep, uint32_t gone) {
-    count_[keep] += count_[gone];
-    square_[keep] += square_[gone];
-    for (uint32_t j = 0; j < d_; ++j) sum_[size_t{keep} * d_ + j] += sum_[size_t{gone} * d_ + j];
-    count_[gone] = 0;
-    square_[gone] = 0;
-    std::fill(&sum_[size_t{gone} * d_], &sum_[size_t{gone} * d_] + d_, 0.0);
-    UpdateCentroid(keep);
-  }
-  void SetLabel(size_t i, uint32_t c) { labels_[i] = c; }
-  void UpdateCentroid(uint32_t c) {
-    const double n = static_cast<double>(count_[c]);
-    for (uint32_t j = 0; j < d_; ++j) {
-      centroid_[size_t{c} * d_ + j] = n > 0 ? sum_[size_t{c} * d_ + j] / n : 0.0;
-    }
-  }
-
-  // Eq. 6.1 neighbours of `c` from `candidates` (its own and the second-order ones, or
-  // any others the caller adds): the nearest candidate centroid in each subspace.
-  void RefreshNeighbours(uint32_t c, std::vector<uint32_t>& candidates) {
-    std::span<uint32_t> out = neighbours(c);
-    for (uint32_t n : out) {
-      if (n == kNone) continue;
-      candidates.push_back(n);
-      for (uint32_t nn : neighbours(n)) {
-        if (nn != kNone) candidates.push_back(nn);
-      }
-    }
-    // Each candidate once (a stamp per cluster instead of sorting: with 2d neighbours
-    // each, there are up to 4d^2 of them, mostly repeats).
-    if (++stamp_now_ == 0) {
-      std::fill(seen_.begin(), seen_.end(), 0);
-      stamp_now_ = 1;
-    }
-    size_t unique = 0;
-    for (uint32_t n : candidates) {
-      if (n == kNone || seen_[n] == stamp_now_) continue;
-      seen_[n] = stamp_now_;
-      candidates[unique++] = n;
-    }
-    candidates.resize(unique);
-    std::fill(out.begin(), out.end(), kNone);
-    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
-    for (uint32_t n : candidates) {
-      if (n == c || n == kNone || count_[n] == 0) continue;
-      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
-      double dist = 0;
-      for (uint32_t j = 0; j < d_; ++j) {
-        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
-        dist += diff * diff;
-      }
-      if (dist < best[s] || (dist == best[s] && n < out[s])) {
-        best[s] = dist;
-        out[s] = n;
-      }
-    }
-    candidates.clear();
-  }
-
-  double TotalEnergy() const {
-    double total = 0;
-    for (uint32_t c = 0; c < capacity(); ++c) total += Energy(c);
-    return total;
-  }
-
- private:
-  void Add(uint32_t c, size_t i, int sign) {
-    const float* x = &points_.values[i * d_];
-    double s2 = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double v = x[j] - origin_[j];
-      sum_[size_t{c} * d_ + j] += sign * v;
-      s2 += v * v;
-    }
-    square_[c] += sign * s2;
-    count_[c] += sign;
-  }
-
-  const PointSet& points_;
-  const uint32_t d_;
-  std::vector<uint32_t> labels_;
-  std::vector<uint64_t> count_;
-  std::vector<double> sum_;
-  std::vector<double> square_;
-  std::vector<double> centroid_;
-  std::vector<uint32_t> neighbours_;
-  std::vector<double> origin_;
-  std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
-  uint32_t stamp_now_ = 0;
-};
-
-// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
-// (O(k^2 d); voxel starts use VoxelNeighbours instead). Once `cancel` is set the blocks
-// not yet started are skipped (the caller checks it).
-void InitialNeighbours(PointClusters& clusters, const std::atomic<bool>* cancel) {
-  const uint32_t k = clusters.capacity();
-  const uint32_t d = clusters.dims();
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
-    if (IsCancelled(cancel)) return;
-    std::vector<double> best_local(2 * d);
-    for (uint32_t c = range.begin(); c != range.end(); ++c) {
-      std::span<uint32_t> out = clusters.neighbours(c);
-      std::fill(out.begin(), out.end(), kNone);
-      if (clusters.count(c) == 0) continue;
-      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
-      for (uint32_t n = 0; n < k; ++n) {
-        if (n == c || clusters.count(n) == 0) continue;
-        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
-        double dist = 0;
-        for (uint32_t j = 0; j < d; ++j) {
-          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
-          dist += diff * diff;
-        }
-        if (dist < best_local[s]) {
-          best_local[s] = dist;
-          out[s] = n;
-        }
-      }
-    }
-  });
-}
+constexpr uint32_t kNone = kNoCluster;
+}  // namespace
 
 // One LN k-means pass over `points_to_check` (indices): each point's best cluster among
 // its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
@@ -236,7 +32,7 @@ void InitialNeighbours(PointClusters& clusters, const std::atomic<bool>* cancel)
 // minus the distance to its own centroid (so it stays while its own centroid and the
 // candidates move by less than that in all); -infinity for a point that moves.
 void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
-                   std::span<uint32_t> target, std::span<double> margin = {}) {
+                   std::span<uint32_t> target, std::span<double> margin) {
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
         std::vector<double> x;
@@ -336,6 +132,51 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
     if (clusters.count(c) > 0) clusters.RefreshNeighbours(c, candidates);
   }
   return affected;
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::ApplyMoves;
+using detail::ChooseTargets;
+using detail::PointClusters;
+using detail::RefreshAround;
+
+constexpr uint32_t kNone = detail::kNoCluster;
+// LN k-means rounds after a merge (the first checks the merged clusters and their
+// neighbours, the others the clusters that changed).
+constexpr int kOptimiseRounds = 8;
+
+// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
+// (O(k^2 d); voxel starts use VoxelNeighbours instead). Once `cancel` is set the blocks
+// not yet started are skipped (the caller checks it).
+void InitialNeighbours(PointClusters& clusters, const std::atomic<bool>* cancel) {
+  const uint32_t k = clusters.capacity();
+  const uint32_t d = clusters.dims();
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
+    if (IsCancelled(cancel)) return;
+    std::vector<double> best_local(2 * d);
+    for (uint32_t c = range.begin(); c != range.end(); ++c) {
+      std::span<uint32_t> out = clusters.neighbours(c);
+      std::fill(out.begin(), out.end(), kNone);
+      if (clusters.count(c) == 0) continue;
+      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
+      for (uint32_t n = 0; n < k; ++n) {
+        if (n == c || clusters.count(n) == 0) continue;
+        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
+        double dist = 0;
+        for (uint32_t j = 0; j < d; ++j) {
+          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
+          dist += diff * diff;
+        }
+        if (dist < best_local[s]) {
+          best_local[s] = dist;
+          out[s] = n;
+        }
+      }
+    }
+  });
 }
 
 // Occupied voxel cells: per point its cell's cluster, per cluster its cell coordinates.
