@@ -30,9 +30,16 @@ struct MultilevelOptions {
     kNone,           // HC: merges only
   };
   Optimizer optimizer = Optimizer::kEmlo;
-  // Alg. 4.2: merge this percentage of the clusters first without optimisation (HC), then
-  // continue as ML. 0 (the default) is plain ML; 100 is HC.
+  // Alg. 4.2: merge this percentage of the clusters first without optimisation, then
+  // continue as ML. 0 (the default) is plain ML. How the first p% merge:
+  //   kSweep (Alg. 4.2, l. 1868, the default): in one level, sweeps over the clusters in id
+  //     order, each collapsing its optimal dual edge unless the other cluster already took
+  //     part in a merge of this sweep, until p% of the clusters have merged;
+  //   kHcFirst (ours, the former rule): one level per merge, cheapest first, as HC; p = 100
+  //     is HC.
+  enum class PPercentRule { kSweep, kHcFirst };
   double p_percent = 0;
+  PPercentRule p_percent_rule = PPercentRule::kSweep;
   // PML (Alg. 5.3): collapse all mutual optimal dual edges at once per level (ties to the
   // larger id) while more than `pml_until` clusters are left, then continue as ML. 0: PML
   // to the end.
