@@ -90,8 +90,8 @@ OptionInfo MeshOptimizerOption() {
 
 OptionInfo PPercentOption() {
   return Number("p-percent", 0, 100, "0",
-                "merge this % of the clusters first without optimising, then ML (the p% "
-                "variant of section 4.5; 0 = plain ML)",
+                "merge this % of the clusters first without optimising (ours: as HC; Alg. "
+                "4.2's one sequential sweep is not implemented), then ML (0 = plain ML)",
                 [](const OptionValue& v, JobPlan& plan) { plan.multilevel.p_percent = v.number; });
 }
 
@@ -501,7 +501,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
 
   // Points.
   const std::vector<std::string> point_energies = {"variance"};
-  auto point_threads = ThreadsOption("worker", SetPointThreads);
+  auto point_threads = ThreadsOption("the", SetPointThreads);
   {
     AlgorithmInfo a;
     a.name = "hc";
