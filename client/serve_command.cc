@@ -19,12 +19,18 @@ namespace {
 
 constexpr char kServeUsage[] =
     R"(  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
+                [--result-job-mb N] [--result-total-mb N]
       Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
+      --result-job-mb N    events a job's client may leave unread (memory; default 256)
+                           before it is cut off with RESOURCE_EXHAUSTED and the job
+                           cancelled: producing levels never waits on a reader
+      --result-total-mb N  the same over all jobs (default 1024)
 )";
 
 // --name value / --name=value; every name must be one `serve` knows.
 absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** argv) {
-  static const char* const kKnown[] = {"listen", "queue", "max-input-mb", "gpu"};
+  static const char* const kKnown[] = {"listen", "queue",         "max-input-mb",
+                                       "gpu",    "result-job-mb", "result-total-mb"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -84,6 +90,14 @@ int RunServeCommand(int argc, char** argv) {
   if (!max_mb.ok()) return Fail(max_mb.status());
   options.queue_capacity = *queue;
   options.max_input_bytes = *max_mb << 20;
+  absl::StatusOr<uint64_t> result_job_mb =
+      GetUint(*flags, "result-job-mb", options.result_job_budget_bytes >> 20);
+  absl::StatusOr<uint64_t> result_total_mb =
+      GetUint(*flags, "result-total-mb", options.result_server_budget_bytes >> 20);
+  if (!result_job_mb.ok()) return Fail(result_job_mb.status());
+  if (!result_total_mb.ok()) return Fail(result_total_mb.status());
+  options.result_job_budget_bytes = *result_job_mb << 20;
+  options.result_server_budget_bytes = *result_total_mb << 20;
   auto gpu_flag = flags->find("gpu");
   const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
   if (gpu == "auto")
