@@ -125,7 +125,9 @@ class KeepingChannel : public EventChannel {
   }
   void Finish(v1::JobEvent, const grpc::Status&) override {}
   bool cancelled() const override { return false; }
+  const std::atomic<bool>* cancel_flag() const override { return &cancel; }
   std::vector<v1::JobEvent> events;
+  std::atomic<bool> cancel{false};
 };
 
 struct Outcome {
