@@ -146,9 +146,11 @@ std::string RegistryUsage(InputKind input) {
   }
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(&out, "    ", algorithm.name,
-                    " (energies: ", absl::StrJoin(algorithm.energies, ", "), ")",
-                    algorithm.options.empty() ? ": no options of its own" : " options:", "\n");
+    absl::StrAppend(
+        &out,
+        Wrap(absl::StrCat(algorithm.name, " (energies: ", absl::StrJoin(algorithm.energies, ", "),
+                          ")", algorithm.options.empty() ? ": no options of its own" : " options:"),
+             4));
     for (const OptionInfo& option : algorithm.options) AppendOption(out, option);
   }
   if (input == InputKind::kMesh) {
