@@ -163,6 +163,9 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   bool have_spec_ = false;
   std::string input_;
   uint64_t upload_reserved_ = 0;  // bytes of input_ counted in the upload budget
+  // Uploads this big that never became a job are trimmed back to the system at the end.
+  static constexpr size_t kTrimAfterBytes = size_t{16} << 20;
+  bool held_big_upload_ = false;
   std::weak_ptr<Job> job_;
 };
 
@@ -333,7 +336,11 @@ void RunCall::OnDone() {
   channel_->Detach();
   ReleaseUpload();
   if (admitted_) service_->admission().Release(peer_);
+  // An upload that never became a job (refused, cut short, cancelled) gives its memory
+  // back to the system, not only to the allocator.
+  const bool held_upload = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
   delete this;
+  if (held_upload) malloc_trim(0);
 }
 
 void RunCall::ReleaseUpload() {
@@ -343,6 +350,7 @@ void RunCall::ReleaseUpload() {
 
 void RunCall::Fail(const absl::Status& status) {
   ReleaseUpload();
+  held_big_upload_ = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
   std::string().swap(input_);
   const grpc::Status grpc_status = ToGrpc(status);
   channel_->Finish(FailedEvent(grpc_status), grpc_status);
