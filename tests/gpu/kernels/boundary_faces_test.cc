@@ -1,4 +1,4 @@
-#include "gpu/boundary_faces.h"
+#include "gpu/kernels/boundary_faces.h"
 
 #include <gtest/gtest.h>
 
@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "core/mesh/mesh.h"
-#include "gpu/gl_context.h"
-#include "gpu/test_meshes.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/tools/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {

@@ -1,4 +1,4 @@
-#include "gpu/compute.h"
+#include "gpu/context/compute.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -8,8 +8,8 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
-#include "gpu/gl_context.h"
-#include "gpu/gl_functions.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/context/gl_functions.h"
 
 namespace mlclust::gpu {
 namespace {

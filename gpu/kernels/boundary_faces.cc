@@ -1,4 +1,4 @@
-#include "gpu/boundary_faces.h"
+#include "gpu/kernels/boundary_faces.h"
 
 #include <algorithm>
 #include <cassert>
@@ -7,8 +7,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "core/base/status_macros.h"
-#include "gpu/compute.h"
-#include "gpu/gl_functions.h"
+#include "gpu/context/compute.h"
+#include "gpu/context/gl_functions.h"
+#include "gpu/kernels/boundary_faces_glsl.h"  // kBoundaryFacesGlsl, generated
 
 namespace mlclust::gpu {
 namespace {
@@ -20,37 +21,6 @@ static_assert(sizeof(ClusterId) == 4 && std::is_trivially_copyable_v<ClusterId>)
 static_assert(sizeof(std::array<FaceId, 3>) == 12);
 
 constexpr uint32_t kFacesPerWord = 4;
-
-// One invocation per 4 faces: GLSL has no 8-bit stores without extensions, so each
-// invocation packs its four flags into one uint (face 4w + k in byte k; the host reads
-// bytes of a little-endian word, which every platform we target is). No atomics needed,
-// and the readback is one byte per face.
-constexpr absl::string_view kBoundaryShaderBody = R"glsl(
-layout(std430, binding = 0) readonly buffer Labels { uint labels[]; };          // all faces
-layout(std430, binding = 1) readonly buffer Neighbours { uint neighbours[]; };  // 3 per chunk face
-layout(std430, binding = 2) writeonly buffer Flags { uint flags[]; };           // 4 chunk faces per word
-layout(location = 0) uniform uint u_face_begin;  // first face of the chunk
-layout(location = 1) uniform uint u_face_count;  // faces in the chunk
-const uint kInvalidFace = 0xFFFFFFFFu;
-
-void main() {
-  uint word = LinearInvocationIndex();
-  uint first = word * 4u;
-  if (first >= u_face_count) return;
-  uint last = min(first + 4u, u_face_count);
-  uint word_flags = 0u;
-  for (uint local = first; local < last; ++local) {
-    uint label = labels[u_face_begin + local];
-    bool boundary = false;
-    for (uint edge = 0u; edge < 3u; ++edge) {
-      uint neighbour = neighbours[3u * local + edge];
-      boundary = boundary || (neighbour != kInvalidFace && labels[neighbour] != label);
-    }
-    if (boundary) word_flags |= 1u << (8u * (local - first));
-  }
-  flags[word] = word_flags;
-}
-)glsl";
 
 absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const ClusterId> labels) {
   const size_t num_faces = adjacency.num_faces();
@@ -136,7 +106,7 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
   MLCLUST_ASSIGN_OR_RETURN(
       const uint32_t program,
       GetComputeProgram(context, "flag_boundary_faces",
-                        absl::StrCat(kComputeShaderPrelude, kBoundaryShaderBody)));
+                        absl::StrCat(kComputeShaderPrelude, kBoundaryFacesGlsl)));
   MLCLUST_ASSIGN_OR_RETURN(StorageBuffer labels_buffer,
                            StorageBuffer::Create(context, num_faces * sizeof(uint32_t)));
   MLCLUST_ASSIGN_OR_RETURN(StorageBuffer neighbours_buffer,

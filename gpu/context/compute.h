@@ -2,14 +2,15 @@
 // failure, shader storage buffers sized from explicit bounds, and a 1-D launch spread over
 // a 2-D grid of work groups.
 //
-// Every kernel in gpu/ follows one pattern: the shader starts with kComputeShaderPrelude
-// (GLSL 4.50, local_size_x = kLocalSize, LinearInvocationIndex()), reads its element count
-// from a uniform and returns early for indices at or past it, because the grid is padded
-// to whole work groups and, once split into rows, to whole rows.
+// Every kernel in gpu/kernels/ follows one pattern: the shader (NAME.glsl, embedded at
+// build time) follows kComputeShaderPrelude (GLSL 4.50, local_size_x = kLocalSize,
+// LinearInvocationIndex()), reads its element count from a uniform and returns early for
+// indices at or past it, because the grid is padded to whole work groups and, once split
+// into rows, to whole rows.
 //
 // All functions expect `context` current on the calling thread (GlContext::MakeCurrent).
-#ifndef MLCLUST_GPU_COMPUTE_H_
-#define MLCLUST_GPU_COMPUTE_H_
+#ifndef MLCLUST_GPU_CONTEXT_COMPUTE_H_
+#define MLCLUST_GPU_CONTEXT_COMPUTE_H_
 
 #include <cstdint>
 #include <span>
@@ -17,12 +18,12 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "gpu/gl_context.h"
+#include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
-// Invocations per work group in every kernel of gpu/ (a multiple of NVIDIA's warp of 32
-// and AMD's wave of 64; llvmpipe runs it as 256 / SIMD width loops).
+// Invocations per work group in every kernel (a multiple of NVIDIA's warp of 32 and AMD's
+// wave of 64; llvmpipe runs it as 256 / SIMD width loops).
 inline constexpr uint32_t kLocalSize = 256;
 
 // The most elements a kernel hands one dispatch. Shaders index per-element arrays of up to
@@ -31,8 +32,8 @@ inline constexpr uint32_t kLocalSize = 256;
 // MaxElementsPerBuffer).
 inline constexpr uint64_t kMaxElementsPerChunk = uint64_t{1} << 28;
 
-// Source that every compute shader of gpu/ begins with: the #version line, the work group
-// size and
+// Source that every compute shader begins with: the #version line, the work group size
+// and
 //   uint LinearInvocationIndex();  // 0, 1, 2, ... across the whole 2-D grid
 inline constexpr absl::string_view kComputeShaderPrelude = R"glsl(#version 450 core
 layout(local_size_x = 256, local_size_y = 1, local_size_z = 1) in;
@@ -129,4 +130,4 @@ class StorageBuffer {
 
 }  // namespace mlclust::gpu
 
-#endif  // MLCLUST_GPU_COMPUTE_H_
+#endif  // MLCLUST_GPU_CONTEXT_COMPUTE_H_

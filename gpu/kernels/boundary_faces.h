@@ -1,8 +1,8 @@
 // Boundary faces of a face clustering: the faces with at least one edge-neighbour in
 // another cluster. These are the only faces BB re-decides (Alg. 5.1) and the only ones
 // whose moves EMLO considers (Alg. 3.3), so every GPU optimiser starts from this flag.
-#ifndef MLCLUST_GPU_BOUNDARY_FACES_H_
-#define MLCLUST_GPU_BOUNDARY_FACES_H_
+#ifndef MLCLUST_GPU_KERNELS_BOUNDARY_FACES_H_
+#define MLCLUST_GPU_KERNELS_BOUNDARY_FACES_H_
 
 #include <cstdint>
 #include <span>
@@ -11,7 +11,7 @@
 #include "absl/status/statusor.h"
 #include "core/base/ids.h"
 #include "core/mesh/mesh.h"
-#include "gpu/gl_context.h"
+#include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
@@ -44,4 +44,4 @@ std::vector<uint8_t> FlagBoundaryFacesCpu(const FaceAdjacency& adjacency,
 
 }  // namespace mlclust::gpu
 
-#endif  // MLCLUST_GPU_BOUNDARY_FACES_H_
+#endif  // MLCLUST_GPU_KERNELS_BOUNDARY_FACES_H_

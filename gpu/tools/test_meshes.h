@@ -1,8 +1,8 @@
 // Meshes generated in code for the gpu tests and mlclust-gpu-info (header-only; not part
 // of the library's API). Large real meshes are read through core's mesh I/O elsewhere;
 // these give parity checks and timings a known size with no files.
-#ifndef MLCLUST_GPU_TEST_MESHES_H_
-#define MLCLUST_GPU_TEST_MESHES_H_
+#ifndef MLCLUST_GPU_TOOLS_TEST_MESHES_H_
+#define MLCLUST_GPU_TOOLS_TEST_MESHES_H_
 
 #include <cmath>
 #include <cstdint>
@@ -105,4 +105,4 @@ inline TriangleMesh MakeIcosphere(int subdivisions, double radius = 1.0, double 
 
 }  // namespace mlclust::gpu::testing
 
-#endif  // MLCLUST_GPU_TEST_MESHES_H_
+#endif  // MLCLUST_GPU_TOOLS_TEST_MESHES_H_

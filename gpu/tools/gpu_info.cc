@@ -15,10 +15,10 @@
 
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
-#include "gpu/boundary_faces.h"
-#include "gpu/face_measures_gpu.h"
-#include "gpu/gl_context.h"
-#include "gpu/test_meshes.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/kernels/boundary_faces.h"
+#include "gpu/kernels/face_measures_gpu.h"
+#include "gpu/tools/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {

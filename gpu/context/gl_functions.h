@@ -4,8 +4,8 @@
 // libGL or libOpenGL; every pointer comes from EGL (EGL_KHR_get_all_proc_addresses lets
 // eglGetProcAddress return core functions too), so the same binary runs on Mesa and on the
 // NVIDIA EGL driver through libglvnd. To use a new GL function, add it to the list below.
-#ifndef MLCLUST_GPU_GL_FUNCTIONS_H_
-#define MLCLUST_GPU_GL_FUNCTIONS_H_
+#ifndef MLCLUST_GPU_CONTEXT_GL_FUNCTIONS_H_
+#define MLCLUST_GPU_CONTEXT_GL_FUNCTIONS_H_
 
 #include <GL/glcorearb.h>
 
@@ -53,4 +53,4 @@ struct GlFunctions {
 
 }  // namespace mlclust::gpu::detail
 
-#endif  // MLCLUST_GPU_GL_FUNCTIONS_H_
+#endif  // MLCLUST_GPU_CONTEXT_GL_FUNCTIONS_H_

@@ -1,4 +1,4 @@
-#include "gpu/gl_context.h"
+#include "gpu/context/gl_context.h"
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
@@ -15,7 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "gpu/gl_functions.h"
+#include "gpu/context/gl_functions.h"
 
 namespace mlclust::gpu {
 namespace detail {

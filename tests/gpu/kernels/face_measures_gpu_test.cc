@@ -1,4 +1,4 @@
-#include "gpu/face_measures_gpu.h"
+#include "gpu/kernels/face_measures_gpu.h"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
-#include "gpu/gl_context.h"
-#include "gpu/test_meshes.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/tools/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {

@@ -1,10 +1,10 @@
-#include "gpu/compute.h"
+#include "gpu/context/compute.h"
 
 #include <string>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "gpu/gl_functions.h"
+#include "gpu/context/gl_functions.h"
 
 namespace mlclust::gpu {
 namespace {

@@ -1,4 +1,4 @@
-#include "gpu/gl_context.h"
+#include "gpu/context/gl_context.h"
 
 #include <gtest/gtest.h>
 
