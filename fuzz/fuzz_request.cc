@@ -1,6 +1,6 @@
 // A job request as the server decodes it before any clustering: the JobSpec from its wire
-// bytes (protobuf), its options turned into typed library options by PlanMeshJob /
-// PlanPointJob (server/job_options.cc, which needs only core and the messages), and the
+// bytes (protobuf), turned into a job plan (algorithm, energy, typed options) by
+// PlanWireJob (server/job_options.cc, which needs only core and the messages), and the
 // input decoded as spec.input_kind says: a Draco mesh then ValidateMesh, or m x d float32
 // points then ValidatePoints. Not covered: the gRPC framing and the server's size and
 // queue admission (server/server.cc), which need a running server.
@@ -27,22 +27,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (!spec.ParseFromArray(data + 2, static_cast<int>(spec_size))) return 0;
   const std::string_view input(reinterpret_cast<const char*>(data) + 2 + spec_size,
                                size - 2 - spec_size);
+  absl::StatusOr<JobPlan> plan = server::PlanWireJob(spec);
+  if (!plan.ok()) {
+    MLCLUST_FUZZ_CHECK(plan.status().code() == absl::StatusCode::kInvalidArgument ||
+                       plan.status().code() == absl::StatusCode::kUnimplemented);
+    return 0;
+  }
+  MLCLUST_FUZZ_CHECK(plan->algorithm != nullptr);
   if (spec.input_kind() == v1::INPUT_KIND_DRACO_MESH) {
-    absl::StatusOr<server::MeshJobPlan> plan = server::PlanMeshJob(spec);
-    if (!plan.ok()) {
-      MLCLUST_FUZZ_CHECK(plan.status().code() == absl::StatusCode::kInvalidArgument ||
-                         plan.status().code() == absl::StatusCode::kUnimplemented);
-      return 0;
-    }
     absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(input);
     if (mesh.ok()) (void)ValidateMesh(*mesh);
   } else if (spec.input_kind() == v1::INPUT_KIND_POINTS_F32) {
-    absl::StatusOr<server::PointJobPlan> plan = server::PlanPointJob(spec);
-    if (!plan.ok()) {
-      MLCLUST_FUZZ_CHECK(plan.status().code() == absl::StatusCode::kInvalidArgument ||
-                         plan.status().code() == absl::StatusCode::kUnimplemented);
-      return 0;
-    }
     const uint32_t d = spec.point_dims();
     if (d == 0 || input.size() % (size_t{4} * d) != 0) return 0;
     PointSet points;

@@ -1,0 +1,132 @@
+// Times X-means (Alg. 2.5) or bisecting k-means (Alg. 2.7) on a point file (.npy, .csv, or
+// raw float32 with --dims; bench/points_data.py writes the blobs, which
+// bench/experiments/sklearn_divisive.py reads too).
+//   divisive_bench --algo bisecting|xmeans --input FILE [--dims D] [--k K]
+//                  [--split size|energy] [--trials L] [--init random|kmeans++]
+//                  [--kmin K] [--kmax K] [--seed S] [--threads T]
+// --k is the bisecting k; --kmin/--kmax X-means' range (kmax 0: the number of points).
+// Prints one JSON object: algo, options, seconds, clusters, energy (the sum of squared
+// distances to the cluster means, in double, recomputed from the labels), and for X-means
+// the rounds (clusters, BIC).
+#include <cstdio>
+#include <string>
+
+#include "absl/strings/numbers.h"
+#include "absl/time/clock.h"
+#include "core/cluster/bisecting_kmeans.h"
+#include "core/cluster/point_clustering.h"
+#include "core/cluster/xmeans.h"
+#include "core/io/points_io.h"
+
+int main(int argc, char** argv) {
+  std::string algo = "bisecting", input, split = "size", init;
+  uint64_t seed = 1;
+  uint32_t k = 100, trials = 1, kmin = 1, kmax = 0, dims = 0;
+  int threads = 0;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string arg = argv[i], value = argv[i + 1];
+    bool ok = true;
+    if (arg == "--algo")
+      algo = value;
+    else if (arg == "--input")
+      input = value;
+    else if (arg == "--dims")
+      ok = absl::SimpleAtoi(value, &dims);
+    else if (arg == "--k")
+      ok = absl::SimpleAtoi(value, &k);
+    else if (arg == "--split")
+      split = value;
+    else if (arg == "--trials")
+      ok = absl::SimpleAtoi(value, &trials);
+    else if (arg == "--init")
+      init = value;
+    else if (arg == "--kmin")
+      ok = absl::SimpleAtoi(value, &kmin);
+    else if (arg == "--kmax")
+      ok = absl::SimpleAtoi(value, &kmax);
+    else if (arg == "--seed")
+      ok = absl::SimpleAtoi(value, &seed);
+    else if (arg == "--threads")
+      ok = absl::SimpleAtoi(value, &threads);
+    else
+      ok = false;
+    if (!ok) {
+      std::fprintf(stderr, "bad argument %s %s\n", arg.c_str(), value.c_str());
+      return 2;
+    }
+  }
+  if (input.empty()) {
+    std::fprintf(stderr, "--input FILE is required\n");
+    return 2;
+  }
+  mlclust::PointReadOptions read_options;
+  read_options.dims = dims;
+  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(input, read_options);
+  if (!points.ok()) {
+    std::fprintf(stderr, "%s\n", points.status().ToString().c_str());
+    return 1;
+  }
+  const auto kmeans_init = [&](mlclust::KmeansOptions::Init fallback) {
+    if (init == "random") return mlclust::KmeansOptions::Init::kRandom;
+    if (init == "kmeans++") return mlclust::KmeansOptions::Init::kKmeansPlusPlus;
+    return fallback;
+  };
+  const absl::Time start = absl::Now();
+  if (algo == "bisecting") {
+    mlclust::BisectingKmeansOptions options;
+    options.clusters = k;
+    options.split = split == "energy" ? mlclust::BisectingKmeansOptions::SplitChoice::kLargestEnergy
+                                      : mlclust::BisectingKmeansOptions::SplitChoice::kLargestSize;
+    options.trials = trials;
+    options.init = kmeans_init(mlclust::KmeansOptions::Init::kRandom);
+    options.seed = seed;
+    options.threads = threads;
+    absl::StatusOr<mlclust::BisectingKmeansResult> result =
+        mlclust::RunBisectingKmeans(*points, options);
+    const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    if (!result.ok()) {
+      std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+      return 1;
+    }
+    std::printf(
+        "{\"algo\": \"mlclust bisecting\", \"split\": \"%s\", \"trials\": %u, \"init\": \"%s\", "
+        "\"seed\": %lu, \"threads\": %d, \"m\": %zu, \"seconds\": %.4f, \"clusters\": %u, "
+        "\"energy\": %.10g}\n",
+        split.c_str(), trials,
+        options.init == mlclust::KmeansOptions::Init::kRandom ? "random" : "kmeans++",
+        static_cast<unsigned long>(seed), threads, points->num_points(), seconds, k,
+        mlclust::PointEnergy(*points, result->labels));
+  } else if (algo == "xmeans") {
+    mlclust::XmeansOptions options;
+    options.min_clusters = kmin;
+    options.max_clusters = kmax;
+    options.split_trials = trials;
+    options.init = kmeans_init(mlclust::KmeansOptions::Init::kKmeansPlusPlus);
+    options.seed = seed;
+    options.threads = threads;
+    absl::StatusOr<mlclust::XmeansResult> result = mlclust::RunXmeans(*points, options);
+    const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    if (!result.ok()) {
+      std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+      return 1;
+    }
+    std::string rounds;
+    for (const mlclust::XmeansRound& round : result->rounds) {
+      if (!rounds.empty()) rounds += ", ";
+      char buffer[96];
+      std::snprintf(buffer, sizeof buffer, "[%u, %.10g]", round.clusters, round.bic);
+      rounds += buffer;
+    }
+    std::printf(
+        "{\"algo\": \"mlclust xmeans\", \"kmin\": %u, \"kmax\": %u, \"trials\": %u, "
+        "\"seed\": %lu, \"threads\": %d, \"m\": %zu, \"seconds\": %.4f, \"clusters\": %u, "
+        "\"energy\": %.10g, \"bic\": %.10g, \"rounds\": [%s]}\n",
+        kmin, kmax, trials, static_cast<unsigned long>(seed), threads, points->num_points(),
+        seconds, result->clusters, mlclust::PointEnergy(*points, result->labels), result->bic,
+        rounds.c_str());
+  } else {
+    std::fprintf(stderr, "--algo must be bisecting or xmeans\n");
+    return 2;
+  }
+  return 0;
+}
