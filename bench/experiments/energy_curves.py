@@ -58,9 +58,17 @@ def main():
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--title", default="")
     parser.add_argument("--out", required=True)
+    parser.add_argument("--plot-only", action="store_true",
+                        help="redraw OUT.png (and OUT.md) from OUT.csv without running")
     args = parser.parse_args()
     ks = [int(k) for k in args.ks.split(",")]
     keep = 4 * max(ks)
+    if args.plot_only:
+        curves, spread = read_csv(args.out + ".csv")
+        ks = sorted({k for per_k in spread.values() for k in per_k}, reverse=True) or ks
+        keep = 4 * max(ks)
+        report(args, curves, spread, ks, keep)
+        return
 
     curves = {}  # name -> [(clusters, energy)]
     for algo in [a for a in args.curves.split(",") if a]:
@@ -84,7 +92,24 @@ def main():
                   f"max {max(energies):.6g}", file=sys.stderr)
 
     os.makedirs(os.path.dirname(args.out) or ".", exist_ok=True)
-    with open(args.out + ".csv", "w", newline="") as f:
+    write_csv(args.out + ".csv", curves, spread)
+    report(args, curves, spread, ks, keep)
+
+
+def read_csv(path):
+    curves, spread = {}, {}
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            k, e = int(row["clusters"]), float(row["energy"])
+            if row["seed"]:
+                spread.setdefault(row["algo"], {}).setdefault(k, []).append(e)
+            else:
+                curves.setdefault(row["algo"], []).append((k, e))
+    return curves, spread
+
+
+def write_csv(path, curves, spread):
+    with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["algo", "clusters", "seed", "energy"])
         for name, rows in curves.items():
@@ -95,6 +120,10 @@ def main():
                 for seed, e in enumerate(energies, 1):
                     w.writerow([algo, k, seed, repr(e)])
 
+
+def report(args, curves, spread, ks, keep):
+    runs = max((len(v) for per_k in spread.values() for v in per_k.values()), default=0)
+
     def at(rows, k):
         """The energy of the first level with at most k clusters."""
         for clusters, e in rows:
@@ -102,7 +131,7 @@ def main():
                 return clusters, e
         return None, float("nan")
 
-    header = ["K"] + list(curves) + [f"{a} min / mean / max ({args.runs} runs)" for a in spread]
+    header = ["K"] + list(curves) + [f"{a} min / mean / max ({runs} runs)" for a in spread]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for k in ks:
         cells = [str(k)]
@@ -113,20 +142,32 @@ def main():
             v = per_k[k]
             cells.append(f"{min(v):.5g} / {statistics.mean(v):.5g} / {max(v):.5g}")
         lines.append("| " + " | ".join(cells) + " |")
-    # Ratios against the first curve (or the first spread), per K.
+    # Ratios against the first curve, or, with no curve, against the first spread's mean.
     base_name = next(iter(curves), None)
+    first_spread = next(iter(spread), None)
     notes = []
     for k in ks:
         parts = []
-        base = at(curves[base_name], k)[1] if base_name else None
+        if base_name:
+            base = at(curves[base_name], k)[1]
+        else:
+            base = statistics.mean(spread[first_spread][k])
         for name, rows in list(curves.items())[1:]:
             parts.append(f"{name}/{base_name} {at(rows, k)[1] / base:.3f}")
         for algo, per_k in spread.items():
-            mean = statistics.mean(per_k[k])
-            if base:
-                below = sum(e < base for e in per_k[k])
-                parts.append(f"{algo} mean/{base_name} {mean / base:.3f}, "
-                             f"{below} of {len(per_k[k])} runs below {base_name}")
+            if not base_name and algo == first_spread:
+                continue
+            v = per_k[k]
+            mean = statistics.mean(v)
+            parts.append(f"{algo} mean/{base_name or first_spread + ' mean'} {mean / base:.3f}")
+            if base_name:
+                below = sum(e < base for e in v)
+                parts.append(f"{below} of {len(v)} {algo} runs below {base_name}")
+            else:
+                first = spread[first_spread][k]
+                parts.append(f"{algo} min {min(v) / base:.3f}, max {max(v) / base:.3f}; "
+                             f"{sum(e < max(first) for e in v)} of {len(v)} {algo} runs below "
+                             f"the worst {first_spread} run")
         notes.append(f"- K = {k}: " + "; ".join(parts))
     with open(args.out + ".md", "w") as f:
         f.write("\n".join(lines) + "\n\n" + "\n".join(notes) + "\n")
@@ -139,19 +180,22 @@ def main():
     except ImportError:
         return
     fig, ax = plt.subplots(figsize=(8, 5))
+    low_k = min(ks) / 1.5
     for name, rows in curves.items():
-        ax.plot([k for k, _ in rows], [e for _, e in rows], label=name, linewidth=1.5)
+        shown = [(k, e) for k, e in rows if k >= low_k and e > 0]
+        ax.plot([k for k, _ in shown], [e for _, e in shown], label=name, linewidth=1.5)
     for algo, per_k in spread.items():
         xs = list(per_k)
         means = [statistics.mean(per_k[k]) for k in xs]
         low = [m - min(per_k[k]) for m, k in zip(means, xs)]
         high = [max(per_k[k]) - m for m, k in zip(means, xs)]
         ax.errorbar(xs, means, yerr=[low, high], fmt="o", capsize=4,
-                    label=f"{algo}: {args.runs} random runs (min-max, mean)")
+                    label=f"{algo}: {runs} random runs (min-max, mean)")
     ax.set_xscale("log")
-    ax.set_xlim(min(ks) / 1.5, keep)
+    ax.set_yscale("log")
+    ax.set_xlim(low_k, keep)
     ax.set_xlabel("number of clusters (log scale)")
-    ax.set_ylabel("energy" if args.points else f"{args.energy} energy")
+    ax.set_ylabel("energy (log scale)")
     ax.set_title(args.title or os.path.basename(args.out))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
