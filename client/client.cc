@@ -2,6 +2,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 
@@ -28,6 +29,7 @@ class HierarchyAssembler {
       case v1::JobEvent::kLevels:
         return AddLevels(event.levels());
       case v1::JobEvent::kDone:
+        if (continuing_) return absl::DataLossError("the job ended inside a split level");
         result_.done = event.done();
         done_ = true;
         return absl::OkStatus();
@@ -75,28 +77,74 @@ class HierarchyAssembler {
         batch.from_cluster_size() != batch.element_size()) {
       return absl::DataLossError("a level batch with triplet arrays of different lengths");
     }
+    if (count == 0 && batch.last_level_continues()) {
+      return absl::DataLossError("an empty level batch that says its last level continues");
+    }
     uint32_t begin = 0;
     for (int i = 0; i < count; ++i) {
       const uint32_t end = batch.triplet_end(i);
       if (end < begin || end > static_cast<uint32_t>(batch.element_size())) {
         return absl::DataLossError("a level batch with triplet_end out of order");
       }
-      LevelMoves level;
-      level.cluster_count = batch.cluster_count(i);
-      level.energy = batch.energy(i);
-      level.element = {batch.element().data() + begin, end - begin};
-      level.to_cluster = {batch.to_cluster().data() + begin, end - begin};
-      level.from_cluster = {batch.from_cluster().data() + begin, end - begin};
-      if (absl::Status s = result_.hierarchy.OnLevel(level); !s.ok()) {
-        return absl::DataLossError(s.message());
-      }
+      const std::span<const uint32_t> element(batch.element().data() + begin, end - begin);
+      const std::span<const uint32_t> to(batch.to_cluster().data() + begin, end - begin);
+      const std::span<const uint32_t> from(batch.from_cluster().data() + begin, end - begin);
       begin = end;
+      const bool continued = i == 0 && continuing_;
+      const bool continues = i == count - 1 && batch.last_level_continues();
+      if (continued) {
+        if (batch.cluster_count(i) != pending_cluster_count_ ||
+            batch.energy(i) != pending_energy_) {
+          return absl::DataLossError(
+              absl::StrCat("level ", batch.first_level(), " continued with another cluster count"));
+        }
+      } else {
+        pending_element_.clear();
+        pending_to_.clear();
+        pending_from_.clear();
+      }
+      if (continued || continues) {
+        // A level split across messages (LevelBatch.last_level_continues): its triplets
+        // are joined before it is applied.
+        pending_element_.insert(pending_element_.end(), element.begin(), element.end());
+        pending_to_.insert(pending_to_.end(), to.begin(), to.end());
+        pending_from_.insert(pending_from_.end(), from.begin(), from.end());
+        pending_cluster_count_ = batch.cluster_count(i);
+        pending_energy_ = batch.energy(i);
+        continuing_ = continues;
+        if (continues) break;
+        MLCLUST_RETURN_IF_ERROR(ApplyLevel(batch.cluster_count(i), batch.energy(i),
+                                           pending_element_, pending_to_, pending_from_));
+        continue;
+      }
+      MLCLUST_RETURN_IF_ERROR(
+          ApplyLevel(batch.cluster_count(i), batch.energy(i), element, to, from));
+    }
+    if (count > 0 && !batch.last_level_continues()) continuing_ = false;
+    return absl::OkStatus();
+  }
+
+  absl::Status ApplyLevel(uint32_t cluster_count, double energy, std::span<const uint32_t> element,
+                          std::span<const uint32_t> to, std::span<const uint32_t> from) {
+    LevelMoves level;
+    level.cluster_count = cluster_count;
+    level.energy = energy;
+    level.element = element;
+    level.to_cluster = to;
+    level.from_cluster = from;
+    if (absl::Status s = result_.hierarchy.OnLevel(level); !s.ok()) {
+      return absl::DataLossError(s.message());
     }
     return absl::OkStatus();
   }
 
   JobResult& result_;
   std::vector<ClusterId> labels_;
+  // A level whose triplets arrive in several batches, joined here.
+  bool continuing_ = false;
+  uint32_t pending_cluster_count_ = 0;
+  double pending_energy_ = 0;
+  std::vector<uint32_t> pending_element_, pending_to_, pending_from_;
   bool started_ = false;
   bool done_ = false;
 };

@@ -1,7 +1,6 @@
 // mlclust: the command-line client. See `mlclust help`.
 #include <unistd.h>
 
-#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -13,8 +12,12 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/serve_command.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/registry.h"
 #include "core/coarsening/coarsening.h"
 #include "core/energy/energies.h"
 #include "core/io/draco_codec.h"
@@ -23,67 +26,128 @@
 #include "core/mesh/face_measures.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
-#include "server/job_options.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
 namespace {
 
-constexpr char kUsage[] = R"(mlclust — multilevel clustering of meshes and point sets
+constexpr char kUsageTitle[] = R"(mlclust — multilevel clustering of meshes and point sets
 
 usage:
-  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
-      Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
+)";
 
-  mlclust mesh INPUT [--server ADDR] [--algo hc|emlo|bb] [--energy E] [--clusters K]
+constexpr char kMeshUsage[] = R"(
+  mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
-                     [--device auto|gpu|cpu] [--quiet] [algorithm options]
+                     [--device auto|gpu|cpu] [--quiet] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
-      --algo           hc: the merge hierarchy without optimisation (default); ml: the
-                       multilevel hierarchy (merge, then optimise locally); pml: parallel
-                       ML; emlo: energy minimisation by local optimisation at one K;
-                       bb: boundary-based optimisation at one K (parallel)
-      --energy E       cvd (default), cvd-adaptive, mwcvd-area, mwcvd-variance, mwcvd-max,
-                       planar, sphere
-      --clusters K     the level written by --labels, --ply and --coarse (for emlo and bb
-                       the number of clusters to compute)
+      --clusters K     the level written by --labels, --ply and --coarse (for single-level
+                       algorithms the number of clusters to compute)
       --labels FILE    one line per input face: its cluster (0..K-1) at that level
       --levels-csv F   a row "clusters,energy" per level received
       --ply FILE       the mesh with one colour per cluster at that level
       --coarse FILE    the coarse mesh of that level: one vertex per cluster, a triangle
                        where three clusters meet (format by extension: .ply, .obj, .off)
       --coarse-placement centroid|qem   where coarse vertices go (default centroid)
-    hierarchy options (hc, ml, pml):
-      --levels K_HI:K_LO  only the levels with K_LO..K_HI clusters (a snapshot, then deltas)
-      --optimizer emlo|bb|none  ML's local optimiser;  --p-percent P  merge P% first without it
-      --pml-until K       PML down to K clusters, then ML;  --threads T  PML's threads
-    algorithm options (emlo, bb):
-      --init lneigh|random  initial seeds (default lneigh);  --level L  l of lneigh (0: auto)
-      --seed S              random seed (default 1);  --guard on|off  connectivity guard
-      --threads T, --max-iterations N   bb only
-    energy options:
-      --density power|linear, --gamma G, --delta D (power: (rho'+D)^G), --rho-max R
-      (linear: onto [1, R]), --mwcvd-p P, --planar-tolerance T
+      --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
+                       then deltas)
+      --seed S         random seed (default 1)
+      --device D       auto (default): the GPU for the stages that have a GPU
+                       implementation where it is hardware; gpu: there even on a software
+                       renderer; cpu: every stage on the CPU
+)";
 
-  mlclust points INPUT [--dims D] [--server ADDR] [--algo ml|pml|hc|lnkmeans|kmeans]
-                       [--clusters K | --auto-k bic|elbow] [--labels FILE] [--levels-csv FILE]
-                       [--grid A] [--seed S] [--init kmeans++|random|grid] [--levels K_HI:K_LO]
+constexpr char kPointsUsage[] = R"(
+  mlclust points INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|elbow]
+                       [--labels FILE] [--levels-csv FILE] [--seed S] [--levels K_HI:K_LO]
+                       [--quiet] [algorithm options]
       Clusters the points of INPUT: .npy (float32/float64, m x d), .csv/.txt, or raw
-      float32 (.f32/.bin/.raw, with --dims D). Energy: the within-cluster sum of squares.
-      ml/pml/hc: every level from the voxel-grid start (--grid A voxels per dimension) to
-      one cluster; lnkmeans: Local Neighbours k-means at K (or, with --init grid, from one
-      cluster per occupied voxel); kmeans: Lloyd with k-means++.
+      float32 (.f32/.bin/.raw, with --dims D). Hierarchies give every level from the
+      voxel-grid start to one cluster; single-level algorithms one K.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
-      pml: --pml-until K (then ML), --pml-pairs cheaper-half|all (mutual pairs collapsed
-      per level: those at most the median cost (default), or all as in Alg. 5.3).
+)";
 
-  mlclust energy INPUT --labels FILE [--energy cvd]
+constexpr char kOtherUsage[] = R"(
+  mlclust energy INPUT --labels FILE [--energy cvd] [energy options]
       Computes the energy of a labelling directly from the mesh file (a check).
 
   mlclust stats --server ADDR
       Prints the server's queue depth, job counts and GL device.
 )";
+
+// "a|b|c", "INTEGER in [0, 1024]", "NUMBER in [0, 100]".
+std::string OptionValueText(const OptionInfo& option) {
+  switch (option.type) {
+    case OptionInfo::Type::kChoice:
+      return absl::StrJoin(option.choices, "|");
+    case OptionInfo::Type::kInteger:
+      return absl::StrCat("N in [", static_cast<int64_t>(option.low), ", ",
+                          static_cast<int64_t>(option.high), "]");
+    case OptionInfo::Type::kNumber:
+      return absl::StrCat("X in [", option.low, ", ", option.high, "]");
+  }
+  return "";
+}
+
+void AppendOption(std::string& out, const OptionInfo& option) {
+  absl::StrAppend(&out, "        --", option.name, " ", OptionValueText(option), "\n          ",
+                  option.help, " (default ", option.default_text, ")\n");
+}
+
+// The algorithms, energies and options of `input`, from the registry.
+std::string RegistryUsage(InputKind input) {
+  std::string out =
+      absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    if (algorithm.input != input) continue;
+    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "; ", algorithm.help,
+                    algorithm.hierarchy ? " [hierarchy]" : " [one K]", "\n");
+  }
+  if (input == InputKind::kMesh) {
+    absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
+    for (const EnergyInfo& energy : Energies()) {
+      if (energy.input != input) continue;
+      absl::StrAppend(&out, "        ", energy.name, ": ", energy.help, "\n");
+    }
+  }
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    if (algorithm.input != input) continue;
+    absl::StrAppend(&out, "    ", algorithm.name,
+                    " (energies: ", absl::StrJoin(algorithm.energies, ", "), ")",
+                    algorithm.options.empty() ? ": no options of its own" : " options:", "\n");
+    for (const OptionInfo& option : algorithm.options) AppendOption(out, option);
+  }
+  if (input == InputKind::kMesh) {
+    absl::StrAppend(&out, "    energy options (every mesh algorithm):\n");
+    for (const OptionInfo& option : EnergyOptions()) AppendOption(out, option);
+  }
+  return out;
+}
+
+void PrintUsage(std::FILE* out) {
+  std::fputs(kUsageTitle, out);
+  std::fputs(ServeUsage(), out);
+  std::fputs(kMeshUsage, out);
+  std::fputs(RegistryUsage(InputKind::kMesh).c_str(), out);
+  std::fputs(kPointsUsage, out);
+  std::fputs(RegistryUsage(InputKind::kPoints).c_str(), out);
+  std::fputs(kOtherUsage, out);
+}
+
+// The names of every registry option of `input` (each algorithm's own, and for meshes the
+// energy options), once each.
+std::vector<std::string> RegistryOptionNames(InputKind input) {
+  std::vector<std::string> names;
+  auto add = [&](const std::string& name) {
+    if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
+  };
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    if (algorithm.input != input) continue;
+    for (const OptionInfo* option : AlgorithmOptions(algorithm)) add(option->name);
+  }
+  return names;
+}
 
 // --name value / --name=value options after the positional arguments.
 class Arguments {
@@ -120,12 +184,19 @@ class Arguments {
     auto it = values_.find(name);
     return it == values_.end() ? fallback : it->second;
   }
-  absl::StatusOr<uint64_t> GetUint(const std::string& name, uint64_t fallback) const {
+  // A non-negative integer up to `max` (a count that travels as uint32 on the wire is
+  // refused above 2^32 - 1, never truncated).
+  absl::StatusOr<uint64_t> GetUint(const std::string& name, uint64_t fallback,
+                                   uint64_t max = UINT64_MAX) const {
     if (!has(name)) return fallback;
     uint64_t value;
     if (!absl::SimpleAtoi(get(name), &value)) {
       return absl::InvalidArgumentError(
           absl::StrCat("--", name, ": '", get(name), "' is not a non-negative integer"));
+    }
+    if (value > max) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--", name, ": ", value, " is over the largest accepted, ", max));
     }
     return value;
   }
@@ -147,41 +218,6 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   std::ostringstream bytes;
   bytes << in.rdbuf();
   return bytes.str();
-}
-
-int Serve(const Arguments& args) {
-  server::ServerOptions options;
-  options.listen_address = args.get("listen", "0.0.0.0:50051");
-  absl::StatusOr<uint64_t> queue = args.GetUint("queue", options.queue_capacity);
-  absl::StatusOr<uint64_t> max_mb = args.GetUint("max-input-mb", options.max_input_bytes >> 20);
-  if (!queue.ok()) return Fail(queue.status());
-  if (!max_mb.ok()) return Fail(max_mb.status());
-  options.queue_capacity = *queue;
-  options.max_input_bytes = *max_mb << 20;
-  const std::string gpu = args.get("gpu", "auto");
-  if (gpu == "auto")
-    options.gpu = server::GpuMode::kAuto;
-  else if (gpu == "on")
-    options.gpu = server::GpuMode::kOn;
-  else if (gpu == "off")
-    options.gpu = server::GpuMode::kOff;
-  else
-    return Fail(absl::InvalidArgumentError("--gpu must be auto, on or off"));
-
-  absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
-  if (!server.ok()) return Fail(server.status());
-  // Shut down cleanly on SIGINT / SIGTERM: a thread waits for the signal synchronously.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
-  int received = 0;
-  sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, shutting down\n", received);
-  (*server)->Shutdown();
-  return 0;
 }
 
 absl::Status WriteLevelsCsv(const std::string& path, const HierarchyLog& log) {
@@ -325,28 +361,41 @@ absl::Status SetLevels(const Arguments& args, bool hierarchy, v1::JobSpec& spec)
   return absl::OkStatus();
 }
 
-// Builds the wire energy and its options from the command line (shared by mesh and
-// energy, so both accept and check the same names).
-absl::Status SetEnergy(const Arguments& args, v1::JobSpec& spec) {
-  const std::string energy = args.get("energy", "cvd");
-  const std::map<std::string, v1::Energy> energies = {{"cvd", v1::ENERGY_CVD},
-                                                      {"cvd-adaptive", v1::ENERGY_CVD_ADAPTIVE},
-                                                      {"mwcvd-area", v1::ENERGY_MWCVD_AREA},
-                                                      {"mwcvd-variance", v1::ENERGY_MWCVD_VARIANCE},
-                                                      {"mwcvd-max", v1::ENERGY_MWCVD_MAX},
-                                                      {"planar", v1::ENERGY_PLANAR},
-                                                      {"sphere", v1::ENERGY_SPHERE}};
-  if (energies.count(energy) == 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--energy: '", energy,
-        "' is not one of cvd, cvd-adaptive, mwcvd-area, mwcvd-variance, mwcvd-max, planar, "
-        "sphere"));
+// The wire energy from --energy (through the registry; not given: the algorithm's default).
+absl::Status SetEnergy(const Arguments& args, InputKind input, v1::JobSpec& spec) {
+  if (!args.has("energy")) return absl::OkStatus();
+  const std::string name = args.get("energy");
+  const EnergyInfo* energy = FindEnergy(input, name);
+  if (energy == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--energy: '", name, "' is not one of ", EnergyNames(input)));
   }
-  spec.set_energy(energies.at(energy));
-  for (const char* name : {"density", "gamma", "delta", "rho-max", "mwcvd-p", "planar-tolerance"}) {
+  if (energy->wire == 0) {
+    return absl::UnimplementedError(
+        absl::StrCat("--energy: ", name, " is not on the wire yet (only `mlclust energy` has it)"));
+  }
+  spec.set_energy(static_cast<v1::Energy>(energy->wire));
+  return absl::OkStatus();
+}
+
+// The algorithm from --algo (through the registry; not given: ML).
+absl::StatusOr<const AlgorithmInfo*> GetAlgorithm(const Arguments& args, InputKind input) {
+  if (!args.has("algo")) return &DefaultAlgorithm(input);
+  const std::string name = args.get("algo");
+  const AlgorithmInfo* algorithm = FindAlgorithm(input, name);
+  if (algorithm == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--algo: '", name, "' is not one of ", AlgorithmNames(input)));
+  }
+  return algorithm;
+}
+
+// Every registry option of `input` given on the command line travels as text: the server
+// checks it against the algorithm and names any that is unknown or out of range.
+void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
+  for (const std::string& name : RegistryOptionNames(input)) {
     if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
   }
-  return absl::OkStatus();
 }
 
 int Mesh(const Arguments& args) {
@@ -354,26 +403,21 @@ int Mesh(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
   }
   const std::string& input_path = args.positional()[0];
-  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
   if (!clusters.ok()) return Fail(clusters.status());
   if ((args.has("labels") || args.has("ply")) && *clusters == 0) {
     return Fail(absl::InvalidArgumentError("--labels and --ply need --clusters K (K >= 1)"));
   }
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-  const std::string algo = args.get("algo", "hc");
-  const std::map<std::string, v1::Algorithm> algorithms = {{"hc", v1::ALGORITHM_HC},
-                                                           {"ml", v1::ALGORITHM_ML},
-                                                           {"pml", v1::ALGORITHM_PML},
-                                                           {"emlo", v1::ALGORITHM_EMLO},
-                                                           {"bb", v1::ALGORITHM_BB}};
-  if (algorithms.count(algo) == 0) {
-    return Fail(absl::InvalidArgumentError(
-        absl::StrCat("--algo: '", algo, "' is not one of hc, ml, pml, emlo, bb")));
+  absl::StatusOr<const AlgorithmInfo*> algorithm = GetAlgorithm(args, InputKind::kMesh);
+  if (!algorithm.ok()) return Fail(algorithm.status());
+  const std::string algo = (*algorithm)->name;
+  const bool hierarchy = (*algorithm)->hierarchy;
+  spec.set_algorithm(static_cast<v1::Algorithm>((*algorithm)->wire));
+  if (absl::Status status = SetEnergy(args, InputKind::kMesh, spec); !status.ok()) {
+    return Fail(status);
   }
-  const bool hierarchy = algo == "hc" || algo == "ml" || algo == "pml";
-  spec.set_algorithm(algorithms.at(algo));
-  if (absl::Status status = SetEnergy(args, spec); !status.ok()) return Fail(status);
   if (!hierarchy && *clusters == 0) {
     return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
   }
@@ -382,12 +426,7 @@ int Mesh(const Arguments& args) {
   absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
   if (!seed.ok()) return Fail(seed.status());
   spec.set_seed(*seed);
-  // Algorithm and energy options travel as text; the server checks them and names any
-  // that is out of range.
-  for (const char* name : {"init", "level", "guard", "threads", "max-iterations", "optimizer",
-                           "p-percent", "pml-until"}) {
-    if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
-  }
+  SetOptions(args, InputKind::kMesh, spec);
   const std::string placement = args.get("coarse-placement", "centroid");
   if (placement != "centroid" && placement != "qem") {
     return Fail(absl::InvalidArgumentError("--coarse-placement must be centroid or qem"));
@@ -402,6 +441,10 @@ int Mesh(const Arguments& args) {
   // a .drc file is sent as it is.
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(input_path);
   if (!mesh.ok()) return Fail(mesh.status());
+  if (*clusters > mesh->num_faces()) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
   absl::StatusOr<std::string> payload = absl::EndsWithIgnoreCase(input_path, ".drc")
                                             ? ReadFileBytes(input_path)
                                             : EncodeMeshToDraco(*mesh);
@@ -461,23 +504,16 @@ int Points(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("points: give exactly one INPUT file"));
   }
   const std::string& input_path = args.positional()[0];
-  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0);
+  absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
   absl::StatusOr<uint64_t> dims = args.GetUint("dims", 0);
   absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
   for (const auto* value : {&clusters, &dims, &seed}) {
     if (!value->ok()) return Fail(value->status());
   }
-  const std::string algo = args.get("algo", "ml");
-  const std::map<std::string, v1::Algorithm> algorithms = {{"hc", v1::ALGORITHM_HC},
-                                                           {"ml", v1::ALGORITHM_ML},
-                                                           {"pml", v1::ALGORITHM_PML},
-                                                           {"lnkmeans", v1::ALGORITHM_LN_KMEANS},
-                                                           {"kmeans", v1::ALGORITHM_KMEANS}};
-  if (algorithms.count(algo) == 0) {
-    return Fail(absl::InvalidArgumentError(
-        absl::StrCat("--algo: '", algo, "' is not one of ml, pml, hc, lnkmeans, kmeans")));
-  }
-  const bool hierarchy = algo == "hc" || algo == "ml" || algo == "pml";
+  absl::StatusOr<const AlgorithmInfo*> algorithm = GetAlgorithm(args, InputKind::kPoints);
+  if (!algorithm.ok()) return Fail(algorithm.status());
+  const std::string algo = (*algorithm)->name;
+  const bool hierarchy = (*algorithm)->hierarchy;
   const std::string auto_k = args.get("auto-k", "");
   if (!auto_k.empty() && auto_k != "bic" && auto_k != "elbow") {
     return Fail(absl::InvalidArgumentError("--auto-k must be bic or elbow"));
@@ -503,20 +539,22 @@ int Points(const Arguments& args) {
   read.dims = static_cast<uint32_t>(*dims);
   absl::StatusOr<PointSet> points = ReadPointsFile(input_path, read);
   if (!points.ok()) return Fail(points.status());
+  if (*clusters > points->num_points()) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--clusters: ", *clusters, " is more than the ", points->num_points(), " points")));
+  }
 
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
   spec.set_point_dims(points->dims);
-  spec.set_algorithm(algorithms.at(algo));
+  spec.set_algorithm(static_cast<v1::Algorithm>((*algorithm)->wire));
   spec.set_energy(v1::ENERGY_VARIANCE);
   spec.set_label(input_path);
   spec.set_seed(*seed);
+  spec.set_device(args.get("device", "auto"));
   if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
   if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
-  for (const char* name :
-       {"grid", "optimizer", "pml-until", "pml-pairs", "threads", "init", "max-iterations"}) {
-    if (args.has(name)) (*spec.mutable_options())[name] = args.get(name);
-  }
+  SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
                             points->values.size() * sizeof(float));
   double seconds = 0;
@@ -579,13 +617,31 @@ int Points(const Arguments& args) {
   return 0;
 }
 
+// --energy (default cvd; every mesh energy, also those not on the wire) and its options.
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args) {
+  const std::string name = args.get("energy", "cvd");
+  const EnergyInfo* energy = FindEnergy(InputKind::kMesh, name);
+  if (energy == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--energy: '", name, "' is not one of ", EnergyNames(InputKind::kMesh)));
+  }
+  JobPlan plan;
+  plan.mesh_energy.kind = energy->mesh_kind;
+  for (const OptionInfo& option : EnergyOptions()) {
+    if (!args.has(option.name)) continue;
+    absl::StatusOr<OptionValue> value = ParseOptionValue(option, args.get(option.name));
+    if (!value.ok()) return value.status();
+    option.apply(*value, plan);
+  }
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));
+  return plan.mesh_energy;
+}
+
 int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  v1::JobSpec spec;
-  if (absl::Status s = SetEnergy(args, spec); !s.ok()) return Fail(s);
-  absl::StatusOr<MeshEnergyOptions> options = server::PlanMeshEnergy(spec);
+  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
   if (!options.ok()) return Fail(options.status());
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(args.positional()[0]);
   if (!mesh.ok()) return Fail(mesh.status());
@@ -620,37 +676,42 @@ int Stats(const Arguments& args) {
 int main(int argc, char** argv) {
   using mlclust::cli::Arguments;
   if (argc < 2 || std::string(argv[1]) == "help" || std::string(argv[1]) == "--help") {
-    std::fputs(mlclust::cli::kUsage, argc < 2 ? stderr : stdout);
+    mlclust::cli::PrintUsage(argc < 2 ? stderr : stdout);
     return argc < 2 ? 2 : 0;
   }
   const std::string command = argv[1];
+  if (command == "serve") return mlclust::cli::RunServeCommand(argc - 2, argv + 2);
   std::vector<std::string> known;
-  if (command == "serve") known = {"listen", "queue", "max-input-mb", "gpu"};
+  using mlclust::InputKind;
+  using mlclust::cli::RegistryOptionNames;
+  auto with = [](std::vector<std::string> names, const std::vector<std::string>& more) {
+    names.insert(names.end(), more.begin(), more.end());
+    return names;
+  };
   if (command == "mesh") {
-    known = {"server",    "algo",      "energy",  "clusters", "labels",           "levels-csv",
-             "ply",       "device",    "quiet",   "coarse",   "coarse-placement", "seed",
-             "init",      "level",     "guard",   "threads",  "max-iterations",   "density",
-             "gamma",     "delta",     "rho-max", "mwcvd-p",  "planar-tolerance", "optimizer",
-             "p-percent", "pml-until", "levels"};
+    known = with({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply", "device",
+                  "quiet", "coarse", "coarse-placement", "seed", "levels"},
+                 RegistryOptionNames(InputKind::kMesh));
   }
   if (command == "points") {
-    known = {"server", "algo",           "clusters",  "labels",    "levels-csv", "dims",
-             "seed",   "grid",           "optimizer", "pml-until", "pml-pairs",  "threads",
-             "init",   "max-iterations", "auto-k",    "levels",    "quiet"};
+    known = with({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed", "auto-k",
+                  "levels", "quiet", "device"},
+                 RegistryOptionNames(InputKind::kPoints));
   }
   if (command == "energy") {
-    known = {"labels", "energy",  "density", "gamma",
-             "delta",  "rho-max", "mwcvd-p", "planar-tolerance"};
+    known = {"labels", "energy"};
+    for (const mlclust::OptionInfo& option : mlclust::EnergyOptions()) {
+      known.push_back(option.name);
+    }
   }
   if (command == "stats") known = {"server"};
   if (known.empty()) {
-    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n%s", command.c_str(),
-                 mlclust::cli::kUsage);
+    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
+    mlclust::cli::PrintUsage(stderr);
     return 2;
   }
   absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, known);
   if (!args.ok()) return mlclust::cli::Fail(args.status());
-  if (command == "serve") return mlclust::cli::Serve(*args);
   if (command == "mesh") return mlclust::cli::Mesh(*args);
   if (command == "energy") return mlclust::cli::Energy(*args);
   if (command == "points") return mlclust::cli::Points(*args);

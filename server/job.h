@@ -1,7 +1,9 @@
-// A job as it travels from the RPC handler through the queue to the worker.
+// A job as it travels from the RPC handler through the queue to a worker.
 #ifndef MLCLUST_SERVER_JOB_H_
 #define MLCLUST_SERVER_JOB_H_
 
+#include <atomic>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -11,23 +13,33 @@
 
 namespace mlclust::server {
 
-// The outgoing half of a job's call. The worker emits events; the RPC handler writes them
-// to the client in order. Thread-safe.
+// The outgoing half of a job's call. The worker emits events; the call writes them to the
+// client in order. Thread-safe.
 class EventChannel {
  public:
   virtual ~EventChannel() = default;
 
-  // Queues `event` for the client. Returns false once the call is cancelled (by the
-  // client, its deadline or shutdown): the job should stop. While the client reads slower
-  // than the job produces, blocks until the backlog is small again, so a slow reader
-  // bounds the server's memory instead of growing it.
+  // Queues `event` for the client and returns at once: producing never waits on a reader
+  // (a reader that falls too far behind is cut off instead; see ResultStore). Returns
+  // false once the job is cancelled (by the client, its deadline, a reader cut off, or the
+  // server draining): the job should stop.
   virtual bool Emit(v1::JobEvent event) = 0;
 
   // Queues the final event (its `final` flag is set here) and ends the call with `status`
-  // once every queued event is written. Call exactly once.
+  // once every queued event is written. Only the first call has an effect.
   virtual void Finish(v1::JobEvent final_event, const grpc::Status& status) = 0;
 
   virtual bool cancelled() const = 0;
+
+  // The flag cancelled() reads, for drivers' options (core/base/cancel.h). Valid as long
+  // as the channel.
+  virtual const std::atomic<bool>* cancel_flag() const = 0;
+};
+
+// Which worker runs a job.
+enum class JobLane {
+  kGl,   // the worker that owns the GL context (jobs planned for the GPU)
+  kCpu,  // the pool of CPU workers (--workers N); with none, the GL worker takes these too
 };
 
 struct Job {
@@ -36,6 +48,16 @@ struct Job {
   std::string input;  // the whole upload: Draco bytes or float32 points
   std::shared_ptr<EventChannel> events;
   absl::Time accepted_at;
+  std::string peer;  // the client's address, for logs
+  JobLane lane = JobLane::kGl;
+  // Bytes of `input` counted against the server's queued-input budget until the job
+  // leaves the queue.
+  uint64_t queued_bytes = 0;
+
+  // Set when the job is cancelled: client cancel, deadline, a reader cut off, drain.
+  // Drivers take it in their options (`cancel = job.cancel_flag()`) and stop at the next
+  // check with CANCELLED.
+  const std::atomic<bool>* cancel_flag() const { return events->cancel_flag(); }
 };
 
 }  // namespace mlclust::server

@@ -7,10 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "core/base/status_macros.h"
-#include "core/cluster/kmeans.h"
-#include "core/cluster/mesh_clustering.h"
-#include "core/cluster/multilevel.h"
-#include "core/cluster/point_clustering.h"
+#include "core/cluster/registry.h"
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/draco_codec.h"
@@ -25,15 +22,6 @@
 namespace mlclust::server {
 namespace {
 
-// Streams levels to the client as they are produced: the first level sent as a snapshot
-// of all labels, later levels packed into LevelBatch messages of about `batch_triplets`
-// triplets (many small levels per message; never one message per triplet), flushed at
-// least every `max_delay` so a slow algorithm still shows progress.
-//
-// With a level range [low, high] (cluster counts; 0 = no bound) only levels in the range
-// are sent: the sink follows the labels through the levels before it, and the first level
-// in range goes out as the snapshot. It also keeps every level's cluster count and energy
-// for the elbow of the summary.
 // Hands every call to two sinks; the first error wins.
 class TeeSink : public LevelSink {
  public:
@@ -53,6 +41,15 @@ class TeeSink : public LevelSink {
   LevelSink& second_;
 };
 
+// Streams levels to the client as they are produced: the first level sent as a snapshot
+// of all labels, later levels packed into LevelBatch messages of about `batch_triplets`
+// triplets (many small levels per message; never one message per triplet), flushed at
+// least every `max_delay` so a slow algorithm still shows progress.
+//
+// With a level range [low, high] (cluster counts; 0 = no bound) only levels in the range
+// are sent: the sink follows the labels through the levels before it, and the first level
+// in range goes out as the snapshot. It also keeps every level's cluster count and energy
+// for the elbow of the summary.
 class StreamingLevelSink : public LevelSink {
  public:
   StreamingLevelSink(EventChannel& events, uint32_t batch_triplets, uint32_t high = 0,
@@ -167,10 +164,12 @@ class StreamingLevelSink : public LevelSink {
   absl::Time last_flush_;
 };
 
-void EmitProgress(EventChannel& events, const std::string& stage, const std::string& message) {
+void EmitProgress(EventChannel& events, const std::string& stage, const std::string& message,
+                  const std::string& device) {
   v1::JobEvent event;
   event.mutable_progress()->set_stage(stage);
   event.mutable_progress()->set_message(message);
+  event.mutable_progress()->set_device(device);
   events.Emit(std::move(event));
 }
 
@@ -178,71 +177,62 @@ absl::Status WithContext(const absl::Status& status, absl::string_view what) {
   return absl::Status(status.code(), absl::StrCat(what, ": ", status.message()));
 }
 
-absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const v1::JobSpec& spec,
+// The face measures on the device the plan's "measures" stage names. Where the plan says
+// GPU and the GPU fails, device auto falls back to the CPU (which always works) and says
+// so in `device_used`; device gpu fails.
+absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const JobPlan& plan,
                                           const JobRunnerContext& context,
                                           std::string& device_used) {
-  const std::string& device = spec.device();
-  if (device != "" && device != "auto" && device != "gpu" && device != "cpu") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("option device: '", device, "' is not one of auto, gpu, cpu"));
-  }
   device_used = "cpu";
-  if (device == "cpu") return ComputeFaceMeasures(mesh);
+  const StagePlan* stage = FindStage(plan, "measures");
 #ifdef MLCLUST_HAVE_GPU
-  if (context.gl != nullptr && (device == "gpu" || !context.gl_is_software)) {
+  if (stage != nullptr && stage->device == StageDevice::kGpu && context.gl != nullptr) {
     absl::StatusOr<FaceMeasures> measures = gpu::ComputeFaceMeasuresGpu(*context.gl, mesh);
     if (measures.ok()) {
       device_used = context.gl_renderer;
       return measures;
     }
-    if (device == "gpu") return WithContext(measures.status(), "face measures on the GPU");
+    if (plan.device == DeviceChoice::kGpu) {
+      return WithContext(measures.status(), "face measures on the GPU");
+    }
     return ComputeFaceMeasures(mesh);  // auto: the CPU path always works
   }
 #endif
-  if (device == "gpu") {
+  if (stage != nullptr && stage->device == StageDevice::kGpu) {
     return absl::FailedPreconditionError("option device: 'gpu' but this server has no GPU");
   }
   return ComputeFaceMeasures(mesh);
 }
 
-// A single-level algorithm's result as two levels: level 0 the initial clusters, level 1
-// the faces whose cluster the optimisation changed.
-absl::Status StreamSingleLevel(const std::vector<ClusterId>& initial, double initial_energy,
-                               const std::vector<ClusterId>& result, double energy,
-                               uint32_t clusters, StreamingLevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(sink.OnStart(initial, clusters, initial_energy));
-  std::vector<uint32_t> element, to, from;
-  for (uint32_t f = 0; f < result.size(); ++f) {
-    if (result[f] != initial[f]) {
-      element.push_back(f);
-      to.push_back(result[f].value());
-      from.push_back(initial[f].value());
-    }
-  }
-  LevelMoves level;
-  level.cluster_count = clusters;
-  level.energy = energy;
-  level.element = element;
-  level.to_cluster = to;
-  level.from_cluster = from;
-  MLCLUST_RETURN_IF_ERROR(sink.OnLevel(level));
-  return sink.Flush();
+// Progress events for the run functions' stages, naming the device each runs on.
+RunContext MakeRunContext(EventChannel& events, const DeviceCaps& caps) {
+  RunContext run;
+  run.on_stage = [&events, caps](const StagePlan& stage, const std::string& message) {
+    EmitProgress(events, stage.name, message, StageDeviceName(stage, caps));
+  };
+  return run;
 }
 
-absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context) {
+StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunnerContext& context) {
+  const v1::JobSpec& spec = job.spec;
+  const bool hierarchy = plan.algorithm->hierarchy;
+  return StreamingLevelSink(
+      *job.events,
+      spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
+      hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+}
+
+void AddElbows(const StreamingLevelSink& sink, v1::Done& done) {
+  for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
+    done.add_elbow_cluster_counts(k);
+  }
+}
+
+absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
+                                      const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
-  absl::StatusOr<MeshJobPlan> plan = PlanMeshJob(spec);
-  if (!plan.ok()) return plan.status();
-  const bool hierarchy = plan->algorithm == v1::ALGORITHM_HC ||
-                         plan->algorithm == v1::ALGORITHM_ML ||
-                         plan->algorithm == v1::ALGORITHM_PML;
-  if (!hierarchy && (spec.levels_high() != 0 || spec.levels_low() != 0)) {
-    return absl::InvalidArgumentError(
-        "levels: a level range applies to the hierarchies of HC, ML and PML only");
-  }
-
-  EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"));
+  EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu");
   absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
   if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
   std::string().swap(job.input);  // the bytes are no longer needed
@@ -250,85 +240,45 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobRunnerContext& context)
     return WithContext(valid, "input mesh");
   }
   const size_t num_faces = mesh->num_faces();
-  if (spec.clusters() > num_faces) {
+  if (plan.clusters > num_faces) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "clusters: ", spec.clusters(), " is more than the mesh's ", num_faces, " faces"));
+        "clusters: ", plan.clusters, " is more than the mesh's ", num_faces, " faces"));
   }
+  const StagePlan* measures_stage = FindStage(plan, "measures");
   EmitProgress(events, "measures",
-               absl::StrCat(num_faces, " faces, ", mesh->num_vertices(), " vertices"));
+               absl::StrCat(num_faces, " faces, ", mesh->num_vertices(), " vertices"),
+               measures_stage != nullptr ? StageDeviceName(*measures_stage, caps) : "cpu");
   absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
   if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
   std::string device_used;
-  absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, spec, context, device_used);
+  absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
   if (!measures.ok()) return measures.status();
 
-  StreamingLevelSink sink(
-      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
-      hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+  StreamingLevelSink sink = MakeSink(job, plan, context);
+  const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan.mesh_energy};
+  absl::StatusOr<RunSummary> summary =
+      plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(events, caps));
+  if (!summary.ok()) return summary.status();
+  if (!sink.started()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("levels: no level has a cluster count in [", spec.levels_low(), ", ",
+                     spec.levels_high(), "]; the hierarchy ends at ", summary->final_clusters,
+                     " clusters (one per connected component at the least)"));
+  }
+  MLCLUST_RETURN_IF_ERROR(sink.Flush());
   JobOutcome outcome;
   outcome.done.set_device(device_used);
-  if (hierarchy) {
-    const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan->energy};
-    EmitProgress(events, "cluster",
-                 absl::StrCat(v1::Algorithm_Name(plan->algorithm), " (",
-                              MeshEnergyName(plan->energy.kind), ")"));
-    absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, plan->multilevel, sink);
-    if (!summary.ok()) return summary.status();
-    if (!sink.started()) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("levels: no level has a cluster count in [", spec.levels_low(), ", ",
-                       spec.levels_high(), "]; the hierarchy ends at ", summary->final_clusters,
-                       " clusters (one per connected component at the least)"));
-    }
-    if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
-    outcome.done.set_final_clusters(summary->final_clusters);
-    for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
-      outcome.done.add_elbow_cluster_counts(k);
-    }
-  } else {
-    const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan->energy};
-    EmitProgress(events, "seed", absl::StrCat(spec.clusters(), " initial clusters"));
-    absl::StatusOr<std::vector<ClusterId>> initial = InitialClusters(problem, plan->seeds);
-    if (!initial.ok()) return initial.status();
-    std::vector<ClusterId> labels = *initial;
-    absl::StatusOr<OptimizeResult> result;
-    if (plan->algorithm == v1::ALGORITHM_EMLO) {
-      EmitProgress(events, "cluster",
-                   absl::StrCat("EMLO (", MeshEnergyName(plan->energy.kind), ")"));
-      EmloOptions options = plan->emlo;
-      result = OptimizeEmlo(problem, labels, options);
-    } else {
-      EmitProgress(events, "cluster",
-                   absl::StrCat("boundary-based (", MeshEnergyName(plan->energy.kind), ")"));
-      BoundaryBasedOptions options = plan->boundary_based;
-      options.on_iteration = [&](uint32_t iteration, double energy) {
-        EmitProgress(events, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
-      };
-      result = OptimizeBoundaryBased(problem, labels, options);
-    }
-    if (!result.ok()) return result.status();
-    if (events.cancelled()) return absl::CancelledError("the call was cancelled");
-    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(*initial, result->initial_energy, labels,
-                                              result->energy, spec.clusters(), sink));
-    outcome.done.set_final_clusters(spec.clusters());
-  }
+  outcome.done.set_final_clusters(summary->final_clusters);
+  if (plan.algorithm->hierarchy) AddElbows(sink, outcome.done);
   outcome.done.set_levels(sink.levels_sent());
   outcome.done.set_triplets(sink.triplets_sent());
   return outcome;
 }
 
-absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& context) {
+absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
+                                        const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
-  absl::StatusOr<PointJobPlan> plan = PlanPointJob(spec);
-  if (!plan.ok()) return plan.status();
-  const bool hierarchy = plan->algorithm == v1::ALGORITHM_HC ||
-                         plan->algorithm == v1::ALGORITHM_ML ||
-                         plan->algorithm == v1::ALGORITHM_PML;
-  if (!hierarchy && (spec.levels_high() != 0 || spec.levels_low() != 0)) {
-    return absl::InvalidArgumentError(
-        "levels: a level range applies to the hierarchies of HC, ML and PML only");
-  }
   // m x d float32, little-endian, row-major.
   const uint32_t d = spec.point_dims();
   if (d == 0) return absl::InvalidArgumentError("point_dims: d = 0");
@@ -343,25 +293,20 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
   std::memcpy(points.values.data(), job.input.data(), job.input.size());
   std::string().swap(job.input);
   if (absl::Status valid = ValidatePoints(points); !valid.ok()) return valid;
-  if (spec.clusters() > points.num_points()) {
+  if (plan.clusters > points.num_points()) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "clusters: ", spec.clusters(), " is more than the ", points.num_points(), " points"));
+        "clusters: ", plan.clusters, " is more than the ", points.num_points(), " points"));
   }
-  EmitProgress(events, "cluster",
-               absl::StrCat(points.num_points(), " points in ", d,
-                            " dimensions: ", v1::Algorithm_Name(plan->algorithm)));
-  StreamingLevelSink sink(
-      events, spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
-      hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+  StreamingLevelSink sink = MakeSink(job, plan, context);
   JobOutcome outcome;
   outcome.done.set_device("cpu");
-  if (hierarchy) {
+  const RunContext run = MakeRunContext(events, caps);
+  if (plan.algorithm->hierarchy) {
     // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary
     // names the BIC's choice over the whole hierarchy, whatever range is sent.
     BicLevelRecorder bic;
     TeeSink both(sink, bic);
-    absl::StatusOr<PointMultilevelSummary> summary =
-        RunPointMultilevel(points, plan->multilevel, both);
+    absl::StatusOr<RunSummary> summary = plan.algorithm->run_points(points, plan, both, run);
     if (!summary.ok()) return summary.status();
     if (!sink.started()) {
       return absl::FailedPreconditionError(
@@ -369,57 +314,19 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
                        spec.levels_high(), "]; the hierarchy starts at ", summary->start_clusters,
                        " voxel clusters (option grid) and ends at ", summary->final_clusters));
     }
-    if (absl::Status flushed = sink.Flush(); !flushed.ok()) return flushed;
+    MLCLUST_RETURN_IF_ERROR(sink.Flush());
     outcome.done.set_final_clusters(summary->final_clusters);
-    for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
-      outcome.done.add_elbow_cluster_counts(k);
-    }
+    AddElbows(sink, outcome.done);
     absl::StatusOr<BicChoice> choice = ChooseByBic(bic.levels(), bic.num_points(), d);
     if (!choice.ok()) return choice.status();
     outcome.done.set_bic_best_cluster_count(choice->best_k);
     outcome.done.set_bic_first_decrease_cluster_count(choice->first_decrease_k);
     outcome.done.set_bic_best(choice->bic[choice->best_level]);
-  } else if (plan->algorithm == v1::ALGORITHM_KMEANS) {
-    // Lloyd from k-means++ (or random) centres; level 0 is the assignment to the centres.
-    KmeansOptions options;
-    options.clusters = plan->clusters;
-    options.seed = plan->seed;
-    options.threads = plan->ln_kmeans.threads;
-    options.max_iterations = plan->ln_kmeans.max_iterations;
-    options.init = plan->kmeans_plus_plus ? KmeansOptions::Init::kKmeansPlusPlus
-                                          : KmeansOptions::Init::kRandom;
-    absl::StatusOr<std::vector<float>> centres =
-        plan->kmeans_plus_plus
-            ? KmeansPlusPlusCentres(points, plan->clusters, plan->seed, options.threads)
-            : RandomPointCentres(points, plan->clusters, plan->seed);
-    if (!centres.ok()) return centres.status();
-    KmeansOptions once = options;
-    once.max_iterations = 1;
-    absl::StatusOr<KmeansResult> start = RunLloyd(points, *centres, once);
-    if (!start.ok()) return start.status();
-    absl::StatusOr<KmeansResult> result = RunLloyd(points, *centres, options);
-    if (!result.ok()) return result.status();
-    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(start->labels, start->inertia, result->labels,
-                                              result->inertia, plan->clusters, sink));
-  } else if (plan->grid_start) {
-    // LN k-means from the voxel grid: level 0 is the voxel clusters, level 1 the result.
-    absl::StatusOr<VoxelStart> start = VoxelGridStart(points, plan->grid);
-    if (!start.ok()) return start.status();
-    absl::StatusOr<LnKmeansResult> result =
-        RunLnKmeansFromGrid(points, plan->grid, plan->ln_kmeans);
-    if (!result.ok()) return result.status();
-    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(start->labels, result->initial_energy, result->labels,
-                                              result->energy, start->clusters, sink));
-    outcome.done.set_final_clusters(start->clusters);
   } else {
-    absl::StatusOr<std::vector<ClusterId>> initial = SeedPointClusters(
-        points, plan->clusters, plan->kmeans_plus_plus, plan->seed, plan->ln_kmeans.threads);
-    if (!initial.ok()) return initial.status();
-    absl::StatusOr<LnKmeansResult> result = RunLnKmeans(points, *initial, plan->ln_kmeans);
-    if (!result.ok()) return result.status();
-    MLCLUST_RETURN_IF_ERROR(StreamSingleLevel(*initial, result->initial_energy, result->labels,
-                                              result->energy, plan->clusters, sink));
-    outcome.done.set_final_clusters(plan->clusters);
+    absl::StatusOr<RunSummary> summary = plan.algorithm->run_points(points, plan, sink, run);
+    if (!summary.ok()) return summary.status();
+    MLCLUST_RETURN_IF_ERROR(sink.Flush());
+    outcome.done.set_final_clusters(summary->final_clusters);
   }
   outcome.done.set_levels(sink.levels_sent());
   outcome.done.set_triplets(sink.triplets_sent());
@@ -429,15 +336,20 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobRunnerContext& contex
 }  // namespace
 
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
-  switch (job.spec.input_kind()) {
-    case v1::INPUT_KIND_DRACO_MESH:
-      return RunMeshJob(job, context);
-    case v1::INPUT_KIND_POINTS_F32:
-      return RunPointsJob(job, context);
-    default:
-      return absl::InvalidArgumentError(
-          "spec.input_kind: unspecified (a Draco mesh or float32 points)");
+  const v1::InputKind kind = job.spec.input_kind();
+  if (kind != v1::INPUT_KIND_DRACO_MESH && kind != v1::INPUT_KIND_POINTS_F32) {
+    return absl::InvalidArgumentError(
+        "spec.input_kind: unspecified (a Draco mesh or float32 points)");
   }
+  absl::StatusOr<JobPlan> plan = PlanWireJob(job.spec);
+  if (!plan.ok()) return plan.status();
+  DeviceCaps caps;
+  caps.gpu = context.gl != nullptr;
+  caps.gpu_is_software = context.gl_is_software;
+  caps.renderer = context.gl_renderer;
+  MLCLUST_RETURN_IF_ERROR(PlanDevices(caps, *plan));
+  if (kind == v1::INPUT_KIND_DRACO_MESH) return RunMeshJob(job, *plan, caps, context);
+  return RunPointsJob(job, *plan, caps, context);
 }
 
 }  // namespace mlclust::server

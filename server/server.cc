@@ -18,6 +18,8 @@
 #include "server/job_queue.h"
 #include "server/job_runner.h"
 #include "server/log.h"
+#include "server/memory_budget.h"
+#include "server/result_store.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/gl_context.h"
 #endif
@@ -28,8 +30,6 @@ namespace {
 constexpr char kServiceName[] = "mlclust.v1.Clustering";
 // Largest message a client may send; chunks are ~1 MiB, so this leaves room.
 constexpr int kMaxReceiveMessageBytes = 64 << 20;
-// Events waiting for a slow client before the job producing them waits too.
-constexpr size_t kMaxBacklogBytes = size_t{64} << 20;
 
 grpc::Status ToGrpc(const absl::Status& status) {
   return grpc::Status(static_cast<grpc::StatusCode>(status.code()), std::string(status.message()));
@@ -43,52 +43,15 @@ v1::JobEvent FailedEvent(const grpc::Status& status) {
 }
 
 struct Counters {
-  std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0};
+  std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
+      readers_cut_off{0};
   std::atomic<bool> job_running{false};
-};
-
-class RunCall;
-
-// The EventChannel of one call: an outbox of events written one at a time (the callback
-// API allows a single outstanding write), chained from OnWriteDone. Shared by the call's
-// reactor and its job; the reactor detaches itself in OnDone, after which nothing is
-// written.
-class CallChannel : public EventChannel {
- public:
-  explicit CallChannel(RunCall* call) : call_(call) {}
-
-  bool Emit(v1::JobEvent event) override;
-  void Finish(v1::JobEvent final_event, const grpc::Status& status) override;
-  bool cancelled() const override { return cancelled_.load(std::memory_order_relaxed); }
-
-  // Reactor side.
-  void OnWriteDone(bool ok);
-  void OnCancel();
-  void Detach();
-
- private:
-  // Starts the next write, or ends the call when nothing is left and an end was asked
-  // for. Called with `lock` held; releases it before calling into gRPC, so a reaction
-  // that runs inline cannot deadlock on mutex_.
-  void Pump(std::unique_lock<std::mutex>& lock);
-
-  std::mutex mutex_;
-  std::condition_variable backlog_space_;
-  RunCall* call_;  // null after OnDone
-  std::deque<v1::JobEvent> outbox_;
-  size_t outbox_bytes_ = 0;
-  v1::JobEvent in_flight_;  // must outlive its write
-  bool write_in_flight_ = false;
-  bool finish_requested_ = false;
-  bool finished_ = false;  // grpc Finish was called
-  grpc::Status finish_status_;
-  std::atomic<bool> cancelled_{false};
 };
 
 class ServiceImpl;
 
 // The reactor of one Run call: reads the spec and the input chunks, submits the job,
-// then writes the job's events through its CallChannel.
+// then writes the job's events through its ResultStore.
 class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
  public:
   explicit RunCall(ServiceImpl* service);
@@ -102,11 +65,23 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   }
 
  private:
+  // The store's view of this reactor.
+  class Writer : public EventWriter {
+   public:
+    explicit Writer(RunCall* call) : call_(call) {}
+    void StartWrite(const v1::JobEvent* event) override { call_->StartWrite(event); }
+    void Finish(const grpc::Status& status) override { call_->Finish(status); }
+
+   private:
+    RunCall* call_;
+  };
+
   void Fail(const absl::Status& status);
   void Submit();
 
   ServiceImpl* service_;
-  std::shared_ptr<CallChannel> channel_;
+  Writer writer_{this};
+  std::shared_ptr<ResultStore> channel_;
   v1::RunRequest request_;
   v1::JobSpec spec_;
   bool have_spec_ = false;
@@ -116,7 +91,22 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
 
 class ServiceImpl final : public v1::Clustering::CallbackService {
  public:
-  ServiceImpl(const ServerOptions& options) : options_(options), queue_(options.queue_capacity) {}
+  ServiceImpl(const ServerOptions& options)
+      : options_(options),
+        queue_(options.queue_capacity),
+        result_budget_(options.result_server_budget_bytes) {}
+
+  // A new job's store of events, writing to `writer`.
+  std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
+    ResultStoreOptions store_options;
+    store_options.job_budget_bytes = options_.result_job_budget_bytes;
+    store_options.max_event_bytes = options_.max_event_bytes;
+    store_options.on_cut_off = [this](const grpc::Status& status) {
+      ++counters_.readers_cut_off;
+      LogLine(options_.log, "a reader was cut off: ", status.error_message());
+    };
+    return std::make_shared<ResultStore>(writer, &result_budget_, std::move(store_options));
+  }
 
   grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>* Run(
       grpc::CallbackServerContext* context) override {
@@ -135,6 +125,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_jobs_rejected(counters_.rejected);
     stats->set_job_running(counters_.job_running);
     stats->set_max_input_bytes(options_.max_input_bytes);
+    stats->set_result_bytes_held(result_budget_.used());
+    stats->set_result_bytes_limit(result_budget_.limit());
+    stats->set_readers_cut_off(counters_.readers_cut_off);
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
       stats->set_gpu_available(!gl_renderer_.empty());
@@ -176,82 +169,14 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   const ServerOptions options_;
   BoundedJobQueue<Job> queue_;
   Counters counters_;
+  MemoryBudget result_budget_;
   std::atomic<uint64_t> next_job_number_{0};
   std::mutex gl_mutex_;
   std::string gl_renderer_, gl_device_;
 };
 
-bool CallChannel::Emit(v1::JobEvent event) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  backlog_space_.wait(lock,
-                      [&] { return outbox_bytes_ < kMaxBacklogBytes || cancelled() || finished_; });
-  if (cancelled() || finished_ || finish_requested_) return false;
-  outbox_bytes_ += event.ByteSizeLong();
-  outbox_.push_back(std::move(event));
-  Pump(lock);
-  return true;
-}
-
-void CallChannel::Finish(v1::JobEvent final_event, const grpc::Status& status) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  if (finish_requested_ || finished_) return;
-  final_event.set_final(true);
-  outbox_bytes_ += final_event.ByteSizeLong();
-  outbox_.push_back(std::move(final_event));
-  finish_requested_ = true;
-  finish_status_ = status;
-  Pump(lock);
-}
-
-void CallChannel::OnWriteDone(bool ok) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  write_in_flight_ = false;
-  if (!ok) cancelled_ = true;  // the client is gone
-  Pump(lock);
-}
-
-void CallChannel::OnCancel() {
-  std::unique_lock<std::mutex> lock(mutex_);
-  cancelled_ = true;
-  backlog_space_.notify_all();
-  Pump(lock);
-}
-
-void CallChannel::Detach() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  call_ = nullptr;
-  outbox_.clear();
-  cancelled_ = true;
-  backlog_space_.notify_all();
-}
-
-void CallChannel::Pump(std::unique_lock<std::mutex>& lock) {
-  if (write_in_flight_ || finished_ || call_ == nullptr) return;
-  RunCall* call = call_;
-  if (!outbox_.empty() && !cancelled()) {
-    in_flight_ = std::move(outbox_.front());
-    outbox_.pop_front();
-    outbox_bytes_ -= std::min(outbox_bytes_, in_flight_.ByteSizeLong());
-    write_in_flight_ = true;
-    backlog_space_.notify_all();
-    lock.unlock();
-    call->StartWrite(&in_flight_);
-    return;
-  }
-  if (finish_requested_ || cancelled()) {
-    finished_ = true;
-    const grpc::Status status = cancelled() && !finish_requested_
-                                    ? grpc::Status(grpc::StatusCode::CANCELLED, "cancelled")
-                                    : finish_status_;
-    outbox_.clear();
-    backlog_space_.notify_all();
-    lock.unlock();
-    call->Finish(status);
-  }
-}
-
 RunCall::RunCall(ServiceImpl* service)
-    : service_(service), channel_(std::make_shared<CallChannel>(this)) {
+    : service_(service), channel_(service->NewResultStore(&writer_)) {
   StartRead(&request_);
 }
 
@@ -320,6 +245,7 @@ void RunCall::Submit() {
     event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
     event.mutable_accepted()->set_input_bytes(bytes);
     channel_->Emit(std::move(event));
+    ++service_->counters().accepted;  // before a worker can finish it
   });
   if (!ahead.ok()) {
     ++service_->counters().rejected;
@@ -327,7 +253,6 @@ void RunCall::Submit() {
     Fail(ahead.status());
     return;
   }
-  ++service_->counters().accepted;
   LogLine(service_->options().log, id, " accepted (", bytes, " bytes, ", *ahead, " ahead)");
 }
 

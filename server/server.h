@@ -32,6 +32,14 @@ struct ServerOptions {
   // Largest input a job may upload; larger ones are refused with RESOURCE_EXHAUSTED
   // before any byte is read.
   uint64_t max_input_bytes = uint64_t{1} << 30;
+  // Events a job has produced and its client not yet read (memory, not wire bytes): per
+  // job and over all jobs. A reader that falls further behind is cut off with
+  // RESOURCE_EXHAUSTED and its job cancelled; producing levels never waits on a reader.
+  uint64_t result_job_budget_bytes = uint64_t{256} << 20;
+  uint64_t result_server_budget_bytes = uint64_t{1} << 30;
+  // Largest message sent; larger level batches and snapshots are split (under gRPC's
+  // default 4 MiB receive limit).
+  size_t max_event_bytes = size_t{3} << 20;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;

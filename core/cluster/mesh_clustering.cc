@@ -7,12 +7,10 @@
 #include "absl/strings/str_cat.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/boundary_based.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/partition.h"
 #include "core/mesh/connectivity_guard.h"
-#include "tbb/global_control.h"
-#include "tbb/parallel_for.h"
-#include "tbb/task_arena.h"
 
 namespace mlclust {
 namespace {
@@ -392,109 +390,20 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
   std::vector<uint32_t> compact;
   const uint32_t k = CompactClusterIds(labels, compact);
   const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
-  const FaceAdjacency& adjacency = *problem.adjacency;
-  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
-        using Energy = std::decay_t<decltype(energy)>;
-        using Proxy = typename Energy::Proxy;
-        Partition<Energy> partition(energy, compact, k);
-        const ConnectivityGuard guard(*problem.mesh, adjacency);
-        OptimizeResult result;
-        result.initial_energy = partition.TotalEnergy();
-        double current = result.initial_energy;
-        std::vector<Proxy> proxies(k);
-        std::vector<uint32_t> target(n, kUnassigned);
-        std::vector<uint32_t> moving;
-        std::vector<std::pair<uint32_t, uint32_t>> applied;  // face, previous cluster
-        result.converged = false;
-        for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
-          for (uint32_t c = 0; c < k; ++c) proxies[c] = energy.FitProxy(partition.sums(c));
-          // Every face decides alone against the fixed proxies (parallel).
-          arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<uint32_t>(0, static_cast<uint32_t>(n), 4096),
-                              [&](const tbb::blocked_range<uint32_t>& range) {
-                                for (uint32_t f = range.begin(); f != range.end(); ++f) {
-                                  target[f] = kUnassigned;
-                                  const uint32_t own = partition.label(f);
-                                  double best = energy.FaceCost(f, proxies[own]);
-                                  const double own_cost = best;
-                                  uint32_t best_cluster = own;
-                                  for (FaceId g : adjacency.neighbours[f]) {
-                                    if (!g.valid()) continue;
-                                    const uint32_t c = partition.label(g.value());
-                                    if (c == own || c == best_cluster) continue;
-                                    const double cost = energy.FaceCost(f, proxies[c]);
-                                    if (cost < best) {
-                                      best = cost;
-                                      best_cluster = c;
-                                    }
-                                  }
-                                  if (best_cluster != own && own_cost - best > 1e-12 * own_cost) {
-                                    target[f] = best_cluster;
-                                  }
-                                }
-                              });
-          });
-          // Faces that share a vertex do not move in the same sweep: the smaller id wins.
-          moving.clear();
-          for (uint32_t f = 0; f < n; ++f) {
-            if (target[f] != kUnassigned) moving.push_back(f);
-          }
-          std::vector<uint8_t> accept(moving.size(), 0);
-          arena.execute([&] {
-            tbb::parallel_for(
-                tbb::blocked_range<size_t>(0, moving.size(), 256),
-                [&](const tbb::blocked_range<size_t>& range) {
-                  for (size_t i = range.begin(); i != range.end(); ++i) {
-                    const uint32_t f = moving[i];
-                    bool first = true;
-                    for (uint32_t g : guard.Ring(f)) {
-                      if (g != ConnectivityGuard::kGap && g < f && target[g] != kUnassigned) {
-                        first = false;
-                        break;
-                      }
-                    }
-                    if (!first) continue;
-                    if (options.connectivity_guard &&
-                        !guard.CanMove(f, target[f], partition.labels(), partition.sizes())) {
-                      continue;
-                    }
-                    accept[i] = 1;
-                  }
-                });
-          });
-          applied.clear();
-          for (size_t i = 0; i < moving.size(); ++i) {
-            if (!accept[i]) continue;
-            const uint32_t f = moving[i];
-            if (partition.size(partition.label(f)) <= 1) continue;
-            applied.push_back({f, partition.label(f)});
-            partition.Move(f, target[f]);
-          }
-          result.iterations = iteration;
-          if (applied.empty()) {
-            result.converged = true;
-            break;
-          }
-          const double next = partition.TotalEnergy();
-          if (next > current) {
-            // Possible only for energies whose proxy is not a minimiser (MWCVD): undo.
-            for (auto it = applied.rbegin(); it != applied.rend(); ++it) {
-              partition.Move(it->first, it->second);
-            }
-            result.converged = true;
-            break;
-          }
-          current = next;
-          result.moves += applied.size();
-          if (options.on_iteration) options.on_iteration(iteration, current);
-        }
-        result.energy = partition.TotalEnergy();
-        WriteBack(partition.labels(), original, labels);
-        return result;
-      });
+  const boundary_based::StageThreads threads(options.threads);
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                        [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+                          using Energy = std::decay_t<decltype(energy)>;
+                          Partition<Energy> partition(energy, compact, k);
+                          const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
+                          MLCLUST_ASSIGN_OR_RETURN(OptimizeResult result,
+                                                   boundary_based::RunBoundaryBased(
+                                                       guard, partition, options, threads,
+                                                       boundary_based::CpuBoundaryDecider<Energy>(
+                                                           energy, *problem.adjacency, threads)));
+                          WriteBack(partition.labels(), original, labels);
+                          return result;
+                        });
 }
 
 }  // namespace mlclust

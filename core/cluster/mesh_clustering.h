@@ -7,6 +7,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_MESH_CLUSTERING_H_
 #define MLCLUST_CORE_CLUSTER_MESH_CLUSTERING_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -85,6 +86,8 @@ struct BoundaryBasedOptions {
   bool connectivity_guard = true;
   // Called after each sweep with its number (1-based) and the total energy.
   std::function<void(uint32_t iteration, double energy)> on_iteration;
+  // Checked before each stage of a sweep (core/base/cancel.h).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Boundary-based optimisation (Alg. 5.1): proxies are fixed for a sweep; every boundary

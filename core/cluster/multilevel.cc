@@ -6,10 +6,11 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
-#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/partition.h"
+#include "core/hierarchy/level_recorder.h"
 #include "core/mesh/connectivity_guard.h"
 #include "tbb/parallel_for.h"
 #include "tbb/task_arena.h"
@@ -17,24 +18,7 @@
 namespace mlclust {
 namespace {
 
-constexpr uint32_t kNone = 0xffffffffu;
-
-using detail::CompensatedSum;
-
-// A cluster's optimal dual edge (Def. 4.2) as it was when pushed: stale once the cluster's
-// ODE has been recomputed since (lazy invalidation by version numbers, instead of the
-// dissertation's O(k) scan for the cheapest ODE per merge).
-struct OdeEntry {
-  double cost;
-  uint32_t cluster;
-  uint32_t version;
-};
-struct CheaperLast {
-  bool operator()(const OdeEntry& x, const OdeEntry& y) const {
-    if (x.cost != y.cost) return x.cost > y.cost;
-    return x.cluster > y.cluster;
-  }
-};
+constexpr uint32_t kNone = detail::kNoCluster;
 
 template <typename Energy>
 class Engine {
@@ -53,13 +37,9 @@ class Engine {
         members_(n_),
         position_(n_, 0),
         neighbours_(n_),
-        version_(n_, 0),
-        ode_(n_, kNone),
-        ode_cost_(n_, std::numeric_limits<double>::infinity()),
+        odes_(n_),
         dirty_mark_(n_, 0),
-        origin_(n_, kNone),
-        affected_mark_(n_, 0),
-        energy_before_(n_, 0.0) {
+        recorder_(n_, n_) {
     for (uint32_t f = 0; f < n_; ++f) {
       members_[f] = {f};
       for (FaceId g : adjacency_.neighbours[f]) {
@@ -105,7 +85,7 @@ class Engine {
       if (!*progressed) break;  // no adjacent pair left: one cluster per component
     }
     summary_.final_clusters = clusters_;
-    summary_.final_energy = energy_.value();
+    summary_.final_energy = recorder_.energy();
     return summary_;
   }
 
@@ -161,17 +141,9 @@ class Engine {
   // ---- level bookkeeping ------------------------------------------------------------
 
   void Touch(uint32_t cluster) {
-    if (affected_mark_[cluster]) return;
-    affected_mark_[cluster] = 1;
-    affected_.push_back(cluster);
-    energy_before_[cluster] = partition_.cluster_energy(cluster);
+    recorder_.Touch(cluster, [&](uint32_t c) { return partition_.cluster_energy(c); });
   }
-  void RecordMove(uint32_t face, uint32_t from) {
-    if (origin_[face] == kNone) {
-      origin_[face] = from;
-      touched_.push_back(face);
-    }
-  }
+  void RecordMove(uint32_t face, uint32_t from) { recorder_.RecordMove(face, from); }
 
   // Merges `gone` into `keep` with all bookkeeping.
   void Merge(uint32_t keep, uint32_t gone) {
@@ -291,35 +263,13 @@ class Engine {
   // Ends a level: squashes the moves into triplets, updates the energy, re-queues the
   // dual edges of every cluster that changed, and reports the level.
   absl::Status FinishLevel() {
-    for (uint32_t c : affected_) {
-      energy_.Add(partition_.cluster_energy(c) - energy_before_[c]);
-      affected_mark_[c] = 0;
-    }
-    element_.clear();
-    to_.clear();
-    from_.clear();
-    for (uint32_t f : touched_) {
-      if (partition_.label(f) != origin_[f]) {
-        element_.push_back(f);
-        to_.push_back(partition_.label(f));
-        from_.push_back(origin_[f]);
-      }
-      origin_[f] = kNone;
-    }
-    touched_.clear();
+    recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
+                     [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; });
     UpdateOptimalDualEdges();
     for (uint32_t c : dirty_) dirty_mark_[c] = 0;
     dirty_.clear();
-    affected_.clear();
-    LevelMoves level;
-    level.level = summary_.levels;
-    level.cluster_count = clusters_;
-    level.energy = energy_.value();
-    level.element = element_;
-    level.to_cluster = to_;
-    level.from_cluster = from_;
-    summary_.moves += element_.size();
-    MLCLUST_RETURN_IF_ERROR(sink_.OnLevel(level));
+    MLCLUST_RETURN_IF_ERROR(recorder_.Emit(sink_, summary_.levels, clusters_));
+    summary_.moves = recorder_.moves();
     if (options_.inspect_level) options_.inspect_level(summary_.levels, partition_.labels());
     ++summary_.levels;
     return absl::OkStatus();
@@ -339,19 +289,14 @@ class Engine {
 
   // Equal costs go to the larger id (as PML's rule), so every choice is deterministic.
   static bool Better(double cost, uint32_t d, double best, uint32_t best_d) {
-    return cost < best || (cost == best && best_d != kNone && d > best_d) ||
-           (best_d == kNone && cost <= best);
+    return detail::CheaperDualEdge(cost, d, best, best_d);
   }
 
+  // PML keeps the ODEs without queueing them; ML queues every new one.
   void SetOde(uint32_t c, uint32_t d, double cost) {
-    ode_[c] = d;
-    ode_cost_[c] = cost;
-    ++version_[c];
-    if (d != kNone && !in_parallel_phase_) {
-      heap_.push_back({cost, c, version_[c]});
-      std::push_heap(heap_.begin(), heap_.end(), CheaperLast{});
-    }
+    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_);
   }
+  bool Alive(uint32_t c) const { return partition_.size(c) > 0; }
 
   void RecomputeOde(uint32_t c) {
     double best = std::numeric_limits<double>::infinity();
@@ -370,64 +315,46 @@ class Engine {
   // their ODE partner changed or left) get their ODE recomputed; a neighbour of a changed
   // cluster only compares the one edge that changed, unless its ODE was that edge.
   void UpdateOptimalDualEdges() {
-    for (uint32_t c : affected_) MarkDirty(c);
+    for (uint32_t c : recorder_.affected()) MarkDirty(c);
     for (uint32_t c : dirty_) {
       if (partition_.size(c) > 0) RecomputeOde(c);
     }
-    for (uint32_t c : affected_) {
+    for (uint32_t c : recorder_.affected()) {
       if (partition_.size(c) == 0) continue;
       for (const auto& [d, count] : neighbours_[c]) {
         if (dirty_mark_[d]) continue;  // recomputed in full above
-        if (ode_[d] == c) {
+        if (odes_.partner(d) == c) {
           MarkDirty(d);  // its best edge changed: it may no longer be the best
           RecomputeOde(d);
           continue;
         }
         const double cost = Cost(d, c);
-        if (Better(cost, c, ode_cost_[d], ode_[d])) SetOde(d, c, cost);
+        if (Better(cost, c, odes_.cost(d), odes_.partner(d))) SetOde(d, c, cost);
       }
     }
-    if (!in_parallel_phase_) MaybeCompactHeap();
+    if (!in_parallel_phase_) {
+      odes_.MaybeCompact(clusters_, [&](uint32_t c) { return Alive(c); });
+    }
   }
 
   void BuildHeap() {
-    heap_.clear();
     for (uint32_t c = 0; c < n_; ++c) {
       if (partition_.size(c) > 0) RecomputeOde(c);
     }
   }
-
-  // Stale entries pile up; rebuild from the live ODEs when they outnumber the clusters
-  // four to one, keeping the heap O(clusters).
-  void MaybeCompactHeap() {
-    if (heap_.size() <= 4 * static_cast<size_t>(clusters_) + 4096) return;
-    RebuildHeap();
-  }
   void RebuildHeap() {
-    heap_.clear();
-    for (uint32_t c = 0; c < n_; ++c) {
-      if (partition_.size(c) > 0 && ode_[c] != kNone)
-        heap_.push_back({ode_cost_[c], c, version_[c]});
-    }
-    std::make_heap(heap_.begin(), heap_.end(), CheaperLast{});
+    odes_.Rebuild([&](uint32_t c) { return Alive(c); });
   }
 
   absl::StatusOr<bool> SequentialStep() {
-    while (!heap_.empty()) {
-      std::pop_heap(heap_.begin(), heap_.end(), CheaperLast{});
-      const OdeEntry entry = heap_.back();
-      heap_.pop_back();
-      if (partition_.size(entry.cluster) == 0 || version_[entry.cluster] != entry.version) {
-        continue;
-      }
-      const auto [keep, gone] = KeepAndGone(entry.cluster, ode_[entry.cluster]);
-      Merge(keep, gone);
-      const uint32_t merged[1] = {keep};
-      Optimise(merged);
-      MLCLUST_RETURN_IF_ERROR(FinishLevel());
-      return true;
-    }
-    return false;
+    const uint32_t cheapest = odes_.PopCheapest([&](uint32_t c) { return Alive(c); });
+    if (cheapest == kNone) return false;
+    const auto [keep, gone] = KeepAndGone(cheapest, odes_.partner(cheapest));
+    Merge(keep, gone);
+    const uint32_t merged[1] = {keep};
+    Optimise(merged);
+    MLCLUST_RETURN_IF_ERROR(FinishLevel());
+    return true;
   }
 
   // ---- PML: all mutual optimal dual edges at once --------------------------------------
@@ -451,8 +378,7 @@ class Engine {
                               best_d = d;
                             }
                           }
-                          ode_[c] = best_d;
-                          ode_cost_[c] = best;
+                          odes_.Assign(c, best_d, best);
                         }
                       });
   }
@@ -469,8 +395,8 @@ class Engine {
     alive_.resize(alive);
     pairs_.clear();
     for (uint32_t c : alive_) {
-      const uint32_t d = ode_[c];
-      if (d != kNone && c < d && ode_[d] == c) pairs_.push_back({c, d});
+      const uint32_t d = odes_.partner(c);
+      if (d != kNone && c < d && odes_.partner(d) == c) pairs_.push_back({c, d});
     }
     if (pairs_.empty()) {
       in_parallel_phase_ = false;
@@ -513,20 +439,11 @@ class Engine {
   std::vector<std::vector<uint32_t>> members_;
   std::vector<uint32_t> position_;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;
-  std::vector<uint32_t> version_;
-  std::vector<OdeEntry> heap_;
-  std::vector<uint32_t> ode_;
-  std::vector<double> ode_cost_;
+  detail::OdeHeap odes_;
   std::vector<uint8_t> dirty_mark_;
   std::vector<uint32_t> dirty_;
 
-  // Level bookkeeping.
-  std::vector<uint32_t> origin_, touched_;
-  std::vector<uint8_t> affected_mark_;
-  std::vector<uint32_t> affected_;
-  std::vector<double> energy_before_;
-  std::vector<uint32_t> element_, to_, from_;
-  CompensatedSum energy_;
+  LevelRecorder recorder_;
   uint32_t clusters_ = 0;
   uint32_t optimise_below_ = 0;
   bool in_parallel_phase_ = false;

@@ -8,22 +8,22 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
-#include "core/base/compensated_sum.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/kmeans.h"
+#include "core/energy/variance_energy.h"
+#include "core/hierarchy/level_recorder.h"
 #include "tbb/parallel_for.h"
 #include "tbb/task_arena.h"
 
 namespace mlclust {
 namespace {
 
-constexpr uint32_t kNone = 0xffffffffu;
+constexpr uint32_t kNone = detail::kNoCluster;
 // LN k-means rounds after a merge (the first checks the merged clusters and their
 // neighbours, the others the clusters that changed).
 constexpr int kOptimiseRounds = 8;
-
-using detail::CompensatedSum;
 
 // Clusters of points with their sums, centroids and local neighbours. Coordinates are
 // taken relative to the data's mean (`origin`) so that the energy from sums,
@@ -61,21 +61,13 @@ class PointClusters {
     return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
   }
 
+  // Eq. 6.5 and its merge cost (core/energy/variance_energy.h) from the flat sums.
   double Energy(uint32_t c) const {
-    if (count_[c] == 0) return 0;
-    double s2 = 0;
-    for (uint32_t j = 0; j < d_; ++j) s2 += sum_[size_t{c} * d_ + j] * sum_[size_t{c} * d_ + j];
-    return std::max(0.0, square_[c] - s2 / static_cast<double>(count_[c]));
+    return EnergyOfSums(static_cast<double>(count_[c]), {&sum_[size_t{c} * d_], d_}, square_[c]);
   }
   double MergeCost(uint32_t a, uint32_t b) const {
-    const double na = static_cast<double>(count_[a]), nb = static_cast<double>(count_[b]);
-    if (na == 0 || nb == 0) return 0;
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = centroid_[size_t{a} * d_ + j] - centroid_[size_t{b} * d_ + j];
-      dist += diff * diff;
-    }
-    return na * nb / (na + nb) * dist;
+    return WardMergeCost(static_cast<double>(count_[a]), centroid(a),
+                         static_cast<double>(count_[b]), centroid(b));
   }
   // |x_i - c|^2 with x_i relative to the origin.
   double Distance(size_t i, uint32_t c) const {
@@ -554,13 +546,9 @@ class PointEngine {
         LinkIsolated(c);
       }
     }
-    ode_.assign(k0_, kNone);
-    ode_cost_.assign(k0_, std::numeric_limits<double>::infinity());
-    version_.assign(k0_, 0);
-    origin_.assign(points.num_points(), kNone);
+    odes_ = detail::OdeHeap(k0_);
+    recorder_ = LevelRecorder(points.num_points(), k0_);
     mark_.assign(k0_, 0);
-    affected_mark_.assign(k0_, 0);
-    energy_before_.assign(k0_, 0.0);
     into_.assign(k0_, kNone);
     partner_.assign(k0_, kNone);
     stamp_.assign(points.num_points(), 0);
@@ -574,8 +562,8 @@ class PointEngine {
     summary.start_clusters = k0_;
     std::vector<ClusterId> start(points_.num_points());
     for (size_t i = 0; i < start.size(); ++i) start[original_[i]] = ClusterId(clusters_->label(i));
-    energy_.Reset(clusters_->TotalEnergy());
-    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, k0_, energy_.value()));
+    recorder_.Reset(clusters_->TotalEnergy());
+    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, k0_, recorder_.energy()));
     Inspect(0);
     alive_ = k0_;
     levels_ = 1;
@@ -597,7 +585,7 @@ class PointEngine {
     }
     summary.levels = levels_;
     summary.final_clusters = alive_;
-    summary.moves = moves_;
+    summary.moves = recorder_.moves();
     return summary;
   }
 
@@ -622,13 +610,7 @@ class PointEngine {
       for (uint32_t n : clusters_->neighbours(c)) consider(n);
       for (uint32_t n : reverse_[c]) consider(n);
     }
-    ode_[c] = best_d;
-    ode_cost_[c] = best;
-    ++version_[c];
-    if (best_d != kNone) {
-      heap_.push_back({best, c, version_[c]});
-      std::push_heap(heap_.begin(), heap_.end(), Later{});
-    }
+    odes_.Set(c, best_d, best);
   }
 
   // ---- neighbour bookkeeping --------------------------------------------------------------
@@ -671,17 +653,10 @@ class PointEngine {
   }
 
   void Touch(uint32_t c) {
-    if (affected_mark_[c]) return;
-    affected_mark_[c] = 1;
-    affected_.push_back(c);
-    energy_before_[c] = clusters_->Energy(c);
+    recorder_.Touch(c, [&](uint32_t x) { return clusters_->Energy(x); });
   }
-  void Record(uint32_t i, uint32_t from) {
-    if (origin_[i] == kNone) {
-      origin_[i] = from;
-      touched_.push_back(i);
-    }
-  }
+  void Record(uint32_t i, uint32_t from) { recorder_.RecordMove(i, from); }
+  bool Alive(uint32_t c) const { return clusters_->count(c) > 0; }
 
   void Merge(uint32_t a, uint32_t b) {
     uint32_t keep = a, gone = b;
@@ -873,7 +848,7 @@ class PointEngine {
     for (uint32_t gone : gone_) {
       for (uint32_t x : std::vector<uint32_t>(reverse_[gone])) add(x);
     }
-    for (uint32_t c : affected_) {
+    for (uint32_t c : recorder_.affected()) {
       add(c);
       for (uint32_t x : reverse_[c]) add(x);
     }
@@ -920,11 +895,11 @@ class PointEngine {
       }
       std::span<uint32_t> out = clusters_->neighbours(gone);
       std::fill(out.begin(), out.end(), kNone);
-      ++version_[gone];
+      odes_.Invalidate(gone);
     }
     // ODEs: of the refreshed clusters, and of the clusters the changed ones list (to
     // which they are reverse neighbours).
-    for (uint32_t c : affected_) {
+    for (uint32_t c : recorder_.affected()) {
       for (uint32_t n : clusters_->neighbours(c)) {
         if (n != kNone && !mark_[n] && clusters_->count(n) > 0) {
           mark_[n] = 1;
@@ -943,36 +918,14 @@ class PointEngine {
       RecomputeOde(c);
     }
     refresh_odes_.clear();
-    if (heap_.size() > 4 * static_cast<size_t>(alive_) + 4096) RebuildHeap();
+    odes_.MaybeCompact(alive_, [&](uint32_t c) { return Alive(c); });
 
-    for (uint32_t c : affected_) {
-      energy_.Add(clusters_->Energy(c) - energy_before_[c]);
-      affected_mark_[c] = 0;
-    }
-    affected_.clear();
-    element_.clear();
-    to_.clear();
-    from_.clear();
-    for (uint32_t i : touched_) {
-      if (clusters_->label(i) != origin_[i]) {
-        element_.push_back(original_[i]);
-        to_.push_back(clusters_->label(i));
-        from_.push_back(origin_[i]);
-      }
-      origin_[i] = kNone;
-    }
-    touched_.clear();
+    recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },
+                     [&](uint32_t i) { return clusters_->label(i); },
+                     [&](uint32_t i) { return original_[i]; });
     merged_.clear();
     gone_.clear();
-    LevelMoves level;
-    level.level = levels_;
-    level.cluster_count = alive_;
-    level.energy = energy_.value();
-    level.element = element_;
-    level.to_cluster = to_;
-    level.from_cluster = from_;
-    moves_ += element_.size();
-    MLCLUST_RETURN_IF_ERROR(sink_.OnLevel(level));
+    MLCLUST_RETURN_IF_ERROR(recorder_.Emit(sink_, levels_, alive_));
     Inspect(levels_);
     ++levels_;
     return absl::OkStatus();
@@ -986,55 +939,43 @@ class PointEngine {
     options_.inspect_level(level, labels);
   }
 
-  void RebuildHeap() {
-    heap_.clear();
-    for (uint32_t c = 0; c < k0_; ++c) {
-      if (clusters_->count(c) > 0 && ode_[c] != kNone)
-        heap_.push_back({ode_cost_[c], c, version_[c]});
-    }
-    std::make_heap(heap_.begin(), heap_.end(), Later{});
-  }
-
   bool SequentialStep() {
-    while (!heap_.empty()) {
-      std::pop_heap(heap_.begin(), heap_.end(), Later{});
-      const Entry e = heap_.back();
-      heap_.pop_back();
-      if (clusters_->count(e.cluster) == 0 || version_[e.cluster] != e.version) continue;
-      const uint32_t other = ode_[e.cluster];
+    for (;;) {
+      const uint32_t cheapest = odes_.PopCheapest([&](uint32_t c) { return Alive(c); });
+      if (cheapest == kNone) return false;
+      const uint32_t other = odes_.partner(cheapest);
       if (other == kNone || clusters_->count(other) == 0) {
-        RecomputeOde(e.cluster);
+        RecomputeOde(cheapest);
         continue;
       }
-      Merge(e.cluster, other);
+      Merge(cheapest, other);
       Optimise();
       return true;
     }
-    return false;
   }
 
   bool ParallelStep() {
     std::vector<std::pair<uint32_t, uint32_t>> pairs;
     for (uint32_t c = 0; c < k0_; ++c) {
-      const uint32_t o = ode_[c];
+      const uint32_t o = odes_.partner(c);
       if (clusters_->count(c) > 0 && o != kNone && c < o && clusters_->count(o) > 0 &&
-          ode_[o] == c) {
+          odes_.partner(o) == c) {
         pairs.push_back({c, o});
       }
     }
     if (pairs.empty()) return SequentialStep();
     // Cheapest first (ties by id), so that the floor below keeps the cheapest.
     std::sort(pairs.begin(), pairs.end(), [&](const auto& x, const auto& y) {
-      return ode_cost_[x.first] != ode_cost_[y.first] ? ode_cost_[x.first] < ode_cost_[y.first]
-                                                      : x < y;
+      return odes_.cost(x.first) != odes_.cost(y.first) ? odes_.cost(x.first) < odes_.cost(y.first)
+                                                        : x < y;
     });
     if (options_.pml_pairs == PointMultilevelOptions::PmlPairs::kCheaperHalf) {
       // Only the mutual pairs that cost at most the median: near the data's own scale the
       // mutual pairs mix pieces of one cluster (cheap) with whole clusters (dear), and
       // collapsing them all in one level merges whole clusters while pieces remain.
-      const double limit = ode_cost_[pairs[pairs.size() / 2].first];
+      const double limit = odes_.cost(pairs[pairs.size() / 2].first);
       size_t keep = 1;
-      while (keep < pairs.size() && ode_cost_[pairs[keep].first] <= limit) ++keep;
+      while (keep < pairs.size() && odes_.cost(pairs[keep].first) <= limit) ++keep;
       pairs.resize(keep);
     }
     const uint32_t floor = std::max(options_.min_clusters, 1u);
@@ -1059,20 +1000,10 @@ class PointEngine {
     bool any = false;
     for (uint32_t c : survivors) {
       RecomputeOde(c);
-      any = any || ode_[c] != kNone;
+      any = any || odes_.partner(c) != kNone;
     }
     return any;
   }
-
-  struct Entry {
-    double cost;
-    uint32_t cluster, version;
-  };
-  struct Later {
-    bool operator()(const Entry& x, const Entry& y) const {
-      return x.cost != y.cost ? x.cost > y.cost : x.cluster > y.cluster;
-    }
-  };
 
   const PointSet& points_;
   PointSet sorted_;                 // points_ ordered by starting cell
@@ -1081,14 +1012,13 @@ class PointEngine {
   LevelSink& sink_;
   const uint32_t d_;
   uint32_t k0_ = 0, alive_ = 0, levels_ = 0;
-  uint64_t moves_ = 0;
   std::unique_ptr<PointClusters> clusters_;
   std::vector<std::vector<uint32_t>> members_, reverse_;
-  std::vector<uint32_t> position_, ode_, version_, origin_, touched_, affected_;
-  std::vector<double> ode_cost_, energy_before_;
-  std::vector<uint8_t> mark_, affected_mark_;
-  std::vector<Entry> heap_;
-  std::vector<uint32_t> merged_, gone_, element_, to_, from_, points_to_check_, target_;
+  std::vector<uint32_t> position_;
+  std::vector<uint8_t> mark_;
+  detail::OdeHeap odes_{0};
+  LevelRecorder recorder_{0, 0};
+  std::vector<uint32_t> merged_, gone_, points_to_check_, target_;
   // In the current level: the cluster each gone one merged into, and each merged one's
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
@@ -1098,7 +1028,6 @@ class PointEngine {
   uint32_t epoch_ = 0;
   std::vector<uint32_t> stamp_, drift_epoch_;
   std::vector<double> threshold_, drift_, margin_;
-  CompensatedSum energy_;
 };
 
 }  // namespace

@@ -122,7 +122,7 @@ def parse_bulk_event(data):
             return None
         body = _fields(top[kinds[0]][0][1])
         if kinds[0] == 4:
-            if not set(body) <= set(range(1, 9)):
+            if not set(body) <= set(range(1, 10)):
                 return None
             return "levels", {
                 "first_level": _scalar(body, 1),
@@ -133,6 +133,7 @@ def parse_bulk_event(data):
                 "to_cluster": _uint32s(body, 6),
                 "from_cluster": _uint32s(body, 7),
                 "source_level": _uint32s(body, 8),
+                "last_level_continues": bool(_scalar(body, 9)),
             }
         if not set(body) <= set(range(1, 7)):
             return None

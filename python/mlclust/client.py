@@ -61,6 +61,7 @@ class _Assembler:
         self._last_count = 0
         self._element, self._to, self._from = [], [], []
         self._triplets = 0
+        self._continuing = False  # the last level received continues in the next batch
         self.job_id = ""
         self.queue_position = 0
         self.done = None
@@ -98,7 +99,7 @@ class _Assembler:
             self._levels(b.first_level, *(np.array(a, dtype=t) for a, t in (
                 (b.cluster_count, np.uint32), (b.energy, np.float64), (b.triplet_end, np.uint32),
                 (b.element, np.uint32), (b.to_cluster, np.uint32), (b.from_cluster, np.uint32),
-                (b.source_level, np.uint32))))
+                (b.source_level, np.uint32))), last_level_continues=b.last_level_continues)
         elif kind == "done":
             self.done = event.done
         elif kind == "failed":
@@ -133,15 +134,22 @@ class _Assembler:
             self._last_count = cluster_count
 
     def _levels(self, first_level, cluster_count, energy, triplet_end, element, to_cluster,
-                from_cluster, source_level):
+                from_cluster, source_level, last_level_continues=False):
         if not self._started:
             raise Error(grpc.StatusCode.DATA_LOSS, "levels arrived before the snapshot")
         n = len(cluster_count)
         if len(energy) != n or len(triplet_end) != n:
             raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with arrays of different lengths")
-        if first_level != self._num_levels:
+        # A level too big for one message continues in the next batch, which starts at the
+        # same level (LevelBatch.last_level_continues): its triplets extend that level.
+        continued = self._continuing
+        expected = self._num_levels - 1 if continued else self._num_levels
+        if first_level != expected or (continued and n == 0):
             raise Error(grpc.StatusCode.DATA_LOSS,
-                        f"levels from {first_level} arrived, expected level {self._num_levels}")
+                        f"levels from {first_level} arrived, expected level {expected}")
+        if continued and int(cluster_count[0]) != self._last_count:
+            raise Error(grpc.StatusCode.DATA_LOSS,
+                        f"level {first_level} continued with another cluster count")
         m = len(element)
         if len(to_cluster) != m or len(from_cluster) != m:
             raise Error(grpc.StatusCode.DATA_LOSS,
@@ -155,19 +163,30 @@ class _Assembler:
         self._element.append(element)
         self._to.append(to_cluster)
         self._from.append(from_cluster)
-        self._counts.append(cluster_count.astype(np.int64))
-        self._energies.append(energy.astype(np.float64))
-        self._sources.append(source_level.astype(np.int64) if len(source_level) == n
-                             else np.full(n, -1, dtype=np.int64))
-        self._ends.append(ends + self._triplets)
+        sources = (source_level.astype(np.int64) if len(source_level) == n
+                   else np.full(n, -1, dtype=np.int64))
+        ends = ends + self._triplets
+        first = 0
+        if continued:
+            self._ends[-1] = self._ends[-1].copy()
+            self._ends[-1][-1] = ends[0]
+            first = 1
+        self._counts.append(cluster_count[first:].astype(np.int64))
+        self._energies.append(energy[first:].astype(np.float64))
+        self._sources.append(sources[first:])
+        self._ends.append(ends[first:])
         self._triplets += m
-        self._num_levels += n
+        self._num_levels += n - first
         if n:
             self._last_count = int(cluster_count[-1])
+        if n:
+            self._continuing = bool(last_level_continues)
 
     def finish(self):
         if self.done is None:
             raise Error(grpc.StatusCode.DATA_LOSS, "the job ended without a done event")
+        if self._continuing:
+            raise Error(grpc.StatusCode.DATA_LOSS, "the job ended inside a split level")
         if not self._started:
             raise Error(grpc.StatusCode.DATA_LOSS, "the job sent no complete snapshot")
         cat = lambda arrays: (np.concatenate(arrays) if arrays

@@ -82,3 +82,47 @@ class WireTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class SplitLevelTest(unittest.TestCase):
+    """A level split across batches (LevelBatch.last_level_continues) is joined."""
+
+    def assemble(self, batches, as_bytes):
+        from mlclust.client import _Assembler
+        assembler = _Assembler(None)
+        events = [pb.JobEvent(snapshot=pb.LevelSnapshot(
+            level=0, cluster_count=4, labels=[0, 1, 2, 3], total_elements=4))]
+        events += [pb.JobEvent(levels=b) for b in batches]
+        events.append(pb.JobEvent(done=pb.Done(levels=3), final=True))
+        for event in events:
+            if as_bytes:
+                assembler.add_bytes(event.SerializeToString())
+            else:
+                assembler.add(event)
+        return assembler.finish()
+
+    def test_split_and_whole_levels_give_the_same_hierarchy(self):
+        whole = [pb.LevelBatch(first_level=1, cluster_count=[3, 2], energy=[2.0, 1.0],
+                               triplet_end=[2, 3], element=[0, 1, 2], to_cluster=[3, 3, 3],
+                               from_cluster=[0, 1, 2], source_level=[1, 2])]
+        split = [pb.LevelBatch(first_level=1, cluster_count=[3], energy=[2.0], triplet_end=[1],
+                               element=[0], to_cluster=[3], from_cluster=[0], source_level=[1],
+                               last_level_continues=True),
+                 pb.LevelBatch(first_level=1, cluster_count=[3, 2], energy=[2.0, 1.0],
+                               triplet_end=[1, 2], element=[1, 2], to_cluster=[3, 3],
+                               from_cluster=[1, 2], source_level=[1, 2])]
+        for as_bytes in (False, True):
+            expected = self.assemble(whole, as_bytes)
+            joined = self.assemble(split, as_bytes)
+            self.assertEqual(len(joined.levels), 3)
+            self.assertEqual([l.cluster_count for l in joined.levels], [4, 3, 2])
+            for k in (4, 3, 2):
+                np.testing.assert_array_equal(joined.labels(k), expected.labels(k))
+
+    def test_a_job_that_ends_inside_a_split_level_is_data_loss(self):
+        import mlclust
+        half = pb.LevelBatch(first_level=1, cluster_count=[3], energy=[2.0], triplet_end=[1],
+                             element=[0], to_cluster=[3], from_cluster=[0], source_level=[1],
+                             last_level_continues=True)
+        with self.assertRaises(mlclust.Error):
+            self.assemble([half], True)

@@ -41,7 +41,7 @@ done
 grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
 grep -q "GL" "$work/server.log" || fail "server did not log its GL renderer"
 
-"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --clusters 100 \
+"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo hc --clusters 100 \
   --labels "$work/remote.labels" --levels-csv "$work/remote.csv" --quiet > "$work/remote.out"
 cmp -s "$work/embedded.labels" "$work/remote.labels" || fail "remote labels differ from embedded"
 cmp -s "$work/embedded.csv" "$work/remote.csv" || fail "remote levels differ from embedded"
@@ -62,6 +62,20 @@ fi
 "$mlclust" mesh "$data/elephant.off" --server "127.0.0.1:$port" --clusters 10 --quiet \
   > /dev/null || fail "the server stopped serving after bad input"
 "$mlclust" stats --server "127.0.0.1:$port" | grep -q "jobs_succeeded: 2" || fail "stats"
+# VSA is served (the planar energy is its default).
+"$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo vsa --clusters 20 \
+  --labels "$work/vsa.labels" --quiet > "$work/vsa.out" || fail "vsa failed"
+[ "$(sort -un "$work/vsa.labels" | wc -l)" -eq 20 ] || fail "vsa: not 20 clusters"
+if "$mlclust" mesh "$data/fandisk.off" --algo vsa --energy cvd --clusters 20 --quiet \
+  2> "$work/vsa.err"; then fail "vsa with cvd accepted"; fi
+grep -q "available: planar" "$work/vsa.err" || fail "vsa energy: $(cat "$work/vsa.err")"
+# Cluster counts above the face count, or above 32 bits, are refused (not truncated).
+for k in 12947 4294967396; do
+  if "$mlclust" mesh "$data/fandisk.off" --algo hc --clusters "$k" --quiet 2> "$work/k.err"; then
+    fail "--clusters $k accepted"
+  fi
+  grep -q "clusters" "$work/k.err" || fail "--clusters $k: $(cat "$work/k.err")"
+done
 # Unknown options and missing files get a message and exit 2 / non-zero.
 if "$mlclust" mesh "$data/fandisk.off" --bogus 1 2> "$work/opt.err"; then fail "--bogus accepted"; fi
 grep -q "unknown option --bogus" "$work/opt.err" || fail "no message for --bogus"
@@ -91,6 +105,13 @@ if "$mlclust" points "$work/blobs.csv" --algo lnkmeans --init grid --clusters 5 
   fail "--init grid with --clusters accepted"
 fi
 grep -q "voxel" "$work/grid.err" || fail "no reason given: $(cat "$work/grid.err")"
+# k-means: K clusters, the summary names them (level 1 is the result, level 0 the seeding).
+"$mlclust" points "$work/blobs.csv" --algo kmeans --clusters 6 --labels "$work/kmeans.labels" \
+  --levels-csv "$work/kmeans.csv" --server "127.0.0.1:$port" --quiet > "$work/kmeans.out" \
+  || fail "kmeans failed"
+[ "$(sort -un "$work/kmeans.labels" | wc -l)" -eq 6 ] || fail "kmeans: not 6 clusters"
+[ "$(wc -l < "$work/kmeans.csv")" -eq 3 ] || fail "kmeans: not two levels"
+grep -q "level 1: 6 clusters" "$work/kmeans.out" || fail "kmeans summary: $(cat "$work/kmeans.out")"
 # A ragged CSV is refused naming the row.
 printf '1,2,3\n4,5\n' > "$work/ragged.csv"
 if "$mlclust" points "$work/ragged.csv" --quiet 2> "$work/ragged.err"; then fail "ragged CSV accepted"; fi

@@ -1,0 +1,216 @@
+// Boundary-based optimisation (Alg. 5.1) as four stages with small interfaces, so that a
+// device backend replaces one stage and nothing else (the conflict rule and the sweep
+// logic live here only):
+//
+//   1. FitProxies        every cluster's proxy from its sums; fixed for the sweep
+//   2. decide            every face alone, against the fixed proxies: the neighbouring
+//                        cluster whose proxy fits it better (DecideBoundaryMove is the
+//                        rule; CpuBoundaryDecider runs it in parallel on the CPU)
+//   3. ResolveConflicts  which proposals apply this sweep: of faces that share a vertex
+//                        the smaller id wins, and the connectivity guard vetoes the rest
+//   4. ApplyMoves        the accepted moves into the partition (UndoMoves reverts a sweep)
+//
+// RunBoundaryBased drives the stages with any decide stage; OptimizeBoundaryBased
+// (mesh_clustering.h) is RunBoundaryBased with CpuBoundaryDecider. Internal to core and
+// the device backends; callers use OptimizeBoundaryBased.
+#ifndef MLCLUST_CORE_CLUSTER_BOUNDARY_BASED_H_
+#define MLCLUST_CORE_CLUSTER_BOUNDARY_BASED_H_
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "absl/functional/function_ref.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "core/base/cancel.h"
+#include "core/base/ids.h"
+#include "core/base/status_macros.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/cluster/partition.h"
+#include "core/mesh/connectivity_guard.h"
+#include "core/mesh/mesh.h"
+
+namespace mlclust::boundary_based {
+
+// "This face stays": the decide stage's answer for a face with no better cluster.
+inline constexpr uint32_t kNoMove = ClusterId::kInvalidValue;
+
+// Runs the stages' parallel loops on a fixed number of threads (0: all cores). One per
+// run; the loops' results do not depend on the thread count.
+class StageThreads {
+ public:
+  explicit StageThreads(int threads);
+  ~StageThreads();
+  StageThreads(const StageThreads&) = delete;
+  StageThreads& operator=(const StageThreads&) = delete;
+
+  // body(begin, end) over disjoint blocks covering [0, n), blocks of about `grain`.
+  void ParallelFor(size_t n, size_t grain, absl::FunctionRef<void(size_t, size_t)> body) const;
+
+ private:
+  struct Arena;
+  std::unique_ptr<Arena> arena_;
+};
+
+// Stage 1: proxies[c] = FitProxy(sums of c) for every cluster id (empty ones included).
+template <typename Energy>
+void FitProxies(const Partition<Energy>& partition, std::vector<typename Energy::Proxy>& proxies) {
+  proxies.resize(partition.capacity());
+  for (uint32_t c = 0; c < partition.capacity(); ++c) {
+    proxies[c] = partition.energy().FitProxy(partition.sums(c));
+  }
+}
+
+// Stage 2's rule for one face: among the clusters of its edge neighbours other than its
+// own, the one whose proxy gives the smallest FaceCost (the first in edge order on ties),
+// if that cost is below the face's cost against its own proxy by more than rounding
+// (1e-12 relative); kNoMove otherwise. A device decide stage must give the same answer
+// (up to its arithmetic).
+template <typename Energy>
+uint32_t DecideBoundaryMove(const Energy& energy, const FaceAdjacency& adjacency,
+                            std::span<const uint32_t> labels,
+                            std::span<const typename Energy::Proxy> proxies, uint32_t face) {
+  const uint32_t own = labels[face];
+  double best = energy.FaceCost(face, proxies[own]);
+  const double own_cost = best;
+  uint32_t best_cluster = own;
+  for (FaceId g : adjacency.neighbours[face]) {
+    if (!g.valid()) continue;
+    const uint32_t c = labels[g.value()];
+    if (c == own || c == best_cluster) continue;
+    const double cost = energy.FaceCost(face, proxies[c]);
+    if (cost < best) {
+      best = cost;
+      best_cluster = c;
+    }
+  }
+  return best_cluster != own && own_cost - best > 1e-12 * own_cost ? best_cluster : kNoMove;
+}
+
+// Stage 2 on the CPU: target[f] = DecideBoundaryMove(f) for every face, in parallel.
+// The shape every decide stage has:
+//   absl::Status operator()(labels, proxies, target)   (target.size() == faces)
+template <typename Energy>
+class CpuBoundaryDecider {
+ public:
+  CpuBoundaryDecider(const Energy& energy, const FaceAdjacency& adjacency,
+                     const StageThreads& threads)
+      : energy_(energy), adjacency_(adjacency), threads_(threads) {}
+
+  absl::Status operator()(std::span<const uint32_t> labels,
+                          std::span<const typename Energy::Proxy> proxies,
+                          std::span<uint32_t> target) const {
+    threads_.ParallelFor(target.size(), 4096, [&](size_t begin, size_t end) {
+      for (size_t f = begin; f != end; ++f) {
+        target[f] =
+            DecideBoundaryMove(energy_, adjacency_, labels, proxies, static_cast<uint32_t>(f));
+      }
+    });
+    return absl::OkStatus();
+  }
+
+ private:
+  const Energy& energy_;
+  const FaceAdjacency& adjacency_;
+  const StageThreads& threads_;
+};
+
+// Work memory of ResolveConflicts, reused across sweeps.
+struct ConflictScratch {
+  std::vector<uint32_t> proposed;
+  std::vector<uint8_t> accept;
+};
+
+// Stage 3, the one conflict rule: the faces whose proposed move (target[f] != kNoMove)
+// applies this sweep, in increasing face order, into `accepted`. A proposal is dropped if
+// a face with a smaller id that shares a vertex with it (its ring in `guard`) also
+// proposes a move — so no two accepted faces touch, and each accepted move's connectivity
+// check below stays valid when all are applied — or, with `check_connectivity`, if
+// guard.CanMove refuses it against the sweep's starting labels and sizes.
+void ResolveConflicts(const ConnectivityGuard& guard, bool check_connectivity,
+                      std::span<const uint32_t> labels, std::span<const uint32_t> sizes,
+                      std::span<const uint32_t> target, const StageThreads& threads,
+                      ConflictScratch& scratch, std::vector<uint32_t>& accepted);
+
+// A face's cluster before a move, to undo it.
+struct AppliedMove {
+  uint32_t face;
+  uint32_t from;
+};
+
+// Stage 4: moves each accepted face to target[face], in order, skipping a face that is
+// the last of its cluster (no cluster disappears). The moves made go to `applied`.
+template <typename Energy>
+void ApplyMoves(Partition<Energy>& partition, std::span<const uint32_t> accepted,
+                std::span<const uint32_t> target, std::vector<AppliedMove>& applied) {
+  applied.clear();
+  for (uint32_t f : accepted) {
+    if (partition.size(partition.label(f)) <= 1) continue;
+    applied.push_back({f, partition.label(f)});
+    partition.Move(f, target[f]);
+  }
+}
+
+// Reverts ApplyMoves' moves, last first.
+template <typename Energy>
+void UndoMoves(Partition<Energy>& partition, std::span<const AppliedMove> applied) {
+  for (auto it = applied.rbegin(); it != applied.rend(); ++it) partition.Move(it->face, it->from);
+}
+
+// The sweeps of Alg. 5.1 over `partition` with the decide stage `decide` (the shape of
+// CpuBoundaryDecider::operator()): fit, decide, resolve, apply until nothing moves, a sweep
+// would raise the energy (it is undone; possible only for MWCVD, whose weights are not
+// fitted) or options.max_iterations sweeps. Checks options.cancel before every stage.
+// Returns the decide stage's error, CANCELLED, or the result; on an error the partition is
+// valid but not converged.
+template <typename Energy, typename Decide>
+absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
+                                                Partition<Energy>& partition,
+                                                const BoundaryBasedOptions& options,
+                                                const StageThreads& threads, Decide&& decide) {
+  const size_t n = partition.labels().size();
+  OptimizeResult result;
+  result.initial_energy = partition.TotalEnergy();
+  result.converged = false;
+  double current = result.initial_energy;
+  std::vector<typename Energy::Proxy> proxies;
+  std::vector<uint32_t> target(n, kNoMove);
+  ConflictScratch scratch;
+  std::vector<uint32_t> accepted;
+  std::vector<AppliedMove> applied;
+  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB fit proxies"));
+    FitProxies(partition, proxies);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB decide moves"));
+    MLCLUST_RETURN_IF_ERROR(decide(partition.labels(),
+                                   std::span<const typename Energy::Proxy>(proxies),
+                                   std::span<uint32_t>(target)));
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB resolve conflicts"));
+    ResolveConflicts(guard, options.connectivity_guard, partition.labels(), partition.sizes(),
+                     target, threads, scratch, accepted);
+    ApplyMoves(partition, accepted, target, applied);
+    result.iterations = iteration;
+    if (applied.empty()) {
+      result.converged = true;
+      break;
+    }
+    const double next = partition.TotalEnergy();
+    if (next > current) {
+      UndoMoves(partition, std::span<const AppliedMove>(applied));
+      result.converged = true;
+      break;
+    }
+    current = next;
+    result.moves += applied.size();
+    if (options.on_iteration) options.on_iteration(iteration, current);
+  }
+  result.energy = partition.TotalEnergy();
+  return result;
+}
+
+}  // namespace mlclust::boundary_based
+
+#endif  // MLCLUST_CORE_CLUSTER_BOUNDARY_BASED_H_

@@ -1,0 +1,897 @@
+#include "core/cluster/registry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "core/base/status_macros.h"
+
+namespace mlclust {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Option builders.
+
+using Apply = std::function<void(const OptionValue&, JobPlan&)>;
+
+OptionInfo Choice(std::string name, std::vector<std::string> choices, std::string default_text,
+                  std::string help, Apply apply) {
+  OptionInfo option;
+  option.name = std::move(name);
+  option.type = OptionInfo::Type::kChoice;
+  option.choices = std::move(choices);
+  option.default_text = std::move(default_text);
+  option.help = std::move(help);
+  option.apply = std::move(apply);
+  return option;
+}
+
+OptionInfo Integer(std::string name, int64_t low, int64_t high, std::string default_text,
+                   std::string help, Apply apply) {
+  OptionInfo option;
+  option.name = std::move(name);
+  option.type = OptionInfo::Type::kInteger;
+  option.low = static_cast<double>(low);
+  option.high = static_cast<double>(high);
+  option.default_text = std::move(default_text);
+  option.help = std::move(help);
+  option.apply = std::move(apply);
+  return option;
+}
+
+OptionInfo Number(std::string name, double low, double high, std::string default_text,
+                  std::string help, Apply apply) {
+  OptionInfo option;
+  option.name = std::move(name);
+  option.type = OptionInfo::Type::kNumber;
+  option.low = low;
+  option.high = high;
+  option.default_text = std::move(default_text);
+  option.help = std::move(help);
+  option.apply = std::move(apply);
+  return option;
+}
+
+// Options several algorithms share, each writing its own field.
+OptionInfo GuardOption(std::string help_target) {
+  return Choice("guard", {"on", "off"}, "on",
+                absl::StrCat("the connectivity guard (Alg. 3.2's purpose; ours: a vertex ring "
+                             "test): no cluster splits or gains a hole (",
+                             help_target, ")"),
+                [](const OptionValue& v, JobPlan& plan) {
+                  const bool on = v.text == "on";
+                  plan.multilevel.connectivity_guard = on;
+                  plan.emlo.connectivity_guard = on;
+                  plan.boundary_based.connectivity_guard = on;
+                });
+}
+
+OptionInfo ThreadsOption(std::string what, void (*set)(JobPlan&, int)) {
+  return Integer(
+      "threads", 0, 1024, "0", absl::StrCat(what, " worker threads, 0 = all cores"),
+      [set](const OptionValue& v, JobPlan& plan) { set(plan, static_cast<int>(v.integer)); });
+}
+
+OptionInfo MeshOptimizerOption() {
+  return Choice("optimizer", {"emlo", "bb", "none"}, "emlo",
+                "the local optimiser after each merge: EMLO (Alg. 3.3), boundary-based sweeps "
+                "(Alg. 5.1) or none (merges only)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.multilevel.optimizer =
+                      v.text == "bb"     ? MultilevelOptions::Optimizer::kBoundaryBased
+                      : v.text == "none" ? MultilevelOptions::Optimizer::kNone
+                                         : MultilevelOptions::Optimizer::kEmlo;
+                });
+}
+
+OptionInfo PPercentOption() {
+  return Number("p-percent", 0, 100, "0",
+                "merge this % of the clusters first without optimising, then ML (the p% "
+                "variant of section 4.5; 0 = plain ML)",
+                [](const OptionValue& v, JobPlan& plan) { plan.multilevel.p_percent = v.number; });
+}
+
+OptionInfo PmlUntilOption(bool points) {
+  return Integer("pml-until", 0, int64_t{1} << 31, "0",
+                 "PML while more than this many clusters are left, then ML (0 = PML to the end)",
+                 [points](const OptionValue& v, JobPlan& plan) {
+                   if (points) {
+                     plan.point_multilevel.pml_until = static_cast<uint32_t>(v.integer);
+                   } else {
+                     plan.multilevel.pml_until = static_cast<uint32_t>(v.integer);
+                   }
+                 });
+}
+
+OptionInfo SeedInitOption() {
+  return Choice("init", {"lneigh", "random"}, "lneigh",
+                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown by the "
+                "energy-ordered flood (Alg. 2.2)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.seeds.method = v.text == "random" ? SeedOptions::Method::kRandom
+                                                         : SeedOptions::Method::kLNeighbourhood;
+                });
+}
+
+OptionInfo SeedLevelOption() {
+  return Integer("level", 0, int64_t{1} << 20, "0",
+                 "l of the l-neighbourhood seeds (Alg. 3.1); 0 = the largest l that still gives "
+                 "k seeds",
+                 [](const OptionValue& v, JobPlan& plan) {
+                   plan.seeds.level = static_cast<uint32_t>(v.integer);
+                 });
+}
+
+OptionInfo GridOption(std::string help) {
+  return Integer("grid", 0, int64_t{1} << 20, "0", std::move(help),
+                 [](const OptionValue& v, JobPlan& plan) {
+                   plan.point_multilevel.grid = static_cast<uint32_t>(v.integer);
+                   plan.grid = static_cast<uint32_t>(v.integer);
+                 });
+}
+
+OptionInfo PointOptimizerOption() {
+  return Choice("optimizer", {"lnkmeans", "none"}, "lnkmeans",
+                "the local optimiser after each merge: LN k-means (Alg. 6.1) or none",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.point_multilevel.optimizer =
+                      v.text == "none" ? PointMultilevelOptions::Optimizer::kNone
+                                       : PointMultilevelOptions::Optimizer::kLnKmeans;
+                });
+}
+
+constexpr char kHierarchyGridHelp[] =
+    "voxels per dimension of the start (section 6.2); 0 = aiming at about eight points per "
+    "occupied cell";
+
+void SetPointThreads(JobPlan& plan, int threads) {
+  plan.point_multilevel.threads = threads;
+  plan.ln_kmeans.threads = threads;
+  plan.kmeans.threads = threads;
+}
+
+// ---------------------------------------------------------------------------------------
+// Run functions.
+
+const StagePlan& Stage(const JobPlan& plan, absl::string_view name) {
+  static const StagePlan kCpu{"", StageDevice::kCpu};
+  const StagePlan* stage = FindStage(plan, name);
+  return stage != nullptr ? *stage : kCpu;
+}
+
+void Report(const RunContext& context, const JobPlan& plan, absl::string_view stage,
+            const std::string& message) {
+  if (context.on_stage) context.on_stage(Stage(plan, stage), message);
+}
+
+// A single-level algorithm's result as two levels: level 0 the initial clusters at K,
+// level 1 the elements whose cluster the optimisation changed.
+absl::Status EmitSingleLevel(std::span<const ClusterId> initial, double initial_energy,
+                             std::span<const ClusterId> result, double energy, uint32_t clusters,
+                             LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(initial, clusters, initial_energy));
+  std::vector<uint32_t> element, to, from;
+  for (uint32_t i = 0; i < result.size(); ++i) {
+    if (result[i] != initial[i]) {
+      element.push_back(i);
+      to.push_back(result[i].value());
+      from.push_back(initial[i].value());
+    }
+  }
+  LevelMoves level;
+  level.level = 1;
+  level.cluster_count = clusters;
+  level.energy = energy;
+  level.element = element;
+  level.to_cluster = to;
+  level.from_cluster = from;
+  return sink.OnLevel(level);
+}
+
+std::string EnergyNote(const JobPlan& plan) {
+  return absl::StrCat(" (", plan.energy != nullptr ? plan.energy->name : "?", ")");
+}
+
+absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
+                                            LevelSink& sink, const RunContext& context) {
+  Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
+  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary,
+                           RunMultilevel(problem, plan.multilevel, sink));
+  return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
+}
+
+absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPlan& plan,
+                                        LevelSink& sink, const RunContext& context) {
+  Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, plan.seeds));
+  std::vector<ClusterId> labels = initial;
+  absl::StatusOr<OptimizeResult> result;
+  if (plan.algorithm->name == "emlo") {
+    Report(context, plan, "cluster", absl::StrCat("EMLO", EnergyNote(plan)));
+    result = OptimizeEmlo(problem, labels, plan.emlo);
+  } else {
+    Report(context, plan, "cluster", absl::StrCat("boundary-based", EnergyNote(plan)));
+    BoundaryBasedOptions options = plan.boundary_based;
+    options.on_iteration = [&](uint32_t iteration, double energy) {
+      Report(context, plan, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
+    };
+    result = OptimizeBoundaryBased(problem, labels, options);
+  }
+  if (!result.ok()) return result.status();
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result->initial_energy, labels, result->energy,
+                                          plan.clusters, sink));
+  return RunSummary{plan.clusters, plan.clusters};
+}
+
+absl::StatusOr<RunSummary> RunMeshVsa(const MeshProblem& problem, const JobPlan& plan,
+                                      LevelSink& sink, const RunContext& context) {
+  // Level 0 is the seeding's partition: VSA with no Lloyd iteration (RunVsa does not hand
+  // back the seeding of a full run, so the seeding runs twice).
+  Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial regions"));
+  VsaOptions seeding = plan.vsa;
+  seeding.iterations = 0;
+  seeding.on_iteration = nullptr;
+  MLCLUST_ASSIGN_OR_RETURN(VsaResult start, RunVsa(problem, seeding));
+  Report(context, plan, "cluster", absl::StrCat("VSA", EnergyNote(plan)));
+  VsaOptions options = plan.vsa;
+  options.on_iteration = [&](uint32_t iteration, double energy) {
+    Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", energy));
+  };
+  MLCLUST_ASSIGN_OR_RETURN(VsaResult result, RunVsa(problem, options));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.energy, result.labels, result.energy,
+                                          plan.clusters, sink));
+  return RunSummary{plan.clusters, plan.clusters};
+}
+
+absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPlan& plan,
+                                             LevelSink& sink, const RunContext& context) {
+  Report(context, plan, "cluster",
+         absl::StrCat(points.num_points(), " points in ", points.dims,
+                      " dimensions: ", plan.algorithm->name));
+  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary,
+                           RunPointMultilevel(points, plan.point_multilevel, sink));
+  return RunSummary{summary.start_clusters, summary.final_clusters};
+}
+
+absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPlan& plan,
+                                            LevelSink& sink, const RunContext& context) {
+  Report(context, plan, "cluster",
+         absl::StrCat(points.num_points(), " points in ", points.dims,
+                      " dimensions: ", plan.algorithm->name));
+  if (plan.point_init == JobPlan::PointInit::kGrid) {
+    // From the voxel grid: level 0 is the voxel clusters, level 1 the result.
+    MLCLUST_ASSIGN_OR_RETURN(VoxelStart start, VoxelGridStart(points, plan.grid));
+    MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result,
+                             RunLnKmeansFromGrid(points, plan.grid, plan.ln_kmeans));
+    MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, result.initial_energy, result.labels,
+                                            result.energy, start.clusters, sink));
+    return RunSummary{start.clusters, start.clusters};
+  }
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial,
+                           SeedPointClusters(points, plan.clusters,
+                                             plan.point_init == JobPlan::PointInit::kKmeansPlusPlus,
+                                             plan.seed, plan.ln_kmeans.threads));
+  MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result, RunLnKmeans(points, initial, plan.ln_kmeans));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result.initial_energy, result.labels,
+                                          result.energy, plan.clusters, sink));
+  return RunSummary{plan.clusters, plan.clusters};
+}
+
+absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan& plan,
+                                          LevelSink& sink, const RunContext& context) {
+  Report(context, plan, "cluster",
+         absl::StrCat(points.num_points(), " points in ", points.dims,
+                      " dimensions: ", plan.algorithm->name));
+  // Lloyd from k-means++ (or random) centres. Level 0 is the seeding: every point at its
+  // nearest initial centre (one assignment, as SeedPointClusters does; Lloyd's own first
+  // assignment repeats it, since RunLloyd does not hand back its first labels).
+  const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
+  MLCLUST_ASSIGN_OR_RETURN(
+      std::vector<float> centres,
+      plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
+                : RandomPointCentres(points, plan.clusters, plan.seed));
+  KmeansOptions assign;
+  assign.clusters = plan.clusters;
+  assign.max_iterations = 1;
+  assign.threads = plan.kmeans.threads;
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, RunLloyd(points, centres, assign));
+  KmeansOptions options = plan.kmeans;
+  options.clusters = plan.clusters;
+  options.on_iteration = [&](uint32_t iteration, double inertia) {
+    Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
+  };
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, RunLloyd(points, std::move(centres), options));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.inertia, result.labels,
+                                          result.inertia, plan.clusters, sink));
+  return RunSummary{plan.clusters, plan.clusters};
+}
+
+// ---------------------------------------------------------------------------------------
+// The tables.
+
+// Wire values (proto/mlclust/v1/mlclust.proto); server/wire_registry.h checks them.
+enum WireAlgorithm {
+  kWireHc = 1,
+  kWireMl = 2,
+  kWirePml = 3,
+  kWireEmlo = 4,
+  kWireBb = 5,
+  kWireVsa = 6,
+  kWireLnKmeans = 7,
+  kWireKmeans = 8,
+};
+
+std::vector<EnergyInfo> BuildEnergies() {
+  auto mesh = [](std::string name, int wire, MeshEnergyKind kind, std::string help) {
+    return EnergyInfo{std::move(name), wire, InputKind::kMesh, kind, std::move(help)};
+  };
+  std::vector<EnergyInfo> energies = {
+      mesh("cvd", 1, MeshEnergyKind::kCvd, "centroidal Voronoi diagram, uniform density (eq. 3.7)"),
+      mesh("cvd-adaptive", 2, MeshEnergyKind::kCvdAdaptive,
+           "CVD with the face density rho of section 3.2.1 (eqs. 3.7, 3.17)"),
+      mesh("mwcvd-area", 3, MeshEnergyKind::kMwcvdArea,
+           "multiplicatively weighted CVD with the area weight w^A (eqs. 3.23, 3.24)"),
+      mesh("mwcvd-variance", 4, MeshEnergyKind::kMwcvdVariance,
+           "multiplicatively weighted CVD with the variance weight w^V (eqs. 3.23, 3.27)"),
+      mesh("mwcvd-max", 5, MeshEnergyKind::kMwcvdMax,
+           "multiplicatively weighted CVD with the max weight w^M (eqs. 3.23, 3.28)"),
+      mesh("planar", 6, MeshEnergyKind::kPlanar, "planar fit, L2,1 (eq. 3.38)"),
+      mesh("sphere", 7, MeshEnergyKind::kSphere,
+           "sphere fit (eqs. 3.40-3.46; planar clusters below Delta_zero, l. 1333)"),
+      EnergyInfo{"variance", 8, InputKind::kPoints, MeshEnergyKind::kCvd,
+                 "within-cluster sum of squared distances to the mean (section 6.5)"},
+      mesh("sphere-normals", 0, MeshEnergyKind::kSphereNormals,
+           "ours: least-squares fit of the normal field to a sphere (not on the wire yet)"),
+  };
+  return energies;
+}
+
+std::vector<OptionInfo> BuildEnergyOptions() {
+  return {
+      Choice("density", {"power", "linear"}, "linear for mwcvd-*, power for cvd-adaptive",
+             "the face density mapping of cvd-adaptive and mwcvd-*: power (rho' + delta)^gamma "
+             "(l. 931) or linear onto [1, rho-max] (l. 933)",
+             [](const OptionValue& v, JobPlan& plan) {
+               plan.mesh_energy.density.mapping = v.text == "linear"
+                                                      ? DensityOptions::Mapping::kLinear
+                                                      : DensityOptions::Mapping::kPower;
+             }),
+      Number(
+          "gamma", 1e-6, 100, "2", "gamma of the power density mapping (l. 931)",
+          [](const OptionValue& v, JobPlan& plan) { plan.mesh_energy.density.gamma = v.number; }),
+      Number(
+          "delta", 1e-12, 100, "0.01", "delta of the power density mapping (l. 931)",
+          [](const OptionValue& v, JobPlan& plan) { plan.mesh_energy.density.delta = v.number; }),
+      Number(
+          "rho-max", 1.000001, 1e6,
+          "50 for mwcvd-area and mwcvd-max, 3 for mwcvd-variance, 10 for cvd-adaptive",
+          "rho^new, the upper end of the linear density mapping (l. 933; Table 3.1)",
+          [](const OptionValue& v, JobPlan& plan) { plan.mesh_energy.density.rho_max = v.number; }),
+      Number("mwcvd-p", 1, 64, "10", "p of the max weight w^M of mwcvd-max (eq. 3.28)",
+             [](const OptionValue& v, JobPlan& plan) { plan.mesh_energy.mwcvd_p = v.number; }),
+      Number("planar-tolerance", 0, 0.5, "5e-05",
+             "Delta_zero of the sphere energy: a cluster with |k^2 - |sum n|^2| below it is "
+             "planar (l. 1333)",
+             [](const OptionValue& v, JobPlan& plan) {
+               plan.mesh_energy.planar_tolerance = v.number;
+             }),
+  };
+}
+
+std::vector<AlgorithmInfo> BuildAlgorithms() {
+  const std::vector<std::string> mesh_energies = {
+      "cvd",       "cvd-adaptive", "mwcvd-area", "mwcvd-variance",
+      "mwcvd-max", "planar",       "sphere",     "sphere-normals"};
+  const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
+  const StageInfo seed_stage{"seed", "k initial clusters"};
+  std::vector<AlgorithmInfo> algorithms;
+
+  // Meshes.
+  {
+    AlgorithmInfo a;
+    a.name = "hc";
+    a.wire = kWireHc;
+    a.hierarchy = true;
+    a.title = "hierarchical face clustering (Alg. 2.3)";
+    a.help = "merges only: every level from one cluster per face down to --clusters";
+    a.energies = mesh_energies;
+    a.stages = {merge_stage};
+    a.run_mesh = RunMeshHierarchy;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "ml";
+    a.wire = kWireMl;
+    a.hierarchy = true;
+    a.title = "multilevel clustering (Alg. 4.1)";
+    a.help = "merge the cheapest dual edge (eq. 4.1), then optimise locally; every level";
+    a.energies = mesh_energies;
+    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption()};
+    a.stages = {merge_stage};
+    a.run_mesh = RunMeshHierarchy;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "pml";
+    a.wire = kWirePml;
+    a.hierarchy = true;
+    a.title = "parallel multilevel clustering (Alg. 5.3)";
+    a.help = "collapse all mutual optimal dual edges of a level at once, then optimise";
+    a.energies = mesh_energies;
+    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption(),
+                 PmlUntilOption(false),
+                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
+    a.stages = {merge_stage};
+    a.run_mesh = RunMeshHierarchy;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "emlo";
+    a.wire = kWireEmlo;
+    a.title = "energy minimisation by local optimisation (Alg. 3.3)";
+    a.help = "seeds k clusters, then moves boundary faces while the energy falls";
+    a.energies = mesh_energies;
+    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move")};
+    a.stages = {seed_stage, {"cluster", "boundary moves until none lowers the energy"}};
+    a.run_mesh = RunMeshLocal;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "bb";
+    a.wire = kWireBb;
+    a.title = "boundary-based optimisation (Alg. 5.1)";
+    a.help = "seeds k clusters, then parallel sweeps: every boundary face picks the best proxy";
+    a.energies = mesh_energies;
+    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move"),
+                 ThreadsOption("BB", [](JobPlan& plan, int t) { plan.boundary_based.threads = t; }),
+                 Integer("max-iterations", 1, 1000000, "200", "BB sweeps at most",
+                         [](const OptionValue& v, JobPlan& plan) {
+                           plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
+                         })};
+    a.stages = {seed_stage, {"cluster", "parallel sweeps with proxies fixed per sweep"}};
+    a.run_mesh = RunMeshLocal;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "vsa";
+    a.wire = kWireVsa;
+    a.title = "variational shape approximation (Alg. 2.1-2.2)";
+    a.help = "Lloyd on faces with the L2,1 metric (Cohen-Steiner et al. 2004), planar energy";
+    a.energies = {"planar"};
+    a.options = {
+        Choice("init", {"hierarchical", "incremental", "random"}, "hierarchical",
+               "seeding as CGAL's Surface_mesh_approximation (ours: farthest-first placement "
+               "within a region)",
+               [](const OptionValue& v, JobPlan& plan) {
+                 plan.vsa.seeding = v.text == "random"        ? VsaOptions::Seeding::kRandom
+                                    : v.text == "incremental" ? VsaOptions::Seeding::kIncremental
+                                                              : VsaOptions::Seeding::kHierarchical;
+               }),
+        Integer("max-iterations", 0, 1000000, "30",
+                "Lloyd iterations after seeding (0: the seeding's partition)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.vsa.iterations = static_cast<uint32_t>(v.integer);
+                }),
+        Integer("inner-iterations", 0, 1000000, "5", "Lloyd iterations after each seeding step",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.vsa.inner_iterations = static_cast<uint32_t>(v.integer);
+                }),
+        Number(
+            "min-relative-decrease", 0, 1, "0",
+            "ours: stop once an iteration lowers the energy by less than this fraction "
+            "(0: run all iterations)",
+            [](const OptionValue& v, JobPlan& plan) { plan.vsa.min_relative_decrease = v.number; }),
+        Choice("teleport", {"on", "off"}, "on",
+               "region teleportation when the iterations stall (Cohen-Steiner et al. 2004)",
+               [](const OptionValue& v, JobPlan& plan) { plan.vsa.teleport = v.text == "on"; }),
+    };
+    a.stages = {seed_stage, {"cluster", "Lloyd iterations: partition (flood), fit proxies"}};
+    a.run_mesh = RunMeshVsa;
+    algorithms.push_back(a);
+  }
+
+  // Points.
+  const std::vector<std::string> point_energies = {"variance"};
+  auto point_threads = ThreadsOption("worker", SetPointThreads);
+  {
+    AlgorithmInfo a;
+    a.name = "hc";
+    a.wire = kWireHc;
+    a.input = InputKind::kPoints;
+    a.hierarchy = true;
+    a.title = "hierarchical data clustering (Alg. 2.6)";
+    a.help = "merges only, from the voxel-grid start (section 6.2) down to one cluster";
+    a.energies = point_energies;
+    a.options = {GridOption(kHierarchyGridHelp), point_threads};
+    a.stages = {merge_stage};
+    a.run_points = RunPointHierarchy;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "ml";
+    a.wire = kWireMl;
+    a.input = InputKind::kPoints;
+    a.hierarchy = true;
+    a.title = "multilevel data clustering (section 6.3)";
+    a.help = "merges with local neighbours as dual edges, LN k-means around each merge";
+    a.energies = point_energies;
+    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
+    a.stages = {merge_stage};
+    a.run_points = RunPointHierarchy;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "pml";
+    a.wire = kWirePml;
+    a.input = InputKind::kPoints;
+    a.hierarchy = true;
+    a.title = "parallel multilevel data clustering (Alg. 5.3 on points)";
+    a.help = "collapse mutual optimal dual edges per level, then ML";
+    a.energies = point_energies;
+    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
+                 PmlUntilOption(true),
+                 Choice("pml-pairs", {"cheaper-half", "all"}, "cheaper-half",
+                        "the mutual pairs a PML level collapses: all (Alg. 5.3) or ours, those at "
+                        "most the level's median cost",
+                        [](const OptionValue& v, JobPlan& plan) {
+                          plan.point_multilevel.pml_pairs =
+                              v.text == "all" ? PointMultilevelOptions::PmlPairs::kAll
+                                              : PointMultilevelOptions::PmlPairs::kCheaperHalf;
+                        })};
+    a.stages = {merge_stage};
+    a.run_points = RunPointHierarchy;
+    algorithms.push_back(a);
+  }
+  auto point_init = [](std::vector<std::string> choices, std::string help) {
+    return Choice("init", std::move(choices), "kmeans++", std::move(help),
+                  [](const OptionValue& v, JobPlan& plan) {
+                    plan.point_init = v.text == "random" ? JobPlan::PointInit::kRandom
+                                      : v.text == "grid" ? JobPlan::PointInit::kGrid
+                                                         : JobPlan::PointInit::kKmeansPlusPlus;
+                  });
+  };
+  {
+    AlgorithmInfo a;
+    a.name = "lnkmeans";
+    a.wire = kWireLnKmeans;
+    a.input = InputKind::kPoints;
+    a.title = "local neighbours k-means (Alg. 6.1)";
+    a.help = "each point checked against at most 4d - 1 neighbouring clusters, in parallel";
+    a.energies = point_energies;
+    a.options = {point_init({"kmeans++", "random", "grid"},
+                            "start: greedy k-means++ centres, random points, or one cluster per "
+                            "occupied voxel (section 6.2; no K)"),
+                 GridOption("voxels per dimension of init grid's start (0 = from m and d)"),
+                 point_threads,
+                 Integer("max-iterations", 1, 1000000, "300", "LN k-means iterations at most",
+                         [](const OptionValue& v, JobPlan& plan) {
+                           plan.ln_kmeans.max_iterations = static_cast<uint32_t>(v.integer);
+                         })};
+    a.stages = {{"cluster", "seeding, then LN k-means iterations"}};
+    a.run_points = RunPointLnKmeans;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "kmeans";
+    a.wire = kWireKmeans;
+    a.input = InputKind::kPoints;
+    a.title = "k-means (Lloyd, Alg. 2.4)";
+    a.help = "brute-force Lloyd iterations from k-means++ or random centres (baseline)";
+    a.energies = point_energies;
+    a.options = {
+        point_init({"kmeans++", "random"}, "centres: greedy k-means++ or k distinct random points"),
+        point_threads,
+        Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations at most",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);
+                })};
+    a.stages = {{"cluster", "seeding, then Lloyd iterations"}};
+    a.run_points = RunPointKmeans;
+    algorithms.push_back(a);
+  }
+  return algorithms;
+}
+
+const std::vector<EnergyInfo>& EnergyTable() {
+  static const auto* table = new std::vector<EnergyInfo>(BuildEnergies());
+  return *table;
+}
+
+const std::vector<OptionInfo>& EnergyOptionTable() {
+  static const auto* table = new std::vector<OptionInfo>(BuildEnergyOptions());
+  return *table;
+}
+
+const std::vector<AlgorithmInfo>& AlgorithmTable() {
+  static const auto* table = new std::vector<AlgorithmInfo>(BuildAlgorithms());
+  return *table;
+}
+
+std::string FormatNumber(const OptionInfo& option, double value) {
+  return option.type == OptionInfo::Type::kInteger ? absl::StrCat(static_cast<int64_t>(value))
+                                                   : absl::StrCat(value);
+}
+
+}  // namespace
+
+const char* InputKindName(InputKind input) { return input == InputKind::kMesh ? "mesh" : "points"; }
+
+absl::StatusOr<DeviceChoice> ParseDeviceChoice(absl::string_view name) {
+  if (name.empty() || name == "auto") return DeviceChoice::kAuto;
+  if (name == "gpu") return DeviceChoice::kGpu;
+  if (name == "cpu") return DeviceChoice::kCpu;
+  return absl::InvalidArgumentError(
+      absl::StrCat("option device: '", name, "' is not one of auto, gpu, cpu"));
+}
+
+const char* OptionTypeName(OptionInfo::Type type) {
+  switch (type) {
+    case OptionInfo::Type::kChoice:
+      return "choice";
+    case OptionInfo::Type::kInteger:
+      return "integer";
+    case OptionInfo::Type::kNumber:
+      return "number";
+  }
+  return "?";
+}
+
+absl::StatusOr<OptionValue> ParseOptionValue(const OptionInfo& option, absl::string_view text) {
+  OptionValue value;
+  value.text = std::string(text);
+  switch (option.type) {
+    case OptionInfo::Type::kChoice:
+      if (std::find(option.choices.begin(), option.choices.end(), text) != option.choices.end()) {
+        return value;
+      }
+      return absl::InvalidArgumentError(absl::StrCat("option ", option.name, ": '", text,
+                                                     "' is not one of ",
+                                                     absl::StrJoin(option.choices, ", ")));
+    case OptionInfo::Type::kInteger:
+      if (absl::SimpleAtoi(text, &value.integer) && value.integer >= option.low &&
+          value.integer <= option.high) {
+        return value;
+      }
+      return absl::InvalidArgumentError(absl::StrCat(
+          "option ", option.name, ": '", text, "' is not an integer in [",
+          FormatNumber(option, option.low), ", ", FormatNumber(option, option.high), "]"));
+    case OptionInfo::Type::kNumber:
+      if (absl::SimpleAtod(text, &value.number) && value.number >= option.low &&
+          value.number <= option.high) {
+        return value;
+      }
+      return absl::InvalidArgumentError(absl::StrCat("option ", option.name, ": '", text,
+                                                     "' is not a number in [", option.low, ", ",
+                                                     option.high, "]"));
+  }
+  return absl::InternalError("unknown option type");
+}
+
+std::span<const EnergyInfo> Energies() { return EnergyTable(); }
+std::span<const OptionInfo> EnergyOptions() { return EnergyOptionTable(); }
+
+const EnergyInfo* FindEnergy(InputKind input, absl::string_view name) {
+  for (const EnergyInfo& energy : EnergyTable()) {
+    if (energy.input == input && energy.name == name) return &energy;
+  }
+  return nullptr;
+}
+
+const EnergyInfo* FindEnergyByWire(InputKind input, int wire) {
+  if (wire == 0) return nullptr;
+  for (const EnergyInfo& energy : EnergyTable()) {
+    if (energy.input == input && energy.wire == wire) return &energy;
+  }
+  return nullptr;
+}
+
+const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind) {
+  for (const EnergyInfo& energy : EnergyTable()) {
+    if (energy.input == InputKind::kMesh && energy.mesh_kind == kind) return &energy;
+  }
+  return nullptr;
+}
+
+std::span<const AlgorithmInfo> Algorithms() { return AlgorithmTable(); }
+
+const AlgorithmInfo* FindAlgorithm(InputKind input, absl::string_view name) {
+  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
+    if (algorithm.input == input && algorithm.name == name) return &algorithm;
+  }
+  return nullptr;
+}
+
+const AlgorithmInfo* FindAlgorithmByWire(InputKind input, int wire) {
+  if (wire == 0) return nullptr;
+  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
+    if (algorithm.input == input && algorithm.wire == wire) return &algorithm;
+  }
+  return nullptr;
+}
+
+const AlgorithmInfo& DefaultAlgorithm(InputKind input) { return *FindAlgorithm(input, "ml"); }
+
+std::string AlgorithmNames(InputKind input) {
+  std::vector<std::string> names;
+  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
+    if (algorithm.input == input) names.push_back(algorithm.name);
+  }
+  return absl::StrJoin(names, ", ");
+}
+
+std::string EnergyNames(InputKind input) {
+  std::vector<std::string> names;
+  for (const EnergyInfo& energy : EnergyTable()) {
+    if (energy.input == input) names.push_back(energy.name);
+  }
+  return absl::StrJoin(names, ", ");
+}
+
+std::vector<const OptionInfo*> AlgorithmOptions(const AlgorithmInfo& algorithm) {
+  std::vector<const OptionInfo*> options;
+  for (const OptionInfo& option : algorithm.options) options.push_back(&option);
+  if (algorithm.input == InputKind::kMesh) {
+    for (const OptionInfo& option : EnergyOptionTable()) options.push_back(&option);
+  }
+  return options;
+}
+
+const OptionInfo* FindOption(const AlgorithmInfo& algorithm, absl::string_view name) {
+  for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
+    if (option->name == name) return option;
+  }
+  return nullptr;
+}
+
+absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
+  if (request.algorithm == nullptr) return absl::InvalidArgumentError("algorithm: none given");
+  const AlgorithmInfo& algorithm = *request.algorithm;
+  JobPlan plan;
+  plan.algorithm = &algorithm;
+  plan.clusters = request.clusters;
+  plan.seed = request.seed;
+  plan.device = request.device;
+
+  // The energy: one the algorithm runs.
+  const EnergyInfo* energy = request.energy != nullptr
+                                 ? request.energy
+                                 : FindEnergy(algorithm.input, algorithm.energies[0]);
+  if (energy == nullptr || energy->input != algorithm.input ||
+      std::find(algorithm.energies.begin(), algorithm.energies.end(), energy->name) ==
+          algorithm.energies.end()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("energy: ", energy != nullptr ? energy->name : "?", " is not available for ",
+                     algorithm.name, " on ", InputKindName(algorithm.input),
+                     " (available: ", absl::StrJoin(algorithm.energies, ", "), ")"));
+  }
+  plan.energy = energy;
+  plan.mesh_energy.kind = energy->mesh_kind;
+
+  // Options: every name known to the algorithm, every value in range; applied in the
+  // order the algorithm lists them, so the result does not depend on the request's order.
+  std::set<std::string> seen;
+  for (const auto& [name, text] : request.options) {
+    if (FindOption(algorithm, name) == nullptr) {
+      std::vector<std::string> known;
+      for (const OptionInfo* option : AlgorithmOptions(algorithm)) known.push_back(option->name);
+      return absl::InvalidArgumentError(
+          absl::StrCat("option ", name, " is not known for ", algorithm.name,
+                       " (available: ", absl::StrJoin(known, ", "), ")"));
+    }
+    if (!seen.insert(name).second) {
+      return absl::InvalidArgumentError(absl::StrCat("option ", name, ": given twice"));
+    }
+  }
+  for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
+    for (const auto& [name, text] : request.options) {
+      if (name != option->name) continue;
+      MLCLUST_ASSIGN_OR_RETURN(OptionValue value, ParseOptionValue(*option, text));
+      option->apply(value, plan);
+    }
+  }
+  if (algorithm.input == InputKind::kMesh) {
+    MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));
+  }
+
+  // Clusters and levels.
+  if (algorithm.hierarchy) {
+    if (request.levels_high != 0 && request.levels_high < request.levels_low) {
+      return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", request.levels_high,
+                                                     " is below the low end ", request.levels_low));
+    }
+    const uint32_t lowest = std::max<uint32_t>({1, request.clusters, request.levels_low});
+    plan.multilevel.min_clusters = lowest;
+    plan.point_multilevel.min_clusters = lowest;
+    if (algorithm.name == "hc") {
+      plan.multilevel.optimizer = MultilevelOptions::Optimizer::kNone;
+      plan.point_multilevel.optimizer = PointMultilevelOptions::Optimizer::kNone;
+    }
+    if (algorithm.name == "pml") {
+      plan.multilevel.parallel = true;
+      plan.point_multilevel.parallel = true;
+    }
+  } else {
+    if (request.levels_high != 0 || request.levels_low != 0) {
+      return absl::InvalidArgumentError(
+          "levels: a level range applies to the hierarchies of HC, ML and PML only");
+    }
+    if (plan.point_init == JobPlan::PointInit::kGrid) {
+      if (request.clusters != 0) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "clusters: init grid starts from one cluster per occupied voxel (option grid); ",
+            request.clusters, " clusters cannot be asked for with it"));
+      }
+    } else {
+      if (request.clusters < 1) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("clusters: ", algorithm.name, " needs k >= 1 clusters"));
+      }
+      if (plan.grid != 0 && algorithm.input == InputKind::kPoints) {
+        return absl::InvalidArgumentError("grid: applies to init grid (and the hierarchies)");
+      }
+    }
+    plan.seeds.clusters = request.clusters;
+    plan.seeds.seed = request.seed;
+    plan.vsa.clusters = request.clusters;
+    plan.vsa.seed = request.seed;
+    plan.kmeans.clusters = request.clusters;
+    plan.kmeans.seed = request.seed;
+  }
+  return plan;
+}
+
+absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan) {
+  const AlgorithmInfo& algorithm = *plan.algorithm;
+  std::vector<StageInfo> stages;
+  if (algorithm.input == InputKind::kMesh) {
+    stages.push_back({"measures", "face areas, centroids and normals", /*has_gpu=*/true});
+  }
+  stages.insert(stages.end(), algorithm.stages.begin(), algorithm.stages.end());
+  const bool any_gpu =
+      std::any_of(stages.begin(), stages.end(), [](const StageInfo& s) { return s.has_gpu; });
+  if (plan.device == DeviceChoice::kGpu) {
+    if (!caps.gpu) {
+      return absl::FailedPreconditionError("option device: 'gpu' but this server has no GPU");
+    }
+    if (!any_gpu) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("option device: 'gpu' but no stage of ", algorithm.name, " on ",
+                       InputKindName(algorithm.input), " has a GPU implementation yet"));
+    }
+  }
+  // Today's rule: a software renderer (llvmpipe) is slower than the CPU for these kernels,
+  // so auto takes the GPU only where it is hardware; gpu takes it regardless.
+  const bool use_gpu = caps.gpu && (plan.device == DeviceChoice::kGpu ||
+                                    (plan.device == DeviceChoice::kAuto && !caps.gpu_is_software));
+  plan.stages.clear();
+  for (const StageInfo& stage : stages) {
+    plan.stages.push_back(
+        {stage.name, stage.has_gpu && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
+  }
+  return absl::OkStatus();
+}
+
+std::string StageDeviceName(const StagePlan& stage, const DeviceCaps& caps) {
+  return stage.device == StageDevice::kGpu ? caps.renderer : "cpu";
+}
+
+const StagePlan* FindStage(const JobPlan& plan, absl::string_view name) {
+  for (const StagePlan& stage : plan.stages) {
+    if (stage.name == name) return &stage;
+  }
+  return nullptr;
+}
+
+}  // namespace mlclust

@@ -1,0 +1,303 @@
+#include "core/cluster/registry.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+
+#include "core/cluster/point_clustering.h"
+#include "core/energy/energies.h"
+#include "core/hierarchy/hierarchy.h"
+#include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_points.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Every (algorithm, energy) pair the registry lists: the tests below run each one, so an
+// entry added to the registry is covered without editing a list here.
+struct Pair {
+  const AlgorithmInfo* algorithm;
+  const EnergyInfo* energy;
+};
+
+std::vector<Pair> AllPairs() {
+  std::vector<Pair> pairs;
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    for (const std::string& name : algorithm.energies) {
+      pairs.push_back({&algorithm, FindEnergy(algorithm.input, name)});
+    }
+  }
+  return pairs;
+}
+
+std::string PairName(const ::testing::TestParamInfo<Pair>& info) {
+  std::string name =
+      absl::StrCat(InputKindName(info.param.algorithm->input), "_", info.param.algorithm->name, "_",
+                   info.param.energy != nullptr ? info.param.energy->name : "none");
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
+}
+
+TEST(RegistryTest, NamesAndWireValuesAreUniquePerInput) {
+  std::set<std::pair<InputKind, std::string>> names;
+  std::set<std::pair<InputKind, int>> wires;
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    EXPECT_TRUE(names.insert({algorithm.input, algorithm.name}).second) << algorithm.name;
+    EXPECT_TRUE(wires.insert({algorithm.input, algorithm.wire}).second) << algorithm.name;
+    EXPECT_GT(algorithm.wire, 0) << algorithm.name;
+    EXPECT_FALSE(algorithm.energies.empty()) << algorithm.name;
+    EXPECT_FALSE(algorithm.stages.empty()) << algorithm.name;
+    EXPECT_EQ(algorithm.run_mesh != nullptr, algorithm.input == InputKind::kMesh) << algorithm.name;
+    EXPECT_EQ(algorithm.run_points != nullptr, algorithm.input == InputKind::kPoints)
+        << algorithm.name;
+    std::set<std::string> options;
+    for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
+      EXPECT_TRUE(options.insert(option->name).second) << algorithm.name << " " << option->name;
+    }
+  }
+  std::set<std::string> energy_names;
+  for (const EnergyInfo& energy : Energies()) {
+    EXPECT_TRUE(energy_names.insert(energy.name).second) << energy.name;
+    if (energy.input == InputKind::kMesh) {
+      EXPECT_EQ(FindEnergyByKind(energy.mesh_kind), &energy) << energy.name;
+      EXPECT_STREQ(MeshEnergyName(energy.mesh_kind), energy.name.c_str());
+    }
+    if (energy.wire != 0) {
+      EXPECT_EQ(FindEnergyByWire(energy.input, energy.wire), &energy);
+    }
+  }
+}
+
+TEST(RegistryTest, EveryMeshEnergyKindIsRegistered) {
+  for (MeshEnergyKind kind :
+       {MeshEnergyKind::kCvd, MeshEnergyKind::kCvdAdaptive, MeshEnergyKind::kMwcvdArea,
+        MeshEnergyKind::kMwcvdVariance, MeshEnergyKind::kMwcvdMax, MeshEnergyKind::kPlanar,
+        MeshEnergyKind::kSphere, MeshEnergyKind::kSphereNormals}) {
+    EXPECT_NE(FindEnergyByKind(kind), nullptr) << MeshEnergyName(kind);
+  }
+}
+
+TEST(RegistryTest, OptionsHaveHelpAndParseableDefaults) {
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
+      EXPECT_FALSE(option->help.empty()) << option->name;
+      EXPECT_FALSE(option->default_text.empty()) << option->name;
+      EXPECT_TRUE(option->apply) << option->name;
+      // Defaults that depend on the energy are described in words ("... for ...").
+      if (option->default_text.find(" for ") != std::string::npos) continue;
+      EXPECT_TRUE(ParseOptionValue(*option, option->default_text).ok())
+          << algorithm.name << " --" << option->name << " " << option->default_text;
+    }
+  }
+}
+
+TEST(RegistryTest, ParseOptionValueChecksTypeAndRange) {
+  const AlgorithmInfo* bb = FindAlgorithm(InputKind::kMesh, "bb");
+  ASSERT_NE(bb, nullptr);
+  const OptionInfo* threads = FindOption(*bb, "threads");
+  ASSERT_NE(threads, nullptr);
+  EXPECT_EQ(ParseOptionValue(*threads, "4")->integer, 4);
+  EXPECT_THAT(std::string(ParseOptionValue(*threads, "x").status().message()),
+              HasSubstr("option threads: 'x' is not an integer in [0, 1024]"));
+  EXPECT_FALSE(ParseOptionValue(*threads, "1025").ok());
+  EXPECT_FALSE(ParseOptionValue(*threads, "-1").ok());
+  const OptionInfo* gamma = FindOption(*bb, "gamma");
+  ASSERT_NE(gamma, nullptr);
+  EXPECT_DOUBLE_EQ(ParseOptionValue(*gamma, "1.5")->number, 1.5);
+  EXPECT_FALSE(ParseOptionValue(*gamma, "-1").ok());
+  EXPECT_FALSE(ParseOptionValue(*gamma, "nan").ok());
+  const OptionInfo* init = FindOption(*bb, "init");
+  ASSERT_NE(init, nullptr);
+  EXPECT_TRUE(ParseOptionValue(*init, "random").ok());
+  EXPECT_THAT(std::string(ParseOptionValue(*init, "magic").status().message()),
+              HasSubstr("not one of lneigh, random"));
+}
+
+TEST(RegistryTest, PlanAppliesOptionsAndRefusesUnknownOnes) {
+  JobRequest request;
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
+  request.clusters = 7;
+  request.levels_low = 10;
+  request.options = {{"threads", "3"},
+                     {"optimizer", "bb"},
+                     {"guard", "off"},
+                     {"pml-until", "500"},
+                     {"density", "linear"}};
+  absl::StatusOr<JobPlan> plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_EQ(plan->energy->name, "cvd");  // the algorithm's default
+  EXPECT_TRUE(plan->multilevel.parallel);
+  EXPECT_EQ(plan->multilevel.threads, 3);
+  EXPECT_EQ(plan->multilevel.pml_until, 500u);
+  EXPECT_EQ(plan->multilevel.min_clusters, 10u);
+  EXPECT_FALSE(plan->multilevel.connectivity_guard);
+  EXPECT_EQ(plan->multilevel.optimizer, MultilevelOptions::Optimizer::kBoundaryBased);
+  EXPECT_EQ(plan->mesh_energy.density.mapping, DensityOptions::Mapping::kLinear);
+
+  // Not given: the energy's own mapping stays (ResolveDensityOptions decides later).
+  request.options = {};
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok());
+  EXPECT_EQ(plan->mesh_energy.density.mapping, DensityOptions::Mapping::kDefault);
+
+  // HC has no optimiser option; its plan has none.
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "hc");
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok());
+  EXPECT_EQ(plan->multilevel.optimizer, MultilevelOptions::Optimizer::kNone);
+  request.options = {{"optimizer", "emlo"}};
+  absl::Status status = PlanJob(request).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()), HasSubstr("option optimizer is not known for hc"));
+
+  // VSA runs the planar energy only, and it is its default.
+  request = {};
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "vsa");
+  request.clusters = 5;
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok());
+  EXPECT_EQ(plan->energy->name, "planar");
+  EXPECT_EQ(plan->vsa.clusters, 5u);
+  request.energy = FindEnergy(InputKind::kMesh, "cvd");
+  status = PlanJob(request).status();
+  EXPECT_THAT(std::string(status.message()), HasSubstr("available: planar"));
+
+  // Single-level algorithms need K, and no level range.
+  request = {};
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "emlo");
+  EXPECT_THAT(std::string(PlanJob(request).status().message()), HasSubstr("clusters"));
+  request.clusters = 3;
+  request.levels_high = 10;
+  EXPECT_THAT(std::string(PlanJob(request).status().message()), HasSubstr("levels"));
+
+  // LN k-means from the grid takes no K; k-means has no grid.
+  request = {};
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "lnkmeans");
+  request.options = {{"init", "grid"}, {"grid", "4"}};
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_EQ(plan->point_init, JobPlan::PointInit::kGrid);
+  EXPECT_EQ(plan->grid, 4u);
+  request.clusters = 5;
+  EXPECT_THAT(std::string(PlanJob(request).status().message()), HasSubstr("voxel"));
+  request = {};
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "kmeans");
+  request.clusters = 5;
+  request.options = {{"grid", "4"}};
+  EXPECT_FALSE(PlanJob(request).ok());
+}
+
+TEST(RegistryTest, DevicesFollowThePlan) {
+  JobRequest request;
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
+  DeviceCaps hardware{true, false, "NVIDIA H100"};
+  DeviceCaps software{true, true, "llvmpipe"};
+  DeviceCaps none;
+  auto device_of = [&](DeviceChoice choice, const DeviceCaps& caps,
+                       const std::string& stage) -> std::string {
+    request.device = choice;
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    EXPECT_TRUE(plan.ok());
+    absl::Status status = PlanDevices(caps, *plan);
+    if (!status.ok()) return std::string(status.message());
+    const StagePlan* found = FindStage(*plan, stage);
+    return found == nullptr ? "none" : StageDeviceName(*found, caps);
+  };
+  // Only the face measures have a GPU implementation today.
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "measures"), "NVIDIA H100");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, software, "measures"), "cpu");
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "measures"), "llvmpipe");
+  EXPECT_EQ(device_of(DeviceChoice::kCpu, hardware, "measures"), "cpu");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, none, "measures"), "cpu");
+  EXPECT_THAT(device_of(DeviceChoice::kGpu, none, "measures"), HasSubstr("no GPU"));
+  // A point algorithm has no GPU stage: device gpu says so.
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "lnkmeans");
+  request.clusters = 3;
+  EXPECT_THAT(device_of(DeviceChoice::kGpu, hardware, "cluster"),
+              HasSubstr("no stage of lnkmeans on points has a GPU implementation"));
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  EXPECT_FALSE(ParseDeviceChoice("tpu").ok());
+  EXPECT_EQ(*ParseDeviceChoice(""), DeviceChoice::kAuto);
+}
+
+// A sink that checks the stream as a client would and keeps the last labels.
+class CheckingSink : public LevelSink {
+ public:
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
+                       double energy) override {
+    return log.OnStart(labels, cluster_count, energy);
+  }
+  absl::Status OnLevel(const LevelMoves& level) override { return log.OnLevel(level); }
+  HierarchyLog log;
+};
+
+// Every registered (algorithm, energy) pair runs through its run function, and the last
+// level's energy is the energy of the last level's labels computed from scratch.
+class RegistryRunTest : public ::testing::TestWithParam<Pair> {};
+
+TEST_P(RegistryRunTest, RunsAndReportsTheEnergyOfItsLabels) {
+  const Pair& pair = GetParam();
+  ASSERT_NE(pair.energy, nullptr);
+  JobRequest request;
+  request.algorithm = pair.algorithm;
+  request.energy = pair.energy;
+  request.clusters = 6;
+  request.seed = 3;
+  absl::StatusOr<JobPlan> plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  ASSERT_TRUE(PlanDevices(DeviceCaps{}, *plan).ok());
+  std::vector<std::string> stages_seen;
+  RunContext context;
+  context.on_stage = [&](const StagePlan& stage, const std::string&) {
+    EXPECT_EQ(stage.device, StageDevice::kCpu);
+    if (stages_seen.empty() || stages_seen.back() != stage.name) stages_seen.push_back(stage.name);
+  };
+  CheckingSink sink;
+  absl::StatusOr<RunSummary> summary;
+  size_t elements = 0;
+  double expected = 0;
+  if (pair.algorithm->input == InputKind::kMesh) {
+    static const testing::LoadedMesh* cube =
+        new testing::LoadedMesh(testing::Load(testing::MakeCube(4).mesh));
+    const MeshProblem problem{&cube->mesh, &cube->adjacency, &cube->measures, plan->mesh_energy};
+    summary = pair.algorithm->run_mesh(problem, *plan, sink, context);
+    ASSERT_TRUE(summary.ok()) << summary.status();
+    elements = cube->mesh.num_faces();
+    const std::vector<ClusterId> labels = *sink.log.LabelsAt(sink.log.num_levels() - 1);
+    expected = MeshEnergyOfLabels(plan->mesh_energy, cube->mesh, labels);
+  } else {
+    static const testing::Blobs* blobs = new testing::Blobs(testing::GaussianBlobs(6, 40, 10, 5));
+    summary = pair.algorithm->run_points(blobs->points, *plan, sink, context);
+    ASSERT_TRUE(summary.ok()) << summary.status();
+    elements = blobs->points.num_points();
+    expected = PointEnergy(blobs->points, *sink.log.LabelsAt(sink.log.num_levels() - 1));
+  }
+  EXPECT_EQ(sink.log.num_elements(), elements);
+  const size_t last = sink.log.num_levels() - 1;
+  EXPECT_EQ(sink.log.cluster_count(last), summary->final_clusters);
+  EXPECT_EQ(summary->final_clusters, 6u);
+  if (!pair.algorithm->hierarchy) {
+    EXPECT_EQ(sink.log.num_levels(), 2u);  // the seeding at K, then the result
+    EXPECT_EQ(sink.log.cluster_count(0), 6u);
+    EXPECT_LE(sink.log.energy(1), sink.log.energy(0) * (1 + 1e-9) + 1e-12);
+  }
+  EXPECT_NEAR(sink.log.energy(last), expected, 1e-6 * std::abs(expected) + 1e-9);
+  // The stages reported are the algorithm's, in its order.
+  std::vector<std::string> listed;
+  for (const StageInfo& stage : pair.algorithm->stages) {
+    if (listed.empty() || listed.back() != stage.name) listed.push_back(stage.name);
+  }
+  EXPECT_EQ(stages_seen, listed);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllRegistered, RegistryRunTest, ::testing::ValuesIn(AllPairs()), PairName);
+
+}  // namespace
+}  // namespace mlclust
