@@ -34,7 +34,7 @@ def run_levels(args, algo, extra):
         levels = os.path.join(tmp, "levels.csv")
         kind = "points" if args.points else "mesh"
         command = [args.mlclust, kind, args.input, "--algo", algo, "--levels-csv", levels,
-                   "--quiet"] + extra
+                   "--quiet"] + extra + args.extra.split()
         if not args.points:
             command += ["--energy", args.energy]
         result = subprocess.run(command, capture_output=True, text=True)
@@ -56,6 +56,8 @@ def main():
     parser.add_argument("--spread", default="emlo", help="single-K algorithms, run --runs times")
     parser.add_argument("--ks", required=True)
     parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--extra", default="",
+                        help="more CLI options for every run, e.g. '--guard off'")
     parser.add_argument("--title", default="")
     parser.add_argument("--out", required=True)
     parser.add_argument("--plot-only", action="store_true",
