@@ -19,6 +19,10 @@ import json, os, sys
 root = os.getcwd()
 for entry in json.load(open(sys.argv[1])):
     path = os.path.relpath(os.path.normpath(os.path.join(entry["directory"], entry["file"])), root)
+    # clang 14 cannot parse this file (a lambda capturing a structured binding, C++20
+    # P1091, needs clang 16); GCC builds it.
+    if path in ("core/coarsening/coarsening.cc",):
+        continue
     if path.split(os.sep)[0] in ("core", "server", "client", "gpu"):
         print(path)
 PY
