@@ -26,6 +26,7 @@
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
 #include "core/io/points_io.h"
+#include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
 #include "google/protobuf/util/json_util.h"
 #include "grpcpp/grpcpp.h"
@@ -846,14 +847,16 @@ int Energy(const Arguments& args) {
   }
   absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
   if (!options.ok()) return Fail(options.status());
-  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(args.positional()[0]);
+  // The one set-up path (core/io/prepare_mesh.h): read, validate, adjacency, measures.
+  absl::StatusOr<PreparedMesh> mesh = PrepareMeshFile(args.positional()[0]);
   if (!mesh.ok()) return Fail(mesh.status());
-  absl::StatusOr<std::vector<ClusterId>> labels = ReadLabels(args.get("labels"), mesh->num_faces());
+  absl::StatusOr<std::vector<ClusterId>> labels =
+      ReadLabels(args.get("labels"), mesh->mesh.num_faces());
   if (!labels.ok()) return Fail(labels.status());
   // By definition: every face against its cluster's best proxy (not the sums' shortcut).
-  const FaceMeasures measures = ComputeFaceMeasures(*mesh);
-  const double energy = WithMeshEnergy(
-      *options, *mesh, measures, [&](const auto& e) { return EnergyFromProxies(e, *labels); });
+  const double energy = WithMeshEnergy(*options, mesh->mesh, mesh->measures, [&](const auto& e) {
+    return EnergyFromProxies(e, *labels);
+  });
   std::printf("%.17g\n", energy);
   return 0;
 }

@@ -11,6 +11,7 @@
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/draco_codec.h"
+#include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
 #include "core/points/points.h"
@@ -235,29 +236,52 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
   EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu");
-  absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
-  if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
-  std::string().swap(job.input);  // the bytes are no longer needed
-  if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
-    return WithContext(valid, "input mesh");
+  const StagePlan* measures_stage = FindStage(plan, "measures");
+  const bool gpu_measures =
+      measures_stage != nullptr && measures_stage->device == StageDevice::kGpu;
+  std::string device_used = "cpu";
+  PreparedMesh prepared;
+  if (!gpu_measures) {
+    // The one set-up path (core/io/prepare_mesh.h): decode, validate, adjacency, measures.
+    PrepareMeshOptions options;
+    options.cancel = job.cancel_flag();
+    absl::StatusOr<PreparedMesh> ready = PrepareDracoMesh(job.input, options);
+    if (!ready.ok()) return WithContext(ready.status(), "input mesh");
+    prepared = *std::move(ready);
+    std::string().swap(job.input);  // the bytes are no longer needed
+    EmitProgress(events, "measures",
+                 absl::StrCat(prepared.mesh.num_faces(), " faces, ", prepared.mesh.num_vertices(),
+                              " vertices"),
+                 "cpu");
+  } else {
+    // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
+    // steps are spelled out here.
+    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
+    if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
+    std::string().swap(job.input);
+    if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
+      return WithContext(valid, "input mesh");
+    }
+    EmitProgress(events, "measures",
+                 absl::StrCat(mesh->num_faces(), " faces, ", mesh->num_vertices(), " vertices"),
+                 StageDeviceName(*measures_stage, caps));
+    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+    if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
+    absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
+    if (!measures.ok()) return measures.status();
+    prepared.mesh = *std::move(mesh);
+    prepared.adjacency = *std::move(adjacency);
+    prepared.measures = *std::move(measures);
   }
-  const size_t num_faces = mesh->num_faces();
+  const size_t num_faces = prepared.mesh.num_faces();
   if (plan.clusters > num_faces) {
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", plan.clusters, " is more than the mesh's ", num_faces, " faces"));
   }
-  const StagePlan* measures_stage = FindStage(plan, "measures");
-  EmitProgress(events, "measures",
-               absl::StrCat(num_faces, " faces, ", mesh->num_vertices(), " vertices"),
-               measures_stage != nullptr ? StageDeviceName(*measures_stage, caps) : "cpu");
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
-  if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
-  std::string device_used;
-  absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
-  if (!measures.ok()) return measures.status();
 
   StreamingLevelSink sink = MakeSink(job, plan, context);
-  const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan.mesh_energy};
+  const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
+                            plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
       plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(job, caps));
   if (!summary.ok()) return summary.status();

@@ -107,6 +107,19 @@ OptionInfo PmlUntilOption(bool points) {
                  });
 }
 
+// The PML pair rule (core/cluster/detail/pml_pairs.h), for meshes and points alike.
+OptionInfo PmlPairsOption() {
+  return Choice("pml-pairs", {"cheaper-half", "all"}, "cheaper-half",
+                "the mutual pairs a PML level collapses: all of them (Alg. 5.3) or, ours, those "
+                "at most the level's median cost (the default by measurement: BENCHMARKS.md)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  const PmlPairRule rule =
+                      v.text == "all" ? PmlPairRule::kAll : PmlPairRule::kCheaperHalf;
+                  plan.multilevel.pml_pairs = rule;
+                  plan.point_multilevel.pml_pairs = rule;
+                });
+}
+
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
                 "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown by the "
@@ -433,8 +446,11 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "parallel multilevel clustering (Alg. 5.3)";
     a.help = "collapse all mutual optimal dual edges of a level at once, then optimise";
     a.energies = mesh_energies;
-    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption(),
+    a.options = {MeshOptimizerOption(),
+                 GuardOption("the optimiser's moves"),
+                 PPercentOption(),
                  PmlUntilOption(false),
+                 PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
     a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
@@ -549,15 +565,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "collapse mutual optimal dual edges per level, then ML";
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
-                 PmlUntilOption(true),
-                 Choice("pml-pairs", {"cheaper-half", "all"}, "cheaper-half",
-                        "the mutual pairs a PML level collapses: all (Alg. 5.3) or ours, those at "
-                        "most the level's median cost",
-                        [](const OptionValue& v, JobPlan& plan) {
-                          plan.point_multilevel.pml_pairs =
-                              v.text == "all" ? PointMultilevelOptions::PmlPairs::kAll
-                                              : PointMultilevelOptions::PmlPairs::kCheaperHalf;
-                        })};
+                 PmlUntilOption(true), PmlPairsOption()};
     a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);

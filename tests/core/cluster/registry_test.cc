@@ -126,11 +126,8 @@ TEST(RegistryTest, PlanAppliesOptionsAndRefusesUnknownOnes) {
   request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
   request.clusters = 7;
   request.levels_low = 10;
-  request.options = {{"threads", "3"},
-                     {"optimizer", "bb"},
-                     {"guard", "off"},
-                     {"pml-until", "500"},
-                     {"density", "linear"}};
+  request.options = {{"threads", "3"},     {"optimizer", "bb"},   {"guard", "off"},
+                     {"pml-until", "500"}, {"density", "linear"}, {"pml-pairs", "all"}};
   absl::StatusOr<JobPlan> plan = PlanJob(request);
   ASSERT_TRUE(plan.ok()) << plan.status();
   EXPECT_EQ(plan->energy->name, "cvd");  // the algorithm's default
@@ -141,6 +138,7 @@ TEST(RegistryTest, PlanAppliesOptionsAndRefusesUnknownOnes) {
   EXPECT_FALSE(plan->multilevel.connectivity_guard);
   EXPECT_EQ(plan->multilevel.optimizer, MultilevelOptions::Optimizer::kBoundaryBased);
   EXPECT_EQ(plan->mesh_energy.density.mapping, DensityOptions::Mapping::kLinear);
+  EXPECT_EQ(plan->multilevel.pml_pairs, PmlPairRule::kAll);
 
   // Not given: the energy's own mapping stays (ResolveDensityOptions decides later).
   request.options = {};
