@@ -206,7 +206,7 @@ class Arguments {
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
       std::string name, value;
-      if (kShort.count(arg) != 0) {
+      if (kShort.contains(arg)) {
         name = kShort.at(arg);
       } else if (absl::StartsWith(arg, "--")) {
         name = arg.substr(2);
@@ -215,7 +215,7 @@ class Arguments {
         continue;
       }
       const size_t eq = name.find('=');
-      const bool is_flag = kFlags.count(name) != 0;
+      const bool is_flag = kFlags.contains(name);
       if (eq != std::string::npos) {
         value = name.substr(eq + 1);
         name = name.substr(0, eq);
@@ -231,7 +231,7 @@ class Arguments {
     return args;
   }
 
-  bool has(const std::string& name) const { return values_.count(name) != 0; }
+  bool has(const std::string& name) const { return values_.contains(name); }
   std::string get(const std::string& name, const std::string& fallback = "") const {
     auto it = values_.find(name);
     return it == values_.end() ? fallback : it->second;
@@ -516,7 +516,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
   }
   if (!auto_k.empty()) absl::StrAppend(&json, ", \"auto_k\": ", JsonString(auto_k));
   if (level.has_value()) {
-    absl::StrAppend(&json, ", \"level\": {\"index\": ", *level,
+    absl::StrAppend(&json, R"(, "level": {"index": )", *level,
                     ", \"clusters\": ", log.cluster_count(*level),
                     ", \"energy\": ", JsonNumber(log.energy(*level)), "}");
   } else {
