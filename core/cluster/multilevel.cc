@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <queue>
 
 #include "absl/container/flat_hash_map.h"
@@ -33,7 +34,7 @@ class Engine {
       : adjacency_(*problem.adjacency),
         options_(options),
         sink_(sink),
-        guard_(*problem.mesh, *problem.adjacency),
+        mesh_(*problem.mesh),
         n_(static_cast<uint32_t>(problem.mesh->num_faces())),
         partition_(energy, Identity(n_), n_),
         members_(n_),
@@ -45,6 +46,12 @@ class Engine {
 
   absl::StatusOr<MultilevelSummary> Run() {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
+    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone) {
+      // Only an optimiser needs the guard (HC never moves single faces); built here, between
+      // cancellation checks, as it is the longest part of the set-up.
+      guard_.emplace(mesh_, adjacency_);
+      MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+    }
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
     MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
@@ -103,7 +110,7 @@ class Engine {
   // One cluster per face: the clusters' adjacency is the faces'.
   absl::Status BuildClusterAdjacency() {
     for (uint32_t f = 0; f < n_; ++f) {
-      if (f % 65536 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+      if (f % 16384 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
       members_[f] = {f};
       for (FaceId g : adjacency_.neighbours[f]) {
         // Each face edge is seen from both faces: one side each time.
@@ -207,7 +214,7 @@ class Engine {
         }
       }
     }
-    const ConnectivityGuard* guard = options_.connectivity_guard ? &guard_ : nullptr;
+    const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
     // Touch (before each move) keeps the clusters' energies from before the level; this
     // runs after the move.
     auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
@@ -509,7 +516,8 @@ class Engine {
   const FaceAdjacency& adjacency_;
   const MultilevelOptions& options_;
   LevelSink& sink_;
-  ConnectivityGuard guard_;
+  const TriangleMesh& mesh_;
+  std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
   const uint32_t n_;
   Partition<Energy> partition_;
   std::vector<std::vector<uint32_t>> members_;
@@ -554,6 +562,7 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
   if (options.threads < 0) {
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
   return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
                         [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
                           using Energy = std::decay_t<decltype(energy)>;
