@@ -49,8 +49,9 @@ class Engine {
     if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone) {
       // Only an optimiser needs the guard (HC never moves single faces); built here, between
       // cancellation checks, as it is the longest part of the set-up.
-      guard_.emplace(mesh_, adjacency_);
-      MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+      MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard,
+                               ConnectivityGuard::Build(mesh_, adjacency_, options_.cancel));
+      guard_.emplace(std::move(guard));
     }
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
@@ -224,13 +225,15 @@ class Engine {
     };
     const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
     if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
-      summary_.evaluations += detail::RunEmloOn(adjacency_, guard, partition_, worklist_, max_moves,
-                                                emlo_scratch_, on_move,
-                                                [&](uint32_t from, uint32_t to) {
-                                                  Touch(from);
-                                                  Touch(to);
-                                                })
-                                  .evaluations;
+      summary_.evaluations +=
+          detail::RunEmloOn(
+              adjacency_, guard, partition_, worklist_, max_moves, emlo_scratch_, on_move,
+              [&](uint32_t from, uint32_t to) {
+                Touch(from);
+                Touch(to);
+              },
+              options_.cancel)
+              .evaluations;
     } else {
       OptimiseBoundaryBased(guard, on_move);
     }

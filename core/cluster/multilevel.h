@@ -59,9 +59,9 @@ struct MultilevelOptions {
   // Worker threads for PML's parallel steps, 0 = all cores.
   int threads = 0;
   // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
-  // adjacency is built, after the connectivity guard is built, after every level and
-  // every 65,536 ODEs of the first ODE pass and of a p% sweep (not inside an optimisation
-  // or the guard's construction). The run then returns CANCELLED (core/base/cancel.h).
+  // adjacency is built, while the connectivity guard is built, inside local EMLO (every
+  // few thousand faces), after every level and every 65,536 ODEs of the first ODE pass and
+  // of a p% sweep. The run then returns CANCELLED (core/base/cancel.h).
   const std::atomic<bool>* cancel = nullptr;
   // Called at each level after it is reported, with the engine's own labels (one cluster
   // id per face). For tests that check the log against the engine; costs O(faces) a call.
