@@ -324,9 +324,14 @@ class Engine {
 
   // PML keeps the ODEs without queueing them; ML queues every new one.
   void SetOde(uint32_t c, uint32_t d, double cost) {
-    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_);
+    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_, TieKey(c));
   }
   bool Alive(uint32_t c) const { return partition_.size(c) > 0; }
+  // Equal ODE costs: the cluster with the fewest faces first (footnote 4 of section 4.2,
+  // l. 1588), or by id alone.
+  uint32_t TieKey(uint32_t c) const {
+    return options_.ties_to_fewest_faces ? partition_.size(c) : 0;
+  }
 
   void RecomputeOde(uint32_t c) {
     double best = std::numeric_limits<double>::infinity();
@@ -462,7 +467,7 @@ class Engine {
                               best_d = d;
                             }
                           }
-                          odes_.Assign(c, best_d, best);
+                          odes_.Assign(c, best_d, best, TieKey(c));
                         }
                       });
   }

@@ -56,6 +56,11 @@ struct MultilevelOptions {
   // Stop at this many clusters (>= 1); a mesh with C components stops at C at the least.
   uint32_t min_clusters = 1;
   bool connectivity_guard = true;
+  // Equal ODE costs: true (the default), the cluster with the fewest faces merges first
+  // (footnote 4 of section 4.2, l. 1588), then the smaller id; false, the smaller id
+  // alone (the former rule). Which partner a cluster's ODE names among equal costs is
+  // the larger id either way (PML's rule, Alg. 5.3).
+  bool ties_to_fewest_faces = true;
   // Worker threads for PML's parallel steps, 0 = all cores.
   int threads = 0;
   // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
