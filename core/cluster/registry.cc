@@ -90,9 +90,20 @@ OptionInfo MeshOptimizerOption() {
 
 OptionInfo PPercentOption() {
   return Number("p-percent", 0, 100, "0",
-                "merge this % of the clusters first without optimising (ours: as HC; Alg. "
-                "4.2's one sequential sweep is not implemented), then ML (0 = plain ML)",
+                "merge this % of the clusters first without optimising, then ML (Alg. 4.2; "
+                "0 = plain ML; how: p-percent-rule)",
                 [](const OptionValue& v, JobPlan& plan) { plan.multilevel.p_percent = v.number; });
+}
+
+OptionInfo PPercentRuleOption() {
+  return Choice("p-percent-rule", {"sweep", "hc-first"}, "sweep",
+                "how the first p% merge: one sequential sweep collapsing non-conflicting optimal "
+                "dual edges (Alg. 4.2) or, ours, one level per merge, cheapest first, as HC",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.multilevel.p_percent_rule = v.text == "hc-first"
+                                                       ? MultilevelOptions::PPercentRule::kHcFirst
+                                                       : MultilevelOptions::PPercentRule::kSweep;
+                });
 }
 
 OptionInfo PmlUntilOption(bool points) {
@@ -212,8 +223,9 @@ std::string EnergyNote(const JobPlan& plan) {
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
   Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
-  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary,
-                           RunMultilevel(problem, plan.multilevel, sink));
+  MultilevelOptions options = plan.multilevel;
+  options.cancel = context.cancel;
+  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary, RunMultilevel(problem, options, sink));
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
@@ -266,8 +278,10 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
   Report(context, plan, "cluster",
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
+  PointMultilevelOptions options = plan.point_multilevel;
+  options.cancel = context.cancel;
   MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary,
-                           RunPointMultilevel(points, plan.point_multilevel, sink));
+                           RunPointMultilevel(points, options, sink));
   return RunSummary{summary.start_clusters, summary.final_clusters};
 }
 
@@ -278,9 +292,11 @@ absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPla
                       " dimensions: ", plan.algorithm->name));
   if (plan.point_init == JobPlan::PointInit::kGrid) {
     // From the voxel grid: level 0 is the voxel clusters, level 1 the result.
-    MLCLUST_ASSIGN_OR_RETURN(VoxelStart start, VoxelGridStart(points, plan.grid));
+    LnKmeansOptions options = plan.ln_kmeans;
+    options.cancel = context.cancel;
+    MLCLUST_ASSIGN_OR_RETURN(VoxelStart start, VoxelGridStart(points, plan.grid, context.cancel));
     MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result,
-                             RunLnKmeansFromGrid(points, plan.grid, plan.ln_kmeans));
+                             RunLnKmeansFromGrid(points, plan.grid, options));
     MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, result.initial_energy, result.labels,
                                             result.energy, start.clusters, sink));
     return RunSummary{start.clusters, start.clusters};
@@ -289,7 +305,9 @@ absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPla
                            SeedPointClusters(points, plan.clusters,
                                              plan.point_init == JobPlan::PointInit::kKmeansPlusPlus,
                                              plan.seed, plan.ln_kmeans.threads));
-  MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result, RunLnKmeans(points, initial, plan.ln_kmeans));
+  LnKmeansOptions options = plan.ln_kmeans;
+  options.cancel = context.cancel;
+  MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result, RunLnKmeans(points, initial, options));
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result.initial_energy, result.labels,
                                           result.energy, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
@@ -433,7 +451,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "multilevel clustering (Alg. 4.1)";
     a.help = "merge the cheapest dual edge (eq. 4.1), then optimise locally; every level";
     a.energies = mesh_energies;
-    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption()};
+    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption(),
+                 PPercentRuleOption()};
     a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
@@ -449,6 +468,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {MeshOptimizerOption(),
                  GuardOption("the optimiser's moves"),
                  PPercentOption(),
+                 PPercentRuleOption(),
                  PmlUntilOption(false),
                  PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
