@@ -82,12 +82,12 @@ int main(int argc, char** argv) {
   bench::Args args(argc, argv,
                    "usage: cancel_latency MESH [--after S] [--k K] [--repeats R] [--only NAME] "
                    "[--header]");
+  const bool header = args.Flag("header");
   const std::string path = args.Positional(0);
   const double after_option = args.Get<double>("after", 0);
   const uint32_t k = args.Get<uint32_t>("k", 1000);
   const int repeats = args.Get<int>("repeats", 3);
   const std::string only = args.Get<std::string>("only", "");
-  const bool header = args.Flag("header");
   if (!args.Done()) return 2;
   if (header) {
     std::printf("step,faces,solo_s,after_s,worst_latency_s,mean_latency_s,cancelled,finished\n");
