@@ -230,6 +230,13 @@ absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view byt
                                                    position->num_components(),
                                                    " components; 3 are required"));
   }
+  // A number type: Draco would read bool positions (any byte of the payload) as bools to
+  // convert them (undefined behaviour for bytes other than 0 and 1; found by fuzz_draco).
+  if (position->data_type() < draco::DT_INT8 || position->data_type() > draco::DT_FLOAT64) {
+    return absl::InvalidArgumentError(absl::StrCat("Draco POSITION attribute has data type ",
+                                                   static_cast<int>(position->data_type()),
+                                                   "; a number type is required"));
+  }
   const size_t num_points = decoded->num_points();
   const size_t num_faces = decoded->num_faces();
   if (num_points > kMaxMeshElements || num_faces > kMaxMeshElements) {

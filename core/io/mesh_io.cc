@@ -572,6 +572,17 @@ absl::Status CheckPlyHeader(absl::string_view head) {
     position = end + 1;
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    // Assimp separates words by spaces and tabs only and ends lines at \r, \n, \f and \0,
+    // so a header with other control characters reads differently there: "end_header\v..."
+    // is an end here but not to Assimp, which then loops (found by fuzz_ply).
+    for (const char c : line) {
+      if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7f) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("PLY header line ", line_number, ": control character 0x",
+                         absl::Hex(static_cast<unsigned char>(c), absl::kZeroPad2),
+                         " (words are separated by spaces and tabs only)"));
+      }
+    }
     Tokens tokens(line);
     std::vector<absl::string_view> words;
     for (absl::string_view word; tokens.Next(&word);) words.push_back(word);

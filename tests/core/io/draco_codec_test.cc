@@ -7,7 +7,9 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -36,6 +38,14 @@ using testing::MakeMesh;
 using testing::Tetrahedron;
 
 std::string Message(const absl::Status& status) { return std::string(status.message()); }
+
+// An input a fuzzer found, kept in its seed corpus (fuzz/corpus/TARGET/NAME); empty if
+// missing.
+std::string ReadFuzzSeed(const std::string& target_and_name) {
+  std::ifstream file(std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/" + target_and_name,
+                     std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(file), {});
+}
 
 TriangleMesh Fandisk() {
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(DataPath("fandisk.off"));
@@ -474,6 +484,34 @@ TEST(DracoCodecTest, RefusesPointClouds) {
   absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(std::string(buffer.data(), buffer.size()));
   EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(Message(decoded.status()), HasSubstr("point cloud"));
+}
+
+// Found by fuzz_draco (fuzz/corpus/draco/bool_positions.drc): a POSITION attribute of
+// Draco's bool type made the decoder read payload bytes as bools (undefined behaviour).
+TEST(DracoCodecTest, RefusesPositionsThatAreNotNumbers) {
+  draco::Mesh mesh;
+  mesh.set_num_points(3);
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_BOOL, false, 3, 0);
+  const int id = mesh.AddAttribute(position, true, 3);
+  const uint8_t xyz[9] = {0, 0, 0, 128, 0, 0, 0, 1, 0};
+  for (uint32_t p = 0; p < 3; ++p) {
+    mesh.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(p), &xyz[3 * p]);
+  }
+  mesh.AddFace({draco::PointIndex(0), draco::PointIndex(1), draco::PointIndex(2)});
+  draco::ExpertEncoder encoder(mesh);
+  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+  draco::EncoderBuffer buffer;
+  ASSERT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
+  absl::StatusOr<TriangleMesh> decoded = DecodeDracoMesh(std::string(buffer.data(), buffer.size()));
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("POSITION attribute has data type 11"));
+  // The fuzzer's input: the same, reached by mutating a sequential payload.
+  const std::string fuzzer_input = ReadFuzzSeed("draco/bool_positions.drc");
+  ASSERT_FALSE(fuzzer_input.empty());
+  decoded = DecodeDracoMesh(fuzzer_input);
+  EXPECT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("POSITION attribute has data type"));
 }
 
 // Every decode below must return (ok or not) without crashing; run this binary under

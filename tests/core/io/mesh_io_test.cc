@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <numeric>
 #include <random>
@@ -630,6 +631,14 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
       {"no_format", "ply\nelement vertex 0\nend_header\n", "no format line"},
       {"bad_element", "ply\nformat ascii 1.0\nelement vertex many\nend_header\n",
        "expected 'element NAME COUNT'"},
+      // Found by fuzz_ply (the whole input is fuzz/corpus/ply/end_header_vertical_tab.ply,
+      // read below): an end_header that only our tokenizer saw.
+      {"vertical_tab",
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\v0\nelement "
+       "face 1\n3 1 vvvv2 0\n",
+       "PLY header line 5: control character 0x0b"},
+      {"form_feed", "ply\nformat ascii 1.0\ncomment a\fb\nend_header\n",
+       "PLY header line 3: control character 0x0c"},
   };
   for (const BadOff& bad : cases) {
     const std::string path = Write(absl::StrCat(bad.name, ".ply"), bad.text);
@@ -638,6 +647,15 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
   }
+  std::ifstream fuzzer_input(
+      std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/ply/end_header_vertical_tab.ply",
+      std::ios::binary);
+  ASSERT_TRUE(fuzzer_input.good());
+  const std::string path =
+      Write("fuzzer.ply", std::string(std::istreambuf_iterator<char>(fuzzer_input), {}));
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+  EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("control character 0x0b"));
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,0 +1,28 @@
+// DecodePointsText: the CSV / whitespace-separated text reader (header line, BOM, CRLF,
+// padded fields, from_chars numbers) on bytes in memory. Every result must pass
+// ValidatePoints, as points_io.h promises. The first byte, when it is below 8, is the
+// dims option (0: from the file), so that the dims check is fuzzed too.
+#include <cstddef>
+#include <cstdint>
+
+#include "core/io/points_io.h"
+#include "fuzz/fuzz_check.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace mlclust;
+  PointReadOptions options;
+  if (size > 0 && data[0] < 8) {
+    options.dims = data[0];
+    ++data;
+    --size;
+  }
+  absl::StatusOr<PointSet> points =
+      DecodePointsText(absl::string_view(reinterpret_cast<const char*>(data), size), options);
+  if (!points.ok()) {
+    MLCLUST_FUZZ_CHECK(points.status().code() == absl::StatusCode::kInvalidArgument);
+    return 0;
+  }
+  MLCLUST_FUZZ_CHECK(ValidatePoints(*points, options.limits).ok());
+  MLCLUST_FUZZ_CHECK(options.dims == 0 || points->dims == options.dims);
+  return 0;
+}
