@@ -1,6 +1,8 @@
 // Times the multilevel engine over a whole hierarchy and reports energies at given k.
 //   ml_bench MESH [--algo ml|pml|hc] [--energy cvd] [--optimizer emlo|bb|none]
-//            [--p-percent P] [--pml-until K] [--threads T] [--at K1,K2,...] [--repeats R]
+//            [--p-percent P] [--p-rule sweep|hc-first] [--pml-until K]
+//            [--pml-pairs all|cheaper-half] [--threads T]
+//            [--at K1,K2,...] [--repeats R]
 //            [--curve FILE]   (writes clusters,energy for every level)
 // Prints one CSV row per requested k (best time of R): mesh,faces,algo,energy,optimizer,
 // p_percent,pml_until,threads,seconds,levels,k,energy_at_k
@@ -28,7 +30,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: ml_bench MESH [options]; see the source\n");
     return 2;
   }
-  std::string path = argv[1], algo = "ml", energy_name = "cvd", optimizer = "emlo", curve;
+  std::string path = argv[1], algo = "ml", energy_name = "cvd", optimizer = "emlo", curve,
+              pml_pairs, p_rule;
   std::vector<uint32_t> at = {1000, 200};
   double p_percent = 0;
   uint32_t pml_until = 0, repeats = 1;
@@ -53,6 +56,10 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtod(value, &p_percent);
     else if (arg == "--pml-until")
       ok = absl::SimpleAtoi(value, &pml_until);
+    else if (arg == "--p-rule")
+      ok = (p_rule = value) == "sweep" || value == "hc-first";
+    else if (arg == "--pml-pairs")
+      ok = (pml_pairs = value) == "all" || value == "cheaper-half";
     else if (arg == "--threads")
       ok = absl::SimpleAtoi(value, &threads);
     else if (arg == "--repeats")
@@ -88,7 +95,12 @@ int main(int argc, char** argv) {
   if (algo == "hc") options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
   options.parallel = algo == "pml";
   options.pml_until = pml_until;
+  if (pml_pairs == "all") options.pml_pairs = mlclust::PmlPairRule::kAll;
+  if (pml_pairs == "cheaper-half") options.pml_pairs = mlclust::PmlPairRule::kCheaperHalf;
   options.p_percent = p_percent;
+  if (p_rule == "hc-first") {
+    options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
+  }
   options.threads = threads;
   double best = 1e30;
   CurveSink best_sink;

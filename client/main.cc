@@ -1,10 +1,12 @@
 // mlclust: the command-line client. See `mlclust help`.
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "absl/status/statusor.h"
@@ -13,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
 #include "client/serve_command.h"
@@ -24,8 +27,10 @@
 #include "core/io/mesh_io.h"
 #include "core/io/points_io.h"
 #include "core/mesh/face_measures.h"
+#include "google/protobuf/util/json_util.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/job_options.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -39,7 +44,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
-                     [--device auto|gpu|cpu] [--quiet] [algorithm and energy options]
+                     [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
       --clusters K     the level written by --labels, --ply and --coarse (for single-level
@@ -61,19 +66,33 @@ constexpr char kMeshUsage[] = R"(
 constexpr char kPointsUsage[] = R"(
   mlclust points INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|elbow]
                        [--labels FILE] [--levels-csv FILE] [--seed S] [--levels K_HI:K_LO]
-                       [--quiet] [algorithm options]
+                       [--device auto|gpu|cpu] [--quiet] [--json] [algorithm options]
       Clusters the points of INPUT: .npy (float32/float64, m x d), .csv/.txt, or raw
       float32 (.f32/.bin/.raw, with --dims D). Hierarchies give every level from the
       voxel-grid start to one cluster; single-level algorithms one K.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
 )";
 
-constexpr char kOtherUsage[] = R"(
+constexpr char kEnergyUsage[] = R"(
   mlclust energy INPUT --labels FILE [--energy cvd] [energy options]
-      Computes the energy of a labelling directly from the mesh file (a check).
+      Computes the energy of a labelling directly from the mesh file (a check). Every mesh
+      energy and energy option of `mlclust help mesh`.
+)";
 
-  mlclust stats --server ADDR
+constexpr char kStatsUsage[] = R"(
+  mlclust stats --server ADDR [--json]
       Prints the server's queue depth, job counts and GL device.
+)";
+
+constexpr char kInfoUsage[] = R"(
+  mlclust info [--server ADDR] [--json]
+      What the server is and runs (GetServerInfo): version, build, device and renderer,
+      every algorithm with its energies, options and stages, and its limits. Without
+      --server, the server this process would embed.
+
+  mlclust --version | help [COMMAND] | COMMAND --help
+      -k K is --clusters K, -o FILE is --labels FILE, -q is --quiet; --json prints the job
+      summary of mesh and points as one JSON object.
 )";
 
 // "a|b|c", "INTEGER in [0, 1024]", "NUMBER in [0, 100]".
@@ -90,9 +109,22 @@ std::string OptionValueText(const OptionInfo& option) {
   return "";
 }
 
+// `text` in lines of at most 92 columns, each starting with `indent` spaces.
+std::string Wrap(const std::string& text, size_t indent) {
+  std::string out, line(indent, ' ');
+  for (absl::string_view word : absl::StrSplit(text, ' ', absl::SkipEmpty())) {
+    if (line.size() > indent && line.size() + 1 + word.size() > 92) {
+      absl::StrAppend(&out, line, "\n");
+      line.assign(indent, ' ');
+    }
+    absl::StrAppend(&line, line.size() > indent ? " " : "", word);
+  }
+  return absl::StrCat(out, line, "\n");
+}
+
 void AppendOption(std::string& out, const OptionInfo& option) {
-  absl::StrAppend(&out, "        --", option.name, " ", OptionValueText(option), "\n          ",
-                  option.help, " (default ", option.default_text, ")\n");
+  absl::StrAppend(&out, "        --", option.name, " ", OptionValueText(option), "\n",
+                  Wrap(absl::StrCat(option.help, " (default ", option.default_text, ")"), 10));
 }
 
 // The algorithms, energies and options of `input`, from the registry.
@@ -101,21 +133,24 @@ std::string RegistryUsage(InputKind input) {
       absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "; ", algorithm.help,
-                    algorithm.hierarchy ? " [hierarchy]" : " [one K]", "\n");
+    absl::StrAppend(
+        &out, "        ", algorithm.name, ": ", algorithm.title, "\n",
+        Wrap(absl::StrCat(algorithm.help, algorithm.hierarchy ? " [hierarchy]" : " [one K]"), 10));
   }
   if (input == InputKind::kMesh) {
     absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
     for (const EnergyInfo& energy : Energies()) {
       if (energy.input != input) continue;
-      absl::StrAppend(&out, "        ", energy.name, ": ", energy.help, "\n");
+      absl::StrAppend(&out, "        ", energy.name, ":\n", Wrap(energy.help, 10));
     }
   }
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(&out, "    ", algorithm.name,
-                    " (energies: ", absl::StrJoin(algorithm.energies, ", "), ")",
-                    algorithm.options.empty() ? ": no options of its own" : " options:", "\n");
+    absl::StrAppend(
+        &out,
+        Wrap(absl::StrCat(algorithm.name, " (energies: ", absl::StrJoin(algorithm.energies, ", "),
+                          ")", algorithm.options.empty() ? ": no options of its own" : " options:"),
+             4));
     for (const OptionInfo& option : algorithm.options) AppendOption(out, option);
   }
   if (input == InputKind::kMesh) {
@@ -132,7 +167,9 @@ void PrintUsage(std::FILE* out) {
   std::fputs(RegistryUsage(InputKind::kMesh).c_str(), out);
   std::fputs(kPointsUsage, out);
   std::fputs(RegistryUsage(InputKind::kPoints).c_str(), out);
-  std::fputs(kOtherUsage, out);
+  std::fputs(kEnergyUsage, out);
+  std::fputs(kStatsUsage, out);
+  std::fputs(kInfoUsage, out);
 }
 
 // The names of every registry option of `input` (each algorithm's own, and for meshes the
@@ -149,21 +186,35 @@ std::vector<std::string> RegistryOptionNames(InputKind input) {
   return names;
 }
 
-// --name value / --name=value options after the positional arguments.
+// --name value / --name=value options after the positional arguments; --quiet, --json and
+// --help take no value; -k K is --clusters K, -o FILE is --labels FILE, -q is --quiet and
+// -h is --help.
+//
+// A hand-written parser rather than CLI11 or absl flags: the option table (names, types,
+// ranges, defaults, help) is the registry's, the server checks the values against it, and
+// what is left to parse is "--name value" plus four short flags; absl flags are global
+// (one set per process, not per subcommand) and CLI11 is one more dependency for that.
 class Arguments {
  public:
   static absl::StatusOr<Arguments> Parse(int argc, char** argv, int first,
                                          const std::vector<std::string>& known) {
+    static const std::map<std::string, std::string> kShort = {
+        {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
+    static const std::set<std::string> kFlags = {"quiet", "json", "help"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
-      if (!absl::StartsWith(arg, "--")) {
+      std::string name, value;
+      if (kShort.count(arg) != 0) {
+        name = kShort.at(arg);
+      } else if (absl::StartsWith(arg, "--")) {
+        name = arg.substr(2);
+      } else {
         args.positional_.push_back(arg);
         continue;
       }
-      std::string name = arg.substr(2), value;
       const size_t eq = name.find('=');
-      const bool is_flag = name == "quiet";
+      const bool is_flag = kFlags.count(name) != 0;
       if (eq != std::string::npos) {
         value = name.substr(eq + 1);
         name = name.substr(0, eq);
@@ -171,7 +222,7 @@ class Arguments {
         if (i + 1 >= argc) return absl::InvalidArgumentError(absl::StrCat(arg, " needs a value"));
         value = argv[++i];
       }
-      if (std::find(known.begin(), known.end(), name) == known.end()) {
+      if (name != "help" && std::find(known.begin(), known.end(), name) == known.end()) {
         return absl::InvalidArgumentError(absl::StrCat("unknown option --", name));
       }
       args.values_[name] = value;
@@ -210,6 +261,102 @@ class Arguments {
 int Fail(const absl::Status& status) {
   std::cerr << "mlclust: " << status.message() << "\n";
   return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+// --server ADDR: HOST:PORT (a name, IPv4 or [IPv6]) with a port in 1..65535, or a gRPC
+// URI (unix:PATH, dns:///HOST:PORT, ...) passed as it is.
+absl::Status CheckServerAddress(const std::string& address) {
+  if (absl::StrContains(address, ":/") || absl::StartsWith(address, "unix:")) {
+    return absl::OkStatus();
+  }
+  const size_t colon = address.rfind(':');
+  uint32_t port = 0;
+  if (colon == std::string::npos || colon == 0 ||
+      !absl::SimpleAtoi(address.substr(colon + 1), &port) || port < 1 || port > 65535) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--server: '", address, "' is not an address: give HOST:PORT (port 1-65535), e.g. ",
+        "127.0.0.1:50051"));
+  }
+  return absl::OkStatus();
+}
+
+// A failed call to the server at `address`, in plain words where gRPC's text is about
+// the connection (the original text follows for the record).
+absl::Status PlainConnectionError(const absl::Status& status, const std::string& address) {
+  const std::string text(status.message());
+  std::string plain;
+  if (absl::StrContains(text, "Connection refused")) {
+    plain = absl::StrCat("no server is listening at ", address,
+                         " (connection refused): is `mlclust serve` running there, on this port?");
+  } else if (absl::StrContains(text, "DNS resolution failed") ||
+             absl::StrContains(text, "Domain name not found")) {
+    plain = absl::StrCat("cannot find the host of ", address,
+                         " (DNS: no such name): check the address, HOST:PORT");
+  } else if (absl::StrContains(text, "Failed parsing HTTP/2") ||
+             absl::StrContains(text, "Socket closed") ||
+             absl::StrContains(text, "Connection reset") || absl::StrContains(text, "handshake") ||
+             absl::StrContains(text, "SSL") || absl::StrContains(text, "ssl")) {
+    plain = absl::StrCat("something answers at ", address,
+                         ", but not an mlclust server speaking plain gRPC: a wrong port, or a "
+                         "TLS endpoint (this client speaks plaintext)?");
+  } else if (status.code() == absl::StatusCode::kDeadlineExceeded &&
+             absl::StrContains(text, "connect")) {
+    plain = absl::StrCat("no answer from ", address,
+                         " in time: a firewall, a wrong host, or a wrong port?");
+  } else if (status.code() == absl::StatusCode::kUnimplemented &&
+             absl::StrContains(text, "GetServerInfo")) {
+    plain = absl::StrCat("the server at ", address,
+                         " does not answer GetServerInfo (an older mlclust server)");
+  }
+  if (plain.empty()) return status;
+  return absl::Status(status.code(), absl::StrCat(plain, "\n  (gRPC: ", text, ")"));
+}
+
+// JSON string literal.
+std::string JsonString(absl::string_view text) {
+  std::string out = "\"";
+  for (char c : text) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          out += absl::StrFormat("\\u%04x", static_cast<unsigned char>(c));
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string JsonNumber(double value) {
+  return std::isfinite(value) ? absl::StrFormat("%.17g", value) : "null";
+}
+
+std::string JsonList(const google::protobuf::RepeatedField<uint32_t>& values) {
+  return absl::StrCat("[", absl::StrJoin(values, ", "), "]");
+}
+
+// A message as JSON (proto3 JSON mapping, fields with default values included).
+std::string MessageJson(const google::protobuf::Message& message) {
+  std::string json;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  options.always_print_primitive_fields = true;
+  options.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
+  return json;
 }
 
 absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
@@ -302,6 +449,7 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
   if (args.has("server")) {
+    MLCLUST_RETURN_IF_ERROR(CheckServerAddress(args.get("server")));
     channel = client::Connect(args.get("server"));
   } else {
     server::ServerOptions options;
@@ -317,6 +465,9 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  if (!result.ok() && args.has("server")) {
+    return PlainConnectionError(result.status(), args.get("server"));
+  }
   return result;
 }
 
@@ -339,6 +490,44 @@ std::string ElbowNote(const v1::Done& done) {
     absl::StrAppend(&elbows, elbows.empty() ? "; elbows at " : ", ", k);
   }
   return elbows;
+}
+
+// The job summary as one JSON object (--json): what ran, where, what came back, and the
+// level written.
+std::string SummaryJson(const Arguments& args, const std::string& input,
+                        const std::string& element_name, size_t elements,
+                        const AlgorithmInfo& algorithm, const v1::JobSpec& spec,
+                        const HierarchyLog& log, double seconds, const v1::Done& done,
+                        std::optional<size_t> level, const std::string& auto_k) {
+  const EnergyInfo* energy = FindEnergyByWire(algorithm.input, spec.energy());
+  const std::string energy_name = energy != nullptr ? energy->name : algorithm.energies[0];
+  std::string json = absl::StrCat(
+      "{\"input\": ", JsonString(input), ", \"", element_name, "\": ", elements,
+      ", \"algorithm\": ", JsonString(algorithm.name), ", \"energy\": ", JsonString(energy_name),
+      ", \"server\": ", JsonString(args.has("server") ? args.get("server") : "embedded"),
+      ", \"device\": ", JsonString(done.device()),
+      ", \"seconds\": ", absl::StrFormat("%.4f", seconds), ", \"levels\": ", log.num_levels(),
+      ", \"triplets\": ", log.num_moves(), ", \"final_clusters\": ", done.final_clusters(),
+      ", \"elbows\": ", JsonList(done.elbow_cluster_counts()));
+  if (algorithm.input == InputKind::kPoints && algorithm.hierarchy) {
+    absl::StrAppend(&json, ", \"bic_best_clusters\": ", done.bic_best_cluster_count(),
+                    ", \"bic_first_decrease_clusters\": ", done.bic_first_decrease_cluster_count());
+  }
+  if (!auto_k.empty()) absl::StrAppend(&json, ", \"auto_k\": ", JsonString(auto_k));
+  if (level.has_value()) {
+    absl::StrAppend(&json, ", \"level\": {\"index\": ", *level,
+                    ", \"clusters\": ", log.cluster_count(*level),
+                    ", \"energy\": ", JsonNumber(log.energy(*level)), "}");
+  } else {
+    absl::StrAppend(&json, ", \"level\": null");
+  }
+  std::vector<std::string> outputs;
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse"}) {
+    if (args.has(name))
+      outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
+  }
+  absl::StrAppend(&json, ", \"outputs\": {", absl::StrJoin(outputs, ", "), "}}");
+  return json;
 }
 
 // --levels K_HI:K_LO (either end may be empty): the levels with cluster counts in
@@ -463,6 +652,7 @@ int Mesh(const Arguments& args) {
     if (absl::Status s = WriteLevelsCsv(args.get("levels-csv"), log); !s.ok()) return Fail(s);
   }
   std::string level_note;
+  std::optional<size_t> chosen_level;
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
@@ -491,6 +681,13 @@ int Mesh(const Arguments& args) {
     }
     level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
                                  log.cluster_count(*level), log.energy(*level));
+    chosen_level = *level;
+  }
+  if (args.has("json")) {
+    std::printf("%s\n", SummaryJson(args, input_path, "faces", mesh->num_faces(), **algorithm, spec,
+                                    log, seconds, result->done, chosen_level, "")
+                            .c_str());
+    return 0;
   }
   std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
               input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
@@ -610,6 +807,12 @@ int Points(const Arguments& args) {
     level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
                                  log.cluster_count(*level), log.energy(*level));
   }
+  if (args.has("json")) {
+    std::printf("%s\n", SummaryJson(args, input_path, "points", points->num_points(), **algorithm,
+                                    spec, log, seconds, result->done, level, auto_k)
+                            .c_str());
+    return 0;
+  }
   std::printf("%s: %zu points in %u dimensions, %zu levels, %zu triplets in %.3f s (%s)%s%s%s\n",
               input_path.c_str(), points->num_points(), points->dims, log.num_levels(),
               log.num_moves(), seconds, args.has("server") ? "remote" : "embedded",
@@ -657,16 +860,174 @@ int Energy(const Arguments& args) {
 
 int Stats(const Arguments& args) {
   if (!args.has("server")) return Fail(absl::InvalidArgumentError("stats: give --server ADDR"));
-  auto stub = v1::Clustering::NewStub(client::Connect(args.get("server")));
+  const std::string address = args.get("server");
+  if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
+  auto stub = v1::Clustering::NewStub(client::Connect(address));
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
-    return Fail(
-        absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()));
+    return Fail(PlainConnectionError(
+        absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()),
+        address));
   }
-  std::printf("%s", stats.DebugString().c_str());
+  if (args.has("json")) {
+    std::printf("%s", MessageJson(stats).c_str());
+  } else {
+    std::printf("%s", stats.DebugString().c_str());
+  }
+  return 0;
+}
+
+// The text form of GetServerInfo's answer.
+std::string InfoText(const v1::ServerInfo& info) {
+  std::string out =
+      absl::StrCat("mlclust ", info.version(), " (", info.build(), ")\n", "device: ",
+                   info.gpu_available()
+                       ? absl::StrCat(info.gl_renderer(),
+                                      info.gl_is_software() ? " (software: auto uses the CPU)" : "")
+                       : "cpu only (no GL context)",
+                   "\nlimits: input ", info.max_input_bytes() >> 20, " MiB, queue ",
+                   info.queue_capacity(), " jobs, clusters up to ", info.max_clusters(), "\n");
+  for (const v1::AlgorithmDescription& algorithm : info.algorithms()) {
+    std::vector<std::string> energies, stages;
+    for (int e : algorithm.energies()) {
+      const EnergyInfo* energy =
+          FindEnergyByWire(algorithm.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints
+                                                                               : InputKind::kMesh,
+                           e);
+      energies.push_back(energy != nullptr ? energy->name : absl::StrCat(e));
+    }
+    for (const v1::StageDescription& stage : algorithm.stages()) {
+      stages.push_back(absl::StrCat(stage.name(), stage.has_gpu() ? " (gpu|cpu)" : " (cpu)"));
+    }
+    absl::StrAppend(&out, "\n",
+                    algorithm.input_kind() == v1::INPUT_KIND_POINTS_F32 ? "points" : "mesh", " ",
+                    algorithm.name(), ": ", algorithm.title(), "\n  ", algorithm.help(),
+                    "\n  energies: ", absl::StrJoin(energies, ", "),
+                    "\n  stages: ", absl::StrJoin(stages, ", "), "\n");
+    for (const v1::OptionDescription& option : algorithm.options()) {
+      const std::string values =
+          option.type() == "choice"
+              ? absl::StrJoin(option.choices(), "|")
+              : absl::StrCat(option.type(), " in [", option.low(), ", ", option.high(), "]");
+      absl::StrAppend(&out, "  --", option.name(), " ", values, " (default ",
+                      option.default_value(), ")\n");
+    }
+  }
+  return out;
+}
+
+int Info(const Arguments& args) {
+  std::unique_ptr<server::Server> embedded;
+  std::shared_ptr<grpc::Channel> channel;
+  const std::string address = args.get("server", "embedded");
+  if (args.has("server")) {
+    if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
+    channel = client::Connect(address);
+  } else {
+    server::ServerOptions options;
+    options.log = false;
+    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    if (!started.ok()) return Fail(started.status());
+    embedded = *std::move(started);
+    channel = embedded->InProcessChannel();
+  }
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  v1::ServerInfo info;
+  grpc::Status status = stub->GetServerInfo(&context, v1::GetServerInfoRequest(), &info);
+  if (status.error_code() == grpc::StatusCode::UNIMPLEMENTED && embedded != nullptr) {
+    // An embedded server without the handler: the same answer, built here.
+    server::ServerFacts facts;
+    facts.gl_renderer = embedded->gl_renderer();
+    facts.gpu_available = !facts.gl_renderer.empty();
+    facts.gl_is_software = absl::StrContains(facts.gl_renderer, "llvmpipe");
+    facts.max_input_bytes = server::ServerOptions().max_input_bytes;
+    facts.queue_capacity = static_cast<uint32_t>(server::ServerOptions().queue_capacity);
+    info = server::MakeServerInfo(facts);
+  } else if (!status.ok()) {
+    return Fail(
+        PlainConnectionError(absl::Status(static_cast<absl::StatusCode>(status.error_code()),
+                                          absl::StrCat("GetServerInfo: ", status.error_message())),
+                             address));
+  }
+  if (args.has("json")) {
+    std::printf("%s", MessageJson(info).c_str());
+  } else {
+    std::printf("%s", InfoText(info).c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace mlclust::cli
+
+namespace mlclust::cli {
+namespace {
+
+// The commands besides serve: usage, the options they accept, what runs them.
+struct Command {
+  std::string name;
+  std::function<std::string()> usage;
+  std::function<std::vector<std::string>()> known;
+  int (*run)(const Arguments& args);
+};
+
+std::vector<std::string> With(std::vector<std::string> names,
+                              const std::vector<std::string>& more) {
+  names.insert(names.end(), more.begin(), more.end());
+  return names;
+}
+
+const std::vector<Command>& Commands() {
+  static const auto* commands = new std::vector<Command>{
+      {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
+       [] {
+         return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
+                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json"},
+                     RegistryOptionNames(InputKind::kMesh));
+       },
+       Mesh},
+      {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },
+       [] {
+         return With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
+                      "auto-k", "levels", "quiet", "device", "json"},
+                     RegistryOptionNames(InputKind::kPoints));
+       },
+       Points},
+      {"energy", [] { return std::string(kEnergyUsage); },
+       [] {
+         std::vector<std::string> known = {"labels", "energy"};
+         for (const OptionInfo& option : EnergyOptions()) known.push_back(option.name);
+         return known;
+       },
+       Energy},
+      {"stats", [] { return std::string(kStatsUsage); },
+       [] {
+         return std::vector<std::string>{"server", "json"};
+       },
+       Stats},
+      {"info", [] { return std::string(kInfoUsage); },
+       [] {
+         return std::vector<std::string>{"server", "json"};
+       },
+       Info},
+  };
+  return *commands;
+}
+
+const Command* FindCommand(const std::string& name) {
+  for (const Command& command : Commands()) {
+    if (command.name == name) return &command;
+  }
+  return nullptr;
+}
+
+int PrintVersion() {
+  std::printf("mlclust %s\n", server::kMlclustVersion);
   return 0;
 }
 
@@ -674,46 +1035,44 @@ int Stats(const Arguments& args) {
 }  // namespace mlclust::cli
 
 int main(int argc, char** argv) {
-  using mlclust::cli::Arguments;
-  if (argc < 2 || std::string(argv[1]) == "help" || std::string(argv[1]) == "--help") {
-    mlclust::cli::PrintUsage(argc < 2 ? stderr : stdout);
-    return argc < 2 ? 2 : 0;
-  }
-  const std::string command = argv[1];
-  if (command == "serve") return mlclust::cli::RunServeCommand(argc - 2, argv + 2);
-  std::vector<std::string> known;
-  using mlclust::InputKind;
-  using mlclust::cli::RegistryOptionNames;
-  auto with = [](std::vector<std::string> names, const std::vector<std::string>& more) {
-    names.insert(names.end(), more.begin(), more.end());
-    return names;
-  };
-  if (command == "mesh") {
-    known = with({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply", "device",
-                  "quiet", "coarse", "coarse-placement", "seed", "levels"},
-                 RegistryOptionNames(InputKind::kMesh));
-  }
-  if (command == "points") {
-    known = with({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed", "auto-k",
-                  "levels", "quiet", "device"},
-                 RegistryOptionNames(InputKind::kPoints));
-  }
-  if (command == "energy") {
-    known = {"labels", "energy"};
-    for (const mlclust::OptionInfo& option : mlclust::EnergyOptions()) {
-      known.push_back(option.name);
-    }
-  }
-  if (command == "stats") known = {"server"};
-  if (known.empty()) {
-    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
-    mlclust::cli::PrintUsage(stderr);
+  using namespace mlclust::cli;  // NOLINT(google-build-using-namespace): main only
+  if (argc < 2) {
+    PrintUsage(stderr);
     return 2;
   }
-  absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, known);
-  if (!args.ok()) return mlclust::cli::Fail(args.status());
-  if (command == "mesh") return mlclust::cli::Mesh(*args);
-  if (command == "energy") return mlclust::cli::Energy(*args);
-  if (command == "points") return mlclust::cli::Points(*args);
-  return mlclust::cli::Stats(*args);
+  const std::string command = argv[1];
+  if (command == "--version" || command == "version") return PrintVersion();
+  if (command == "help" || command == "--help" || command == "-h") {
+    // `mlclust help CMD`: that command's usage; `mlclust help`: all of it.
+    if (argc >= 3 && std::string(argv[2]) == "serve") {
+      std::fputs(mlclust::cli::ServeUsage(), stdout);
+      return 0;
+    }
+    if (argc >= 3) {
+      const Command* found = FindCommand(argv[2]);
+      if (found == nullptr) {
+        std::fprintf(stderr, "mlclust: no command '%s'; the commands: serve, %s\n", argv[2],
+                     "mesh, points, energy, stats, info");
+        return 2;
+      }
+      std::fputs(found->usage().c_str(), stdout);
+      return 0;
+    }
+    PrintUsage(stdout);
+    return 0;
+  }
+  if (command == "serve") return RunServeCommand(argc - 2, argv + 2);
+  const Command* found = FindCommand(command);
+  if (found == nullptr) {
+    std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
+    PrintUsage(stderr);
+    return 2;
+  }
+  absl::StatusOr<Arguments> args = Arguments::Parse(argc, argv, 2, found->known());
+  if (!args.ok()) return Fail(args.status());
+  if (args->has("help")) {
+    std::fputs(found->usage().c_str(), stdout);
+    return 0;
+  }
+  return found->run(*args);
 }

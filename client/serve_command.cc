@@ -12,15 +12,30 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/time/time.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
 namespace {
 
 constexpr char kServeUsage[] =
-    R"(  mlclust serve [--listen ADDR] [--queue N] [--max-input-mb N] [--gpu auto|on|off]
-                [--result-job-mb N] [--result-total-mb N]
-      Runs the gRPC server (default ADDR 0.0.0.0:50051) until interrupted.
+    R"(  mlclust serve [--listen ADDR] [--workers N] [--queue N] [--max-input-mb N]
+                [--max-queued-mb N] [--gpu auto|on|off] [--drain-seconds S] [limits]
+      Runs the gRPC server until SIGINT or SIGTERM (then drains: health NOT_SERVING and
+      new jobs refused at once, queued jobs end with UNAVAILABLE, running ones may finish
+      within --drain-seconds, default 30, then are cancelled).
+      --listen ADDR        default 127.0.0.1:50051 (loopback). Any other address is
+                           plaintext without authentication: a warning is printed. A port
+                           already in use is refused.
+      --workers N          CPU workers beside the worker that owns the GL context
+                           (default 0: that one worker runs every job in order)
+      --queue N            jobs that may wait (default 16); more are refused at once
+      --max-input-mb N     largest input of one job (default 1024)
+      --max-queued-mb N    the inputs of all waiting jobs together (default 4096)
+    limits (each refusal is RESOURCE_EXHAUSTED with a message, logged and counted):
+      --max-upload-mb N    bytes of uploads in progress, all calls together (default 1024)
+      --max-calls N        calls in progress (default 256); --max-calls-per-connection N
+                           (default 32); --max-calls-per-peer N, per client address (64)
       --result-job-mb N    events a job's client may leave unread (memory; default 256)
                            before it is cut off with RESOURCE_EXHAUSTED and the job
                            cancelled: producing levels never waits on a reader
@@ -29,8 +44,19 @@ constexpr char kServeUsage[] =
 
 // --name value / --name=value; every name must be one `serve` knows.
 absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** argv) {
-  static const char* const kKnown[] = {"listen", "queue",         "max-input-mb",
-                                       "gpu",    "result-job-mb", "result-total-mb"};
+  static const char* const kKnown[] = {"listen",
+                                       "queue",
+                                       "max-input-mb",
+                                       "gpu",
+                                       "result-job-mb",
+                                       "result-total-mb",
+                                       "workers",
+                                       "max-queued-mb",
+                                       "max-upload-mb",
+                                       "max-calls",
+                                       "max-calls-per-connection",
+                                       "max-calls-per-peer",
+                                       "drain-seconds"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -83,21 +109,49 @@ int RunServeCommand(int argc, char** argv) {
   if (!flags.ok()) return Fail(flags.status());
   server::ServerOptions options;
   auto listen = flags->find("listen");
-  options.listen_address = listen == flags->end() ? "0.0.0.0:50051" : listen->second;
-  absl::StatusOr<uint64_t> queue = GetUint(*flags, "queue", options.queue_capacity);
-  absl::StatusOr<uint64_t> max_mb = GetUint(*flags, "max-input-mb", options.max_input_bytes >> 20);
-  if (!queue.ok()) return Fail(queue.status());
-  if (!max_mb.ok()) return Fail(max_mb.status());
-  options.queue_capacity = *queue;
-  options.max_input_bytes = *max_mb << 20;
-  absl::StatusOr<uint64_t> result_job_mb =
-      GetUint(*flags, "result-job-mb", options.result_job_budget_bytes >> 20);
-  absl::StatusOr<uint64_t> result_total_mb =
-      GetUint(*flags, "result-total-mb", options.result_server_budget_bytes >> 20);
-  if (!result_job_mb.ok()) return Fail(result_job_mb.status());
-  if (!result_total_mb.ok()) return Fail(result_total_mb.status());
-  options.result_job_budget_bytes = *result_job_mb << 20;
-  options.result_server_budget_bytes = *result_total_mb << 20;
+  options.listen_address = listen == flags->end() ? "127.0.0.1:50051" : listen->second;
+  // Each numeric flag: its name, where it goes, the unit it is given in (bytes per unit).
+  struct Number {
+    const char* name;
+    uint64_t* bytes;
+    uint32_t* count;
+    size_t* size;
+    uint64_t unit;
+  };
+  uint64_t drain_seconds = 30;
+  const Number numbers[] = {
+      {"queue", nullptr, nullptr, &options.queue_capacity, 1},
+      {"workers", nullptr, nullptr, &options.cpu_workers, 1},
+      {"max-input-mb", &options.max_input_bytes, nullptr, nullptr, 1 << 20},
+      {"max-queued-mb", &options.max_queued_input_bytes, nullptr, nullptr, 1 << 20},
+      {"max-upload-mb", &options.max_upload_bytes_in_flight, nullptr, nullptr, 1 << 20},
+      {"result-job-mb", &options.result_job_budget_bytes, nullptr, nullptr, 1 << 20},
+      {"result-total-mb", &options.result_server_budget_bytes, nullptr, nullptr, 1 << 20},
+      {"max-calls", nullptr, &options.max_calls, nullptr, 1},
+      {"max-calls-per-connection", nullptr, &options.max_calls_per_connection, nullptr, 1},
+      {"max-calls-per-peer", nullptr, &options.max_calls_per_peer, nullptr, 1},
+      {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
+  };
+  for (const Number& number : numbers) {
+    const uint64_t current = number.bytes   ? *number.bytes / number.unit
+                             : number.count ? *number.count
+                                            : *number.size;
+    absl::StatusOr<uint64_t> value = GetUint(*flags, number.name, current);
+    if (!value.ok()) return Fail(value.status());
+    const uint64_t limit = number.count != nullptr ? 0xffffffffu : (uint64_t{1} << 44);
+    if (*value > limit) {
+      return Fail(absl::InvalidArgumentError(
+          absl::StrCat("--", number.name, ": ", *value, " is over ", limit)));
+    }
+    if (number.bytes != nullptr) *number.bytes = *value * number.unit;
+    if (number.count != nullptr) *number.count = static_cast<uint32_t>(*value);
+    if (number.size != nullptr) *number.size = static_cast<size_t>(*value);
+  }
+  if (options.cpu_workers > 256) return Fail(absl::InvalidArgumentError("--workers: over 256"));
+  if (options.queue_capacity > 100000) {
+    return Fail(absl::InvalidArgumentError("--queue: over 100000"));
+  }
+  options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   auto gpu_flag = flags->find("gpu");
   const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
   if (gpu == "auto")
@@ -122,8 +176,10 @@ int RunServeCommand(int argc, char** argv) {
   std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
   int received = 0;
   sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, shutting down\n", received);
+  std::fprintf(stderr, "mlclust: signal %d, draining (up to %llu s for running jobs)\n", received,
+               static_cast<unsigned long long>(drain_seconds));
   (*server)->Shutdown();
+  std::fprintf(stderr, "mlclust: stopped\n");
   return 0;
 }
 

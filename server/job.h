@@ -32,8 +32,9 @@ class EventChannel {
   virtual bool cancelled() const = 0;
 
   // The flag cancelled() reads, for drivers' options (core/base/cancel.h). Valid as long
-  // as the channel.
-  virtual const std::atomic<bool>* cancel_flag() const = 0;
+  // as the channel. The server's channel (ResultStore) has one; null (never cancelled)
+  // for channels without.
+  virtual const std::atomic<bool>* cancel_flag() const { return nullptr; }
 };
 
 // Which worker runs a job.

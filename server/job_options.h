@@ -6,6 +6,9 @@
 #ifndef MLCLUST_SERVER_JOB_OPTIONS_H_
 #define MLCLUST_SERVER_JOB_OPTIONS_H_
 
+#include <cstdint>
+#include <string>
+
 #include "absl/status/statusor.h"
 #include "core/cluster/registry.h"
 #include "core/energy/energies.h"
@@ -20,6 +23,23 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec);
 
 // The energy part alone (spec.energy and the energy options; any other option is refused).
 absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec);
+
+// What GetServerInfo reports beyond the registry.
+struct ServerFacts {
+  bool gpu_available = false;
+  std::string gl_renderer;
+  bool gl_is_software = false;
+  uint64_t max_input_bytes = 0;
+  uint32_t queue_capacity = 0;
+};
+
+// The GetServerInfo answer: version, build, device, limits, and every algorithm and energy
+// of the registry with their options and stages.
+v1::ServerInfo MakeServerInfo(const ServerFacts& facts);
+
+// mlclust's version (CMakeLists.txt's project VERSION; tests/e2e/cli_test.sh checks that
+// they agree).
+inline constexpr char kMlclustVersion[] = "0.1.0";
 
 // The core energy kind of a wire energy (ENERGY_UNSPECIFIED is CVD).
 absl::StatusOr<MeshEnergyKind> MeshEnergyFromWire(v1::Energy energy);

@@ -205,8 +205,10 @@ absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const JobPla
 }
 
 // Progress events for the run functions' stages, naming the device each runs on.
-RunContext MakeRunContext(EventChannel& events, const DeviceCaps& caps) {
+RunContext MakeRunContext(const Job& job, const DeviceCaps& caps) {
+  EventChannel& events = *job.events;
   RunContext run;
+  run.cancel = job.cancel_flag();
   run.on_stage = [&events, caps](const StagePlan& stage, const std::string& message) {
     EmitProgress(events, stage.name, message, StageDeviceName(stage, caps));
   };
@@ -257,7 +259,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   StreamingLevelSink sink = MakeSink(job, plan, context);
   const MeshProblem problem{&*mesh, &*adjacency, &*measures, plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
-      plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(events, caps));
+      plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(job, caps));
   if (!summary.ok()) return summary.status();
   if (!sink.started()) {
     return absl::FailedPreconditionError(
@@ -278,7 +280,6 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
 absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
                                         const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
-  EventChannel& events = *job.events;
   // m x d float32, little-endian, row-major.
   const uint32_t d = spec.point_dims();
   if (d == 0) return absl::InvalidArgumentError("point_dims: d = 0");
@@ -300,7 +301,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
   StreamingLevelSink sink = MakeSink(job, plan, context);
   JobOutcome outcome;
   outcome.done.set_device("cpu");
-  const RunContext run = MakeRunContext(events, caps);
+  const RunContext run = MakeRunContext(job, caps);
   if (plan.algorithm->hierarchy) {
     // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary
     // names the BIC's choice over the whole hierarchy, whatever range is sent.

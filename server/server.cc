@@ -1,15 +1,20 @@
 #include "server/server.h"
 
+#include <malloc.h>
+
 #include <atomic>
 #include <condition_variable>
-#include <deque>
 #include <future>
+#include <map>
 #include <mutex>
 #include <thread>
+#include <vector>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "grpc/grpc.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
@@ -42,10 +47,79 @@ v1::JobEvent FailedEvent(const grpc::Status& status) {
   return event;
 }
 
+// "ipv4:10.0.0.1:5000" -> "ipv4:10.0.0.1"; "ipv6:[::1]:5000" -> "ipv6:[::1]": the client's
+// address without its port (one client host may open several connections).
+std::string PeerHost(const std::string& peer) {
+  const size_t colon = peer.rfind(':');
+  const size_t scheme = peer.find(':');
+  if (colon == std::string::npos || colon == scheme) return peer;
+  return peer.substr(0, colon);
+}
+
+bool IsLoopback(const std::string& address) {
+  return absl::StartsWith(address, "127.") || absl::StartsWith(address, "localhost:") ||
+         absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
+}
+
 struct Counters {
   std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
-      readers_cut_off{0};
-  std::atomic<bool> job_running{false};
+      readers_cut_off{0}, calls_refused{0};
+  std::atomic<uint32_t> jobs_running{0};
+};
+
+// Calls in progress, in total, per connection and per client address. Admission comes
+// before any allocation for the call.
+class CallAdmission {
+ public:
+  explicit CallAdmission(const ServerOptions& options) : options_(options) {}
+
+  // OK and counted, or RESOURCE_EXHAUSTED saying which limit.
+  absl::Status Admit(const std::string& peer) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string host = PeerHost(peer);
+    if (total_ >= options_.max_calls) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "the server has ", total_, " calls in progress, its limit; try again later"));
+    }
+    if (Count(by_connection_, peer) >= options_.max_calls_per_connection) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat("this connection has ", options_.max_calls_per_connection,
+                       " calls in progress, the server's limit per connection; try again later"));
+    }
+    if (Count(by_host_, host) >= options_.max_calls_per_peer) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat("this client address has ", options_.max_calls_per_peer,
+                       " calls in progress, the server's limit per address; try again later"));
+    }
+    ++total_;
+    ++by_connection_[peer];
+    ++by_host_[host];
+    return absl::OkStatus();
+  }
+
+  void Release(const std::string& peer) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    --total_;
+    if (--by_connection_[peer] == 0) by_connection_.erase(peer);
+    const std::string host = PeerHost(peer);
+    if (--by_host_[host] == 0) by_host_.erase(host);
+  }
+
+  uint32_t total() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return total_;
+  }
+
+ private:
+  static uint32_t Count(const std::map<std::string, uint32_t>& counts, const std::string& key) {
+    auto it = counts.find(key);
+    return it == counts.end() ? 0 : it->second;
+  }
+
+  const ServerOptions& options_;
+  mutable std::mutex mutex_;
+  uint32_t total_ = 0;
+  std::map<std::string, uint32_t> by_connection_, by_host_;
 };
 
 class ServiceImpl;
@@ -54,15 +128,13 @@ class ServiceImpl;
 // then writes the job's events through its ResultStore.
 class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
  public:
-  explicit RunCall(ServiceImpl* service);
+  // `refusal` not OK: the call was not admitted and is answered with it at once.
+  RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
   void OnCancel() override;
-  void OnDone() override {
-    channel_->Detach();
-    delete this;
-  }
+  void OnDone() override;
 
  private:
   // The store's view of this reactor.
@@ -77,23 +149,34 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   };
 
   void Fail(const absl::Status& status);
+  void Refuse(const absl::Status& status);  // Fail, logged and counted as a refusal
   void Submit();
+  void ReleaseUpload();
 
   ServiceImpl* service_;
+  const std::string peer_;
+  const bool admitted_;
   Writer writer_{this};
   std::shared_ptr<ResultStore> channel_;
   v1::RunRequest request_;
   v1::JobSpec spec_;
   bool have_spec_ = false;
   std::string input_;
+  uint64_t upload_reserved_ = 0;  // bytes of input_ counted in the upload budget
+  // Uploads this big that never became a job are trimmed back to the system at the end.
+  static constexpr size_t kTrimAfterBytes = size_t{16} << 20;
+  bool held_big_upload_ = false;
   std::weak_ptr<Job> job_;
 };
 
 class ServiceImpl final : public v1::Clustering::CallbackService {
  public:
-  ServiceImpl(const ServerOptions& options)
+  explicit ServiceImpl(const ServerOptions& options)
       : options_(options),
         queue_(options.queue_capacity),
+        admission_(options_),
+        upload_budget_(options.max_upload_bytes_in_flight),
+        queued_budget_(options.max_queued_input_bytes),
         result_budget_(options.result_server_budget_bytes) {}
 
   // A new job's store of events, writing to `writer`.
@@ -110,7 +193,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
 
   grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>* Run(
       grpc::CallbackServerContext* context) override {
-    return new RunCall(this);
+    std::string peer = context->peer();
+    absl::Status admitted = draining_ ? absl::UnavailableError(
+                                            "the server is shutting down; submit the job to "
+                                            "another server or try again later")
+                                      : admission_.Admit(peer);
+    return new RunCall(this, std::move(peer), admitted);
   }
 
   grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* context,
@@ -123,11 +211,20 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_jobs_failed(counters_.failed);
     stats->set_jobs_cancelled(counters_.cancelled);
     stats->set_jobs_rejected(counters_.rejected);
-    stats->set_job_running(counters_.job_running);
+    stats->set_job_running(counters_.jobs_running > 0);
+    stats->set_jobs_running(counters_.jobs_running);
     stats->set_max_input_bytes(options_.max_input_bytes);
+    stats->set_calls_active(admission_.total());
+    stats->set_calls_refused(counters_.calls_refused);
+    stats->set_upload_bytes_in_flight(upload_budget_.used());
+    stats->set_upload_bytes_limit(upload_budget_.limit());
+    stats->set_queued_input_bytes(queued_budget_.used());
+    stats->set_queued_input_limit(queued_budget_.limit());
     stats->set_result_bytes_held(result_budget_.used());
     stats->set_result_bytes_limit(result_budget_.limit());
     stats->set_readers_cut_off(counters_.readers_cut_off);
+    stats->set_cpu_workers(static_cast<uint32_t>(options_.cpu_workers));
+    stats->set_draining(draining_);
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
       stats->set_gpu_available(!gl_renderer_.empty());
@@ -144,6 +241,13 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     if (spec.input_kind() == v1::INPUT_KIND_UNSPECIFIED) {
       return absl::InvalidArgumentError("spec.input_kind is unspecified");
     }
+    if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH &&
+        spec.input_kind() != v1::INPUT_KIND_POINTS_F32) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("spec.input_kind ", static_cast<int>(spec.input_kind()),
+                       " is not one this server reads (1: INPUT_KIND_DRACO_MESH, 2: "
+                       "INPUT_KIND_POINTS_F32)"));
+    }
     if (spec.input_bytes() == 0) return absl::InvalidArgumentError("spec.input_bytes is 0");
     if (spec.input_bytes() > options_.max_input_bytes) {
       return absl::ResourceExhaustedError(absl::StrCat("input of ", spec.input_bytes(),
@@ -153,36 +257,111 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     return absl::OkStatus();
   }
 
+  // Which workers may run a job: with CPU workers, a job goes to the GL worker only when
+  // it is planned for the GPU (a mesh with device "gpu", or "auto" on a hardware GL).
+  JobLane LaneFor(const v1::JobSpec& spec) const {
+    if (options_.cpu_workers == 0) return JobLane::kGl;
+    if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return JobLane::kCpu;
+    std::lock_guard<std::mutex> lock(gl_mutex_);
+    if (gl_renderer_.empty()) return JobLane::kCpu;
+    if (spec.device() == "gpu") return JobLane::kGl;
+    if ((spec.device().empty() || spec.device() == "auto") && !gl_is_software_) {
+      return JobLane::kGl;
+    }
+    return JobLane::kCpu;
+  }
+
   std::string NextJobId() { return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1); }
 
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
   Counters& counters() { return counters_; }
+  CallAdmission& admission() { return admission_; }
+  MemoryBudget& upload_budget() { return upload_budget_; }
+  MemoryBudget& queued_budget() { return queued_budget_; }
+  bool draining() const { return draining_; }
+  void set_draining() { draining_ = true; }
 
-  void SetGl(std::string renderer, std::string device) {
+  // A job leaves the queue (to a worker, cancelled, or drained): its input no longer
+  // counts as queued.
+  void LeftQueue(Job& job) {
+    queued_budget_.Release(job.queued_bytes);
+    job.queued_bytes = 0;
+  }
+
+  // Tells every waiting job its new place in its lane.
+  void AnnounceQueuePositions() {
+    queue_.ForEachWaiting([](const Job& job, size_t ahead) {
+      v1::JobEvent event;
+      event.mutable_progress()->set_stage("queued");
+      event.mutable_progress()->set_queue_position(static_cast<uint32_t>(ahead));
+      event.mutable_progress()->set_message(absl::StrCat(ahead, " jobs ahead"));
+      job.events->Emit(std::move(event));
+    });
+  }
+
+  void SetGl(std::string renderer, std::string device, bool is_software) {
     std::lock_guard<std::mutex> lock(gl_mutex_);
     gl_renderer_ = std::move(renderer);
     gl_device_ = std::move(device);
+    gl_is_software_ = is_software;
   }
 
  private:
   const ServerOptions options_;
   BoundedJobQueue<Job> queue_;
   Counters counters_;
-  MemoryBudget result_budget_;
+  CallAdmission admission_;
+  MemoryBudget upload_budget_, queued_budget_, result_budget_;
   std::atomic<uint64_t> next_job_number_{0};
-  std::mutex gl_mutex_;
+  std::atomic<bool> draining_{false};
+  mutable std::mutex gl_mutex_;
   std::string gl_renderer_, gl_device_;
+  bool gl_is_software_ = false;
 };
 
-RunCall::RunCall(ServiceImpl* service)
-    : service_(service), channel_(service->NewResultStore(&writer_)) {
+RunCall::RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal)
+    : service_(service),
+      peer_(std::move(peer)),
+      admitted_(refusal.ok()),
+      channel_(service->NewResultStore(&writer_)) {
+  if (!admitted_) {
+    Refuse(refusal);
+    return;
+  }
   StartRead(&request_);
 }
 
+void RunCall::OnDone() {
+  channel_->Detach();
+  ReleaseUpload();
+  if (admitted_) service_->admission().Release(peer_);
+  // An upload that never became a job (refused, cut short, cancelled) gives its memory
+  // back to the system, not only to the allocator.
+  const bool held_upload = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
+  delete this;
+  if (held_upload) malloc_trim(0);
+}
+
+void RunCall::ReleaseUpload() {
+  service_->upload_budget().Release(upload_reserved_);
+  upload_reserved_ = 0;
+}
+
 void RunCall::Fail(const absl::Status& status) {
+  ReleaseUpload();
+  held_big_upload_ = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
+  std::string().swap(input_);
   const grpc::Status grpc_status = ToGrpc(status);
   channel_->Finish(FailedEvent(grpc_status), grpc_status);
+}
+
+void RunCall::Refuse(const absl::Status& status) {
+  ++service_->counters().calls_refused;
+  LogLine(service_->options().log, "refused a call from ", peer_,
+          have_spec_ ? absl::StrCat(" (label '", spec_.label(), "')") : std::string(), ": ",
+          status.ToString());
+  Fail(status);
 }
 
 void RunCall::OnReadDone(bool ok) {
@@ -203,12 +382,14 @@ void RunCall::OnReadDone(bool ok) {
     }
     if (absl::Status status = service_->CheckSpec(request_.spec()); !status.ok()) {
       if (status.code() == absl::StatusCode::kResourceExhausted) ++service_->counters().rejected;
-      Fail(status);
+      spec_.set_label(request_.spec().label());
+      have_spec_ = true;
+      Refuse(status);
       return;
     }
     spec_ = request_.spec();
     have_spec_ = true;
-    input_.reserve(std::min<uint64_t>(spec_.input_bytes(), uint64_t{256} << 20));
+    // No reservation from the declared size: the buffer grows as data arrives.
   } else if (request_.has_spec()) {
     Fail(absl::InvalidArgumentError("a second job spec in the same call"));
     return;
@@ -219,7 +400,25 @@ void RunCall::OnReadDone(bool ok) {
         absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
     return;
   }
-  input_.append(chunk);
+  // Admission before allocation: the chunk is counted against the uploads in flight
+  // before the buffer grows for it.
+  if (!chunk.empty()) {
+    if (!service_->upload_budget().TryReserve(chunk.size())) {
+      Refuse(absl::ResourceExhaustedError(
+          absl::StrCat("uploads in progress hold ", service_->upload_budget().used() >> 20,
+                       " MiB, the server's limit is ", service_->upload_budget().limit() >> 20,
+                       " MiB; try again later")));
+      return;
+    }
+    upload_reserved_ += chunk.size();
+    if (input_.capacity() < input_.size() + chunk.size()) {
+      // Doubling, but never past the declared size.
+      input_.reserve(std::min<uint64_t>(
+          spec_.input_bytes(),
+          std::max<uint64_t>(2 * input_.capacity(), input_.size() + chunk.size())));
+    }
+    input_.append(chunk);
+  }
   if (input_.size() == spec_.input_bytes()) {
     Submit();
     return;
@@ -234,32 +433,59 @@ void RunCall::Submit() {
   job->input = std::move(input_);
   job->events = channel_;
   job->accepted_at = absl::Now();
+  job->peer = peer_;
+  job->lane = service_->LaneFor(job->spec);
   const std::string id = job->id;
+  const std::string label = job->spec.label();
   const uint64_t bytes = job->input.size();
-  job_ = job;
-  // The Accepted event is queued while the queue's lock is held, so it is always the
-  // first event even if the worker picks the job up at once.
-  absl::StatusOr<size_t> ahead = service_->queue().Push(std::move(job), [&](size_t jobs_ahead) {
-    v1::JobEvent event;
-    event.mutable_accepted()->set_job_id(id);
-    event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
-    event.mutable_accepted()->set_input_bytes(bytes);
-    channel_->Emit(std::move(event));
-    ++service_->counters().accepted;  // before a worker can finish it
-  });
-  if (!ahead.ok()) {
+  // The input moves from the uploads in flight to the queued inputs.
+  ReleaseUpload();
+  if (!service_->queued_budget().TryReserve(bytes)) {
     ++service_->counters().rejected;
-    LogLine(service_->options().log, id, " refused: ", ahead.status().message());
-    Fail(ahead.status());
+    spec_.set_label(label);
+    Refuse(absl::ResourceExhaustedError(
+        absl::StrCat("the queued jobs' inputs take ", service_->queued_budget().used() >> 20,
+                     " MiB; with this one's ", bytes >> 20, " MiB they would exceed the limit of ",
+                     service_->queued_budget().limit() >> 20, " MiB; try again later")));
     return;
   }
-  LogLine(service_->options().log, id, " accepted (", bytes, " bytes, ", *ahead, " ahead)");
+  job->queued_bytes = bytes;
+  job_ = job;
+  std::shared_ptr<Job> queued = job;
+  // The Accepted event is queued while the queue's lock is held, so it is always the
+  // first event even if a worker picks the job up at once.
+  absl::StatusOr<size_t> ahead = service_->queue().Push(
+      std::move(queued), static_cast<unsigned>(job->lane), [&](size_t jobs_ahead) {
+        v1::JobEvent event;
+        event.mutable_accepted()->set_job_id(id);
+        event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
+        event.mutable_accepted()->set_input_bytes(bytes);
+        channel_->Emit(std::move(event));
+        ++service_->counters().accepted;  // before a worker can finish it
+      });
+  if (!ahead.ok()) {
+    service_->LeftQueue(*job);
+    ++service_->counters().rejected;
+    const absl::Status status =
+        ahead.status().code() == absl::StatusCode::kFailedPrecondition
+            ? absl::UnavailableError(
+                  "the server is shutting down; submit the job to another server or try again "
+                  "later")
+            : ahead.status();
+    spec_.set_label(label);
+    Refuse(status);
+    return;
+  }
+  LogLine(service_->options().log, id, " accepted from ", peer_, " (label '", label, "', ", bytes,
+          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
+          " ahead)");
 }
 
 void RunCall::OnCancel() {
   channel_->OnCancel();
   if (std::shared_ptr<Job> job = job_.lock()) {
     if (service_->queue().Remove(job.get())) {
+      service_->LeftQueue(*job);
       ++service_->counters().cancelled;
       LogLine(service_->options().log, job->id, " cancelled while queued");
     }
@@ -274,14 +500,20 @@ class ServerImpl {
 
   absl::Status Start() {
     const ServerOptions& options = service_.options();
-    // The worker owns the GL context: it creates it on its own thread and reports back.
+    // The GL worker owns the GL context: it creates it on its own thread and reports back.
     std::promise<absl::Status> started;
     std::future<absl::Status> started_future = started.get_future();
-    worker_ = std::thread([this, &started] { WorkerMain(started); });
+    gl_worker_ = std::thread([this, &started] { GlWorkerMain(started); });
     if (absl::Status status = started_future.get(); !status.ok()) {
       service_.queue().Stop();
-      worker_.join();
+      gl_worker_.join();
       return status;
+    }
+    for (size_t i = 0; i < options.cpu_workers; ++i) {
+      cpu_workers_.emplace_back([this] {
+        JobRunnerContext context;  // no GL: every stage on the CPU
+        RunJobs(1u << static_cast<unsigned>(JobLane::kCpu), context);
+      });
     }
 
     grpc::EnableDefaultHealthCheckService(true);
@@ -293,19 +525,37 @@ class ServerImpl {
     builder.RegisterService(&service_);
     builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
     builder.SetMaxSendMessageSize(-1);
+    // A port already in use is refused: no second server silently shares it.
+    builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+    // Connections: a client that connects and never speaks gRPC is dropped after the
+    // handshake timeout; idle connections are closed; keepalive pings every minute keep
+    // long streams alive through load balancers and find dead peers, and clients may ping
+    // as often as every 10 s, with or without calls.
+    builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, 10'000);
+    builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, 5 * 60'000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 60'000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20'000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10'000);
     server_ = builder.BuildAndStart();
     if (server_ == nullptr || (!options.listen_address.empty() && port_ == 0)) {
-      ShutdownWorker();
-      return absl::UnavailableError(
-          absl::StrCat("cannot listen on '", options.listen_address, "'"));
+      StopWorkers();
+      return absl::UnavailableError(absl::StrCat("cannot listen on '", options.listen_address,
+                                                 "' (in use, or not an address of this host)"));
     }
+    // The device is ready (the GL worker has started): serving from here on.
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
     LogLine(
         options.log, "serving ", kServiceName,
         options.listen_address.empty() ? std::string(" in-process")
                                        : absl::StrCat(" on port ", port_),
-        "; queue capacity ", options.queue_capacity, "; GL: ",
+        "; queue capacity ", options.queue_capacity, "; CPU workers ", options.cpu_workers,
+        "; GL: ",
         gl_renderer_.empty() ? absl::StrCat("none (", gl_unavailable_reason_, ")") : gl_renderer_);
+    if (!options.listen_address.empty() && !IsLoopback(options.listen_address)) {
+      LogLine(options.log, "warning: listening on ", options.listen_address,
+              " without TLS or authentication: anyone who can reach it can submit jobs");
+    }
     return absl::OkStatus();
   }
 
@@ -313,13 +563,47 @@ class ServerImpl {
     std::lock_guard<std::mutex> lock(shutdown_mutex_);
     if (shut_down_) return;
     shut_down_ = true;
+    const ServerOptions& options = service_.options();
+    // 1. Not serving, at once: health checks and new calls see it.
+    service_.set_draining();
     if (server_ != nullptr) {
       server_->GetHealthCheckService()->SetServingStatus(kServiceName, false);
-      // Calls still open after the grace period are cancelled; their jobs see it.
-      server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+      server_->GetHealthCheckService()->SetServingStatus(false);
     }
-    ShutdownWorker();
-    if (server_ != nullptr) server_->Wait();
+    // 2. Queued jobs end now, with a final Failed UNAVAILABLE.
+    std::vector<std::shared_ptr<Job>> queued = service_.queue().StopAndTakeAll();
+    for (const std::shared_ptr<Job>& job : queued) {
+      service_.LeftQueue(*job);
+      ++service_.counters().cancelled;
+      static_cast<ResultStore&>(*job->events)
+          .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                              "the server is shutting down and the job had not started; submit "
+                              "it to another server or try again later"));
+      LogLine(options.log, job->id, " not started: the server is shutting down");
+    }
+    // 3. Running jobs may finish within the drain time; then they are cancelled.
+    {
+      std::unique_lock<std::mutex> running_lock(running_mutex_);
+      if (!running_.empty()) {
+        LogLine(options.log, "draining: ", running_.size(), " running jobs, up to ",
+                absl::FormatDuration(options.drain_time));
+      }
+      running_done_.wait_for(running_lock, absl::ToChronoNanoseconds(options.drain_time),
+                             [&] { return running_.empty(); });
+      for (const std::shared_ptr<Job>& job : running_) {
+        static_cast<ResultStore&>(*job->events)
+            .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                                "the server is shutting down and the drain time ran out; the job "
+                                "was cancelled"));
+        LogLine(options.log, job->id, " cancelled: the drain time ran out");
+      }
+    }
+    StopWorkers();
+    if (server_ != nullptr) {
+      // Calls still open (clients that stopped reading) are cancelled after 2 s.
+      server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+      server_->Wait();
+    }
     shutdown_done_.notify_all();
   }
 
@@ -338,12 +622,14 @@ class ServerImpl {
   std::string gl_unavailable_reason() const { return gl_unavailable_reason_; }
 
  private:
-  void ShutdownWorker() {
+  void StopWorkers() {
     service_.queue().Stop();
-    if (worker_.joinable()) worker_.join();
+    if (gl_worker_.joinable()) gl_worker_.join();
+    for (std::thread& worker : cpu_workers_) worker.join();
+    cpu_workers_.clear();
   }
 
-  void WorkerMain(std::promise<absl::Status>& started) {
+  void GlWorkerMain(std::promise<absl::Status>& started) {
     const ServerOptions& options = service_.options();
     JobRunnerContext context;
 #ifdef MLCLUST_HAVE_GPU
@@ -356,7 +642,7 @@ class ServerImpl {
         gl_renderer_ = gl->renderer();
         context.gl_renderer = gl_renderer_;
         context.gl_is_software = gl->is_software();
-        service_.SetGl(gl->renderer(), gl->device_description());
+        service_.SetGl(gl->renderer(), gl->device_description(), gl->is_software());
         LogLine(options.log, "GL context: ", gl->renderer(), " (", gl->version(), ", ",
                 gl->device_description(), ")");
       } else {
@@ -374,14 +660,28 @@ class ServerImpl {
       return;
     }
     started.set_value(absl::OkStatus());
+    // Without CPU workers the GL worker runs every job.
+    const unsigned lanes = options.cpu_workers == 0 ? BoundedJobQueue<Job>::kAllLanes
+                                                    : 1u << static_cast<unsigned>(JobLane::kGl);
+    RunJobs(lanes, context);
+  }
 
+  // A worker's loop: runs the jobs of `lanes` until the queue stops.
+  void RunJobs(unsigned lanes, const JobRunnerContext& context) {
+    const ServerOptions& options = service_.options();
     Counters& counters = service_.counters();
-    while (std::shared_ptr<Job> job = service_.queue().Pop()) {
+    while (std::shared_ptr<Job> job = service_.queue().Pop(lanes)) {
+      service_.LeftQueue(*job);
+      service_.AnnounceQueuePositions();
       if (job->events->cancelled()) {
         ++counters.cancelled;
         continue;
       }
-      counters.job_running = true;
+      {
+        std::lock_guard<std::mutex> lock(running_mutex_);
+        running_.push_back(job);
+      }
+      ++counters.jobs_running;
       const absl::Time started_at = absl::Now();
       absl::StatusOr<JobOutcome> outcome = RunJob(*job, context);
       const absl::Time ended_at = absl::Now();
@@ -400,17 +700,35 @@ class ServerImpl {
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled
                                                                    : counters.failed);
         job->events->Finish(FailedEvent(status), status);
-        LogLine(options.log, job->id, " failed: ", outcome.status().ToString());
+        LogLine(options.log, job->id, " failed after ", absl::FormatDuration(ended_at - started_at),
+                ": ", outcome.status().ToString());
       }
-      counters.job_running = false;
+      const std::string id = job->id;
+      // The input and anything else the job holds go now, not when the call ends.
+      std::string().swap(job->input);
+      --counters.jobs_running;
+      bool idle = false;
+      {
+        std::lock_guard<std::mutex> lock(running_mutex_);
+        std::erase(running_, job);
+        idle = running_.empty();
+        running_done_.notify_all();
+      }
+      job.reset();
+      // Memory back to the system after a burst, not kept at the largest job's level.
+      if (idle && service_.queue().size() == 0) malloc_trim(0);
     }
   }
 
   ServiceImpl service_;
   std::unique_ptr<grpc::Server> server_;
-  std::thread worker_;
+  std::thread gl_worker_;
+  std::vector<std::thread> cpu_workers_;
   int port_ = 0;
   std::string gl_renderer_, gl_unavailable_reason_;
+  std::mutex running_mutex_;
+  std::condition_variable running_done_;
+  std::vector<std::shared_ptr<Job>> running_;
   std::mutex shutdown_mutex_;
   std::condition_variable shutdown_done_;
   bool shut_down_ = false;

@@ -1,9 +1,11 @@
 // The mlclust gRPC server: the Clustering service, a bounded job queue and the worker
 // thread that owns the GL context.
 //
-// One Server owns one worker thread. The worker creates the GL context (when allowed and
-// available) on its own thread, once, and runs queued jobs there in order. Calls are
-// handled with gRPC's callback API; no gRPC thread ever runs a job.
+// One Server owns one worker thread that creates the GL context (when allowed and
+// available) on its own thread, once, and runs jobs there in order, and optionally a pool
+// of CPU workers (ServerOptions::cpu_workers). Calls are handled with gRPC's callback API;
+// no gRPC thread ever runs a job, and producing a job's levels never waits on its client
+// (server/result_store.h).
 #ifndef MLCLUST_SERVER_SERVER_H_
 #define MLCLUST_SERVER_SERVER_H_
 
@@ -12,6 +14,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "absl/time/time.h"
 #include "grpcpp/channel.h"
 
 namespace mlclust::server {
@@ -23,8 +26,9 @@ enum class GpuMode {
 };
 
 struct ServerOptions {
-  // Address to listen on, e.g. "0.0.0.0:50051" or "127.0.0.1:0" (any free port). Empty:
-  // no network listener, only InProcessChannel() (the CLI's embedded server).
+  // Address to listen on, e.g. "127.0.0.1:50051" or "127.0.0.1:0" (any free port). Empty:
+  // no network listener, only InProcessChannel() (the CLI's embedded server). A port in
+  // use is refused (no SO_REUSEPORT). A non-loopback address logs a warning (no TLS).
   std::string listen_address;
   // Jobs that may wait in the queue (the running job not counted); more are refused with
   // RESOURCE_EXHAUSTED at once.
@@ -32,6 +36,25 @@ struct ServerOptions {
   // Largest input a job may upload; larger ones are refused with RESOURCE_EXHAUSTED
   // before any byte is read.
   uint64_t max_input_bytes = uint64_t{1} << 30;
+  // Admission, before anything is allocated for a call; each refusal is answered with
+  // RESOURCE_EXHAUSTED and a message, logged and counted (Stats.calls_refused).
+  // Run calls in progress (uploading, queued, running or streaming): in total, per
+  // connection and per client address.
+  uint32_t max_calls = 256;
+  uint32_t max_calls_per_connection = 32;
+  uint32_t max_calls_per_peer = 64;
+  // Bytes received into uploads not yet complete, over all calls. Buffers grow as data
+  // arrives; nothing is reserved from a declared size.
+  uint64_t max_upload_bytes_in_flight = uint64_t{1} << 30;
+  // The inputs of the jobs waiting in the queue, together.
+  uint64_t max_queued_input_bytes = uint64_t{4} << 30;
+  // CPU workers beside the worker that owns the GL context. With none, the GL worker runs
+  // every job in order; with some, it runs the jobs planned for the GPU (meshes with
+  // device "gpu", or "auto" on a hardware GL) and the CPU workers the rest.
+  size_t cpu_workers = 0;
+  // On Shutdown, running jobs may finish within this time; then they are cancelled.
+  // Queued jobs end at once with UNAVAILABLE.
+  absl::Duration drain_time = absl::ZeroDuration();
   // Events a job has produced and its client not yet read (memory, not wire bytes): per
   // job and over all jobs. A reader that falls further behind is cut off with
   // RESOURCE_EXHAUSTED and its job cancelled; producing levels never waits on a reader.
@@ -64,7 +87,10 @@ class Server {
 
   // Blocks until Shutdown() is called from another thread or a signal handler.
   void Wait();
-  // Stops accepting calls, cancels running and queued jobs, joins the worker. Idempotent.
+  // Drains: health NOT_SERVING and new calls refused (UNAVAILABLE) at once; queued jobs
+  // end with a final Failed UNAVAILABLE; running jobs get `drain_time` to finish, then are
+  // cancelled; calls still open 2 s later are cancelled; the workers are joined.
+  // Idempotent.
   void Shutdown();
 
  private:

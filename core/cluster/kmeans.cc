@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "tbb/blocked_range.h"
@@ -416,8 +417,10 @@ tbb::task_arena MakeArena(int threads) {
 // ---------------------------------------------------------------------------------------
 // Greedy k-means++.
 
-std::vector<float> PlusPlus(const PointSet& points, uint32_t k, uint64_t seed,
-                            tbb::task_arena& arena) {
+// CANCELLED if `cancel` is set (checked before each centre).
+absl::StatusOr<std::vector<float>> PlusPlus(const PointSet& points, uint32_t k, uint64_t seed,
+                                            tbb::task_arena& arena,
+                                            const std::atomic<bool>* cancel) {
   const size_t m = points.num_points();
   const uint32_t d = points.dims;
   const float* values = points.values.data();
@@ -507,6 +510,7 @@ std::vector<float> PlusPlus(const PointSet& points, uint32_t k, uint64_t seed,
   std::vector<float> candidate_rows(size_t{trials} * d);
   std::vector<double> block_sums(num_blocks * trials);
   for (uint32_t c = 1; c < k; ++c) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "k-means++ seeding"));
     double potential = 0;
     for (double p : block_potential) potential += p;
     for (uint32_t t = 0; t < trials; ++t) {
@@ -538,8 +542,11 @@ std::vector<float> PlusPlus(const PointSet& points, uint32_t k, uint64_t seed,
 // ---------------------------------------------------------------------------------------
 // Lloyd.
 
-KmeansResult Lloyd(const PointSet& points, std::vector<double> centres,
-                   const KmeansOptions& options, double mean_variance, tbb::task_arena& arena) {
+// CANCELLED if options.cancel is set: checked by every block of points, which then skips
+// its work (and its chunk's sums), and after each assignment.
+absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> centres,
+                                   const KmeansOptions& options, double mean_variance,
+                                   tbb::task_arena& arena) {
   const auto start = std::chrono::steady_clock::now();
   const size_t m = points.num_points();
   const uint32_t d = points.dims;
@@ -576,7 +583,12 @@ KmeansResult Lloyd(const PointSet& points, std::vector<double> centres,
       tbb::parallel_for(size_t{0}, num_chunks, [&](size_t chunk) {
         const size_t first_block = chunk * blocks_per_chunk;
         const size_t last_block = std::min(num_blocks, first_block + blocks_per_chunk);
+        std::atomic<bool> skipped{false};
         tbb::parallel_for(first_block, last_block, [&](size_t b) {
+          if (IsCancelled(options.cancel)) {
+            skipped.store(true, std::memory_order_relaxed);
+            return;
+          }
           uint32_t proposed[kBlock];
           const size_t begin = BlockBegin(b);
           const size_t end = BlockEnd(b, m);
@@ -604,6 +616,7 @@ KmeansResult Lloyd(const PointSet& points, std::vector<double> centres,
           block_energy[b] = energy;
           block_moves[b] = first ? end - begin : moves;
         });
+        if (skipped.load()) return;  // labels of the skipped blocks are not set
         double* local = &chunk_sums[chunk * k * row];
         std::fill(local, local + k * row, 0.0);
         for (size_t i = BlockBegin(first_block); i < BlockEnd(last_block - 1, m); ++i) {
@@ -625,6 +638,8 @@ KmeansResult Lloyd(const PointSet& points, std::vector<double> centres,
                           }
                         });
     });
+    // Skipped blocks left stale labels and sums: nothing after this may use them.
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "Lloyd iteration"));
     double energy = 0;  // of the new labels against the centres they were assigned to
     uint64_t moves = 0;
     for (size_t b = 0; b < num_blocks; ++b) {
@@ -747,7 +762,7 @@ absl::StatusOr<std::vector<float>> KmeansPlusPlusCentres(const PointSet& points,
   tbb::task_arena arena = MakeArena(threads);
   const PointStats stats = ComputeStats(points, arena);
   MLCLUST_RETURN_IF_ERROR(CheckExtent(stats.low, stats.high));
-  return PlusPlus(points, k, seed, arena);
+  return PlusPlus(points, k, seed, arena, nullptr);
 }
 
 absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptions& options) {
@@ -763,7 +778,8 @@ absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptio
   const uint32_t d = points.dims;
   std::vector<double> centres(size_t{k} * d);
   if (options.init == KmeansOptions::Init::kKmeansPlusPlus) {
-    const std::vector<float> seeds = PlusPlus(points, k, options.seed, arena);
+    MLCLUST_ASSIGN_OR_RETURN(const std::vector<float> seeds,
+                             PlusPlus(points, k, options.seed, arena, options.cancel));
     centres.assign(seeds.begin(), seeds.end());
   } else {
     // k distinct points: the first k of a partial Fisher-Yates shuffle.
@@ -779,7 +795,8 @@ absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptio
     }
   }
   const double seconds_init = Seconds(start);
-  KmeansResult result = Lloyd(points, std::move(centres), options, stats.mean_variance, arena);
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result,
+                           Lloyd(points, std::move(centres), options, stats.mean_variance, arena));
   result.seconds_init = seconds_init;
   return result;
 }

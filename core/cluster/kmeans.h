@@ -15,6 +15,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_KMEANS_H_
 #define MLCLUST_CORE_CLUSTER_KMEANS_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -52,6 +53,9 @@ struct KmeansOptions {
   // (KmeansResult::inertia of a run stopped there). Never increases from one call to the
   // next, up to rounding (about 1e-15 relative).
   std::function<void(uint32_t iteration, double inertia)> on_iteration;
+  // Checked before each k-means++ centre and by every block of points in each iteration
+  // (core/base/cancel.h); a set flag returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct KmeansResult {
@@ -84,7 +88,7 @@ struct KmeansResult {
 // Errors: ValidatePoints' INVALID_ARGUMENT; INVALID_ARGUMENT naming 'clusters' for k < 1 or
 // k > m, 'max_iterations' for 0, 'tolerance' for a negative or NaN one, 'threads' for < 0,
 // and 'points' where the coordinates span more than 1e17 (their squared distances would
-// overflow float).
+// overflow float). CANCELLED if options.cancel was set.
 absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptions& options);
 
 // Greedy k-means++ (scikit-learn's _kmeans_plusplus): the first centre is a uniformly random

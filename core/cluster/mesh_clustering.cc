@@ -5,6 +5,7 @@
 #include <queue>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/boundary_based.h"
@@ -17,16 +18,9 @@ namespace {
 
 constexpr uint32_t kUnassigned = 0xffffffffu;
 
-absl::Status CheckProblem(const MeshProblem& problem) {
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
-  }
-  if (problem.adjacency->num_faces() != problem.mesh->num_faces() ||
-      problem.measures->num_faces() != problem.mesh->num_faces()) {
-    return absl::InvalidArgumentError("adjacency or measures do not match the mesh");
-  }
-  return ValidateMeshEnergyOptions(problem.energy);
-}
+// Loops over faces look at the cancel flag once per this many faces (well under a
+// millisecond of work on any of them).
+constexpr uint32_t kFacesPerCancelCheck = 16384;
 
 // Connected component id per face, and the count.
 uint32_t FaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component) {
@@ -55,9 +49,11 @@ uint32_t FaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& c
 
 // Alg. 2.2's flood: each seed's proxy is fitted to the seed face; faces join the region
 // whose proxy fits them best among regions that reach them, cheapest first.
+// Empty if `cancel` was seen set (checked every kFacesPerCancelCheck faces).
 template <typename Energy>
 std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& adjacency,
-                                    std::span<const uint32_t> seeds) {
+                                    std::span<const uint32_t> seeds,
+                                    const std::atomic<bool>* cancel) {
   using Proxy = typename Energy::Proxy;
   std::vector<uint32_t> labels(adjacency.num_faces(), kUnassigned);
   std::vector<Proxy> proxies;
@@ -84,7 +80,12 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& a
     labels[seeds[c]] = c;
   }
   for (uint32_t c = 0; c < seeds.size(); ++c) push_neighbours(seeds[c], c);
+  uint32_t until_cancel_check = kFacesPerCancelCheck;
   while (!queue.empty()) {
+    if (--until_cancel_check == 0) {
+      until_cancel_check = kFacesPerCancelCheck;
+      if (IsCancelled(cancel)) return {};
+    }
     const Candidate next = queue.top();
     queue.pop();
     if (labels[next.face] != kUnassigned) continue;
@@ -97,9 +98,11 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& a
 // Section 3.1.5: merge the three clusters meeting at a vertex with the smallest summed
 // area until `target` clusters are left (a pair across an edge for the last step when the
 // parity needs it). Returns labels renumbered 0..target-1.
+// Empty if `cancel` was seen set.
 std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                 const FaceMeasures& measures, std::vector<uint32_t> labels,
-                                uint32_t clusters, uint32_t target) {
+                                uint32_t clusters, uint32_t target,
+                                const std::atomic<bool>* cancel) {
   std::vector<uint32_t> parent(clusters);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](uint32_t c) {
@@ -143,7 +146,12 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
     return keep;
   };
   uint32_t count = clusters;
+  uint32_t until_cancel_check = kFacesPerCancelCheck;
   while (count >= target + 2 && !triples.empty()) {
+    if (--until_cancel_check == 0) {
+      until_cancel_check = kFacesPerCancelCheck;
+      if (IsCancelled(cancel)) return {};
+    }
     const auto [key, v] = triples.top();
     triples.pop();
     uint32_t around[4];
@@ -162,6 +170,7 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
   }
   // Pairs: the last step for parity, or all steps where no vertex joins three clusters.
   while (count > target) {
+    if (IsCancelled(cancel)) return {};  // each step scans every face
     double best = std::numeric_limits<double>::infinity();
     uint32_t best_a = 0, best_b = 0;
     for (uint32_t f = 0; f < labels.size(); ++f) {
@@ -210,10 +219,15 @@ void WriteBack(std::span<const uint32_t> compact_labels, std::span<const Cluster
 
 }  // namespace
 
-std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+namespace {
+
+// Alg. 3.1; false (and `seeds` unspecified) if `cancel` was seen set.
+bool LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level,
+                         const std::atomic<bool>* cancel, std::vector<uint32_t>& seeds) {
   const size_t n = adjacency.num_faces();
+  seeds.clear();
   std::vector<uint8_t> valid(n, 1);
-  std::vector<uint32_t> seeds, frontier, next, visited;
+  std::vector<uint32_t> frontier, next, visited;
   std::vector<uint32_t> stamp(n, 0);
   uint32_t stamp_value = 0;
   // The faces within `level` edge-steps of `face`, into `visited`; false as soon as one is
@@ -239,19 +253,47 @@ std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32
     return true;
   };
   for (uint32_t f = 0; f < n; ++f) {
+    if (f % kFacesPerCancelCheck == 0 && IsCancelled(cancel)) return false;
     if (!valid[f] || !neighbourhood_valid(f)) continue;
     for (uint32_t g : visited) valid[g] = 0;
     seeds.push_back(f);
   }
+  return true;
+}
+
+}  // namespace
+
+MeshProblem MakeMeshProblem(const PreparedMesh& prepared, const MeshEnergyOptions& energy) {
+  return {&prepared.mesh, &prepared.adjacency, &prepared.measures, energy};
+}
+
+absl::Status ValidateMeshProblem(const MeshProblem& problem) {
+  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
+    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+  }
+  if (problem.adjacency->num_faces() != problem.mesh->num_faces() ||
+      problem.measures->num_faces() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("adjacency (", problem.adjacency->num_faces(), " faces) or measures (",
+                     problem.measures->num_faces(), " faces) do not match the mesh (",
+                     problem.mesh->num_faces(), " faces)"));
+  }
+  return ValidateMeshEnergyOptions(problem.energy);
+}
+
+std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+  std::vector<uint32_t> seeds;
+  LNeighbourhoodSeeds(adjacency, level, nullptr, seeds);
   return seeds;
 }
 
 absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
                                                        const SeedOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const FaceAdjacency& adjacency = *problem.adjacency;
   const size_t n = adjacency.num_faces();
   const uint32_t k = options.clusters;
+  auto cancelled = [] { return absl::CancelledError("cancelled during initial clusters"); };
   if (k < 1 || k > n) {
     return absl::InvalidArgumentError(
         absl::StrCat("clusters: ", k, " must be between 1 and the mesh's ", n, " faces"));
@@ -263,6 +305,7 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
         absl::StrCat("clusters: ", k, " is fewer than the mesh's ", components,
                      " connected components (a cluster cannot span two components)"));
   }
+  if (IsCancelled(options.cancel)) return cancelled();
   std::vector<uint32_t> seeds;
   if (options.method == SeedOptions::Method::kRandom) {
     // One seed in every component, then the rest uniformly among the other faces.
@@ -292,7 +335,8 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
       // The largest l that still gives k seeds: grow l by doubling, then bisect.
       uint32_t good = 0, bad = 0;
       for (uint32_t l = 1;; l *= 2) {
-        if (LNeighbourhoodSeeds(adjacency, l).size() >= k) {
+        if (!LNeighbourhoodSeeds(adjacency, l, options.cancel, seeds)) return cancelled();
+        if (seeds.size() >= k) {
           good = l;
         } else {
           bad = l;
@@ -302,11 +346,12 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
       }
       while (bad > good + 1) {
         const uint32_t mid = good + (bad - good) / 2;
-        (LNeighbourhoodSeeds(adjacency, mid).size() >= k ? good : bad) = mid;
+        if (!LNeighbourhoodSeeds(adjacency, mid, options.cancel, seeds)) return cancelled();
+        (seeds.size() >= k ? good : bad) = mid;
       }
       level = good;
     }
-    seeds = LNeighbourhoodSeeds(adjacency, level);
+    if (!LNeighbourhoodSeeds(adjacency, level, options.cancel, seeds)) return cancelled();
     if (seeds.size() < k) {
       return absl::InvalidArgumentError(absl::StrCat(
           "level: l = ", level, " gives only ", seeds.size(), " seeds, fewer than the ", k,
@@ -320,14 +365,17 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
   std::vector<uint32_t> labels;
   if (problem.energy.kind == MeshEnergyKind::kPlanar) {
     labels =
-        WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
-                       [&](const auto& energy) { return GrowFromSeeds(energy, adjacency, seeds); });
+        WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, [&](const auto& energy) {
+          return GrowFromSeeds(energy, adjacency, seeds, options.cancel);
+        });
   } else {
-    labels = GrowFromSeeds(CvdEnergy(*problem.measures), adjacency, seeds);
+    labels = GrowFromSeeds(CvdEnergy(*problem.measures), adjacency, seeds, options.cancel);
   }
+  if (labels.empty()) return cancelled();
   if (seeds.size() > k) {
     labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
-                       static_cast<uint32_t>(seeds.size()), k);
+                       static_cast<uint32_t>(seeds.size()), k, options.cancel);
+    if (labels.empty()) return cancelled();
   }
   return ToClusterIds(labels);
 }
@@ -335,7 +383,7 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
 absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
                                             std::vector<ClusterId>& labels,
                                             const EmloOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t n = problem.mesh->num_faces();
   if (labels.size() != n) {
     return absl::InvalidArgumentError(
@@ -344,12 +392,16 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
   std::vector<uint32_t> compact;
   const uint32_t k = CompactClusterIds(labels, compact);
   const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "EMLO set-up"));
   return WithMeshEnergy(
       problem.energy, *problem.mesh, *problem.measures,
       [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
         using Energy = std::decay_t<decltype(energy)>;
         Partition<Energy> partition(energy, compact, k);
-        const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
+        MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "EMLO set-up"));
+        MLCLUST_ASSIGN_OR_RETURN(
+            const ConnectivityGuard guard,
+            ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
         OptimizeResult result;
         result.initial_energy = partition.TotalEnergy();
         const uint64_t max_moves = options.max_moves != 0 ? options.max_moves : 1000 * n;
@@ -359,14 +411,17 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
         const std::vector<uint32_t> boundary = detail::BoundaryFaces(*problem.adjacency, partition);
         const detail::EmloCounters counters = detail::RunEmloOn(
             *problem.adjacency, options.connectivity_guard ? &guard : nullptr, partition, boundary,
-            max_moves, scratch, [&](uint32_t, uint32_t, uint32_t) {
+            max_moves, scratch,
+            [&](uint32_t, uint32_t, uint32_t) {
               if (options.on_progress && ++since_report == every) {
                 since_report = 0;
                 ++result.iterations;
                 options.on_progress(result.moves + 1, partition.TotalEnergy());
               }
               ++result.moves;
-            });
+            },
+            [](uint32_t, uint32_t) {}, options.cancel);
+        if (counters.cancelled) return absl::CancelledError("cancelled during EMLO");
         result.converged = !counters.hit_move_limit;
         result.energy = partition.TotalEnergy();
         if (options.on_progress) options.on_progress(result.moves, result.energy);
@@ -378,7 +433,7 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
                                                      std::vector<ClusterId>& labels,
                                                      const BoundaryBasedOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(CheckProblem(problem));
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t n = problem.mesh->num_faces();
   if (labels.size() != n) {
     return absl::InvalidArgumentError(
@@ -391,19 +446,22 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
   const uint32_t k = CompactClusterIds(labels, compact);
   const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
   const boundary_based::StageThreads threads(options.threads);
-  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
-                        [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
-                          using Energy = std::decay_t<decltype(energy)>;
-                          Partition<Energy> partition(energy, compact, k);
-                          const ConnectivityGuard guard(*problem.mesh, *problem.adjacency);
-                          MLCLUST_ASSIGN_OR_RETURN(OptimizeResult result,
-                                                   boundary_based::RunBoundaryBased(
-                                                       guard, partition, options, threads,
-                                                       boundary_based::CpuBoundaryDecider<Energy>(
-                                                           energy, *problem.adjacency, threads)));
-                          WriteBack(partition.labels(), original, labels);
-                          return result;
-                        });
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+  auto run = [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+    using Energy = std::decay_t<decltype(energy)>;
+    Partition<Energy> partition(energy, compact, k);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const ConnectivityGuard guard,
+        ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
+    const boundary_based::CpuBoundaryDecider<Energy> decide(energy, *problem.adjacency, threads);
+    MLCLUST_ASSIGN_OR_RETURN(
+        OptimizeResult result,
+        boundary_based::RunBoundaryBased(guard, partition, options, threads, decide));
+    WriteBack(partition.labels(), original, labels);
+    return result;
+  };
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, run);
 }
 
 }  // namespace mlclust

@@ -17,6 +17,7 @@
 #include "core/energy/energies.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
+#include "core/mesh/prepared_mesh.h"
 
 namespace mlclust {
 
@@ -29,6 +30,16 @@ struct MeshProblem {
   MeshEnergyOptions energy;
 };
 
+// The problem of a prepared mesh (core/mesh/prepared_mesh.h, core/io/prepare_mesh.h) with
+// the given energy; `prepared` must outlive it.
+MeshProblem MakeMeshProblem(const PreparedMesh& prepared, const MeshEnergyOptions& energy = {});
+
+// The preconditions every mesh algorithm checks first: mesh, adjacency and measures all
+// set, adjacency and measures of the mesh's face count, and energy options that
+// ValidateMeshEnergyOptions accepts. INVALID_ARGUMENT saying which fails. (That the mesh
+// passed ValidateMesh is the caller's promise: PrepareMesh keeps it.)
+absl::Status ValidateMeshProblem(const MeshProblem& problem);
+
 struct SeedOptions {
   enum class Method {
     kRandom,          // k distinct faces, at least one per connected component
@@ -40,6 +51,8 @@ struct SeedOptions {
   // 0 picks the largest l that still yields at least k seeds.
   uint32_t level = 0;
   uint64_t seed = 1;  // random generator seed: same seed, same result on every platform
+  // Checked between steps and every few thousand faces of each (core/base/cancel.h).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Seeds and grows them to a full partition of exactly `clusters` connected clusters.
@@ -48,7 +61,8 @@ struct SeedOptions {
 // seeds' regions are reduced to exactly k by repeatedly merging the three clusters that
 // meet at a vertex with the smallest summed area (section 3.1.5), the last step merging
 // a pair if k differs in parity. INVALID_ARGUMENT names the option that is out of range
-// (k < 1, k > faces, k < connected components, l too large for k).
+// (k < 1, k > faces, k < connected components, l too large for k); CANCELLED if
+// options.cancel was set.
 absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
                                                        const SeedOptions& options);
 
@@ -71,11 +85,14 @@ struct EmloOptions {
   // Called every `progress_moves` moves and at the end with the total energy.
   std::function<void(uint64_t moves, double energy)> on_progress;
   uint64_t progress_moves = 10000;
+  // Checked between set-up steps and every few thousand faces (core/base/cancel.h).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // EMLO (Alg. 3.3) from `labels` until no boundary move lowers the energy. `labels` is
 // replaced by the result; clusters keep their ids (no cluster disappears).
-// INVALID_ARGUMENT if labels.size() differs from the face count.
+// INVALID_ARGUMENT if labels.size() differs from the face count; CANCELLED (labels
+// unchanged) if options.cancel was set.
 absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
                                             std::vector<ClusterId>& labels,
                                             const EmloOptions& options = {});
@@ -96,7 +113,8 @@ struct BoundaryBasedOptions {
 // with the smaller id wins; the other retries next sweep) so each move's connectivity
 // check stays valid. A sweep that would raise the energy (possible for MWCVD, whose
 // weights are not fitted) is undone and ends the run. Stops when nothing moves or after
-// max_iterations. Clusters keep their ids, as for OptimizeEmlo.
+// max_iterations. Clusters keep their ids, as for OptimizeEmlo. CANCELLED (labels
+// unchanged) if options.cancel was set. Runs as the stages of core/cluster/boundary_based.h.
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
                                                      std::vector<ClusterId>& labels,
                                                      const BoundaryBasedOptions& options = {});

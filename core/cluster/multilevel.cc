@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <queue>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/detail/ode_heap.h"
@@ -39,17 +41,10 @@ class Engine {
         neighbours_(n_),
         odes_(n_),
         dirty_mark_(n_, 0),
-        recorder_(n_, n_) {
-    for (uint32_t f = 0; f < n_; ++f) {
-      members_[f] = {f};
-      for (FaceId g : adjacency_.neighbours[f]) {
-        // Each face edge is seen from both faces: one side each time.
-        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
-      }
-    }
-  }
+        recorder_(n_, n_) {}
 
   absl::StatusOr<MultilevelSummary> Run() {
+    MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
     MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
@@ -61,6 +56,11 @@ class Engine {
     // Alg. 4.2: below this count the merges are optimised.
     const double unoptimised = std::clamp(options_.p_percent, 0.0, 100.0) / 100.0;
     optimise_below_ = static_cast<uint32_t>(std::floor(n_ * (1.0 - unoptimised)));
+    if (options_.p_percent > 0 &&
+        options_.p_percent_rule == MultilevelOptions::PPercentRule::kSweep) {
+      MLCLUST_RETURN_IF_ERROR(SweepMerges(n_ - optimise_below_));
+      optimise_below_ = n_ + 1;  // the rest is ML
+    }
     if (options_.optimizer == MultilevelOptions::Optimizer::kNone) optimise_below_ = 0;
 
     tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
@@ -69,6 +69,7 @@ class Engine {
       arena.execute([&] { ComputeAllOdes(); });
       odes_current = true;
       while (clusters_ > options_.min_clusters && clusters_ > options_.pml_until) {
+        MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
         absl::StatusOr<bool> progressed = arena.execute([&] { return ParallelStep(); });
         if (!progressed.ok()) return progressed.status();
         if (!*progressed) break;
@@ -77,9 +78,10 @@ class Engine {
     if (odes_current) {
       RebuildHeap();  // from the ODEs PML kept up to date
     } else {
-      BuildHeap();
+      MLCLUST_RETURN_IF_ERROR(BuildHeap());
     }
     while (clusters_ > options_.min_clusters) {
+      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
       absl::StatusOr<bool> progressed = SequentialStep();
       if (!progressed.ok()) return progressed.status();
       if (!*progressed) break;  // no adjacent pair left: one cluster per component
@@ -97,6 +99,24 @@ class Engine {
   }
 
   // ---- cluster adjacency: per cluster, (neighbour, number of shared face edges) --------
+
+  // One cluster per face: the clusters' adjacency is the faces'.
+  absl::Status BuildClusterAdjacency() {
+    for (uint32_t f = 0; f < n_; ++f) {
+      if (f % 65536 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+      members_[f] = {f};
+      for (FaceId g : adjacency_.neighbours[f]) {
+        // Each face edge is seen from both faces: one side each time.
+        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status CheckLevelCancelled() const {
+    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
+    return CheckCancelled(options_.cancel, absl::StrCat("level ", summary_.levels));
+  }
 
   void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta) {
     auto& list = neighbours_[x];
@@ -265,7 +285,7 @@ class Engine {
   absl::Status FinishLevel() {
     recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
                      [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; });
-    UpdateOptimalDualEdges();
+    if (!skip_ode_update_) UpdateOptimalDualEdges();
     for (uint32_t c : dirty_) dirty_mark_[c] = 0;
     dirty_.clear();
     MLCLUST_RETURN_IF_ERROR(recorder_.Emit(sink_, summary_.levels, clusters_));
@@ -337,10 +357,14 @@ class Engine {
     }
   }
 
-  void BuildHeap() {
+  absl::Status BuildHeap() {
     for (uint32_t c = 0; c < n_; ++c) {
+      if (c % 65536 == 0) {
+        MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the first optimal dual edges"));
+      }
       if (partition_.size(c) > 0) RecomputeOde(c);
     }
+    return absl::OkStatus();
   }
   void RebuildHeap() {
     odes_.Rebuild([&](uint32_t c) { return Alive(c); });
@@ -355,6 +379,56 @@ class Engine {
     Optimise(merged);
     MLCLUST_RETURN_IF_ERROR(FinishLevel());
     return true;
+  }
+
+  // ---- p% ML's first step (Alg. 4.2) ----------------------------------------------------
+
+  // Merges `target` clusters (fewer if min_clusters or the components stop it) in one
+  // level, without optimisation: sweeps over the clusters in id order, each one not yet in
+  // a merge of the sweep collapsing its optimal dual edge (from the current sums, ties to
+  // the larger id) unless the other cluster already took part in one; sweep after sweep
+  // until `target` have merged (l. 1868-1872).
+  absl::Status SweepMerges(uint32_t target) {
+    const uint32_t floor = std::max(options_.min_clusters, 1u);
+    target = std::min(target, clusters_ > floor ? clusters_ - floor : 0u);
+    if (target == 0) return absl::OkStatus();
+    std::vector<uint8_t> in_merge(n_, 0);
+    std::vector<uint32_t> marked;
+    uint32_t merged = 0;
+    while (merged < target) {
+      bool progressed = false;
+      for (uint32_t c = 0; c < n_ && merged < target; ++c) {
+        if (c % 65536 == 0) {
+          MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the p% sweep"));
+        }
+        if (partition_.size(c) == 0 || in_merge[c]) continue;
+        double best = std::numeric_limits<double>::infinity();
+        uint32_t best_d = kNone;
+        for (const auto& [d, count] : neighbours_[c]) {
+          const double cost = Cost(c, d);
+          if (Better(cost, d, best, best_d)) {
+            best = cost;
+            best_d = d;
+          }
+        }
+        if (best_d == kNone || in_merge[best_d]) continue;
+        const auto [keep, gone] = KeepAndGone(c, best_d);
+        Merge(keep, gone);
+        in_merge[keep] = in_merge[gone] = 1;
+        marked.push_back(keep);
+        marked.push_back(gone);
+        ++merged;
+        progressed = true;
+      }
+      for (uint32_t c : marked) in_merge[c] = 0;
+      marked.clear();
+      if (!progressed) break;  // one cluster per component
+    }
+    // One level; the ODEs are computed afresh after it (BuildHeap or ComputeAllOdes).
+    skip_ode_update_ = true;
+    absl::Status status = FinishLevel();
+    skip_ode_update_ = false;
+    return status;
   }
 
   // ---- PML: all mutual optimal dual edges at once --------------------------------------
@@ -402,6 +476,8 @@ class Engine {
       in_parallel_phase_ = false;
       return false;
     }
+    detail::SelectPmlPairs(
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_);
     // Do not merge past min_clusters / pml_until: the cheapest pairs first.
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (clusters_ - pairs_.size() < floor) {
@@ -447,6 +523,7 @@ class Engine {
   uint32_t clusters_ = 0;
   uint32_t optimise_below_ = 0;
   bool in_parallel_phase_ = false;
+  bool skip_ode_update_ = false;
   MultilevelSummary summary_;
 
   // Optimisation scratch.

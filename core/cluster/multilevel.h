@@ -10,12 +10,14 @@
 #ifndef MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
 #define MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <span>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/cluster/detail/pml_pairs.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/hierarchy/hierarchy.h"
 
@@ -28,19 +30,38 @@ struct MultilevelOptions {
     kNone,           // HC: merges only
   };
   Optimizer optimizer = Optimizer::kEmlo;
-  // Alg. 4.2: merge this percentage of the clusters first without optimisation (HC), then
-  // continue as ML. 0 (the default) is plain ML; 100 is HC.
+  // Alg. 4.2: merge this percentage of the clusters first without optimisation, then
+  // continue as ML. 0 (the default) is plain ML. How the first p% merge:
+  //   kSweep (Alg. 4.2, l. 1868, the default): in one level, sweeps over the clusters in id
+  //     order, each collapsing its optimal dual edge unless the other cluster already took
+  //     part in a merge of this sweep, until p% of the clusters have merged;
+  //   kHcFirst (ours, the former rule): one level per merge, cheapest first, as HC; p = 100
+  //     is HC.
+  enum class PPercentRule { kSweep, kHcFirst };
   double p_percent = 0;
+  PPercentRule p_percent_rule = PPercentRule::kSweep;
   // PML (Alg. 5.3): collapse all mutual optimal dual edges at once per level (ties to the
   // larger id) while more than `pml_until` clusters are left, then continue as ML. 0: PML
   // to the end.
   bool parallel = false;
   uint32_t pml_until = 0;
+  // Which mutual pairs a PML level collapses: kAll, every one (Alg. 5.3), or
+  // kCheaperHalf (ours, the default), those that cost at most the level's median mutual
+  // pair (core/cluster/detail/pml_pairs.h). Measured on fandisk, bunny00, armadillo and
+  // elephant with CVD and planar, PML to the end, energy at the first level with at most
+  // 1000/200/50 clusters over ML's at the same count: kAll 1.00-1.46x (median 1.09x),
+  // kCheaperHalf 0.98-1.08x (median 1.00x) (bench/pml_pairs_bench.sh, BENCHMARKS.md;
+  // fandisk planar excluded: both rules give the same, far above ML).
+  PmlPairRule pml_pairs = PmlPairRule::kCheaperHalf;
   // Stop at this many clusters (>= 1); a mesh with C components stops at C at the least.
   uint32_t min_clusters = 1;
   bool connectivity_guard = true;
   // Worker threads for PML's parallel steps, 0 = all cores.
   int threads = 0;
+  // Set from any thread to stop the run: checked before and while the clusters' adjacency
+  // is built, after every level and every 65,536 ODEs of the first ODE pass (not inside
+  // an optimisation). The run then returns CANCELLED (core/base/cancel.h).
+  const std::atomic<bool>* cancel = nullptr;
   // Called at each level after it is reported, with the engine's own labels (one cluster
   // id per face). For tests that check the log against the engine; costs O(faces) a call.
   std::function<void(size_t level, std::span<const uint32_t> labels)> inspect_level;
@@ -56,8 +77,8 @@ struct MultilevelSummary {
 };
 
 // Runs the engine and reports every level to `sink` (level 0: every face its own cluster,
-// energy 0 for every energy here). INVALID_ARGUMENT for out-of-range options; the sink's
-// status if it stops the run (e.g. CANCELLED).
+// energy 0 for every energy here). INVALID_ARGUMENT for out-of-range options; CANCELLED
+// once `options.cancel` is set; the sink's status if it stops the run.
 absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
                                                 const MultilevelOptions& options, LevelSink& sink);
 

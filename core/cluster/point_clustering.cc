@@ -8,8 +8,10 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/kmeans.h"
 #include "core/energy/variance_energy.h"
@@ -18,213 +20,10 @@
 #include "tbb/task_arena.h"
 
 namespace mlclust {
+namespace detail {
 namespace {
-
-constexpr uint32_t kNone = detail::kNoCluster;
-// LN k-means rounds after a merge (the first checks the merged clusters and their
-// neighbours, the others the clusters that changed).
-constexpr int kOptimiseRounds = 8;
-
-// Clusters of points with their sums, centroids and local neighbours. Coordinates are
-// taken relative to the data's mean (`origin`) so that the energy from sums,
-// sum |x|^2 - |sum x|^2 / n, keeps its precision.
-class PointClusters {
- public:
-  PointClusters(const PointSet& points, std::span<const uint32_t> labels, uint32_t capacity)
-      : points_(points),
-        d_(points.dims),
-        labels_(labels.begin(), labels.end()),
-        count_(capacity, 0),
-        sum_(size_t{capacity} * d_, 0.0),
-        square_(capacity, 0.0),
-        centroid_(size_t{capacity} * d_, 0.0),
-        neighbours_(size_t{capacity} * 2 * d_, kNone),
-        origin_(d_, 0.0),
-        seen_(capacity, 0) {
-    const size_t m = points.num_points();
-    for (size_t i = 0; i < m; ++i) {
-      for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
-    }
-    for (double& o : origin_) o /= static_cast<double>(std::max<size_t>(m, 1));
-    for (size_t i = 0; i < m; ++i) Add(labels_[i], i, +1);
-    for (uint32_t c = 0; c < capacity; ++c) UpdateCentroid(c);
-  }
-
-  uint32_t dims() const { return d_; }
-  uint32_t capacity() const { return static_cast<uint32_t>(count_.size()); }
-  uint32_t label(size_t i) const { return labels_[i]; }
-  std::span<const uint32_t> labels() const { return labels_; }
-  uint64_t count(uint32_t c) const { return count_[c]; }
-  std::span<const double> centroid(uint32_t c) const { return {&centroid_[size_t{c} * d_], d_}; }
-  std::span<uint32_t> neighbours(uint32_t c) { return {&neighbours_[size_t{c} * 2 * d_], 2 * d_}; }
-  std::span<const uint32_t> neighbours(uint32_t c) const {
-    return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};
-  }
-
-  // Eq. 6.5 and its merge cost (core/energy/variance_energy.h) from the flat sums.
-  double Energy(uint32_t c) const {
-    return EnergyOfSums(static_cast<double>(count_[c]), {&sum_[size_t{c} * d_], d_}, square_[c]);
-  }
-  double MergeCost(uint32_t a, uint32_t b) const {
-    return WardMergeCost(static_cast<double>(count_[a]), centroid(a),
-                         static_cast<double>(count_[b]), centroid(b));
-  }
-  // |x_i - c|^2 with x_i relative to the origin.
-  double Distance(size_t i, uint32_t c) const {
-    const float* x = &points_.values[i * d_];
-    const double* cc = &centroid_[size_t{c} * d_];
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = (x[j] - origin_[j]) - cc[j];
-      dist += diff * diff;
-    }
-    return dist;
-  }
-  // |x - c|^2 for x already relative to the origin (Relative).
-  double DistanceTo(const double* x, uint32_t c) const {
-    const double* cc = &centroid_[size_t{c} * d_];
-    double dist = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double diff = x[j] - cc[j];
-      dist += diff * diff;
-    }
-    return dist;
-  }
-  // Asks the caches for point i's coordinates and label, which are read in random order.
-  void Prefetch(size_t i) const {
-    __builtin_prefetch(&points_.values[i * d_]);
-    __builtin_prefetch(&labels_[i]);
-  }
-  void Relative(size_t i, std::vector<double>& out) const {
-    out.resize(d_);
-    for (uint32_t j = 0; j < d_; ++j) out[j] = points_.values[i * d_ + j] - origin_[j];
-  }
-
-  void Move(size_t i, uint32_t to) {
-    Add(labels_[i], i, -1);
-    labels_[i] = to;
-    Add(to, i, +1);
-  }
-  // All of `gone`'s sums into `keep` (labels are the caller's, via SetLabel).
-  void MergeSums(uint32_t keep, uint32_t gone) {
-    count_[keep] += count_[gone];
-    square_[keep] += square_[gone];
-    for (uint32_t j = 0; j < d_; ++j) sum_[size_t{keep} * d_ + j] += sum_[size_t{gone} * d_ + j];
-    count_[gone] = 0;
-    square_[gone] = 0;
-    std::fill(&sum_[size_t{gone} * d_], &sum_[size_t{gone} * d_] + d_, 0.0);
-    UpdateCentroid(keep);
-  }
-  void SetLabel(size_t i, uint32_t c) { labels_[i] = c; }
-  void UpdateCentroid(uint32_t c) {
-    const double n = static_cast<double>(count_[c]);
-    for (uint32_t j = 0; j < d_; ++j) {
-      centroid_[size_t{c} * d_ + j] = n > 0 ? sum_[size_t{c} * d_ + j] / n : 0.0;
-    }
-  }
-
-  // Eq. 6.1 neighbours of `c` from `candidates` (its own and the second-order ones, or
-  // any others the caller adds): the nearest candidate centroid in each subspace.
-  void RefreshNeighbours(uint32_t c, std::vector<uint32_t>& candidates) {
-    std::span<uint32_t> out = neighbours(c);
-    for (uint32_t n : out) {
-      if (n == kNone) continue;
-      candidates.push_back(n);
-      for (uint32_t nn : neighbours(n)) {
-        if (nn != kNone) candidates.push_back(nn);
-      }
-    }
-    // Each candidate once (a stamp per cluster instead of sorting: with 2d neighbours
-    // each, there are up to 4d^2 of them, mostly repeats).
-    if (++stamp_now_ == 0) {
-      std::fill(seen_.begin(), seen_.end(), 0);
-      stamp_now_ = 1;
-    }
-    size_t unique = 0;
-    for (uint32_t n : candidates) {
-      if (n == kNone || seen_[n] == stamp_now_) continue;
-      seen_[n] = stamp_now_;
-      candidates[unique++] = n;
-    }
-    candidates.resize(unique);
-    std::fill(out.begin(), out.end(), kNone);
-    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
-    for (uint32_t n : candidates) {
-      if (n == c || n == kNone || count_[n] == 0) continue;
-      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
-      double dist = 0;
-      for (uint32_t j = 0; j < d_; ++j) {
-        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
-        dist += diff * diff;
-      }
-      if (dist < best[s] || (dist == best[s] && n < out[s])) {
-        best[s] = dist;
-        out[s] = n;
-      }
-    }
-    candidates.clear();
-  }
-
-  double TotalEnergy() const {
-    double total = 0;
-    for (uint32_t c = 0; c < capacity(); ++c) total += Energy(c);
-    return total;
-  }
-
- private:
-  void Add(uint32_t c, size_t i, int sign) {
-    const float* x = &points_.values[i * d_];
-    double s2 = 0;
-    for (uint32_t j = 0; j < d_; ++j) {
-      const double v = x[j] - origin_[j];
-      sum_[size_t{c} * d_ + j] += sign * v;
-      s2 += v * v;
-    }
-    square_[c] += sign * s2;
-    count_[c] += sign;
-  }
-
-  const PointSet& points_;
-  const uint32_t d_;
-  std::vector<uint32_t> labels_;
-  std::vector<uint64_t> count_;
-  std::vector<double> sum_;
-  std::vector<double> square_;
-  std::vector<double> centroid_;
-  std::vector<uint32_t> neighbours_;
-  std::vector<double> origin_;
-  std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
-  uint32_t stamp_now_ = 0;
-};
-
-// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
-// (O(k^2 d); voxel starts use VoxelNeighbours instead).
-void InitialNeighbours(PointClusters& clusters) {
-  const uint32_t k = clusters.capacity();
-  const uint32_t d = clusters.dims();
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
-    std::vector<double> best_local(2 * d);
-    for (uint32_t c = range.begin(); c != range.end(); ++c) {
-      std::span<uint32_t> out = clusters.neighbours(c);
-      std::fill(out.begin(), out.end(), kNone);
-      if (clusters.count(c) == 0) continue;
-      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
-      for (uint32_t n = 0; n < k; ++n) {
-        if (n == c || clusters.count(n) == 0) continue;
-        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
-        double dist = 0;
-        for (uint32_t j = 0; j < d; ++j) {
-          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
-          dist += diff * diff;
-        }
-        if (dist < best_local[s]) {
-          best_local[s] = dist;
-          out[s] = n;
-        }
-      }
-    }
-  });
-}
+constexpr uint32_t kNone = kNoCluster;
+}  // namespace
 
 // One LN k-means pass over `points_to_check` (indices): each point's best cluster among
 // its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
@@ -233,7 +32,7 @@ void InitialNeighbours(PointClusters& clusters) {
 // minus the distance to its own centroid (so it stays while its own centroid and the
 // candidates move by less than that in all); -infinity for a point that moves.
 void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
-                   std::span<uint32_t> target, std::span<double> margin = {}) {
+                   std::span<uint32_t> target, std::span<double> margin) {
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
         std::vector<double> x;
@@ -335,6 +134,51 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
   return affected;
 }
 
+}  // namespace detail
+
+namespace {
+
+using detail::ApplyMoves;
+using detail::ChooseTargets;
+using detail::PointClusters;
+using detail::RefreshAround;
+
+constexpr uint32_t kNone = detail::kNoCluster;
+// LN k-means rounds after a merge (the first checks the merged clusters and their
+// neighbours, the others the clusters that changed).
+constexpr int kOptimiseRounds = 8;
+
+// First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
+// (O(k^2 d); voxel starts use VoxelNeighbours instead). Once `cancel` is set the blocks
+// not yet started are skipped (the caller checks it).
+void InitialNeighbours(PointClusters& clusters, const std::atomic<bool>* cancel) {
+  const uint32_t k = clusters.capacity();
+  const uint32_t d = clusters.dims();
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, k, 16), [&](const auto& range) {
+    if (IsCancelled(cancel)) return;
+    std::vector<double> best_local(2 * d);
+    for (uint32_t c = range.begin(); c != range.end(); ++c) {
+      std::span<uint32_t> out = clusters.neighbours(c);
+      std::fill(out.begin(), out.end(), kNone);
+      if (clusters.count(c) == 0) continue;
+      std::fill(best_local.begin(), best_local.end(), std::numeric_limits<double>::infinity());
+      for (uint32_t n = 0; n < k; ++n) {
+        if (n == c || clusters.count(n) == 0) continue;
+        const uint32_t s = SubspaceIndex(clusters.centroid(c), clusters.centroid(n));
+        double dist = 0;
+        for (uint32_t j = 0; j < d; ++j) {
+          const double diff = clusters.centroid(c)[j] - clusters.centroid(n)[j];
+          dist += diff * diff;
+        }
+        if (dist < best_local[s]) {
+          best_local[s] = dist;
+          out[s] = n;
+        }
+      }
+    }
+  });
+}
+
 // Occupied voxel cells: per point its cell's cluster, per cluster its cell coordinates.
 struct VoxelCells {
   std::vector<uint32_t> labels;
@@ -359,8 +203,10 @@ Bounds BoundsOf(const PointSet& points) {
 }
 
 // The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j.
+// Once `cancel` is set it stops early with no cells (the caller checks it).
 VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
-                         std::span<const uint32_t> cells_per_axis) {
+                         std::span<const uint32_t> cells_per_axis,
+                         const std::atomic<bool>* cancel) {
   const uint32_t d = points.dims;
   const size_t m = points.num_points();
   absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
@@ -368,6 +214,7 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
   cells.labels.resize(m);
   std::vector<uint32_t> cell(d);
   for (size_t i = 0; i < m; ++i) {
+    if (i % 65536 == 0 && IsCancelled(cancel)) return VoxelCells();
     for (uint32_t j = 0; j < d; ++j) {
       const uint32_t a = cells_per_axis[j];
       const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
@@ -387,7 +234,9 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
 // dimensions, where a few cells per axis would already make far more cells than points (or,
 // at a = 2 or 3, cells too coarse to be a start), the widest cells are halved, a few axes at
 // a time, until about m / 8 cells are occupied (each pass counts them in one sweep).
-std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid) {
+// Once `cancel` is set it stops early (the caller checks it).
+std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid,
+                                 const std::atomic<bool>* cancel) {
   const uint32_t d = points.dims;
   const size_t m = points.num_points();
   if (grid != 0) return std::vector<uint32_t>(d, grid);
@@ -398,8 +247,9 @@ std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, u
   }
   std::vector<uint32_t> counts(d, 1);
   for (int pass = 0; pass < 64; ++pass) {
-    const double occupied = static_cast<double>(OccupiedCells(points, bounds, counts).cell.size());
-    if (occupied >= target) break;
+    const double occupied =
+        static_cast<double>(OccupiedCells(points, bounds, counts, cancel).cell.size());
+    if (IsCancelled(cancel) || occupied >= target) break;
     // Halve the widest cells on enough axes to multiply the cells by target / occupied.
     const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / occupied))));
     bool any = false;
@@ -423,8 +273,10 @@ std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, u
 }
 
 // First neighbours of a voxel start: the face-sharing occupied cells, then the refresh
-// picks the nearest per subspace from them and their neighbours.
-void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
+// picks the nearest per subspace from them and their neighbours. Once `cancel` is set it
+// stops early (the caller checks it).
+void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters,
+                     const std::atomic<bool>* cancel) {
   const uint32_t k = static_cast<uint32_t>(cells.cell.size());
   const uint32_t d = clusters.dims();
   absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
@@ -447,13 +299,21 @@ void VoxelNeighbours(const VoxelCells& cells, PointClusters& clusters) {
     }
   }
   std::vector<uint32_t> candidates;
-  for (uint32_t c = 0; c < k; ++c) clusters.RefreshNeighbours(c, candidates);
+  for (uint32_t c = 0; c < k; ++c) {
+    if (c % 4096 == 0 && IsCancelled(cancel)) return;
+    clusters.RefreshNeighbours(c, candidates);
+  }
+}
+
+absl::Status CheckLnKmeansCancelled(const std::atomic<bool>* cancel, uint32_t iteration) {
+  if (!IsCancelled(cancel)) return absl::OkStatus();
+  return CheckCancelled(cancel, absl::StrCat("LN k-means iteration ", iteration));
 }
 
 // Alg. 6.1's iterations on clusters whose neighbours are set; fills result's energies,
-// iterations, moves and converged (not labels).
-void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
-                        LnKmeansResult& result) {
+// iterations, moves and converged (not labels). CANCELLED once options.cancel is set.
+absl::Status LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
+                                LnKmeansResult& result) {
   const size_t m = clusters.labels().size();
   const uint32_t k = clusters.capacity();
   result.initial_energy = clusters.TotalEnergy();
@@ -464,8 +324,10 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
   std::iota(check.begin(), check.end(), 0);
   std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     target.resize(check.size());
     ChooseTargets(clusters, check, target);
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     uint64_t moved = 0;
     const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
     result.iterations = iteration;
@@ -476,6 +338,7 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
       break;
     }
     const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     std::fill(dirty.begin(), dirty.end(), 0);
     for (uint32_t c : changed) dirty[c] = 1;
     for (uint32_t c : refreshed) dirty[c] = 1;
@@ -496,16 +359,18 @@ void LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
     }
   }
   result.energy = clusters.TotalEnergy();
+  return absl::OkStatus();
 }
 
 // The multilevel engine for points: the mesh engine's structure with local neighbours in
 // place of face adjacency and LN k-means in place of EMLO.
 class PointEngine {
  public:
+  // `cells`: the voxel start (OccupiedCells), complete. The set-up stops early once
+  // options.cancel is set; Run then returns CANCELLED.
   PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
-              const Bounds& bounds, std::span<const uint32_t> cells_per_axis)
+              const VoxelCells& cells)
       : points_(points), options_(options), sink_(sink), d_(points.dims) {
-    VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis);
     k0_ = static_cast<uint32_t>(cells.cell.size());
     // The engine works on a copy of the points ordered by starting cell, so that a
     // cluster's points lie together in memory (clusters grow by merging, so they stay in a
@@ -533,14 +398,14 @@ class PointEngine {
       position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
       members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
     }
-    VoxelNeighbours(cells, *clusters_);
+    VoxelNeighbours(cells, *clusters_, options.cancel);
     reverse_.resize(k0_);
     for (uint32_t c = 0; c < k0_; ++c) {
       for (uint32_t n : clusters_->neighbours(c)) {
         if (n != kNone) reverse_[n].push_back(c);
       }
     }
-    for (uint32_t c = 0; c < k0_; ++c) {
+    for (uint32_t c = 0; c < k0_ && !IsCancelled(options.cancel); ++c) {
       std::span<const uint32_t> out = clusters_->neighbours(c);
       if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
         LinkIsolated(c);
@@ -558,6 +423,7 @@ class PointEngine {
   }
 
   absl::StatusOr<PointMultilevelSummary> Run() {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the voxel start"));
     PointMultilevelSummary summary;
     summary.start_clusters = k0_;
     std::vector<ClusterId> start(points_.num_points());
@@ -569,6 +435,7 @@ class PointEngine {
     levels_ = 1;
     for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
     while (alive_ > options_.min_clusters) {
+      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
       bool merged;
       if (options_.parallel && alive_ > options_.pml_until) {
         merged = ParallelStep();
@@ -583,6 +450,7 @@ class PointEngine {
       }
       MLCLUST_RETURN_IF_ERROR(FinishLevel());
     }
+    MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());  // ConnectSurvivors may have stopped
     summary.levels = levels_;
     summary.final_clusters = alive_;
     summary.moves = recorder_.moves();
@@ -729,7 +597,8 @@ class PointEngine {
     std::vector<double> old_centroids;
     // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
     std::vector<std::pair<uint32_t, uint32_t>> compare_with;
-    for (int round = 0; round < kOptimiseRounds && !region.empty(); ++round) {
+    for (int round = 0; round < kOptimiseRounds && !region.empty() && !IsCancelled(options_.cancel);
+         ++round) {
       points_to_check_.clear();
       for (uint32_t c : region) {
         if (round == 0) {
@@ -931,6 +800,11 @@ class PointEngine {
     return absl::OkStatus();
   }
 
+  absl::Status CheckLevelCancelled() const {
+    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
+    return CheckCancelled(options_.cancel, absl::StrCat("level ", levels_));
+  }
+
   // The labels of the level, in the caller's point order, to options_.inspect_level.
   void Inspect(size_t level) {
     if (!options_.inspect_level) return;
@@ -969,15 +843,8 @@ class PointEngine {
       return odes_.cost(x.first) != odes_.cost(y.first) ? odes_.cost(x.first) < odes_.cost(y.first)
                                                         : x < y;
     });
-    if (options_.pml_pairs == PointMultilevelOptions::PmlPairs::kCheaperHalf) {
-      // Only the mutual pairs that cost at most the median: near the data's own scale the
-      // mutual pairs mix pieces of one cluster (cheap) with whole clusters (dear), and
-      // collapsing them all in one level merges whole clusters while pieces remain.
-      const double limit = odes_.cost(pairs[pairs.size() / 2].first);
-      size_t keep = 1;
-      while (keep < pairs.size() && odes_.cost(pairs[keep].first) <= limit) ++keep;
-      pairs.resize(keep);
-    }
+    detail::SelectPmlPairs(
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs);
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
     for (const auto& [a, b] : pairs) Merge(a, b);
@@ -994,6 +861,7 @@ class PointEngine {
     }
     if (survivors.size() <= 1 || survivors.size() > 20000) return false;
     for (uint32_t c : survivors) {
+      if (IsCancelled(options_.cancel)) return false;
       std::vector<uint32_t> candidates = survivors;
       Refresh(c, candidates);
     }
@@ -1045,14 +913,17 @@ uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to)
   return 2 * axis + (to[axis] > from[axis] ? 0 : 1);
 }
 
-absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid) {
+absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid,
+                                          const std::atomic<bool>* cancel) {
   MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
   if (grid > (1u << 20)) {
     return absl::InvalidArgumentError(absl::StrCat("grid: ", grid, " is over 2^20"));
   }
   // The engine's own start (OccupiedCells), without the cell coordinates.
   const Bounds bounds = BoundsOf(points);
-  VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+  VoxelCells cells =
+      OccupiedCells(points, bounds, StartCells(points, bounds, grid, cancel), cancel);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "the voxel start"));
   VoxelStart start;
   start.clusters = static_cast<uint32_t>(cells.cell.size());
   start.labels.resize(cells.labels.size());
@@ -1081,13 +952,15 @@ absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<C
   const uint32_t k = static_cast<uint32_t>(original.size());
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   LnKmeansResult result;
-  arena.execute([&] {
+  MLCLUST_RETURN_IF_ERROR(arena.execute([&]() -> absl::Status {
     PointClusters clusters(points, compact, k);
-    InitialNeighbours(clusters);
-    LnKmeansIterations(clusters, options, result);
+    InitialNeighbours(clusters, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "LN k-means neighbours"));
+    MLCLUST_RETURN_IF_ERROR(LnKmeansIterations(clusters, options, result));
     result.labels.resize(m);
     for (size_t i = 0; i < m; ++i) result.labels[i] = original[clusters.label(i)];
-  });
+    return absl::OkStatus();
+  }));
   return result;
 }
 
@@ -1099,18 +972,22 @@ absl::StatusOr<LnKmeansResult> RunLnKmeansFromGrid(const PointSet& points, uint3
   }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   LnKmeansResult result;
-  arena.execute([&] {
+  MLCLUST_RETURN_IF_ERROR(arena.execute([&]() -> absl::Status {
     const Bounds bounds = BoundsOf(points);
-    const VoxelCells cells = OccupiedCells(points, bounds, StartCells(points, bounds, grid));
+    const VoxelCells cells = OccupiedCells(
+        points, bounds, StartCells(points, bounds, grid, options.cancel), options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
     const uint32_t k = static_cast<uint32_t>(cells.cell.size());
     PointClusters clusters(points, cells.labels, k);
-    VoxelNeighbours(cells, clusters);
-    LnKmeansIterations(clusters, options, result);
+    VoxelNeighbours(cells, clusters, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
+    MLCLUST_RETURN_IF_ERROR(LnKmeansIterations(clusters, options, result));
     result.labels.resize(points.num_points());
     for (size_t i = 0; i < result.labels.size(); ++i) {
       result.labels[i] = ClusterId(clusters.label(i));
     }
-  });
+    return absl::OkStatus();
+  }));
   return result;
 }
 
@@ -1178,8 +1055,11 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
     const Bounds bounds = BoundsOf(points);
-    const std::vector<uint32_t> cells_per_axis = StartCells(points, bounds, options.grid);
-    PointEngine engine(points, options, sink, bounds, cells_per_axis);
+    const std::vector<uint32_t> cells_per_axis =
+        StartCells(points, bounds, options.grid, options.cancel);
+    const VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis, options.cancel);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
+    PointEngine engine(points, options, sink, cells);
     absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
     if (summary.ok()) {
       summary->grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());

@@ -12,6 +12,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_POINT_CLUSTERING_H_
 #define MLCLUST_CORE_CLUSTER_POINT_CLUSTERING_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <span>
@@ -19,6 +20,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/base/ids.h"
+#include "core/cluster/detail/pml_pairs.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/points/points.h"
 
@@ -33,18 +35,23 @@ uint32_t SubspaceIndex(std::span<const double> from, std::span<const double> to)
 // dimension (0: chosen as PointMultilevelOptions::grid says); each occupied cell is a
 // cluster (only occupied cells exist: a hash of cells, so a^d never matters);
 // face-sharing occupied cells are the first local neighbours. Labels numbered 0..k-1 in
-// order of first occupied point. INVALID_ARGUMENT for a grid over 2^20.
+// order of first occupied point. INVALID_ARGUMENT for a grid over 2^20; CANCELLED once
+// `cancel` is set (checked every 65,536 points).
 struct VoxelStart {
   std::vector<ClusterId> labels;
   uint32_t clusters = 0;
 };
-absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid);
+absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid,
+                                          const std::atomic<bool>* cancel = nullptr);
 
 struct LnKmeansOptions {
   uint32_t max_iterations = 300;
   int threads = 0;  // 0: all cores
   // Called after each iteration with the number of points that moved and the energy.
   std::function<void(uint32_t iteration, uint64_t moved, double energy)> on_iteration;
+  // Set from any thread to stop: checked during the start (every 65,536 points or 16
+  // clusters) and after each stage of an iteration; the call then returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct LnKmeansResult {
@@ -85,14 +92,15 @@ struct PointMultilevelOptions {
   Optimizer optimizer = Optimizer::kLnKmeans;
   bool parallel = false;   // PML: mutual optimal dual edges collapsed together per level
   uint32_t pml_until = 0;  // then ML below this many clusters
-  // Which mutual pairs a PML level collapses. kAll: every one (Alg. 5.3). kCheaperHalf
-  // (default): those that cost at most the median mutual pair of the level; near the
-  // data's own scale the mutual pairs mix pieces of one cluster with whole clusters, and
-  // collapsing all of them merges whole clusters while pieces remain (on 100 blobs of
-  // 1,000 points: 1.5x ML's energy at 86 clusters with kAll, within 7% of ML at every
-  // level with kCheaperHalf, in about half ML's time).
-  enum class PmlPairs { kCheaperHalf, kAll };
-  PmlPairs pml_pairs = PmlPairs::kCheaperHalf;
+  // Which mutual pairs a PML level collapses (PmlPairRule, core/cluster/detail/pml_pairs.h).
+  // kAll: every one (Alg. 5.3). kCheaperHalf (default): those that cost at most the
+  // median mutual pair of the level; near the data's own scale the mutual pairs mix
+  // pieces of one cluster with whole clusters, and collapsing all of them merges whole
+  // clusters while pieces remain (on 100 blobs of 1,000 points: 1.5x ML's energy at 86
+  // clusters with kAll, within 7% of ML at every level with kCheaperHalf, in about half
+  // ML's time).
+  using PmlPairs = PmlPairRule;
+  PmlPairRule pml_pairs = PmlPairRule::kCheaperHalf;
   uint32_t min_clusters = 1;
   // Voxels per dimension of the start. 0: aiming at eight points per cell: (m / 8)^(1/d)
   // per dimension where that is at least 4; in higher dimensions the widest cells are
@@ -101,6 +109,9 @@ struct PointMultilevelOptions {
   uint32_t grid = 0;
   int threads = 0;
   std::function<void(size_t level, std::span<const uint32_t> labels)> inspect_level;
+  // Set from any thread to stop: checked during the start (every 65,536 points), after
+  // every level and between LN k-means rounds; the run then returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct PointMultilevelSummary {
@@ -113,7 +124,8 @@ struct PointMultilevelSummary {
 
 // ML / PML / HC for points from the voxel-grid start; every level to `sink` (level 0: the
 // voxel clusters). ODEs come from the local neighbours (section 6.3); LN k-means is the
-// optimiser, run around the merged clusters.
+// optimiser, run around the merged clusters. INVALID_ARGUMENT for out-of-range options;
+// CANCELLED once `options.cancel` is set; the sink's status if it stops the run.
 absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
                                                           const PointMultilevelOptions& options,
                                                           LevelSink& sink);

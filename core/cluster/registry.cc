@@ -90,8 +90,8 @@ OptionInfo MeshOptimizerOption() {
 
 OptionInfo PPercentOption() {
   return Number("p-percent", 0, 100, "0",
-                "merge this % of the clusters first without optimising, then ML (the p% "
-                "variant of section 4.5; 0 = plain ML)",
+                "merge this % of the clusters first without optimising (ours: as HC; Alg. "
+                "4.2's one sequential sweep is not implemented), then ML (0 = plain ML)",
                 [](const OptionValue& v, JobPlan& plan) { plan.multilevel.p_percent = v.number; });
 }
 
@@ -216,6 +216,7 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   } else {
     Report(context, plan, "cluster", absl::StrCat("boundary-based", EnergyNote(plan)));
     BoundaryBasedOptions options = plan.boundary_based;
+    options.cancel = context.cancel;
     options.on_iteration = [&](uint32_t iteration, double energy) {
       Report(context, plan, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
     };
@@ -382,10 +383,18 @@ std::vector<OptionInfo> BuildEnergyOptions() {
   };
 }
 
+const std::vector<EnergyInfo>& EnergyTable() {
+  static const auto* table = new std::vector<EnergyInfo>(BuildEnergies());
+  return *table;
+}
+
 std::vector<AlgorithmInfo> BuildAlgorithms() {
-  const std::vector<std::string> mesh_energies = {
-      "cvd",       "cvd-adaptive", "mwcvd-area", "mwcvd-variance",
-      "mwcvd-max", "planar",       "sphere",     "sphere-normals"};
+  // The merge and local-optimisation drivers run every mesh energy (they need only an
+  // energy's sums, merge cost, proxy and face cost), CVD first as the default.
+  std::vector<std::string> mesh_energies;
+  for (const EnergyInfo& energy : EnergyTable()) {
+    if (energy.input == InputKind::kMesh) mesh_energies.push_back(energy.name);
+  }
   const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
   const StageInfo seed_stage{"seed", "k initial clusters"};
   std::vector<AlgorithmInfo> algorithms;
@@ -501,7 +510,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
 
   // Points.
   const std::vector<std::string> point_energies = {"variance"};
-  auto point_threads = ThreadsOption("worker", SetPointThreads);
+  auto point_threads = ThreadsOption("the", SetPointThreads);
   {
     AlgorithmInfo a;
     a.name = "hc";
@@ -602,11 +611,6 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     algorithms.push_back(a);
   }
   return algorithms;
-}
-
-const std::vector<EnergyInfo>& EnergyTable() {
-  static const auto* table = new std::vector<EnergyInfo>(BuildEnergies());
-  return *table;
 }
 
 const std::vector<OptionInfo>& EnergyOptionTable() {
@@ -881,6 +885,11 @@ absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan) {
         {stage.name, stage.has_gpu && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
   }
   return absl::OkStatus();
+}
+
+bool UsesGpu(const JobPlan& plan) {
+  return std::any_of(plan.stages.begin(), plan.stages.end(),
+                     [](const StagePlan& stage) { return stage.device == StageDevice::kGpu; });
 }
 
 std::string StageDeviceName(const StagePlan& stage, const DeviceCaps& caps) {

@@ -235,6 +235,10 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request);
 // kGpu: FAILED_PRECONDITION where there is no GPU or no stage has a GPU implementation.
 absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan);
 
+// Whether any stage of the plan runs on the GPU (the job then needs the worker that owns
+// the GL context).
+bool UsesGpu(const JobPlan& plan);
+
 // "cpu", or the renderer for a GPU stage.
 std::string StageDeviceName(const StagePlan& stage, const DeviceCaps& caps);
 

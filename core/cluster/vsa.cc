@@ -6,13 +6,17 @@
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/random.h"
+#include "core/base/status_macros.h"
 
 namespace mlclust {
 namespace {
 
 constexpr uint32_t kNone = 0xffffffffu;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// The flood looks at the cancel flag once per this many heap entries (about a millisecond).
+constexpr uint32_t kFacesPerCancelCheck = 16384;
 
 // Per face, what the L2,1 cost needs, packed into one 32-byte record: the unit normal n_j
 // (zero for a face of zero area) and the area A_j.
@@ -107,6 +111,11 @@ class Vsa {
     heap_.reserve(1024);
   }
 
+  // The flag Flood looks at every kFacesPerCancelCheck faces; once seen set, cancelled()
+  // is true, the flood stops where it is (labels incomplete) and nothing is fitted.
+  void SetCancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
+  bool cancelled() const { return cancelled_; }
+
   uint32_t num_faces() const { return num_faces_; }
   uint32_t num_regions() const { return static_cast<uint32_t>(proxies_.size()); }
   const std::vector<uint32_t>& labels() const { return labels_; }
@@ -191,7 +200,7 @@ class Vsa {
       return 0;
     }
     for (uint32_t i = 0; i < count; ++i) {
-      if (Iterate() == 0) return i + 1;
+      if (Iterate() == 0) return i + 1;  // a fixed point, or cancelled
     }
     return count;
   }
@@ -201,6 +210,7 @@ class Vsa {
   // and every later partition stay the same.
   uint32_t Iterate() {
     Flood();
+    if (cancelled_) return 0;
     const uint32_t changed = CountChanged();
     if (changed > 0 || !fitted_) Fit();
     return changed;
@@ -292,6 +302,10 @@ class Vsa {
   // next if its face is still free, and the face's free neighbours are claimed for the
   // same region against that region's proxy.
   void Flood() {
+    if (IsCancelled(cancel_)) {
+      cancelled_ = true;
+      return;
+    }
     labels_.swap(previous_labels_);
     std::fill(labels_.begin(), labels_.end(), kNone);
     std::fill(best_cost_.begin(), best_cost_.end(), kInfinity);
@@ -301,7 +315,15 @@ class Vsa {
     for (uint32_t region = 0; region < k; ++region) {
       ClaimNeighbours(seeds_[region], region, /*replace_top=*/false);
     }
+    uint32_t until_cancel_check = kFacesPerCancelCheck;
     while (!heap_.empty()) {
+      if (--until_cancel_check == 0) {
+        until_cancel_check = kFacesPerCancelCheck;
+        if (IsCancelled(cancel_)) {
+          cancelled_ = true;
+          return;
+        }
+      }
       const Claim claim = heap_.Top();
       if (labels_[claim.face] != kNone) {
         heap_.Pop();
@@ -369,6 +391,8 @@ class Vsa {
   std::vector<uint32_t> sizes_;
   std::vector<Vec3> normal_sums_;
   std::vector<double> smallest_cost_;
+  const std::atomic<bool>* cancel_ = nullptr;
+  bool cancelled_ = false;
   double energy_ = 0;
   bool fitted_ = false;  // proxies, errors, seeds and energy_ are those of labels_
 };
@@ -497,7 +521,7 @@ void SeedRandom(Vsa& vsa, uint32_t k, uint32_t inner, Random& random, uint32_t& 
 }
 
 void SeedIncremental(Vsa& vsa, uint32_t k, uint32_t inner, uint32_t& relaxations) {
-  while (vsa.num_regions() < k) {
+  while (vsa.num_regions() < k && !vsa.cancelled()) {
     // The region with the largest error that has a face besides its seed (one exists while
     // there are fewer regions than faces), and its costliest non-seed face.
     uint32_t worst = kNone;
@@ -517,7 +541,7 @@ void SeedIncremental(Vsa& vsa, uint32_t k, uint32_t inner, uint32_t& relaxations
 }
 
 void SeedHierarchical(Vsa& vsa, uint32_t k, uint32_t inner, uint32_t& relaxations) {
-  while (vsa.num_regions() < k) {
+  while (vsa.num_regions() < k && !vsa.cancelled()) {
     const uint32_t target = std::min(k, 2 * vsa.num_regions());
     const std::vector<uint32_t> share = DiffuseSeeds(vsa, target - vsa.num_regions());
     for (uint32_t face : PlaceSeeds(vsa, share)) vsa.AddRegionAt(face);
@@ -548,13 +572,8 @@ const char* VsaSeedingName(VsaOptions::Seeding seeding) {
 }
 
 absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& options) {
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
-  }
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t num_faces = problem.mesh->num_faces();
-  if (problem.adjacency->num_faces() != num_faces || problem.measures->num_faces() != num_faces) {
-    return absl::InvalidArgumentError("adjacency or measures do not match the mesh");
-  }
   if (problem.energy.kind != MeshEnergyKind::kPlanar) {
     return absl::InvalidArgumentError(
         absl::StrCat("energy: VSA is defined for the planar (L2,1) energy only, not '",
@@ -569,7 +588,10 @@ absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& o
     return absl::InvalidArgumentError("min_relative_decrease must be >= 0");
   }
 
+  auto cancelled = [] { return absl::CancelledError("cancelled during VSA"); };
+  if (IsCancelled(options.cancel)) return cancelled();
   Vsa vsa(*problem.adjacency, *problem.measures);
+  vsa.SetCancel(options.cancel);
   vsa.Reserve(k);
   const uint32_t components = vsa.StartFromComponents();
   if (k < components) {
@@ -600,6 +622,7 @@ absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& o
     vsa.Iterate();
     ++result.seeding_iterations;
   }
+  if (vsa.cancelled() || IsCancelled(options.cancel)) return cancelled();
 
   // Lloyd iterations, keeping the best partition seen: flooding is greedy, so an iteration
   // may end slightly above the one before.
@@ -614,6 +637,7 @@ absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& o
   double teleported_from = kInfinity;
   for (uint32_t iteration = 1; iteration <= options.iterations; ++iteration) {
     const uint32_t changed = vsa.Iterate();
+    if (vsa.cancelled()) return cancelled();
     result.iterations = iteration;
     const double energy = vsa.energy();
     if (options.on_iteration) options.on_iteration(iteration, energy);

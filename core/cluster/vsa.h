@@ -15,6 +15,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_VSA_H_
 #define MLCLUST_CORE_CLUSTER_VSA_H_
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -79,6 +80,8 @@ struct VsaOptions {
   // the energy of that iteration's partition. Flooding is greedy, so this energy may rise
   // slightly from one iteration to the next; the result is the best partition seen.
   std::function<void(uint32_t iteration, double energy)> on_iteration;
+  // Checked within every flood, every few thousand faces (core/base/cancel.h).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct VsaResult {
@@ -109,7 +112,7 @@ struct VsaResult {
 // the partition of the lowest energy among the seeding's and the Lloyd iterations'.
 // INVALID_ARGUMENT, naming the option, when problem.energy is not the planar energy ('energy'), or
 // when k = 0, k > faces or k < the number of connected components
-// ('clusters'); or when the problem lacks the mesh, adjacency or measures.
+// ('clusters'); or ValidateMeshProblem's error. CANCELLED if options.cancel was set.
 absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& options);
 
 // "random", "incremental", "hierarchical".

@@ -12,6 +12,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/base/vec3.h"
 #include "core/mesh/face_measures.h"
@@ -54,7 +55,7 @@ absl::Status CheckInputs(const TriangleMesh& mesh, const FaceAdjacency& adjacenc
                                                    " faces; the mesh has ", num_faces));
   }
   if (num_faces == 0) return absl::InvalidArgumentError("empty mesh: it has no faces");
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   for (size_t face = 0; face < num_faces; ++face) {
     if (!labels[face].valid()) {
       return absl::InvalidArgumentError(
@@ -1252,7 +1253,7 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
                                                  const FaceAdjacency& adjacency,
                                                  std::span<const ClusterId> labels,
                                                  const CoarseningOptions& options) {
-  if (absl::Status inputs = CheckInputs(mesh, adjacency, labels); !inputs.ok()) return inputs;
+  MLCLUST_RETURN_IF_ERROR(CheckInputs(mesh, adjacency, labels));
   if (!(options.quadric_relative_eigenvalue >= 0 && options.quadric_relative_eigenvalue < 1)) {
     return absl::InvalidArgumentError(absl::StrCat("quadric_relative_eigenvalue is ",
                                                    options.quadric_relative_eigenvalue,
@@ -1276,8 +1277,11 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
       }
     }
   }
+  auto check_cancel = [&] { return CheckCancelled(options.cancel, "coarsening"); };
+  MLCLUST_RETURN_IF_ERROR(check_cancel());
   const DenseClusters dense = Densify(labels);
   const uint32_t k = dense.size();
+  MLCLUST_RETURN_IF_ERROR(check_cancel());
   absl::StatusOr<BoundaryLoops> loops = FindBoundaryLoops(mesh, adjacency);
   if (!loops.ok()) return loops.status();
 
@@ -1288,8 +1292,10 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   VertexFaces vertex_faces;
   absl::flat_hash_set<uint32_t> repaired;
   for (int round = 0;; ++round) {
+    MLCLUST_RETURN_IF_ERROR(check_cancel());
     fans = BuildVertexFans(mesh, adjacency, *loops, cluster_of_face, k);
     if (!fans.ok()) return fans.status();
+    MLCLUST_RETURN_IF_ERROR(check_cancel());
     const std::vector<ClusterProblem> problems =
         FindClusterProblems(mesh, adjacency, *loops, cluster_of_face, *fans, dense);
     if (problems.empty()) break;
@@ -1334,9 +1340,11 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   std::vector<std::array<uint32_t, 3>> triangles;
   auto loop_length = [&](uint32_t loop) { return loops->offset[loop + 1] - loops->offset[loop]; };
   for (uint32_t attempt = 0;; ++attempt) {
+    MLCLUST_RETURN_IF_ERROR(check_cancel());
     absl::StatusOr<CoarseTriangulation> dual =
         BuildCappedDual(mesh, *fans, positions, k, loops->size());
     if (!dual.ok()) return dual.status();
+    MLCLUST_RETURN_IF_ERROR(check_cancel());
     Flipper flipper(*dual);
     const std::vector<uint64_t> doubled = RemoveDoubledEdges(flipper, *dual);
     std::vector<uint32_t> fill;  // boundary loops to try closing over, smallest first

@@ -23,6 +23,7 @@
 #ifndef MLCLUST_CORE_COARSENING_COARSENING_H_
 #define MLCLUST_CORE_COARSENING_COARSENING_H_
 
+#include <atomic>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -70,6 +71,10 @@ struct CoarseningOptions {
   // cluster is a FAILED_PRECONDITION error.
   bool repair_clusters = true;
   int max_repair_rounds = 8;
+
+  // Checked between the steps (and repair rounds) of the coarsening (core/base/cancel.h);
+  // a set flag returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct CoarseMesh {

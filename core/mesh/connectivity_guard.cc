@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 
+#include "core/base/cancel.h"
+
 namespace mlclust {
 namespace {
 
@@ -57,11 +59,27 @@ void CornerWalk(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32
 }  // namespace
 
 ConnectivityGuard::ConnectivityGuard(const TriangleMesh& mesh, const FaceAdjacency& adjacency) {
+  BuildRings(mesh, adjacency, nullptr);
+}
+
+absl::StatusOr<ConnectivityGuard> ConnectivityGuard::Build(const TriangleMesh& mesh,
+                                                           const FaceAdjacency& adjacency,
+                                                           const std::atomic<bool>* cancel) {
+  ConnectivityGuard guard;
+  if (!guard.BuildRings(mesh, adjacency, cancel)) {
+    return absl::CancelledError("cancelled while building the connectivity guard");
+  }
+  return guard;
+}
+
+bool ConnectivityGuard::BuildRings(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
+                                   const std::atomic<bool>* cancel) {
   const size_t n = adjacency.num_faces();
   ring_offset_.assign(n + 1, 0);
   ring_faces_.reserve(13 * n);
   std::vector<uint32_t> ring;
   for (uint32_t face = 0; face < n; ++face) {
+    if (face % 16384 == 0 && IsCancelled(cancel)) return false;
     ring.clear();
     // Corner walks go n_i .. n_{i+2}; chaining corners 0, 2, 1 closes the cycle
     // n_0 .. n_2 .. n_1 .. n_0. Each walk's last face starts the next walk, and gaps of
@@ -72,6 +90,7 @@ ConnectivityGuard::ConnectivityGuard(const TriangleMesh& mesh, const FaceAdjacen
     ring_faces_.insert(ring_faces_.end(), ring.begin(), ring.end());
     ring_offset_[face + 1] = ring_faces_.size();
   }
+  return true;
 }
 
 bool ConnectivityGuard::CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,

@@ -6,6 +6,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/base/cancel.h"
+#include "core/base/status_macros.h"
 
 namespace mlclust {
 namespace {
@@ -60,12 +62,23 @@ absl::Status CheckVertexManifold(const TriangleMesh& mesh, const VertexFaces& ta
                    absl::StrJoin(other, ", "), ")"));
 }
 
+// Loops over faces or vertices look at the cancel flag once per this many elements.
+constexpr uint32_t kElementsPerCancelCheck = 65536;
+
+absl::Status CheckCancelledAt(const std::atomic<bool>* cancel, size_t element,
+                              absl::string_view where) {
+  if (element % kElementsPerCancelCheck != 0) return absl::OkStatus();
+  return CheckCancelled(cancel, where);
+}
+
 absl::StatusOr<FaceAdjacency> BuildFaceAdjacencyFrom(const TriangleMesh& mesh,
-                                                     const VertexFaces& table) {
+                                                     const VertexFaces& table,
+                                                     const std::atomic<bool>* cancel) {
   FaceAdjacency adjacency;
   const size_t num_faces = mesh.num_faces();
   adjacency.neighbours.assign(num_faces, {FaceId::Invalid(), FaceId::Invalid(), FaceId::Invalid()});
   for (uint32_t face = 0; face < num_faces; ++face) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelledAt(cancel, face, "face adjacency"));
     for (int edge = 0; edge < 3; ++edge) {
       const uint32_t a = mesh.indices[3 * size_t{face} + edge];
       const uint32_t b = mesh.indices[3 * size_t{face} + (edge + 1) % 3];
@@ -105,8 +118,10 @@ VertexFaceTable BuildVertexFaceTable(const TriangleMesh& mesh) {
   return table;
 }
 
-absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh) {
-  return BuildFaceAdjacencyFrom(mesh, BuildVertexFaces(mesh));
+absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh,
+                                                 const std::atomic<bool>* cancel) {
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "face adjacency"));
+  return BuildFaceAdjacencyFrom(mesh, BuildVertexFaces(mesh), cancel);
 }
 
 absl::Status CheckVertexIndices(const TriangleMesh& mesh) {
@@ -121,7 +136,8 @@ absl::Status CheckVertexIndices(const TriangleMesh& mesh) {
   return absl::OkStatus();
 }
 
-absl::Status ValidateMesh(const TriangleMesh& mesh) {
+absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(const TriangleMesh& mesh,
+                                                            const std::atomic<bool>* cancel) {
   if (mesh.positions.size() % 3 != 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("positions hold ", mesh.positions.size(), " floats, not a multiple of 3"));
@@ -137,14 +153,17 @@ absl::Status ValidateMesh(const TriangleMesh& mesh) {
                      " vertices; at most ", kMaxMeshElements, " of each"));
   }
   const size_t num_vertices = mesh.num_vertices();
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "mesh validation"));
+  MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   for (size_t face = 0; face < mesh.num_faces(); ++face) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelledAt(cancel, face, "mesh validation"));
     const uint32_t* f = &mesh.indices[3 * face];
     if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
       return absl::InvalidArgumentError(absl::StrCat("degenerate face ", face, ": vertices (", f[0],
                                                      ", ", f[1], ", ", f[2], ") repeat an index"));
     }
   }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "mesh validation"));
   for (size_t v = 0; v < num_vertices; ++v) {
     const float* p = &mesh.positions[3 * v];
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
@@ -152,15 +171,19 @@ absl::Status ValidateMesh(const TriangleMesh& mesh) {
                                                      p[0], ", ", p[1], ", ", p[2], ")"));
     }
   }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "mesh validation"));
   const VertexFaces table = BuildVertexFaces(mesh);
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacencyFrom(mesh, table);
-  if (!adjacency.ok()) return adjacency.status();
+  MLCLUST_ASSIGN_OR_RETURN(FaceAdjacency adjacency, BuildFaceAdjacencyFrom(mesh, table, cancel));
   std::vector<uint32_t> scratch;
   for (uint32_t v = 0; v < num_vertices; ++v) {
-    absl::Status status = CheckVertexManifold(mesh, table, *adjacency, v, scratch);
-    if (!status.ok()) return status;
+    MLCLUST_RETURN_IF_ERROR(CheckCancelledAt(cancel, v, "mesh validation"));
+    MLCLUST_RETURN_IF_ERROR(CheckVertexManifold(mesh, table, adjacency, v, scratch));
   }
-  return absl::OkStatus();
+  return adjacency;
+}
+
+absl::Status ValidateMesh(const TriangleMesh& mesh, const std::atomic<bool>* cancel) {
+  return ValidateMeshAndBuildAdjacency(mesh, cancel).status();
 }
 
 size_t CountFaceComponents(const FaceAdjacency& adjacency) {

@@ -7,6 +7,7 @@
 #define MLCLUST_CORE_MESH_MESH_H_
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -46,7 +47,8 @@ inline constexpr size_t kMaxMeshElements = (size_t{1} << 31) - 1;
 //   - a non-manifold edge (an edge shared by more than two faces: which faces);
 //   - a non-manifold vertex (the faces around it form more than one fan).
 // Zero-area faces with three distinct vertices and unreferenced vertices are accepted.
-absl::Status ValidateMesh(const TriangleMesh& mesh);
+// CANCELLED if `cancel` (core/base/cancel.h) is set, checked every few thousand elements.
+absl::Status ValidateMesh(const TriangleMesh& mesh, const std::atomic<bool>* cancel = nullptr);
 
 // The range check alone: OK, or INVALID_ARGUMENT naming the first face corner whose
 // vertex index is not below num_vertices(). Part of ValidateMesh; for writers and encoders
@@ -76,8 +78,15 @@ struct FaceAdjacency {
 
 // Builds face adjacency in O(faces + vertices) time through a vertex-to-face table.
 // Expects indices in range and no degenerate face (ValidateMesh checks both); returns
-// INVALID_ARGUMENT naming the faces if an edge borders more than two faces.
-absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh);
+// INVALID_ARGUMENT naming the faces if an edge borders more than two faces; CANCELLED if
+// `cancel` is set.
+absl::StatusOr<FaceAdjacency> BuildFaceAdjacency(const TriangleMesh& mesh,
+                                                 const std::atomic<bool>* cancel = nullptr);
+
+// ValidateMesh and, for a valid mesh, the adjacency it builds on the way (what
+// BuildFaceAdjacency would return), in one pass instead of two.
+absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(
+    const TriangleMesh& mesh, const std::atomic<bool>* cancel = nullptr);
 
 // Number of edge-connected components of the face graph.
 size_t CountFaceComponents(const FaceAdjacency& adjacency);

@@ -81,6 +81,38 @@ if "$mlclust" mesh "$data/fandisk.off" --bogus 1 2> "$work/opt.err"; then fail "
 grep -q "unknown option --bogus" "$work/opt.err" || fail "no message for --bogus"
 if "$mlclust" mesh "$work/missing.off" --quiet 2> /dev/null; then fail "missing file accepted"; fi
 
+# A CLI that behaves: help per command, --version, short flags, JSON, plain connection errors.
+"$mlclust" mesh --help > "$work/help.txt" || fail "mesh --help failed"
+grep -q -- "--algo ALGO" "$work/help.txt" || fail "mesh --help: no --algo"
+grep -q "vsa: variational shape approximation" "$work/help.txt" || fail "mesh --help: no vsa"
+"$mlclust" help points | grep -q "kmeans" || fail "help points"
+version=$(sed -n 's/^project(mlclust VERSION \([0-9.]*\).*/\1/p' "$data/../CMakeLists.txt")
+[ "$("$mlclust" --version)" = "mlclust $version" ] || fail "--version is not $version"
+"$mlclust" mesh "$data/fandisk.off" --algo hc -k 30 -o "$work/short.labels" -q --json \
+  > "$work/summary.json" || fail "short flags"
+[ "$(sort -un "$work/short.labels" | wc -l)" -eq 30 ] || fail "-k 30 -o: not 30 clusters"
+/usr/bin/python3 -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["faces"] == 12946 and s["algorithm"] == "hc" and s["level"]["clusters"] == 30, s
+assert s["outputs"]["labels"].endswith("short.labels"), s' "$work/summary.json" \
+  || fail "--json summary: $(cat "$work/summary.json")"
+"$mlclust" stats --server "127.0.0.1:$port" --json > "$work/stats.json"
+/usr/bin/python3 -c 'import json, sys; assert "queue_capacity" in json.load(open(sys.argv[1]))' \
+  "$work/stats.json" || fail "stats --json: $(cat "$work/stats.json")"
+"$mlclust" info --json > "$work/info.json" || fail "info failed"
+/usr/bin/python3 -c '
+import json, sys
+info = json.load(open(sys.argv[1]))
+names = {(a["input_kind"], a["name"]) for a in info["algorithms"]}
+assert ("INPUT_KIND_DRACO_MESH", "vsa") in names and ("INPUT_KIND_POINTS_F32", "kmeans") in names
+assert info["version"] and info["max_clusters"] == 4294967295' "$work/info.json" \
+  || fail "info --json: $(head -c 300 "$work/info.json")"
+if "$mlclust" stats --server 127.0.0.1:1 2> "$work/conn.err"; then fail "stats on port 1"; fi
+grep -q "no server is listening at 127.0.0.1:1" "$work/conn.err" || fail "$(cat "$work/conn.err")"
+if "$mlclust" stats --server 127.0.0.1:99999 2> "$work/conn.err"; then fail "port 99999"; fi
+grep -q "HOST:PORT" "$work/conn.err" || fail "bad address: $(cat "$work/conn.err")"
+
 # Points: 6 Gaussian blobs (sigma 1, 300 points each, centres 20 apart) as CSV with a
 # header; BIC finds 6, through the separate server too.
 awk 'BEGIN { srand(7); print "x,y,z";

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <future>
 #include <thread>
 
 #include "client/client.h"
@@ -131,6 +132,236 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   const grpc::Status status = stalled->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(status.error_message(), HasSubstr("read too slowly"));
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// A call that sends a spec (and maybe some input) and then waits, like a stalled upload.
+struct StalledCall {
+  grpc::ClientContext context;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream;
+};
+
+std::unique_ptr<StalledCall> StartStalledCall(v1::Clustering::Stub& stub, uint64_t declared,
+                                              const std::string& sent) {
+  auto call = std::make_unique<StalledCall>();
+  call->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+  call->stream = stub.Run(&call->context);
+  v1::RunRequest request;
+  *request.mutable_spec() = MeshSpec(v1::ALGORITHM_HC);
+  request.mutable_spec()->set_input_bytes(declared);
+  request.set_chunk(sent);
+  call->stream->Write(request);
+  return call;
+}
+
+// Reads a refused call's answer: its Failed event's code and the call's status.
+grpc::Status ReadToEnd(StalledCall& call) {
+  v1::JobEvent event;
+  while (call.stream->Read(&event)) {
+  }
+  return call.stream->Finish();
+}
+
+TEST(AdmissionTest, CallsPerConnectionAreBoundedAndSpecsReserveNothing) {
+  server::ServerOptions options;
+  options.max_calls_per_connection = 4;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  // Spec-only calls declaring 256 MiB each: 4 wait for their data, the rest are refused.
+  std::vector<std::unique_ptr<StalledCall>> calls;
+  for (int i = 0; i < 10; ++i) calls.push_back(StartStalledCall(*stub, uint64_t{256} << 20, ""));
+  int refused = 0;
+  for (int i = 4; i < 10; ++i) {
+    const grpc::Status status = ReadToEnd(*calls[i]);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_THAT(status.error_message(), HasSubstr("per connection"));
+    ++refused;
+  }
+  v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.calls_refused(), 6u);
+  EXPECT_EQ(stats.calls_active(), 4u);
+  EXPECT_EQ(stats.upload_bytes_in_flight(), 0u);  // declared, not received: nothing held
+  for (int i = 0; i < 4; ++i) calls[i]->context.TryCancel();
+  for (int i = 0; i < 4; ++i) ReadToEnd(*calls[i]);
+  // The slots come back.
+  for (int i = 0; i < 200 && GetStats(channel).calls_active() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(GetStats(channel).calls_active(), 0u);
+  EXPECT_TRUE(
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
+          .ok());
+}
+
+TEST(AdmissionTest, UploadsInFlightAreBoundedBeforeTheBufferGrows) {
+  server::ServerOptions options;
+  options.max_upload_bytes_in_flight = 8 << 20;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  const std::string three_mib(3 << 20, 'x');
+  std::vector<std::unique_ptr<StalledCall>> calls;
+  for (int i = 0; i < 2; ++i) calls.push_back(StartStalledCall(*stub, 4 << 20, three_mib));
+  // The two uploads are held (6 MiB); wait until the server has them.
+  for (int i = 0; i < 200 && GetStats(channel).upload_bytes_in_flight() < (6u << 20); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(GetStats(channel).upload_bytes_in_flight(), 6u << 20);
+  auto third = StartStalledCall(*stub, 4 << 20, three_mib);
+  const grpc::Status status = ReadToEnd(*third);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(status.error_message(), HasSubstr("uploads in progress"));
+  EXPECT_EQ(GetStats(channel).upload_bytes_in_flight(), 6u << 20);
+  for (auto& call : calls) call->context.TryCancel();
+  for (auto& call : calls) ReadToEnd(*call);
+  for (int i = 0; i < 200 && GetStats(channel).upload_bytes_in_flight() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(GetStats(channel).upload_bytes_in_flight(), 0u);
+  EXPECT_EQ(GetStats(channel).calls_refused(), 1u);
+}
+
+TEST(AdmissionTest, QueuedInputsAreBoundedTogether) {
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(20));
+  server::ServerOptions tight;
+  tight.max_queued_input_bytes = bytes.size() - 1;
+  std::unique_ptr<server::Server> server = StartServer(tight);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  absl::StatusOr<client::JobResult> refused =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(refused.status().message(), HasSubstr("queued jobs' inputs"));
+  // Room for one input: jobs one after the other fit, the budget returns as each starts.
+  server::ServerOptions one;
+  one.max_queued_input_bytes = bytes.size();
+  server = StartServer(one);
+  channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes).ok());
+  }
+  EXPECT_EQ(GetStats(channel).queued_input_bytes(), 0u);
+}
+
+TEST(AdmissionTest, AnUnknownInputKindIsRefusedBeforeQueueing) {
+  std::unique_ptr<server::Server> server = StartServer({});
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  v1::JobSpec spec = MeshSpec(v1::ALGORITHM_HC);
+  spec.set_input_kind(static_cast<v1::InputKind>(7));
+  absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, "0123456789");
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("input_kind 7"));
+  const v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.jobs_accepted(), 0u);
+  EXPECT_EQ(stats.calls_refused(), 1u);
+}
+
+TEST(OperationsTest, APortInUseIsRefused) {
+  std::unique_ptr<server::Server> first = StartServer({});
+  ASSERT_TRUE(first);
+  server::ServerOptions second;
+  second.listen_address = absl::StrCat("127.0.0.1:", first->port());
+  second.log = false;
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(second);
+  EXPECT_EQ(started.status().code(), absl::StatusCode::kUnavailable);
+}
+
+TEST(WorkersTest, CpuWorkersGiveTheSameResultsAsOneWorker) {
+  server::ServerOptions single;
+  single.gpu = server::GpuMode::kOff;
+  server::ServerOptions pool = single;
+  pool.cpu_workers = 3;
+  std::unique_ptr<server::Server> one = StartServer(single);
+  std::unique_ptr<server::Server> three = StartServer(pool);
+  ASSERT_TRUE(one && three);
+  auto one_channel = client::Connect(absl::StrCat("127.0.0.1:", one->port()));
+  auto pool_channel = client::Connect(absl::StrCat("127.0.0.1:", three->port()));
+  EXPECT_EQ(GetStats(pool_channel).cpu_workers(), 3u);
+  std::vector<std::string> inputs;
+  for (int n : {20, 30, 25, 35, 15, 40}) inputs.push_back(*EncodeMeshToDraco(testing::Grid(n)));
+  std::vector<v1::JobSpec> specs = {MeshSpec(v1::ALGORITHM_HC), MeshSpec(v1::ALGORITHM_ML),
+                                    MeshSpec(v1::ALGORITHM_EMLO, 12)};
+  std::vector<std::future<absl::StatusOr<client::JobResult>>> concurrent;
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    concurrent.push_back(std::async(std::launch::async, [&, i] {
+      return client::RunJob(pool_channel, specs[i % specs.size()], inputs[i]);
+    }));
+  }
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    absl::StatusOr<client::JobResult> got = concurrent[i].get();
+    absl::StatusOr<client::JobResult> expected =
+        client::RunJob(one_channel, specs[i % specs.size()], inputs[i]);
+    ASSERT_TRUE(got.ok() && expected.ok()) << got.status() << expected.status();
+    ExpectSameHierarchy(expected->hierarchy, got->hierarchy);
+  }
+}
+
+// SIGTERM's path: the running job finishes within the drain time; queued jobs end at once
+// with UNAVAILABLE and a message; health turns NOT_SERVING; no client hangs.
+TEST(OperationsTest, ShutdownDrainsRunningJobsAndFailsQueuedOnes) {
+  server::ServerOptions options;
+  options.drain_time = absl::Seconds(120);
+  options.gpu = server::GpuMode::kOff;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  const std::string big = *EncodeMeshToDraco(testing::Grid(300));  // 180k faces
+  const std::string small = *EncodeMeshToDraco(testing::Grid(10));
+  auto running = std::async(
+      std::launch::async, [&] { return client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), big); });
+  for (int i = 0; i < 500 && GetStats(channel).jobs_running() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(GetStats(channel).jobs_running(), 1u);
+  std::vector<std::future<absl::StatusOr<client::JobResult>>> queued;
+  for (int i = 0; i < 2; ++i) {
+    queued.push_back(std::async(std::launch::async, [&] {
+      return client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small);
+    }));
+  }
+  for (int i = 0; i < 500 && GetStats(channel).queue_depth() < 2; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(GetStats(channel).queue_depth(), 2u);
+  std::thread shutdown([&] { server->Shutdown(); });
+  for (auto& job : queued) {
+    absl::StatusOr<client::JobResult> result = job.get();
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kUnavailable) << result.status();
+    EXPECT_THAT(result.status().message(), HasSubstr("shutting down"));
+  }
+  absl::StatusOr<client::JobResult> finished = running.get();
+  ASSERT_TRUE(finished.ok()) << finished.status();
+  EXPECT_EQ(finished->done.final_clusters(), 1u);
+  shutdown.join();
+}
+
+TEST(OperationsTest, ShutdownCancelsRunningJobsWhenTheDrainTimeRunsOut) {
+  server::ServerOptions options;  // drain time 0
+  options.gpu = server::GpuMode::kOff;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  const std::string big = *EncodeMeshToDraco(testing::Grid(400));
+  auto running = std::async(
+      std::launch::async, [&] { return client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), big); });
+  for (int i = 0; i < 500 && GetStats(channel).jobs_running() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  server->Shutdown();
+  absl::StatusOr<client::JobResult> result = running.get();
+  // Cancelled with a message, or finished if it was faster than the shutdown.
+  if (!result.ok()) {
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kUnavailable) << result.status();
+    EXPECT_THAT(result.status().message(), HasSubstr("drain time"));
+  }
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <memory>
 #include <vector>
 
@@ -125,7 +126,11 @@ class KeepingChannel : public EventChannel {
   }
   void Finish(v1::JobEvent, const grpc::Status&) override {}
   bool cancelled() const override { return false; }
+  const std::atomic<bool>* cancel_flag() const override { return &never_cancelled_; }
   std::vector<v1::JobEvent> events;
+
+ private:
+  std::atomic<bool> never_cancelled_{false};
 };
 
 struct Outcome {

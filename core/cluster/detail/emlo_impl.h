@@ -4,11 +4,13 @@
 #ifndef MLCLUST_CORE_CLUSTER_DETAIL_EMLO_IMPL_H_
 #define MLCLUST_CORE_CLUSTER_DETAIL_EMLO_IMPL_H_
 
+#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <span>
 #include <vector>
 
+#include "core/base/cancel.h"
 #include "core/cluster/partition.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/mesh.h"
@@ -19,7 +21,13 @@ struct EmloCounters {
   uint64_t moves = 0;
   uint64_t evaluations = 0;  // boundary edges compared
   bool hit_move_limit = false;
+  bool cancelled = false;  // the cancel flag was seen set; the partition is valid
 };
+
+// How many faces EMLO takes off its worklist between two looks at the cancel flag: each
+// costs at most three boundary-edge comparisons, so a look every 4096 is well under a
+// millisecond apart.
+inline constexpr uint32_t kEmloFacesPerCancelCheck = 4096;
 
 // Work memory reused across runs (the multilevel engine runs EMLO once per level, so
 // nothing of size O(faces) may be allocated per run).
@@ -38,12 +46,13 @@ struct EmloScratch {
 // be null) vetoes moves that would split or pierce a cluster. `on_move(face, from, to)` is
 // called after each move. Faces whose neighbourhood changed go back on the worklist.
 // `before_move(from, to)` runs just before each move (the engine records the two clusters'
-// energies then).
+// energies then). A set `cancel` (may be null) stops the run within
+// kEmloFacesPerCancelCheck faces with counters.cancelled; the scratch is left clean.
 template <typename Energy, typename OnMove, typename BeforeMove>
 EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
                        Partition<Energy>& partition, std::span<const uint32_t> worklist,
                        uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move,
-                       BeforeMove&& before_move) {
+                       BeforeMove&& before_move, const std::atomic<bool>* cancel) {
   const Energy& energy = partition.energy();
   using Sums = typename Energy::Sums;
   EmloCounters counters;
@@ -79,9 +88,14 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
     enqueue_around(face);
   };
 
+  uint32_t until_cancel_check = kEmloFacesPerCancelCheck;
   while (!queue.empty()) {
-    if (counters.moves >= max_moves) {
-      counters.hit_move_limit = true;
+    if (--until_cancel_check == 0) {
+      until_cancel_check = kEmloFacesPerCancelCheck;
+      counters.cancelled = IsCancelled(cancel);
+    }
+    if (counters.moves >= max_moves || counters.cancelled) {
+      counters.hit_move_limit = !counters.cancelled;
       for (uint32_t f : queue) queued[f] = 0;  // leave the scratch clean
       queue.clear();
       break;
@@ -146,12 +160,22 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
   return counters;
 }
 
+template <typename Energy, typename OnMove, typename BeforeMove>
+EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
+                       Partition<Energy>& partition, std::span<const uint32_t> worklist,
+                       uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move,
+                       BeforeMove&& before_move) {
+  return RunEmloOn(adjacency, guard, partition, worklist, max_moves, scratch, on_move, before_move,
+                   nullptr);
+}
+
 template <typename Energy, typename OnMove>
 EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
                        Partition<Energy>& partition, std::span<const uint32_t> worklist,
                        uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move) {
-  return RunEmloOn(adjacency, guard, partition, worklist, max_moves, scratch, on_move,
-                   [](uint32_t, uint32_t) {});
+  return RunEmloOn(
+      adjacency, guard, partition, worklist, max_moves, scratch, on_move, [](uint32_t, uint32_t) {},
+      nullptr);
 }
 
 // The faces that have a neighbour in another cluster.

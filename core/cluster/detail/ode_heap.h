@@ -49,7 +49,9 @@ class OdeHeap {
 
   // Records c's ODE; its older queue entries become stale. With `queue` and a partner, c
   // is queued at `cost`.
-  void Set(uint32_t c, uint32_t partner, double cost, bool queue = true) {
+  // (Inlined: called once per ODE change, in the engines' innermost loops.)
+  [[gnu::always_inline]] inline void Set(uint32_t c, uint32_t partner, double cost,
+                                         bool queue = true) {
     partner_[c] = partner;
     cost_[c] = cost;
     ++version_[c];

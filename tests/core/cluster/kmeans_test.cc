@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -382,6 +383,32 @@ TEST(KmeansTest, RejectsBadArguments) {
       HasSubstr("centres"));
   EXPECT_THAT(RunLloyd(points, std::vector<float>(22, 0.0f), options).status().message(),
               HasSubstr("clusters"));
+}
+
+TEST(KmeansTest, ACancelFlagReturnsCancelled) {
+  const PointSet points = UniformPoints(5000, 3, 11);
+  std::atomic<bool> cancel{true};
+  for (KmeansOptions::Init init :
+       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
+    KmeansOptions options;
+    options.clusters = 20;
+    options.init = init;
+    options.cancel = &cancel;
+    EXPECT_EQ(RunKmeans(points, options).status().code(), absl::StatusCode::kCancelled);
+  }
+  // Set after the first iteration: the second returns CANCELLED.
+  cancel = false;
+  KmeansOptions options;
+  options.clusters = 20;
+  options.tolerance = 0;
+  options.cancel = &cancel;
+  uint32_t iterations = 0;
+  options.on_iteration = [&](uint32_t iteration, double) {
+    iterations = iteration;
+    cancel = true;
+  };
+  EXPECT_EQ(RunKmeans(points, options).status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(iterations, 1u);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <map>
 #include <set>
 
@@ -300,6 +301,66 @@ TEST(SphereEnergyTest, SphericalPatchesReachNearZeroEnergyAtK) {
   EXPECT_LT(truth, 0.05 * one);  // the model is what it claims to be
   EXPECT_LT(result->energy, 1.1 * truth);
   EXPECT_LT(result->energy, 0.1 * result->initial_energy);
+}
+
+TEST(CancellationTest, ASetFlagReturnsCancelledAndLeavesTheLabels) {
+  const Loaded& l = File("fandisk.off");
+  std::atomic<bool> cancel{true};
+  for (auto method : {SeedOptions::Method::kRandom, SeedOptions::Method::kLNeighbourhood}) {
+    SeedOptions seeds{method, 50};
+    seeds.cancel = &cancel;
+    EXPECT_EQ(InitialClusters(l.problem(), seeds).status().code(), absl::StatusCode::kCancelled);
+  }
+  absl::StatusOr<std::vector<ClusterId>> start =
+      InitialClusters(l.problem(), {SeedOptions::Method::kRandom, 50});
+  ASSERT_TRUE(start.ok());
+  std::vector<ClusterId> labels = *start;
+  EmloOptions emlo;
+  emlo.cancel = &cancel;
+  EXPECT_EQ(OptimizeEmlo(l.problem(), labels, emlo).status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(labels, *start);
+  BoundaryBasedOptions bb;
+  bb.cancel = &cancel;
+  EXPECT_EQ(OptimizeBoundaryBased(l.problem(), labels, bb).status().code(),
+            absl::StatusCode::kCancelled);
+  EXPECT_EQ(labels, *start);
+}
+
+TEST(CancellationTest, AFlagSetDuringTheRunStopsIt) {
+  // The flag is set from the progress callbacks, in the middle of the work.
+  const Loaded& l = File("fandisk.off");
+  absl::StatusOr<std::vector<ClusterId>> start =
+      InitialClusters(l.problem(), {SeedOptions::Method::kRandom, 50});
+  ASSERT_TRUE(start.ok());
+  std::atomic<bool> cancel{false};
+  std::vector<ClusterId> labels = *start;
+  EmloOptions emlo;
+  emlo.cancel = &cancel;
+  emlo.progress_moves = 1;
+  uint64_t reports = 0;
+  emlo.on_progress = [&](uint64_t, double) {
+    ++reports;
+    cancel = true;
+  };
+  EXPECT_EQ(OptimizeEmlo(l.problem(), labels, emlo).status().code(), absl::StatusCode::kCancelled);
+  // EMLO looks at the flag every few thousand faces: it stopped long before converging.
+  std::vector<ClusterId> solo = *start;
+  absl::StatusOr<OptimizeResult> full = OptimizeEmlo(l.problem(), solo);
+  ASSERT_TRUE(full.ok());
+  EXPECT_LT(reports, full->moves);
+  EXPECT_EQ(labels, *start);
+
+  cancel = false;
+  BoundaryBasedOptions bb;
+  bb.cancel = &cancel;
+  uint32_t sweeps = 0;
+  bb.on_iteration = [&](uint32_t, double) {
+    ++sweeps;
+    cancel = true;
+  };
+  EXPECT_EQ(OptimizeBoundaryBased(l.problem(), labels, bb).status().code(),
+            absl::StatusCode::kCancelled);
+  EXPECT_EQ(sweeps, 1u);
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -253,13 +255,47 @@ TEST(MultilevelTest, PmlThenMlIsCloseToMlAndPPercentRuns) {
   }
   MultilevelOptions half;
   half.p_percent = 50;
+  half.p_percent_rule = MultilevelOptions::PPercentRule::kHcFirst;
   ASSERT_TRUE(RunMultilevel(l.problem(), half, p50).ok());
-  EXPECT_EQ(p50.num_levels(), ml.num_levels());
+  EXPECT_EQ(p50.num_levels(), ml.num_levels());  // HC-first: one level per merge
   MultilevelOptions bad;
   bad.p_percent = 101;
   HierarchyLog unused;
   EXPECT_EQ(RunMultilevel(l.problem(), bad, unused).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+// Alg. 4.2: the first p% of the merges in one level, by sweeps in which a cluster takes
+// part in one merge at most (so after one sweep every cluster has one or two faces, the
+// two adjacent), then ML one merge per level; the energy comes back close to ML's.
+TEST(MultilevelTest, PPercentSweepMergesInOneLevelThenRunsMl) {
+  const Loaded& l = File("fandisk.off");
+  const uint32_t n = static_cast<uint32_t>(l.mesh.num_faces());
+  HierarchyLog ml, p30, p95;
+  ASSERT_TRUE(RunMultilevel(l.problem(), {}, ml).ok());
+  MultilevelOptions options;
+  options.p_percent = 30;
+  ASSERT_TRUE(RunMultilevel(l.problem(), options, p30).ok());
+  const uint32_t merged = n - static_cast<uint32_t>(std::floor(n * 0.7));
+  ASSERT_EQ(p30.cluster_count(1), n - merged);
+  EXPECT_EQ(p30.num_levels(), n - merged + 1);  // then one level per merge down to 1
+  absl::StatusOr<std::vector<ClusterId>> labels = p30.LabelsAt(1);
+  ASSERT_TRUE(labels.ok());
+  std::map<uint32_t, std::vector<uint32_t>> faces;
+  for (uint32_t f = 0; f < n; ++f) faces[(*labels)[f].value()].push_back(f);
+  ASSERT_EQ(faces.size(), n - merged);
+  for (const auto& [c, members] : faces) {
+    ASSERT_LE(members.size(), 2u) << c;
+    if (members.size() == 2) {
+      const auto& around = l.adjacency.neighbours[members[0]];
+      EXPECT_TRUE(std::find(around.begin(), around.end(), FaceId(members[1])) != around.end());
+    }
+  }
+  options.p_percent = 95;
+  ASSERT_TRUE(RunMultilevel(l.problem(), options, p95).ok());
+  const auto ml_energy = EnergyByCount(ml), p95_energy = EnergyByCount(p95);
+  EXPECT_LT(p95.num_levels(), n / 10);
+  for (uint32_t k : {200u, 50u}) EXPECT_LT(p95_energy.at(k), 1.5 * ml_energy.at(k)) << k;
 }
 
 TEST(MultilevelTest, BoundaryBasedOptimizerKeepsEnergyBelowHc) {
@@ -301,6 +337,45 @@ TEST(FindElbowsTest, FindsTheJumpAndIgnoresNoise) {
   const std::vector<double> energy = {0, 1e-9, 2e-9, 0.001, 0.5, 0.7, 0.9, 1.0};
   EXPECT_THAT(FindElbows(counts, energy), ::testing::ElementsAre(5u));
   EXPECT_TRUE(FindElbows(counts, std::vector<double>(8, 0.0)).empty());
+}
+
+// A sink that sets `cancel` once it has seen `after` levels after the start.
+class CancelAfter : public HierarchyLog {
+ public:
+  CancelAfter(std::atomic<bool>& cancel, uint32_t after) : cancel_(cancel), after_(after) {}
+  absl::Status OnLevel(const LevelMoves& level) override {
+    if (++seen_ == after_) cancel_ = true;
+    return HierarchyLog::OnLevel(level);
+  }
+
+ private:
+  std::atomic<bool>& cancel_;
+  uint32_t after_, seen_ = 0;
+};
+
+TEST(MultilevelCancelTest, ASetFlagReturnsCancelledBeforeTheStart) {
+  std::atomic<bool> cancel{true};
+  MultilevelOptions options;
+  options.cancel = &cancel;
+  HierarchyLog log;
+  EXPECT_EQ(RunMultilevel(File("fandisk.off").problem(), options, log).status().code(),
+            absl::StatusCode::kCancelled);
+  EXPECT_EQ(log.num_levels(), 0u);
+}
+
+// ML, HC and PML stop at the first level after the flag is set.
+TEST(MultilevelCancelTest, AFlagSetDuringTheRunStopsItAtTheNextLevel) {
+  for (int variant = 0; variant < 3; ++variant) {
+    std::atomic<bool> cancel{false};
+    MultilevelOptions options = variant == 1 ? Hc() : MultilevelOptions();
+    options.parallel = variant == 2;
+    options.cancel = &cancel;
+    CancelAfter log(cancel, 7);
+    EXPECT_EQ(RunMultilevel(File("elephant.off").problem(), options, log).status().code(),
+              absl::StatusCode::kCancelled)
+        << variant;
+    EXPECT_EQ(log.num_levels(), 8u) << variant;
+  }
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <map>
 #include <set>
 
@@ -330,6 +331,67 @@ TEST(PointMultilevelTest, BicOfTheMlHierarchyRecoversTheNumberOfBlobs) {
     ASSERT_TRUE(choice.ok()) << choice.status();
     EXPECT_EQ(choice->best_k, k);
   }
+}
+
+// A sink that sets `cancel` once it has seen `after` levels after the start.
+class CancelAfter : public HierarchyLog {
+ public:
+  CancelAfter(std::atomic<bool>& cancel, uint32_t after) : cancel_(cancel), after_(after) {}
+  absl::Status OnLevel(const LevelMoves& level) override {
+    if (++seen_ == after_) cancel_ = true;
+    return HierarchyLog::OnLevel(level);
+  }
+
+ private:
+  std::atomic<bool>& cancel_;
+  uint32_t after_, seen_ = 0;
+};
+
+TEST(PointCancelTest, ASetFlagStopsEveryCallWithCancelled) {
+  const auto [points, truth] = Blobs(6, 200, 3, 11);
+  std::atomic<bool> cancel{true};
+  EXPECT_EQ(VoxelGridStart(points, 0, &cancel).status().code(), absl::StatusCode::kCancelled);
+  LnKmeansOptions ln;
+  ln.cancel = &cancel;
+  EXPECT_EQ(RunLnKmeansFromGrid(points, 0, ln).status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(RunLnKmeans(points, truth, ln).status().code(), absl::StatusCode::kCancelled);
+  PointMultilevelOptions ml;
+  ml.cancel = &cancel;
+  HierarchyLog log;
+  EXPECT_EQ(RunPointMultilevel(points, ml, log).status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(log.num_levels(), 0u);  // stopped before the start was reported
+  cancel = false;
+  EXPECT_TRUE(VoxelGridStart(points, 0, &cancel).ok());
+  EXPECT_TRUE(RunLnKmeans(points, truth, ln).ok());
+}
+
+// A flag set while the run goes stops it at the next level (ML and PML) or the next stage
+// of an LN k-means iteration.
+TEST(PointCancelTest, AFlagSetDuringTheRunStopsItAtTheNextCheck) {
+  const auto [points, truth] = Blobs(6, 200, 3, 12);
+  for (bool parallel : {false, true}) {
+    std::atomic<bool> cancel{false};
+    PointMultilevelOptions options;
+    options.parallel = parallel;
+    options.cancel = &cancel;
+    CancelAfter log(cancel, 5);
+    const auto summary = RunPointMultilevel(points, options, log);
+    EXPECT_EQ(summary.status().code(), absl::StatusCode::kCancelled) << parallel;
+    EXPECT_EQ(log.num_levels(), 6u) << parallel;  // level 0 and the five before the flag
+  }
+  std::atomic<bool> cancel{false};
+  LnKmeansOptions ln;
+  ln.cancel = &cancel;
+  uint32_t iterations = 0;
+  ln.on_iteration = [&](uint32_t, uint64_t moved, double) {
+    ++iterations;
+    EXPECT_GT(moved, 0u);  // so the run would go on
+    cancel = true;
+  };
+  std::vector<ClusterId> scrambled(points.num_points());
+  for (size_t i = 0; i < scrambled.size(); ++i) scrambled[i] = ClusterId(i % 6);
+  EXPECT_EQ(RunLnKmeans(points, scrambled, ln).status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(iterations, 1u);
 }
 
 }  // namespace

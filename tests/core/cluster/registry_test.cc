@@ -75,12 +75,14 @@ TEST(RegistryTest, NamesAndWireValuesAreUniquePerInput) {
 }
 
 TEST(RegistryTest, EveryMeshEnergyKindIsRegistered) {
-  for (MeshEnergyKind kind :
-       {MeshEnergyKind::kCvd, MeshEnergyKind::kCvdAdaptive, MeshEnergyKind::kMwcvdArea,
-        MeshEnergyKind::kMwcvdVariance, MeshEnergyKind::kMwcvdMax, MeshEnergyKind::kPlanar,
-        MeshEnergyKind::kSphere, MeshEnergyKind::kSphereNormals}) {
+  // Every kind core names (MeshEnergyName knows them all, in enum order) has an entry.
+  int kinds = 0;
+  for (int i = 0; std::string(MeshEnergyName(static_cast<MeshEnergyKind>(i))) != "unknown"; ++i) {
+    const MeshEnergyKind kind = static_cast<MeshEnergyKind>(i);
     EXPECT_NE(FindEnergyByKind(kind), nullptr) << MeshEnergyName(kind);
+    ++kinds;
   }
+  EXPECT_GE(kinds, 8);
 }
 
 TEST(RegistryTest, OptionsHaveHelpAndParseableDefaults) {
@@ -223,6 +225,14 @@ TEST(RegistryTest, DevicesFollowThePlan) {
   EXPECT_THAT(device_of(DeviceChoice::kGpu, hardware, "cluster"),
               HasSubstr("no stage of lnkmeans on points has a GPU implementation"));
   EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  // The worker a job needs follows from its plan.
+  JobRequest ml;
+  ml.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
+  JobPlan plan = *PlanJob(ml);
+  ASSERT_TRUE(PlanDevices(hardware, plan).ok());
+  EXPECT_TRUE(UsesGpu(plan));
+  ASSERT_TRUE(PlanDevices(software, plan).ok());
+  EXPECT_FALSE(UsesGpu(plan));
   EXPECT_FALSE(ParseDeviceChoice("tpu").ok());
   EXPECT_EQ(*ParseDeviceChoice(""), DeviceChoice::kAuto);
 }

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <map>
 #include <set>
 
@@ -409,6 +410,26 @@ TEST(VsaTest, BadOptionsAreRefusedNamingTheOption) {
   for (Seeding seeding : kAllSeedings) {
     EXPECT_EQ(*ParseVsaSeeding(VsaSeedingName(seeding)), seeding);
   }
+}
+
+TEST(VsaTest, ACancelFlagReturnsCancelled) {
+  const Loaded& elephant = Elephant();
+  std::atomic<bool> cancel{true};
+  VsaOptions options;
+  options.clusters = 20;
+  options.cancel = &cancel;
+  EXPECT_EQ(RunVsa(elephant.problem(MeshEnergyKind::kPlanar), options).status().code(),
+            absl::StatusCode::kCancelled);
+  // Set after the second Lloyd iteration: no third one runs.
+  cancel = false;
+  uint32_t iterations = 0;
+  options.on_iteration = [&](uint32_t iteration, double) {
+    iterations = iteration;
+    if (iteration == 2) cancel = true;
+  };
+  EXPECT_EQ(RunVsa(elephant.problem(MeshEnergyKind::kPlanar), options).status().code(),
+            absl::StatusCode::kCancelled);
+  EXPECT_EQ(iterations, 2u);
 }
 
 }  // namespace

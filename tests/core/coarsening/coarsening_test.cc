@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -858,6 +859,20 @@ TEST(CoarseVertexPlacementTest, RejectsADensityOfTheWrongSizeOrSign) {
   options.face_density = negative;
   EXPECT_THAT(std::string(CoarsenMesh(p.mesh, p.adjacency, labels, options).status().message()),
               HasSubstr("face 2"));
+}
+
+TEST(CoarseningTest, ACancelFlagReturnsCancelled) {
+  const SubdividedCube cube = MakeCube(2);
+  const Prepared p = Prepare(cube.mesh);
+  std::vector<ClusterId> labels;
+  for (int side : cube.side) labels.push_back(ClusterId(side));
+  std::atomic<bool> cancel{true};
+  CoarseningOptions options;
+  options.cancel = &cancel;
+  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, labels, options).status().code(),
+            absl::StatusCode::kCancelled);
+  cancel = false;
+  EXPECT_TRUE(CoarsenMesh(p.mesh, p.adjacency, labels, options).ok());
 }
 
 }  // namespace

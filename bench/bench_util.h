@@ -1,0 +1,167 @@
+// What the bench mains share: `--name value` arguments, wall-clock timing and mesh set-up.
+//
+//   bench::Args args(argc, argv, "usage: mesh_bench MESH --k K [--algo emlo|bb] ...");
+//   const std::string path = args.Positional(0);
+//   const uint32_t k = args.Get<uint32_t>("k", 1000);
+//   const bool header = args.Flag("header");
+//   if (!args.Done()) return 2;   // unknown or malformed options, printed with the usage
+//   const mlclust::PreparedMesh mesh = bench::PrepareOrDie(path);
+//
+// Each main still prints its own CSV row: what a bench measures is its own business.
+#ifndef MLCLUST_BENCH_BENCH_UTIL_H_
+#define MLCLUST_BENCH_BENCH_UTIL_H_
+
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/numbers.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "core/io/prepare_mesh.h"
+
+namespace mlclust::bench {
+
+// `--name value` options, `--name` flags and positional arguments. Get/Flag mark an
+// option as known; Done() reports anything left unknown or unparsable (with the usage).
+class Args {
+ public:
+  Args(int argc, char** argv, std::string usage) : usage_(std::move(usage)) {
+    for (int i = 1; i < argc; ++i) {
+      std::string_view arg = argv[i];
+      if (arg.size() > 2 && arg.substr(0, 2) == "--") {
+        Entry entry{std::string(arg.substr(2)), "", false, false};
+        if (i + 1 < argc && std::string_view(argv[i + 1]).substr(0, 2) != "--") {
+          entry.value = argv[++i];
+          entry.has_value = true;
+        }
+        options_.push_back(std::move(entry));
+      } else {
+        positional_.emplace_back(arg);
+      }
+    }
+  }
+
+  // The i-th positional argument, or "" (then Done() fails) if there is none.
+  std::string Positional(size_t i) {
+    if (i < positional_.size()) return positional_[i];
+    errors_ += "missing positional argument " + std::to_string(i + 1) + "\n";
+    return "";
+  }
+  size_t num_positional() const { return positional_.size(); }
+
+  // The value of --name, parsed as T (integers, double, std::string), or `fallback`.
+  template <typename T>
+  T Get(std::string_view name, T fallback) {
+    Entry* entry = Find(name);
+    if (entry == nullptr) return fallback;
+    entry->used = true;
+    if (!entry->has_value) {
+      errors_ += "--" + entry->name + " needs a value\n";
+      return fallback;
+    }
+    T value = fallback;
+    if (!Parse(entry->value, value)) {
+      errors_ += "--" + entry->name + ": cannot parse '" + entry->value + "'\n";
+    }
+    return value;
+  }
+
+  // Whether the flag --name was given (a flag takes no value).
+  bool Flag(std::string_view name) {
+    Entry* entry = Find(name);
+    if (entry == nullptr) return false;
+    entry->used = true;
+    if (entry->has_value) {
+      // A flag followed by a positional argument: give the argument back.
+      positional_.push_back(entry->value);
+      entry->has_value = false;
+    }
+    return true;
+  }
+
+  // True if every option was known and parsed; otherwise prints the problems and the
+  // usage to stderr.
+  bool Done() {
+    for (const Entry& entry : options_) {
+      if (!entry.used) errors_ += "unknown option --" + entry.name + "\n";
+    }
+    if (errors_.empty()) return true;
+    std::fprintf(stderr, "%s%s\n", errors_.c_str(), usage_.c_str());
+    return false;
+  }
+
+ private:
+  struct Entry {
+    std::string name, value;
+    bool has_value, used;
+  };
+  Entry* Find(std::string_view name) {
+    for (Entry& entry : options_) {
+      if (entry.name == name) return &entry;
+    }
+    return nullptr;
+  }
+  static bool Parse(const std::string& text, std::string& out) {
+    out = text;
+    return true;
+  }
+  static bool Parse(const std::string& text, double& out) { return absl::SimpleAtod(text, &out); }
+  template <typename Int>
+  static bool Parse(const std::string& text, Int& out) {
+    return absl::SimpleAtoi(text, &out);
+  }
+
+  std::string usage_, errors_;
+  std::vector<Entry> options_;
+  std::vector<std::string> positional_;
+};
+
+// Wall-clock seconds since construction (or the last Restart).
+class Stopwatch {
+ public:
+  Stopwatch() : start_(absl::Now()) {}
+  void Restart() { start_ = absl::Now(); }
+  double Seconds() const { return absl::ToDoubleSeconds(absl::Now() - start_); }
+
+ private:
+  absl::Time start_;
+};
+
+// The smallest of `repeats` timings of `run()` (seconds), `run` returning whether it
+// worked; a negative result if any run failed.
+template <typename Run>
+double BestOf(int repeats, Run&& run) {
+  double best = std::numeric_limits<double>::infinity();
+  for (int r = 0; r < repeats; ++r) {
+    Stopwatch watch;
+    if (!run()) return -1;
+    best = std::min(best, watch.Seconds());
+  }
+  return best;
+}
+
+// PrepareMeshFile, or a message on stderr and exit(1): benches have nothing to do
+// without their mesh.
+inline PreparedMesh PrepareOrDie(const std::string& path) {
+  absl::StatusOr<PreparedMesh> prepared = PrepareMeshFile(path);
+  if (!prepared.ok()) {
+    std::fprintf(stderr, "%s: %s\n", path.c_str(), prepared.status().ToString().c_str());
+    std::exit(1);
+  }
+  return *std::move(prepared);
+}
+
+// The file name without directories ("data/bench/armadillo.off" -> "armadillo.off").
+inline std::string BaseName(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+}  // namespace mlclust::bench
+
+#endif  // MLCLUST_BENCH_BENCH_UTIL_H_
