@@ -2,7 +2,9 @@
 //   ml_bench MESH [--algo ml|pml|hc] [--energy cvd] [--optimizer emlo|bb|none]
 //            [--p-percent P] [--p-rule sweep|hc-first] [--pml-until K]
 //            [--pml-pairs all|cheaper-half] [--threads T]
-//            [--at K1,K2,...] [--repeats R]
+//            [--at K1,K2,...] [--repeats R] [--cancel-after S]
+// --cancel-after S sets options.cancel S seconds into the run and reports on stderr how long
+// the engine took to return after it (then exits).
 //            [--curve FILE]   (writes clusters,energy for every level)
 // Prints one CSV row per requested k (best time of R): mesh,faces,algo,energy,optimizer,
 // p_percent,pml_until,threads,seconds,levels,k,energy_at_k
@@ -15,6 +17,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
 #include "core/cluster/multilevel.h"
 #include "core/io/mesh_io.h"
@@ -35,6 +38,7 @@ int main(int argc, char** argv) {
   std::vector<uint32_t> at = {1000, 200};
   double p_percent = 0;
   uint32_t pml_until = 0, repeats = 1;
+  double cancel_after = -1;
   int threads = 0;
   bool header = false;
   for (int i = 2; i < argc; ++i) {
@@ -64,6 +68,8 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtoi(value, &threads);
     else if (arg == "--repeats")
       ok = absl::SimpleAtoi(value, &repeats);
+    else if (arg == "--cancel-after")
+      ok = absl::SimpleAtod(value, &cancel_after);
     else if (arg == "--curve")
       curve = value;
     else if (arg == "--at") {
@@ -107,8 +113,14 @@ int main(int argc, char** argv) {
   for (uint32_t r = 0; r < repeats; ++r) {
     CurveSink sink;
     const absl::Time start = absl::Now();
+    mlclust::bench::CancelTimer cancel(cancel_after);
+    options.cancel = cancel.flag();
     absl::StatusOr<mlclust::MultilevelSummary> summary =
         mlclust::RunMultilevel(problem, options, sink);
+    if (cancel_after >= 0) {
+      cancel.Report(summary.status(), "RunMultilevel");
+      return 0;
+    }
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!summary.ok()) {
       std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());

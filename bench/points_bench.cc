@@ -4,7 +4,9 @@
 //                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
 //                [--input FILE [--dims D]] [--until K] [--curve CSV]
 // --until K stops the hierarchy at K clusters (for time per step at high d); --curve writes
-// every level's clusters,energy.
+// every level's clusters,energy. --cancel-after S sets the options' cancel flag S seconds
+// into the clustering (after the set-up) and reports on stderr how long the call took to
+// return after it (then exits).
 // Prints one CSV row:
 //   algo,m,d,blobs,k,grid,threads,seconds,init_seconds,steps,energy,start_clusters
 // seconds: end to end (for lnkmeans/kmeans the seeding included, init_seconds of it);
@@ -17,6 +19,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
+#include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
 #include "core/base/random.h"
 #include "core/cluster/kmeans.h"
@@ -53,6 +56,7 @@ int main(int argc, char** argv) {
   uint64_t m = 100000, seed = 1;
   uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1;
   int threads = 0;
+  double cancel_after = -1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string arg = argv[i], value = argv[i + 1];
     bool ok = true;
@@ -80,6 +84,8 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtoi(value, &dims);
     else if (arg == "--until")
       ok = absl::SimpleAtoi(value, &until);
+    else if (arg == "--cancel-after")
+      ok = absl::SimpleAtod(value, &cancel_after);
     else if (arg == "--curve")
       curve = value;
     else
@@ -141,7 +147,13 @@ int main(int argc, char** argv) {
         last = absl::Now();
       };
       const absl::Time iterations_start = absl::Now();
+      mlclust::bench::CancelTimer cancel(cancel_after);
+      options.cancel = cancel.flag();
       auto result = mlclust::RunLnKmeans(points, assigned->labels, options);
+      if (cancel_after >= 0) {
+        cancel.Report(result.status(), "RunLnKmeans");
+        return 0;
+      }
       if (!result.ok()) return 1;
       const double iterate = absl::ToDoubleSeconds(absl::Now() - iterations_start);
       if (!iteration_seconds.empty()) {
@@ -163,7 +175,13 @@ int main(int argc, char** argv) {
     options.parallel = algo == "pml";
     if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
     CurveSink sink;
+    mlclust::bench::CancelTimer cancel(cancel_after);
+    options.cancel = cancel.flag();
     auto summary = mlclust::RunPointMultilevel(points, options, sink);
+    if (cancel_after >= 0) {
+      cancel.Report(summary.status(), "RunPointMultilevel");
+      return 0;
+    }
     if (!summary.ok()) {
       std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
       return 1;

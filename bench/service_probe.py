@@ -12,6 +12,8 @@ Scenarios (each prints one line of figures):
                           prints how many got an answer (and which code) within 5 s.
   uploads N MIB           N calls that upload MIB-1 of MIB MiB and then stall; prints
                           their answers within 5 s. Read the server's memory meanwhile.
+  cancel BIG ALGO DELAY   cancels a job on BIG (emlo/bb at K = 1000) DELAY s after it
+                          starts; prints how long the worker took to be free.
 """
 
 import sys
@@ -25,7 +27,8 @@ from mlclust import _draco, meshio
 from mlclust.v1 import mlclust_pb2 as pb
 from mlclust.v1 import mlclust_pb2_grpc as pb_grpc
 
-ALGOS = {"hc": pb.ALGORITHM_HC, "ml": pb.ALGORITHM_ML, "emlo": pb.ALGORITHM_EMLO}
+ALGOS = {"hc": pb.ALGORITHM_HC, "ml": pb.ALGORITHM_ML, "emlo": pb.ALGORITHM_EMLO,
+         "bb": pb.ALGORITHM_BB}
 
 
 def encode(path):
@@ -153,6 +156,26 @@ def spec_calls(addr, n, mib, upload_fraction=0.0):
     hold.set()
 
 
+def cancel_latency(addr, big, algo, delay):
+    """Cancels a job `delay` s after Accepted and times until no job runs (stats)."""
+    channel = grpc.insecure_channel(addr, options=[("grpc.max_receive_message_length", -1)])
+    stub = pb_grpc.ClusteringStub(channel)
+    payload, faces = encode(big)
+    clusters = 1000 if algo in ("emlo", "bb") else 0
+    spec = mesh_spec(algo, clusters)
+    call = stub.Run(requests(spec, payload), timeout=600)
+    next(call)
+    while not stub.GetStats(pb.GetStatsRequest()).jobs_running:
+        time.sleep(0.01)
+    time.sleep(delay)
+    t0 = time.time()
+    call.cancel()
+    while stub.GetStats(pb.GetStatsRequest()).jobs_running:
+        time.sleep(0.01)
+    print(f"{algo} on {big} ({faces} faces) cancelled {delay} s after it started: the worker "
+          f"was free {time.time() - t0:.2f} s after the cancel")
+
+
 def main():
     addr, scenario = sys.argv[1], sys.argv[2]
     if scenario == "stall":
@@ -164,6 +187,8 @@ def main():
     elif scenario == "uploads":
         spec_calls(addr, int(sys.argv[3]), int(sys.argv[4]),
                    upload_fraction=1 - 1 / int(sys.argv[4]))
+    elif scenario == "cancel":
+        cancel_latency(addr, sys.argv[3], sys.argv[4], float(sys.argv[5]))
     else:
         raise SystemExit(__doc__)
 

@@ -121,12 +121,15 @@ absl::StatusOr<EnergyPlotFrame> EnergyPlotFrameFor(std::span<const EnergyCurvePo
   frame.log_x_min = std::floor(std::log10(static_cast<double>(fewest)));
   frame.log_x_max = std::ceil(std::log10(static_cast<double>(most)));
   if (frame.log_x_max <= frame.log_x_min) frame.log_x_max = frame.log_x_min + 1;
+  // An energy kept incrementally can end a hair below zero where the exact one is 0; that
+  // must not add a whole step of negative axis.
+  if (lowest < 0 && -lowest <= 1e-6 * (highest - lowest)) lowest = 0;
   lowest = std::min(lowest, 0.0);
   if (!(highest > lowest)) highest = lowest + 1;
-  const double step = NiceStep(highest - lowest);
-  frame.y_min = std::floor(lowest / step) * step;
-  frame.y_max = std::ceil(highest / step) * step;
-  if (frame.y_max <= frame.y_min) frame.y_max = frame.y_min + step;
+  frame.y_step = NiceStep(highest - lowest);
+  frame.y_min = std::floor(lowest / frame.y_step) * frame.y_step;
+  frame.y_max = std::ceil(highest / frame.y_step) * frame.y_step;
+  if (frame.y_max <= frame.y_min) frame.y_max = frame.y_min + frame.y_step;
   return frame;
 }
 
@@ -156,7 +159,7 @@ absl::StatusOr<std::string> RenderEnergyPlotPng(std::span<const EnergyCurvePoint
       cairo_stroke(cr);
     }
   }
-  const double y_step = NiceStep(frame.y_max - frame.y_min);
+  const double y_step = frame.y_step;
   cairo_set_font_size(cr, 13);
   for (double e = frame.y_min; e <= frame.y_max + y_step / 2; e += y_step) {
     const double y = std::round(frame.Y(e)) + 0.5;

@@ -43,6 +43,7 @@ struct EnergyPlotFrame {
   double left = 0, right = 0, top = 0, bottom = 0;  // the plot area
   double log_x_min = 0, log_x_max = 1;              // decades at left and right
   double y_min = 0, y_max = 1;                      // energies at bottom and top
+  double y_step = 1;  // between labelled energies: 1, 2 or 5 times a power of ten
 
   double X(double clusters) const;  // pixel column of a number of clusters
   double Y(double energy) const;    // pixel row of an energy

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <queue>
 
 #include "absl/container/flat_hash_map.h"
@@ -33,7 +34,7 @@ class Engine {
       : adjacency_(*problem.adjacency),
         options_(options),
         sink_(sink),
-        guard_(*problem.mesh, *problem.adjacency),
+        mesh_(*problem.mesh),
         n_(static_cast<uint32_t>(problem.mesh->num_faces())),
         partition_(energy, Identity(n_), n_),
         members_(n_),
@@ -45,6 +46,13 @@ class Engine {
 
   absl::StatusOr<MultilevelSummary> Run() {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
+    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone) {
+      // Only an optimiser needs the guard (HC never moves single faces); built here, between
+      // cancellation checks, as it is the longest part of the set-up.
+      MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard,
+                               ConnectivityGuard::Build(mesh_, adjacency_, options_.cancel));
+      guard_.emplace(std::move(guard));
+    }
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
     MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
@@ -103,7 +111,7 @@ class Engine {
   // One cluster per face: the clusters' adjacency is the faces'.
   absl::Status BuildClusterAdjacency() {
     for (uint32_t f = 0; f < n_; ++f) {
-      if (f % 65536 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
+      if (f % 16384 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
       members_[f] = {f};
       for (FaceId g : adjacency_.neighbours[f]) {
         // Each face edge is seen from both faces: one side each time.
@@ -207,7 +215,7 @@ class Engine {
         }
       }
     }
-    const ConnectivityGuard* guard = options_.connectivity_guard ? &guard_ : nullptr;
+    const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
     // Touch (before each move) keeps the clusters' energies from before the level; this
     // runs after the move.
     auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
@@ -217,13 +225,15 @@ class Engine {
     };
     const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
     if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
-      summary_.evaluations += detail::RunEmloOn(adjacency_, guard, partition_, worklist_, max_moves,
-                                                emlo_scratch_, on_move,
-                                                [&](uint32_t from, uint32_t to) {
-                                                  Touch(from);
-                                                  Touch(to);
-                                                })
-                                  .evaluations;
+      summary_.evaluations +=
+          detail::RunEmloOn(
+              adjacency_, guard, partition_, worklist_, max_moves, emlo_scratch_, on_move,
+              [&](uint32_t from, uint32_t to) {
+                Touch(from);
+                Touch(to);
+              },
+              options_.cancel)
+              .evaluations;
     } else {
       OptimiseBoundaryBased(guard, on_move);
     }
@@ -314,9 +324,14 @@ class Engine {
 
   // PML keeps the ODEs without queueing them; ML queues every new one.
   void SetOde(uint32_t c, uint32_t d, double cost) {
-    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_);
+    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_, TieKey(c));
   }
   bool Alive(uint32_t c) const { return partition_.size(c) > 0; }
+  // Equal ODE costs: the cluster with the fewest faces first (footnote 4 of section 4.2,
+  // l. 1588), or by id alone.
+  uint32_t TieKey(uint32_t c) const {
+    return options_.ties_to_fewest_faces ? partition_.size(c) : 0;
+  }
 
   void RecomputeOde(uint32_t c) {
     double best = std::numeric_limits<double>::infinity();
@@ -452,7 +467,7 @@ class Engine {
                               best_d = d;
                             }
                           }
-                          odes_.Assign(c, best_d, best);
+                          odes_.Assign(c, best_d, best, TieKey(c));
                         }
                       });
   }
@@ -509,7 +524,8 @@ class Engine {
   const FaceAdjacency& adjacency_;
   const MultilevelOptions& options_;
   LevelSink& sink_;
-  ConnectivityGuard guard_;
+  const TriangleMesh& mesh_;
+  std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
   const uint32_t n_;
   Partition<Energy> partition_;
   std::vector<std::vector<uint32_t>> members_;
@@ -554,6 +570,7 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
   if (options.threads < 0) {
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
   return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
                         [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
                           using Energy = std::decay_t<decltype(energy)>;

@@ -56,11 +56,17 @@ struct MultilevelOptions {
   // Stop at this many clusters (>= 1); a mesh with C components stops at C at the least.
   uint32_t min_clusters = 1;
   bool connectivity_guard = true;
+  // Equal ODE costs: true (the default), the cluster with the fewest faces merges first
+  // (footnote 4 of section 4.2, l. 1588), then the smaller id; false, the smaller id
+  // alone (the former rule). Which partner a cluster's ODE names among equal costs is
+  // the larger id either way (PML's rule, Alg. 5.3).
+  bool ties_to_fewest_faces = true;
   // Worker threads for PML's parallel steps, 0 = all cores.
   int threads = 0;
-  // Set from any thread to stop the run: checked before and while the clusters' adjacency
-  // is built, after every level and every 65,536 ODEs of the first ODE pass (not inside
-  // an optimisation). The run then returns CANCELLED (core/base/cancel.h).
+  // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
+  // adjacency is built, while the connectivity guard is built, inside local EMLO (every
+  // few thousand faces), after every level and every 65,536 ODEs of the first ODE pass and
+  // of a p% sweep. The run then returns CANCELLED (core/base/cancel.h).
   const std::atomic<bool>* cancel = nullptr;
   // Called at each level after it is reported, with the engine's own labels (one cluster
   // id per face). For tests that check the log against the engine; costs O(faces) a call.

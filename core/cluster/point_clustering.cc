@@ -147,6 +147,8 @@ constexpr uint32_t kNone = detail::kNoCluster;
 // LN k-means rounds after a merge (the first checks the merged clusters and their
 // neighbours, the others the clusters that changed).
 constexpr int kOptimiseRounds = 8;
+// LN k-means' assignment runs over this many points at a time between cancellation checks.
+constexpr size_t kAssignSlice = 65536;
 
 // First neighbours of a seeded start: brute force over all pairs of clusters, in parallel
 // (O(k^2 d); voxel starts use VoxelNeighbours instead). Once `cancel` is set the blocks
@@ -326,8 +328,13 @@ absl::Status LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& 
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
     MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
     target.resize(check.size());
-    ChooseTargets(clusters, check, target);
-    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
+    // In slices, so that a cancel is seen within one slice of a large set.
+    for (size_t begin = 0; begin < check.size(); begin += kAssignSlice) {
+      const size_t count = std::min(kAssignSlice, check.size() - begin);
+      ChooseTargets(clusters, std::span<const uint32_t>(check).subspan(begin, count),
+                    std::span<uint32_t>(target).subspan(begin, count));
+      MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
+    }
     uint64_t moved = 0;
     const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
     result.iterations = iteration;

@@ -131,6 +131,21 @@ TEST(PlotTest, MarksEveryElbowOnTheCurve) {
   }
 }
 
+// A level whose energy is a rounding error below zero does not open a negative axis, and
+// the labelled energies are the frame's steps.
+TEST(PlotTest, RoundingBelowZeroKeepsTheAxisAtZero) {
+  const std::vector<EnergyCurvePoint> curve = {{1000, -1e-12}, {100, 0.1}, {10, 1.0}, {1, 4.4}};
+  absl::StatusOr<EnergyPlotFrame> frame = EnergyPlotFrameFor(curve);
+  ASSERT_TRUE(frame.ok());
+  EXPECT_EQ(frame->y_min, 0);
+  EXPECT_EQ(frame->y_step, 1);
+  EXPECT_EQ(frame->y_max, 5);
+  const std::vector<EnergyCurvePoint> negative = {{10, -2.0}, {1, 3.0}};
+  frame = EnergyPlotFrameFor(negative);
+  ASSERT_TRUE(frame.ok());
+  EXPECT_EQ(frame->y_min, -2);
+}
+
 TEST(PlotTest, RefusesWhatItCannotDraw) {
   std::vector<EnergyCurvePoint> curve = {{10, 1.0}, {5, 2.0}};
   EnergyPlotOptions options;

@@ -304,6 +304,51 @@ TEST(WorkersTest, CpuWorkersGiveTheSameResultsAsOneWorker) {
   }
 }
 
+// A waiting job hears its place in the queue when it changes (Progress.queue_position).
+TEST(WorkersTest, WaitingJobsReceiveTheirQueuePosition) {
+  server::ServerOptions options;
+  options.gpu = server::GpuMode::kOff;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  const std::string big = *EncodeMeshToDraco(testing::Grid(300));
+  const std::string small = *EncodeMeshToDraco(testing::Grid(10));
+  auto running = std::async(
+      std::launch::async, [&] { return client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), big); });
+  for (int i = 0; i < 500 && GetStats(channel).jobs_running() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  std::promise<void> first_queued;
+  auto first = std::async(std::launch::async, [&] {
+    client::RunOptions run_options;
+    bool told = false;
+    run_options.on_event = [&](const v1::JobEvent& event) {
+      if (event.has_accepted() && !told) {
+        told = true;
+        first_queued.set_value();
+      }
+    };
+    return client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small, run_options);
+  });
+  first_queued.get_future().wait();
+  std::vector<uint32_t> positions;
+  client::RunOptions run_options;
+  run_options.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted()) positions.push_back(event.accepted().queue_position());
+    if (event.has_progress() && event.progress().stage() == "queued") {
+      positions.push_back(event.progress().queue_position());
+    }
+  };
+  absl::StatusOr<client::JobResult> second =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small, run_options);
+  ASSERT_TRUE(second.ok()) << second.status();
+  ASSERT_TRUE(first.get().ok());
+  ASSERT_TRUE(running.get().ok());
+  // Accepted with one job ahead (the first small one; the running job is not waiting),
+  // then told it is next when the first one starts.
+  EXPECT_EQ(positions, (std::vector<uint32_t>{1, 0}));
+}
+
 // SIGTERM's path: the running job finishes within the drain time; queued jobs end at once
 // with UNAVAILABLE and a message; health turns NOT_SERVING; no client hangs.
 TEST(OperationsTest, ShutdownDrainsRunningJobsAndFailsQueuedOnes) {

@@ -8,7 +8,9 @@
 // pile up; once they outnumber the live clusters four to one the queue is rebuilt from
 // the live ODEs, which keeps it O(clusters).
 //
-// Order: cheaper first, equal costs the smaller cluster id first, so every choice is
+// Order: cheaper first; equal costs by a tie key the engine gives with each ODE, smaller
+// first (the mesh engine: the cluster's face count, footnote 4 of section 4.2, l. 1588;
+// 0 where no key is given), then the smaller cluster id, so every choice is
 // deterministic. (Which partner a cluster's ODE names is CheaperDualEdge's rule: equal
 // costs go to the larger id, as PML's.)
 #ifndef MLCLUST_CORE_CLUSTER_DETAIL_ODE_HEAP_H_
@@ -39,6 +41,7 @@ class OdeHeap {
   explicit OdeHeap(uint32_t capacity)
       : partner_(capacity, kNoCluster),
         cost_(capacity, std::numeric_limits<double>::infinity()),
+        tie_key_(capacity, 0),
         version_(capacity, 0) {}
 
   uint32_t capacity() const { return static_cast<uint32_t>(partner_.size()); }
@@ -48,23 +51,25 @@ class OdeHeap {
   size_t queued() const { return heap_.size(); }
 
   // Records c's ODE; its older queue entries become stale. With `queue` and a partner, c
-  // is queued at `cost`.
+  // is queued at `cost` with `tie_key` (see above).
   // (Inlined: called once per ODE change, in the engines' innermost loops.)
   [[gnu::always_inline]] inline void Set(uint32_t c, uint32_t partner, double cost,
-                                         bool queue = true) {
+                                         bool queue = true, uint32_t tie_key = 0) {
     partner_[c] = partner;
     cost_[c] = cost;
+    tie_key_[c] = tie_key;
     ++version_[c];
     if (queue && partner != kNoCluster) {
-      heap_.push_back({cost, c, version_[c]});
+      heap_.push_back({cost, tie_key, c, version_[c]});
       std::push_heap(heap_.begin(), heap_.end(), CheaperLast{});
     }
   }
   // Records c's ODE and nothing else (no version, no queue): for a pass that computes
   // every ODE at once, in parallel (one cluster per call), and rebuilds the queue after.
-  void Assign(uint32_t c, uint32_t partner, double cost) {
+  void Assign(uint32_t c, uint32_t partner, double cost, uint32_t tie_key = 0) {
     partner_[c] = partner;
     cost_[c] = cost;
+    tie_key_[c] = tie_key;
   }
   // Makes c's queue entries stale (a cluster that is gone).
   void Invalidate(uint32_t c) { ++version_[c]; }
@@ -74,7 +79,9 @@ class OdeHeap {
   void Rebuild(const IsAlive& is_alive) {
     heap_.clear();
     for (uint32_t c = 0; c < capacity(); ++c) {
-      if (is_alive(c) && partner_[c] != kNoCluster) heap_.push_back({cost_[c], c, version_[c]});
+      if (is_alive(c) && partner_[c] != kNoCluster) {
+        heap_.push_back({cost_[c], tie_key_[c], c, version_[c]});
+      }
     }
     std::make_heap(heap_.begin(), heap_.end(), CheaperLast{});
   }
@@ -103,20 +110,24 @@ class OdeHeap {
   // A cluster's ODE as it was when queued.
   struct Entry {
     double cost;
+    uint32_t tie_key;
     uint32_t cluster;
     uint32_t version;
   };
   // std::push_heap keeps the largest on top; here x < y when x is dearer, or as dear and
-  // of a larger id, so the top is the cheapest and, among equals, the smallest id.
+  // of a larger tie key, or of equal keys and a larger id, so the top is the cheapest and,
+  // among equals, the smallest key, then the smallest id.
   struct CheaperLast {
     bool operator()(const Entry& x, const Entry& y) const {
       if (x.cost != y.cost) return x.cost > y.cost;
+      if (x.tie_key != y.tie_key) return x.tie_key > y.tie_key;
       return x.cluster > y.cluster;
     }
   };
 
   std::vector<uint32_t> partner_;
   std::vector<double> cost_;
+  std::vector<uint32_t> tie_key_;
   std::vector<uint32_t> version_;
   std::vector<Entry> heap_;
 };

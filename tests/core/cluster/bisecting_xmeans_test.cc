@@ -182,8 +182,9 @@ TEST(BisectingKmeansTest, RefusesBadOptionsAndStopsWhenCancelled) {
             absl::StatusCode::kCancelled);
 }
 
+// 70,000 points: the first 2-means runs run on all cores (clusters of 65,536 points or more).
 TEST(BisectingKmeansTest, SameSeedSameResultForAnyThreadCount) {
-  const Blobs blobs = ShuffledBlobs(5, 300, 4, 11);
+  const Blobs blobs = ShuffledBlobs(5, 14000, 4, 11);
   BisectingKmeansOptions options;
   options.clusters = 7;
   options.seed = 5;
@@ -242,6 +243,21 @@ TEST(XmeansTest, StopsAtMaxClusters) {
   EXPECT_EQ(result->rounds.back().clusters, 5u);
   EXPECT_LE(result->clusters, 5u);
   ExpectDenseLabels(result->labels, result->clusters);
+}
+
+TEST(XmeansTest, SameSeedSameResultForAnyThreadCount) {
+  const Blobs blobs = ShuffledBlobs(6, 400, 8, 51);
+  XmeansOptions options;
+  options.max_clusters = 30;
+  options.seed = 9;
+  options.threads = 1;
+  absl::StatusOr<XmeansResult> one = RunXmeans(blobs.points, options);
+  options.threads = 0;
+  absl::StatusOr<XmeansResult> all = RunXmeans(blobs.points, options);
+  ASSERT_TRUE(one.ok() && all.ok());
+  EXPECT_EQ(one->labels, all->labels);
+  EXPECT_EQ(one->bic, all->bic);
+  EXPECT_EQ(one->rounds.size(), all->rounds.size());
 }
 
 TEST(XmeansTest, RefusesBadOptionsAndStopsWhenCancelled) {
