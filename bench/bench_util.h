@@ -1,9 +1,9 @@
 // What the bench mains share: `--name value` arguments, wall-clock timing and mesh set-up.
 //
 //   bench::Args args(argc, argv, "usage: mesh_bench MESH --k K [--algo emlo|bb] ...");
+//   const bool header = args.Flag("header");      // flags first (see Flag)
 //   const std::string path = args.Positional(0);
 //   const uint32_t k = args.Get<uint32_t>("k", 1000);
-//   const bool header = args.Flag("header");
 //   if (!args.Done()) return 2;   // unknown or malformed options, printed with the usage
 //   const mlclust::PreparedMesh mesh = bench::PrepareOrDie(path);
 //
@@ -71,7 +71,9 @@ class Args {
     return value;
   }
 
-  // Whether the flag --name was given (a flag takes no value).
+  // Whether the flag --name was given (a flag takes no value). The parser cannot tell a
+  // flag from an option, so a word after a flag is first taken as its value and given back
+  // here: ask for every flag before the positional arguments.
   bool Flag(std::string_view name) {
     Entry* entry = Find(name);
     if (entry == nullptr) return false;

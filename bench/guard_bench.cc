@@ -25,11 +25,12 @@
 #include <vector>
 
 #include "absl/container/flat_hash_set.h"
-#include "absl/strings/numbers.h"
+#include "bench/bench_util.h"
 #include "core/energy/energies.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/face_measures.h"
+#include "core/mesh/prepared_mesh.h"
 
 namespace {
 
@@ -243,47 +244,19 @@ Result Run(const TriangleMesh& mesh, const FaceAdjacency& adjacency, const FaceM
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr,
-                 "usage: guard_bench MESH [--clusters K] [--sweeps S] [--seed N] "
-                 "[--copies C]\n");
-    return 2;
-  }
-  uint32_t k = 200, seed = 1, copies = 1, repeats = 3;
-  int sweeps = 20;
-  bool header = false, random_moves = false;
-  for (int i = 2; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--header") {
-      header = true;
-      continue;
-    }
-    if (arg == "--random") {
-      random_moves = true;
-      continue;
-    }
-    if (i + 1 >= argc) return 2;
-    const std::string value = argv[++i];
-    bool ok = true;
-    if (arg == "--clusters") {
-      ok = absl::SimpleAtoi(value, &k);
-    } else if (arg == "--sweeps") {
-      ok = absl::SimpleAtoi(value, &sweeps);
-    } else if (arg == "--seed") {
-      ok = absl::SimpleAtoi(value, &seed);
-    } else if (arg == "--repeats") {
-      ok = absl::SimpleAtoi(value, &repeats);
-    } else if (arg == "--copies") {
-      ok = absl::SimpleAtoi(value, &copies);
-    } else {
-      ok = false;
-    }
-    if (!ok) {
-      std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
-      return 2;
-    }
-  }
-  absl::StatusOr<TriangleMesh> loaded = ReadMeshFile(argv[1]);
+  bench::Args args(argc, argv,
+                   "usage: guard_bench MESH [--clusters K] [--sweeps S] [--seed N] [--copies C] "
+                   "[--repeats R] [--random] [--header]");
+  const bool header = args.Flag("header");
+  const bool random_moves = args.Flag("random");
+  const std::string path = args.Positional(0);
+  const uint32_t k = args.Get<uint32_t>("clusters", 200);
+  const int sweeps = args.Get<int>("sweeps", 20);
+  const uint32_t seed = args.Get<uint32_t>("seed", 1);
+  const uint32_t repeats = args.Get<uint32_t>("repeats", 3);
+  const uint32_t copies = args.Get<uint32_t>("copies", 1);
+  if (!args.Done()) return 2;
+  absl::StatusOr<TriangleMesh> loaded = ReadMeshFile(path);
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s\n", loaded.status().ToString().c_str());
     return 1;
@@ -302,12 +275,15 @@ int main(int argc, char** argv) {
     }
     for (uint32_t i : loaded->indices) mesh.indices.push_back(i + offset);
   }
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-  if (!adjacency.ok()) {
-    std::fprintf(stderr, "%s\n", adjacency.status().ToString().c_str());
+  // The copies together, validated, with adjacency and measures.
+  absl::StatusOr<PreparedMesh> prepared = PrepareMesh(std::move(mesh));
+  if (!prepared.ok()) {
+    std::fprintf(stderr, "%s\n", prepared.status().ToString().c_str());
     return 1;
   }
-  const FaceMeasures measures = ComputeFaceMeasures(mesh);
+  mesh = std::move(prepared->mesh);
+  const FaceAdjacency* adjacency = &prepared->adjacency;
+  const FaceMeasures& measures = prepared->measures;
   std::mt19937 rng(seed);
   const std::vector<uint32_t> labels = Grow(*adjacency, k, rng);
   const uint32_t clusters = *std::max_element(labels.begin(), labels.end()) + 1;
@@ -317,7 +293,8 @@ int main(int argc, char** argv) {
         "alg32_only,ring_ns,alg32_ns,energy,disconnected_before,not_disc_before,pinched_before,"
         "disconnected,not_disc,pinched,emptied\n");
   }
-  const char* name = std::strrchr(argv[1], '/') ? std::strrchr(argv[1], '/') + 1 : argv[1];
+  const std::string base_name = bench::BaseName(path);
+  const char* name = base_name.c_str();
   for (Mode mode : {Mode::kRing, Mode::kAlg32, Mode::kNone}) {
     Result r = Run(mesh, *adjacency, measures, labels, clusters, sweeps, seed, mode, random_moves);
     for (uint32_t repeat = 1; repeat < repeats; ++repeat) {

@@ -19,44 +19,35 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/base/random.h"
 #include "core/cluster/point_clustering.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
-  std::vector<uint32_t> ks = {10, 25, 50, 100, 150, 200, 250};
-  uint32_t sets = 10, per_blob = 500;
-  uint64_t seed = 1;
-  std::string algo = "ml", npy_dir;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string arg = argv[i], value = argv[i + 1];
-    bool ok = true;
-    if (arg == "--ks") {
-      ks.clear();
-      for (absl::string_view part : absl::StrSplit(value, ',')) {
-        uint32_t k = 0;
-        ok = ok && absl::SimpleAtoi(part, &k) && k > 0;
-        ks.push_back(k);
-      }
-    } else if (arg == "--sets") {
-      ok = absl::SimpleAtoi(value, &sets);
-    } else if (arg == "--per-blob") {
-      ok = absl::SimpleAtoi(value, &per_blob) && per_blob > 0;
-    } else if (arg == "--seed") {
-      ok = absl::SimpleAtoi(value, &seed);
-    } else if (arg == "--algo") {
-      algo = value;
-      ok = algo == "ml" || algo == "hc" || algo == "pml";
-    } else if (arg == "--write-npy") {
-      npy_dir = value;
-    } else {
-      ok = false;
-    }
-    if (!ok) {
-      std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
+  mlclust::bench::Args args(argc, argv,
+                            "usage: truek_bench [--ks 10,25,...] [--sets N] [--per-blob N] "
+                            "[--seed S] [--algo ml|hc|pml] [--write-npy DIR]");
+  std::vector<uint32_t> ks;
+  for (absl::string_view part :
+       absl::StrSplit(args.Get<std::string>("ks", "10,25,50,100,150,200,250"), ',')) {
+    uint32_t k = 0;
+    if (!absl::SimpleAtoi(part, &k) || k == 0) {
+      std::fprintf(stderr, "--ks: '%s' is not a positive count\n", std::string(part).c_str());
       return 2;
     }
+    ks.push_back(k);
+  }
+  const uint32_t sets = args.Get<uint32_t>("sets", 10);
+  const uint32_t per_blob = args.Get<uint32_t>("per-blob", 500);
+  const uint64_t seed = args.Get<uint64_t>("seed", 1);
+  const std::string algo = args.Get<std::string>("algo", "ml");
+  const std::string npy_dir = args.Get<std::string>("write-npy", "");
+  if (!args.Done()) return 2;
+  if (per_blob == 0 || (algo != "ml" && algo != "hc" && algo != "pml")) {
+    std::fprintf(stderr, "--per-blob must be > 0 and --algo one of ml, hc, pml\n");
+    return 2;
   }
   std::printf("algo,K,set,m,seconds,levels,best_k,first_decrease_k\n");
   for (uint32_t k : ks) {

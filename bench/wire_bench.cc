@@ -7,11 +7,12 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "client/client.h"
 #include "core/cluster/multilevel.h"
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
-#include "core/mesh/face_measures.h"
+#include "core/io/prepare_mesh.h"
 #include "server/server.h"
 
 namespace {
@@ -19,14 +20,12 @@ namespace {
 // Keeps the levels as the client does (a HierarchyLog) with no wire in between.
 double NoWireSeconds(const std::string& bytes, uint64_t* triplets) {
   const absl::Time start = absl::Now();
-  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::DecodeDracoMesh(bytes);
-  if (!mesh.ok() || !mlclust::ValidateMesh(*mesh).ok()) std::abort();
-  absl::StatusOr<mlclust::FaceAdjacency> adjacency = mlclust::BuildFaceAdjacency(*mesh);
-  const mlclust::FaceMeasures measures = mlclust::ComputeFaceMeasures(*mesh);
+  absl::StatusOr<mlclust::PreparedMesh> prepared = mlclust::PrepareDracoMesh(bytes);
+  if (!prepared.ok()) std::abort();
   mlclust::HierarchyLog log;
   mlclust::MultilevelOptions hc;
   hc.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
-  if (!mlclust::RunMultilevel({&*mesh, &*adjacency, &measures, {}}, hc, log).ok()) std::abort();
+  if (!mlclust::RunMultilevel(mlclust::MakeMeshProblem(*prepared), hc, log).ok()) std::abort();
   *triplets = log.num_moves();
   return absl::ToDoubleSeconds(absl::Now() - start);
 }
@@ -34,13 +33,12 @@ double NoWireSeconds(const std::string& bytes, uint64_t* triplets) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: wire_bench MESH [REPEATS]\n");
-    return 2;
-  }
+  mlclust::bench::Args args(argc, argv, "usage: wire_bench MESH [REPEATS]");
+  const std::string path = args.Positional(0);
   int repeats = 3;
-  if (argc > 2 && !absl::SimpleAtoi(argv[2], &repeats)) return 2;
-  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(argv[1]);
+  if (args.num_positional() > 1 && !absl::SimpleAtoi(args.Positional(1), &repeats)) return 2;
+  if (!args.Done()) return 2;
+  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(path);
   if (!mesh.ok()) return 1;
   const absl::Time encode_start = absl::Now();
   absl::StatusOr<std::string> bytes = mlclust::EncodeMeshToDraco(*mesh);
@@ -52,7 +50,7 @@ int main(int argc, char** argv) {
   options.log = false;
   auto server = mlclust::server::Server::Start(options);
   if (!server.ok()) return 1;
-  std::printf("%s: %zu faces, Draco %zu bytes (encoded in %.3f s); GL: %s\n", argv[1],
+  std::printf("%s: %zu faces, Draco %zu bytes (encoded in %.3f s); GL: %s\n", path.c_str(),
               mesh->num_faces(), bytes->size(), encode,
               (*server)->gl_renderer().empty() ? "none" : (*server)->gl_renderer().c_str());
 

@@ -1,8 +1,10 @@
 // Strongly typed element and cluster ids.
 //
 // Faces, vertices, points and clusters are different things; a FaceId cannot be passed
-// where a ClusterId is expected. Each id is a 32-bit index; kInvalid marks "none"
-// (for example the missing neighbour across a boundary edge).
+// where a ClusterId is expected. Each id is a 32-bit index; Invalid() (value
+// kInvalidValue) marks "none", for example the missing neighbour across a boundary edge.
+// It is the one sentinel of each id type: code that works on raw uint32_t indices names
+// it as FaceId::kInvalidValue, ClusterId::kInvalidValue, ..., not as its own constant.
 #ifndef MLCLUST_CORE_BASE_IDS_H_
 #define MLCLUST_CORE_BASE_IDS_H_
 
@@ -42,6 +44,7 @@ class StrongId {
 using FaceId = StrongId<struct FaceTag>;
 using VertexId = StrongId<struct VertexTag>;
 using ClusterId = StrongId<struct ClusterTag>;
+using PointId = StrongId<struct PointTag>;
 
 }  // namespace mlclust
 

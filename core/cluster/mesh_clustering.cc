@@ -7,6 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/random.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/boundary_based.h"
 #include "core/cluster/detail/emlo_impl.h"
@@ -16,36 +17,12 @@
 namespace mlclust {
 namespace {
 
-constexpr uint32_t kUnassigned = 0xffffffffu;
+// A face not yet in a cluster: the cluster id type's own sentinel.
+constexpr uint32_t kUnassigned = ClusterId::kInvalidValue;
 
 // Loops over faces look at the cancel flag once per this many faces (well under a
 // millisecond of work on any of them).
 constexpr uint32_t kFacesPerCancelCheck = 16384;
-
-// Connected component id per face, and the count.
-uint32_t FaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component) {
-  const size_t n = adjacency.num_faces();
-  component.assign(n, kUnassigned);
-  uint32_t count = 0;
-  std::vector<uint32_t> stack;
-  for (uint32_t start = 0; start < n; ++start) {
-    if (component[start] != kUnassigned) continue;
-    component[start] = count;
-    stack.push_back(start);
-    while (!stack.empty()) {
-      const uint32_t f = stack.back();
-      stack.pop_back();
-      for (FaceId g : adjacency.neighbours[f]) {
-        if (g.valid() && component[g.value()] == kUnassigned) {
-          component[g.value()] = count;
-          stack.push_back(g.value());
-        }
-      }
-    }
-    ++count;
-  }
-  return count;
-}
 
 // Alg. 2.2's flood: each seed's proxy is fitted to the seed face; faces join the region
 // whose proxy fits them best among regions that reach them, cheapest first.
@@ -188,28 +165,14 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
     merge_into(best_a, best_b);
     --count;
   }
-  std::vector<uint32_t> compact(clusters, kUnassigned);
-  uint32_t next = 0;
-  for (uint32_t& l : labels) {
-    const uint32_t root = find(l);
-    if (compact[root] == kUnassigned) compact[root] = next++;
-    l = compact[root];
-  }
-  return labels;
+  for (uint32_t& l : labels) l = find(l);
+  return RenumberByFirstAppearance(std::span<const uint32_t>(labels)).dense;
 }
 
 std::vector<ClusterId> ToClusterIds(std::span<const uint32_t> labels) {
   std::vector<ClusterId> out(labels.size());
   for (size_t i = 0; i < labels.size(); ++i) out[i] = ClusterId(labels[i]);
   return out;
-}
-
-// The caller's cluster id of each compact id (the inverse of CompactClusterIds).
-std::vector<ClusterId> OriginalIds(std::span<const ClusterId> labels,
-                                   std::span<const uint32_t> compact, uint32_t k) {
-  std::vector<ClusterId> original(k);
-  for (size_t f = 0; f < labels.size(); ++f) original[compact[f]] = labels[f];
-  return original;
 }
 
 void WriteBack(std::span<const uint32_t> compact_labels, std::span<const ClusterId> original,
@@ -299,7 +262,7 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
         absl::StrCat("clusters: ", k, " must be between 1 and the mesh's ", n, " faces"));
   }
   std::vector<uint32_t> component;
-  const uint32_t components = FaceComponents(adjacency, component);
+  const uint32_t components = LabelFaceComponents(adjacency, component);
   if (k < components) {
     return absl::InvalidArgumentError(
         absl::StrCat("clusters: ", k, " is fewer than the mesh's ", components,
@@ -389,9 +352,11 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
     return absl::InvalidArgumentError(
         absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
   }
-  std::vector<uint32_t> compact;
-  const uint32_t k = CompactClusterIds(labels, compact);
-  const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
+  const Renumbering<ClusterId> renumbered =
+      RenumberByFirstAppearance(std::span<const ClusterId>(labels));
+  const std::vector<uint32_t>& compact = renumbered.dense;
+  const std::vector<ClusterId>& original = renumbered.original;
+  const uint32_t k = renumbered.size();
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "EMLO set-up"));
   return WithMeshEnergy(
       problem.energy, *problem.mesh, *problem.measures,
@@ -442,9 +407,11 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
   if (options.threads < 0) {
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
-  std::vector<uint32_t> compact;
-  const uint32_t k = CompactClusterIds(labels, compact);
-  const std::vector<ClusterId> original = OriginalIds(labels, compact, k);
+  const Renumbering<ClusterId> renumbered =
+      RenumberByFirstAppearance(std::span<const ClusterId>(labels));
+  const std::vector<uint32_t>& compact = renumbered.dense;
+  const std::vector<ClusterId>& original = renumbered.original;
+  const uint32_t k = renumbered.size();
   const boundary_based::StageThreads threads(options.threads);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
   auto run = [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {

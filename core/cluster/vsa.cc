@@ -13,7 +13,9 @@
 namespace mlclust {
 namespace {
 
-constexpr uint32_t kNone = 0xffffffffu;
+// "No region" (regions are cluster ids) and "no face": the id types' own sentinels.
+constexpr uint32_t kNoRegion = ClusterId::kInvalidValue;
+constexpr uint32_t kNoFace = FaceId::kInvalidValue;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // The flood looks at the cancel flag once per this many heap entries (about a millisecond).
 constexpr uint32_t kFacesPerCancelCheck = 16384;
@@ -104,8 +106,8 @@ class Vsa {
       const Vec3& n = measures.unit_normal[f];
       faces_[f] = {n.x, n.y, n.z, measures.area[f]};
     }
-    labels_.assign(num_faces_, kNone);
-    previous_labels_.assign(num_faces_, kNone);
+    labels_.assign(num_faces_, kNoRegion);
+    previous_labels_.assign(num_faces_, kNoRegion);
     best_cost_.assign(num_faces_, kInfinity);
     face_cost_.assign(num_faces_, 0.0);
     heap_.reserve(1024);
@@ -150,24 +152,7 @@ class Vsa {
   // CGAL's bootstrap: one region per edge-connected component, fitted to it. Returns the
   // number of components.
   uint32_t StartFromComponents() {
-    std::vector<uint32_t> stack;
-    uint32_t count = 0;
-    for (uint32_t start = 0; start < num_faces_; ++start) {
-      if (labels_[start] != kNone) continue;
-      labels_[start] = count;
-      stack.push_back(start);
-      while (!stack.empty()) {
-        const uint32_t f = stack.back();
-        stack.pop_back();
-        for (FaceId g : adjacency_.neighbours[f]) {
-          if (g.valid() && labels_[g.value()] == kNone) {
-            labels_[g.value()] = count;
-            stack.push_back(g.value());
-          }
-        }
-      }
-      ++count;
-    }
+    const uint32_t count = LabelFaceComponents(adjacency_, labels_);
     Resize(count);
     Fit();
     return count;
@@ -223,15 +208,15 @@ class Vsa {
   // is not one of the pair; returns whether it was done. The state is refitted after.
   bool Teleport() {
     const uint32_t k = num_regions();
-    uint32_t worst = kNone;
+    uint32_t worst = kNoRegion;
     for (uint32_t r = 0; r < k; ++r) {
-      if (sizes_[r] > 1 && (worst == kNone || errors_[r] > errors_[worst])) worst = r;
+      if (sizes_[r] > 1 && (worst == kNoRegion || errors_[r] > errors_[worst])) worst = r;
     }
-    if (worst == kNone) return false;
+    if (worst == kNoRegion) return false;
     // The cheapest merge of regions that share an edge, from the sums alone (eq. 3.38:
     // E = 2 (sum A - |sum A n|), so the merge adds 2 (|S_a| + |S_b| - |S_a + S_b|)).
     double best_cost = kInfinity;
-    uint32_t keep = kNone, gone = kNone;
+    uint32_t keep = kNoRegion, gone = kNoRegion;
     for (uint32_t f = 0; f < num_faces_; ++f) {
       const uint32_t a = labels_[f];
       for (FaceId g : adjacency_.neighbours[f]) {
@@ -247,12 +232,12 @@ class Vsa {
         }
       }
     }
-    if (keep == kNone || keep == worst || gone == worst) return false;
+    if (keep == kNoRegion || keep == worst || gone == worst) return false;
     if (!(best_cost < 0.5 * errors_[worst])) return false;
-    uint32_t target = kNone;
+    uint32_t target = kNoFace;
     for (uint32_t f = 0; f < num_faces_; ++f) {
       if (labels_[f] != worst || seeds_[worst] == f) continue;
-      if (target == kNone || face_cost_[f] > face_cost_[target]) target = f;
+      if (target == kNoFace || face_cost_[f] > face_cost_[target]) target = f;
     }
     for (uint32_t f = 0; f < num_faces_; ++f) {
       if (labels_[f] == gone) labels_[f] = keep;
@@ -265,7 +250,7 @@ class Vsa {
  private:
   void Resize(uint32_t regions) {
     proxies_.resize(regions);
-    seeds_.resize(regions, kNone);
+    seeds_.resize(regions, kNoFace);
     errors_.resize(regions, 0.0);
     sizes_.resize(regions, 0);
     normal_sums_.resize(regions);
@@ -284,7 +269,7 @@ class Vsa {
     for (FaceId g : adjacency_.neighbours[face]) {
       if (!g.valid()) continue;
       const uint32_t neighbour = g.value();
-      if (labels_[neighbour] != kNone) continue;
+      if (labels_[neighbour] != kNoRegion) continue;
       const double cost = Cost(neighbour, proxy);
       if (cost >= best_cost_[neighbour]) continue;
       best_cost_[neighbour] = cost;
@@ -307,7 +292,7 @@ class Vsa {
       return;
     }
     labels_.swap(previous_labels_);
-    std::fill(labels_.begin(), labels_.end(), kNone);
+    std::fill(labels_.begin(), labels_.end(), kNoRegion);
     std::fill(best_cost_.begin(), best_cost_.end(), kInfinity);
     heap_.clear();
     const uint32_t k = num_regions();
@@ -325,7 +310,7 @@ class Vsa {
         }
       }
       const Claim claim = heap_.Top();
-      if (labels_[claim.face] != kNone) {
+      if (labels_[claim.face] != kNoRegion) {
         heap_.Pop();
         continue;
       }
@@ -524,16 +509,16 @@ void SeedIncremental(Vsa& vsa, uint32_t k, uint32_t inner, uint32_t& relaxations
   while (vsa.num_regions() < k && !vsa.cancelled()) {
     // The region with the largest error that has a face besides its seed (one exists while
     // there are fewer regions than faces), and its costliest non-seed face.
-    uint32_t worst = kNone;
+    uint32_t worst = kNoRegion;
     for (uint32_t r = 0; r < vsa.num_regions(); ++r) {
-      if (vsa.sizes()[r] > 1 && (worst == kNone || vsa.errors()[r] > vsa.errors()[worst])) {
+      if (vsa.sizes()[r] > 1 && (worst == kNoRegion || vsa.errors()[r] > vsa.errors()[worst])) {
         worst = r;
       }
     }
-    uint32_t face = kNone;
+    uint32_t face = kNoFace;
     for (uint32_t f = 0; f < vsa.num_faces(); ++f) {
       if (vsa.labels()[f] != worst || vsa.seeds()[worst] == f) continue;
-      if (face == kNone || vsa.face_costs()[f] > vsa.face_costs()[face]) face = f;
+      if (face == kNoFace || vsa.face_costs()[f] > vsa.face_costs()[face]) face = f;
     }
     vsa.AddRegionAt(face);
     relaxations += vsa.Relax(inner);

@@ -13,6 +13,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "core/base/vec3.h"
 #include "core/mesh/face_measures.h"
@@ -21,26 +22,12 @@ namespace mlclust {
 namespace {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+// Loops over vertices look at the cancel flag once per this many.
+constexpr uint32_t kVerticesPerCancelCheck = 32768;
 
 // Clusters renumbered 0..k-1 in order of first appearance; coarse vertex i is cluster i.
-struct DenseClusters {
-  std::vector<uint32_t> of_face;  // dense cluster of each face
-  std::vector<ClusterId> label;   // the caller's label of each dense cluster
-
-  uint32_t size() const { return static_cast<uint32_t>(label.size()); }
-};
-
-DenseClusters Densify(std::span<const ClusterId> labels) {
-  DenseClusters dense;
-  dense.of_face.resize(labels.size());
-  absl::flat_hash_map<ClusterId, uint32_t> index;
-  for (size_t face = 0; face < labels.size(); ++face) {
-    auto [it, inserted] = index.try_emplace(labels[face], dense.size());
-    if (inserted) dense.label.push_back(labels[face]);
-    dense.of_face[face] = it->second;
-  }
-  return dense;
-}
+// dense[face] is the face's dense cluster, original[cluster] the caller's label.
+using DenseClusters = Renumbering<ClusterId>;
 
 absl::Status CheckInputs(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                          std::span<const ClusterId> labels) {
@@ -86,30 +73,6 @@ uint32_t VertexAt(const TriangleMesh& mesh, uint32_t face, int corner) {
 
 uint64_t EdgeKey(uint32_t a, uint32_t b) { return (uint64_t{a} << 32) | b; }
 uint64_t UndirectedKey(uint32_t a, uint32_t b) { return a < b ? EdgeKey(a, b) : EdgeKey(b, a); }
-
-// Faces around each vertex, in no particular order, as compressed rows.
-struct VertexFaces {
-  std::vector<uint32_t> offset;
-  std::vector<uint32_t> face;
-
-  std::span<const uint32_t> of(uint32_t vertex) const {
-    return std::span<const uint32_t>(face).subspan(offset[vertex],
-                                                   offset[vertex + 1] - offset[vertex]);
-  }
-};
-
-VertexFaces BuildVertexFaces(const TriangleMesh& mesh) {
-  VertexFaces table;
-  table.offset.assign(mesh.num_vertices() + 1, 0);
-  for (uint32_t v : mesh.indices) ++table.offset[v + 1];
-  std::partial_sum(table.offset.begin(), table.offset.end(), table.offset.begin());
-  table.face.resize(mesh.indices.size());
-  std::vector<uint32_t> cursor(table.offset.begin(), table.offset.end() - 1);
-  for (size_t i = 0; i < mesh.indices.size(); ++i) {
-    table.face[cursor[mesh.indices[i]]++] = static_cast<uint32_t>(i / 3);
-  }
-  return table;
-}
 
 // The boundary loops of the mesh. Each boundary edge is named by the corner index 3f + e of
 // the face f that holds it as its edge e (from corner e to corner e + 1).
@@ -211,8 +174,8 @@ absl::Status NotOneFan(uint32_t vertex) {
 
 absl::StatusOr<VertexFans> BuildVertexFans(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                            const BoundaryLoops& loops,
-                                           const std::vector<uint32_t>& cluster_of_face,
-                                           uint32_t k) {
+                                           const std::vector<uint32_t>& cluster_of_face, uint32_t k,
+                                           const std::atomic<bool>* cancel) {
   const size_t num_vertices = mesh.num_vertices();
   std::vector<uint32_t> valence(num_vertices, 0);
   std::vector<uint32_t> first_corner(num_vertices, kNone);
@@ -225,6 +188,9 @@ absl::StatusOr<VertexFans> BuildVertexFans(const TriangleMesh& mesh, const FaceA
   fans.entry.reserve(mesh.indices.size() / 2);
   fans.transition.reserve(mesh.indices.size() / 2);
   for (uint32_t vertex = 0; vertex < num_vertices; ++vertex) {
+    if (vertex % kVerticesPerCancelCheck == 0) {
+      MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "coarsening (vertex fans)"));
+    }
     fans.offset[vertex] = static_cast<uint32_t>(fans.entry.size());
     if (valence[vertex] == 0) continue;
     uint32_t face = first_corner[vertex] / 3;
@@ -308,9 +274,11 @@ std::vector<ClusterProblem> FindClusterProblems(const TriangleMesh& mesh,
   const uint32_t num_faces = static_cast<uint32_t>(mesh.num_faces());
   std::vector<int64_t> faces(k, 0), border_sides(k, 0), vertices(k, 0), filled_loops(k, 0);
   std::vector<uint32_t> first_face(k, kNone), second_piece(k, kNone), pinch(k, kNone);
-  // Pieces, by flooding each cluster from its first face.
-  std::vector<uint8_t> seen(num_faces, 0);
-  std::vector<uint32_t> stack;
+  // Pieces: the edge-connected components within the clusters; a piece is met first at its
+  // smallest face.
+  std::vector<uint32_t> piece;
+  const uint32_t num_pieces = LabelFaceComponents(adjacency, piece, cluster_of_face);
+  std::vector<uint8_t> seen(num_pieces, 0);
   for (uint32_t face = 0; face < num_faces; ++face) {
     const uint32_t cluster = cluster_of_face[face];
     ++faces[cluster];
@@ -319,24 +287,12 @@ std::vector<ClusterProblem> FindClusterProblems(const TriangleMesh& mesh,
         ++border_sides[cluster];
       }
     }
-    if (seen[face]) continue;
+    if (seen[piece[face]]) continue;
+    seen[piece[face]] = 1;
     if (first_face[cluster] == kNone) {
       first_face[cluster] = face;
     } else if (second_piece[cluster] == kNone) {
       second_piece[cluster] = face;
-    }
-    seen[face] = 1;
-    stack.assign(1, face);
-    while (!stack.empty()) {
-      const uint32_t current = stack.back();
-      stack.pop_back();
-      for (FaceId neighbour : adjacency.neighbours[current]) {
-        if (neighbour.valid() && !seen[neighbour.value()] &&
-            cluster_of_face[neighbour.value()] == cluster) {
-          seen[neighbour.value()] = 1;
-          stack.push_back(neighbour.value());
-        }
-      }
     }
   }
   std::vector<uint32_t> last_seen_at(k, kNone);
@@ -361,7 +317,7 @@ std::vector<ClusterProblem> FindClusterProblems(const TriangleMesh& mesh,
   }
   std::vector<ClusterProblem> problems;
   for (uint32_t cluster = 0; cluster < k; ++cluster) {
-    const uint32_t label = dense.label[cluster].value();
+    const uint32_t label = dense.original[cluster].value();
     if (second_piece[cluster] != kNone) {
       problems.push_back(
           {cluster, absl::StrCat("cluster ", label, " is not one edge-connected piece: faces ",
@@ -400,8 +356,9 @@ std::vector<ClusterProblem> FindClusterProblems(const TriangleMesh& mesh,
 // cluster along one connected arc of its boundary. With one shared edge the opposite
 // corner must not touch the cluster already (that would close a ring or pinch it).
 bool IsSimpleAddition(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
-                      const VertexFaces& vertex_faces, const std::vector<uint32_t>& cluster_of_face,
-                      uint32_t face, uint32_t cluster) {
+                      const VertexFaceTable& vertex_faces,
+                      const std::vector<uint32_t>& cluster_of_face, uint32_t face,
+                      uint32_t cluster) {
   int shared = 0, shared_edge = 0;
   for (int e = 0; e < 3; ++e) {
     const FaceId neighbour = adjacency.neighbours[face][e];
@@ -412,7 +369,7 @@ bool IsSimpleAddition(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
   }
   if (shared != 1) return shared > 1;
   const uint32_t opposite = VertexAt(mesh, face, (shared_edge + 2) % 3);
-  for (uint32_t other : vertex_faces.of(opposite)) {
+  for (uint32_t other : vertex_faces.faces_around(opposite)) {
     if (other != face && cluster_of_face[other] == cluster) return false;
   }
   return true;
@@ -423,7 +380,7 @@ bool IsSimpleAddition(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
 // clusters that can take them as discs, or, where none can, to the one with most shared
 // edges (forced). Returns the number of forced faces.
 uint32_t GrowFromSeed(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
-                      const VertexFaces& vertex_faces, std::vector<uint32_t>& cluster_of_face,
+                      const VertexFaceTable& vertex_faces, std::vector<uint32_t>& cluster_of_face,
                       const std::vector<uint32_t>& territory, uint32_t seed, uint32_t cluster) {
   cluster_of_face[seed] = cluster;
   auto push_free_neighbours = [&](uint32_t face, std::vector<uint32_t>& to) {
@@ -519,7 +476,7 @@ uint32_t GrowFromSeed(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
 // order (the most interior face first) until one needs no forced face. `territory` holds
 // the cluster's faces. Returns the number of faces that changed cluster.
 uint32_t RegrowCluster(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
-                       const VertexFaces& vertex_faces, std::vector<uint32_t>& cluster_of_face,
+                       const VertexFaceTable& vertex_faces, std::vector<uint32_t>& cluster_of_face,
                        const std::vector<uint32_t>& territory, uint32_t cluster) {
   constexpr int kSeeds = 8;
   absl::flat_hash_map<uint32_t, uint32_t> index;  // face -> position in territory
@@ -670,7 +627,7 @@ std::vector<Vec3> PlaceCoarseVertices(const TriangleMesh& mesh, const DenseClust
   const bool quadric = options.placement == CoarseningOptions::Placement::kQuadric;
   const bool weighted = !options.face_density.empty();
   for (size_t face = 0; face < measures.num_faces(); ++face) {
-    ClusterSums& s = sums[dense.of_face[face]];
+    ClusterSums& s = sums[dense.dense[face]];
     const double area = measures.area[face];
     // Eq. 3.6 / 3.22: the mass of a face is rho_j A_j.
     const double mass = weighted ? options.face_density[face] * area : area;
@@ -697,7 +654,7 @@ std::vector<Vec3> PlaceCoarseVertices(const TriangleMesh& mesh, const DenseClust
     std::vector<double> best(dense.size(), std::numeric_limits<double>::infinity());
     std::vector<uint32_t> best_vertex(dense.size(), 0);
     for (size_t face = 0; face < measures.num_faces(); ++face) {
-      const uint32_t cluster = dense.of_face[face];
+      const uint32_t cluster = dense.dense[face];
       for (int c = 0; c < 3; ++c) {
         const uint32_t vertex = mesh.indices[3 * face + c];
         const double d = SquaredNorm(mesh.position(VertexId(vertex)) - centroids[cluster]);
@@ -715,7 +672,7 @@ std::vector<Vec3> PlaceCoarseVertices(const TriangleMesh& mesh, const DenseClust
   }
   if (!quadric) return centroids;
   for (size_t face = 0; face < measures.num_faces(); ++face) {
-    const uint32_t cluster = dense.of_face[face];
+    const uint32_t cluster = dense.dense[face];
     const Vec3& n = measures.unit_normal[face];
     sums[cluster].residual +=
         (measures.area[face] * Dot(n, measures.centroid[face] - centroids[cluster])) * n;
@@ -744,7 +701,8 @@ struct CoarseTriangulation {
 absl::StatusOr<CoarseTriangulation> BuildCappedDual(const TriangleMesh& mesh,
                                                     const VertexFans& fans,
                                                     const std::vector<Vec3>& positions, uint32_t k,
-                                                    uint32_t num_loops) {
+                                                    uint32_t num_loops,
+                                                    const std::atomic<bool>* cancel) {
   const uint32_t num_vertices = static_cast<uint32_t>(mesh.num_vertices());
   auto is_corner = [&](uint32_t vertex) { return fans.size(vertex) >= 3; };
   // Pair each polygon side (entry a -> next entry b at corner v) with the side b -> a at
@@ -752,6 +710,9 @@ absl::StatusOr<CoarseTriangulation> BuildCappedDual(const TriangleMesh& mesh,
   std::vector<uint32_t> twin_side(fans.entry.size(), kNone);
   absl::flat_hash_set<uint64_t> edges;  // undirected coarse edges of the sides
   for (uint32_t vertex = 0; vertex < num_vertices; ++vertex) {
+    if (vertex % kVerticesPerCancelCheck == 0) {
+      MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "coarsening (dual)"));
+    }
     if (!is_corner(vertex)) continue;
     for (uint32_t side = fans.offset[vertex]; side < fans.offset[vertex + 1]; ++side) {
       const uint32_t a = fans.entry[side], b = fans.entry[fans.next(vertex, side)];
@@ -949,7 +910,7 @@ class Flipper {
 };
 
 std::string RegionName(uint32_t vertex, const DenseClusters& dense) {
-  if (vertex < dense.size()) return absl::StrCat("cluster ", dense.label[vertex].value());
+  if (vertex < dense.size()) return absl::StrCat("cluster ", dense.original[vertex].value());
   return absl::StrCat("boundary loop ", vertex - dense.size());
 }
 
@@ -1156,7 +1117,7 @@ bool FillLoop(const TriangleMesh& mesh, const BoundaryLoops& loops,
 absl::Status CheckCoarseManifold(const std::vector<std::array<uint32_t, 3>>& triangles,
                                  const DenseClusters& dense, bool closed) {
   const uint32_t k = dense.size();
-  auto label = [&](uint32_t cluster) { return dense.label[cluster].value(); };
+  auto label = [&](uint32_t cluster) { return dense.original[cluster].value(); };
   if (triangles.empty()) {
     return absl::FailedPreconditionError(absl::StrCat(
         "no vertex of the mesh is a corner where three or more of the ", k,
@@ -1246,7 +1207,7 @@ absl::Status CheckCoarseManifold(const std::vector<std::array<uint32_t, 3>>& tri
 }  // namespace
 
 std::vector<ClusterId> CoarseVertexClusters(std::span<const ClusterId> labels) {
-  return Densify(labels).label;
+  return RenumberByFirstAppearance(labels).original;
 }
 
 absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
@@ -1279,7 +1240,7 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   }
   auto check_cancel = [&] { return CheckCancelled(options.cancel, "coarsening"); };
   MLCLUST_RETURN_IF_ERROR(check_cancel());
-  const DenseClusters dense = Densify(labels);
+  const DenseClusters dense = RenumberByFirstAppearance(labels);
   const uint32_t k = dense.size();
   MLCLUST_RETURN_IF_ERROR(check_cancel());
   absl::StatusOr<BoundaryLoops> loops = FindBoundaryLoops(mesh, adjacency);
@@ -1287,13 +1248,13 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
 
   CoarseMesh result;
   // The clusters the connectivity is built from: the caller's, or repaired ones.
-  std::vector<uint32_t> cluster_of_face = dense.of_face;
+  std::vector<uint32_t> cluster_of_face = dense.dense;
   absl::StatusOr<VertexFans> fans;
-  VertexFaces vertex_faces;
+  VertexFaceTable vertex_faces;
   absl::flat_hash_set<uint32_t> repaired;
   for (int round = 0;; ++round) {
     MLCLUST_RETURN_IF_ERROR(check_cancel());
-    fans = BuildVertexFans(mesh, adjacency, *loops, cluster_of_face, k);
+    fans = BuildVertexFans(mesh, adjacency, *loops, cluster_of_face, k, options.cancel);
     if (!fans.ok()) return fans.status();
     MLCLUST_RETURN_IF_ERROR(check_cancel());
     const std::vector<ClusterProblem> problems =
@@ -1310,7 +1271,7 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
           absl::StrCat(problems.front().message, "; still so after ", round,
                        " rounds of repair (its neighbours cannot take its faces and stay discs)"));
     }
-    if (vertex_faces.offset.empty()) vertex_faces = BuildVertexFaces(mesh);
+    if (vertex_faces.offset.empty()) vertex_faces = BuildVertexFaceTable(mesh);
     absl::flat_hash_map<uint32_t, std::vector<uint32_t>> territory;  // the problems' faces
     for (const ClusterProblem& problem : problems) territory[problem.cluster];
     for (uint32_t face = 0; face < cluster_of_face.size(); ++face) {
@@ -1342,7 +1303,7 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   for (uint32_t attempt = 0;; ++attempt) {
     MLCLUST_RETURN_IF_ERROR(check_cancel());
     absl::StatusOr<CoarseTriangulation> dual =
-        BuildCappedDual(mesh, *fans, positions, k, loops->size());
+        BuildCappedDual(mesh, *fans, positions, k, loops->size(), options.cancel);
     if (!dual.ok()) return dual.status();
     MLCLUST_RETURN_IF_ERROR(check_cancel());
     Flipper flipper(*dual);
@@ -1425,7 +1386,7 @@ absl::StatusOr<CoarseMesh> CoarsenMeshWithReport(const TriangleMesh& mesh,
   for (const auto& t : triangles) {
     result.mesh.indices.insert(result.mesh.indices.end(), t.begin(), t.end());
   }
-  result.vertex_cluster = dense.label;
+  result.vertex_cluster = dense.original;
   return result;
 }
 

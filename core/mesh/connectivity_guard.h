@@ -46,7 +46,7 @@ class ConnectivityGuard {
 
   // The faces around `face` in ring order (cyclic), kGap where the mesh boundary breaks
   // the ring.
-  static constexpr uint32_t kGap = 0xffffffffu;
+  static constexpr uint32_t kGap = FaceId::kInvalidValue;  // "no face here"
   std::span<const uint32_t> Ring(uint32_t face) const {
     return {ring_faces_.data() + ring_offset_[face], ring_offset_[face + 1] - ring_offset_[face]};
   }

@@ -2,8 +2,10 @@
 #ifndef MLCLUST_CORE_MESH_FACE_MEASURES_H_
 #define MLCLUST_CORE_MESH_FACE_MEASURES_H_
 
+#include <atomic>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "core/base/vec3.h"
 #include "core/mesh/mesh.h"
 
@@ -20,6 +22,11 @@ struct FaceMeasures {
 // Computes area, centroid and unit normal of every face, in double precision.
 // Expects a mesh that passed ValidateMesh.
 FaceMeasures ComputeFaceMeasures(const TriangleMesh& mesh);
+
+// The same, CANCELLED if `cancel` (core/base/cancel.h) is set, checked every few
+// thousand faces.
+absl::StatusOr<FaceMeasures> ComputeFaceMeasures(const TriangleMesh& mesh,
+                                                 const std::atomic<bool>* cancel);
 
 }  // namespace mlclust
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
@@ -186,28 +187,35 @@ absl::Status ValidateMesh(const TriangleMesh& mesh, const std::atomic<bool>* can
   return ValidateMeshAndBuildAdjacency(mesh, cancel).status();
 }
 
-size_t CountFaceComponents(const FaceAdjacency& adjacency) {
+uint32_t LabelFaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component,
+                             std::span<const uint32_t> region) {
+  constexpr uint32_t kUnlabelled = std::numeric_limits<uint32_t>::max();
   const size_t n = adjacency.num_faces();
-  std::vector<bool> seen(n, false);
+  component.assign(n, kUnlabelled);
   std::vector<uint32_t> stack;
-  size_t components = 0;
+  uint32_t count = 0;
   for (uint32_t start = 0; start < n; ++start) {
-    if (seen[start]) continue;
-    ++components;
-    seen[start] = true;
+    if (component[start] != kUnlabelled) continue;
+    component[start] = count;
     stack.push_back(start);
     while (!stack.empty()) {
       const uint32_t face = stack.back();
       stack.pop_back();
       for (FaceId neighbour : adjacency.neighbours[face]) {
-        if (neighbour.valid() && !seen[neighbour.value()]) {
-          seen[neighbour.value()] = true;
-          stack.push_back(neighbour.value());
-        }
+        if (!neighbour.valid() || component[neighbour.value()] != kUnlabelled) continue;
+        if (!region.empty() && region[neighbour.value()] != region[face]) continue;
+        component[neighbour.value()] = count;
+        stack.push_back(neighbour.value());
       }
     }
+    ++count;
   }
-  return components;
+  return count;
+}
+
+size_t CountFaceComponents(const FaceAdjacency& adjacency) {
+  std::vector<uint32_t> component;
+  return LabelFaceComponents(adjacency, component);
 }
 
 }  // namespace mlclust

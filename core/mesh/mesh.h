@@ -91,6 +91,14 @@ absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(
 // Number of edge-connected components of the face graph.
 size_t CountFaceComponents(const FaceAdjacency& adjacency);
 
+// The one component flood: component[f] = the edge-connected component of face f,
+// numbered 0.. in order of each component's smallest face; returns the count. With
+// `region` (one id per face, optional), faces connect only across edges whose two faces
+// have the same id, so the components are the edge-connected pieces of each region (a
+// cluster in two pieces gives two components).
+uint32_t LabelFaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component,
+                             std::span<const uint32_t> region = {});
+
 }  // namespace mlclust
 
 #endif  // MLCLUST_CORE_MESH_MESH_H_

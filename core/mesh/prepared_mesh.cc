@@ -11,8 +11,7 @@ absl::StatusOr<PreparedMesh> PrepareMesh(TriangleMesh mesh, const PrepareMeshOpt
   PreparedMesh prepared;
   // Validation builds the adjacency on the way; it is kept rather than built twice.
   MLCLUST_ASSIGN_OR_RETURN(prepared.adjacency, ValidateMeshAndBuildAdjacency(mesh, options.cancel));
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "face measures"));
-  prepared.measures = ComputeFaceMeasures(mesh);
+  MLCLUST_ASSIGN_OR_RETURN(prepared.measures, ComputeFaceMeasures(mesh, options.cancel));
   prepared.mesh = std::move(mesh);
   return prepared;
 }

@@ -53,22 +53,14 @@ std::map<uint32_t, ClusterTopology> Topology(const Loaded& l,
     result[c].euler =
         static_cast<int>(vertices[c].size()) - static_cast<int>(edges[c].size()) + count;
   }
-  std::vector<bool> seen(labels.size(), false);
+  std::vector<uint32_t> raw, piece;
+  for (ClusterId c : labels) raw.push_back(c.value());
+  const uint32_t pieces = LabelFaceComponents(l.adjacency, piece, raw);
+  std::vector<bool> counted(pieces, false);
   for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (seen[f]) continue;
-    ++result[labels[f].value()].pieces;
-    std::vector<uint32_t> stack = {f};
-    seen[f] = true;
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : l.adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[f]) {
-          seen[h.value()] = true;
-          stack.push_back(h.value());
-        }
-      }
-    }
+    if (counted[piece[f]]) continue;
+    counted[piece[f]] = true;
+    ++result[raw[f]].pieces;
   }
   return result;
 }

@@ -84,22 +84,14 @@ std::set<uint32_t> Regions(const std::vector<ClusterId>& labels) {
 // The number of edge-connected pieces of each region.
 std::map<uint32_t, int> Pieces(const Loaded& l, const std::vector<ClusterId>& labels) {
   std::map<uint32_t, int> pieces;
-  std::vector<bool> seen(labels.size(), false);
-  for (uint32_t start = 0; start < labels.size(); ++start) {
-    if (seen[start]) continue;
-    ++pieces[labels[start].value()];
-    std::vector<uint32_t> stack = {start};
-    seen[start] = true;
-    while (!stack.empty()) {
-      const uint32_t f = stack.back();
-      stack.pop_back();
-      for (FaceId g : l.adjacency.neighbours[f]) {
-        if (g.valid() && !seen[g.value()] && labels[g.value()] == labels[f]) {
-          seen[g.value()] = true;
-          stack.push_back(g.value());
-        }
-      }
-    }
+  std::vector<uint32_t> raw, piece;
+  for (ClusterId c : labels) raw.push_back(c.value());
+  const uint32_t count = LabelFaceComponents(l.adjacency, piece, raw);
+  std::vector<bool> counted(count, false);
+  for (uint32_t f = 0; f < labels.size(); ++f) {
+    if (counted[piece[f]]) continue;
+    counted[piece[f]] = true;
+    ++pieces[raw[f]];
   }
   return pieces;
 }
