@@ -30,20 +30,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size != 0) std::memcpy(points.values.data(), data, size);
   if (!ValidatePoints(points).ok()) return 0;
   MLCLUST_FUZZ_CHECK(points.num_points() > 0);
-  // Known finding, left out until it is fixed in core/cluster/point_clustering.cc
-  // (OccupiedCells): a coordinate's offset from the box's low corner is taken in float, which
-  // overflows to infinity when an axis spans more than float's range (e.g. -3e38 .. 3e38),
-  // and the cast of infinity to uint32 is undefined behaviour (UBSan: float-cast-overflow).
-  // Input: corpus/points_batch/float_range_overflow.bin. Taking the difference in double
-  // fixes it; then delete this check.
-  for (uint32_t j = 0; j < d; ++j) {
-    float lo = points.values[j], hi = points.values[j];
-    for (size_t i = 0; i < points.num_points(); ++i) {
-      lo = std::min(lo, points.values[i * d + j]);
-      hi = std::max(hi, points.values[i * d + j]);
-    }
-    if (std::isinf(hi - lo)) return 0;
-  }
   absl::StatusOr<VoxelStart> start = VoxelGridStart(points, grid);
   MLCLUST_FUZZ_CHECK(start.ok());
   MLCLUST_FUZZ_CHECK(start->labels.size() == points.num_points());

@@ -16,8 +16,12 @@ packages=(
   # the Python package (python/): Debian's python3 with gRPC, protobuf and numpy; the
   # stubs are generated with protoc and grpc_python_plugin (protobuf-compiler-grpc)
   python3 python3-grpcio python3-protobuf python3-numpy
+  # the --plot PNG (client/plot.h): cairo, and a font for its labels
+  libcairo2-dev fonts-dejavu-core
   # tests
   libgtest-dev libgmock-dev
+  # the libFuzzer targets (fuzz/, scripts/fuzz-smoke.sh): clang-14 with libFuzzer
+  clang-14 libclang-rt-14-dev
   # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)
   clang-format clang-tidy
 )

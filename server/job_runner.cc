@@ -17,7 +17,7 @@
 #include "core/points/points.h"
 #include "server/job_options.h"
 #ifdef MLCLUST_HAVE_GPU
-#include "gpu/face_measures_gpu.h"
+#include "gpu/kernels/face_measures_gpu.h"
 #endif
 
 namespace mlclust::server {

@@ -20,13 +20,14 @@
 #include "grpcpp/health_check_service_interface.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job.h"
+#include "server/job_options.h"
 #include "server/job_queue.h"
 #include "server/job_runner.h"
 #include "server/log.h"
 #include "server/memory_budget.h"
 #include "server/result_store.h"
 #ifdef MLCLUST_HAVE_GPU
-#include "gpu/gl_context.h"
+#include "gpu/context/gl_context.h"
 #endif
 
 namespace mlclust::server {
@@ -231,6 +232,24 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       stats->set_gl_renderer(gl_renderer_);
       stats->set_gl_device(gl_device_);
     }
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext* context,
+                                          const v1::GetServerInfoRequest* request,
+                                          v1::ServerInfo* info) override {
+    ServerFacts facts;
+    {
+      std::lock_guard<std::mutex> lock(gl_mutex_);
+      facts.gpu_available = !gl_renderer_.empty();
+      facts.gl_renderer = gl_renderer_;
+      facts.gl_is_software = gl_is_software_;
+    }
+    facts.max_input_bytes = options_.max_input_bytes;
+    facts.queue_capacity = static_cast<uint32_t>(queue_.capacity());
+    *info = MakeServerInfo(facts);
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
     reactor->Finish(grpc::Status::OK);
     return reactor;

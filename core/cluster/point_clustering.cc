@@ -221,7 +221,9 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
       const uint32_t a = cells_per_axis[j];
       const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
       const double t = span > 0 ? (points.values[i * d + j] - bounds.lo[j]) / span : 0.0;
-      cell[j] = std::min(a - 1, static_cast<uint32_t>(t * a));
+      // Clamped in double: an axis spanning more than float's range makes the float offset
+      // above infinite, and casting infinity to uint32 is undefined (found by fuzzing).
+      cell[j] = static_cast<uint32_t>(std::min<double>(a - 1, t * a));
     }
     auto [it, inserted] = index.try_emplace(cell, static_cast<uint32_t>(cells.cell.size()));
     if (inserted) cells.cell.push_back(cell);

@@ -108,6 +108,14 @@ names = {(a["input_kind"], a["name"]) for a in info["algorithms"]}
 assert ("INPUT_KIND_DRACO_MESH", "vsa") in names and ("INPUT_KIND_POINTS_F32", "kmeans") in names
 assert info["version"] and info["max_clusters"] == 4294967295' "$work/info.json" \
   || fail "info --json: $(head -c 300 "$work/info.json")"
+"$mlclust" info --server "127.0.0.1:$port" --json > "$work/info_remote.json" \
+  || fail "info --server failed"
+/usr/bin/python3 -c '
+import json, sys
+local, remote = (json.load(open(p)) for p in sys.argv[1:3])
+assert remote["algorithms"] == local["algorithms"], "the server lists other algorithms"
+assert remote["version"] == local["version"]' "$work/info.json" "$work/info_remote.json" \
+  || fail "info --server: $(head -c 300 "$work/info_remote.json")"
 if "$mlclust" stats --server 127.0.0.1:1 2> "$work/conn.err"; then fail "stats on port 1"; fi
 grep -q "no server is listening at 127.0.0.1:1" "$work/conn.err" || fail "$(cat "$work/conn.err")"
 if "$mlclust" stats --server 127.0.0.1:99999 2> "$work/conn.err"; then fail "port 99999"; fi
