@@ -6,8 +6,9 @@
 #
 #   scripts/fuzz-smoke.sh [TARGET...]       default: every target, FUZZ_SECONDS each
 #
-# Environment: FUZZ_SECONDS (default 15) per target; FUZZ_BUILD_DIR (default build-fuzz);
-# FUZZ_JOBS (build parallelism, default the number of cores). Inputs the fuzzer finds go to
+# Environment: FUZZ_SECONDS (default 15) per target, or FUZZ_RUNS (that many runs from seed
+# 1: the same inputs every time); FUZZ_BUILD_DIR (default build-fuzz); FUZZ_JOBS (build
+# parallelism, default the number of cores). Inputs the fuzzer finds go to
 # build-fuzz/corpus/<target>/, never to the committed seeds. Replay a crash with
 #   build-fuzz/fuzz/fuzz_<target> build-fuzz/artifacts/<target>/crash-...
 set -euo pipefail
@@ -52,9 +53,17 @@ for target in "${targets[@]}"; do
   artifacts="$build/artifacts/$target"
   mkdir -p "$work" "$artifacts"
   log="$build/fuzz-$target.log"
-  echo "fuzz-smoke: $target for ${seconds}s"
+  # FUZZ_RUNS=N: N executions from a fixed seed (the same inputs every time, as CI needs);
+  # otherwise FUZZ_SECONDS of fresh exploration.
+  if [ -n "${FUZZ_RUNS:-}" ]; then
+    budget=(-runs="$FUZZ_RUNS" -seed=1)
+    echo "fuzz-smoke: $target for $FUZZ_RUNS runs (seed 1)"
+  else
+    budget=(-max_total_time="$seconds")
+    echo "fuzz-smoke: $target for ${seconds}s"
+  fi
   # New inputs go to the first corpus directory; the seeds are only read.
-  if "$build/fuzz/fuzz_$target" "$work" "fuzz/corpus/$target" -max_total_time="$seconds" \
+  if "$build/fuzz/fuzz_$target" "$work" "fuzz/corpus/$target" "${budget[@]}" \
       -timeout=10 -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 \
       -artifact_prefix="$artifacts/" > "$log" 2>&1; then
     grep -E "^stat::number_of_executed_units" "$log" | sed "s/^/  /" || true
@@ -68,4 +77,6 @@ if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz-smoke: failed: ${failed[*]} (inputs in $build/artifacts/)" >&2
   exit 1
 fi
-echo "fuzz-smoke: ${#targets[@]} targets, ${seconds}s each, no crash"
+each="${seconds}s"
+[ -n "${FUZZ_RUNS:-}" ] && each="$FUZZ_RUNS runs"
+echo "fuzz-smoke: ${#targets[@]} targets, $each each, no crash"
