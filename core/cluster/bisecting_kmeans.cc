@@ -8,6 +8,7 @@
 #include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/subset_sum_of_squares.h"
 
 namespace mlclust {
 namespace {
@@ -26,28 +27,6 @@ PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
     out = std::copy(p.begin(), p.end(), out);
   }
   return subset;
-}
-
-// Sum of squared distances of the points to their mean, in double (two passes: the mean,
-// then the distances, which keeps far-from-origin data exact to rounding).
-double SumOfSquares(const PointSet& points, const std::vector<uint32_t>& members,
-                    std::vector<double>& mean) {
-  const uint32_t d = points.dims;
-  mean.assign(d, 0.0);
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    for (uint32_t j = 0; j < d; ++j) mean[j] += p[j];
-  }
-  for (double& v : mean) v /= static_cast<double>(members.size());
-  double sse = 0;
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff = p[j] - mean[j];
-      sse += diff * diff;
-    }
-  }
-  return sse;
 }
 
 struct Cluster {
@@ -102,8 +81,7 @@ absl::StatusOr<BisectingKmeansResult> RunBisectingKmeans(const PointSet& points,
   clusters.reserve(k);
   clusters[0].members.resize(m);
   for (size_t i = 0; i < m; ++i) clusters[0].members[i] = static_cast<uint32_t>(i);
-  std::vector<double> mean;
-  clusters[0].sse = SumOfSquares(points, clusters[0].members, mean);
+  clusters[0].sse = detail::SubsetSumOfSquares(points, clusters[0].members);
   result.initial_energy = clusters[0].sse;
   double total = clusters[0].sse;
 
@@ -147,8 +125,8 @@ absl::StatusOr<BisectingKmeansResult> RunBisectingKmeans(const PointSet& points,
     for (size_t n = 0; n < best_labels.size(); ++n) {
       (best_labels[n].value() == 0 ? first : second).members.push_back(split.members[n]);
     }
-    first.sse = SumOfSquares(points, first.members, mean);
-    second.sse = SumOfSquares(points, second.members, mean);
+    first.sse = detail::SubsetSumOfSquares(points, first.members);
+    second.sse = detail::SubsetSumOfSquares(points, second.members);
     total += first.sse + second.sse - split.sse;
     const uint32_t child = static_cast<uint32_t>(clusters.size());
     result.splits.push_back(
@@ -162,8 +140,9 @@ absl::StatusOr<BisectingKmeansResult> RunBisectingKmeans(const PointSet& points,
   result.labels.assign(m, ClusterId(0));
   result.centres.assign(size_t{k} * d, 0.0f);
   result.inertia = 0;
+  std::vector<double> mean;
   for (uint32_t c = 0; c < clusters.size(); ++c) {
-    result.inertia += SumOfSquares(points, clusters[c].members, mean);
+    result.inertia += detail::SubsetSumOfSquares(points, clusters[c].members, &mean);
     for (uint32_t j = 0; j < d; ++j)
       result.centres[size_t{c} * d + j] = static_cast<float>(mean[j]);
     for (uint32_t i : clusters[c].members) result.labels[i] = ClusterId(c);

@@ -8,6 +8,7 @@
 #include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/subset_sum_of_squares.h"
 #include "core/hierarchy/model_selection.h"
 
 namespace mlclust {
@@ -66,26 +67,6 @@ PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
     out = std::copy(p.begin(), p.end(), out);
   }
   return subset;
-}
-
-// Sum of squared distances of `members` to their mean, in double, two passes.
-double SumOfSquares(const PointSet& points, const std::vector<uint32_t>& members) {
-  const uint32_t d = points.dims;
-  std::vector<double> mean(d, 0.0);
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    for (uint32_t j = 0; j < d; ++j) mean[j] += p[j];
-  }
-  for (double& v : mean) v /= static_cast<double>(members.size());
-  double sse = 0;
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff = p[j] - mean[j];
-      sse += diff * diff;
-    }
-  }
-  return sse;
 }
 
 // The BIC of a whole labelling (sizes from the labels).
@@ -166,7 +147,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       uint64_t sizes[2] = {0, 0};
       for (ClusterId label : best.labels) ++sizes[label.value()];
       const double one = SphericalGaussianBic(std::span<const uint64_t>(&n, 1),
-                                              SumOfSquares(points, cluster), n, d);
+                                              detail::SubsetSumOfSquares(points, cluster), n, d);
       const double two = SphericalGaussianBic(sizes, best.inertia, n, d);
       if (two > one) splits.push_back({c, two - one, std::move(best.centres)});
     }
