@@ -34,6 +34,8 @@ struct JobResult {
   // Level 0 of `hierarchy` is the first level the server sent (the snapshot).
   HierarchyLog hierarchy;
   v1::Done done;
+  // The picture JobSpec.preview asked for (empty png when none came).
+  v1::Preview preview;
 };
 
 // Runs one job to the end: sends `spec` (its input_bytes is set here) and `input`, then

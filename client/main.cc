@@ -32,6 +32,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -45,6 +46,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
+                     [--preview FILE.png [--preview-size WxH]]
                      [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
@@ -56,6 +58,10 @@ constexpr char kMeshUsage[] = R"(
       --coarse FILE    the coarse mesh of that level: one vertex per cluster, a triangle
                        where three clusters meet (format by extension: .ply, .obj, .off)
       --coarse-placement centroid|qem   where coarse vertices go (default centroid)
+      --preview FILE.png  a picture of that level (without --clusters: the last level),
+                       drawn by the server's GL context: a three-quarter view, one colour
+                       per cluster, dark lines between clusters
+      --preview-size WxH  its size in pixels (default 1024x768; each side 16 to 4096)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -523,7 +529,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse"}) {
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "preview"}) {
     if (args.has(name))
       outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
   }
@@ -588,6 +594,38 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+// --preview FILE.png [--preview-size WxH]: the server draws the level --clusters K chooses
+// (the last level without K) and sends it as a Preview event.
+absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& spec) {
+  if (!args.has("preview")) {
+    if (args.has("preview-size")) {
+      return absl::InvalidArgumentError("--preview-size needs --preview FILE.png");
+    }
+    return absl::OkStatus();
+  }
+  if (args.get("preview").empty()) return absl::InvalidArgumentError("--preview: no file name");
+  v1::PreviewRequest* preview = spec.mutable_preview();
+  preview->set_cluster_count(clusters);
+  if (args.has("preview-size")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto size,
+                             server::ParsePreviewSize(args.get("preview-size"), "--preview-size"));
+    preview->set_width(size.first);
+    preview->set_height(size.second);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status WritePreview(const std::string& path, const v1::Preview& preview) {
+  if (preview.png().empty()) {
+    return absl::DataLossError("--preview: the server sent no preview");
+  }
+  std::ofstream out(path, std::ios::binary);
+  out.write(preview.png().data(), static_cast<std::streamsize>(preview.png().size()));
+  out.close();
+  if (!out) return absl::UnavailableError(absl::StrCat("--preview: cannot write ", path));
+  return absl::OkStatus();
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -626,6 +664,10 @@ int Mesh(const Arguments& args) {
   }
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
+  if (absl::Status status = SetPreview(args, static_cast<uint32_t>(*clusters), spec);
+      !status.ok()) {
+    return Fail(status);
+  }
 
   // The mesh is read locally (its faces are the ids of every output) and sent compressed;
   // a .drc file is sent as it is.
@@ -684,16 +726,24 @@ int Mesh(const Arguments& args) {
                                  log.cluster_count(*level), log.energy(*level));
     chosen_level = *level;
   }
+  std::string preview_note;
+  if (args.has("preview")) {
+    const v1::Preview& preview = result->preview;
+    if (absl::Status s = WritePreview(args.get("preview"), preview); !s.ok()) return Fail(s);
+    preview_note = absl::StrFormat("; preview %ux%u of %u clusters in %.3f s: %s", preview.width(),
+                                   preview.height(), preview.cluster_count(),
+                                   result->done.seconds_preview(), args.get("preview"));
+  }
   if (args.has("json")) {
     std::printf("%s\n", SummaryJson(args, input_path, "faces", mesh->num_faces(), **algorithm, spec,
                                     log, seconds, result->done, chosen_level, "")
                             .c_str());
     return 0;
   }
-  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
+  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s%s\n",
               input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
               result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-              level_note.c_str(), ElbowNote(result->done).c_str());
+              level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   return 0;
 }
 
@@ -990,7 +1040,8 @@ const std::vector<Command>& Commands() {
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
          return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json"},
+                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
+                      "preview", "preview-size"},
                      RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
@@ -16,6 +17,7 @@
 #include "core/mesh/mesh.h"
 #include "core/points/points.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/kernels/face_measures_gpu.h"
 #endif
@@ -280,10 +282,18 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   }
 
   StreamingLevelSink sink = MakeSink(job, plan, context);
+  // The preview (JobSpec.preview) follows every level to the one it draws.
+  LevelSink* run_sink = &sink;
+  std::optional<PreviewLevelSink> preview_levels;
+  std::optional<TeeSink> with_preview;
+  if (spec.has_preview()) {
+    preview_levels.emplace(spec.preview().cluster_count());
+    run_sink = &with_preview.emplace(sink, *preview_levels);
+  }
   const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
                             plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
-      plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(job, caps));
+      plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps));
   if (!summary.ok()) return summary.status();
   if (!sink.started()) {
     return absl::FailedPreconditionError(
@@ -293,6 +303,21 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   }
   MLCLUST_RETURN_IF_ERROR(sink.Flush());
   JobOutcome outcome;
+  if (preview_levels.has_value()) {
+    EmitProgress(
+        events, "preview",
+        absl::StrCat("drawing the level with ", preview_levels->cluster_count(), " clusters"),
+        context.gl_renderer);
+    const absl::Time preview_start = absl::Now();
+    absl::StatusOr<v1::Preview> preview =
+        RenderPreview(context.gl, context.gl_renderer, prepared.mesh, prepared.adjacency,
+                      *preview_levels, spec.preview());
+    if (!preview.ok()) return preview.status();
+    outcome.done.set_seconds_preview(absl::ToDoubleSeconds(absl::Now() - preview_start));
+    v1::JobEvent event;
+    *event.mutable_preview() = *std::move(preview);
+    if (!events.Emit(std::move(event))) return absl::CancelledError("the call was cancelled");
+  }
   outcome.done.set_device(device_used);
   outcome.done.set_final_clusters(summary->final_clusters);
   if (plan.algorithm->hierarchy) AddElbows(sink, outcome.done);
@@ -373,6 +398,18 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
   caps.gpu_is_software = context.gl_is_software;
   caps.renderer = context.gl_renderer;
   MLCLUST_RETURN_IF_ERROR(PlanDevices(caps, *plan));
+  if (job.spec.has_preview()) {
+    // Refused before the job runs, not after.
+    if (kind != v1::INPUT_KIND_DRACO_MESH) {
+      return absl::InvalidArgumentError("preview: only for meshes (a picture of the clusters)");
+    }
+    MLCLUST_RETURN_IF_ERROR(PreviewSize(job.spec.preview()).status());
+    if (context.gl == nullptr) {
+      return absl::FailedPreconditionError(
+          "preview: drawing needs the server's GL context, and this server has none (no EGL "
+          "device or platform gave OpenGL 4.5, or the server runs with the GPU off)");
+    }
+  }
   if (kind == v1::INPUT_KIND_DRACO_MESH) return RunMeshJob(job, *plan, caps, context);
   return RunPointsJob(job, *plan, caps, context);
 }

@@ -1,0 +1,107 @@
+#include "server/preview.h"
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "core/base/status_macros.h"
+#ifdef MLCLUST_HAVE_GPU
+#include "gpu/render/cluster_preview.h"
+#include "gpu/render/png_codec.h"
+#endif
+
+namespace mlclust::server {
+namespace {
+
+absl::Status CheckSide(uint32_t side, absl::string_view what) {
+  if (side < kMinPreviewSide || side > kMaxPreviewSide) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": ", side, " pixels; give ", kMinPreviewSide, " to ", kMaxPreviewSide));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view text,
+                                                               absl::string_view what) {
+  const size_t x = text.find_first_of("xX");
+  uint32_t width = 0, height = 0;
+  if (x == absl::string_view::npos || !absl::SimpleAtoi(text.substr(0, x), &width) ||
+      !absl::SimpleAtoi(text.substr(x + 1), &height)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": '", text, "' is not WIDTHxHEIGHT in pixels (e.g. 1024x768)"));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckSide(width, absl::StrCat(what, " width")));
+  MLCLUST_RETURN_IF_ERROR(CheckSide(height, absl::StrCat(what, " height")));
+  return std::make_pair(width, height);
+}
+
+absl::StatusOr<std::pair<uint32_t, uint32_t>> PreviewSize(const v1::PreviewRequest& request) {
+  const uint32_t width = request.width() == 0 ? kDefaultPreviewWidth : request.width();
+  const uint32_t height = request.height() == 0 ? kDefaultPreviewHeight : request.height();
+  MLCLUST_RETURN_IF_ERROR(CheckSide(width, "preview.width"));
+  MLCLUST_RETURN_IF_ERROR(CheckSide(height, "preview.height"));
+  return std::make_pair(width, height);
+}
+
+absl::Status PreviewLevelSink::OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
+                                       double /*energy*/) {
+  labels_.assign(labels.begin(), labels.end());
+  cluster_count_ = cluster_count;
+  level_ = 0;
+  frozen_ = wanted_ != 0 && cluster_count < wanted_;
+  return absl::OkStatus();
+}
+
+absl::Status PreviewLevelSink::OnLevel(const LevelMoves& level) {
+  if (frozen_) return absl::OkStatus();
+  // Past the wanted count after a level that had it exactly: keep that one.
+  if (wanted_ != 0 && level.cluster_count < wanted_ && cluster_count_ == wanted_) {
+    frozen_ = true;
+    return absl::OkStatus();
+  }
+  for (size_t i = 0; i < level.element.size(); ++i) {
+    const uint32_t element = level.element[i];
+    if (element >= labels_.size()) {
+      return absl::InternalError(absl::StrCat("preview: level ", level.level, " moves element ",
+                                              element, " of ", labels_.size()));
+    }
+    labels_[element] = ClusterId(level.to_cluster[i]);
+  }
+  cluster_count_ = level.cluster_count;
+  level_ = level.level;
+  if (wanted_ != 0 && level.cluster_count < wanted_) frozen_ = true;  // the first with fewer
+  return absl::OkStatus();
+}
+
+absl::StatusOr<v1::Preview> RenderPreview(gpu::GlContext* gl, const std::string& renderer,
+                                          const TriangleMesh& mesh, const FaceAdjacency& adjacency,
+                                          const PreviewLevelSink& levels,
+                                          const v1::PreviewRequest& request) {
+  MLCLUST_ASSIGN_OR_RETURN(const auto size, PreviewSize(request));
+#ifdef MLCLUST_HAVE_GPU
+  if (gl == nullptr) {
+    return absl::FailedPreconditionError(
+        "preview: drawing needs the server's GL context, and this server has none");
+  }
+  gpu::ClusterPreviewOptions options;
+  options.width = size.first;
+  options.height = size.second;
+  MLCLUST_ASSIGN_OR_RETURN(
+      const gpu::RgbaImage image,
+      gpu::RenderClusterPreview(*gl, mesh, adjacency, levels.labels(), options));
+  MLCLUST_ASSIGN_OR_RETURN(std::string png, gpu::EncodePng(image));
+  v1::Preview preview;
+  preview.set_png(std::move(png));
+  preview.set_width(image.width);
+  preview.set_height(image.height);
+  preview.set_cluster_count(levels.cluster_count());
+  preview.set_level(levels.level());
+  preview.set_device(renderer);
+  return preview;
+#else
+  return absl::FailedPreconditionError(
+      "preview: this server was built without MLCLUST_WITH_GPU (no GL context to draw with)");
+#endif
+}
+
+}  // namespace mlclust::server
