@@ -1,4 +1,5 @@
-// PNG files in memory, through libpng's simplified API (Debian's libpng-dev).
+// PNG files in memory, through libpng (Debian's libpng-dev): written with its classic API
+// (for the compression level), read with its simplified one.
 //
 // No GL here: the preview renderer (cluster_preview.h) encodes with it, and tests decode
 // its output with it. Pixels are 8-bit RGBA, rows top to bottom, no padding.
