@@ -46,7 +46,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
-                     [--preview FILE.png [--preview-size WxH]]
+                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]
                      [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
@@ -62,6 +62,8 @@ constexpr char kMeshUsage[] = R"(
                        drawn by the server's GL context: a three-quarter view, one colour
                        per cluster, dark lines between clusters
       --preview-size WxH  its size in pixels (default 1024x768; each side 16 to 4096)
+      --preview-view AZ,EL  the camera in degrees (default 35,25: from the right of +z,
+                       above; 215,25 looks from the other side)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -598,8 +600,10 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
 // (the last level without K) and sends it as a Preview event.
 absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& spec) {
   if (!args.has("preview")) {
-    if (args.has("preview-size")) {
-      return absl::InvalidArgumentError("--preview-size needs --preview FILE.png");
+    for (const char* name : {"preview-size", "preview-view"}) {
+      if (args.has(name)) {
+        return absl::InvalidArgumentError(absl::StrCat("--", name, " needs --preview FILE.png"));
+      }
     }
     return absl::OkStatus();
   }
@@ -611,6 +615,12 @@ absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& s
                              server::ParsePreviewSize(args.get("preview-size"), "--preview-size"));
     preview->set_width(size.first);
     preview->set_height(size.second);
+  }
+  if (args.has("preview-view")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto view,
+                             server::ParsePreviewView(args.get("preview-view"), "--preview-view"));
+    preview->set_azimuth_degrees(view.first);
+    preview->set_elevation_degrees(view.second);
   }
   return absl::OkStatus();
 }
@@ -1041,7 +1051,7 @@ const std::vector<Command>& Commands() {
        [] {
          return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
                       "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
-                      "preview", "preview-size"},
+                      "preview", "preview-size", "preview-view"},
                      RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},

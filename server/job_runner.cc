@@ -403,7 +403,7 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
     if (kind != v1::INPUT_KIND_DRACO_MESH) {
       return absl::InvalidArgumentError("preview: only for meshes (a picture of the clusters)");
     }
-    MLCLUST_RETURN_IF_ERROR(PreviewSize(job.spec.preview()).status());
+    MLCLUST_RETURN_IF_ERROR(CheckPreviewRequest(job.spec.preview()).status());
     if (context.gl == nullptr) {
       return absl::FailedPreconditionError(
           "preview: drawing needs the server's GL context, and this server has none (no EGL "

@@ -19,6 +19,18 @@ absl::Status CheckSide(uint32_t side, absl::string_view what) {
   return absl::OkStatus();
 }
 
+absl::Status CheckAngles(float azimuth, float elevation, absl::string_view what) {
+  if (!(azimuth >= -360.0f && azimuth <= 360.0f)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": azimuth ", azimuth, " degrees; give -360 to 360"));
+  }
+  if (!(elevation >= -89.0f && elevation <= 89.0f)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": elevation ", elevation, " degrees; give -89 to 89"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view text,
@@ -35,12 +47,30 @@ absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view
   return std::make_pair(width, height);
 }
 
-absl::StatusOr<std::pair<uint32_t, uint32_t>> PreviewSize(const v1::PreviewRequest& request) {
-  const uint32_t width = request.width() == 0 ? kDefaultPreviewWidth : request.width();
-  const uint32_t height = request.height() == 0 ? kDefaultPreviewHeight : request.height();
-  MLCLUST_RETURN_IF_ERROR(CheckSide(width, "preview.width"));
-  MLCLUST_RETURN_IF_ERROR(CheckSide(height, "preview.height"));
-  return std::make_pair(width, height);
+absl::StatusOr<std::pair<float, float>> ParsePreviewView(absl::string_view text,
+                                                         absl::string_view what) {
+  const size_t comma = text.find(',');
+  float azimuth = 0, elevation = 0;
+  if (comma == absl::string_view::npos || !absl::SimpleAtof(text.substr(0, comma), &azimuth) ||
+      !absl::SimpleAtof(text.substr(comma + 1), &elevation)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": '", text, "' is not AZIMUTH,ELEVATION in degrees (e.g. 215,20)"));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckAngles(azimuth, elevation, what));
+  return std::make_pair(azimuth, elevation);
+}
+
+absl::StatusOr<PreviewSettings> CheckPreviewRequest(const v1::PreviewRequest& request) {
+  PreviewSettings settings;
+  if (request.width() != 0) settings.width = request.width();
+  if (request.height() != 0) settings.height = request.height();
+  MLCLUST_RETURN_IF_ERROR(CheckSide(settings.width, "preview.width"));
+  MLCLUST_RETURN_IF_ERROR(CheckSide(settings.height, "preview.height"));
+  if (request.has_azimuth_degrees()) settings.azimuth_degrees = request.azimuth_degrees();
+  if (request.has_elevation_degrees()) settings.elevation_degrees = request.elevation_degrees();
+  MLCLUST_RETURN_IF_ERROR(
+      CheckAngles(settings.azimuth_degrees, settings.elevation_degrees, "preview"));
+  return settings;
 }
 
 absl::Status PreviewLevelSink::OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
@@ -77,15 +107,17 @@ absl::StatusOr<v1::Preview> RenderPreview(gpu::GlContext* gl, const std::string&
                                           const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                           const PreviewLevelSink& levels,
                                           const v1::PreviewRequest& request) {
-  MLCLUST_ASSIGN_OR_RETURN(const auto size, PreviewSize(request));
+  MLCLUST_ASSIGN_OR_RETURN(const PreviewSettings settings, CheckPreviewRequest(request));
 #ifdef MLCLUST_HAVE_GPU
   if (gl == nullptr) {
     return absl::FailedPreconditionError(
         "preview: drawing needs the server's GL context, and this server has none");
   }
   gpu::ClusterPreviewOptions options;
-  options.width = size.first;
-  options.height = size.second;
+  options.width = settings.width;
+  options.height = settings.height;
+  options.azimuth_degrees = settings.azimuth_degrees;
+  options.elevation_degrees = settings.elevation_degrees;
   MLCLUST_ASSIGN_OR_RETURN(
       const gpu::RgbaImage image,
       gpu::RenderClusterPreview(*gl, mesh, adjacency, levels.labels(), options));

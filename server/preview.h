@@ -34,9 +34,23 @@ inline constexpr uint32_t kMaxPreviewSide = 4096;
 absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view text,
                                                                absl::string_view what);
 
-// The request's sides after defaults (0 = default), or INVALID_ARGUMENT naming
-// "preview.width" / "preview.height" and the range.
-absl::StatusOr<std::pair<uint32_t, uint32_t>> PreviewSize(const v1::PreviewRequest& request);
+// "AZ,EL" in degrees (e.g. "215,20") as the two angles of PreviewRequest. INVALID_ARGUMENT
+// naming `what` (e.g. "--preview-view") for anything else or an elevation outside
+// [-89, 89] or an azimuth outside [-360, 360].
+absl::StatusOr<std::pair<float, float>> ParsePreviewView(absl::string_view text,
+                                                         absl::string_view what);
+
+// What a PreviewRequest asks for, after its defaults.
+struct PreviewSettings {
+  uint32_t width = kDefaultPreviewWidth;
+  uint32_t height = kDefaultPreviewHeight;
+  float azimuth_degrees = 35.0f;
+  float elevation_degrees = 25.0f;
+};
+
+// The request's settings (0 or unset = default), or INVALID_ARGUMENT naming the field
+// ("preview.width", "preview.elevation_degrees", ...) and its range.
+absl::StatusOr<PreviewSettings> CheckPreviewRequest(const v1::PreviewRequest& request);
 
 // Follows the labels through a run's levels and keeps those of the level a preview draws:
 // the last level with exactly `cluster_count` clusters, else the first with fewer; with

@@ -161,12 +161,14 @@ struct Camera {
 };
 
 // The three-quarter view of the header, fitted to the vertices the faces use.
-Camera FitCamera(const TriangleMesh& mesh, uint32_t width, uint32_t height) {
+Camera FitCamera(const TriangleMesh& mesh, const ClusterPreviewOptions& options) {
   constexpr double kPi = 3.14159265358979323846;
-  constexpr double kAzimuth = 35.0 * kPi / 180.0, kElevation = 25.0 * kPi / 180.0;
+  const double azimuth = options.azimuth_degrees * kPi / 180.0;
+  const double elevation = options.elevation_degrees * kPi / 180.0;
+  const uint32_t width = options.width, height = options.height;
   // View axes: z towards the camera, x to its right, y up.
-  const double z[3] = {std::sin(kAzimuth) * std::cos(kElevation), std::sin(kElevation),
-                       std::cos(kAzimuth) * std::cos(kElevation)};
+  const double z[3] = {std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
+                       std::cos(azimuth) * std::cos(elevation)};
   // x = normalize(up x z) with up = +y.
   double x[3] = {z[2], 0.0, -z[0]};
   const double x_length = std::hypot(x[0], x[2]);
@@ -193,7 +195,12 @@ Camera FitCamera(const TriangleMesh& mesh, uint32_t width, uint32_t height) {
     half[a] = 0.5 * (high[a] - low[a]);
   }
   // 6% margin around the picture; depth a little wider so nothing touches the clip planes.
-  const double extent = std::max({half[0], half[1], half[2], 1e-30});
+  double extent = std::max({half[0], half[1], half[2]});
+  if (!(extent > 1e-20)) {
+    // Every vertex at one point (zero-area faces): any finite box shows it.
+    extent = 1.0;
+    half[0] = half[1] = half[2] = 1.0;
+  }
   double half_x = std::max(half[0], 1e-6 * extent) * 1.06;
   double half_y = std::max(half[1], 1e-6 * extent) * 1.06;
   const double half_z = std::max(half[2], 1e-6 * extent) * 1.02;
@@ -397,6 +404,12 @@ absl::StatusOr<RgbaImage> RenderClusterPreview(GlContext& context, const Triangl
                                                    " faces for a mesh of ", faces));
   }
   if (faces == 0) return absl::InvalidArgumentError("preview: the mesh has no faces");
+  if (!std::isfinite(options.azimuth_degrees) || !(options.elevation_degrees >= -89.0f) ||
+      !(options.elevation_degrees <= 89.0f)) {
+    return absl::InvalidArgumentError(absl::StrCat("preview: azimuth ", options.azimuth_degrees,
+                                                   ", elevation ", options.elevation_degrees,
+                                                   " degrees (the elevation in [-89, 89])"));
+  }
   if (!(options.border_half_width_pixels >= 0.0f)) {
     return absl::InvalidArgumentError("preview: border_half_width_pixels must be >= 0");
   }
@@ -468,7 +481,7 @@ absl::StatusOr<RgbaImage> RenderClusterPreview(GlContext& context, const Triangl
   }
   gl.CreateVertexArrays(1, &target.vertex_array);
 
-  const Camera camera = FitCamera(mesh, options.width, options.height);
+  const Camera camera = FitCamera(mesh, options);
   // A light from the upper left, in front of the camera (view space).
   const float light[3] = {-0.35f, 0.55f, 1.0f};
   const float light_length = std::sqrt(light[0] * light[0] + light[1] * light[1] + 1.0f);

@@ -3,7 +3,8 @@
 //
 // What the picture is, so that a person can look instead of read:
 //   - a fixed three-quarter view: the camera 35 degrees to the right of +z and 25 degrees
-//     above it, +y up, orthographic, fitted to the projected vertices with a small margin;
+//     above it, +y up, orthographic, fitted to the projected vertices with a small margin
+//     (both angles are options, for meshes that face another way);
 //   - Lambert shading per face (two-sided, a light from the upper left of the camera),
 //     which scales a face's colour and so keeps its hue: shape is readable, hue says the
 //     cluster;
@@ -39,6 +40,10 @@ struct ClusterPreviewOptions {
   // Pixels; each in [1, the driver's GL_MAX_RENDERBUFFER_SIZE and viewport limits].
   uint32_t width = 1024;
   uint32_t height = 768;
+  // Where the camera is: azimuth degrees around +y from +z towards +x (any finite value),
+  // elevation degrees above the x-z plane (in [-89, 89]). It looks at the mesh, +y up.
+  float azimuth_degrees = 35.0f;
+  float elevation_degrees = 25.0f;
   // Dark lines along edges between clusters, this many pixels wide on each side of the
   // edge (so about twice this in all). 0 draws none.
   float border_half_width_pixels = 0.75f;
@@ -67,8 +72,8 @@ absl::StatusOr<ClusterPreviewColours> ColourClusters(const FaceAdjacency& adjace
 // offscreen framebuffer of `context` and reads it back. `adjacency` is the mesh's
 // (BuildFaceAdjacency). Memory on the GPU: 12 bytes per vertex, 16 bytes per face (in
 // chunks of at most what one storage buffer holds) and 8 bytes per pixel.
-// Errors: INVALID_ARGUMENT for a size out of range or labels/adjacency not matching the
-// mesh; UNAVAILABLE if the context lacks what drawing needs (storage buffers in the
+// Errors: INVALID_ARGUMENT for a size or angle out of range or labels/adjacency not
+// matching the mesh; UNAVAILABLE if the context lacks what drawing needs (storage buffers in the
 // vertex stage, a GL entry point); RESOURCE_EXHAUSTED when the vertices do not fit one
 // storage buffer or GL is out of memory; INTERNAL for any other GL error. Expects a valid
 // mesh (ValidateMesh).

@@ -57,6 +57,16 @@ for size in 0x100 100 abc 5000x100 12x12 800x600x2; do
   grep -q -- "--preview-size" "$work/bad.err" || fail "--preview-size $size: $(cat "$work/bad.err")"
   [ ! -e "$work/bad.png" ] || fail "--preview-size $size wrote a file"
 done
+for view in 35 10,95 a,b; do
+  status=0
+  "$mlclust" mesh "$data/fandisk.off" --clusters 10 --preview "$work/bad.png" \
+    --preview-view "$view" --quiet 2> "$work/bad.err" || status=$?
+  [ "$status" -eq 2 ] || fail "--preview-view $view: exit $status"
+  grep -q -- "--preview-view" "$work/bad.err" || fail "--preview-view $view: $(cat "$work/bad.err")"
+done
+"$mlclust" mesh "$data/fandisk.off" --clusters 10 --preview "$work/turned.png" \
+  --preview-view 215,20 --preview-size 64x64 --quiet > /dev/null || fail "--preview-view 215,20 failed"
+[ "$(png_size "$work/turned.png")" = "64 64" ] || fail "turned preview: $(png_size "$work/turned.png")"
 status=0
 "$mlclust" mesh "$data/fandisk.off" --clusters 10 --preview-size 300x200 --quiet \
   2> "$work/alone.err" || status=$?

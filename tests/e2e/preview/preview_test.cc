@@ -115,6 +115,13 @@ TEST(PreviewEndToEndTest, RefusedClearlyBeforeTheJobRuns) {
   EXPECT_EQ(small.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(small.status().message(), HasSubstr("preview.width: 8 pixels; give 16 to 4096"));
 
+  v1::JobSpec steep = CubeSpec(32, 32, 6);
+  steep.mutable_preview()->set_elevation_degrees(95);
+  absl::StatusOr<client::JobResult> from_above =
+      client::RunJob(ChannelTo(*server), steep, CubeBytes());
+  EXPECT_EQ(from_above.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(from_above.status().message(), HasSubstr("elevation 95 degrees; give -89 to 89"));
+
   v1::JobSpec points;
   points.set_input_kind(v1::INPUT_KIND_POINTS_F32);
   points.set_point_dims(1);
@@ -158,6 +165,18 @@ TEST(PreviewSizeTest, ParsesWidthByHeightAndRefusesTheRest) {
     absl::StatusOr<std::pair<uint32_t, uint32_t>> parsed = server::ParsePreviewSize(bad, "--s");
     EXPECT_EQ(parsed.status().code(), absl::StatusCode::kInvalidArgument) << bad;
     EXPECT_THAT(parsed.status().message(), HasSubstr("--s")) << bad;
+  }
+}
+
+TEST(PreviewSizeTest, ParsesTheViewAndRefusesTheRest) {
+  absl::StatusOr<std::pair<float, float>> view = server::ParsePreviewView("215,-20.5", "--v");
+  ASSERT_TRUE(view.ok()) << view.status();
+  EXPECT_EQ(view->first, 215.0f);
+  EXPECT_EQ(view->second, -20.5f);
+  for (const char* bad : {"215", "215,", ",20", "a,b", "10,90", "400,0", "nan,0", "0,inf", ""}) {
+    absl::StatusOr<std::pair<float, float>> parsed = server::ParsePreviewView(bad, "--v");
+    EXPECT_EQ(parsed.status().code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_THAT(parsed.status().message(), HasSubstr("--v")) << bad;
   }
 }
 

@@ -208,6 +208,31 @@ TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
   EXPECT_GT(CountPixels(*image, kPreviewBorder), 0u);
 }
 
+TEST(ClusterPreviewTest, CameraFromTheOtherOctantShowsTheOtherThreeSides) {
+  std::unique_ptr<GlContext> context = MakeContext();
+  ASSERT_NE(context, nullptr);
+  const mlclust::testing::SubdividedCube cube = MakeCube(4);
+  std::vector<ClusterId> labels;
+  for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
+  const FaceAdjacency adjacency = AdjacencyOf(cube.mesh);
+  ClusterPreviewOptions options;
+  options.width = 256;
+  options.height = 256;
+  options.azimuth_degrees = 215;    // from -x, -z
+  options.elevation_degrees = -25;  // and below: -y
+  absl::StatusOr<RgbaImage> image =
+      RenderClusterPreview(*context, cube.mesh, adjacency, labels, options);
+  ASSERT_TRUE(image.ok()) << image.status();
+  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(adjacency, labels);
+  ASSERT_TRUE(colours.ok());
+  ExpectHues(DistinctHues(*image),
+             {HueOf(colours->cluster_colour[3]), HueOf(colours->cluster_colour[4]),
+              HueOf(colours->cluster_colour[5])});
+  options.elevation_degrees = 90;  // straight down: no up direction
+  EXPECT_EQ(RenderClusterPreview(*context, cube.mesh, adjacency, labels, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
 TEST(ClusterPreviewTest, ChunkedDrawIsTheSamePicture) {
   // Buffers capped at 1 KiB: the grid's 128 faces go in two chunks of 85 and 43.
   GlContextOptions small;
@@ -249,6 +274,21 @@ TEST(ClusterPreviewTest, RefusesSizesOutOfRange) {
     EXPECT_EQ(image.status().code(), absl::StatusCode::kInvalidArgument) << width << "x" << height;
     EXPECT_THAT(image.status().message(), HasSubstr("pixels"));
   }
+}
+
+TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
+  std::unique_ptr<GlContext> context = MakeContext();
+  ASSERT_NE(context, nullptr);
+  // Zero-area faces (ValidateMesh accepts them): nothing to fit, no crash, a full picture.
+  const TriangleMesh mesh = mlclust::testing::MakeMesh({2, 2, 2, 2, 2, 2, 2, 2, 2}, {0, 1, 2});
+  ClusterPreviewOptions options;
+  options.width = 64;
+  options.height = 48;
+  absl::StatusOr<RgbaImage> image =
+      RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), std::vector{ClusterId(0)}, options);
+  ASSERT_TRUE(image.ok()) << image.status();
+  EXPECT_EQ(image->rgba.size(), 64u * 48u * 4u);
+  EXPECT_GT(CountPixels(*image, kPreviewBackground), 64u * 48u / 2);
 }
 
 TEST(PngCodecTest, RoundTripsAndRefusesBrokenFiles) {
