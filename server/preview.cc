@@ -122,6 +122,11 @@ absl::StatusOr<v1::Preview> RenderPreview(gpu::GlContext* gl, const std::string&
       const gpu::RgbaImage image,
       gpu::RenderClusterPreview(*gl, mesh, adjacency, levels.labels(), options));
   MLCLUST_ASSIGN_OR_RETURN(std::string png, gpu::EncodePng(image));
+  if (png.size() > kMaxPreviewPngBytes) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "preview: the PNG of ", image.width, " x ", image.height, " pixels is ", png.size(),
+        " bytes, over the ", kMaxPreviewPngBytes, " a message may carry; ask for fewer pixels"));
+  }
   v1::Preview preview;
   preview.set_png(std::move(png));
   preview.set_width(image.width);

@@ -29,6 +29,10 @@ inline constexpr uint32_t kDefaultPreviewHeight = 768;
 inline constexpr uint32_t kMinPreviewSide = 16;
 inline constexpr uint32_t kMaxPreviewSide = 4096;
 
+// The largest PNG a Preview event carries, so that the event stays under gRPC's default
+// 4 MiB message limit (what a client that lifts no limit accepts).
+inline constexpr size_t kMaxPreviewPngBytes = (size_t{4} << 20) - (size_t{64} << 10);
+
 // "WxH" (e.g. "800x600") as two sides. INVALID_ARGUMENT naming `what` (e.g.
 // "--preview-size") for anything else or a side outside [kMinPreviewSide, kMaxPreviewSide].
 absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view text,
@@ -76,8 +80,9 @@ class PreviewLevelSink : public LevelSink {
 };
 
 // Draws the level `levels` kept and encodes it as PNG. FAILED_PRECONDITION without a GL
-// context (`gl` null, or a build without MLCLUST_WITH_GPU); the renderer's errors
-// otherwise, prefixed with "preview".
+// context (`gl` null, or a build without MLCLUST_WITH_GPU); RESOURCE_EXHAUSTED for a PNG
+// over kMaxPreviewPngBytes (the message says to ask for fewer pixels); the renderer's
+// errors otherwise, prefixed with "preview".
 absl::StatusOr<v1::Preview> RenderPreview(gpu::GlContext* gl, const std::string& renderer,
                                           const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                           const PreviewLevelSink& levels,
