@@ -291,6 +291,20 @@ TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
   EXPECT_GT(CountPixels(*image, kPreviewBackground), 64u * 48u / 2);
 }
 
+TEST(ClusterPreviewTest, VerticesOverOneBufferAreRefusedClearly) {
+  // A context whose storage buffers hold 64 bytes: Grid(8)'s 81 vertices (972 bytes) do
+  // not fit, and the error says so instead of drawing part of the mesh.
+  GlContextOptions tiny;
+  tiny.max_storage_buffer_bytes = 64;
+  std::unique_ptr<GlContext> context = MakeContext(tiny);
+  ASSERT_NE(context, nullptr);
+  const TriangleMesh mesh = Grid(8);
+  absl::StatusOr<RgbaImage> image =
+      RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), Quadrants(8));
+  EXPECT_EQ(image.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(image.status().message(), HasSubstr("81 vertices (972 bytes) do not fit"));
+}
+
 TEST(PngCodecTest, RoundTripsAndRefusesBrokenFiles) {
   RgbaImage image;
   image.width = 7;
