@@ -15,6 +15,7 @@
 #include "core/cluster/partition.h"
 #include "core/hierarchy/level_recorder.h"
 #include "core/mesh/connectivity_guard.h"
+#include "tbb/blocked_range.h"
 #include "tbb/parallel_for.h"
 #include "tbb/task_arena.h"
 
@@ -40,6 +41,8 @@ class MeshSpace {
         position_(n_, 0),
         neighbours_(n_),
         dirty_mark_(n_, 0),
+        affected_mark_(n_, 0),
+        check_mark_(n_, 0),
         recorder_(n_, n_) {}
 
   uint32_t capacity() const { return n_; }
@@ -100,7 +103,7 @@ class MeshSpace {
   }
 
   // Local optimisation around the `region` clusters, from their boundary faces outward.
-  void Optimise(std::span<const uint32_t> region) {
+  void Optimise(std::span<const uint32_t> region, bool parallel_level) {
     worklist_.clear();
     for (uint32_t c : region) {
       for (uint32_t f : members_[c]) {
@@ -121,7 +124,10 @@ class MeshSpace {
       ++optimisation_moves_;
     };
     const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
-    if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
+    if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo && parallel_level &&
+        options_.parallel_optimisation) {
+      OptimiseInRounds(guard, max_moves, on_move);
+    } else if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
       evaluations_ +=
           detail::RunEmloOn(
               adjacency_, guard, partition_, worklist_, max_moves, emlo_scratch_, on_move,
@@ -141,6 +147,10 @@ class MeshSpace {
   // cluster only compares the one edge that changed, unless its ODE was that edge.
   void UpdateOdes(Engine& engine) {
     for (uint32_t c : recorder_.affected()) MarkDirty(c);
+    if (engine.in_parallel_level()) {
+      UpdateOdesInParallel(engine);
+      return;
+    }
     for (uint32_t c : dirty_) {
       if (Alive(c)) engine.RecomputeOde(c);
     }
@@ -157,6 +167,67 @@ class MeshSpace {
       }
     }
   }
+  // The same flags in a PML level, turned around so that each cluster's update is its
+  // own (and runs in parallel): a dirty cluster recomputes its ODE in full; a neighbour d
+  // of a changed cluster recomputes in full if its ODE was a changed cluster, and
+  // otherwise compares its ODE with the edges to the changed clusters. Each is the
+  // cheapest edge of d in the same total order (cost, then the larger id) as the push
+  // order above gives, so the ODEs are the same.
+  void UpdateOdesInParallel(Engine& engine) {
+    update_.clear();
+    for (uint32_t c : dirty_) {
+      if (Alive(c)) update_.push_back(c);
+    }
+    const size_t full = update_.size();
+    for (uint32_t c : recorder_.affected()) affected_mark_[c] = 1;
+    for (uint32_t c : recorder_.affected()) {
+      if (!Alive(c)) continue;
+      for (const auto& [d, count] : neighbours_[c]) {
+        if (dirty_mark_[d] || check_mark_[d]) continue;
+        check_mark_[d] = 1;
+        update_.push_back(d);
+      }
+    }
+    auto update = [&](size_t i) {
+      const uint32_t d = update_[i];
+      if (i < full) {
+        const auto [partner, cost] = engine.FindOde(d);
+        engine.AssignOde(d, partner, cost);
+        return;
+      }
+      uint32_t partner = engine.partner(d);
+      double cost = engine.cost(d);
+      for (const auto& [c, count] : neighbours_[d]) {
+        if (affected_mark_[c] && c == partner) {
+          const auto [full_partner, full_cost] = engine.FindOde(d);
+          engine.AssignOde(d, full_partner, full_cost);
+          return;
+        }
+      }
+      bool changed = false;
+      for (const auto& [c, count] : neighbours_[d]) {
+        if (!affected_mark_[c]) continue;
+        const double offer = MergeCost(d, c);
+        if (detail::CheaperDualEdge(offer, c, cost, partner)) {
+          cost = offer;
+          partner = c;
+          changed = true;
+        }
+      }
+      if (changed) engine.AssignOde(d, partner, cost);
+    };
+    if (update_.size() < detail::kParallelOdeGrain) {
+      for (size_t i = 0; i < update_.size(); ++i) update(i);
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, update_.size(), 128),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t i = range.begin(); i != range.end(); ++i) update(i);
+                        });
+    }
+    for (uint32_t c : recorder_.affected()) affected_mark_[c] = 0;
+    for (size_t i = full; i < update_.size(); ++i) check_mark_[update_[i]] = 0;
+  }
+
   // Face adjacency reaches every cluster of a component: nothing more to link.
   bool ConnectWhenStuck(Engine&) { return false; }
 
@@ -244,6 +315,90 @@ class MeshSpace {
     dirty_.push_back(c);
   }
 
+  // The best move of face f itself, from the sums as they are: the neighbouring cluster
+  // whose joining lowers E(own) + E(to) the most (eqs. 3.33-3.35), and by how much; none
+  // (kNoCluster) where no move lowers it by more than rounding, or f is its cluster's last
+  // face. Reads only; safe in parallel while nothing moves.
+  std::pair<uint32_t, double> BestOwnMove(uint32_t f) const {
+    const Energy& energy = partition_.energy();
+    const uint32_t own = partition_.label(f);
+    if (partition_.size(own) <= 1) return {detail::kNoCluster, 0.0};
+    typename Energy::Sums own_without = partition_.sums(own);
+    own_without -= energy.face_sums(f);
+    const double own_after = energy.Energy(own_without);
+    uint32_t best_to = detail::kNoCluster;
+    double best_gain = 0;
+    for (FaceId g : adjacency_.neighbours[f]) {
+      if (!g.valid()) continue;
+      const uint32_t to = partition_.label(g.value());
+      if (to == own || to == best_to) continue;
+      const double keep = partition_.cluster_energy(own) + partition_.cluster_energy(to);
+      const double after = own_after + energy.Energy(partition_.sums(to) + energy.face_sums(f));
+      const double gain = keep - after;
+      // Rounding in the sums is ~1e-16 relative; demand a real improvement.
+      if (gain > 1e-12 * keep && gain > best_gain) {
+        best_gain = gain;
+        best_to = to;
+      }
+    }
+    return {best_to, best_gain};
+  }
+
+  // MultilevelOptions::parallel_optimisation: rounds of "every face of the list finds its
+  // best move in parallel, then the moves are checked again and applied in face order".
+  template <typename OnMove>
+  void OptimiseInRounds(const ConnectivityGuard* guard, uint64_t max_moves, OnMove& on_move) {
+    // The first list: the region's boundary faces and the faces across their boundary
+    // edges (EMLO compares both sides of each edge).
+    std::vector<uint32_t>& list = worklist_;
+    const size_t first = list.size();
+    for (size_t i = 0; i < first; ++i) {
+      for (FaceId g : adjacency_.neighbours[list[i]]) {
+        if (g.valid() && partition_.label(g.value()) != partition_.label(list[i])) {
+          list.push_back(g.value());
+        }
+      }
+    }
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    std::vector<uint32_t> target, next;
+    uint64_t moves = 0;
+    while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
+      target.resize(list.size());
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t i = range.begin(); i != range.end(); ++i) {
+                            target[i] = BestOwnMove(list[i]).first;
+                          }
+                        });
+      evaluations_ += list.size();
+      next.clear();
+      for (size_t i = 0; i < list.size() && moves < max_moves; ++i) {
+        if (target[i] == detail::kNoCluster) continue;
+        const uint32_t f = list[i];
+        // Earlier moves of this round may have changed the sums: decide again.
+        const uint32_t to = BestOwnMove(f).first;
+        if (to == detail::kNoCluster) continue;
+        if (guard != nullptr && !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
+          continue;
+        }
+        const uint32_t from = partition_.label(f);
+        Touch(from);
+        Touch(to);
+        partition_.Move(f, to);
+        on_move(f, from, to);
+        ++moves;
+        next.push_back(f);
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid()) next.push_back(g.value());
+        }
+      }
+      std::sort(next.begin(), next.end());
+      next.erase(std::unique(next.begin(), next.end()), next.end());
+      list.swap(next);
+    }
+  }
+
   // Local boundary-based optimisation: sweeps over the worklist with the touched
   // clusters' proxies fixed per sweep; the faces that moved put their neighbours on the
   // next sweep's list. At most a few sweeps per level.
@@ -306,6 +461,9 @@ class MeshSpace {
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;
   std::vector<uint8_t> dirty_mark_;
   std::vector<uint32_t> dirty_;
+  // UpdateOdesInParallel's marks (all 0 between levels) and list.
+  std::vector<uint8_t> affected_mark_, check_mark_;
+  std::vector<uint32_t> update_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;
 

@@ -559,7 +559,8 @@ class PointSpace {
     return largest;
   }
 
-  void Optimise(std::span<const uint32_t> merged) {
+  // (LN k-means' assignment is parallel in every level.)
+  void Optimise(std::span<const uint32_t> merged, bool /*parallel_level*/) {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
     // Round 0: the merged clusters' points get the full check. A point of a cluster next
     // to a merged one can only gain by moving to a merged cluster (its other candidates

@@ -24,7 +24,8 @@
 //                                       with (duplicates allowed)
 //   uint32_t TieKey(c) const;           the queue's tie key of c's ODE (0: none)
 //   void Merge(keep, gone);             merges with all its bookkeeping (recorder too)
-//   void Optimise(span<const uint32_t> region);  local optimisation around `region`
+//   void Optimise(span<const uint32_t> region, bool parallel_level);  local optimisation
+//                                       around `region` (parallel_level: in a PML level)
 //   void UpdateOdes(Engine&);           after a level: the ODEs the level made stale,
 //                                       through Engine::RecomputeOdes / Offer
 //   bool ConnectWhenStuck(Engine&);     no pair left but several clusters: link them and
@@ -184,6 +185,11 @@ class MultilevelEngine {
   }
   // Whether the engine is in a PML level (its ODE updates are not queued).
   bool in_parallel_level() const { return !heap_current_; }
+  // In a PML level only: records c's ODE as found by the space (FindOde's rule); distinct
+  // clusters may be assigned from parallel tasks.
+  void AssignOde(uint32_t c, uint32_t partner, double cost) {
+    odes_.Assign(c, partner, cost, space_.TieKey(c));
+  }
 
  private:
   bool Alive(uint32_t c) const { return space_.Alive(c); }
@@ -212,9 +218,9 @@ class MultilevelEngine {
     if (handover && Space::kOptimiseAllAtHandover) {
       // The hand-over to ML: one optimisation over every cluster's boundary, so that ML
       // continues from a state optimised as a whole, not only around the last merges.
-      space_.Optimise(alive_);
+      space_.Optimise(alive_, !heap_current_);
     } else {
-      space_.Optimise(merged_);
+      space_.Optimise(merged_, !heap_current_);
     }
   }
 
