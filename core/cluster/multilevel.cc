@@ -43,6 +43,7 @@ class MeshSpace {
         dirty_mark_(n_, 0),
         affected_mark_(n_, 0),
         check_mark_(n_, 0),
+        round_mark_(n_, 0),
         recorder_(n_, n_) {}
 
   uint32_t capacity() const { return n_; }
@@ -104,17 +105,7 @@ class MeshSpace {
 
   // Local optimisation around the `region` clusters, from their boundary faces outward.
   void Optimise(std::span<const uint32_t> region, bool parallel_level) {
-    worklist_.clear();
-    for (uint32_t c : region) {
-      for (uint32_t f : members_[c]) {
-        for (FaceId g : adjacency_.neighbours[f]) {
-          if (g.valid() && partition_.label(g.value()) != c) {
-            worklist_.push_back(f);
-            break;
-          }
-        }
-      }
-    }
+    CollectBoundaryFaces(region);
     const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
     // Touch (before each move) keeps the clusters' energies from before the level; this
     // runs after the move.
@@ -315,6 +306,45 @@ class MeshSpace {
     dirty_.push_back(c);
   }
 
+  bool OnBoundary(uint32_t f, uint32_t c) const {
+    for (FaceId g : adjacency_.neighbours[f]) {
+      if (g.valid() && partition_.label(g.value()) != c) return true;
+    }
+    return false;
+  }
+  // worklist_: the boundary faces of the `region` clusters, cluster by cluster, each
+  // cluster's in member order; counted and filled in parallel over the clusters where
+  // there are many (the same list either way).
+  void CollectBoundaryFaces(std::span<const uint32_t> region) {
+    worklist_.clear();
+    if (region.size() < detail::kParallelOdeGrain) {
+      for (uint32_t c : region) {
+        for (uint32_t f : members_[c]) {
+          if (OnBoundary(f, c)) worklist_.push_back(f);
+        }
+      }
+      return;
+    }
+    boundary_offset_.assign(region.size() + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, region.size(), 64), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        uint32_t count = 0;
+        for (uint32_t f : members_[region[i]]) count += OnBoundary(f, region[i]) ? 1 : 0;
+        boundary_offset_[i + 1] = count;
+      }
+    });
+    for (size_t i = 0; i < region.size(); ++i) boundary_offset_[i + 1] += boundary_offset_[i];
+    worklist_.resize(boundary_offset_.back());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, region.size(), 64), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        size_t at = boundary_offset_[i];
+        for (uint32_t f : members_[region[i]]) {
+          if (OnBoundary(f, region[i])) worklist_[at++] = f;
+        }
+      }
+    });
+  }
+
   // The best move of face f itself, from the sums as they are: the neighbouring cluster
   // whose joining lowers E(own) + E(to) the most (eqs. 3.33-3.35), and by how much; none
   // (kNoCluster) where no move lowers it by more than rounding, or f is its cluster's last
@@ -376,8 +406,14 @@ class MeshSpace {
       for (size_t i = 0; i < list.size() && moves < max_moves; ++i) {
         if (target[i] == detail::kNoCluster) continue;
         const uint32_t f = list[i];
-        // Earlier moves of this round may have changed the sums: decide again.
-        const uint32_t to = BestOwnMove(f).first;
+        // Earlier moves of this round may have changed the sums: decide again where a
+        // move touched f's cluster or a neighbour's (a neighbour that moved touched both
+        // its clusters); elsewhere the decision stands as found.
+        bool stale = round_mark_[partition_.label(f)] != 0;
+        for (FaceId g : adjacency_.neighbours[f]) {
+          stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
+        }
+        const uint32_t to = stale ? BestOwnMove(f).first : target[i];
         if (to == detail::kNoCluster) continue;
         if (guard != nullptr && !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
           continue;
@@ -388,11 +424,19 @@ class MeshSpace {
         partition_.Move(f, to);
         on_move(f, from, to);
         ++moves;
+        for (uint32_t c : {from, to}) {
+          if (!round_mark_[c]) {
+            round_mark_[c] = 1;
+            round_marked_.push_back(c);
+          }
+        }
         next.push_back(f);
         for (FaceId g : adjacency_.neighbours[f]) {
           if (g.valid()) next.push_back(g.value());
         }
       }
+      for (uint32_t c : round_marked_) round_mark_[c] = 0;
+      round_marked_.clear();
       std::sort(next.begin(), next.end());
       next.erase(std::unique(next.begin(), next.end()), next.end());
       list.swap(next);
@@ -464,6 +508,11 @@ class MeshSpace {
   // UpdateOdesInParallel's marks (all 0 between levels) and list.
   std::vector<uint8_t> affected_mark_, check_mark_;
   std::vector<uint32_t> update_;
+  // OptimiseInRounds: the clusters a move of the current round touched (marks 0 between
+  // rounds).
+  std::vector<uint8_t> round_mark_;
+  std::vector<uint32_t> round_marked_;
+  std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;
 
