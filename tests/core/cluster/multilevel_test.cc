@@ -279,7 +279,9 @@ class RecordingSink : public LevelSink {
     energies.push_back(level.energy);
     moves.push_back(level.element.size());
     for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.insert(moves.end(), {level.element[i], level.to_cluster[i], level.from_cluster[i]});
+      moves.push_back(level.element[i]);
+      moves.push_back(level.to_cluster[i]);
+      moves.push_back(level.from_cluster[i]);
     }
     return absl::OkStatus();
   }
