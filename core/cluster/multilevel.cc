@@ -17,6 +17,7 @@
 #include "core/mesh/connectivity_guard.h"
 #include "tbb/blocked_range.h"
 #include "tbb/parallel_for.h"
+#include "tbb/parallel_sort.h"
 #include "tbb/task_arena.h"
 
 namespace mlclust {
@@ -389,7 +390,7 @@ class MeshSpace {
         }
       }
     }
-    std::sort(list.begin(), list.end());
+    tbb::parallel_sort(list.begin(), list.end());  // integers: the same order on any thread count
     list.erase(std::unique(list.begin(), list.end()), list.end());
     std::vector<uint32_t> target, next;
     uint64_t moves = 0;
@@ -437,7 +438,7 @@ class MeshSpace {
       }
       for (uint32_t c : round_marked_) round_mark_[c] = 0;
       round_marked_.clear();
-      std::sort(next.begin(), next.end());
+      tbb::parallel_sort(next.begin(), next.end());
       next.erase(std::unique(next.begin(), next.end()), next.end());
       list.swap(next);
     }
