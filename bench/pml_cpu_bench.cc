@@ -3,11 +3,11 @@
 //
 //   pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] [--energy cvd|planar]
 //                 [--optimizer emlo|bb|none] [--parallel-optimisation] [--at 1000]
-//                 [--repeats R] [--header]
+//                 [--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]
 //
 // Prints one CSV row (best total time of R runs; the energy is the same in every run):
-// mesh,faces,algo,energy,optimizer,parallel_optimisation,pml_until,threads,seconds,
-// seconds_to_k,levels,k,clusters_at_k,energy_at_k
+// mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,threads,
+// seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
       argc, argv,
       "usage: pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] "
       "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] [--at K] "
-      "[--repeats R] [--header]");
+      "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]");
   const bool header = args.Flag("header");
   const bool parallel_optimisation = args.Flag("parallel-optimisation");
   const std::string algo = args.Get<std::string>("algo", "ml");
@@ -64,6 +64,8 @@ int main(int argc, char** argv) {
   const std::string optimizer = args.Get<std::string>("optimizer", "emlo");
   const uint32_t k = args.Get<uint32_t>("at", 1000);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const double p_percent = args.Get<double>("p-percent", 0.0);
+  const std::string p_rule = args.Get<std::string>("p-rule", "sweep");
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
 
@@ -81,6 +83,10 @@ int main(int argc, char** argv) {
   options.pml_until = pml_until;
   options.threads = threads;
   options.parallel_optimisation = parallel_optimisation;
+  options.p_percent = p_percent;
+  if (p_rule == "hc-first") {
+    options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
+  }
   if (optimizer == "bb") options.optimizer = mlclust::MultilevelOptions::Optimizer::kBoundaryBased;
   if (optimizer == "none") options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
 
@@ -106,13 +112,13 @@ int main(int argc, char** argv) {
   }
   if (header) {
     std::printf(
-        "mesh,faces,algo,energy,optimizer,parallel_optimisation,pml_until,threads,seconds,"
-        "seconds_to_k,levels,k,clusters_at_k,energy_at_k\n");
+        "mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,"
+        "threads,seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
-  std::printf("%s,%zu,%s,%s,%s,%d,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g\n", name.c_str(),
+  std::printf("%s,%zu,%s,%s,%s,%d,%g,%s,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g\n", name.c_str(),
               prepared.mesh.num_faces(), algo.c_str(), energy_name.c_str(), optimizer.c_str(),
-              parallel_optimisation ? 1 : 0, pml_until, threads, best, best_to_k, levels, k,
-              clusters_at_k, energy_at_k);
+              parallel_optimisation ? 1 : 0, p_percent, p_rule.c_str(), pml_until, threads, best,
+              best_to_k, levels, k, clusters_at_k, energy_at_k);
   return 0;
 }

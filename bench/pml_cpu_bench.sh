@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # PML on the CPU's cores against ML (BENCHMARKS.md, "Multi-core PML (CPU)"): per mesh, ML
-# and PML then ML below --pml-until (EMLO in every level, and with parallel_optimisation)
-# on 1 thread and on all cores, interleaved, each run R times (pml_cpu_bench keeps the best
+# and PML then ML below --pml-until (EMLO in every level, and with parallel_optimisation;
+# each also with the first 90% of the merges unoptimised, p% hc-first) on 1 thread and on
+# all cores, interleaved, each run R times (pml_cpu_bench keeps the best
 # wall time of its own R runs; here every configuration runs once per round so that load
 # changes hit all alike). One CSV row per run.
 #
@@ -33,8 +34,12 @@ for mesh in $meshes; do
     "$bench" "$path" $header --algo ml --threads "$threads"
     header=
     for t in 1 "$threads"; do
-      "$bench" "$path" --algo pml --pml-until "$until_k" --threads "$t"
-      "$bench" "$path" --algo pml --pml-until "$until_k" --threads "$t" --parallel-optimisation
+      for p in 0 90; do
+        "$bench" "$path" --algo pml --pml-until "$until_k" --threads "$t" --p-percent "$p" \
+          --p-rule hc-first
+        "$bench" "$path" --algo pml --pml-until "$until_k" --threads "$t" --p-percent "$p" \
+          --p-rule hc-first --parallel-optimisation
+      done
     done
   done
 done
