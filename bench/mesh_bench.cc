@@ -1,6 +1,8 @@
 // Times single-level mesh clustering: initial clusters, then EMLO or BB.
 //   mesh_bench MESH --k K [--energy cvd] [--init lneigh|random] [--algo emlo|bb]
 //              [--threads T] [--repeats R] [--seed S] [--header]
+//              [--guard ring|alg32|off] [--growth flood|free] [--reduce merge|reseed]
+//              [--level L] [--add-seeds]
 // Prints one CSV row (best of R): mesh,faces,k,energy,init,algo,threads,init_s,opt_s,
 // total_s,initial_energy,final_energy,moves,iterations
 #include <cstdio>
@@ -13,8 +15,11 @@ int main(int argc, char** argv) {
   using namespace mlclust;
   bench::Args args(argc, argv,
                    "usage: mesh_bench MESH --k K [--energy E] [--init lneigh|random] "
-                   "[--algo emlo|bb] [--threads T] [--repeats R] [--seed S] [--header]");
+                   "[--algo emlo|bb] [--threads T] [--repeats R] [--seed S] [--header] "
+                   "[--guard ring|alg32|off] [--growth flood|free] [--reduce merge|reseed] "
+                   "[--level L] [--add-seeds]");
   const bool header = args.Flag("header");
+  const bool add_seeds = args.Flag("add-seeds");
   const std::string path = args.num_positional() > 0 ? args.Positional(0) : "";
   const uint32_t k = args.Get<uint32_t>("k", 1000);
   const std::string energy_name = args.Get<std::string>("energy", "cvd");
@@ -23,7 +28,15 @@ int main(int argc, char** argv) {
   const uint32_t threads = args.Get<uint32_t>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 3);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
+  const std::string guard_name = args.Get<std::string>("guard", "ring");
+  const std::string growth = args.Get<std::string>("growth", "flood");
+  const std::string reduce = args.Get<std::string>("reduce", "merge");
+  const uint32_t level = args.Get<uint32_t>("level", 0);
   if (!args.Done()) return 2;
+  const ConnectivityGuardKind guard = guard_name == "alg32"
+                                          ? ConnectivityGuardKind::kVertexBoundaryEdgeCount
+                                      : guard_name == "off" ? ConnectivityGuardKind::kOff
+                                                            : ConnectivityGuardKind::kRingTest;
   if (header) {
     std::printf(
         "mesh,faces,k,energy,init,algo,threads,init_s,opt_s,total_s,initial_energy,"
@@ -44,6 +57,12 @@ int main(int argc, char** argv) {
   seeds.seed = seed;
   seeds.method =
       init == "random" ? SeedOptions::Method::kRandom : SeedOptions::Method::kLNeighbourhood;
+  seeds.level = level;
+  seeds.add_seeds = add_seeds;
+  seeds.growth =
+      growth == "free" ? SeedOptions::Growth::kEnergyFree : SeedOptions::Growth::kEnergyOrdered;
+  seeds.reduction = reduce == "reseed" ? SeedOptions::Reduction::kReseedAndRegrow
+                                       : SeedOptions::Reduction::kMergeRegions;
   double best_total = 1e30, best_init = 0, best_opt = 0;
   OptimizeResult best_result;
   for (uint32_t r = 0; r < repeats; ++r) {
@@ -58,9 +77,12 @@ int main(int argc, char** argv) {
     if (algo == "bb") {
       BoundaryBasedOptions options;
       options.threads = static_cast<int>(threads);
+      options.guard = guard;
       result = OptimizeBoundaryBased(problem, *labels, options);
     } else {
-      result = OptimizeEmlo(problem, *labels);
+      EmloOptions options;
+      options.guard = guard;
+      result = OptimizeEmlo(problem, *labels, options);
     }
     if (!result.ok()) return 1;
     const double total = watch.Seconds();

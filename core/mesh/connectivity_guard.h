@@ -27,6 +27,13 @@
 
 namespace mlclust {
 
+// Which connectivity check a driver asks before a face changes cluster.
+enum class ConnectivityGuardKind {
+  kRingTest,                 // ConnectivityGuard: ours, the default (keeps discs discs)
+  kVertexBoundaryEdgeCount,  // VertexBoundaryEdgeCountGuard: Alg. 3.2 (l. 870-890)
+  kOff,                      // none: only "a cluster keeps one face"
+};
+
 class ConnectivityGuard {
  public:
   // Builds every face's ring once (about 13 ids per face), so that a check is a scan of
