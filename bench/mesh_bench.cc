@@ -2,15 +2,55 @@
 //   mesh_bench MESH --k K [--energy cvd] [--init lneigh|random] [--algo emlo|bb]
 //              [--threads T] [--repeats R] [--seed S] [--header]
 //              [--guard ring|alg32|off] [--growth flood|free] [--reduce merge|reseed]
-//              [--level L] [--add-seeds] [--runs N]
+//              [--level L] [--add-seeds] [--runs N] [--rho-new R] [--ply OUT.ply]
 // --runs N: one row per seed S, S+1, ..., S+N-1 (the mesh read once).
+// --k 0 with --level L: k = the number of l-neighbourhood seeds of L (Table 3.1's way).
+// --rho-new R: rho^new of the density's linear mapping (mwcvd-*; 0: the energy's default).
+// --ply OUT.ply: the last run's clustering, faces coloured by cluster (bench/render_ply.py).
 // Prints one CSV row (best of R): mesh,faces,k,energy,init,algo,threads,init_s,opt_s,
 // total_s,initial_energy,final_energy,moves,iterations
+#include <array>
 #include <cstdio>
 #include <string>
 
 #include "bench/bench_util.h"
 #include "core/cluster/mesh_clustering.h"
+#include "core/io/mesh_io.h"
+
+namespace {
+
+// The binary PLY bench/render_ply.py reads: float x y z + uchar r g b per vertex (grey),
+// uchar count + int indices + uchar r g b per face (its cluster's colour).
+bool WritePly(const std::string& path, const mlclust::TriangleMesh& mesh,
+              const std::vector<mlclust::ClusterId>& labels) {
+  std::FILE* out = std::fopen(path.c_str(), "wb");
+  if (out == nullptr) return false;
+  std::fprintf(out,
+               "ply\nformat binary_little_endian 1.0\nelement vertex %zu\nproperty float x\n"
+               "property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
+               "property uchar blue\nelement face %zu\nproperty list uchar int "
+               "vertex_indices\nproperty uchar red\nproperty uchar green\nproperty uchar "
+               "blue\nend_header\n",
+               mesh.num_vertices(), mesh.num_faces());
+  const uint8_t grey[3] = {200, 200, 200};
+  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
+    std::fwrite(&mesh.positions[3 * v], sizeof(float), 3, out);
+    std::fwrite(grey, 1, 3, out);
+  }
+  for (size_t f = 0; f < mesh.num_faces(); ++f) {
+    const uint8_t three = 3;
+    std::fwrite(&three, 1, 1, out);
+    for (int c = 0; c < 3; ++c) {
+      const int32_t index = static_cast<int32_t>(mesh.indices[3 * f + c]);
+      std::fwrite(&index, sizeof(index), 1, out);
+    }
+    const std::array<uint8_t, 3> colour = mlclust::ClusterColour(labels[f].value());
+    std::fwrite(colour.data(), 1, 3, out);
+  }
+  return std::fclose(out) == 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace mlclust;
@@ -18,11 +58,11 @@ int main(int argc, char** argv) {
                    "usage: mesh_bench MESH --k K [--energy E] [--init lneigh|random] "
                    "[--algo emlo|bb] [--threads T] [--repeats R] [--seed S] [--header] "
                    "[--guard ring|alg32|off] [--growth flood|free] [--reduce merge|reseed] "
-                   "[--level L] [--add-seeds] [--runs N]");
+                   "[--level L] [--add-seeds] [--runs N] [--rho-new R] [--ply OUT.ply]");
   const bool header = args.Flag("header");
   const bool add_seeds = args.Flag("add-seeds");
   const std::string path = args.num_positional() > 0 ? args.Positional(0) : "";
-  const uint32_t k = args.Get<uint32_t>("k", 1000);
+  uint32_t k = args.Get<uint32_t>("k", 1000);
   const std::string energy_name = args.Get<std::string>("energy", "cvd");
   const std::string init = args.Get<std::string>("init", "lneigh");
   const std::string algo = args.Get<std::string>("algo", "emlo");
@@ -34,6 +74,8 @@ int main(int argc, char** argv) {
   const std::string reduce = args.Get<std::string>("reduce", "merge");
   const uint32_t level = args.Get<uint32_t>("level", 0);
   const uint32_t runs = args.Get<uint32_t>("runs", 1);
+  const double rho_new = args.Get<double>("rho-new", 0);
+  const std::string ply = args.Get<std::string>("ply", "");
   if (!args.Done()) return 2;
   const ConnectivityGuardKind guard = guard_name == "alg32"
                                           ? ConnectivityGuardKind::kVertexBoundaryEdgeCount
@@ -53,6 +95,8 @@ int main(int argc, char** argv) {
   const PreparedMesh prepared = bench::PrepareOrDie(path);
   MeshEnergyOptions energy;
   energy.kind = *kind;
+  energy.density.rho_max = rho_new;
+  if (k == 0) k = static_cast<uint32_t>(LNeighbourhoodSeeds(prepared.adjacency, level).size());
   const MeshProblem problem = MakeMeshProblem(prepared, energy);
   for (uint64_t run_seed = seed; run_seed < seed + runs; ++run_seed) {
     SeedOptions seeds;
@@ -89,6 +133,7 @@ int main(int argc, char** argv) {
       }
       if (!result.ok()) return 1;
       const double total = watch.Seconds();
+      if (!ply.empty() && !WritePly(ply, prepared.mesh, *labels)) return 1;
       if (total < best_total) {
         best_total = total;
         best_init = init_s;

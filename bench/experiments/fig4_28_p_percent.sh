@@ -6,7 +6,7 @@
 # 11Spheres has 28k).
 #   bash bench/experiments/fig4_28_p_percent.sh
 # Writes bench/results/experiments/fig4_28_bunny00.{csv,png} (algo,clusters,energy for the
-# levels with 500..20000 clusters) and fig4_28_times.csv (mesh,faces,algo,p,seconds,levels).
+# levels with 500..20000 clusters: every 5th up to 5000, every 50th above) and fig4_28_times.csv (mesh,faces,algo,p,seconds,levels).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=bench/results/experiments
@@ -26,7 +26,7 @@ for mesh in data/bench/bunny00.off "$TMP/beads11.off"; do
     echo "$row" | awk -F, -v OFS=, -v n="$name" -v p="$p" '{print $1, $2, n, p, $9, $10}' \
       >> "$OUT/fig4_28_times.csv"
     if [ "$mesh" = data/bench/bunny00.off ]; then
-      awk -F, -v OFS=, -v n="$name" 'NR > 1 && $1 >= 500 && $1 <= 20000 {print n, $1, $2}' \
+      awk -F, -v OFS=, -v n="$name" 'NR > 1 && $1 >= 500 && $1 <= 20000 && ($1 % 5 == 0 && $1 <= 5000 || $1 % 50 == 0) {print n, $1, $2}' \
         "$TMP/curve.csv" >> "$OUT/fig4_28_bunny00.csv"
     fi
   done
