@@ -148,8 +148,8 @@ OptionInfo PmlPairsOption() {
 
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
-                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown by the "
-                "energy-ordered flood (Alg. 2.2)",
+                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
+                "--growth says",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.seeds.method = v.text == "random" ? SeedOptions::Method::kRandom
                                                          : SeedOptions::Method::kLNeighbourhood;
