@@ -197,8 +197,8 @@ TEST(InitialClustersTest, EveryGrowthAndReductionGivesExactlyKConnectedClusters)
 }
 
 TEST(InitialClustersTest, TheDefaultGrowthIsTheEnergyOrderedFlood) {
-  // A plane cut into a strip: the flood and the energy-free growth agree on no rule, but the
-  // default must be the flood (results of existing runs unchanged).
+  // The default must stay the flood (results of existing runs unchanged), and the
+  // energy-free growth must give a different partition from the same seeds.
   const Loaded& l = File("fandisk.off");
   SeedOptions options;
   options.clusters = 50;
