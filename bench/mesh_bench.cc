@@ -7,8 +7,11 @@
 // --k 0 with --level L: k = the number of l-neighbourhood seeds of L (Table 3.1's way).
 // --rho-new R: rho^new of the density's linear mapping (mwcvd-*; 0: the energy's default).
 // --ply OUT.ply: the last run's clustering, faces coloured by cluster (bench/render_ply.py).
+// --truth FILE: instead of clustering, print "truth,CLUSTERS,ENERGY" for the labels in FILE
+// (one cluster id per face and line, e.g. bench/experiments/sphere_models.py's .truth).
 // Prints one CSV row (best of R): mesh,faces,k,energy,init,algo,threads,init_s,opt_s,
 // total_s,initial_energy,final_energy,moves,iterations
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <string>
@@ -76,6 +79,7 @@ int main(int argc, char** argv) {
   const uint32_t runs = args.Get<uint32_t>("runs", 1);
   const double rho_new = args.Get<double>("rho-new", 0);
   const std::string ply = args.Get<std::string>("ply", "");
+  const std::string truth = args.Get<std::string>("truth", "");
   if (!args.Done()) return 2;
   const ConnectivityGuardKind guard = guard_name == "alg32"
                                           ? ConnectivityGuardKind::kVertexBoundaryEdgeCount
@@ -97,6 +101,23 @@ int main(int argc, char** argv) {
   energy.kind = *kind;
   energy.density.rho_max = rho_new;
   if (k == 0) k = static_cast<uint32_t>(LNeighbourhoodSeeds(prepared.adjacency, level).size());
+  if (!truth.empty()) {
+    std::FILE* in = std::fopen(truth.c_str(), "r");
+    std::vector<ClusterId> labels;
+    uint32_t id = 0, largest = 0;
+    while (in != nullptr && std::fscanf(in, "%u", &id) == 1) {
+      labels.push_back(ClusterId(id));
+      largest = std::max(largest, id);
+    }
+    if (in != nullptr) std::fclose(in);
+    if (labels.size() != prepared.mesh.num_faces()) {
+      std::fprintf(stderr, "%s: %zu labels for %zu faces\n", truth.c_str(), labels.size(),
+                   prepared.mesh.num_faces());
+      return 1;
+    }
+    std::printf("truth,%u,%.10g\n", largest + 1, MeshEnergyOfLabels(energy, prepared.mesh, labels));
+    return 0;
+  }
   const MeshProblem problem = MakeMeshProblem(prepared, energy);
   for (uint64_t run_seed = seed; run_seed < seed + runs; ++run_seed) {
     SeedOptions seeds;

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Figs. 4.21-4.24 (section 4.4): sphere-fit energy against clusters for a cube with a
-# spherical cap (7 shapes) and 11 spherical zones: ML and HC over every level, EMLO from
+# Figs. 4.21-4.25 (section 4.4): sphere-fit energy against clusters for a cube with a
+# spherical cap (7 shapes), 11 spherical zones and a height field of 12 spherical patches of
+# different radii (where HC's early merges go wrong, Fig. 4.25): ML and HC over every level,
+# EMLO from
 # RUNS random seeds at a few K, and the elbows (core/hierarchy/elbow.h) of each curve.
 #   bash bench/experiments/fig4_21_sphere_fit.sh [RUNS]
 # Needs build/bench/{ml_bench,mesh_bench,plot_levels}. Writes into
@@ -12,10 +14,13 @@ RUNS=${1:-20}
 OUT=bench/results/experiments
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-for spec in "cube_sphere 4_22 7,8,10,15,20,30" "beads11 4_24 11,12,15,20,30"; do
+for spec in "cube_sphere 4_22 7,8,10,15,20,30" "beads11 4_24 11,12,15,20,30" \
+            "patches12 4_25 12,13,15,20,30"; do
   set -- $spec
   model=$1 fig=$2 ks=$3
   /usr/bin/python3 bench/experiments/sphere_models.py "$model" "$TMP/$model.off"
+  echo "$model: the true shapes' energy: $(build/bench/mesh_bench "$TMP/$model.off" \
+    --energy sphere --truth "$TMP/$model.truth")"
   for algo in ml hc; do
     build/bench/ml_bench "$TMP/$model.off" --algo $algo --energy sphere --repeats 1 \
       --curve "$TMP/${model}_$algo.csv" --at 1 > /dev/null 2>&1

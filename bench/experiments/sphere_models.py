@@ -11,7 +11,13 @@ face):
                model of tests' SphericalBeads(11, 12, 48): zone i on the sphere through the
                unit circles at z = i and z = i + 1, the two end zones closed to their poles.
 
+  patches12    a height field over [0, 4] x [0, 3]: the upper envelope of one sphere per unit
+               cell, radii 0.8..2.8 (the model of tests' SphericalPatches(4, 3, R)): 12 patches
+               of different curvature meeting along curves the tessellation does not follow
+               (open mesh; faces oriented upwards).
+
   sphere_models.py cube_sphere OUT.off [--segments 64] [--rings 8]
+  sphere_models.py patches12 OUT.off [--rings R (grid squares per unit, default 16)]
   sphere_models.py beads11 OUT.off [--rings 12] [--segments 48]
 Faces are oriented outwards (every model is star-shaped about a point on its axis).
 """
@@ -173,15 +179,55 @@ def beads(patches, rings, segments):
     return vertices, faces, truth, None
 
 
+def patches(columns, rows, resolution):
+    spheres = []
+    for j in range(rows):
+        for i in range(columns):
+            index = j * columns + i
+            radius = 0.8 + 0.5 * ((index * 7) % 5)
+            top = 1.0 + 0.1 * (index % 3)
+            spheres.append((i + 0.5, j + 0.5, top - radius, radius))
+
+    def highest(x, y):
+        best, z = -1, -1e30
+        for s, (cx, cy, cz, r) in enumerate(spheres):
+            r2 = r * r - (x - cx) ** 2 - (y - cy) ** 2
+            if r2 > 0 and cz + math.sqrt(r2) > z:
+                best, z = s, cz + math.sqrt(r2)
+        return best, z
+
+    nx, ny = columns * resolution, rows * resolution
+    vertices = []
+    for y in range(ny + 1):
+        for x in range(nx + 1):
+            px, py = x / resolution, y / resolution
+            vertices.append((px, py, highest(px, py)[1]))
+    faces, truth = [], []
+    for y in range(ny):
+        for x in range(nx):
+            a = y * (nx + 1) + x
+            b, c = a + 1, a + nx + 1
+            d = c + 1
+            for face in ((a, b, c), (c, b, d)):
+                faces.append(face)
+                cx = sum(vertices[i][0] for i in face) / 3
+                cy = sum(vertices[i][1] for i in face) / 3
+                truth.append(highest(cx, cy)[0])
+    return vertices, faces, truth
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("model", choices=["cube_sphere", "beads11"])
+    parser.add_argument("model", choices=["cube_sphere", "beads11", "patches12"])
     parser.add_argument("out")
     parser.add_argument("--segments", type=int, default=None)
     parser.add_argument("--rings", type=int, default=None)
     args = parser.parse_args()
-    if args.model == "cube_sphere":
+    if args.model == "patches12":
+        v, f, t = patches(4, 3, args.rings or 16)
+        write(args.out, v, f, t, None)
+    elif args.model == "cube_sphere":
         v, f, t, centre = cube_sphere(args.segments or 64, args.rings or 8)
         write(args.out, v, f, t, centre)
     else:
