@@ -72,6 +72,8 @@ constexpr char kPointsUsage[] = R"(
       float32 (.f32/.bin/.raw, with --dims D). Hierarchies give every level from the
       voxel-grid start to one cluster; single-level algorithms one K.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
+      --clusters K     single-level algorithms: K; bisecting: the top of its hierarchy;
+                       xmeans: k_min, and --labels writes the K it found
 )";
 
 constexpr char kEnergyUsage[] = R"(
@@ -544,7 +546,8 @@ absl::Status SetLevels(const Arguments& args, bool hierarchy, v1::JobSpec& spec)
       (!high_text.empty() && !absl::SimpleAtoi(high_text, &high)) ||
       (!low_text.empty() && !absl::SimpleAtoi(low_text, &low))) {
     return absl::InvalidArgumentError(
-        "--levels: give K_HI:K_LO (cluster counts) with --algo hc, ml or pml");
+        "--levels: give K_HI:K_LO (cluster counts) with a hierarchy (--algo hc, ml, pml or "
+        "bisecting)");
   }
   spec.set_levels_high(high);
   spec.set_levels_low(low);
@@ -717,16 +720,22 @@ int Points(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("--auto-k must be bic or elbow"));
   }
   if (!auto_k.empty() && !hierarchy) {
-    return Fail(absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml or hc"));
+    return Fail(
+        absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml, hc or bisecting"));
   }
+  // Bisecting k-means: a hierarchy whose top, K, is --clusters. X-means: --clusters is k_min
+  // and the result (the last level) has the K it found.
+  const bool divisive = (*algorithm)->divisive;
+  const bool chooses_k = (*algorithm)->chooses_k;
   // LN k-means from the voxel grid: one cluster per occupied cell, no K.
   const bool grid_start = algo == "lnkmeans" && args.get("init", "") == "grid";
   if (grid_start && *clusters != 0) {
     return Fail(absl::InvalidArgumentError(
         "--clusters: --init grid starts from one cluster per occupied voxel (--grid A)"));
   }
-  if (!hierarchy && !grid_start && *clusters == 0) {
-    return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
+  if ((!hierarchy || divisive) && !grid_start && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--clusters: ", algo, " needs K >= 1", chooses_k ? " (k_min)" : "")));
   }
   if (args.has("labels") && *clusters == 0 && auto_k.empty() && !grid_start) {
     return Fail(absl::InvalidArgumentError("--labels needs --clusters K or --auto-k"));
@@ -750,7 +759,7 @@ int Points(const Arguments& args) {
   spec.set_label(input_path);
   spec.set_seed(*seed);
   spec.set_device(args.get("device", "auto"));
-  if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
+  if (!hierarchy || divisive) spec.set_clusters(static_cast<uint32_t>(*clusters));
   if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
   SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
@@ -788,7 +797,7 @@ int Points(const Arguments& args) {
     }
     chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
                           result->done.bic_first_decrease_cluster_count());
-  } else if (grid_start) {
+  } else if (grid_start || chooses_k) {
     level = log.num_levels() - 1;
   } else if (*clusters > 0) {
     absl::StatusOr<size_t> by_k = ChooseLevel(log, static_cast<uint32_t>(*clusters));
