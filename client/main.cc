@@ -482,7 +482,8 @@ class ProgressLine {
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
-                                              const std::string& payload, double* seconds) {
+                                              const std::string& payload, double* seconds,
+                                              v1::Accepted* accepted = nullptr) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
   if (args.has("server")) {
@@ -498,7 +499,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   }
   ProgressLine progress(!args.has("quiet"));
   client::RunOptions run_options;
-  run_options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
+  run_options.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
+    progress.Update(event);
+  };
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
@@ -799,7 +803,8 @@ int Mesh(const Arguments& args) {
   if (!payload.ok()) return Fail(payload.status());
 
   double seconds = 0;
-  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds);
+  v1::Accepted accepted;
+  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds, &accepted);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != mesh->num_faces()) {
@@ -888,7 +893,9 @@ int Mesh(const Arguments& args) {
     // The upload, and --coarse's failure (its file is then not among the outputs).
     json.pop_back();
     absl::StrAppend(&json, ", \"upload\": {\"method\": ", JsonString(upload_method),
-                    ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize, "}");
+                    ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
+                    ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
+                    ", \"face_order\": ", JsonString(accepted.face_order()), "}");
     if (!coarse_error.empty()) {
       absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
                       ", \"coarse_nearest_clusters\": ",

@@ -11,6 +11,7 @@
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/draco_codec.h"
+#include "core/io/draco_peek.h"
 #include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
@@ -242,21 +243,27 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   std::string device_used = "cpu";
   PreparedMesh prepared;
   if (!gpu_measures) {
-    // The one set-up path (core/io/prepare_mesh.h): decode, validate, adjacency, measures.
+    // Decode (faces in the client's order where the payload carries face ids), then the one
+    // set-up path (core/mesh/prepared_mesh.h): validate, adjacency, measures.
     PrepareMeshOptions options;
     options.cancel = job.cancel_flag();
-    absl::StatusOr<PreparedMesh> ready = PrepareDracoMesh(job.input, options);
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
+    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
+    std::string().swap(job.input);  // the bytes are no longer needed
+    const bool face_ids = decoded->has_face_ids;
+    absl::StatusOr<PreparedMesh> ready = PrepareMesh(std::move(decoded->mesh), options);
     if (!ready.ok()) return WithContext(ready.status(), "input mesh");
     prepared = *std::move(ready);
-    std::string().swap(job.input);  // the bytes are no longer needed
     EmitProgress(events, "measures",
                  absl::StrCat(prepared.mesh.num_faces(), " faces, ", prepared.mesh.num_vertices(),
-                              " vertices"),
+                              " vertices; ",
+                              face_ids ? "faces put back in order by the face id attribute"
+                                       : "faces in the decoded order"),
                  "cpu");
   } else {
     // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
     // steps are spelled out here.
-    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
+    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);  // face ids as above
     if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
     std::string().swap(job.input);
     if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
@@ -359,6 +366,14 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
 }
 
 }  // namespace
+
+void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted& accepted) {
+  if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return;
+  const DracoPayloadFacts facts = PeekDracoPayload(input);
+  accepted.set_face_ids(facts.names_face_ids);
+  accepted.set_face_order(DescribeFaceOrder(facts));
+  accepted.set_draco_method(facts.method);
+}
 
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
   const v1::InputKind kind = job.spec.input_kind();

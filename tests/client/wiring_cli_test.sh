@@ -149,6 +149,9 @@ import json, sys
 s, e = (json.load(open(f))["upload"] for f in sys.argv[1:3])
 assert s["method"] == "sequential" and e["method"] == "edgebreaker+face-ids", (s, e)
 assert e["bytes"] < s["bytes"], (s, e)
+# Accepted says where the ids came from (the attribute, or the decoded order).
+assert e["face_ids"] is True and "mlclust_face_id" in e["face_order"], e
+assert s["face_ids"] is False and "decoded face order" in s["face_order"], s
 ' "$work/seq.json" "$work/eb.json" || fail "edgebreaker: upload $(cat "$work/eb.json")"
 
 echo "PASS"
