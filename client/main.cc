@@ -892,7 +892,7 @@ int Mesh(const Arguments& args) {
         coarse_error.empty() ? std::set<std::string>{} : std::set<std::string>{"coarse"});
     // The upload, and --coarse's failure (its file is then not among the outputs).
     json.pop_back();
-    absl::StrAppend(&json, ", \"upload\": {\"method\": ", JsonString(upload_method),
+    absl::StrAppend(&json, R"(, "upload": {"method": )", JsonString(upload_method),
                     ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
                     ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
                     ", \"face_order\": ", JsonString(accepted.face_order()), "}");
