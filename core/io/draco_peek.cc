@@ -1,5 +1,9 @@
 #include "core/io/draco_peek.h"
 
+#include <algorithm>
+#include <new>
+
+#include "core/io/allocation_budget.h"
 #include "core/io/draco_codec.h"
 #include "draco/compression/config/compression_shared.h"
 #include "draco/compression/point_cloud/point_cloud_decoder.h"
@@ -29,15 +33,24 @@ DracoPayloadFacts PeekDracoPayload(std::string_view bytes) {
     return facts;
   }
   buffer.set_bitstream_version(version);
-  draco::GeometryMetadata metadata;
-  draco::MetadataDecoder decoder;
-  if (!decoder.DecodeGeometryMetadata(&buffer, &metadata)) return facts;
-  for (const auto& attribute : metadata.attribute_metadatas()) {
-    std::string name;
-    if (attribute != nullptr && attribute->GetEntryString("name", &name) &&
-        name == kDracoFaceIdAttributeName) {
-      facts.names_face_ids = true;
+  // This runs on the server's network thread for untrusted bytes: a backstop as around the
+  // decoder (core/io/allocation_budget.h), though Draco 1.5.5's metadata decoder checks
+  // declared sizes against the bytes left. A payload over it is read as naming no face ids
+  // (its decoding then says what is wrong).
+  try {
+    ScopedAllocationBudget allocation_budget(std::max<size_t>(size_t{1} << 20, 4 * bytes.size()));
+    draco::GeometryMetadata metadata;
+    draco::MetadataDecoder decoder;
+    if (!decoder.DecodeGeometryMetadata(&buffer, &metadata)) return facts;
+    for (const auto& attribute : metadata.attribute_metadatas()) {
+      std::string name;
+      if (attribute != nullptr && attribute->GetEntryString("name", &name) &&
+          name == kDracoFaceIdAttributeName) {
+        facts.names_face_ids = true;
+      }
     }
+  } catch (const std::bad_alloc&) {
+    facts.names_face_ids = false;
   }
   return facts;
 }
