@@ -139,7 +139,7 @@ std::array<uint8_t, 3> PaletteColour(uint32_t i) {
   return {byte(r), byte(g), byte(b)};
 }
 
-double ColourDistance(const std::array<uint8_t, 3>& a, const std::array<uint8_t, 3>& b) {
+double SquaredColourDistance(const std::array<uint8_t, 3>& a, const std::array<uint8_t, 3>& b) {
   double sum = 0;
   for (int i = 0; i < 3; ++i) {
     const double d = static_cast<double>(a[i]) - b[i];
@@ -365,7 +365,8 @@ absl::StatusOr<ClusterPreviewColours> ColourClusters(const FaceAdjacency& adjace
       for (uint32_t e = offset[c]; e < offset[c + 1]; ++e) {
         const uint32_t neighbour = pairs[e].second;
         if (coloured[neighbour]) {
-          nearest = std::min(nearest, ColourDistance(candidate, out.cluster_colour[neighbour]));
+          nearest =
+              std::min(nearest, SquaredColourDistance(candidate, out.cluster_colour[neighbour]));
         }
       }
       if (nearest > best_distance) {
