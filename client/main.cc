@@ -18,6 +18,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -75,6 +76,9 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
+      --per-polygon    OFF input with quads or n-gons: each polygon goes to the cluster of
+                       most of its area (ours: a post-pass over the triangles' clustering,
+                       the energy recomputed); --labels writes one line per polygon
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
                        (default) keeps the face order by itself. edgebreaker carries a
                        per-face id attribute, by which the server puts the faces back in
@@ -237,7 +241,7 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair"};
+    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -630,6 +634,9 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name);
+
 // Exit code of a mesh job whose other outputs were written but whose --coarse failed.
 constexpr int kExitCoarseFailed = 3;
 
@@ -750,6 +757,9 @@ int Mesh(const Arguments& args) {
       return Fail(absl::InvalidArgumentError("--planar-merge needs --clusters K (K >= 1)"));
     }
   }
+  if (args.has("per-polygon") && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--per-polygon needs --clusters K (K >= 1)"));
+  }
   const std::string upload = args.get("upload", "sequential");
   if (upload != "auto" && upload != "sequential" && upload != "edgebreaker") {
     return Fail(absl::InvalidArgumentError("--upload must be auto, sequential or edgebreaker"));
@@ -766,6 +776,12 @@ int Mesh(const Arguments& args) {
   if (*clusters > mesh->num_faces()) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
+  std::vector<uint32_t> polygon_triangles;  // --per-polygon: triangles of each polygon
+  if (args.has("per-polygon")) {
+    absl::StatusOr<std::vector<uint32_t>> counts = client::ReadPolygonTriangleCounts(input_path);
+    if (!counts.ok()) return Fail(counts.status());
+    polygon_triangles = *std::move(counts);
   }
   // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
   // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
@@ -851,8 +867,37 @@ int Mesh(const Arguments& args) {
           absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
                           planar_merge_degrees, merged->input_clusters, merged->output_clusters);
     }
+    std::vector<uint32_t> written = compact;  // what --labels writes
+    if (args.has("per-polygon")) {
+      std::vector<ClusterId> face_ids(compact.begin(), compact.end());
+      absl::StatusOr<client::PolygonLabels> polygons =
+          client::LabelsPerPolygon(*mesh, polygon_triangles, face_ids);
+      if (!polygons.ok()) return Fail(polygons.status());
+      compact = client::CompactLabels(polygons->per_face);
+      written.clear();
+      size_t first = 0;
+      for (uint32_t count : polygon_triangles) {
+        written.push_back(compact[first]);
+        first += count;
+      }
+      // The energy of the labels written, from its definition (as `mlclust energy`).
+      absl::StatusOr<MeshEnergyOptions> energy_options = EnergyFromArguments(args, energy_name);
+      if (!energy_options.ok()) return Fail(energy_options.status());
+      absl::StatusOr<PreparedMesh> prepared = PrepareMesh(sent);
+      if (!prepared.ok()) return Fail(prepared.status());
+      std::vector<ClusterId> labels_now(compact.begin(), compact.end());
+      const double energy =
+          WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
+                         [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      merge_note = absl::StrCat(
+          merge_note,
+          absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
+                          "of most of their area: %u clusters, energy %.10g",
+                          polygon_triangles.size(), polygons->split_polygons,
+                          *std::max_element(compact.begin(), compact.end()) + 1, energy));
+    }
     if (args.has("labels")) {
-      if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
+      if (absl::Status s = WriteLabels(args.get("labels"), written); !s.ok()) return Fail(s);
     }
     std::vector<ClusterId> ids(compact.size());
     for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
@@ -1063,8 +1108,9 @@ int Points(const Arguments& args) {
 }
 
 // --energy (default cvd; every mesh energy, also those not on the wire) and its options.
-absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args) {
-  const std::string name = args.get("energy", "cvd");
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name) {
+  const std::string name = args.get("energy", default_name);
   const EnergyInfo* energy = FindEnergy(InputKind::kMesh, name);
   if (energy == nullptr) {
     return absl::InvalidArgumentError(
@@ -1086,7 +1132,7 @@ int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
+  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args, "cvd");
   if (!options.ok()) return Fail(options.status());
   // The one set-up path (core/io/prepare_mesh.h): read, validate, adjacency, measures.
   absl::StatusOr<PreparedMesh> mesh = PrepareMeshFile(args.positional()[0]);
@@ -1230,9 +1276,10 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
-                      "planar-merge", "repair", "plot", "upload", "quantize"},
+         return With({"server",           "algo", "energy", "clusters", "labels",
+                      "levels-csv",       "ply",  "device", "quiet",    "coarse",
+                      "coarse-placement", "seed", "levels", "json",     "planar-merge",
+                      "repair",           "plot", "upload", "quantize", "per-polygon"},
                      RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
