@@ -174,9 +174,13 @@ std::string RegistryUsage(InputKind input) {
       absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(
-        &out, "        ", algorithm.name, ": ", algorithm.title, "\n",
-        Wrap(absl::StrCat(algorithm.help, algorithm.hierarchy ? " [hierarchy]" : " [one K]"), 10));
+    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "\n",
+                    Wrap(absl::StrCat(algorithm.help,
+                                      algorithm.divisive    ? " [hierarchy from K down to one]"
+                                      : algorithm.hierarchy ? " [hierarchy]"
+                                      : algorithm.chooses_k ? " [from K = k_min, finds its own K]"
+                                                            : " [one K]"),
+                         10));
   }
   if (input == InputKind::kMesh) {
     absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
