@@ -58,17 +58,32 @@ OptionInfo Number(std::string name, double low, double high, std::string default
 }
 
 // Options several algorithms share, each writing its own field.
-OptionInfo GuardOption(std::string help_target) {
-  return Choice("guard", {"on", "off"}, "on",
-                absl::StrCat("the connectivity guard (Alg. 3.2's purpose; ours: a vertex ring "
-                             "test): no cluster splits or gains a hole (",
-                             help_target, ")"),
-                [](const OptionValue& v, JobPlan& plan) {
-                  const bool on = v.text == "on";
-                  plan.multilevel.connectivity_guard = on;
-                  plan.emlo.connectivity_guard = on;
-                  plan.boundary_based.connectivity_guard = on;
-                });
+// `vertex_count`: the driver can run Alg. 3.2's counts (EMLO and BB; ML's local
+// optimisation has the ring test only).
+OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
+  std::vector<std::string> choices = {"on", "ring", "off"};
+  if (vertex_count) choices.push_back("vertex-count");
+  return Choice(
+      "guard", std::move(choices), "on",
+      absl::StrCat("the connectivity guard: no cluster splits or gains a hole (", help_target,
+                   "); on = ring, ours: the faces around a face in its cluster and in the "
+                   "target each form one run",
+                   vertex_count ? "; vertex-count: Alg. 3.2's vertex boundary-edge counts "
+                                  "(l. 870-890)"
+                                : "",
+                   "; off: none"),
+      [](const OptionValue& v, JobPlan& plan) {
+        const bool on = v.text != "off";
+        const ConnectivityGuardKind kind = v.text == "vertex-count"
+                                               ? ConnectivityGuardKind::kVertexBoundaryEdgeCount
+                                           : on ? ConnectivityGuardKind::kRingTest
+                                                : ConnectivityGuardKind::kOff;
+        plan.multilevel.connectivity_guard = on;
+        plan.emlo.connectivity_guard = on;
+        plan.emlo.guard = kind;
+        plan.boundary_based.connectivity_guard = on;
+        plan.boundary_based.guard = kind;
+      });
 }
 
 OptionInfo ThreadsOption(std::string what, void (*set)(JobPlan&, int)) {
@@ -134,12 +149,42 @@ OptionInfo PmlPairsOption() {
 
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
-                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown by the "
-                "energy-ordered flood (Alg. 2.2)",
+                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
+                "--growth says",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.seeds.method = v.text == "random" ? SeedOptions::Method::kRandom
                                                          : SeedOptions::Method::kLNeighbourhood;
                 });
+}
+
+OptionInfo SeedGrowthOption() {
+  return Choice("growth", {"flood", "free"}, "flood",
+                "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
+                "energies by distance to the seed) or energy-free, each cluster in turn taking "
+                "the free faces across its boundary (l. 671, 1219)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.seeds.growth = v.text == "free" ? SeedOptions::Growth::kEnergyFree
+                                                       : SeedOptions::Growth::kEnergyOrdered;
+                });
+}
+
+OptionInfo SeedReductionOption() {
+  return Choice("seed-reduction", {"merge", "reseed"}, "merge",
+                "l-neighbourhood seeds above k: merge the three clusters at the vertex with "
+                "the smallest summed area, keeping the grown regions (ours) or re-seeding at "
+                "that common vertex and growing all seeds again (l. 849)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.seeds.reduction = v.text == "reseed"
+                                             ? SeedOptions::Reduction::kReseedAndRegrow
+                                             : SeedOptions::Reduction::kMergeRegions;
+                });
+}
+
+OptionInfo AddSeedsOption() {
+  return Choice("add-seeds", {"off", "on"}, "off",
+                "l-neighbourhood seeds below k (a large --level): refuse, or add seeds at the "
+                "common vertex of three neighbouring clusters and grow again (l. 849)",
+                [](const OptionValue& v, JobPlan& plan) { plan.seeds.add_seeds = v.text == "on"; });
 }
 
 OptionInfo SeedLevelOption() {
@@ -550,7 +595,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "energy minimisation by local optimisation (Alg. 3.3)";
     a.help = "seeds k clusters, then moves boundary faces while the energy falls";
     a.energies = mesh_energies;
-    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move")};
+    a.options = {SeedInitOption(),   SeedLevelOption(),
+                 SeedGrowthOption(), SeedReductionOption(),
+                 AddSeedsOption(),   GuardOption("every move", /*vertex_count=*/true)};
     a.stages = {seed_stage, {"cluster", "boundary moves until none lowers the energy"}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
@@ -562,7 +609,12 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "boundary-based optimisation (Alg. 5.1)";
     a.help = "seeds k clusters, then parallel sweeps: every boundary face picks the best proxy";
     a.energies = mesh_energies;
-    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move"),
+    a.options = {SeedInitOption(),
+                 SeedLevelOption(),
+                 SeedGrowthOption(),
+                 SeedReductionOption(),
+                 AddSeedsOption(),
+                 GuardOption("every move", /*vertex_count=*/true),
                  ThreadsOption("BB", [](JobPlan& plan, int t) { plan.boundary_based.threads = t; }),
                  Integer("max-iterations", 1, 1000000, "200", "BB sweeps at most",
                          [](const OptionValue& v, JobPlan& plan) {

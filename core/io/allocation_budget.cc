@@ -84,9 +84,9 @@ bool ScopedAllocationBudget::exceeded() const {
 
 }  // namespace mlclust
 
-// The replaceable allocation functions ([new.delete]); the default operator delete
-// (free) matches them. Only the throwing and nothrow forms count: placement new is not
-// replaceable and allocates nothing.
+// The replaceable allocation functions ([new.delete]), with their deallocation functions
+// below. Only the throwing and nothrow forms count: placement new is not replaceable and
+// allocates nothing.
 void* operator new(size_t size) { return mlclust::AllocateOrThrow(size, 0); }
 void* operator new[](size_t size) { return mlclust::AllocateOrThrow(size, 0); }
 void* operator new(size_t size, const std::nothrow_t&) noexcept {
@@ -107,3 +107,19 @@ void* operator new(size_t size, std::align_val_t alignment, const std::nothrow_t
 void* operator new[](size_t size, std::align_val_t alignment, const std::nothrow_t&) noexcept {
   return mlclust::AllocateOrNull(size, static_cast<size_t>(alignment));
 }
+
+// The matching deallocation functions: memory from the functions above is malloc's, so it
+// goes back to free (the default ones do the same, but sanitizers pair new with delete and
+// would report malloc's memory reaching their operator delete).
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, size_t) noexcept { std::free(p); }
+void operator delete[](void* p, size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
