@@ -205,7 +205,7 @@ sed -n '/  \/\/ BEGIN options/,/  \/\/ END options/p' "$root/proto/mlclust/v1/ml
   > "$work/options_proto.txt"
 diff "$work/options_doc.txt" "$work/options_proto.txt" > "$work/options.diff" || fail \
   "the proto's option list differs from the registry's: run /usr/bin/python3 \
-scripts/proto_options_doc.py build/client/mlclust and put it in JobSpec.options' comment:
+scripts/proto_options_doc.py build/client/mlclust --write proto/mlclust/v1/mlclust.proto
 $(cat "$work/options.diff")"
 
 echo "PASS"
