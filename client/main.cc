@@ -76,7 +76,7 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
-      --per-polygon    OFF input with quads or n-gons: each polygon goes to the cluster of
+      --per-polygon    OFF/OBJ input with quads or n-gons: each polygon goes to the cluster of
                        most of its area (ours: a post-pass over the triangles' clustering,
                        the energy recomputed); --labels writes one line per polygon
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential

@@ -56,6 +56,23 @@ absl::StatusOr<std::vector<uint32_t>> ReadPolygonTriangleCounts(const std::strin
   auto error = [&](auto&&... message) {
     return absl::InvalidArgumentError(absl::StrCat(path, " line ", line_number, ": ", message...));
   };
+  if (absl::EndsWithIgnoreCase(path, ".obj")) {
+    // OBJ: every "f" line is a polygon, its corners the words after "f". Assimp splits an
+    // OBJ by material, so faces keep file order only with one material at most.
+    std::vector<uint32_t> counts;
+    int materials = 0;
+    while (next_line()) {
+      if (tokens[0] == "usemtl" && ++materials > 1) {
+        return absl::UnimplementedError(absl::StrCat(
+            "--per-polygon: ", path, " uses several materials (line ", line_number,
+            "); the reader groups its faces by material, so polygons cannot be followed"));
+      }
+      if (tokens[0] == "f" && tokens.size() >= 4) {
+        counts.push_back(static_cast<uint32_t>(tokens.size() - 1 - 2));
+      }
+    }
+    return counts;
+  }
   if (!next_line()) return error("empty file");
   bool has_dimension = false;
   size_t at = 0;
@@ -67,7 +84,7 @@ absl::StatusOr<std::vector<uint32_t>> ReadPolygonTriangleCounts(const std::strin
     }
   } else {
     return absl::UnimplementedError(absl::StrCat(
-        "--per-polygon: ", path, " is not an OFF file; only OFF files report their polygons yet"));
+        "--per-polygon: ", path, " is neither OFF nor OBJ; only those report their polygons yet"));
   }
   std::vector<uint64_t> numbers;
   const size_t wanted = has_dimension ? 3 : 2;

@@ -20,11 +20,13 @@
 
 namespace mlclust::client {
 
-// The number of triangles each polygon of an OFF file becomes, in file order (n - 2 for a
-// polygon of n >= 3 corners; points and lines, which the reader drops, are left out).
-// INVALID_ARGUMENT naming the line for a file that is not OFF as mesh_io reads it (the
-// keyword variants [ST][C][N][4][n]OFF, comments, counts on the keyword's line); other
-// formats: UNIMPLEMENTED (their readers do not report polygons yet).
+// The number of triangles each polygon of an OFF or OBJ file becomes, in file order (n - 2
+// for a polygon of n >= 3 corners; points and lines, which the reader drops, are left out).
+// OFF: INVALID_ARGUMENT naming the line for a file that is not OFF as mesh_io reads it (the
+// keyword variants [ST][C][N][4][n]OFF, comments, counts on the keyword's line). OBJ: its
+// "f" lines; UNIMPLEMENTED for more than one material (Assimp groups faces by material).
+// Other formats: UNIMPLEMENTED (their readers do not report polygons yet). The caller
+// checks the total against the mesh read (LabelsPerPolygon).
 absl::StatusOr<std::vector<uint32_t>> ReadPolygonTriangleCounts(const std::string& path);
 
 struct PolygonLabels {

@@ -191,6 +191,20 @@ print(len(split))
   || fail "per-polygon: labels"
 grep -q "$(cat "$work/split.txt") were split" "$work/polygons.out" \
   || fail "per-polygon: $(cat "$work/polygons.out")"
+# The same grid as OBJ: the same polygon labels.
+/usr/bin/python3 -c '
+import sys
+lines = open(sys.argv[1]).read().split("\n")
+nv, nf = map(int, lines[1].split()[:2])
+with open(sys.argv[2], "w") as f:
+    for l in lines[2:2 + nv]:
+        f.write("v " + l + "\n")
+    for l in lines[2 + nv:2 + nv + nf]:
+        f.write("f " + " ".join(str(int(w) + 1) for w in l.split()[1:]) + "\n")
+' "$work/quads.off" "$work/quads.obj"
+"$mlclust" mesh "$work/quads.obj" --clusters 10 --labels "$work/polygons_obj.txt" --per-polygon \
+  --quiet > /dev/null
+cmp -s "$work/polygons.txt" "$work/polygons_obj.txt" || fail "per-polygon: OBJ differs from OFF"
 reported=$(sed -n 's/.*per polygon:.*energy \([0-9.e+-]*\)$/\1/p' "$work/polygons.out")
 recomputed=$("$mlclust" energy "$work/quads.off" --labels "$work/expanded.txt")
 /usr/bin/env awk -v a="$reported" -v b="$recomputed" 'BEGIN {
