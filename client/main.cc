@@ -850,6 +850,7 @@ int Mesh(const Arguments& args) {
   std::optional<size_t> chosen_level;
   std::string coarse_error;
   std::optional<uint32_t> coarse_nearest;
+  std::string post_pass_json;  // --planar-merge and --per-polygon in the JSON summary
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
@@ -870,6 +871,10 @@ int Mesh(const Arguments& args) {
       merge_note =
           absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
                           planar_merge_degrees, merged->input_clusters, merged->output_clusters);
+      absl::StrAppend(&post_pass_json, R"(, "planar_merge": {"degrees": )",
+                      JsonNumber(planar_merge_degrees),
+                      ", \"clusters_before\": ", merged->input_clusters,
+                      ", \"clusters_after\": ", merged->output_clusters, "}");
     }
     std::vector<uint32_t> written = compact;  // what --labels writes
     if (args.has("per-polygon")) {
@@ -893,6 +898,10 @@ int Mesh(const Arguments& args) {
       const double energy =
           WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
                          [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      absl::StrAppend(&post_pass_json, R"(, "per_polygon": {"polygons": )",
+                      polygon_triangles.size(), ", \"split_polygons\": ", polygons->split_polygons,
+                      ", \"clusters\": ", *std::max_element(compact.begin(), compact.end()) + 1,
+                      ", \"energy\": ", JsonNumber(energy), "}");
       merge_note = absl::StrCat(
           merge_note,
           absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
@@ -945,6 +954,7 @@ int Mesh(const Arguments& args) {
                     ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
                     ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
                     ", \"face_order\": ", JsonString(accepted.face_order()), "}");
+    absl::StrAppend(&json, post_pass_json);
     if (!coarse_error.empty()) {
       absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
                       ", \"coarse_nearest_clusters\": ",
