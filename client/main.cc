@@ -18,6 +18,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -77,6 +78,9 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
+      --per-polygon    OFF/OBJ input with quads or n-gons: each polygon goes to the cluster of
+                       most of its area (ours: a post-pass over the triangles' clustering,
+                       the energy recomputed); --labels writes one line per polygon
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
                        (default) keeps the face order by itself. edgebreaker carries a
                        per-face id attribute, by which the server puts the faces back in
@@ -179,9 +183,13 @@ std::string RegistryUsage(InputKind input) {
       absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(
-        &out, "        ", algorithm.name, ": ", algorithm.title, "\n",
-        Wrap(absl::StrCat(algorithm.help, algorithm.hierarchy ? " [hierarchy]" : " [one K]"), 10));
+    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "\n",
+                    Wrap(absl::StrCat(algorithm.help,
+                                      algorithm.divisive    ? " [hierarchy from K down to one]"
+                                      : algorithm.hierarchy ? " [hierarchy]"
+                                      : algorithm.chooses_k ? " [from K = k_min, finds its own K]"
+                                                            : " [one K]"),
+                         10));
   }
   if (input == InputKind::kMesh) {
     absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
@@ -246,7 +254,7 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair"};
+    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -639,6 +647,9 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name);
+
 // Exit code of a mesh job whose other outputs were written but whose --coarse failed.
 constexpr int kExitCoarseFailed = 3;
 
@@ -799,6 +810,9 @@ int Mesh(const Arguments& args) {
       return Fail(absl::InvalidArgumentError("--planar-merge needs --clusters K (K >= 1)"));
     }
   }
+  if (args.has("per-polygon") && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--per-polygon needs --clusters K (K >= 1)"));
+  }
   const std::string upload = args.get("upload", "sequential");
   if (upload != "auto" && upload != "sequential" && upload != "edgebreaker") {
     return Fail(absl::InvalidArgumentError("--upload must be auto, sequential or edgebreaker"));
@@ -819,6 +833,12 @@ int Mesh(const Arguments& args) {
   if (*clusters > mesh->num_faces()) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
+  std::vector<uint32_t> polygon_triangles;  // --per-polygon: triangles of each polygon
+  if (args.has("per-polygon")) {
+    absl::StatusOr<std::vector<uint32_t>> counts = client::ReadPolygonTriangleCounts(input_path);
+    if (!counts.ok()) return Fail(counts.status());
+    polygon_triangles = *std::move(counts);
   }
   // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
   // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
@@ -883,6 +903,7 @@ int Mesh(const Arguments& args) {
   std::optional<size_t> chosen_level;
   std::string coarse_error;
   std::optional<uint32_t> coarse_nearest;
+  std::string post_pass_json;  // --planar-merge and --per-polygon in the JSON summary
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
@@ -903,9 +924,46 @@ int Mesh(const Arguments& args) {
       merge_note =
           absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
                           planar_merge_degrees, merged->input_clusters, merged->output_clusters);
+      absl::StrAppend(&post_pass_json, R"(, "planar_merge": {"degrees": )",
+                      JsonNumber(planar_merge_degrees),
+                      ", \"clusters_before\": ", merged->input_clusters,
+                      ", \"clusters_after\": ", merged->output_clusters, "}");
+    }
+    std::vector<uint32_t> written = compact;  // what --labels writes
+    if (args.has("per-polygon")) {
+      std::vector<ClusterId> face_ids(compact.begin(), compact.end());
+      absl::StatusOr<client::PolygonLabels> polygons =
+          client::LabelsPerPolygon(*mesh, polygon_triangles, face_ids);
+      if (!polygons.ok()) return Fail(polygons.status());
+      compact = client::CompactLabels(polygons->per_face);
+      written.clear();
+      size_t first = 0;
+      for (uint32_t count : polygon_triangles) {
+        written.push_back(compact[first]);
+        first += count;
+      }
+      // The energy of the labels written, from its definition (as `mlclust energy`).
+      absl::StatusOr<MeshEnergyOptions> energy_options = EnergyFromArguments(args, energy_name);
+      if (!energy_options.ok()) return Fail(energy_options.status());
+      absl::StatusOr<PreparedMesh> prepared = PrepareMesh(sent);
+      if (!prepared.ok()) return Fail(prepared.status());
+      std::vector<ClusterId> labels_now(compact.begin(), compact.end());
+      const double energy =
+          WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
+                         [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      absl::StrAppend(&post_pass_json, R"(, "per_polygon": {"polygons": )",
+                      polygon_triangles.size(), ", \"split_polygons\": ", polygons->split_polygons,
+                      ", \"clusters\": ", *std::max_element(compact.begin(), compact.end()) + 1,
+                      ", \"energy\": ", JsonNumber(energy), "}");
+      merge_note = absl::StrCat(
+          merge_note,
+          absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
+                          "of most of their area: %u clusters, energy %.10g",
+                          polygon_triangles.size(), polygons->split_polygons,
+                          *std::max_element(compact.begin(), compact.end()) + 1, energy));
     }
     if (args.has("labels")) {
-      if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
+      if (absl::Status s = WriteLabels(args.get("labels"), written); !s.ok()) return Fail(s);
     }
     std::vector<ClusterId> ids(compact.size());
     for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
@@ -957,6 +1015,7 @@ int Mesh(const Arguments& args) {
                     ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
                     ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
                     ", \"face_order\": ", JsonString(accepted.face_order()), "}");
+    absl::StrAppend(&json, post_pass_json);
     if (!coarse_error.empty()) {
       absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
                       ", \"coarse_nearest_clusters\": ",
@@ -1124,8 +1183,9 @@ int Points(const Arguments& args) {
 }
 
 // --energy (default cvd; every mesh energy, also those not on the wire) and its options.
-absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args) {
-  const std::string name = args.get("energy", "cvd");
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name) {
+  const std::string name = args.get("energy", default_name);
   const EnergyInfo* energy = FindEnergy(InputKind::kMesh, name);
   if (energy == nullptr) {
     return absl::InvalidArgumentError(
@@ -1147,7 +1207,7 @@ int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
+  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args, "cvd");
   if (!options.ok()) return Fail(options.status());
   // The one set-up path (core/io/prepare_mesh.h): read, validate, adjacency, measures.
   absl::StatusOr<PreparedMesh> mesh = PrepareMeshFile(args.positional()[0]);
@@ -1291,9 +1351,10 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
-                      "planar-merge", "repair", "plot", "upload", "quantize"},
+         return With({"server",           "algo", "energy", "clusters", "labels",
+                      "levels-csv",       "ply",  "device", "quiet",    "coarse",
+                      "coarse-placement", "seed", "levels", "json",     "planar-merge",
+                      "repair",           "plot", "upload", "quantize", "per-polygon"},
                      With({"preview", "preview-size", "preview-view"},
                           RegistryOptionNames(InputKind::kMesh)));
        },

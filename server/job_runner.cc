@@ -333,20 +333,25 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   } else {
     // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
     // steps are spelled out here.
-    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);  // face ids as above
-    if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
+    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
     std::string().swap(job.input);
-    if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
+    const bool face_ids = decoded->has_face_ids;
+    TriangleMesh mesh = std::move(decoded->mesh);
+    if (absl::Status valid = ValidateMesh(mesh); !valid.ok()) {
       return WithContext(valid, "input mesh");
     }
-    EmitProgress(events, "measures",
-                 absl::StrCat(mesh->num_faces(), " faces, ", mesh->num_vertices(), " vertices"),
-                 StageDeviceName(*measures_stage, caps), 0);
-    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+    const std::string measures_note =
+        absl::StrCat(mesh.num_faces(), " faces, ", mesh.num_vertices(), " vertices; ",
+                     face_ids ? "faces put back in order by the face id attribute"
+                              : "faces in the decoded order");
+    EmitProgress(events, "measures", measures_note, StageDeviceName(*measures_stage, caps), 0);
+    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
     if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
-    absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
+    absl::StatusOr<FaceMeasures> measures = MeasureFaces(mesh, plan, context, device_used);
     if (!measures.ok()) return measures.status();
-    prepared.mesh = *std::move(mesh);
+    EmitProgress(events, "measures", measures_note, device_used, 1);
+    prepared.mesh = std::move(mesh);
     prepared.adjacency = *std::move(adjacency);
     prepared.measures = *std::move(measures);
   }
