@@ -65,7 +65,7 @@ class ResultStore : public EventChannel {
 
   // Cancels the job and ends the call now with `status` (after a final Failed event
   // carrying it, if the call can still take one): drain, an operator's cancel.
-  void Abort(const grpc::Status& status);
+  void Abort(const grpc::Status& status) override;
 
   // The writer's side.
   void OnWriteDone(bool ok);

@@ -22,6 +22,7 @@
 #include "server/job.h"
 #include "server/job_options.h"
 #include "server/job_queue.h"
+#include "server/job_record.h"
 #include "server/job_runner.h"
 #include "server/log.h"
 #include "server/memory_budget.h"
@@ -34,6 +35,8 @@ namespace mlclust::server {
 namespace {
 
 constexpr char kServiceName[] = "mlclust.v1.Clustering";
+// The auth context property that names a call's tenant (set by the token check).
+constexpr char kTenantProperty[] = "mlclust-tenant";
 // Largest message a client may send; chunks are ~1 MiB, so this leaves room.
 constexpr int kMaxReceiveMessageBytes = 64 << 20;
 
@@ -60,6 +63,15 @@ std::string PeerHost(const std::string& peer) {
 bool IsLoopback(const std::string& address) {
   return absl::StartsWith(address, "127.") || absl::StartsWith(address, "localhost:") ||
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
+}
+
+// The tenant of a call: the one its bearer token names (server/auth.h), "" without tokens.
+std::string TenantOf(const grpc::ServerContextBase* context) {
+  const std::shared_ptr<const grpc::AuthContext> auth = context->auth_context();
+  if (auth == nullptr) return "";
+  std::vector<grpc::string_ref> values = auth->FindPropertyValues(kTenantProperty);
+  if (values.empty()) return "";
+  return std::string(values.front().data(), values.front().size());
 }
 
 struct Counters {
@@ -130,7 +142,7 @@ class ServiceImpl;
 class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
  public:
   // `refusal` not OK: the call was not admitted and is answered with it at once.
-  RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal);
+  RunCall(ServiceImpl* service, std::string peer, std::string tenant, const absl::Status& refusal);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
@@ -156,6 +168,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
 
   ServiceImpl* service_;
   const std::string peer_;
+  const std::string tenant_;
   const bool admitted_;
   Writer writer_{this};
   std::shared_ptr<ResultStore> channel_;
@@ -178,7 +191,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         admission_(options_),
         upload_budget_(options.max_upload_bytes_in_flight),
         queued_budget_(options.max_queued_input_bytes),
-        result_budget_(options.result_server_budget_bytes) {}
+        result_budget_(options.result_server_budget_bytes),
+        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}) {}
 
   // A new job's store of events, writing to `writer`.
   std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
@@ -199,7 +213,48 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                             "the server is shutting down; submit the job to "
                                             "another server or try again later")
                                       : admission_.Admit(peer);
-    return new RunCall(this, std::move(peer), admitted);
+    return new RunCall(this, std::move(peer), TenantOf(context), admitted);
+  }
+
+  grpc::ServerWriteReactor<v1::JobEvent>* Watch(grpc::CallbackServerContext* context,
+                                                const v1::WatchRequest* request) override;
+
+  grpc::ServerUnaryReactor* Cancel(grpc::CallbackServerContext* context,
+                                   const v1::CancelRequest* request,
+                                   v1::CancelReply* reply) override {
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    absl::StatusOr<std::shared_ptr<JobRecord>> record =
+        registry_.Find(request->job_id(), TenantOf(context));
+    if (!record.ok()) {
+      reactor->Finish(ToGrpc(record.status()));
+      return reactor;
+    }
+    const grpc::Status cancelled(grpc::StatusCode::CANCELLED,
+                                 absl::StrCat("job ", request->job_id(), " was cancelled by a Cancel call"));
+    if (std::shared_ptr<Job> job = (*record)->job()) {
+      if (queue_.Remove(job.get())) {
+        LeftQueue(*job);
+        ++counters_.cancelled;
+        AnnounceQueuePositions();
+      }
+      job->events->Abort(cancelled);
+      if ((*record)->state() == JobState::kQueued) (*record)->MarkEnded(cancelled);
+      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ", context->peer());
+    }
+    reply->set_state(JobStateName((*record)->state()));
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* context,
+                                     const v1::ListJobsRequest* request,
+                                     v1::JobList* list) override {
+    for (v1::JobSummary& summary : registry_.List(TenantOf(context))) {
+      *list->add_jobs() = std::move(summary);
+    }
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
   }
 
   grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* context,
@@ -226,6 +281,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_readers_cut_off(counters_.readers_cut_off);
     stats->set_cpu_workers(static_cast<uint32_t>(options_.cpu_workers));
     stats->set_draining(draining_);
+    stats->set_jobs_known(static_cast<uint32_t>(registry_.size()));
+    stats->set_kept_result_bytes(registry_.kept_bytes());
+    stats->set_kept_result_limit(registry_.kept_limit());
+    stats->set_results_dropped(registry_.dropped());
+    stats->set_watch_calls_active(watch_calls_active_);
+    stats->set_retention_seconds(absl::ToDoubleSeconds(registry_.retention()));
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
       stats->set_gpu_available(!gl_renderer_.empty());
@@ -294,6 +355,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
 
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
+  JobRegistry& registry() { return registry_; }
+  std::atomic<uint32_t>& watch_calls_active() { return watch_calls_active_; }
   Counters& counters() { return counters_; }
   CallAdmission& admission() { return admission_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
@@ -332,6 +395,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   Counters counters_;
   CallAdmission admission_;
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
+  JobRegistry registry_;
+  std::atomic<uint32_t> watch_calls_active_{0};
   std::atomic<uint64_t> next_job_number_{0};
   std::atomic<bool> draining_{false};
   mutable std::mutex gl_mutex_;
@@ -339,9 +404,11 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   bool gl_is_software_ = false;
 };
 
-RunCall::RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal)
+RunCall::RunCall(ServiceImpl* service, std::string peer, std::string tenant,
+                 const absl::Status& refusal)
     : service_(service),
       peer_(std::move(peer)),
+      tenant_(std::move(tenant)),
       admitted_(refusal.ok()),
       channel_(service->NewResultStore(&writer_)) {
   if (!admitted_) {
@@ -454,11 +521,22 @@ void RunCall::Submit() {
   job->accepted_at = absl::Now();
   job->peer = peer_;
   job->lane = service_->LaneFor(job->spec);
+  job->tenant = tenant_;
   const std::string id = job->id;
   const std::string label = job->spec.label();
   const uint64_t bytes = job->input.size();
+  const bool detach = job->spec.detach();
   // The input moves from the uploads in flight to the queued inputs.
   ReleaseUpload();
+  const uint32_t per_tenant = service_->options().max_jobs_per_tenant;
+  if (per_tenant > 0 && service_->registry().ActiveJobs(tenant_) >= per_tenant) {
+    ++service_->counters().rejected;
+    spec_.set_label(label);
+    Refuse(absl::ResourceExhaustedError(absl::StrCat(
+        tenant_.empty() ? std::string("this server") : absl::StrCat("tenant '", tenant_, "'"),
+        " has ", per_tenant, " jobs queued or running, its limit; try again later")));
+    return;
+  }
   if (!service_->queued_budget().TryReserve(bytes)) {
     ++service_->counters().rejected;
     spec_.set_label(label);
@@ -469,20 +547,34 @@ void RunCall::Submit() {
     return;
   }
   job->queued_bytes = bytes;
+  // The job's entry in the registry; a detached job's events go to it (its kept levels),
+  // an attached job's to this call.
+  auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
+                                            service_->options().max_event_bytes);
+  record->set_job(job);
+  job->record = record;
+  job->events = detach ? std::shared_ptr<EventChannel>(record) : channel_;
+  service_->registry().Add(record);
   job_ = job;
   std::shared_ptr<Job> queued = job;
+  v1::JobEvent accepted_event;
   // The Accepted event is queued while the queue's lock is held, so it is always the
   // first event even if a worker picks the job up at once.
   absl::StatusOr<size_t> ahead = service_->queue().Push(
       std::move(queued), static_cast<unsigned>(job->lane), [&](size_t jobs_ahead) {
-        v1::JobEvent event;
-        event.mutable_accepted()->set_job_id(id);
-        event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
-        event.mutable_accepted()->set_input_bytes(bytes);
-        channel_->Emit(std::move(event));
+        v1::Accepted* accepted = accepted_event.mutable_accepted();
+        accepted->set_job_id(id);
+        accepted->set_queue_position(static_cast<uint32_t>(jobs_ahead));
+        accepted->set_input_bytes(bytes);
+        accepted->set_detached(detach);
+        accepted->set_tenant(tenant_);
+        accepted->set_retention_seconds(
+            absl::ToDoubleSeconds(service_->options().result_retention));
+        if (!detach) channel_->Emit(accepted_event);
         ++service_->counters().accepted;  // before a worker can finish it
       });
   if (!ahead.ok()) {
+    service_->registry().Remove(id);
     service_->LeftQueue(*job);
     ++service_->counters().rejected;
     const absl::Status status =
@@ -497,18 +589,129 @@ void RunCall::Submit() {
   }
   LogLine(service_->options().log, id, " accepted from ", peer_, " (label '", label, "', ", bytes,
           " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
-          " ahead)");
+          " ahead", detach ? ", detached" : "", ")");
+  // A detached job's call ends here; the job runs on and Watch reads its levels.
+  if (detach) channel_->Finish(std::move(accepted_event), grpc::Status::OK);
 }
 
 void RunCall::OnCancel() {
   channel_->OnCancel();
-  if (std::shared_ptr<Job> job = job_.lock()) {
+  std::shared_ptr<Job> job = job_.lock();
+  // A detached job does not depend on the call that submitted it.
+  if (job != nullptr && !job->spec.detach()) {
     if (service_->queue().Remove(job.get())) {
       service_->LeftQueue(*job);
       ++service_->counters().cancelled;
+      job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
       LogLine(service_->options().log, job->id, " cancelled while queued");
     }
   }
+}
+
+// The reactor of one Watch call: writes the job's kept events one at a time from its
+// record, each when the previous write is done, and waits (registered with the record)
+// when it has read everything so far. The job never waits for it.
+class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
+ public:
+  WatchCall(ServiceImpl* service, absl::StatusOr<std::shared_ptr<JobRecord>> record,
+            const v1::WatchRequest& request)
+      : service_(service), waker_(std::make_shared<Waker>(this)) {
+    ++service_->watch_calls_active();
+    if (!record.ok()) {
+      Finish(ToGrpc(record.status()));
+      finished_ = true;
+      return;
+    }
+    record_ = *std::move(record);
+    cursor_.from_level = request.from_level();
+    cursor_.resume = request.resume();
+    if (request.resume()) {
+      cursor_.phase = WatchCursor::Phase::kLevels;
+      cursor_.next_level = request.from_level() + 1;
+    }
+    waker_->Wake();
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      write_in_flight_ = false;
+      if (!ok) cancelled_ = true;
+    }
+    waker_->Wake();
+  }
+
+  void OnCancel() override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      cancelled_ = true;
+    }
+    waker_->Wake();
+  }
+
+  void OnDone() override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      waker_->call = nullptr;
+    }
+    --service_->watch_calls_active();
+    delete this;
+  }
+
+ private:
+  // Registered with the record while the call waits; outlives the call (the record holds
+  // it weakly, a wake may be on its way as the call ends).
+  struct Waker : RecordWaiter {
+    explicit Waker(WatchCall* c) : call(c) {}
+    void Wake() override {
+      std::unique_lock<std::mutex> lock(mutex);
+      if (call != nullptr) call->Pump(lock);
+    }
+    std::mutex mutex;
+    WatchCall* call;
+  };
+
+  // With the waker's lock held: starts the next write or ends the call. The lock is
+  // released before calling into gRPC; the call cannot end in between (only Finish, here,
+  // ends it, and a write in flight keeps it).
+  void Pump(std::unique_lock<std::mutex>& lock) {
+    if (finished_ || write_in_flight_) return;
+    if (cancelled_) {
+      finished_ = true;
+      lock.unlock();
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the watch was cancelled"));
+      return;
+    }
+    grpc::Status status;
+    switch (record_->NextEvent(cursor_, event_, status, waker_)) {
+      case JobRecord::Next::kEvent:
+        write_in_flight_ = true;
+        lock.unlock();
+        StartWrite(&event_);
+        return;
+      case JobRecord::Next::kEnd:
+        finished_ = true;
+        lock.unlock();
+        Finish(status);
+        return;
+      case JobRecord::Next::kWait:
+        return;
+    }
+  }
+
+  ServiceImpl* service_;
+  std::shared_ptr<Waker> waker_;
+  std::shared_ptr<JobRecord> record_;
+  WatchCursor cursor_;
+  v1::JobEvent event_;
+  bool write_in_flight_ = false;
+  bool finished_ = false;
+  bool cancelled_ = false;
+};
+
+grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
+                                                            const v1::WatchRequest* request) {
+  return new WatchCall(this, registry_.Find(request->job_id(), TenantOf(context)), *request);
 }
 
 }  // namespace
@@ -528,6 +731,16 @@ class ServerImpl {
       gl_worker_.join();
       return status;
     }
+    // Ended jobs past the retention time are dropped even when nobody asks.
+    sweeper_ = std::thread([this] {
+      std::unique_lock<std::mutex> lock(sweeper_mutex_);
+      while (!sweeper_stop_) {
+        sweeper_wake_.wait_for(lock, std::chrono::seconds(1));
+        lock.unlock();
+        service_.registry().Sweep();
+        lock.lock();
+      }
+    });
     for (size_t i = 0; i < options.cpu_workers; ++i) {
       cpu_workers_.emplace_back([this] {
         JobRunnerContext context;  // no GL: every stage on the CPU
@@ -594,10 +807,11 @@ class ServerImpl {
     for (const std::shared_ptr<Job>& job : queued) {
       service_.LeftQueue(*job);
       ++service_.counters().cancelled;
-      static_cast<ResultStore&>(*job->events)
-          .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                              "the server is shutting down and the job had not started; submit "
-                              "it to another server or try again later"));
+      const grpc::Status unavailable(grpc::StatusCode::UNAVAILABLE,
+                                     "the server is shutting down and the job had not started; "
+                                     "submit it to another server or try again later");
+      job->events->Abort(unavailable);
+      job->record->MarkEnded(unavailable);
       LogLine(options.log, job->id, " not started: the server is shutting down");
     }
     // 3. Running jobs may finish within the drain time; then they are cancelled.
@@ -610,8 +824,7 @@ class ServerImpl {
       running_done_.wait_for(running_lock, absl::ToChronoNanoseconds(options.drain_time),
                              [&] { return running_.empty(); });
       for (const std::shared_ptr<Job>& job : running_) {
-        static_cast<ResultStore&>(*job->events)
-            .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
+        job->events->Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
                                 "the server is shutting down and the drain time ran out; the job "
                                 "was cancelled"));
         LogLine(options.log, job->id, " cancelled: the drain time ran out");
@@ -643,6 +856,14 @@ class ServerImpl {
  private:
   void StopWorkers() {
     service_.queue().Stop();
+    if (sweeper_.joinable()) {
+      {
+        std::lock_guard<std::mutex> lock(sweeper_mutex_);
+        sweeper_stop_ = true;
+      }
+      sweeper_wake_.notify_all();
+      sweeper_.join();
+    }
     if (gl_worker_.joinable()) gl_worker_.join();
     for (std::thread& worker : cpu_workers_) worker.join();
     cpu_workers_.clear();
@@ -694,8 +915,10 @@ class ServerImpl {
       service_.AnnounceQueuePositions();
       if (job->events->cancelled()) {
         ++counters.cancelled;
+        job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
         continue;
       }
+      job->record->MarkRunning();
       {
         std::lock_guard<std::mutex> lock(running_mutex_);
         running_.push_back(job);
@@ -711,7 +934,9 @@ class ServerImpl {
             absl::ToDoubleSeconds(started_at - job->accepted_at));
         event.mutable_done()->set_seconds_running(absl::ToDoubleSeconds(ended_at - started_at));
         ++counters.succeeded;  // before Finish, so a client that saw Done sees it counted
+        const v1::Done done = event.done();
         job->events->Finish(std::move(event), grpc::Status::OK);
+        job->record->MarkEnded(grpc::Status::OK, &done);
         LogLine(options.log, job->id, " done in ", absl::FormatDuration(ended_at - started_at),
                 ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(), " triplets");
       } else {
@@ -719,6 +944,7 @@ class ServerImpl {
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled
                                                                    : counters.failed);
         job->events->Finish(FailedEvent(status), status);
+        job->record->MarkEnded(status);
         LogLine(options.log, job->id, " failed after ", absl::FormatDuration(ended_at - started_at),
                 ": ", outcome.status().ToString());
       }
@@ -741,7 +967,10 @@ class ServerImpl {
 
   ServiceImpl service_;
   std::unique_ptr<grpc::Server> server_;
-  std::thread gl_worker_;
+  std::thread gl_worker_, sweeper_;
+  std::mutex sweeper_mutex_;
+  std::condition_variable sweeper_wake_;
+  bool sweeper_stop_ = false;
   std::vector<std::thread> cpu_workers_;
   int port_ = 0;
   std::string gl_renderer_, gl_unavailable_reason_;

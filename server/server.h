@@ -63,6 +63,14 @@ struct ServerOptions {
   // Largest message sent; larger level batches and snapshots are split (under gRPC's
   // default 4 MiB receive limit).
   size_t max_event_bytes = size_t{3} << 20;
+  // Detached jobs (JobSpec.detach) keep their levels for Watch: an ended job stays this
+  // long, and the kept levels of all jobs take at most `kept_results_bytes` (the oldest
+  // ended jobs' are dropped first to make room; a job that cannot fit is cancelled).
+  absl::Duration result_retention = absl::Hours(1);
+  uint64_t kept_results_bytes = uint64_t{1} << 30;
+  // Jobs one tenant may have queued or running at once (0: no limit); more are refused
+  // with RESOURCE_EXHAUSTED.
+  uint32_t max_jobs_per_tenant = 0;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;
