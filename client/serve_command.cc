@@ -40,6 +40,12 @@ constexpr char kServeUsage[] =
                            before it is cut off with RESOURCE_EXHAUSTED and the job
                            cancelled: producing levels never waits on a reader
       --result-total-mb N  the same over all jobs (default 1024)
+    detached jobs (mesh|points --detach; watch, cancel, jobs):
+      --retention-seconds S  an ended job's results are kept this long (default 3600)
+      --kept-results-mb N  memory for kept levels, all jobs together (default 1024); the
+                           oldest ended jobs' results are dropped first to make room
+      --max-jobs-per-tenant N  jobs one tenant may have queued or running (default 0: no
+                           limit; without tokens every client is one tenant)
 )";
 
 // --name value / --name=value; every name must be one `serve` knows.
@@ -56,7 +62,10 @@ absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** a
                                        "max-calls",
                                        "max-calls-per-connection",
                                        "max-calls-per-peer",
-                                       "drain-seconds"};
+                                       "drain-seconds",
+                                       "retention-seconds",
+                                       "kept-results-mb",
+                                       "max-jobs-per-tenant"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -119,6 +128,7 @@ int RunServeCommand(int argc, char** argv) {
     uint64_t unit;
   };
   uint64_t drain_seconds = 30;
+  uint64_t retention_seconds = 3600;
   const Number numbers[] = {
       {"queue", nullptr, nullptr, &options.queue_capacity, 1},
       {"workers", nullptr, nullptr, &options.cpu_workers, 1},
@@ -131,6 +141,9 @@ int RunServeCommand(int argc, char** argv) {
       {"max-calls-per-connection", nullptr, &options.max_calls_per_connection, nullptr, 1},
       {"max-calls-per-peer", nullptr, &options.max_calls_per_peer, nullptr, 1},
       {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
+      {"retention-seconds", &retention_seconds, nullptr, nullptr, 1},
+      {"kept-results-mb", &options.kept_results_bytes, nullptr, nullptr, 1 << 20},
+      {"max-jobs-per-tenant", nullptr, &options.max_jobs_per_tenant, nullptr, 1},
   };
   for (const Number& number : numbers) {
     const uint64_t current = number.bytes   ? *number.bytes / number.unit
@@ -152,6 +165,7 @@ int RunServeCommand(int argc, char** argv) {
     return Fail(absl::InvalidArgumentError("--queue: over 100000"));
   }
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
+  options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
   auto gpu_flag = flags->find("gpu");
   const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
   if (gpu == "auto")
