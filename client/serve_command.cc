@@ -4,7 +4,9 @@
 
 #include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <string>
 
 #include "absl/status/status.h"
@@ -13,6 +15,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
+#include "server/auth.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -46,6 +49,13 @@ constexpr char kServeUsage[] =
                            oldest ended jobs' results are dropped first to make room
       --max-jobs-per-tenant N  jobs one tenant may have queued or running (default 0: no
                            limit; without tokens every client is one tenant)
+    security (plaintext is meant for loopback only):
+      --tls-cert FILE --tls-key FILE   TLS with this certificate chain and key (PEM)
+      --tls-client-ca FILE  require client certificates signed by this CA (PEM)
+      --auth-token-file F   bearer tokens, one "TOKEN TENANT" per line (needs TLS): every
+                           call needs a known token (UNAUTHENTICATED otherwise) and sees only
+                           its tenant's jobs (PERMISSION_DENIED for another's); health checks
+                           need none. Tokens are never logged.
 )";
 
 // --name value / --name=value; every name must be one `serve` knows.
@@ -65,7 +75,11 @@ absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** a
                                        "drain-seconds",
                                        "retention-seconds",
                                        "kept-results-mb",
-                                       "max-jobs-per-tenant"};
+                                       "max-jobs-per-tenant",
+                                       "tls-cert",
+                                       "tls-key",
+                                       "tls-client-ca",
+                                       "auth-token-file"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -98,6 +112,17 @@ absl::StatusOr<uint64_t> GetUint(const std::map<std::string, std::string>& flags
         absl::StrCat("--", name, ": '", it->second, "' is not a non-negative integer"));
   }
   return value;
+}
+
+absl::StatusOr<std::string> ReadFlagFile(const std::map<std::string, std::string>& flags,
+                                         const std::string& name) {
+  auto it = flags.find(name);
+  if (it == flags.end()) return std::string();
+  std::ifstream in(it->second, std::ios::binary);
+  if (!in) return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", it->second));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 int Fail(const absl::Status& status) {
@@ -166,6 +191,24 @@ int RunServeCommand(int argc, char** argv) {
   }
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
+  for (auto [name, pem] : {std::pair{"tls-cert", &options.tls_cert_pem},
+                           std::pair{"tls-key", &options.tls_key_pem},
+                           std::pair{"tls-client-ca", &options.tls_client_ca_pem}}) {
+    absl::StatusOr<std::string> text = ReadFlagFile(*flags, name);
+    if (!text.ok()) return Fail(text.status());
+    *pem = *std::move(text);
+  }
+  if (flags->contains("auth-token-file")) {
+    absl::StatusOr<std::string> text = ReadFlagFile(*flags, "auth-token-file");
+    if (!text.ok()) return Fail(text.status());
+    absl::StatusOr<std::map<std::string, std::string>> tokens = server::ParseTokenFile(*text);
+    if (!tokens.ok()) {
+      return Fail(absl::InvalidArgumentError(
+          absl::StrCat("--auth-token-file ", flags->at("auth-token-file"), ": ",
+                       tokens.status().message())));
+    }
+    options.auth_tokens = *std::move(tokens);
+  }
   auto gpu_flag = flags->find("gpu");
   const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
   if (gpu == "auto")

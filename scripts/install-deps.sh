@@ -20,6 +20,8 @@ packages=(
   libcairo2-dev fonts-dejavu-core
   # tests
   libgtest-dev libgmock-dev
+  # TLS tests make their certificates at test time (tests/e2e/tls_test.cc)
+  openssl
   # the libFuzzer targets (fuzz/, scripts/fuzz-smoke.sh): clang-14 with libFuzzer
   clang-14 libclang-rt-14-dev
   # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)

@@ -19,6 +19,7 @@
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/auth.h"
 #include "server/job.h"
 #include "server/job_options.h"
 #include "server/job_queue.h"
@@ -35,8 +36,6 @@ namespace mlclust::server {
 namespace {
 
 constexpr char kServiceName[] = "mlclust.v1.Clustering";
-// The auth context property that names a call's tenant (set by the token check).
-constexpr char kTenantProperty[] = "mlclust-tenant";
 // Largest message a client may send; chunks are ~1 MiB, so this leaves room.
 constexpr int kMaxReceiveMessageBytes = 64 << 20;
 
@@ -63,15 +62,6 @@ std::string PeerHost(const std::string& peer) {
 bool IsLoopback(const std::string& address) {
   return absl::StartsWith(address, "127.") || absl::StartsWith(address, "localhost:") ||
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
-}
-
-// The tenant of a call: the one its bearer token names (server/auth.h), "" without tokens.
-std::string TenantOf(const grpc::ServerContextBase* context) {
-  const std::shared_ptr<const grpc::AuthContext> auth = context->auth_context();
-  if (auth == nullptr) return "";
-  std::vector<grpc::string_ref> values = auth->FindPropertyValues(kTenantProperty);
-  if (values.empty()) return "";
-  return std::string(values.front().data(), values.front().size());
 }
 
 struct Counters {
@@ -213,18 +203,51 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                             "the server is shutting down; submit the job to "
                                             "another server or try again later")
                                       : admission_.Admit(peer);
-    return new RunCall(this, std::move(peer), TenantOf(context), admitted);
+    absl::StatusOr<std::string> tenant = Authorize(context);
+    if (!tenant.ok()) {
+      if (admitted.ok()) admission_.Release(peer);
+      admitted = tenant.status();
+    }
+    return new RunCall(this, std::move(peer), tenant.value_or(""), admitted);
   }
 
   grpc::ServerWriteReactor<v1::JobEvent>* Watch(grpc::CallbackServerContext* context,
                                                 const v1::WatchRequest* request) override;
 
+  // The call's tenant; UNAUTHENTICATED on a server with tokens when the call has none
+  // (a wrong one never gets here: the token check refuses it).
+  absl::StatusOr<std::string> Authorize(const grpc::ServerContextBase* context) const {
+    if (options_.auth_tokens.empty()) return std::string();
+    std::optional<std::string_view> authorization;
+    const auto& metadata = context->client_metadata();
+    if (auto header = metadata.find("authorization"); header != metadata.end()) {
+      authorization = std::string_view(header->second.data(), header->second.size());
+    }
+    return TenantOfCall(options_.auth_tokens, authorization);
+  }
+
+  // A unary call refused by Authorize: finished with its status; nullptr when authorized.
+  grpc::ServerUnaryReactor* RefuseUnauthorized(grpc::CallbackServerContext* context,
+                                               std::string* tenant) {
+    absl::StatusOr<std::string> authorized = Authorize(context);
+    if (authorized.ok()) {
+      *tenant = *authorized;
+      return nullptr;
+    }
+    ++counters_.calls_refused;
+    LogLine(options_.log, "refused a call from ", context->peer(), ": ", authorized.status().ToString());
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(ToGrpc(authorized.status()));
+    return reactor;
+  }
+
   grpc::ServerUnaryReactor* Cancel(grpc::CallbackServerContext* context,
                                    const v1::CancelRequest* request,
                                    v1::CancelReply* reply) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
-    absl::StatusOr<std::shared_ptr<JobRecord>> record =
-        registry_.Find(request->job_id(), TenantOf(context));
+    absl::StatusOr<std::shared_ptr<JobRecord>> record = registry_.Find(request->job_id(), tenant);
     if (!record.ok()) {
       reactor->Finish(ToGrpc(record.status()));
       return reactor;
@@ -249,7 +272,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* context,
                                      const v1::ListJobsRequest* request,
                                      v1::JobList* list) override {
-    for (v1::JobSummary& summary : registry_.List(TenantOf(context))) {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
+    for (v1::JobSummary& summary : registry_.List(tenant)) {
       *list->add_jobs() = std::move(summary);
     }
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
@@ -260,6 +285,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* context,
                                      const v1::GetStatsRequest* request,
                                      v1::Stats* stats) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
     stats->set_queue_depth(static_cast<uint32_t>(queue_.size()));
     stats->set_queue_capacity(static_cast<uint32_t>(queue_.capacity()));
     stats->set_jobs_accepted(counters_.accepted);
@@ -301,6 +328,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext* context,
                                           const v1::GetServerInfoRequest* request,
                                           v1::ServerInfo* info) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
     ServerFacts facts;
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
@@ -711,7 +740,13 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
 
 grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
                                                             const v1::WatchRequest* request) {
-  return new WatchCall(this, registry_.Find(request->job_id(), TenantOf(context)), *request);
+  absl::StatusOr<std::string> tenant = Authorize(context);
+  if (!tenant.ok()) {
+    ++counters_.calls_refused;
+    LogLine(options_.log, "refused a call from ", context->peer(), ": ", tenant.status().ToString());
+    return new WatchCall(this, tenant.status(), *request);
+  }
+  return new WatchCall(this, registry_.Find(request->job_id(), *tenant), *request);
 }
 
 }  // namespace
@@ -752,7 +787,12 @@ class ServerImpl {
     grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     if (!options.listen_address.empty()) {
-      builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(), &port_);
+      absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = Credentials(options);
+      if (!credentials.ok()) {
+        StopWorkers();
+        return credentials.status();
+      }
+      builder.AddListeningPort(options.listen_address, *credentials, &port_);
     }
     builder.RegisterService(&service_);
     builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
@@ -784,11 +824,52 @@ class ServerImpl {
         "; queue capacity ", options.queue_capacity, "; CPU workers ", options.cpu_workers,
         "; GL: ",
         gl_renderer_.empty() ? absl::StrCat("none (", gl_unavailable_reason_, ")") : gl_renderer_);
-    if (!options.listen_address.empty() && !IsLoopback(options.listen_address)) {
+    if (!options.listen_address.empty() && !IsLoopback(options.listen_address) &&
+        options.auth_tokens.empty()) {
       LogLine(options.log, "warning: listening on ", options.listen_address,
-              " without TLS or authentication: anyone who can reach it can submit jobs");
+              options.tls_cert_pem.empty() ? " without TLS or authentication"
+                                           : " with TLS but without tokens",
+              ": anyone who can reach it can submit jobs");
+    }
+    if (!options.tls_cert_pem.empty()) {
+      LogLine(options.log, "TLS on; client certificates ",
+              options.tls_client_ca_pem.empty() ? "not requested" : "required",
+              "; bearer tokens ",
+              options.auth_tokens.empty() ? std::string("off")
+                                          : absl::StrCat("on (", options.auth_tokens.size(), ")"));
     }
     return absl::OkStatus();
+  }
+
+  // The listener's credentials: plaintext, or TLS (optionally requiring client
+  // certificates) with the token check.
+  static absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> Credentials(
+      const ServerOptions& options) {
+    if (options.tls_cert_pem.empty() != options.tls_key_pem.empty()) {
+      return absl::InvalidArgumentError("TLS needs both a certificate and its key");
+    }
+    if (options.tls_cert_pem.empty()) {
+      if (!options.auth_tokens.empty()) {
+        return absl::InvalidArgumentError(
+            "bearer tokens need TLS (--tls-cert and --tls-key): a token is never accepted in "
+            "plaintext");
+      }
+      if (!options.tls_client_ca_pem.empty()) {
+        return absl::InvalidArgumentError("--tls-client-ca needs --tls-cert and --tls-key");
+      }
+      return grpc::InsecureServerCredentials();
+    }
+    grpc::SslServerCredentialsOptions ssl(
+        options.tls_client_ca_pem.empty()
+            ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+            : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    ssl.pem_root_certs = options.tls_client_ca_pem;
+    ssl.pem_key_cert_pairs.push_back({options.tls_key_pem, options.tls_cert_pem});
+    std::shared_ptr<grpc::ServerCredentials> credentials = grpc::SslServerCredentials(ssl);
+    if (!options.auth_tokens.empty()) {
+      credentials->SetAuthMetadataProcessor(MakeTokenProcessor(options.auth_tokens));
+    }
+    return credentials;
   }
 
   void Shutdown() {

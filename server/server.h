@@ -10,6 +10,7 @@
 #define MLCLUST_SERVER_SERVER_H_
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -71,6 +72,14 @@ struct ServerOptions {
   // Jobs one tenant may have queued or running at once (0: no limit); more are refused
   // with RESOURCE_EXHAUSTED.
   uint32_t max_jobs_per_tenant = 0;
+  // TLS: the server's certificate chain and private key (PEM text). Empty: plaintext.
+  std::string tls_cert_pem, tls_key_pem;
+  // With TLS: clients must present a certificate signed by this CA (PEM text).
+  std::string tls_client_ca_pem;
+  // Bearer tokens, token -> tenant (server/auth.h); they need TLS. With them every
+  // Clustering call needs a known token (UNAUTHENTICATED otherwise) and sees only its
+  // tenant's jobs (PERMISSION_DENIED for another's). Empty: one tenant, "".
+  std::map<std::string, std::string> auth_tokens;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;

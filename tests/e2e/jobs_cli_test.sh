@@ -125,4 +125,57 @@ grep -q "retention time" "$work/dropped.err" || fail "dropped: $(cat "$work/drop
 kill -TERM "$server_pid"
 wait "$server_pid" || fail "server exited with an error on SIGTERM"
 server_pid=""
+# TLS and tokens: the right credentials work; no token, a wrong one, another tenant's job
+# and plaintext are refused; the server never logs a token.
+( cd "$work" && openssl req -x509 -newkey rsa:2048 -nodes -keyout server.key -out server.pem \
+    -days 1 -subj /CN=localhost -addext subjectAltName=DNS:localhost,IP:127.0.0.1 ) \
+  > /dev/null 2>&1 || fail "openssl could not make a certificate"
+printf '# tenants\nalpha-secret-0123456789 alpha\nbeta-secret-0123456789 beta\n' > "$work/tokens"
+printf 'alpha-secret-0123456789\n' > "$work/alpha.token"
+printf 'beta-secret-0123456789\n' > "$work/beta.token"
+printf 'wrong-secret-0123456789\n' > "$work/wrong.token"
+port=$((20000 + RANDOM % 20000))
+"$mlclust" serve --listen "127.0.0.1:$port" --gpu off --tls-cert "$work/server.pem" \
+  --tls-key "$work/server.key" --auth-token-file "$work/tokens" 2> "$work/tls_server.log" &
+server_pid=$!
+for _ in $(seq 100); do
+  grep -q "serving" "$work/tls_server.log" 2>/dev/null && break
+  sleep 0.1
+done
+grep -q "bearer tokens on (2)" "$work/tls_server.log" || fail "TLS server: $(cat "$work/tls_server.log")"
+server="127.0.0.1:$port"
+tls=(--server "$server" --tls-ca "$work/server.pem")
+"$mlclust" mesh "$data/fandisk.off" "${tls[@]}" --auth-token-file "$work/alpha.token" --algo hc \
+  --clusters 100 --labels "$work/tls.labels" --quiet > /dev/null || fail "TLS + token run failed"
+"$mlclust" mesh "$data/fandisk.off" --algo hc --clusters 100 --labels "$work/plain.labels" \
+  --quiet > /dev/null
+cmp -s "$work/tls.labels" "$work/plain.labels" || fail "TLS labels differ"
+tid=$("$mlclust" mesh "$data/fandisk.off" "${tls[@]}" --auth-token-file "$work/alpha.token" \
+  --detach --quiet | tail -1)
+"$mlclust" watch "$tid" "${tls[@]}" --auth-token-file "$work/alpha.token" --quiet > /dev/null \
+  || fail "TLS watch by its tenant failed"
+if "$mlclust" watch "$tid" "${tls[@]}" --auth-token-file "$work/beta.token" 2> "$work/t.err"; then
+  fail "another tenant watched the job"
+fi
+grep -q "belongs to another tenant" "$work/t.err" || fail "other tenant: $(cat "$work/t.err")"
+if "$mlclust" jobs "${tls[@]}" 2> "$work/t.err"; then fail "jobs without a token"; fi
+grep -q "needs a bearer token" "$work/t.err" || fail "no token: $(cat "$work/t.err")"
+if "$mlclust" jobs "${tls[@]}" --auth-token-file "$work/wrong.token" 2> "$work/t.err"; then
+  fail "a wrong token was accepted"
+fi
+grep -q "not one this server knows" "$work/t.err" || fail "wrong token: $(cat "$work/t.err")"
+if "$mlclust" stats --server "$server" 2> /dev/null; then fail "plaintext to the TLS port"; fi
+if "$mlclust" jobs --server "$server" --auth-token-file "$work/alpha.token" 2> "$work/t.err"; then
+  fail "a token without TLS was sent"
+fi
+grep -q "needs TLS" "$work/t.err" || fail "token without TLS: $(cat "$work/t.err")"
+kill -TERM "$server_pid"
+wait "$server_pid" || fail "TLS server exited with an error on SIGTERM"
+server_pid=""
+if grep -q "secret-0123456789" "$work/tls_server.log"; then fail "a token was logged"; fi
+if "$mlclust" serve --listen 127.0.0.1:0 --auth-token-file "$work/tokens" 2> "$work/t.err"; then
+  fail "tokens without TLS were accepted by serve"
+fi
+grep -q "need TLS" "$work/t.err" || fail "serve tokens without TLS: $(cat "$work/t.err")"
+
 echo "jobs_cli_test: all checks passed"
