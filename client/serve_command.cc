@@ -56,6 +56,12 @@ constexpr char kServeUsage[] =
                            call needs a known token (UNAUTHENTICATED otherwise) and sees only
                            its tenant's jobs (PERMISSION_DENIED for another's); health checks
                            need none. Tokens are never logged.
+    operations:
+      --metrics ADDR       Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by
+                           state and algorithm, queue depth, job durations (histograms),
+                           bytes in and out, the device
+      --log-format text|json  json: one JSON object per line (job id, tenant, algorithm,
+                           sizes, durations, outcome)
 )";
 
 // --name value / --name=value; every name must be one `serve` knows.
@@ -79,7 +85,9 @@ absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** a
                                        "tls-cert",
                                        "tls-key",
                                        "tls-client-ca",
-                                       "auth-token-file"};
+                                       "auth-token-file",
+                                       "metrics",
+                                       "log-format"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -119,7 +127,8 @@ absl::StatusOr<std::string> ReadFlagFile(const std::map<std::string, std::string
   auto it = flags.find(name);
   if (it == flags.end()) return std::string();
   std::ifstream in(it->second, std::ios::binary);
-  if (!in) return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", it->second));
+  if (!in)
+    return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", it->second));
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
@@ -191,9 +200,18 @@ int RunServeCommand(int argc, char** argv) {
   }
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
-  for (auto [name, pem] : {std::pair{"tls-cert", &options.tls_cert_pem},
-                           std::pair{"tls-key", &options.tls_key_pem},
-                           std::pair{"tls-client-ca", &options.tls_client_ca_pem}}) {
+  if (auto metrics = flags->find("metrics"); metrics != flags->end()) {
+    options.metrics_address = metrics->second;
+  }
+  if (auto format = flags->find("log-format"); format != flags->end()) {
+    if (format->second != "text" && format->second != "json") {
+      return Fail(absl::InvalidArgumentError("--log-format must be text or json"));
+    }
+    options.log_json = format->second == "json";
+  }
+  for (auto [name, pem] :
+       {std::pair{"tls-cert", &options.tls_cert_pem}, std::pair{"tls-key", &options.tls_key_pem},
+        std::pair{"tls-client-ca", &options.tls_client_ca_pem}}) {
     absl::StatusOr<std::string> text = ReadFlagFile(*flags, name);
     if (!text.ok()) return Fail(text.status());
     *pem = *std::move(text);
@@ -203,9 +221,8 @@ int RunServeCommand(int argc, char** argv) {
     if (!text.ok()) return Fail(text.status());
     absl::StatusOr<std::map<std::string, std::string>> tokens = server::ParseTokenFile(*text);
     if (!tokens.ok()) {
-      return Fail(absl::InvalidArgumentError(
-          absl::StrCat("--auth-token-file ", flags->at("auth-token-file"), ": ",
-                       tokens.status().message())));
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--auth-token-file ", flags->at("auth-token-file"), ": ", tokens.status().message())));
     }
     options.auth_tokens = *std::move(tokens);
   }
@@ -230,13 +247,19 @@ int RunServeCommand(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
   if (!server.ok()) return Fail(server.status());
-  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
+  }
   int received = 0;
   sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, draining (up to %llu s for running jobs)\n", received,
-               static_cast<unsigned long long>(drain_seconds));
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: signal %d, draining (up to %llu s for running jobs)\n", received,
+                 static_cast<unsigned long long>(drain_seconds));
+  }
   (*server)->Shutdown();
-  std::fprintf(stderr, "mlclust: stopped\n");
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: stopped\n");
+  }
   return 0;
 }
 

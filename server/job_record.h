@@ -92,6 +92,7 @@ class JobRecord : public EventChannel {
   v1::JobSummary Summary(absl::Time now, absl::Duration retention) const;
 
   const std::string& id() const { return id_; }
+  const v1::JobSpec& spec() const { return spec_; }
   const std::string& tenant() const { return tenant_; }
   bool keeps_levels() const { return keep_levels_; }
   // Memory taken by the kept levels (counted in the registry's budget).
@@ -184,6 +185,12 @@ class JobRegistry {
   std::vector<v1::JobSummary> List(const std::string& tenant);
   // Jobs of `tenant` queued or running.
   uint32_t ActiveJobs(const std::string& tenant);
+  // Calls visit(record) for every record, under the registry's lock (keep it short).
+  template <typename Visit>
+  void ForEach(Visit visit) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [id, record] : records_) visit(*record);
+  }
 
   // Reserves memory for a record's levels, dropping the oldest ended jobs' levels to make
   // room. False when even that is not enough.

@@ -18,6 +18,7 @@
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "core/cluster/registry.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/auth.h"
 #include "server/job.h"
@@ -27,6 +28,7 @@
 #include "server/job_runner.h"
 #include "server/log.h"
 #include "server/memory_budget.h"
+#include "server/metrics.h"
 #include "server/result_store.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/context/gl_context.h"
@@ -64,9 +66,31 @@ bool IsLoopback(const std::string& address) {
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
 }
 
+// The registry's name of a job's algorithm ("ml", "lnkmeans", ...), for logs and metrics.
+std::string AlgorithmName(const v1::JobSpec& spec) {
+  const InputKind input =
+      spec.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
+  const AlgorithmInfo* algorithm = FindAlgorithmByWire(
+      input, spec.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : spec.algorithm());
+  return algorithm != nullptr ? algorithm->name : absl::StrCat("unknown-", spec.algorithm());
+}
+
+const char* InputKindText(const v1::JobSpec& spec) {
+  switch (spec.input_kind()) {
+    case v1::INPUT_KIND_DRACO_MESH:
+      return "mesh";
+    case v1::INPUT_KIND_POINTS_F32:
+      return "points";
+    default:
+      return "unknown";
+  }
+}
+
 struct Counters {
   std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
       readers_cut_off{0}, calls_refused{0};
+  // Input bytes received and serialized event bytes written (Run and Watch calls).
+  std::atomic<uint64_t> bytes_in{0}, bytes_out{0};
   std::atomic<uint32_t> jobs_running{0};
 };
 
@@ -189,6 +213,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     ResultStoreOptions store_options;
     store_options.job_budget_bytes = options_.result_job_budget_bytes;
     store_options.max_event_bytes = options_.max_event_bytes;
+    store_options.bytes_written = &counters_.bytes_out;
     store_options.on_cut_off = [this](const grpc::Status& status) {
       ++counters_.readers_cut_off;
       LogLine(options_.log, "a reader was cut off: ", status.error_message());
@@ -234,8 +259,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       *tenant = *authorized;
       return nullptr;
     }
-    ++counters_.calls_refused;
-    LogLine(options_.log, "refused a call from ", context->peer(), ": ", authorized.status().ToString());
+    LogRefusal(context->peer(), "", "", authorized.status());
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
     reactor->Finish(ToGrpc(authorized.status()));
     return reactor;
@@ -261,7 +285,11 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         AnnounceQueuePositions();
       }
       job->events->Abort(cancelled);
-      if ((*record)->state() == JobState::kQueued) (*record)->MarkEnded(cancelled);
+      if ((*record)->state() == JobState::kQueued) {
+        (*record)->MarkEnded(cancelled);
+        JobEnded(*job, "cancelled", absl::Now(), absl::Now(), cancelled.error_code(),
+                 cancelled.error_message(), nullptr);
+      }
       LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ", context->peer());
     }
     reply->set_state(JobStateName((*record)->state()));
@@ -386,12 +414,134 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   BoundedJobQueue<Job>& queue() { return queue_; }
   JobRegistry& registry() { return registry_; }
   std::atomic<uint32_t>& watch_calls_active() { return watch_calls_active_; }
+  std::atomic<uint64_t>& bytes_out() { return counters_.bytes_out; }
   Counters& counters() { return counters_; }
   CallAdmission& admission() { return admission_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
   MemoryBudget& queued_budget() { return queued_budget_; }
   bool draining() const { return draining_; }
   void set_draining() { draining_ = true; }
+
+  // A refused call: counted and logged (never its token).
+  void LogRefusal(const std::string& peer, const std::string& tenant, const std::string& label,
+                  const absl::Status& status) {
+    ++counters_.calls_refused;
+    LogEvent("call_refused")
+        .Add("peer", peer)
+        .Add("tenant", tenant)
+        .Add("label", label)
+        .Add("code", static_cast<int>(status.code()))
+        .Add("message", std::string(status.message()))
+        .Write(options_.log,
+               absl::StrCat("refused a call from ", peer,
+                            label.empty() ? std::string() : absl::StrCat(" (label '", label, "')"),
+                            ": ", status.ToString()));
+  }
+
+  // A job ended (after running, or while queued): metrics and one log event.
+  void JobEnded(const Job& job, const std::string& outcome, absl::Time started_at,
+                absl::Time ended_at, int code, const std::string& message, const v1::Done* done) {
+    const std::string algorithm = AlgorithmName(job.spec);
+    const double queued = absl::ToDoubleSeconds(started_at - job.accepted_at);
+    const double running = absl::ToDoubleSeconds(ended_at - started_at);
+    job_metrics_.JobEnded(algorithm, outcome, queued, running);
+    LogEvent event("job_ended");
+    event.Add("job_id", job.id)
+        .Add("tenant", job.tenant)
+        .Add("peer", job.peer)
+        .Add("label", job.spec.label())
+        .Add("algorithm", algorithm)
+        .Add("input_kind", InputKindText(job.spec))
+        .Add("input_bytes", uint64_t{job.spec.input_bytes()})
+        .Add("detached", job.spec.detach())
+        .Add("outcome", outcome)
+        .Add("code", code)
+        .Add("seconds_queued", queued)
+        .Add("seconds_running", running);
+    if (done != nullptr) {
+      event.Add("levels", uint64_t{done->levels()})
+          .Add("triplets", uint64_t{done->triplets()})
+          .Add("final_clusters", uint64_t{done->final_clusters()})
+          .Add("device", done->device());
+    } else {
+      event.Add("message", message);
+    }
+    const std::string text =
+        done != nullptr
+            ? absl::StrCat(job.id, " done in ", absl::FormatDuration(ended_at - started_at), ": ",
+                           done->levels(), " levels, ", done->triplets(), " triplets")
+            : absl::StrCat(job.id, " ", outcome, " after ",
+                           absl::FormatDuration(ended_at - started_at), ": ", message);
+    event.Write(options_.log, text);
+  }
+
+  // The Prometheus exposition of the server's state (serve --metrics).
+  std::string RenderMetrics() {
+    std::string out;
+    auto metric = [&](const char* name, const char* type, const char* help, auto value) {
+      absl::StrAppend(&out, "# HELP ", name, " ", help, "\n# TYPE ", name, " ", type, "\n", name,
+                      " ", value, "\n");
+    };
+    metric("mlclust_queue_depth", "gauge", "Jobs waiting in the queue.", queue_.size());
+    metric("mlclust_queue_capacity", "gauge", "Jobs that may wait.", queue_.capacity());
+    metric("mlclust_jobs_running_count", "gauge", "Jobs running now.",
+           counters_.jobs_running.load());
+    metric("mlclust_jobs_accepted_total", "counter", "Jobs accepted.", counters_.accepted.load());
+    metric("mlclust_jobs_rejected_total", "counter", "Jobs refused before queueing.",
+           counters_.rejected.load());
+    metric("mlclust_calls_refused_total", "counter", "Calls refused (admission, auth, limits).",
+           counters_.calls_refused.load());
+    metric("mlclust_calls_active", "gauge", "Run calls in progress.", admission_.total());
+    metric("mlclust_input_bytes_total", "counter", "Input bytes received.",
+           counters_.bytes_in.load());
+    metric("mlclust_output_bytes_total", "counter", "Event bytes written to clients (serialized).",
+           counters_.bytes_out.load());
+    metric("mlclust_upload_bytes_in_flight", "gauge", "Bytes of uploads not yet complete.",
+           upload_budget_.used());
+    metric("mlclust_queued_input_bytes", "gauge", "Inputs of the queued jobs.",
+           queued_budget_.used());
+    metric("mlclust_unread_event_bytes", "gauge", "Events produced and not yet read (memory).",
+           result_budget_.used());
+    metric("mlclust_kept_result_bytes", "gauge", "Kept levels of detached jobs (memory).",
+           registry_.kept_bytes());
+    metric("mlclust_results_dropped_total", "counter", "Ended jobs' results dropped.",
+           registry_.dropped());
+    metric("mlclust_watch_calls_active", "gauge", "Watch calls in progress.",
+           watch_calls_active_.load());
+    metric("mlclust_readers_cut_off_total", "counter", "Readers cut off for reading too slowly.",
+           counters_.readers_cut_off.load());
+    metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.", options_.cpu_workers);
+    metric("mlclust_draining", "gauge", "1 while shutting down.", draining_ ? 1 : 0);
+    // Jobs by state (queued, running) and algorithm, from the registry.
+    std::map<std::pair<std::string, std::string>, uint64_t> by_state;
+    registry_.ForEach([&](const JobRecord& record) {
+      const JobState state = record.state();
+      if (state == JobState::kQueued || state == JobState::kRunning) {
+        ++by_state[{AlgorithmName(record.spec()), JobStateName(state)}];
+      }
+    });
+    absl::StrAppend(&out,
+                    "# HELP mlclust_jobs Jobs queued or running, by algorithm and state.\n"
+                    "# TYPE mlclust_jobs gauge\n");
+    for (const auto& [key, count] : by_state) {
+      absl::StrAppend(&out, "mlclust_jobs{algorithm=\"", PrometheusLabel(key.first), "\",state=\"",
+                      key.second, "\"} ", count, "\n");
+    }
+    absl::StrAppend(&out, job_metrics_.Render());
+    {
+      std::lock_guard<std::mutex> lock(gl_mutex_);
+      absl::StrAppend(&out,
+                      "# HELP mlclust_device_info The GL device (renderer \"\" without one).\n"
+                      "# TYPE mlclust_device_info gauge\n"
+                      "mlclust_device_info{renderer=\"",
+                      PrometheusLabel(gl_renderer_), "\",software=\"",
+                      gl_is_software_ ? "true" : "false", "\"} 1\n",
+                      "# HELP mlclust_gpu_available 1 when a GL context is up.\n"
+                      "# TYPE mlclust_gpu_available gauge\nmlclust_gpu_available ",
+                      gl_renderer_.empty() ? 0 : 1, "\n");
+    }
+    return out;
+  }
 
   // A job leaves the queue (to a worker, cancelled, or drained): its input no longer
   // counts as queued.
@@ -425,6 +575,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   CallAdmission admission_;
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
   JobRegistry registry_;
+  JobMetrics job_metrics_;
   std::atomic<uint32_t> watch_calls_active_{0};
   std::atomic<uint64_t> next_job_number_{0};
   std::atomic<bool> draining_{false};
@@ -472,10 +623,7 @@ void RunCall::Fail(const absl::Status& status) {
 }
 
 void RunCall::Refuse(const absl::Status& status) {
-  ++service_->counters().calls_refused;
-  LogLine(service_->options().log, "refused a call from ", peer_,
-          have_spec_ ? absl::StrCat(" (label '", spec_.label(), "')") : std::string(), ": ",
-          status.ToString());
+  service_->LogRefusal(peer_, tenant_, have_spec_ ? spec_.label() : std::string(), status);
   Fail(status);
 }
 
@@ -510,6 +658,7 @@ void RunCall::OnReadDone(bool ok) {
     return;
   }
   const std::string& chunk = request_.chunk();
+  service_->counters().bytes_in += chunk.size();
   if (input_.size() + chunk.size() > spec_.input_bytes()) {
     Fail(absl::InvalidArgumentError(
         absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
@@ -616,9 +765,21 @@ void RunCall::Submit() {
     Refuse(status);
     return;
   }
-  LogLine(service_->options().log, id, " accepted from ", peer_, " (label '", label, "', ", bytes,
-          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
-          " ahead", detach ? ", detached" : "", ")");
+  LogEvent("job_accepted")
+      .Add("job_id", id)
+      .Add("tenant", tenant_)
+      .Add("peer", peer_)
+      .Add("label", label)
+      .Add("algorithm", AlgorithmName(job->spec))
+      .Add("input_kind", InputKindText(job->spec))
+      .Add("input_bytes", uint64_t{bytes})
+      .Add("worker", job->lane == JobLane::kGl ? "gl" : "cpu")
+      .Add("jobs_ahead", uint64_t{*ahead})
+      .Add("detached", detach)
+      .Write(service_->options().log,
+             absl::StrCat(id, " accepted from ", peer_, " (label '", label, "', ", bytes,
+                          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ",
+                          *ahead, " ahead", detach ? ", detached" : "", ")"));
   // A detached job's call ends here; the job runs on and Watch reads its levels.
   if (detach) channel_->Finish(std::move(accepted_event), grpc::Status::OK);
 }
@@ -632,7 +793,8 @@ void RunCall::OnCancel() {
       service_->LeftQueue(*job);
       ++service_->counters().cancelled;
       job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
-      LogLine(service_->options().log, job->id, " cancelled while queued");
+      service_->JobEnded(*job, "cancelled", absl::Now(), absl::Now(), grpc::StatusCode::CANCELLED,
+                         "cancelled while queued", nullptr);
     }
   }
 }
@@ -715,6 +877,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
     switch (record_->NextEvent(cursor_, event_, status, waker_)) {
       case JobRecord::Next::kEvent:
         write_in_flight_ = true;
+        service_->bytes_out() += event_.ByteSizeLong();
         lock.unlock();
         StartWrite(&event_);
         return;
@@ -742,8 +905,7 @@ grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerC
                                                             const v1::WatchRequest* request) {
   absl::StatusOr<std::string> tenant = Authorize(context);
   if (!tenant.ok()) {
-    ++counters_.calls_refused;
-    LogLine(options_.log, "refused a call from ", context->peer(), ": ", tenant.status().ToString());
+    LogRefusal(context->peer(), "", "", tenant.status());
     return new WatchCall(this, tenant.status(), *request);
   }
   return new WatchCall(this, registry_.Find(request->job_id(), *tenant), *request);
@@ -757,6 +919,7 @@ class ServerImpl {
 
   absl::Status Start() {
     const ServerOptions& options = service_.options();
+    JsonLogs() = options.log_json;
     // The GL worker owns the GL context: it creates it on its own thread and reports back.
     std::promise<absl::Status> started;
     std::future<absl::Status> started_future = started.get_future();
@@ -814,6 +977,19 @@ class ServerImpl {
       StopWorkers();
       return absl::UnavailableError(absl::StrCat("cannot listen on '", options.listen_address,
                                                  "' (in use, or not an address of this host)"));
+    }
+    if (!options.metrics_address.empty()) {
+      absl::StatusOr<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Start(
+          options.metrics_address, [this] { return service_.RenderMetrics(); });
+      if (!metrics.ok()) {
+        server_->Shutdown();
+        StopWorkers();
+        return metrics.status();
+      }
+      metrics_ = *std::move(metrics);
+      LogLine(options.log, "metrics on http://", options.metrics_address.substr(
+                                                      0, options.metrics_address.rfind(':')),
+              ":", metrics_->port(), "/metrics");
     }
     // The device is ready (the GL worker has started): serving from here on.
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
@@ -893,7 +1069,9 @@ class ServerImpl {
                                      "submit it to another server or try again later");
       job->events->Abort(unavailable);
       job->record->MarkEnded(unavailable);
-      LogLine(options.log, job->id, " not started: the server is shutting down");
+      service_.JobEnded(*job, JobStateName(job->record->state()), absl::Now(), absl::Now(),
+                        unavailable.error_code(), "not started: the server is shutting down",
+                        nullptr);
     }
     // 3. Running jobs may finish within the drain time; then they are cancelled.
     {
@@ -912,6 +1090,7 @@ class ServerImpl {
       }
     }
     StopWorkers();
+    metrics_.reset();
     if (server_ != nullptr) {
       // Calls still open (clients that stopped reading) are cancelled after 2 s.
       server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
@@ -926,6 +1105,7 @@ class ServerImpl {
   }
 
   int port() const { return port_; }
+  int metrics_port() const { return metrics_ != nullptr ? metrics_->port() : 0; }
   std::shared_ptr<grpc::Channel> InProcessChannel() {
     grpc::ChannelArguments arguments;
     arguments.SetMaxReceiveMessageSize(-1);
@@ -997,6 +1177,8 @@ class ServerImpl {
       if (job->events->cancelled()) {
         ++counters.cancelled;
         job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
+        service_.JobEnded(*job, "cancelled", absl::Now(), absl::Now(), grpc::StatusCode::CANCELLED,
+                          "cancelled while queued", nullptr);
         continue;
       }
       job->record->MarkRunning();
@@ -1018,16 +1200,18 @@ class ServerImpl {
         const v1::Done done = event.done();
         job->events->Finish(std::move(event), grpc::Status::OK);
         job->record->MarkEnded(grpc::Status::OK, &done);
-        LogLine(options.log, job->id, " done in ", absl::FormatDuration(ended_at - started_at),
-                ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(), " triplets");
+        service_.JobEnded(*job, JobStateName(job->record->state()), started_at, ended_at, 0, "",
+                          &done);
       } else {
         const grpc::Status status = ToGrpc(outcome.status());
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled
                                                                    : counters.failed);
         job->events->Finish(FailedEvent(status), status);
         job->record->MarkEnded(status);
-        LogLine(options.log, job->id, " failed after ", absl::FormatDuration(ended_at - started_at),
-                ": ", outcome.status().ToString());
+        // The record's state: the first ending wins (a cut-off's RESOURCE_EXHAUSTED, a
+        // Cancel call's CANCELLED) over the runner's CANCELLED that followed it.
+        service_.JobEnded(*job, JobStateName(job->record->state()), started_at, ended_at,
+                          status.error_code(), outcome.status().ToString(), nullptr);
       }
       const std::string id = job->id;
       // The input and anything else the job holds go now, not when the call ends.
@@ -1048,6 +1232,7 @@ class ServerImpl {
 
   ServiceImpl service_;
   std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<MetricsHttpServer> metrics_;
   std::thread gl_worker_, sweeper_;
   std::mutex sweeper_mutex_;
   std::condition_variable sweeper_wake_;
@@ -1072,6 +1257,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
 Server::Server(std::unique_ptr<ServerImpl> impl) : impl_(std::move(impl)) {}
 Server::~Server() { Shutdown(); }
 int Server::port() const { return impl_->port(); }
+int Server::metrics_port() const { return impl_->metrics_port(); }
 std::shared_ptr<grpc::Channel> Server::InProcessChannel() { return impl_->InProcessChannel(); }
 std::string Server::gl_renderer() const { return impl_->gl_renderer(); }
 std::string Server::gl_unavailable_reason() const { return impl_->gl_unavailable_reason(); }

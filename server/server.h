@@ -83,6 +83,12 @@ struct ServerOptions {
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;
+  // One JSON object per log line (job id, tenant, algorithm, sizes, durations, outcome)
+  // instead of text. Process-wide: the last server started decides.
+  bool log_json = false;
+  // "HOST:PORT" for Prometheus metrics over HTTP (GET /metrics; port 0 picks one); empty:
+  // none. A port in use is refused.
+  std::string metrics_address;
 };
 
 class ServerImpl;
@@ -96,6 +102,8 @@ class Server {
 
   // The port bound for listen_address (the chosen one for port 0), or 0 if none.
   int port() const;
+  // The metrics port (the chosen one for port 0), or 0 without metrics.
+  int metrics_port() const;
   // A channel to this server inside the process, no network involved.
   std::shared_ptr<grpc::Channel> InProcessChannel();
   // The GL renderer the worker got ("" without a GL context) and why there is none.
