@@ -8,8 +8,8 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
-#include "absl/strings/str_split.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -98,8 +98,8 @@ class HierarchyAssembler {
     }
     const uint64_t expected = result_.first_level + result_.hierarchy.num_levels();
     if (batch.first_level() != expected) {
-      return absl::DataLossError(absl::StrCat("levels from ", batch.first_level(),
-                                              " arrived, expected level ", expected));
+      return absl::DataLossError(
+          absl::StrCat("levels from ", batch.first_level(), " arrived, expected level ", expected));
     }
     if (batch.to_cluster_size() != batch.element_size() ||
         batch.from_cluster_size() != batch.element_size()) {
@@ -275,8 +275,8 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> Connect(const std::string& addres
         return absl::InvalidArgumentError(
             absl::StrCat("--auth-token-file: ", options.auth_token_file, " holds no token"));
       }
-      credentials = grpc::CompositeChannelCredentials(credentials,
-                                                      grpc::AccessTokenCredentials(token));
+      credentials =
+          grpc::CompositeChannelCredentials(credentials, grpc::AccessTokenCredentials(token));
     }
   }
   return grpc::CreateCustomChannel(address, credentials, arguments);

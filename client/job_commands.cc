@@ -126,9 +126,10 @@ absl::StatusOr<ServerFlags> RequireServer(const Flags& flags, const std::string&
       ServerFlagsFrom([&](const std::string& name) { return flags.get(name); });
   if (!server.ok()) return server.status();
   if (server->server.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        command, ": give --server ADDR (the server that accepted the job; an embedded server "
-                 "ends with the command that started it)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(command,
+                     ": give --server ADDR (the server that accepted the job; an embedded server "
+                     "ends with the command that started it)"));
   }
   return server;
 }
@@ -224,9 +225,9 @@ int Watch(const Flags& flags) {
   if (!result.ok()) return Fail(ExplainDeadline(result.status(), *server, "the watch"));
   const HierarchyLog& log = result->hierarchy;
   if (mesh.has_value() && mesh->num_faces() != log.num_elements()) {
-    return Fail(absl::InvalidArgumentError(
-        absl::StrCat("--mesh: ", *flags.get("mesh"), " has ", mesh->num_faces(),
-                     " faces; job ", *id, " has ", log.num_elements(), " elements")));
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--mesh: ", *flags.get("mesh"), " has ",
+                                                        mesh->num_faces(), " faces; job ", *id,
+                                                        " has ", log.num_elements(), " elements")));
   }
   if (flags.has("levels-csv")) {
     std::string csv = "clusters,energy\n";
@@ -240,9 +241,9 @@ int Watch(const Flags& flags) {
     level = log.LastLevelWith(*clusters);
     if (!level.has_value()) level = log.FirstLevelWithAtMost(*clusters);
     if (!level.has_value()) {
-      return Fail(absl::NotFoundError(
-          absl::StrCat("no level received has ", *clusters, " clusters or fewer (the last has ",
-                       log.cluster_count(log.num_levels() - 1), ")")));
+      return Fail(absl::NotFoundError(absl::StrCat("no level received has ", *clusters,
+                                                   " clusters or fewer (the last has ",
+                                                   log.cluster_count(log.num_levels() - 1), ")")));
     }
     absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
     if (!labels.ok()) return Fail(labels.status());
@@ -271,8 +272,9 @@ int Watch(const Flags& flags) {
     if (level.has_value()) {
       absl::StrAppend(&json, ", \"level\": {\"index\": ", result->first_level + *level,
                       ", \"clusters\": ", log.cluster_count(*level), ", \"energy\": ",
-                      std::isfinite(log.energy(*level)) ? absl::StrFormat("%.17g", log.energy(*level))
-                                                        : std::string("null"),
+                      std::isfinite(log.energy(*level))
+                          ? absl::StrFormat("%.17g", log.energy(*level))
+                          : std::string("null"),
                       "}");
     }
     std::printf("%s}\n", json.c_str());
@@ -280,9 +282,9 @@ int Watch(const Flags& flags) {
   }
   std::string level_note;
   if (level.has_value()) {
-    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g",
-                                 result->first_level + *level, log.cluster_count(*level),
-                                 log.energy(*level));
+    level_note =
+        absl::StrFormat("; level %zu: %u clusters, energy %.10g", result->first_level + *level,
+                        log.cluster_count(*level), log.energy(*level));
   }
   std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n", id->c_str(),
               log.num_elements(), result->first_level, result->first_level + log.num_levels() - 1,
@@ -313,9 +315,9 @@ int Jobs(const Flags& flags) {
   if (!server.ok()) return Fail(server.status());
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
   if (!channel.ok()) return Fail(channel.status());
-  absl::StatusOr<v1::JobList> list = client::ListJobs(
-      *channel,
-      server->deadline == absl::InfiniteDuration() ? absl::Seconds(30) : server->deadline);
+  absl::StatusOr<v1::JobList> list =
+      client::ListJobs(*channel, server->deadline == absl::InfiniteDuration() ? absl::Seconds(30)
+                                                                              : server->deadline);
   if (!list.ok()) return Fail(ExplainDeadline(list.status(), *server, "the list"));
   if (flags.has("json")) {
     std::printf("%s", MessageJson(*list).c_str());
@@ -330,8 +332,8 @@ int Jobs(const Flags& flags) {
     }
     std::printf("%-12s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", job.job_id().c_str(),
                 job.state().c_str(), AlgorithmName(job).c_str(), job.detached() ? "yes" : "no",
-                job.levels(), static_cast<unsigned long long>(job.triplets()),
-                job.seconds_queued(), job.seconds_running(), note.c_str());
+                job.levels(), static_cast<unsigned long long>(job.triplets()), job.seconds_queued(),
+                job.seconds_running(), note.c_str());
   }
   return 0;
 }
@@ -375,9 +377,9 @@ absl::Status ExplainDeadline(const absl::Status& status, const ServerFlags& flag
                       : what == "the watch"
                           ? "; the job itself runs on (watch it again, or `mlclust cancel` it)"
                           : "";
-  return absl::DeadlineExceededError(
-      absl::StrCat(what, " did not finish within --deadline ",
-                   absl::FormatDuration(flags.deadline), after, " (gRPC: ", status.message(), ")"));
+  return absl::DeadlineExceededError(absl::StrCat(what, " did not finish within --deadline ",
+                                                  absl::FormatDuration(flags.deadline), after,
+                                                  " (gRPC: ", status.message(), ")"));
 }
 
 int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
@@ -393,10 +395,11 @@ int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
   absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(*channel, spec, payload, options);
   if (!accepted.ok()) return Fail(ExplainDeadline(accepted.status(), flags, "the upload"));
   if (!quiet) {
-    std::printf("queued on %s (%u jobs ahead); results kept %.0f s after it ends; `mlclust watch "
-                "%s --server %s`\n",
-                flags.server.c_str(), accepted->queue_position(), accepted->retention_seconds(),
-                accepted->job_id().c_str(), flags.server.c_str());
+    std::printf(
+        "queued on %s (%u jobs ahead); results kept %.0f s after it ends; `mlclust watch "
+        "%s --server %s`\n",
+        flags.server.c_str(), accepted->queue_position(), accepted->retention_seconds(),
+        accepted->job_id().c_str(), flags.server.c_str());
   }
   std::printf("%s\n", accepted->job_id().c_str());
   return 0;

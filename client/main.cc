@@ -903,8 +903,8 @@ int Stats(const Arguments& args) {
   if (!channel.ok()) return Fail(channel.status());
   auto stub = v1::Clustering::NewStub(*channel);
   grpc::ClientContext context;
-  context.set_deadline(absl::ToChronoTime(
-      absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
+  context.set_deadline(
+      absl::ToChronoTime(absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
@@ -1030,11 +1030,11 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With(With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                           "device", "quiet", "coarse", "coarse-placement", "seed", "levels",
-                           "json", "detach"},
-                          ConnectionFlagNames()),
-                     RegistryOptionNames(InputKind::kMesh));
+         return With(
+             With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply", "device",
+                   "quiet", "coarse", "coarse-placement", "seed", "levels", "json", "detach"},
+                  ConnectionFlagNames()),
+             RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },

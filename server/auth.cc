@@ -24,10 +24,11 @@ class TokenProcessor : public grpc::AuthMetadataProcessor {
                        OutputMetadata* response_metadata) override {
     auto header = auth_metadata.find("authorization");
     if (header == auth_metadata.end()) return grpc::Status::OK;  // the service decides
-    absl::StatusOr<std::string> tenant = TenantOfCall(
-        tokens_, std::string_view(header->second.data(), header->second.size()));
+    absl::StatusOr<std::string> tenant =
+        TenantOfCall(tokens_, std::string_view(header->second.data(), header->second.size()));
     if (!tenant.ok()) {
-      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, std::string(tenant.status().message()));
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                          std::string(tenant.status().message()));
     }
     return grpc::Status::OK;
   }
@@ -62,11 +63,12 @@ absl::StatusOr<std::map<std::string, std::string>> ParseTokenFile(const std::str
     ++line_number;
     line = absl::StripAsciiWhitespace(line);
     if (line.empty() || line.front() == '#') continue;
-    std::vector<std::string> words = absl::StrSplit(line, absl::ByAnyChar(" \t"), absl::SkipEmpty());
+    std::vector<std::string> words =
+        absl::StrSplit(line, absl::ByAnyChar(" \t"), absl::SkipEmpty());
     if (words.size() != 2) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "token file line ", line_number, ": expected 'TOKEN TENANT' (two words), found ",
-          words.size()));
+      return absl::InvalidArgumentError(
+          absl::StrCat("token file line ", line_number,
+                       ": expected 'TOKEN TENANT' (two words), found ", words.size()));
     }
     if (words[0].size() < kMinTokenLength) {
       return absl::InvalidArgumentError(absl::StrCat("token file line ", line_number,

@@ -24,7 +24,6 @@
 
 namespace mlclust::server {
 
-
 // Token -> tenant, from a token file: one "TOKEN TENANT" per line (blank lines and lines
 // starting with '#' skipped). INVALID_ARGUMENT naming the line for a line without a tenant,
 // a token shorter than 16 characters, or a token given twice.

@@ -126,8 +126,8 @@ bool JobRecord::StoreLocked(const v1::JobEvent& event) {
   if (event.has_levels()) {
     const v1::LevelBatch& batch = event.levels();
     const int count = batch.cluster_count_size();
-    if (!snapshot_complete_ || batch.triplet_end_size() != count ||
-        batch.energy_size() != count || batch.to_cluster_size() != batch.element_size() ||
+    if (!snapshot_complete_ || batch.triplet_end_size() != count || batch.energy_size() != count ||
+        batch.to_cluster_size() != batch.element_size() ||
         batch.from_cluster_size() != batch.element_size()) {
       return false;
     }
@@ -143,8 +143,8 @@ bool JobRecord::StoreLocked(const v1::JobEvent& event) {
       if (i == 0 && last_level_open_) {
         levels_.back().triplet_end = end;  // the rest of a split level
       } else {
-        levels_.push_back({batch.cluster_count(i), batch.energy(i),
-                           has_source ? batch.source_level(i) : 0, end});
+        levels_.push_back(
+            {batch.cluster_count(i), batch.energy(i), has_source ? batch.source_level(i) : 0, end});
       }
     }
     if (count > 0) last_level_open_ = batch.last_level_continues();
@@ -199,7 +199,7 @@ void JobRecord::EndLocked(v1::JobEvent final_event, const grpc::Status& status) 
   final_event_ = std::move(final_event);
   final_set_ = true;
   status_ = status;
-  state_ = status.ok()                                        ? JobState::kSucceeded
+  state_ = status.ok()                                          ? JobState::kSucceeded
            : status.error_code() == grpc::StatusCode::CANCELLED ? JobState::kCancelled
                                                                 : JobState::kFailed;
   ended_at_ = absl::Now();
@@ -286,12 +286,14 @@ void JobRecord::BuildSnapshotLocked(WatchCursor& cursor) const {
 
 void JobRecord::FillLevelBatchLocked(WatchCursor& cursor, v1::LevelBatch& batch) const {
   const uint32_t readable = ReadableLevelsLocked();
-  const uint64_t budget = std::max<uint64_t>(1, (max_event_bytes_ - kBatchOverhead) / kTripletBytes);
+  const uint64_t budget =
+      std::max<uint64_t>(1, (max_event_bytes_ - kBatchOverhead) / kTripletBytes);
   uint64_t used = 0;
   batch.set_first_level(cursor.next_level);
   while (cursor.next_level < readable && batch.cluster_count_size() < kMaxLevelsPerBatch) {
     const Level& level = levels_[cursor.next_level - 1];
-    const uint64_t level_begin = cursor.next_level == 1 ? 0 : levels_[cursor.next_level - 2].triplet_end;
+    const uint64_t level_begin =
+        cursor.next_level == 1 ? 0 : levels_[cursor.next_level - 2].triplet_end;
     const uint64_t begin = level_begin + cursor.next_triplet;
     const uint64_t remaining = level.triplet_end - begin;
     const uint64_t room = budget > used + 2 ? budget - used - 2 : 0;
@@ -326,7 +328,8 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
   event.Clear();
   if (!dropped_reason_.empty()) {
     cursor.phase = WatchCursor::Phase::kEnded;
-    status = grpc::Status(grpc::StatusCode::NOT_FOUND, absl::StrCat("job ", id_, ": ", dropped_reason_));
+    status =
+        grpc::Status(grpc::StatusCode::NOT_FOUND, absl::StrCat("job ", id_, ": ", dropped_reason_));
     return Next::kEnd;
   }
   if (!keep_levels_) {
@@ -365,10 +368,10 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
           } else if (final_set_) {
             if (status_.ok()) {
               cursor.phase = WatchCursor::Phase::kEnded;
-              status = grpc::Status(grpc::StatusCode::OUT_OF_RANGE,
-                                    absl::StrCat("job ", id_, " has ", readable,
-                                                 " levels (0 to ", readable - 1, "); level ",
-                                                 cursor.from_level, " is past its last"));
+              status = grpc::Status(
+                  grpc::StatusCode::OUT_OF_RANGE,
+                  absl::StrCat("job ", id_, " has ", readable, " levels (0 to ", readable - 1,
+                               "); level ", cursor.from_level, " is past its last"));
               return Next::kEnd;
             }
             cursor.phase = WatchCursor::Phase::kFinal;
@@ -444,9 +447,9 @@ void JobRegistry::Add(std::shared_ptr<JobRecord> record) {
   for (size_t i = 0; records_.size() > options_.max_records && i < order_.size();) {
     auto it = records_.find(order_[i]);
     if (it != records_.end() && it->second->ended()) {
-      DropLocked(order_[i], absl::StrCat("dropped at ", Timestamp(absl::Now()),
-                                         ": the server keeps at most ", options_.max_records,
-                                         " jobs and newer ones came"));
+      DropLocked(order_[i],
+                 absl::StrCat("dropped at ", Timestamp(absl::Now()), ": the server keeps at most ",
+                              options_.max_records, " jobs and newer ones came"));
     } else {
       ++i;
     }
@@ -469,8 +472,7 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
   auto it = records_.find(id);
   if (it != records_.end()) {
     if (it->second->tenant() != tenant) {
-      return absl::PermissionDeniedError(
-          absl::StrCat("job ", id, " belongs to another tenant"));
+      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
     }
     return it->second;
   }
@@ -478,9 +480,11 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
   if (dropped != dropped_reasons_.end()) {
     return absl::NotFoundError(absl::StrCat("job ", id, ": ", dropped->second));
   }
-  return absl::NotFoundError(absl::StrCat(
-      "no job '", id, "' on this server (a job id belongs to the server that accepted the "
-      "job; an ended job's results are kept ", absl::FormatDuration(options_.retention), ")"));
+  return absl::NotFoundError(
+      absl::StrCat("no job '", id,
+                   "' on this server (a job id belongs to the server that accepted the "
+                   "job; an ended job's results are kept ",
+                   absl::FormatDuration(options_.retention), ")"));
 }
 
 std::vector<v1::JobSummary> JobRegistry::List(const std::string& tenant) {
@@ -511,10 +515,9 @@ bool JobRegistry::ReserveKept(uint64_t bytes, const JobRecord* for_record) {
     if (kept_.TryReserve(bytes)) return true;
     const std::shared_ptr<JobRecord>& record = records_.at(order_[i]);
     if (record.get() != for_record && record->ended() && record->kept_bytes() > 0) {
-      DropLocked(order_[i],
-                 absl::StrCat("its results were dropped at ", Timestamp(absl::Now()),
-                              " to make room for newer jobs' (the server keeps ",
-                              options_.kept_bytes_limit >> 20, " MiB of results)"));
+      DropLocked(order_[i], absl::StrCat("its results were dropped at ", Timestamp(absl::Now()),
+                                         " to make room for newer jobs' (the server keeps ",
+                                         options_.kept_bytes_limit >> 20, " MiB of results)"));
     } else {
       ++i;
     }
@@ -529,10 +532,9 @@ void JobRegistry::Sweep() {
     const std::shared_ptr<JobRecord>& record = records_.at(order_[i]);
     const absl::Time ended_at = record->ended() ? record->ended_at() : absl::InfiniteFuture();
     if (ended_at != absl::InfiniteFuture() && now - ended_at > options_.retention) {
-      DropLocked(order_[i],
-                 absl::StrCat("its results were dropped at ", Timestamp(now), ", ",
-                              absl::FormatDuration(options_.retention),
-                              " after it ended (the server's retention time)"));
+      DropLocked(order_[i], absl::StrCat("its results were dropped at ", Timestamp(now), ", ",
+                                         absl::FormatDuration(options_.retention),
+                                         " after it ended (the server's retention time)"));
     } else {
       ++i;
     }

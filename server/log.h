@@ -49,8 +49,8 @@ void LogLine(bool enabled, const Args&... args) {
   if (!enabled) return;
   const std::string message = absl::StrCat(args...);
   const std::string line =
-      JsonLogs() ? absl::StrCat("{\"time\":\"", LogTimestamp(), "\",\"event\":\"message\",\"message\":",
-                                JsonQuote(message), "}\n")
+      JsonLogs() ? absl::StrCat("{\"time\":\"", LogTimestamp(),
+                                "\",\"event\":\"message\",\"message\":", JsonQuote(message), "}\n")
                  : absl::StrCat(LogTimestamp(), " mlclust: ", message, "\n");
   std::fputs(line.c_str(), stderr);
 }

@@ -103,9 +103,9 @@ absl::StatusOr<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Start(
     server->port_ = http.bind_to_port(host, port) ? port : -1;
   }
   if (server->port_ <= 0) {
-    return absl::UnavailableError(
-        absl::StrCat("--metrics: cannot listen on '", address, "' (in use, or not an address of "
-                                                               "this host)"));
+    return absl::UnavailableError(absl::StrCat("--metrics: cannot listen on '", address,
+                                               "' (in use, or not an address of "
+                                               "this host)"));
   }
   server->impl_->thread = std::thread([&http] { http.listen_after_bind(); });
   // stop() before the loop runs would be lost (and the join would wait for ever).

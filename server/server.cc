@@ -14,11 +14,11 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "core/cluster/registry.h"
 #include "grpc/grpc.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
-#include "core/cluster/registry.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/auth.h"
 #include "server/job.h"
@@ -276,8 +276,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       reactor->Finish(ToGrpc(record.status()));
       return reactor;
     }
-    const grpc::Status cancelled(grpc::StatusCode::CANCELLED,
-                                 absl::StrCat("job ", request->job_id(), " was cancelled by a Cancel call"));
+    const grpc::Status cancelled(
+        grpc::StatusCode::CANCELLED,
+        absl::StrCat("job ", request->job_id(), " was cancelled by a Cancel call"));
     if (std::shared_ptr<Job> job = (*record)->job()) {
       if (queue_.Remove(job.get())) {
         LeftQueue(*job);
@@ -290,7 +291,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         JobEnded(*job, "cancelled", absl::Now(), absl::Now(), cancelled.error_code(),
                  cancelled.error_message(), nullptr);
       }
-      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ", context->peer());
+      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ",
+              context->peer());
     }
     reply->set_state(JobStateName((*record)->state()));
     reactor->Finish(grpc::Status::OK);
@@ -510,7 +512,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
            watch_calls_active_.load());
     metric("mlclust_readers_cut_off_total", "counter", "Readers cut off for reading too slowly.",
            counters_.readers_cut_off.load());
-    metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.", options_.cpu_workers);
+    metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.",
+           options_.cpu_workers);
     metric("mlclust_draining", "gauge", "1 while shutting down.", draining_ ? 1 : 0);
     // Jobs by state (queued, running) and algorithm, from the registry.
     std::map<std::pair<std::string, std::string>, uint64_t> by_state;
@@ -902,7 +905,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
 };
 
 grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
-                                                            const v1::WatchRequest* request) {
+                                                           const v1::WatchRequest* request) {
   absl::StatusOr<std::string> tenant = Authorize(context);
   if (!tenant.ok()) {
     LogRefusal(context->peer(), "", "", tenant.status());
@@ -987,9 +990,9 @@ class ServerImpl {
         return metrics.status();
       }
       metrics_ = *std::move(metrics);
-      LogLine(options.log, "metrics on http://", options.metrics_address.substr(
-                                                      0, options.metrics_address.rfind(':')),
-              ":", metrics_->port(), "/metrics");
+      LogLine(options.log, "metrics on http://",
+              options.metrics_address.substr(0, options.metrics_address.rfind(':')), ":",
+              metrics_->port(), "/metrics");
     }
     // The device is ready (the GL worker has started): serving from here on.
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
@@ -1009,8 +1012,7 @@ class ServerImpl {
     }
     if (!options.tls_cert_pem.empty()) {
       LogLine(options.log, "TLS on; client certificates ",
-              options.tls_client_ca_pem.empty() ? "not requested" : "required",
-              "; bearer tokens ",
+              options.tls_client_ca_pem.empty() ? "not requested" : "required", "; bearer tokens ",
               options.auth_tokens.empty() ? std::string("off")
                                           : absl::StrCat("on (", options.auth_tokens.size(), ")"));
     }
@@ -1083,9 +1085,10 @@ class ServerImpl {
       running_done_.wait_for(running_lock, absl::ToChronoNanoseconds(options.drain_time),
                              [&] { return running_.empty(); });
       for (const std::shared_ptr<Job>& job : running_) {
-        job->events->Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                                "the server is shutting down and the drain time ran out; the job "
-                                "was cancelled"));
+        job->events->Abort(
+            grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                         "the server is shutting down and the drain time ran out; the job "
+                         "was cancelled"));
         LogLine(options.log, job->id, " cancelled: the drain time ran out");
       }
     }

@@ -99,8 +99,10 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   client::WatchOptions from_middle;
   from_middle.from_level = 3000;
   absl::StatusOr<client::JobResult> middle;
-  std::thread second([&] { middle = client::WatchJob(ChannelTo(*server), accepted->job_id(), from_middle); });
-  absl::StatusOr<client::JobResult> whole = client::WatchJob(ChannelTo(*server), accepted->job_id());
+  std::thread second(
+      [&] { middle = client::WatchJob(ChannelTo(*server), accepted->job_id(), from_middle); });
+  absl::StatusOr<client::JobResult> whole =
+      client::WatchJob(ChannelTo(*server), accepted->job_id());
   second.join();
   ASSERT_TRUE(whole.ok()) << whole.status();
   ASSERT_TRUE(middle.ok()) << middle.status();
@@ -147,7 +149,8 @@ TEST(DetachTest, AWatchStartedWhileTheJobIsQueuedFollowsItToTheEnd) {
   ASSERT_TRUE(server);
   auto channel = ChannelTo(*server);
   const std::string small = *EncodeMeshToDraco(testing::Grid(30));
-  absl::StatusOr<client::JobResult> solo = client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small);
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small);
   ASSERT_TRUE(solo.ok()) << solo.status();
   // A longer job first keeps the worker busy while the watched one waits.
   absl::StatusOr<v1::Accepted> blocker = client::SubmitDetached(
@@ -174,7 +177,8 @@ TEST(DetachTest, ABrokenStreamResumesWhereItStopped) {
   ASSERT_TRUE(server);
   auto channel = ChannelTo(*server);
   const std::string bytes = *EncodeMeshToDraco(testing::Grid(40));
-  absl::StatusOr<client::JobResult> solo = client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
   ASSERT_TRUE(solo.ok()) << solo.status();
   absl::StatusOr<v1::Accepted> accepted =
       client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
@@ -369,8 +373,7 @@ TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
   EXPECT_EQ(FindJob(List(channel), running->job_id())->state(), "cancelled");
   // Cancelling an ended job leaves it as it is; an unknown one is NOT_FOUND.
   EXPECT_EQ(*client::CancelJob(channel, running->job_id()), "cancelled");
-  EXPECT_EQ(client::CancelJob(channel, "job-999999").status().code(),
-            absl::StatusCode::kNotFound);
+  EXPECT_EQ(client::CancelJob(channel, "job-999999").status().code(), absl::StatusCode::kNotFound);
   // The worker is free again.
   EXPECT_TRUE(
       client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))

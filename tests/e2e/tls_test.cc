@@ -49,13 +49,17 @@ class Certificates {
     ok_ = std::system(("cd " + d +
                        " && openssl req -x509 -newkey rsa:2048 -nodes -keyout server.key "
                        "-out server.pem -days 1 -subj /CN=localhost "
-                       "-addext subjectAltName=DNS:localhost,IP:127.0.0.1" + quiet +
+                       "-addext subjectAltName=DNS:localhost,IP:127.0.0.1" +
+                       quiet +
                        " && openssl req -x509 -newkey rsa:2048 -nodes -keyout ca.key -out ca.pem "
-                       "-days 1 -subj /CN=mlclust-test-ca" + quiet +
+                       "-days 1 -subj /CN=mlclust-test-ca" +
+                       quiet +
                        " && openssl req -newkey rsa:2048 -nodes -keyout client.key -out client.csr "
-                       "-subj /CN=client" + quiet +
+                       "-subj /CN=client" +
+                       quiet +
                        " && openssl x509 -req -in client.csr -CA ca.pem -CAkey ca.key "
-                       "-CAcreateserial -out client.pem -days 1" + quiet)
+                       "-CAcreateserial -out client.pem -days 1" +
+                       quiet)
                           .c_str()) == 0;
     WriteText(path("alpha.token"), std::string(kAlphaToken) + "\n");
     WriteText(path("beta.token"), std::string("# beta\n") + kBetaToken + "\n");
@@ -201,7 +205,8 @@ TEST(TlsTest, TokensNameTenantsAndEveryOtherCallIsRefusedWithTheRightCode) {
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
   v1::Stats stats;
-  EXPECT_EQ(v1::Clustering::NewStub(plaintext)->GetStats(&context, v1::GetStatsRequest(), &stats)
+  EXPECT_EQ(v1::Clustering::NewStub(plaintext)
+                ->GetStats(&context, v1::GetStatsRequest(), &stats)
                 .error_code(),
             grpc::StatusCode::UNAVAILABLE);
   // The client never sends a token in plaintext.
