@@ -1,9 +1,14 @@
 // Detached jobs over loopback gRPC: submit with detach, Watch from any level while the job
 // runs or after, resume a broken stream, Cancel, ListJobs, and the retention time and
 // memory budget that drop kept results (NOT_FOUND saying why).
+#include <arpa/inet.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <thread>
 
 #include "client/client.h"
@@ -378,6 +383,118 @@ TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
   EXPECT_TRUE(
       client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
           .ok());
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// A TCP forwarder on loopback that cuts its first connection after `cut_after` bytes from
+// the server to the client; later connections are forwarded whole. A broken network in
+// the middle of a watch.
+class CuttingProxy {
+ public:
+  CuttingProxy(int server_port, size_t cut_after)
+      : server_port_(server_port), cut_after_(cut_after) {
+    listener_ = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(listener_, reinterpret_cast<sockaddr*>(&address), sizeof(address));
+    socklen_t length = sizeof(address);
+    getsockname(listener_, reinterpret_cast<sockaddr*>(&address), &length);
+    port_ = ntohs(address.sin_port);
+    listen(listener_, 8);
+    acceptor_ = std::thread([this] { Accept(); });
+  }
+  ~CuttingProxy() {
+    stopping_ = true;
+    shutdown(listener_, SHUT_RDWR);
+    close(listener_);
+    acceptor_.join();
+    for (std::thread& pump : pumps_) pump.join();
+  }
+  int port() const { return port_; }
+  int connections() const { return connections_; }
+
+ private:
+  void Accept() {
+    while (!stopping_) {
+      const int client = accept(listener_, nullptr, nullptr);
+      if (client < 0) return;
+      const int upstream = socket(AF_INET, SOCK_STREAM, 0);
+      sockaddr_in address{};
+      address.sin_family = AF_INET;
+      address.sin_port = htons(static_cast<uint16_t>(server_port_));
+      address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+      if (connect(upstream, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+        close(client);
+        close(upstream);
+        continue;
+      }
+      const size_t limit = connections_++ == 0 ? cut_after_ : SIZE_MAX;
+      pumps_.emplace_back([=] { Pump(client, upstream, SIZE_MAX); });
+      pumps_.emplace_back([=] { Pump(upstream, client, limit); });
+    }
+  }
+  // Copies from -> to until either side closes or `limit` bytes passed; then closes both.
+  static void Pump(int from, int to, size_t limit) {
+    char buffer[16384];
+    size_t passed = 0;
+    while (passed < limit) {
+      const ssize_t n = read(from, buffer, std::min(sizeof(buffer), limit - passed));
+      if (n <= 0) break;
+      if (write(to, buffer, static_cast<size_t>(n)) != n) break;
+      passed += static_cast<size_t>(n);
+    }
+    shutdown(from, SHUT_RDWR);
+    shutdown(to, SHUT_RDWR);
+  }
+
+  const int server_port_;
+  const size_t cut_after_;
+  int listener_ = -1;
+  int port_ = 0;
+  std::atomic<bool> stopping_{false};
+  std::atomic<int> connections_{0};
+  std::thread acceptor_;
+  std::vector<std::thread> pumps_;
+};
+
+// The client's own resume: the connection breaks in the middle of the levels, WatchJob
+// reconnects and asks for the levels after the last complete one; the result is whole.
+TEST(DetachTest, WatchJobResumesAfterTheConnectionBreaks) {
+  server::ServerOptions options;
+  options.max_event_bytes = 16 << 10;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(60));  // 7,200 faces
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(accepted.ok());
+  WaitEnded(channel, accepted->job_id());
+
+  CuttingProxy proxy(server->port(), 100 << 10);  // the stream is ~400 KB
+  int resumes = 0;
+  client::WatchOptions watch;
+  watch.resume_delay = absl::Milliseconds(50);
+  watch.on_resume = [&](const absl::Status& status) {
+    ++resumes;
+    EXPECT_EQ(status.code(), absl::StatusCode::kUnavailable) << status;
+  };
+  absl::StatusOr<client::JobResult> result = client::WatchJob(
+      client::Connect(absl::StrCat("127.0.0.1:", proxy.port())), accepted->job_id(), watch);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(resumes, 1);
+  EXPECT_EQ(proxy.connections(), 2);
+  ExpectSameLevels(solo->hierarchy, result->hierarchy);
+  EXPECT_EQ(result->hierarchy.num_moves(), solo->hierarchy.num_moves());
 }
 
 }  // namespace
