@@ -265,13 +265,13 @@ int Watch(const Flags& flags) {
   const v1::Done& done = result->done;
   if (flags.has("json")) {
     std::string json = absl::StrCat(
-        "{\"job_id\": \"", *id, "\", \"elements\": ", log.num_elements(),
-        ", \"first_level\": ", result->first_level, ", \"levels\": ", log.num_levels(),
-        ", \"triplets\": ", log.num_moves(), ", \"final_clusters\": ", done.final_clusters(),
-        ", \"device\": \"", done.device(), "\", \"seconds\": ", absl::StrFormat("%.4f", seconds));
+        R"({"job_id": ")", *id, R"(", "elements": )", log.num_elements(), R"(, "first_level": )",
+        result->first_level, R"(, "levels": )", log.num_levels(), R"(, "triplets": )",
+        log.num_moves(), R"(, "final_clusters": )", done.final_clusters(), R"(, "device": ")",
+        done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
-      absl::StrAppend(&json, ", \"level\": {\"index\": ", result->first_level + *level,
-                      ", \"clusters\": ", log.cluster_count(*level), ", \"energy\": ",
+      absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
+                      R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
                       std::isfinite(log.energy(*level))
                           ? absl::StrFormat("%.17g", log.energy(*level))
                           : std::string("null"),

@@ -44,12 +44,12 @@ const char* JobStateName(JobState state) {
   return "unknown";
 }
 
-JobRecord::JobRecord(JobRegistry* registry, std::string id, std::string tenant,
-                     const v1::JobSpec& spec, bool keep_levels, size_t max_event_bytes)
+JobRecord::JobRecord(JobRegistry* registry, std::string id, std::string tenant, v1::JobSpec spec,
+                     bool keep_levels, size_t max_event_bytes)
     : registry_(registry),
       id_(std::move(id)),
       tenant_(std::move(tenant)),
-      spec_(spec),
+      spec_(std::move(spec)),
       keep_levels_(keep_levels),
       max_event_bytes_(std::max<size_t>(max_event_bytes, 4 * kBatchOverhead)),
       accepted_at_(absl::Now()) {}

@@ -69,7 +69,7 @@ class JobRecord : public EventChannel {
  public:
   // `keep_levels`: a detached job, whose levels are stored here. `max_event_bytes`: the
   // largest event a watcher is sent (bigger snapshots and levels are split).
-  JobRecord(JobRegistry* registry, std::string id, std::string tenant, const v1::JobSpec& spec,
+  JobRecord(JobRegistry* registry, std::string id, std::string tenant, v1::JobSpec spec,
             bool keep_levels, size_t max_event_bytes);
   ~JobRecord() override;
 

@@ -56,7 +56,7 @@ std::string JobMetrics::Render() const {
         absl::StrAppend(&out, name, "_bucket{algorithm=\"", label, "\",le=\"", kBuckets[i], "\"} ",
                         histogram.buckets[i], "\n");
       }
-      absl::StrAppend(&out, name, "_bucket{algorithm=\"", label, "\",le=\"+Inf\"} ",
+      absl::StrAppend(&out, name, "_bucket{algorithm=\"", label, R"(",le="+Inf"} )",
                       histogram.count, "\n", name, "_sum{algorithm=\"", label, "\"} ",
                       absl::StrFormat("%.6f", histogram.sum), "\n", name, "_count{algorithm=\"",
                       label, "\"} ", histogram.count, "\n");
