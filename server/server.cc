@@ -737,6 +737,8 @@ void RunCall::Submit() {
   job->events = detach ? std::shared_ptr<EventChannel>(record) : channel_;
   service_->registry().Add(record);
   job_ = job;
+  v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
+  DescribeInput(job->spec, job->input, described);
   std::shared_ptr<Job> queued = job;
   v1::JobEvent accepted_event;
   // The Accepted event is queued while the queue's lock is held, so it is always the
@@ -744,6 +746,7 @@ void RunCall::Submit() {
   absl::StatusOr<size_t> ahead = service_->queue().Push(
       std::move(queued), static_cast<unsigned>(job->lane), [&](size_t jobs_ahead) {
         v1::Accepted* accepted = accepted_event.mutable_accepted();
+        *accepted = described;
         accepted->set_job_id(id);
         accepted->set_queue_position(static_cast<uint32_t>(jobs_ahead));
         accepted->set_input_bytes(bytes);

@@ -122,14 +122,26 @@ class CpuBoundaryDecider {
 struct ConflictScratch {
   std::vector<uint32_t> proposed;
   std::vector<uint8_t> accept;
+  std::vector<uint8_t> allowed;  // per face: proposes a move the guard allows
 };
 
 // Stage 3, the one conflict rule: the faces whose proposed move (target[f] != kNoMove)
-// applies this sweep, in increasing face order, into `accepted`. A proposal is dropped if
-// a face with a smaller id that shares a vertex with it (its ring in `guard`) also
-// proposes a move — so no two accepted faces touch, and each accepted move's connectivity
-// check below stays valid when all are applied — or, with `check_connectivity`, if
-// guard.CanMove refuses it against the sweep's starting labels and sizes.
+// applies this sweep, in increasing face order, into `accepted`. First the connectivity
+// check `allowed(face, to)` (asked against the sweep's starting state, in parallel, so it
+// must be safe to call concurrently) drops the proposals it refuses; then, of the
+// proposals left, one is dropped if a face with a smaller id that shares a vertex with it
+// (its ring in `rings`) is also left. So no two accepted faces touch, and each accepted
+// move's check stays valid when all are applied. A refused proposal does not block the
+// faces around it: when it did, the same refused face blocked its neighbours again in
+// every sweep, and BB stopped at K = 2000 on bunny about 30 % above EMLO (BENCHMARKS.md,
+// "BB against EMLO: why the guard cost 30 %").
+void ResolveConflicts(const ConnectivityGuard& rings,
+                      absl::FunctionRef<bool(uint32_t face, uint32_t to)> allowed,
+                      std::span<const uint32_t> target, const StageThreads& threads,
+                      ConflictScratch& scratch, std::vector<uint32_t>& accepted);
+
+// The same with `guard`'s ring test against `labels` and `sizes` as the check (none
+// without `check_connectivity`).
 void ResolveConflicts(const ConnectivityGuard& guard, bool check_connectivity,
                       std::span<const uint32_t> labels, std::span<const uint32_t> sizes,
                       std::span<const uint32_t> target, const StageThreads& threads,
@@ -163,14 +175,38 @@ void UndoMoves(Partition<Energy>& partition, std::span<const AppliedMove> applie
 // The sweeps of Alg. 5.1 over `partition` with the decide stage `decide` (the shape of
 // CpuBoundaryDecider::operator()): fit, decide, resolve, apply until nothing moves, a sweep
 // would raise the energy (it is undone; possible only for MWCVD, whose weights are not
-// fitted) or options.max_iterations sweeps. Checks options.cancel before every stage.
-// Returns the decide stage's error, CANCELLED, or the result; on an error the partition is
-// valid but not converged.
+// fitted) or options.max_iterations sweeps. The check is options.guard (none without
+// options.connectivity_guard): `guard`'s ring test, or Alg. 3.2 with `counts`, which must
+// then be non-null and is Reset to the partition's labels here and kept up to date.
+// Checks options.cancel before every stage. Returns the decide stage's error, CANCELLED,
+// INVALID_ARGUMENT (Alg. 3.2 asked for without counts), or the result; on an error the
+// partition is valid but not converged.
 template <typename Energy, typename Decide>
 absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
+                                                VertexBoundaryEdgeCountGuard* counts,
                                                 Partition<Energy>& partition,
                                                 const BoundaryBasedOptions& options,
                                                 const StageThreads& threads, Decide&& decide) {
+  const ConnectivityGuardKind kind =
+      options.connectivity_guard ? options.guard : ConnectivityGuardKind::kOff;
+  if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    if (counts == nullptr) {
+      return absl::InvalidArgumentError(
+          "guard: Alg. 3.2's vertex boundary-edge counts were not given to BB");
+    }
+    counts->Reset(partition.labels());
+  }
+  auto allowed = [&](uint32_t face, uint32_t to) {
+    switch (kind) {
+      case ConnectivityGuardKind::kRingTest:
+        return guard.CanMove(face, to, partition.labels(), partition.sizes());
+      case ConnectivityGuardKind::kVertexBoundaryEdgeCount:
+        return counts->CanMove(face, to, partition.labels(), partition.sizes());
+      case ConnectivityGuardKind::kOff:
+        break;
+    }
+    return true;
+  };
   const size_t n = partition.labels().size();
   OptimizeResult result;
   result.initial_energy = partition.TotalEnergy();
@@ -189,9 +225,13 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
                                    std::span<const typename Energy::Proxy>(proxies),
                                    std::span<uint32_t>(target)));
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB resolve conflicts"));
-    ResolveConflicts(guard, options.connectivity_guard, partition.labels(), partition.sizes(),
-                     target, threads, scratch, accepted);
+    ResolveConflicts(guard, allowed, target, threads, scratch, accepted);
     ApplyMoves(partition, accepted, target, applied);
+    if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      for (const AppliedMove& move : applied) {
+        counts->OnMove(move.face, move.from, partition.labels());
+      }
+    }
     result.iterations = iteration;
     if (applied.empty()) {
       result.converged = true;
@@ -200,6 +240,9 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
     const double next = partition.TotalEnergy();
     if (next > current) {
       UndoMoves(partition, std::span<const AppliedMove>(applied));
+      if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+        counts->Reset(partition.labels());
+      }
       result.converged = true;
       break;
     }
@@ -209,6 +252,16 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
   }
   result.energy = partition.TotalEnergy();
   return result;
+}
+
+// The same without Alg. 3.2's counts (options.guard must not ask for them).
+template <typename Energy, typename Decide>
+absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
+                                                Partition<Energy>& partition,
+                                                const BoundaryBasedOptions& options,
+                                                const StageThreads& threads, Decide&& decide) {
+  return RunBoundaryBased(guard, nullptr, partition, options, threads,
+                          std::forward<Decide>(decide));
 }
 
 }  // namespace mlclust::boundary_based
