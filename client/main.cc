@@ -18,6 +18,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/job_commands.h"
 #include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
@@ -224,6 +225,8 @@ void PrintUsage(std::FILE* out) {
   std::fputs(kEnergyUsage, out);
   std::fputs(kStatsUsage, out);
   std::fputs(kInfoUsage, out);
+  std::fputs(JobCommandsUsage(), out);
+  std::fputs(ConnectionFlagsUsage(), out);
 }
 
 // The names of every registry option of `input` (each algorithm's own, and for meshes the
@@ -254,7 +257,8 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair", "per-polygon"};
+    static const std::set<std::string> kFlags = {"quiet",  "json",   "help",
+                                                 "detach", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -496,6 +500,31 @@ class ProgressLine {
   absl::Time last_ = absl::InfinitePast();
 };
 
+// --server and the connection flags (client/job_commands.h).
+absl::StatusOr<ServerFlags> FlagsOf(const Arguments& args) {
+  return ServerFlagsFrom([&](const std::string& name) -> std::optional<std::string> {
+    if (!args.has(name)) return std::nullopt;
+    return args.get(name);
+  });
+}
+
+// --detach: the job is submitted and its id printed; watch it with `mlclust watch`.
+int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload) {
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  for (const char* output :
+       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair"}) {
+    if (args.has(output)) {
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
+    }
+  }
+  if (args.has("server")) {
+    if (absl::Status s = CheckServerAddress(args.get("server")); !s.ok()) return Fail(s);
+  }
+  return SubmitDetachedCommand(*flags, spec, payload, args.has("quiet"));
+}
+
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
@@ -503,9 +532,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
                                               v1::Accepted* accepted = nullptr) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
+  MLCLUST_ASSIGN_OR_RETURN(const ServerFlags flags, FlagsOf(args));
   if (args.has("server")) {
     MLCLUST_RETURN_IF_ERROR(CheckServerAddress(args.get("server")));
-    channel = client::Connect(args.get("server"));
+    MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -520,9 +550,11 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
     progress.Update(event);
   };
+  run_options.deadline = flags.deadline;
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  if (!result.ok()) result = ExplainDeadline(result.status(), flags, "the job");
   if (!result.ok() && args.has("server")) {
     return PlainConnectionError(result.status(), args.get("server"));
   }
@@ -874,6 +906,7 @@ int Mesh(const Arguments& args) {
     payload = EncodeMeshToDraco(sent, encode);
   }
   if (!payload.ok()) return Fail(payload.status());
+  if (args.has("detach")) return Detach(args, spec, *payload);
 
   double seconds = 0;
   v1::Accepted accepted;
@@ -1109,6 +1142,7 @@ int Points(const Arguments& args) {
   SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
                             points->values.size() * sizeof(float));
+  if (args.has("detach")) return Detach(args, spec, payload);
   double seconds = 0;
   absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, payload, &seconds);
   if (!result.ok()) return Fail(result.status());
@@ -1227,9 +1261,14 @@ int Stats(const Arguments& args) {
   if (!args.has("server")) return Fail(absl::InvalidArgumentError("stats: give --server ADDR"));
   const std::string address = args.get("server");
   if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-  auto stub = v1::Clustering::NewStub(client::Connect(address));
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*flags);
+  if (!channel.ok()) return Fail(channel.status());
+  auto stub = v1::Clustering::NewStub(*channel);
   grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  context.set_deadline(
+      absl::ToChronoTime(absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
@@ -1290,7 +1329,11 @@ int Info(const Arguments& args) {
   const std::string address = args.get("server", "embedded");
   if (args.has("server")) {
     if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-    channel = client::Connect(address);
+    absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+    if (!flags.ok()) return Fail(flags.status());
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> connected = ConnectTo(*flags);
+    if (!connected.ok()) return Fail(connected.status());
+    channel = *connected;
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -1351,18 +1394,21 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With({"server",           "algo", "energy", "clusters", "labels",
-                      "levels-csv",       "ply",  "device", "quiet",    "coarse",
-                      "coarse-placement", "seed", "levels", "json",     "planar-merge",
-                      "repair",           "plot", "upload", "quantize", "per-polygon"},
-                     With({"preview", "preview-size", "preview-view"},
-                          RegistryOptionNames(InputKind::kMesh)));
+         return With(
+             With({"server",           "algo",    "energy",       "clusters",    "labels",
+                   "levels-csv",       "ply",     "device",       "quiet",       "coarse",
+                   "coarse-placement", "seed",    "levels",       "json",        "planar-merge",
+                   "repair",           "plot",    "upload",       "quantize",    "per-polygon",
+                   "detach",           "preview", "preview-size", "preview-view"},
+                  ConnectionFlagNames()),
+             RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },
        [] {
-         return With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
-                      "auto-k", "levels", "quiet", "device", "json", "plot"},
+         return With(With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
+                           "auto-k", "levels", "quiet", "device", "json", "plot", "detach"},
+                          ConnectionFlagNames()),
                      RegistryOptionNames(InputKind::kPoints));
        },
        Points},
@@ -1375,12 +1421,12 @@ const std::vector<Command>& Commands() {
        Energy},
       {"stats", [] { return std::string(kStatsUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Stats},
       {"info", [] { return std::string(kInfoUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Info},
   };
@@ -1416,11 +1462,16 @@ int main(int argc, char** argv) {
       std::fputs(mlclust::cli::ServeUsage(), stdout);
       return 0;
     }
+    if (argc >= 3 && IsJobCommand(argv[2])) {
+      std::fputs(JobCommandsUsage(), stdout);
+      std::fputs(ConnectionFlagsUsage(), stdout);
+      return 0;
+    }
     if (argc >= 3) {
       const Command* found = FindCommand(argv[2]);
       if (found == nullptr) {
         std::fprintf(stderr, "mlclust: no command '%s'; the commands: serve, %s\n", argv[2],
-                     "mesh, points, energy, stats, info");
+                     "mesh, points, energy, stats, info, watch, cancel, jobs");
         return 2;
       }
       std::fputs(found->usage().c_str(), stdout);
@@ -1430,6 +1481,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (command == "serve") return RunServeCommand(argc - 2, argv + 2);
+  if (IsJobCommand(command)) return RunJobCommand(command, argc - 2, argv + 2);
   const Command* found = FindCommand(command);
   if (found == nullptr) {
     std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
