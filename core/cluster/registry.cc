@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/device_stages.h"
 
 namespace mlclust {
 namespace {
@@ -245,7 +246,15 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
     options.on_iteration = [&](uint32_t iteration, double energy) {
       Report(context, plan, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
     };
-    result = OptimizeBoundaryBased(problem, labels, options);
+    if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+      if (context.devices == nullptr) {
+        return absl::FailedPreconditionError(
+            "BB: the plan puts the decide stage on the GPU but this run has no GPU stages");
+      }
+      result = context.devices->OptimizeBoundaryBased(problem, labels, options);
+    } else {
+      result = OptimizeBoundaryBased(problem, labels, options);
+    }
   }
   if (!result.ok()) return result.status();
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result->initial_energy, labels, result->energy,
@@ -501,7 +510,12 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
                          })};
-    a.stages = {seed_stage, {"cluster", "parallel sweeps with proxies fixed per sweep"}};
+    // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies.
+    a.stages = {seed_stage,
+                {"cluster",
+                 "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
+                 /*has_gpu=*/true,
+                 {"cvd", "cvd-adaptive", "mwcvd-area", "mwcvd-variance", "mwcvd-max", "planar"}}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
   }
@@ -909,8 +923,12 @@ absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan) {
                                     (plan.device == DeviceChoice::kAuto && !caps.gpu_is_software));
   plan.stages.clear();
   for (const StageInfo& stage : stages) {
+    const bool covered =
+        stage.gpu_energies.empty() ||
+        (plan.energy != nullptr && std::find(stage.gpu_energies.begin(), stage.gpu_energies.end(),
+                                             plan.energy->name) != stage.gpu_energies.end());
     plan.stages.push_back(
-        {stage.name, stage.has_gpu && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
+        {stage.name, stage.has_gpu && covered && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
   }
   return absl::OkStatus();
 }

@@ -36,6 +36,8 @@
 
 namespace mlclust {
 
+class DeviceStages;  // core/cluster/device_stages.h
+
 enum class InputKind { kMesh, kPoints };
 const char* InputKindName(InputKind input);  // "mesh", "points"
 
@@ -64,6 +66,9 @@ struct StageInfo {
   std::string name;  // "measures", "seed", "cluster": Progress.stage
   std::string help;
   bool has_gpu = false;  // a GPU implementation exists
+  // Where not empty, the GPU implementation covers only these energies (by name); the
+  // stage stays on the CPU for the others.
+  std::vector<std::string> gpu_energies;
 };
 
 // One stage of a job's plan: where it runs.
@@ -130,6 +135,9 @@ const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind);
 struct RunContext {
   std::function<void(const StagePlan& stage, const std::string& message)> on_stage;
   const std::atomic<bool>* cancel = nullptr;
+  // The stages on the GPU (core/cluster/device_stages.h), where the runner has one; a run
+  // function whose plan puts a stage on the GPU fails with FAILED_PRECONDITION without it.
+  DeviceStages* devices = nullptr;
 };
 
 struct RunSummary {
