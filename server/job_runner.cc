@@ -333,7 +333,10 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
   }
   StreamingLevelSink sink = MakeSink(job, plan, context);
   JobOutcome outcome;
-  outcome.done.set_device("cpu");
+  const StagePlan* cluster_stage = FindStage(plan, "cluster");
+  outcome.done.set_device(cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu
+                              ? StageDeviceName(*cluster_stage, caps)
+                              : "cpu");
   const RunContext run = MakeRunContext(job, caps, devices);
   if (plan.algorithm->hierarchy) {
     // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary

@@ -37,6 +37,17 @@ class DeviceStages {
   virtual absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(
       const MeshProblem& problem, std::vector<ClusterId>& labels,
       const BoundaryBasedOptions& options) = 0;
+
+  // RunLnKmeans (point_clustering.h) with the initial neighbours and the assign stage
+  // on the device; same contract, plus the device's errors.
+  virtual absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points,
+                                                     std::vector<ClusterId> labels,
+                                                     const LnKmeansOptions& options) = 0;
+
+  // RunLloyd (kmeans.h) with the assignment on the device; same contract, plus the
+  // device's errors.
+  virtual absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
+                                                const KmeansOptions& options) = 0;
 };
 
 }  // namespace mlclust

@@ -37,6 +37,7 @@
 namespace mlclust {
 
 class DeviceStages;  // core/cluster/device_stages.h
+struct JobPlan;
 
 enum class InputKind { kMesh, kPoints };
 const char* InputKindName(InputKind input);  // "mesh", "points"
@@ -66,9 +67,9 @@ struct StageInfo {
   std::string name;  // "measures", "seed", "cluster": Progress.stage
   std::string help;
   bool has_gpu = false;  // a GPU implementation exists
-  // Where not empty, the GPU implementation covers only these energies (by name); the
-  // stage stays on the CPU for the others.
-  std::vector<std::string> gpu_energies;
+  // Where set, the GPU implementation covers only the plans it accepts (energies, inits);
+  // the stage stays on the CPU for the others.
+  std::function<bool(const JobPlan&)> gpu_covers;
 };
 
 // One stage of a job's plan: where it runs.

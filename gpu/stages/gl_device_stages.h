@@ -21,6 +21,10 @@ class GlDeviceStages : public DeviceStages {
   absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(
       const MeshProblem& problem, std::vector<ClusterId>& labels,
       const BoundaryBasedOptions& options) override;
+  absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
+                                             const LnKmeansOptions& options) override;
+  absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
+                                        const KmeansOptions& options) override;
 
  private:
   GlContext& context_;

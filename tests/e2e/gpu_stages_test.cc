@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,46 @@ TEST_F(GpuStagesTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing)
   ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
   absl::StatusOr<client::JobResult> gpu = Run(BbSpec("gpu"));
   EXPECT_TRUE(gpu.ok()) << gpu.status();
+}
+
+// Points around 20 centres, as float32 bytes (the wire's layout).
+std::string BlobBytes(uint32_t m) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> box(-30, 30);
+  std::normal_distribution<float> spread(0, 1);
+  std::vector<float> centres(60);
+  for (float& c : centres) c = box(random);
+  std::vector<float> values;
+  for (uint32_t i = 0; i < m; ++i) {
+    for (int j = 0; j < 3; ++j) values.push_back(centres[(i % 20) * 3 + j] + spread(random));
+  }
+  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
+}
+
+TEST_F(GpuStagesTest, LnKmeansAndKmeansWithDeviceGpu) {
+  const std::string points = BlobBytes(6000);
+  for (v1::Algorithm algorithm : {v1::ALGORITHM_LN_KMEANS, v1::ALGORITHM_KMEANS}) {
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+    spec.set_point_dims(3);
+    spec.set_algorithm(algorithm);
+    spec.set_clusters(25);
+    spec.set_device("gpu");
+    absl::StatusOr<client::JobResult> gpu = client::RunJob(channel_, spec, points);
+    ASSERT_TRUE(gpu.ok()) << gpu.status();
+    spec.set_device("cpu");
+    absl::StatusOr<client::JobResult> cpu = client::RunJob(channel_, spec, points);
+    ASSERT_TRUE(cpu.ok()) << cpu.status();
+    EXPECT_EQ(gpu->done.device(), server_->gl_renderer());
+    EXPECT_EQ(cpu->done.device(), "cpu");
+    ASSERT_EQ(gpu->hierarchy.num_levels(), 2u);
+    ASSERT_EQ(cpu->hierarchy.num_levels(), 2u);
+    // Issue 10: inertia within 0.5%.
+    EXPECT_NEAR(gpu->hierarchy.energy(1), cpu->hierarchy.energy(1),
+                0.005 * cpu->hierarchy.energy(1))
+        << v1::Algorithm_Name(algorithm);
+    EXPECT_LE(gpu->hierarchy.energy(1), gpu->hierarchy.energy(0));
+  }
 }
 
 }  // namespace
