@@ -1,5 +1,6 @@
 #include "gpu/stages/point_stages_gpu.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -10,9 +11,14 @@
 #include "core/cluster/detail/ln_kmeans_stages.h"
 #include "gpu/kernels/kmeans_assign.h"
 #include "gpu/kernels/ln_kmeans.h"
+#include "tbb/parallel_for.h"
+#include "tbb/task_arena.h"
 
 namespace mlclust::gpu {
 namespace {
+
+// Points per block of RunLloydGpu's host work (at least; more with many clusters).
+constexpr size_t kBlock = 65536;
 
 // The counts of a PointClusters as the kernel reads them (a count is below 2^31 points).
 void Counts(const mlclust::detail::PointClusters& clusters, std::vector<uint32_t>& counts) {
@@ -117,30 +123,57 @@ absl::StatusOr<KmeansResult> RunLloydGpu(GlContext& context, const PointSet& poi
   std::vector<float> upload(centres_in.size());
   std::vector<uint32_t> labels(m, 0), nearest(m);
   std::vector<double> sums(size_t{k} * (d + 1)), distance;
+  // Per-block partial sums: k (d + 1) doubles per block of kBlock points, so with many
+  // clusters the blocks are fewer (at most 64 MiB of partials).
+  const size_t row_values = size_t{k} * (d + 1);
+  const size_t max_blocks = std::max<size_t>(1, (size_t{64} << 20) / (row_values * sizeof(double)));
+  const size_t block_points = std::max<size_t>(kBlock, (m + max_blocks - 1) / max_blocks);
+  const size_t blocks = (m + block_points - 1) / block_points;
+  std::vector<double> partial(blocks * row_values), partial_energy(blocks);
+  std::vector<uint64_t> partial_moves(blocks);
+  tbb::task_arena arena(options.threads > 0 ? options.threads
+                                            : static_cast<int>(tbb::task_arena::automatic));
+  auto ParallelBlocks = [block_points, blocks](tbb::task_arena& on, size_t n, auto&& body) {
+    on.execute([&] {
+      tbb::parallel_for(size_t{0}, blocks, [&](size_t block) {
+        const size_t begin = block * block_points;
+        body(block, begin, std::min(n, begin + block_points));
+      });
+    });
+  };
   KmeansResult result;
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "Lloyd iteration"));
     const bool first = iteration == 1;
     for (size_t v = 0; v < centres.size(); ++v) upload[v] = static_cast<float>(centres[v]);
     MLCLUST_RETURN_IF_ERROR(kernel.Assign(upload, nearest));
-    // A point moves only where the move lowers its distance in double.
-    uint64_t moves = 0;
-    for (size_t i = 0; i < m; ++i) {
-      if (first) {
-        labels[i] = nearest[i];
-        ++moves;
-      } else if (nearest[i] != labels[i] &&
-                 SquaredDistance(values + i * d, &centres[size_t{nearest[i]} * d], d) <
-                     SquaredDistance(values + i * d, &centres[size_t{labels[i]} * d], d)) {
-        labels[i] = nearest[i];
-        ++moves;
+    // A point moves only where the move lowers its distance in double. Then the clusters'
+    // sums. Both in blocks of kBlock points in parallel, the blocks' sums added in block
+    // order, so the result does not depend on the thread count.
+    ParallelBlocks(arena, m, [&](size_t block, size_t begin, size_t end) {
+      uint64_t block_moves = 0;
+      double* block_sums = &partial[block * row_values];
+      std::fill(block_sums, block_sums + row_values, 0.0);
+      for (size_t i = begin; i < end; ++i) {
+        const float* x = values + i * d;
+        if (first || (nearest[i] != labels[i] &&
+                      SquaredDistance(x, &centres[size_t{nearest[i]} * d], d) <
+                          SquaredDistance(x, &centres[size_t{labels[i]} * d], d))) {
+          block_moves += first || nearest[i] != labels[i];
+          labels[i] = nearest[i];
+        }
+        double* sum = &block_sums[size_t{labels[i]} * (d + 1)];
+        for (uint32_t j = 0; j < d; ++j) sum[j] += x[j];
+        sum[d] += 1;
       }
-    }
+      partial_moves[block] = block_moves;
+    });
+    uint64_t moves = 0;
     std::fill(sums.begin(), sums.end(), 0.0);
-    for (size_t i = 0; i < m; ++i) {
-      double* row = &sums[size_t{labels[i]} * (d + 1)];
-      for (uint32_t j = 0; j < d; ++j) row[j] += values[i * d + j];
-      row[d] += 1;
+    for (size_t block = 0; block < blocks; ++block) {
+      moves += partial_moves[block];
+      const double* block_sums = &partial[block * row_values];
+      for (size_t v = 0; v < row_values; ++v) sums[v] += block_sums[v];
     }
     // Empty clusters, in id order: the farthest point from its centre among clusters that
     // keep at least one point (ties to the smaller id).
@@ -184,10 +217,15 @@ absl::StatusOr<KmeansResult> RunLloydGpu(GlContext& context, const PointSet& poi
         centres[size_t{c} * d + j] = mean_j;
       }
     }
+    ParallelBlocks(arena, m, [&](size_t block, size_t begin, size_t end) {
+      double sum = 0;
+      for (size_t i = begin; i < end; ++i) {
+        sum += SquaredDistance(values + i * d, &centres[size_t{labels[i]} * d], d);
+      }
+      partial_energy[block] = sum;
+    });
     double inertia = 0;
-    for (size_t i = 0; i < m; ++i) {
-      inertia += SquaredDistance(values + i * d, &centres[size_t{labels[i]} * d], d);
-    }
+    for (size_t block = 0; block < blocks; ++block) inertia += partial_energy[block];
     result.inertia = inertia;
     result.iterations = iteration;
     if (options.on_iteration) options.on_iteration(iteration, inertia);

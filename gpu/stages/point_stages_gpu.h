@@ -32,7 +32,9 @@ absl::StatusOr<LnKmeansResult> RunLnKmeansGpu(GlContext& context, const PointSet
 // id), stop after options.max_iterations, an iteration that moved no point, or a centre
 // shift <= options.tolerance x the mean variance. Not bit-identical with RunLloyd, whose
 // float kernel may break near-ties otherwise; inertia agrees within 0.5% (tested).
-// options.threads is not used. Errors as RunLloyd, plus the GPU's, named by pass.
+// The host's O(m d) work runs on options.threads threads (0: all), in blocks whose sums
+// are added in order (the result does not depend on the thread count). Errors as RunLloyd, plus the
+// GPU's, named by pass.
 absl::StatusOr<KmeansResult> RunLloydGpu(GlContext& context, const PointSet& points,
                                          std::vector<float> centres, const KmeansOptions& options);
 

@@ -41,6 +41,28 @@ TEST(ClusterSums, SmallIntegersAreExact) {
   EXPECT_EQ((*sums)[3 * d], 0.0);
 }
 
+// With at most 8 work groups per grid dimension, both passes run as 2-D grids (6,250
+// chunk invocations = 25 groups: 8 x 4): integer sums stay exact.
+TEST(ClusterSums, TwoDimensionalGridsGiveTheSameSums) {
+  GlContextOptions options;
+  options.max_groups_per_dimension = 8;
+  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
+  ASSERT_TRUE(context.ok()) << context.status();
+  const uint32_t n = 200000, d = 2, k = 3000;
+  std::mt19937 random(9);
+  std::uniform_int_distribution<uint32_t> pick(0, k - 1);
+  std::vector<uint32_t> labels(n);
+  std::vector<double> values(size_t{n} * d);
+  for (uint32_t i = 0; i < n; ++i) {
+    labels[i] = i < n / 2 ? 7 : pick(random);
+    values[size_t{i} * d] = i % 1000;
+    values[size_t{i} * d + 1] = 1;
+  }
+  absl::StatusOr<std::vector<double>> sums = SumByCluster(**context, values, d, labels, k);
+  ASSERT_TRUE(sums.ok()) << sums.status();
+  EXPECT_EQ(*sums, SumByClusterCpu(values, d, labels, k));
+}
+
 TEST(ClusterSums, RejectsBadInputs) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);

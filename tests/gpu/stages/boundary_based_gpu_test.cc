@@ -60,6 +60,34 @@ void ExpectSameTargets(const Energy& energy, const testing::LoadedMesh& mesh,
   EXPECT_EQ(gpu, cpu);
 }
 
+// With at most 8 work groups per grid dimension the decide pass runs as a 2-D grid (12,946
+// faces = 51 groups: 8 x 7) and gives the same targets.
+TEST(BoundaryDecideGpu, TwoDimensionalGridGivesTheSameTargets) {
+  const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
+  GlContextOptions options;
+  options.max_groups_per_dimension = 8;
+  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(options);
+  ASSERT_TRUE(capped.ok()) << capped.status();
+  const CvdEnergy energy(mesh.measures);
+  const std::vector<ClusterId> seeded = Seeds(mesh.problem(), 200);
+  const Renumbering<ClusterId> compact =
+      RenumberByFirstAppearance(std::span<const ClusterId>(seeded));
+  Partition<CvdEnergy> partition(energy, compact.dense, compact.size());
+  std::vector<CvdEnergy::Proxy> proxies;
+  boundary_based::FitProxies(partition, proxies);
+  const size_t n = mesh.mesh.num_faces();
+  std::vector<uint32_t> cpu(n), gpu(n, 0);
+  const boundary_based::StageThreads threads(1);
+  ASSERT_TRUE(boundary_based::CpuBoundaryDecider<CvdEnergy>(energy, mesh.adjacency, threads)(
+                  partition.labels(), proxies, cpu)
+                  .ok());
+  absl::StatusOr<GpuBoundaryDecider<CvdEnergy>> decide =
+      GpuBoundaryDecider<CvdEnergy>::Create(**capped, energy, mesh.adjacency, compact.size());
+  ASSERT_TRUE(decide.ok()) << decide.status();
+  ASSERT_TRUE((*decide)(partition.labels(), proxies, gpu).ok());
+  EXPECT_EQ(gpu, cpu);
+}
+
 TEST(BoundaryDecideGpu, SameTargetsAsTheCpuOnFandisk) {
   const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
   const std::vector<ClusterId> seeded = Seeds(mesh.problem(), 200);
