@@ -5,12 +5,14 @@
 #include "absl/strings/str_cat.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/bb_decide_glsl.h"  // kBbDecideGlsl, generated
+#include "gpu/kernels/bb_decide_glsl.h"          // kBbDecideGlsl, generated
+#include "gpu/kernels/bb_scatter_labels_glsl.h"  // kBbScatterLabelsGlsl, generated
 
 namespace mlclust::gpu {
 namespace {
 
 constexpr char kPass[] = "bb decide";
+constexpr uint32_t kNoTarget = 0xFFFFFFFFu;  // boundary_based::kNoMove
 
 static_assert(sizeof(PointAndWeight) == 32);
 static_assert(sizeof(std::array<FaceId, 3>) == 12);
@@ -18,7 +20,8 @@ static_assert(sizeof(std::array<FaceId, 3>) == 12);
 }  // namespace
 
 uint64_t BoundaryDecideMemoryBound(uint64_t num_faces, uint64_t num_clusters) {
-  return num_faces * (12 + 4 + 32 + 4) + num_clusters * 32;
+  return num_faces * (12 + 4 + 32 + 8) + BoundaryDecideMaxChanges(num_faces) * 8 +
+         num_clusters * 32 + 4;
 }
 
 absl::StatusOr<BoundaryDecideKernel> BoundaryDecideKernel::Create(
@@ -45,30 +48,61 @@ absl::StatusOr<BoundaryDecideKernel> BoundaryDecideKernel::Create(
   MLCLUST_RETURN_IF_ERROR(BeginPass(context, kPass));
   absl::StatusOr<BoundaryDecideKernel> kernel = [&]() -> absl::StatusOr<BoundaryDecideKernel> {
     const uint64_t faces_or_one = std::max<uint64_t>(n, 1);
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t program,
-                             GetComputeProgram(context, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(StorageBuffer neighbours,
-                             StorageBuffer::Create(context, faces_or_one * 12));
-    MLCLUST_ASSIGN_OR_RETURN(StorageBuffer labels,
-                             StorageBuffer::Create(context, faces_or_one * 4));
-    MLCLUST_ASSIGN_OR_RETURN(StorageBuffer face_points,
-                             StorageBuffer::Create(context, faces_or_one * 32));
-    MLCLUST_ASSIGN_OR_RETURN(
-        StorageBuffer proxies,
-        StorageBuffer::Create(context, std::max<uint64_t>(num_clusters, 1) * 32));
-    MLCLUST_ASSIGN_OR_RETURN(StorageBuffer targets,
-                             StorageBuffer::Create(context, faces_or_one * 4));
+    const uint64_t bytes[kBindings] = {faces_or_one * 12,
+                                       faces_or_one * 4,
+                                       faces_or_one * 32,
+                                       std::max<uint64_t>(num_clusters, 1) * 32,
+                                       faces_or_one * 8,
+                                       4,
+                                       BoundaryDecideMaxChanges(n) * 8};
+    std::vector<StorageBuffer> buffers;
+    for (const uint64_t size : bytes) {
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
+      buffers.push_back(std::move(buffer));
+    }
     MLCLUST_RETURN_IF_ERROR(
-        neighbours.Upload(std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
-    MLCLUST_RETURN_IF_ERROR(face_points.Upload(faces));
+        buffers[kNeighbours].Upload(std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
+    MLCLUST_RETURN_IF_ERROR(buffers[kFaces].Upload(faces));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kPass));
-    return BoundaryDecideKernel(context, program, static_cast<uint32_t>(n), num_clusters,
-                                std::move(neighbours), std::move(labels), std::move(face_points),
-                                std::move(proxies), std::move(targets));
+    return BoundaryDecideKernel(context, static_cast<uint32_t>(n), num_clusters,
+                                std::move(buffers));
   }();
   if (!kernel.ok()) return PassError(kPass, kernel.status());
   return kernel;
+}
+
+absl::Status BoundaryDecideKernel::UpdateLabels(std::span<const uint32_t> labels) {
+  changes_.clear();
+  const uint64_t max_changes = BoundaryDecideMaxChanges(num_faces_);
+  bool all = labels_on_gpu_.size() != labels.size();
+  for (uint32_t f = 0; !all && f < num_faces_; ++f) {
+    if (labels[f] == labels_on_gpu_[f]) continue;
+    if (changes_.size() == max_changes) {
+      all = true;
+      break;
+    }
+    changes_.push_back({f, labels[f]});
+  }
+  labels_on_gpu_.clear();  // unknown until the upload has worked
+  if (all) {
+    MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Upload(labels));
+  } else if (!changes_.empty()) {
+    MLCLUST_ASSIGN_OR_RETURN(
+        const uint32_t scatter,
+        GetComputeProgram(*context_, "bb_scatter_labels",
+                          absl::StrCat(kComputeShaderPrelude, kBbScatterLabelsGlsl)));
+    MLCLUST_RETURN_IF_ERROR(
+        buffers_[kChanges].Upload(std::span<const std::array<uint32_t, 2>>(changes_)));
+    const detail::GlFunctions& gl = context_->gl();
+    gl.UseProgram(scatter);
+    buffers_[kLabels].Bind(kLabels);
+    buffers_[kChanges].Bind(kChanges);
+    gl.ProgramUniform1ui(scatter, 0, static_cast<GLuint>(changes_.size()));
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, changes_.size()));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  labels_on_gpu_.assign(labels.begin(), labels.end());
+  return absl::OkStatus();
 }
 
 absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
@@ -80,24 +114,47 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
         "bb decide: ", labels.size(), " labels, ", target.size(), " targets and ", proxies.size(),
         " proxies for ", num_faces_, " faces and ", num_clusters_, " clusters"));
   }
+  std::fill(target.begin(), target.end(), kNoTarget);
   if (num_faces_ == 0) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kPass));
   const absl::Status status = [&]() -> absl::Status {
-    MLCLUST_RETURN_IF_ERROR(labels_.Upload(labels));
-    MLCLUST_RETURN_IF_ERROR(proxies_.Upload(proxies));
+    MLCLUST_ASSIGN_OR_RETURN(const uint32_t program,
+                             GetComputeProgram(*context_, "bb_decide",
+                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
+    MLCLUST_RETURN_IF_ERROR(UpdateLabels(labels));
+    MLCLUST_RETURN_IF_ERROR(buffers_[kProxies].Upload(proxies));
+    const uint32_t zero = 0;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     const detail::GlFunctions& gl = context_->gl();
-    gl.UseProgram(program_);
-    neighbours_.Bind(0);
-    labels_.Bind(1);
-    faces_.Bind(2);
-    proxies_.Bind(3);
-    targets_.Bind(4);
-    gl.ProgramUniform1ui(program_, 0, num_faces_);
+    gl.UseProgram(program);
+    for (uint32_t b = kNeighbours; b <= kProposalCount; ++b) buffers_[b].Bind(b);
+    gl.ProgramUniform1ui(program, 0, num_faces_);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
     gl.UseProgram(0);
-    MLCLUST_RETURN_IF_ERROR(targets_.Download(target));
-    return CheckGlError(*context_, kPass);
+    uint32_t count = 0;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Download(0, &count, sizeof(count)));
+    if (count > num_faces_) {
+      return absl::InternalError(
+          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
+    }
+    proposals_.resize(count);
+    MLCLUST_RETURN_IF_ERROR(
+        buffers_[kProposals].Download(std::span<std::array<uint32_t, 2>>(proposals_)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kPass));
+    for (const auto& [face, cluster] : proposals_) {
+      if (face >= num_faces_ || cluster >= num_clusters_) {
+        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
+                                                cluster, " of ", num_faces_, " faces and ",
+                                                num_clusters_, " clusters"));
+      }
+      target[face] = cluster;
+    }
+    return absl::OkStatus();
   }();
+  if (!status.ok()) {
+    labels_on_gpu_.clear();
+    std::fill(target.begin(), target.end(), kNoTarget);
+  }
   return PassError(kPass, status);
 }
 

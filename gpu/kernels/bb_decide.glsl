@@ -8,11 +8,16 @@
 // which is FaceCost of every energy whose proxy is a point and a weight (CVD, adaptive CVD,
 // MWCVD: point = centroid; planar: point = unit normal). After the prelude of
 // gpu/context/compute.h.
+//
+// Only the proposals come back: a face that moves appends (face, target) through an atomic
+// counter (stream compaction; the order is arbitrary, each face appears at most once), so a
+// sweep reads back 8 bytes per proposal instead of 4 per face.
 layout(std430, binding = 0) readonly buffer Neighbours { uint neighbours[]; };  // 3 per face
 layout(std430, binding = 1) readonly buffer Labels { uint labels[]; };          // 1 per face
 layout(std430, binding = 2) readonly buffer Faces { dvec4 faces[]; };           // point, mass
 layout(std430, binding = 3) readonly buffer Proxies { dvec4 proxies[]; };       // point, weight
-layout(std430, binding = 4) writeonly buffer Targets { uint targets[]; };       // 1 per face
+layout(std430, binding = 4) writeonly buffer Proposals { uvec2 proposals[]; };  // (face, target)
+layout(std430, binding = 5) buffer ProposalCount { uint proposal_count; };       // reset to 0
 layout(location = 0) uniform uint u_face_count;
 const uint kInvalid = 0xFFFFFFFFu;  // no neighbour across the edge; kNoMove
 
@@ -42,6 +47,7 @@ void main() {
       best_cluster = c;
     }
   }
-  targets[face] = best_cluster != own && own_cost - best > 1e-12LF * own_cost ? best_cluster
-                                                                               : kInvalid;
+  if (best_cluster != own && own_cost - best > 1e-12LF * own_cost) {
+    proposals[atomicAdd(proposal_count, 1u)] = uvec2(face, best_cluster);
+  }
 }

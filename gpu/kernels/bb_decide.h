@@ -15,9 +15,11 @@
 // targets equal the CPU's; elsewhere a target can differ only where two costs tie to
 // rounding.
 //
-// Data stay on the GPU across sweeps: adjacency (12 bytes per face) and the faces' points
-// (32 bytes per face) are uploaded once; each sweep uploads the labels (4 bytes per face)
-// and proxies (32 bytes per cluster) and reads back one target per face (4 bytes).
+// Data stay on the GPU across sweeps: adjacency (12 bytes per face), the faces' points (32
+// bytes per face) and the labels are uploaded once; each later sweep uploads only the labels
+// that changed (8 bytes per change; all labels again when more than an eighth of the faces
+// changed) and the proxies (32 bytes per cluster), and reads back only the proposals (8
+// bytes per face that wants to move, compacted on the GPU by an atomic counter).
 #ifndef MLCLUST_GPU_KERNELS_BB_DECIDE_H_
 #define MLCLUST_GPU_KERNELS_BB_DECIDE_H_
 
@@ -106,32 +108,47 @@ class BoundaryDecideKernel {
 
   // target[f] for every face (boundary_based::kNoMove: stays). labels: one per face, each
   // < num_clusters (the partition's; not checked); proxies: num_clusters. INVALID_ARGUMENT
-  // for sizes that do not match; GL errors as Create.
+  // for sizes that do not match; GL errors as Create. After an error the kernel uploads
+  // every label again at the next call.
   absl::Status Decide(std::span<const uint32_t> labels, std::span<const PointAndWeight> proxies,
                       std::span<uint32_t> target);
 
  private:
-  BoundaryDecideKernel(GlContext& context, uint32_t program, uint32_t num_faces,
-                       uint32_t num_clusters, StorageBuffer neighbours, StorageBuffer labels,
-                       StorageBuffer faces, StorageBuffer proxies, StorageBuffer targets)
+  // The buffers, by binding point of bb_decide.glsl / bb_scatter_labels.glsl.
+  enum Binding : uint32_t {
+    kNeighbours,
+    kLabels,
+    kFaces,
+    kProxies,
+    kProposals,
+    kProposalCount,
+    kChanges,
+    kBindings
+  };
+
+  BoundaryDecideKernel(GlContext& context, uint32_t num_faces, uint32_t num_clusters,
+                       std::vector<StorageBuffer> buffers)
       : context_(&context),
-        program_(program),
         num_faces_(num_faces),
         num_clusters_(num_clusters),
-        neighbours_(std::move(neighbours)),
-        labels_(std::move(labels)),
-        faces_(std::move(faces)),
-        proxies_(std::move(proxies)),
-        targets_(std::move(targets)) {}
+        buffers_(std::move(buffers)) {}
+
+  // Brings the labels on the GPU to `labels` (the changes, or all of them).
+  absl::Status UpdateLabels(std::span<const uint32_t> labels);
 
   GlContext* context_;
-  uint32_t program_;
   uint32_t num_faces_;
   uint32_t num_clusters_;
-  StorageBuffer neighbours_, labels_, faces_, proxies_, targets_;
+  std::vector<StorageBuffer> buffers_;
+  std::vector<uint32_t> labels_on_gpu_;  // empty: unknown, upload all
+  std::vector<std::array<uint32_t, 2>> changes_, proposals_;
 };
 
-// The GPU memory BoundaryDecideKernel holds: 52 bytes per face and 32 per cluster.
+// Changed labels a sweep uploads as (face, label) pairs at most; more, and all labels go.
+inline uint64_t BoundaryDecideMaxChanges(uint64_t num_faces) { return num_faces / 8 + 1; }
+
+// The GPU memory BoundaryDecideKernel holds: 61 bytes per face (adjacency 12, labels 4,
+// points 32, proposals 8, changes 1), 32 per cluster, and a few bytes.
 uint64_t BoundaryDecideMemoryBound(uint64_t num_faces, uint64_t num_clusters);
 
 // The decide stage for Energy on the GPU, in the shape RunBoundaryBased calls:
