@@ -9,7 +9,6 @@
 #ifndef MLCLUST_CORE_CLUSTER_DEVICE_STAGES_H_
 #define MLCLUST_CORE_CLUSTER_DEVICE_STAGES_H_
 
-#include <string>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -25,12 +24,6 @@ namespace mlclust {
 class DeviceStages {
  public:
   virtual ~DeviceStages() = default;
-
-  // The device's name for progress events and Done.device ("llvmpipe (LLVM 15...)").
-  virtual std::string name() const = 0;
-
-  // Whether BB's decide stage exists on the device for this energy.
-  virtual bool HasBoundaryDecide(MeshEnergyKind energy) const = 0;
 
   // OptimizeBoundaryBased (mesh_clustering.h) with the decide stage on the device; same
   // contract, plus the device's errors (naming the pass).

@@ -531,12 +531,22 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
                          })};
-    // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies.
+    // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
+    // the list of gpu::HasGpuBoundaryDecide (gpu/stages/boundary_based_gpu.h).
     a.stages = {seed_stage,
                 {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
                  /*has_gpu=*/true, [](const JobPlan& plan) {
-                   const MeshEnergyKind kind = plan.mesh_energy.kind;
-                   return kind != MeshEnergyKind::kSphere && kind != MeshEnergyKind::kSphereNormals;
+                   switch (plan.mesh_energy.kind) {
+                     case MeshEnergyKind::kCvd:
+                     case MeshEnergyKind::kCvdAdaptive:
+                     case MeshEnergyKind::kMwcvdArea:
+                     case MeshEnergyKind::kMwcvdVariance:
+                     case MeshEnergyKind::kMwcvdMax:
+                     case MeshEnergyKind::kPlanar:
+                       return true;
+                     default:
+                       return false;
+                   }
                  }}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);

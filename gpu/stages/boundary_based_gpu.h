@@ -15,7 +15,8 @@
 
 namespace mlclust::gpu {
 
-// Whether the GPU decide stage exists for `energy` (CVD, adaptive CVD, MWCVD, planar).
+// Whether the GPU decide stage exists for `energy` (CVD, adaptive CVD, MWCVD, planar); the
+// registry's plan (core/cluster/registry.cc, BB's cluster stage) keeps the same list.
 bool HasGpuBoundaryDecide(MeshEnergyKind energy);
 
 // OptimizeBoundaryBased (core/cluster/mesh_clustering.h) with the decide stage on

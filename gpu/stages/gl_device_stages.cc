@@ -7,10 +7,6 @@
 
 namespace mlclust::gpu {
 
-bool GlDeviceStages::HasBoundaryDecide(MeshEnergyKind energy) const {
-  return HasGpuBoundaryDecide(energy);
-}
-
 absl::StatusOr<OptimizeResult> GlDeviceStages::OptimizeBoundaryBased(
     const MeshProblem& problem, std::vector<ClusterId>& labels,
     const BoundaryBasedOptions& options) {

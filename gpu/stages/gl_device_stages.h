@@ -3,7 +3,6 @@
 #ifndef MLCLUST_GPU_STAGES_GL_DEVICE_STAGES_H_
 #define MLCLUST_GPU_STAGES_GL_DEVICE_STAGES_H_
 
-#include <string>
 #include <vector>
 
 #include "core/cluster/device_stages.h"
@@ -16,8 +15,6 @@ class GlDeviceStages : public DeviceStages {
  public:
   explicit GlDeviceStages(GlContext& context) : context_(context) {}
 
-  std::string name() const override { return context_.renderer(); }
-  bool HasBoundaryDecide(MeshEnergyKind energy) const override;
   absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(
       const MeshProblem& problem, std::vector<ClusterId>& labels,
       const BoundaryBasedOptions& options) override;
