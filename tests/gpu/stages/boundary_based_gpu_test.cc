@@ -144,6 +144,25 @@ TEST(OptimizeBoundaryBasedGpu, RefusesAnEnergyWithoutAGpuDecide) {
   EXPECT_EQ(labels, before);
 }
 
+// Buffers are sized from the stated bound: with storage buffers capped below the faces'
+// points (32 bytes per face) the run is RESOURCE_EXHAUSTED, named by pass, labels unchanged.
+TEST(OptimizeBoundaryBasedGpu, BuffersOverTheLimitAreResourceExhausted) {
+  const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
+  GlContextOptions options;
+  options.max_storage_buffer_bytes = 16 * static_cast<int64_t>(mesh.mesh.num_faces());
+  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
+  ASSERT_TRUE(small.ok()) << small.status();
+  EXPECT_GT(BoundaryDecideMemoryBound(mesh.mesh.num_faces(), 50),
+            static_cast<uint64_t>(options.max_storage_buffer_bytes));
+  const MeshProblem problem = mesh.problem();
+  std::vector<ClusterId> labels = Seeds(problem, 50);
+  const std::vector<ClusterId> before = labels;
+  absl::StatusOr<OptimizeResult> result = OptimizeBoundaryBasedGpu(**small, problem, labels);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'bb decide'"));
+  EXPECT_EQ(labels, before);
+}
+
 // A GL error injected into the decide pass (gpu/context/pass.h) is the run's error, named
 // by pass; the labels stay as they were; the context works again afterwards.
 TEST(OptimizeBoundaryBasedGpu, InjectedGlFailureIsACleanError) {
