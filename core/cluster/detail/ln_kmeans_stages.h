@@ -235,7 +235,7 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
 // only if its cluster, a neighbour of it or a neighbour's neighbour changed (its centroid
 // or its neighbour list). Fills result's energies, iterations, moves and converged (not
 // labels). CANCELLED once options.cancel is set (checked after each stage); the assign
-// stage's errors as they are. The device backends (gpu/stages/ln_kmeans_gpu.h) run it;
+// stage's errors as they are. The device backends (gpu/stages/point_stages_gpu.h) run it;
 // point_clustering.cc's LnKmeansIterations is the same loop with ChooseTargets in
 // slices (to be folded into this one).
 template <typename Assign>
@@ -244,6 +244,7 @@ absl::Status RunLnKmeansIterations(PointClusters& clusters, const LnKmeansOption
   const size_t m = clusters.labels().size();
   const uint32_t k = clusters.capacity();
   auto cancelled = [&](uint32_t iteration) {
+    if (!IsCancelled(options.cancel)) return absl::OkStatus();
     return CheckCancelled(options.cancel, absl::StrCat("LN k-means iteration ", iteration));
   };
   result.initial_energy = clusters.TotalEnergy();

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <random>
 
@@ -131,6 +132,22 @@ TEST(RunLloydGpu, EmptyClustersTakeTheFarthestPoints) {
   std::vector<int> sizes(3, 0);
   for (ClusterId c : gpu->labels) ++sizes[c.value()];
   for (int size : sizes) EXPECT_GT(size, 0);
+}
+
+TEST(RunLnKmeansGpu, CancelledRunsReturnCancelled) {
+  const PointSet points = Blobs(2000, 3, 10, 6);
+  const std::vector<ClusterId> seeds = Seeds(points, 12);
+  const std::atomic<bool> cancel{true};
+  LnKmeansOptions options;
+  options.cancel = &cancel;
+  EXPECT_EQ(RunLnKmeansGpu(Context(), points, seeds, options).status().code(),
+            absl::StatusCode::kCancelled);
+  KmeansOptions lloyd;
+  lloyd.cancel = &cancel;
+  absl::StatusOr<std::vector<float>> centres = RandomPointCentres(points, 12, 1);
+  ASSERT_TRUE(centres.ok());
+  EXPECT_EQ(RunLloydGpu(Context(), points, *centres, lloyd).status().code(),
+            absl::StatusCode::kCancelled);
 }
 
 TEST(RunLnKmeansGpu, InjectedGlFailureNamesThePass) {
