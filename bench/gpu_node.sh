@@ -13,6 +13,7 @@
 # Figures taken (GPU vs the CPU stage on $THREADS cores, default: all):
 #   BB decide per sweep and whole BB runs, CVD, k = 1000 and 10,000, on bunny00 and the
 #     1M-face armadillo_1m (scripts/fetch-bench-meshes.sh)       -> issue: >= 20x per sweep
+#   cluster sums of 10^6 elements of 5 doubles (the CVD face sums) against an fp64 loop
 #   LN k-means, 10M 3-D points, k = 10,000, seconds per iteration -> issue: >= 20x
 #   brute-force k-means (ours, GPU assignment) on the same points and k, per iteration, and
 #     the PyTorch peer (bench/peers/torch_kmeans.py: chunked cdist + argmin) where torch
@@ -57,6 +58,7 @@ for mesh in "${meshes[@]}"; do
     header=
   done
 done
+"$bench" sums --elements 1000000 --k "$point_k" --values 5 --header | tee -a "$out"
 run lnkmeans --points "$points" --k "$point_k" --header
 run kmeans --points "$kmeans_points" --k "$kmeans_k" --iterations 3 --header
 if /usr/bin/env python3 -c "import torch, sys; sys.exit(0 if torch.cuda.is_available() else 1)" 2>/dev/null; then

@@ -9,11 +9,15 @@
 //       M generated points around 1000 Gaussian blobs (seed 1); LN k-means (Alg. 6.1) from
 //       random seeds to convergence, brute-force Lloyd from k-means++ centres for I
 //       iterations (tolerance 0; seeding not timed): seconds per iteration on each.
+//   gpu_stages_bench sums --elements N --k K [--values D] [--repeats R]
+//       cluster sums of N random elements (D doubles each) over K clusters: GPU pass vs a
+//       plain fp64 loop on one core, best of R.
 //   --header prints the CSV header first.
 //
 // Every row names the GL renderer; on Mesa llvmpipe the GPU figures are a software
 // rasteriser on this machine's cores, not a GPU.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -28,6 +32,7 @@
 #include "core/energy/energies.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
+#include "gpu/kernels/cluster_sums.h"
 #include "gpu/stages/boundary_based_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
 
@@ -37,6 +42,7 @@ namespace {
 constexpr char kUsage[] =
     "usage: gpu_stages_bench bb MESH --k K [--energy cvd|planar] [--threads T] [--repeats R]\n"
     "       gpu_stages_bench lnkmeans|kmeans --points M --k K [--dims D] [--threads T]\n"
+    "       gpu_stages_bench sums --elements N --k K [--values D] [--repeats R]\n"
     "                        [--iterations I]\n"
     "       [--header]";
 
@@ -219,6 +225,42 @@ int RunPoints(gpu::GlContext& context, Args& args, bool header, bool ln) {
   return 0;
 }
 
+// Cluster sums of N elements of D random doubles over K clusters (random labels): the GPU
+// pass (host counting sort, uploads, two passes, read-back) against a plain fp64 loop.
+int RunSums(gpu::GlContext& context, Args& args, bool header) {
+  const uint32_t n = args.Get<uint32_t>("elements", 1000000);
+  const uint32_t k = args.Get<uint32_t>("k", 1000);
+  const uint32_t d = args.Get<uint32_t>("values", 5);
+  const int repeats = args.Get<int>("repeats", 5);
+  if (!args.Done()) return 2;
+  std::mt19937 random(1);
+  std::uniform_int_distribution<uint32_t> pick(0, k - 1);
+  std::uniform_real_distribution<double> value(-1, 1);
+  std::vector<uint32_t> labels(n);
+  std::vector<double> values(size_t{n} * d);
+  for (uint32_t& label : labels) label = pick(random);
+  for (double& v : values) v = value(random);
+  std::vector<double> cpu;
+  const double cpu_seconds = BestOf(repeats, [&] {
+    cpu = gpu::SumByClusterCpu(values, d, labels, k);
+    return true;
+  });
+  absl::StatusOr<std::vector<double>> gpu = gpu::SumByCluster(context, values, d, labels, k);
+  if (!gpu.ok()) Die("cluster sums", gpu.status());
+  const double gpu_seconds = BestOf(repeats, [&] {
+    gpu = gpu::SumByCluster(context, values, d, labels, k);
+    return gpu.ok();
+  });
+  double worst = 0;
+  for (size_t v = 0; v < cpu.size(); ++v) {
+    worst = std::max(worst, std::abs((*gpu)[v] - cpu[v]) / std::max(std::abs(cpu[v]), 1e-300));
+  }
+  if (header) std::printf("stage,elements,values,k,cpu_s,gpu_s,max_relative_difference,renderer\n");
+  std::printf("cluster-sums,%u,%u,%u,%.6f,%.6f,%.3g,\"%s\"\n", n, d, k, cpu_seconds, gpu_seconds,
+              worst, context.renderer().c_str());
+  return 0;
+}
+
 int Main(int argc, char** argv) {
   Args args(argc, argv, kUsage);
   const bool header = args.Flag("header");
@@ -226,6 +268,7 @@ int Main(int argc, char** argv) {
   absl::StatusOr<std::unique_ptr<gpu::GlContext>> context = gpu::GlContext::Create();
   if (!context.ok()) Die("GL context", context.status());
   if (mode == "bb") return RunBb(**context, args, header);
+  if (mode == "sums") return RunSums(**context, args, header);
   if (mode == "lnkmeans" || mode == "kmeans") {
     return RunPoints(**context, args, header, mode == "lnkmeans");
   }
