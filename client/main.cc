@@ -20,6 +20,7 @@
 #include "client/client.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/planar_merging.h"
 #include "core/cluster/registry.h"
 #include "core/coarsening/coarsening.h"
 #include "core/energy/energies.h"
@@ -28,11 +29,15 @@
 #include "core/io/points_io.h"
 #include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
+#include "core/mesh/repair.h"
 #include "google/protobuf/util/json_util.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
 #include "server/server.h"
+#ifdef MLCLUST_HAVE_PLOT
+#include "client/plot.h"
+#endif
 
 namespace mlclust::cli {
 namespace {
@@ -56,6 +61,34 @@ constexpr char kMeshUsage[] = R"(
       --coarse FILE    the coarse mesh of that level: one vertex per cluster, a triangle
                        where three clusters meet (format by extension: .ply, .obj, .off)
       --coarse-placement centroid|qem   where coarse vertices go (default centroid)
+                       A level that has no coarse mesh (small K: a cluster that is not a
+                       disc, too few clusters around a handle) ends with exit code 3, after
+                       the other outputs are written; the message names them and the
+                       nearest K whose level coarsens.
+      --planar-merge DEG  after a planar clustering (--energy planar, --algo vsa): merge
+                       neighbouring clusters whose normals (eq. 3.37) differ by less than
+                       DEG degrees, Delta_merging of section 3.3.2 (l. 1285, Fig. 3.17c:
+                       1); the smallest angle first, normals recomputed after each merge
+                       (ours: the text gives no order). --labels, --ply and --coarse get
+                       the merged clusters.
+      --repair         split non-manifold edges and vertices before sending (say what was
+                       changed); face ids stay the input's
+      --plot FILE.png  the energy of every level received against its clusters, elbows
+                       (section 4.4) marked
+      --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
+                       (default) keeps the face order by itself. edgebreaker carries a
+                       per-face id attribute, by which the server puts the faces back in
+                       the input's order (fandisk: 87,751 bytes lossless against 112,679;
+                       25,933 with --quantize 14): labels map back exactly and HC's levels
+                       are the same, but a face's corners may come back rotated and the
+                       vertices renumbered, which changes the order EMLO, BB and ML visit
+                       neighbours, so their results differ from a sequential upload's
+                       (equal quality, not equal labels). auto: edgebreaker where the mesh
+                       passes the server's checks (edgebreaker would drop degenerate faces
+                       and split non-manifold vertices unseen), else sequential
+      --quantize BITS  Draco position quantisation (0 = lossless float32, the default: the
+                       server's energies are those of the input; 11-14 make uploads several
+                       times smaller, at positions moved by up to 2^-BITS of the box)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -72,6 +105,9 @@ constexpr char kPointsUsage[] = R"(
       float32 (.f32/.bin/.raw, with --dims D). Hierarchies give every level from the
       voxel-grid start to one cluster; single-level algorithms one K.
       --auto-k bic writes the level with the highest BIC; --auto-k elbow the first elbow.
+      --plot FILE.png  the energy of every level against its clusters, elbows marked
+      --clusters K     single-level algorithms: K; bisecting: the top of its hierarchy;
+                       xmeans: k_min, and --labels writes the K it found
 )";
 
 constexpr char kEnergyUsage[] = R"(
@@ -201,7 +237,7 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help"};
+    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -446,7 +482,8 @@ class ProgressLine {
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
-                                              const std::string& payload, double* seconds) {
+                                              const std::string& payload, double* seconds,
+                                              v1::Accepted* accepted = nullptr) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
   if (args.has("server")) {
@@ -462,7 +499,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   }
   ProgressLine progress(!args.has("quiet"));
   client::RunOptions run_options;
-  run_options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
+  run_options.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
+    progress.Update(event);
+  };
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
@@ -499,7 +539,8 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
                         const std::string& element_name, size_t elements,
                         const AlgorithmInfo& algorithm, const v1::JobSpec& spec,
                         const HierarchyLog& log, double seconds, const v1::Done& done,
-                        std::optional<size_t> level, const std::string& auto_k) {
+                        std::optional<size_t> level, const std::string& auto_k,
+                        const std::set<std::string>& not_written = {}) {
   const EnergyInfo* energy = FindEnergyByWire(algorithm.input, spec.energy());
   const std::string energy_name = energy != nullptr ? energy->name : algorithm.energies[0];
   std::string json = absl::StrCat(
@@ -523,8 +564,8 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse"}) {
-    if (args.has(name))
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot"}) {
+    if (args.has(name) && !not_written.contains(name))
       outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
   }
   absl::StrAppend(&json, ", \"outputs\": {", absl::StrJoin(outputs, ", "), "}}");
@@ -544,7 +585,8 @@ absl::Status SetLevels(const Arguments& args, bool hierarchy, v1::JobSpec& spec)
       (!high_text.empty() && !absl::SimpleAtoi(high_text, &high)) ||
       (!low_text.empty() && !absl::SimpleAtoi(low_text, &low))) {
     return absl::InvalidArgumentError(
-        "--levels: give K_HI:K_LO (cluster counts) with --algo hc, ml or pml");
+        "--levels: give K_HI:K_LO (cluster counts) with a hierarchy (--algo hc, ml, pml or "
+        "bisecting)");
   }
   spec.set_levels_high(high);
   spec.set_levels_low(low);
@@ -588,6 +630,70 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+// Exit code of a mesh job whose other outputs were written but whose --coarse failed.
+constexpr int kExitCoarseFailed = 3;
+
+// --plot FILE.png: every level received (clusters, energy), the server's elbows marked.
+absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v1::Done& done,
+                       const std::string& title) {
+#ifdef MLCLUST_HAVE_PLOT
+  std::vector<client::EnergyCurvePoint> curve;
+  std::set<uint32_t> counts;
+  for (size_t l = 0; l < log.num_levels(); ++l) {
+    curve.push_back({log.cluster_count(l), log.energy(l)});
+    counts.insert(log.cluster_count(l));
+  }
+  client::EnergyPlotOptions options;
+  options.title = title;
+  // The server finds the elbows over every level it made; a level range may leave some out.
+  for (uint32_t k : done.elbow_cluster_counts()) {
+    if (counts.contains(k)) options.elbows.push_back(k);
+  }
+  absl::Status status = client::WriteEnergyPlotPng(curve, options, path);
+  if (!status.ok()) return absl::Status(status.code(), absl::StrCat("--plot: ", status.message()));
+  return absl::OkStatus();
+#else
+  (void)log;
+  (void)done;
+  (void)title;
+  return absl::UnimplementedError(absl::StrCat(
+      "--plot ", path, ": this mlclust was built without cairo (libcairo2-dev); no plot"));
+#endif
+}
+
+// The outputs given on the command line, as "--labels L.txt, --ply P.ply" (those in `names`).
+std::string OutputList(const Arguments& args, std::initializer_list<const char*> names) {
+  std::vector<std::string> given;
+  for (const char* name : names) {
+    if (args.has(name)) given.push_back(absl::StrCat("--", name, " ", args.get(name)));
+  }
+  return given.empty() ? "none" : absl::StrJoin(given, ", ");
+}
+
+// The level nearest to `level` (by cluster count; the larger count on a tie) whose labels
+// coarsen, among the levels of other counts, trying at most `max_tries`; nullopt if none.
+std::optional<uint32_t> NearestCoarsening(const HierarchyLog& log, size_t level,
+                                          const TriangleMesh& mesh, const FaceAdjacency& adjacency,
+                                          const CoarseningOptions& options, int max_tries) {
+  const int64_t k = log.cluster_count(level);
+  std::map<uint32_t, size_t> last_with;  // count -> the last level with it
+  for (size_t l = 0; l < log.num_levels(); ++l) last_with[log.cluster_count(l)] = l;
+  std::vector<std::pair<uint32_t, size_t>> candidates(last_with.begin(), last_with.end());
+  std::sort(candidates.begin(), candidates.end(), [k](const auto& a, const auto& b) {
+    const int64_t da = std::abs(static_cast<int64_t>(a.first) - k);
+    const int64_t db = std::abs(static_cast<int64_t>(b.first) - k);
+    return da != db ? da < db : a.first > b.first;
+  });
+  int tries = 0;
+  for (const auto& [count, candidate] : candidates) {
+    if (count == k) continue;
+    if (++tries > max_tries) break;
+    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(candidate);
+    if (labels.ok() && CoarsenMesh(mesh, adjacency, *labels, options).ok()) return count;
+  }
+  return std::nullopt;
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -624,6 +730,32 @@ int Mesh(const Arguments& args) {
   if (args.has("coarse") && *clusters == 0) {
     return Fail(absl::InvalidArgumentError("--coarse needs --clusters K (K >= 1)"));
   }
+  // --planar-merge DEG: a post-pass over the level written, for a planar clustering.
+  double planar_merge_degrees = -1;
+  if (args.has("planar-merge")) {
+    if (!absl::SimpleAtod(args.get("planar-merge"), &planar_merge_degrees) ||
+        !(planar_merge_degrees >= 0 && planar_merge_degrees <= 180)) {
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--planar-merge: '", args.get("planar-merge"), "' is not an angle in [0, 180] degrees")));
+    }
+    const EnergyInfo* energy = FindEnergyByWire(InputKind::kMesh, spec.energy());
+    const std::string energy_name = energy != nullptr ? energy->name : (*algorithm)->energies[0];
+    if (energy_name != "planar") {
+      return Fail(absl::InvalidArgumentError(
+          absl::StrCat("--planar-merge merges the clusters of a planar clustering (--energy "
+                       "planar, or --algo vsa); this job's energy is ",
+                       energy_name)));
+    }
+    if (*clusters == 0) {
+      return Fail(absl::InvalidArgumentError("--planar-merge needs --clusters K (K >= 1)"));
+    }
+  }
+  const std::string upload = args.get("upload", "sequential");
+  if (upload != "auto" && upload != "sequential" && upload != "edgebreaker") {
+    return Fail(absl::InvalidArgumentError("--upload must be auto, sequential or edgebreaker"));
+  }
+  absl::StatusOr<uint64_t> quantize = args.GetUint("quantize", 0, 30);
+  if (!quantize.ok()) return Fail(quantize.status());
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
 
@@ -635,13 +767,44 @@ int Mesh(const Arguments& args) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
   }
-  absl::StatusOr<std::string> payload = absl::EndsWithIgnoreCase(input_path, ".drc")
-                                            ? ReadFileBytes(input_path)
-                                            : EncodeMeshToDraco(*mesh);
+  // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
+  // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
+  std::optional<TriangleMesh> repaired;
+  if (args.has("repair")) {
+    absl::StatusOr<MeshRepairResult> repair = RepairNonManifold(*mesh);
+    if (!repair.ok()) {
+      return Fail(absl::Status(repair.status().code(),
+                               absl::StrCat("--repair: ", repair.status().message())));
+    }
+    std::fprintf(stderr, "mlclust: --repair: %s\n", repair->report.Summary().c_str());
+    if (repair->report.changed()) repaired = std::move(repair->mesh);
+  }
+  const TriangleMesh& sent = repaired.has_value() ? *repaired : *mesh;
+  // The upload: a .drc file as it is (unless repaired); otherwise Draco: sequential (the
+  // default: the server sees the mesh exactly as read), or edgebreaker with the per-face id
+  // attribute (--upload edgebreaker; auto: where the mesh passes the server's checks, so
+  // that sequential lets the server name what is wrong).
+  std::string upload_method = "file";
+  absl::StatusOr<std::string> payload;
+  if (absl::EndsWithIgnoreCase(input_path, ".drc") && !repaired.has_value()) {
+    payload = ReadFileBytes(input_path);
+  } else {
+    DracoEncodeOptions encode;
+    encode.position_quantization_bits = static_cast<int>(*quantize);
+    const bool edgebreaker =
+        upload == "edgebreaker" || (upload == "auto" && ValidateMesh(sent).ok());
+    if (edgebreaker) {
+      encode.method = DracoMethod::kEdgebreaker;
+      encode.write_face_ids = true;
+    }
+    upload_method = edgebreaker ? "edgebreaker+face-ids" : "sequential";
+    payload = EncodeMeshToDraco(sent, encode);
+  }
   if (!payload.ok()) return Fail(payload.status());
 
   double seconds = 0;
-  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds);
+  v1::Accepted accepted;
+  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds, &accepted);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != mesh->num_faces()) {
@@ -652,14 +815,42 @@ int Mesh(const Arguments& args) {
   if (args.has("levels-csv")) {
     if (absl::Status s = WriteLevelsCsv(args.get("levels-csv"), log); !s.ok()) return Fail(s);
   }
+  const EnergyInfo* job_energy = FindEnergyByWire(InputKind::kMesh, spec.energy());
+  const std::string energy_name =
+      job_energy != nullptr ? job_energy->name : (*algorithm)->energies[0];
+  if (args.has("plot")) {
+    if (absl::Status s =
+            WritePlot(args.get("plot"), log, result->done,
+                      absl::StrCat(input_path, ": ", algo, ", ", energy_name, " energy"));
+        !s.ok()) {
+      return Fail(s);
+    }
+  }
   std::string level_note;
   std::optional<size_t> chosen_level;
+  std::string coarse_error;
+  std::optional<uint32_t> coarse_nearest;
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
     absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
     if (!labels.ok()) return Fail(labels.status());
-    const std::vector<uint32_t> compact = client::CompactLabels(*labels);
+    std::vector<uint32_t> compact = client::CompactLabels(*labels);
+    std::string merge_note;
+    if (planar_merge_degrees >= 0) {
+      std::vector<ClusterId> level_ids(compact.begin(), compact.end());
+      PlanarMergingOptions merging;
+      merging.max_angle_degrees = planar_merge_degrees;
+      absl::StatusOr<PlanarMergingResult> merged = MergePlanarClusters(sent, level_ids, merging);
+      if (!merged.ok()) {
+        return Fail(absl::Status(merged.status().code(),
+                                 absl::StrCat("--planar-merge: ", merged.status().message())));
+      }
+      compact = client::CompactLabels(merged->labels);
+      merge_note =
+          absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
+                          planar_merge_degrees, merged->input_clusters, merged->output_clusters);
+    }
     if (args.has("labels")) {
       if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
     }
@@ -674,26 +865,63 @@ int Mesh(const Arguments& args) {
       CoarseningOptions options;
       options.placement = placement == "qem" ? CoarseningOptions::Placement::kQuadric
                                              : CoarseningOptions::Placement::kCentroid;
-      absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+      absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(sent);
       if (!adjacency.ok()) return Fail(adjacency.status());
-      absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(*mesh, *adjacency, ids, options);
-      if (!coarse.ok()) return Fail(coarse.status());
-      if (absl::Status s = WriteMeshFile(args.get("coarse"), *coarse); !s.ok()) return Fail(s);
+      absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(sent, *adjacency, ids, options);
+      if (coarse.status().code() == absl::StatusCode::kFailedPrecondition) {
+        // This level has no coarse mesh (small K): the other outputs stand; say which, and
+        // the nearest level that coarsens (among the levels received, without a merge).
+        coarse_error = std::string(coarse.status().message());
+        if (planar_merge_degrees < 0) {
+          coarse_nearest = NearestCoarsening(log, *level, sent, *adjacency, options, 32);
+        }
+      } else if (!coarse.ok()) {
+        return Fail(coarse.status());
+      } else if (absl::Status s = WriteMeshFile(args.get("coarse"), *coarse); !s.ok()) {
+        return Fail(s);
+      }
     }
-    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g", *level,
-                                 log.cluster_count(*level), log.energy(*level));
+    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g%s", *level,
+                                 log.cluster_count(*level), log.energy(*level), merge_note);
     chosen_level = *level;
   }
   if (args.has("json")) {
-    std::printf("%s\n", SummaryJson(args, input_path, "faces", mesh->num_faces(), **algorithm, spec,
-                                    log, seconds, result->done, chosen_level, "")
-                            .c_str());
-    return 0;
+    std::string json = SummaryJson(
+        args, input_path, "faces", mesh->num_faces(), **algorithm, spec, log, seconds, result->done,
+        chosen_level, "",
+        coarse_error.empty() ? std::set<std::string>{} : std::set<std::string>{"coarse"});
+    // The upload, and --coarse's failure (its file is then not among the outputs).
+    json.pop_back();
+    absl::StrAppend(&json, R"(, "upload": {"method": )", JsonString(upload_method),
+                    ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
+                    ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
+                    ", \"face_order\": ", JsonString(accepted.face_order()), "}");
+    if (!coarse_error.empty()) {
+      absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
+                      ", \"coarse_nearest_clusters\": ",
+                      coarse_nearest.has_value() ? absl::StrCat(*coarse_nearest) : "null");
+    }
+    std::printf("%s}\n", json.c_str());
+  } else {
+    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
+                input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
+                result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
+                level_note.c_str(), ElbowNote(result->done).c_str());
   }
-  std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
-              input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
-              result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-              level_note.c_str(), ElbowNote(result->done).c_str());
+  if (!coarse_error.empty()) {
+    std::fprintf(stderr,
+                 "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
+                 "  written: %s\n  %s\n",
+                 args.get("coarse").c_str(), coarse_error.c_str(),
+                 OutputList(args, {"labels", "levels-csv", "ply", "plot"}).c_str(),
+                 coarse_nearest.has_value()
+                     ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
+                                    " clusters: --clusters ", *coarse_nearest)
+                           .c_str()
+                     : (hierarchy ? "no level near it coarsens (32 tried): try a larger --clusters"
+                                  : "try a larger --clusters"));
+    return kExitCoarseFailed;
+  }
   return 0;
 }
 
@@ -717,16 +945,22 @@ int Points(const Arguments& args) {
     return Fail(absl::InvalidArgumentError("--auto-k must be bic or elbow"));
   }
   if (!auto_k.empty() && !hierarchy) {
-    return Fail(absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml or hc"));
+    return Fail(
+        absl::InvalidArgumentError("--auto-k needs a hierarchy: --algo ml, pml, hc or bisecting"));
   }
+  // Bisecting k-means: a hierarchy whose top, K, is --clusters. X-means: --clusters is k_min
+  // and the result (the last level) has the K it found.
+  const bool divisive = (*algorithm)->divisive;
+  const bool chooses_k = (*algorithm)->chooses_k;
   // LN k-means from the voxel grid: one cluster per occupied cell, no K.
   const bool grid_start = algo == "lnkmeans" && args.get("init", "") == "grid";
   if (grid_start && *clusters != 0) {
     return Fail(absl::InvalidArgumentError(
         "--clusters: --init grid starts from one cluster per occupied voxel (--grid A)"));
   }
-  if (!hierarchy && !grid_start && *clusters == 0) {
-    return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
+  if ((!hierarchy || divisive) && !grid_start && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--clusters: ", algo, " needs K >= 1", chooses_k ? " (k_min)" : "")));
   }
   if (args.has("labels") && *clusters == 0 && auto_k.empty() && !grid_start) {
     return Fail(absl::InvalidArgumentError("--labels needs --clusters K or --auto-k"));
@@ -750,7 +984,7 @@ int Points(const Arguments& args) {
   spec.set_label(input_path);
   spec.set_seed(*seed);
   spec.set_device(args.get("device", "auto"));
-  if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
+  if (!hierarchy || divisive) spec.set_clusters(static_cast<uint32_t>(*clusters));
   if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
   SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
@@ -765,6 +999,13 @@ int Points(const Arguments& args) {
   }
   if (args.has("levels-csv")) {
     if (absl::Status s = WriteLevelsCsv(args.get("levels-csv"), log); !s.ok()) return Fail(s);
+  }
+  if (args.has("plot")) {
+    if (absl::Status s = WritePlot(args.get("plot"), log, result->done,
+                                   absl::StrCat(input_path, ": ", algo, ", variance"));
+        !s.ok()) {
+      return Fail(s);
+    }
   }
   // The level to write: --clusters K, or the one --auto-k chooses.
   std::optional<size_t> level;
@@ -788,7 +1029,7 @@ int Points(const Arguments& args) {
     }
     chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
                           result->done.bic_first_decrease_cluster_count());
-  } else if (grid_start) {
+  } else if (grid_start || chooses_k) {
     level = log.num_levels() - 1;
   } else if (*clusters > 0) {
     absl::StatusOr<size_t> by_k = ChooseLevel(log, static_cast<uint32_t>(*clusters));
@@ -990,14 +1231,15 @@ const std::vector<Command>& Commands() {
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
          return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json"},
+                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
+                      "planar-merge", "repair", "plot", "upload", "quantize"},
                      RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },
        [] {
          return With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
-                      "auto-k", "levels", "quiet", "device", "json"},
+                      "auto-k", "levels", "quiet", "device", "json", "plot"},
                      RegistryOptionNames(InputKind::kPoints));
        },
        Points},

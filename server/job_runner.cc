@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
@@ -13,6 +15,7 @@
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/draco_codec.h"
+#include "core/io/draco_peek.h"
 #include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
@@ -54,6 +57,11 @@ class TeeSink : public LevelSink {
 // are sent: the sink follows the labels through the levels before it, and the first level
 // in range goes out as the snapshot. It also keeps every level's cluster count and energy
 // for the elbow of the summary.
+//
+// Progress: where `progress` is set, the sink reports how far the algorithm is (Progress
+// .fraction of its "cluster" stage) at most every kProgressEvery and at the end: for a
+// hierarchy the share of the merges (or, divisive, the splits undone) from level 0's count
+// to `target_clusters`; for a single-level algorithm 1 once the result arrives.
 class StreamingLevelSink : public LevelSink {
  public:
   StreamingLevelSink(EventChannel& events, uint32_t batch_triplets, uint32_t high = 0,
@@ -63,8 +71,19 @@ class StreamingLevelSink : public LevelSink {
         high_(high),
         low_(low) {}
 
+  // Reports fractions through `progress` (fraction, message); hierarchies run from level 0's
+  // count to `target_clusters`.
+  void ReportProgress(std::function<void(double, const std::string&)> progress, bool hierarchy,
+                      uint32_t target_clusters) {
+    progress_ = std::move(progress);
+    hierarchy_ = hierarchy;
+    target_clusters_ = target_clusters;
+  }
+
   absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
                        double energy) override {
+    start_clusters_ = cluster_count;
+    last_progress_ = absl::Now();
     curve_counts_.assign(1, cluster_count);
     curve_energies_.assign(1, energy);
     if (InRange(cluster_count)) return SendSnapshot(labels, 0, cluster_count, energy);
@@ -77,6 +96,7 @@ class StreamingLevelSink : public LevelSink {
     if (events_.cancelled()) return absl::CancelledError("the call was cancelled");
     curve_counts_.push_back(level.cluster_count);
     curve_energies_.push_back(level.energy);
+    MaybeReportProgress(level.cluster_count);
     if (!started_) {
       for (size_t i = 0; i < level.element.size(); ++i) {
         labels_[level.element[i]] = ClusterId(level.to_cluster[i]);
@@ -120,12 +140,39 @@ class StreamingLevelSink : public LevelSink {
   std::span<const uint32_t> curve_counts() const { return curve_counts_; }
   std::span<const double> curve_energies() const { return curve_energies_; }
 
+  // The engine may stop above the target (one cluster per connected component): the end.
+  void ReportProgressDone() {
+    if (!progress_ || reported_done_ || curve_counts_.empty()) return;
+    reported_done_ = true;
+    progress_(1, absl::StrCat(curve_counts_.size() - 1, " levels, ", curve_counts_.back(),
+                              " clusters: done"));
+  }
+
  private:
   static constexpr int kMaxLevelsPerBatch = 16384;
   static constexpr size_t kSnapshotLabels = size_t{1} << 20;
   static constexpr absl::Duration kMaxDelay = absl::Milliseconds(200);
+  static constexpr absl::Duration kProgressEvery = absl::Milliseconds(250);
 
   bool InRange(uint32_t count) const { return (high_ == 0 || count <= high_) && count >= low_; }
+
+  void MaybeReportProgress(uint32_t count) {
+    if (!progress_) return;
+    double fraction = 1;
+    if (hierarchy_) {
+      const double span = std::abs(static_cast<double>(start_clusters_) - target_clusters_);
+      fraction =
+          span == 0
+              ? 1
+              : std::clamp(std::abs(static_cast<double>(start_clusters_) - count) / span, 0.0, 1.0);
+    }
+    const absl::Time now = absl::Now();
+    if (fraction < 1 && now - last_progress_ < kProgressEvery) return;
+    if (fraction >= 1 && reported_done_) return;
+    reported_done_ = fraction >= 1;
+    last_progress_ = now;
+    progress_(fraction, absl::StrCat(curve_counts_.size() - 1, " levels, ", count, " clusters"));
+  }
 
   // The labels in pieces of kSnapshotLabels, so no message outgrows the limits.
   absl::Status SendSnapshot(std::span<const ClusterId> labels, uint32_t level,
@@ -166,14 +213,22 @@ class StreamingLevelSink : public LevelSink {
   uint32_t levels_sent_ = 0;
   uint64_t triplets_sent_ = 0;
   absl::Time last_flush_;
+  std::function<void(double, const std::string&)> progress_;
+  bool hierarchy_ = false;
+  uint32_t target_clusters_ = 1;
+  uint32_t start_clusters_ = 0;
+  bool reported_done_ = false;
+  absl::Time last_progress_;
 };
 
+// Progress.fraction: how far the stage is, 0 at its start (and where not known), 1 at its end.
 void EmitProgress(EventChannel& events, const std::string& stage, const std::string& message,
-                  const std::string& device) {
+                  const std::string& device, double fraction = 0) {
   v1::JobEvent event;
   event.mutable_progress()->set_stage(stage);
   event.mutable_progress()->set_message(message);
   event.mutable_progress()->set_device(device);
+  event.mutable_progress()->set_fraction(fraction);
   events.Emit(std::move(event));
 }
 
@@ -221,13 +276,27 @@ RunContext MakeRunContext(const Job& job, const DeviceCaps& caps, DeviceStages* 
   return run;
 }
 
-StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunnerContext& context) {
+StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunnerContext& context,
+                            const DeviceCaps& caps) {
   const v1::JobSpec& spec = job.spec;
   const bool hierarchy = plan.algorithm->hierarchy;
-  return StreamingLevelSink(
+  StreamingLevelSink sink(
       *job.events,
       spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
       hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+  // The hierarchy's far end: one cluster for a divisive one, else the lowest count asked for
+  // (the engine may stop above it: one cluster per connected component).
+  const uint32_t target =
+      plan.algorithm->divisive ? 1 : std::max<uint32_t>({1, spec.clusters(), spec.levels_low()});
+  const StagePlan* cluster = FindStage(plan, "cluster");
+  const std::string device = cluster != nullptr ? StageDeviceName(*cluster, caps) : "cpu";
+  EventChannel* events = job.events.get();
+  sink.ReportProgress(
+      [events, device](double fraction, const std::string& message) {
+        EmitProgress(*events, "cluster", message, device, fraction);
+      },
+      hierarchy, target);
+  return sink;
 }
 
 void AddElbows(const StreamingLevelSink& sink, v1::Done& done) {
@@ -240,28 +309,34 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
                                       const JobRunnerContext& context, DeviceStages* devices) {
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
-  EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu");
+  EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu", 0);
   const StagePlan* measures_stage = FindStage(plan, "measures");
   const bool gpu_measures =
       measures_stage != nullptr && measures_stage->device == StageDevice::kGpu;
   std::string device_used = "cpu";
   PreparedMesh prepared;
   if (!gpu_measures) {
-    // The one set-up path (core/io/prepare_mesh.h): decode, validate, adjacency, measures.
+    // Decode (faces in the client's order where the payload carries face ids), then the one
+    // set-up path (core/mesh/prepared_mesh.h): validate, adjacency, measures.
     PrepareMeshOptions options;
     options.cancel = job.cancel_flag();
-    absl::StatusOr<PreparedMesh> ready = PrepareDracoMesh(job.input, options);
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
+    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
+    std::string().swap(job.input);  // the bytes are no longer needed
+    const bool face_ids = decoded->has_face_ids;
+    absl::StatusOr<PreparedMesh> ready = PrepareMesh(std::move(decoded->mesh), options);
     if (!ready.ok()) return WithContext(ready.status(), "input mesh");
     prepared = *std::move(ready);
-    std::string().swap(job.input);  // the bytes are no longer needed
     EmitProgress(events, "measures",
                  absl::StrCat(prepared.mesh.num_faces(), " faces, ", prepared.mesh.num_vertices(),
-                              " vertices"),
-                 "cpu");
+                              " vertices; ",
+                              face_ids ? "faces put back in order by the face id attribute"
+                                       : "faces in the decoded order"),
+                 "cpu", 1);
   } else {
     // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
     // steps are spelled out here.
-    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);
+    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);  // face ids as above
     if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
     std::string().swap(job.input);
     if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
@@ -269,7 +344,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
     }
     EmitProgress(events, "measures",
                  absl::StrCat(mesh->num_faces(), " faces, ", mesh->num_vertices(), " vertices"),
-                 StageDeviceName(*measures_stage, caps));
+                 StageDeviceName(*measures_stage, caps), 0);
     absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
     if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
     absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
@@ -284,7 +359,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
         "clusters: ", plan.clusters, " is more than the mesh's ", num_faces, " faces"));
   }
 
-  StreamingLevelSink sink = MakeSink(job, plan, context);
+  StreamingLevelSink sink = MakeSink(job, plan, context, caps);
   const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
                             plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
@@ -297,6 +372,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
                      " clusters (one per connected component at the least)"));
   }
   MLCLUST_RETURN_IF_ERROR(sink.Flush());
+  sink.ReportProgressDone();
   JobOutcome outcome;
   const StagePlan* cluster_stage = FindStage(plan, "cluster");
   if (cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu) {
@@ -331,7 +407,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", plan.clusters, " is more than the ", points.num_points(), " points"));
   }
-  StreamingLevelSink sink = MakeSink(job, plan, context);
+  StreamingLevelSink sink = MakeSink(job, plan, context, caps);
   JobOutcome outcome;
   const StagePlan* cluster_stage = FindStage(plan, "cluster");
   outcome.done.set_device(cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu
@@ -352,6 +428,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
                        " voxel clusters (option grid) and ends at ", summary->final_clusters));
     }
     MLCLUST_RETURN_IF_ERROR(sink.Flush());
+    sink.ReportProgressDone();
     outcome.done.set_final_clusters(summary->final_clusters);
     AddElbows(sink, outcome.done);
     absl::StatusOr<BicChoice> choice = ChooseByBic(bic.levels(), bic.num_points(), d);
@@ -363,6 +440,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     absl::StatusOr<RunSummary> summary = plan.algorithm->run_points(points, plan, sink, run);
     if (!summary.ok()) return summary.status();
     MLCLUST_RETURN_IF_ERROR(sink.Flush());
+    sink.ReportProgressDone();
     outcome.done.set_final_clusters(summary->final_clusters);
   }
   outcome.done.set_levels(sink.levels_sent());
@@ -371,6 +449,14 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
 }
 
 }  // namespace
+
+void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted& accepted) {
+  if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return;
+  const DracoPayloadFacts facts = PeekDracoPayload(input);
+  accepted.set_face_ids(facts.names_face_ids);
+  accepted.set_face_order(DescribeFaceOrder(facts));
+  accepted.set_draco_method(facts.method);
+}
 
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
   const v1::InputKind kind = job.spec.input_kind();

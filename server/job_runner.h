@@ -35,6 +35,10 @@ struct JobOutcome {
 // and algorithms this server does not run, CANCELLED if the call went away.
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context);
 
+// Fills Accepted's description of the input (face_ids, face_order, draco_method) from
+// `input`'s Draco header and metadata, without decoding it; nothing for points.
+void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted& accepted);
+
 }  // namespace mlclust::server
 
 #endif  // MLCLUST_SERVER_JOB_RUNNER_H_

@@ -470,12 +470,15 @@ void RunCall::Submit() {
   }
   job->queued_bytes = bytes;
   job_ = job;
+  v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
+  DescribeInput(job->spec, job->input, described);
   std::shared_ptr<Job> queued = job;
   // The Accepted event is queued while the queue's lock is held, so it is always the
   // first event even if a worker picks the job up at once.
   absl::StatusOr<size_t> ahead = service_->queue().Push(
       std::move(queued), static_cast<unsigned>(job->lane), [&](size_t jobs_ahead) {
         v1::JobEvent event;
+        *event.mutable_accepted() = described;
         event.mutable_accepted()->set_job_id(id);
         event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
         event.mutable_accepted()->set_input_bytes(bytes);

@@ -17,7 +17,8 @@ namespace mlclust::server {
 
 static_assert(v1::ALGORITHM_HC == 1 && v1::ALGORITHM_ML == 2 && v1::ALGORITHM_PML == 3 &&
               v1::ALGORITHM_EMLO == 4 && v1::ALGORITHM_BB == 5 && v1::ALGORITHM_VSA == 6 &&
-              v1::ALGORITHM_LN_KMEANS == 7 && v1::ALGORITHM_KMEANS == 8);
+              v1::ALGORITHM_LN_KMEANS == 7 && v1::ALGORITHM_KMEANS == 8 &&
+              v1::ALGORITHM_XMEANS == 9 && v1::ALGORITHM_BISECTING == 10);
 
 // The enum value's name, or its number where this build does not know it ("algorithm 99").
 inline std::string WireAlgorithmName(int value) {

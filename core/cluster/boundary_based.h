@@ -18,18 +18,23 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "absl/functional/function_ref.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/ids.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/partition.h"
+#include "core/energy/energies.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/mesh.h"
 
@@ -122,14 +127,26 @@ class CpuBoundaryDecider {
 struct ConflictScratch {
   std::vector<uint32_t> proposed;
   std::vector<uint8_t> accept;
+  std::vector<uint8_t> allowed;  // per face: proposes a move the guard allows
 };
 
 // Stage 3, the one conflict rule: the faces whose proposed move (target[f] != kNoMove)
-// applies this sweep, in increasing face order, into `accepted`. A proposal is dropped if
-// a face with a smaller id that shares a vertex with it (its ring in `guard`) also
-// proposes a move — so no two accepted faces touch, and each accepted move's connectivity
-// check below stays valid when all are applied — or, with `check_connectivity`, if
-// guard.CanMove refuses it against the sweep's starting labels and sizes.
+// applies this sweep, in increasing face order, into `accepted`. First the connectivity
+// check `allowed(face, to)` (asked against the sweep's starting state, in parallel, so it
+// must be safe to call concurrently) drops the proposals it refuses; then, of the
+// proposals left, one is dropped if a face with a smaller id that shares a vertex with it
+// (its ring in `rings`) is also left. So no two accepted faces touch, and each accepted
+// move's check stays valid when all are applied. A refused proposal does not block the
+// faces around it: when it did, the same refused face blocked its neighbours again in
+// every sweep, and BB stopped at K = 2000 on bunny about 30 % above EMLO (BENCHMARKS.md,
+// "BB against EMLO: why the guard cost 30 %").
+void ResolveConflicts(const ConnectivityGuard& rings,
+                      absl::FunctionRef<bool(uint32_t face, uint32_t to)> allowed,
+                      std::span<const uint32_t> target, const StageThreads& threads,
+                      ConflictScratch& scratch, std::vector<uint32_t>& accepted);
+
+// The same with `guard`'s ring test against `labels` and `sizes` as the check (none
+// without `check_connectivity`).
 void ResolveConflicts(const ConnectivityGuard& guard, bool check_connectivity,
                       std::span<const uint32_t> labels, std::span<const uint32_t> sizes,
                       std::span<const uint32_t> target, const StageThreads& threads,
@@ -163,14 +180,38 @@ void UndoMoves(Partition<Energy>& partition, std::span<const AppliedMove> applie
 // The sweeps of Alg. 5.1 over `partition` with the decide stage `decide` (the shape of
 // CpuBoundaryDecider::operator()): fit, decide, resolve, apply until nothing moves, a sweep
 // would raise the energy (it is undone; possible only for MWCVD, whose weights are not
-// fitted) or options.max_iterations sweeps. Checks options.cancel before every stage.
-// Returns the decide stage's error, CANCELLED, or the result; on an error the partition is
-// valid but not converged.
+// fitted) or options.max_iterations sweeps. The check is options.guard (none without
+// options.connectivity_guard): `guard`'s ring test, or Alg. 3.2 with `counts`, which must
+// then be non-null and is Reset to the partition's labels here and kept up to date.
+// Checks options.cancel before every stage. Returns the decide stage's error, CANCELLED,
+// INVALID_ARGUMENT (Alg. 3.2 asked for without counts), or the result; on an error the
+// partition is valid but not converged.
 template <typename Energy, typename Decide>
 absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
+                                                VertexBoundaryEdgeCountGuard* counts,
                                                 Partition<Energy>& partition,
                                                 const BoundaryBasedOptions& options,
                                                 const StageThreads& threads, Decide&& decide) {
+  const ConnectivityGuardKind kind =
+      options.connectivity_guard ? options.guard : ConnectivityGuardKind::kOff;
+  if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    if (counts == nullptr) {
+      return absl::InvalidArgumentError(
+          "guard: Alg. 3.2's vertex boundary-edge counts were not given to BB");
+    }
+    counts->Reset(partition.labels());
+  }
+  auto allowed = [&](uint32_t face, uint32_t to) {
+    switch (kind) {
+      case ConnectivityGuardKind::kRingTest:
+        return guard.CanMove(face, to, partition.labels(), partition.sizes());
+      case ConnectivityGuardKind::kVertexBoundaryEdgeCount:
+        return counts->CanMove(face, to, partition.labels(), partition.sizes());
+      case ConnectivityGuardKind::kOff:
+        break;
+    }
+    return true;
+  };
   const size_t n = partition.labels().size();
   OptimizeResult result;
   result.initial_energy = partition.TotalEnergy();
@@ -189,9 +230,13 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
                                    std::span<const typename Energy::Proxy>(proxies),
                                    std::span<uint32_t>(target)));
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB resolve conflicts"));
-    ResolveConflicts(guard, options.connectivity_guard, partition.labels(), partition.sizes(),
-                     target, threads, scratch, accepted);
+    ResolveConflicts(guard, allowed, target, threads, scratch, accepted);
     ApplyMoves(partition, accepted, target, applied);
+    if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      for (const AppliedMove& move : applied) {
+        counts->OnMove(move.face, move.from, partition.labels());
+      }
+    }
     result.iterations = iteration;
     if (applied.empty()) {
       result.converged = true;
@@ -200,6 +245,9 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
     const double next = partition.TotalEnergy();
     if (next > current) {
       UndoMoves(partition, std::span<const AppliedMove>(applied));
+      if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+        counts->Reset(partition.labels());
+      }
       result.converged = true;
       break;
     }
@@ -209,6 +257,66 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
   }
   result.energy = partition.TotalEnergy();
   return result;
+}
+
+// The same without Alg. 3.2's counts (options.guard must not ask for them).
+template <typename Energy, typename Decide>
+absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
+                                                Partition<Energy>& partition,
+                                                const BoundaryBasedOptions& options,
+                                                const StageThreads& threads, Decide&& decide) {
+  return RunBoundaryBased(guard, nullptr, partition, options, threads,
+                          std::forward<Decide>(decide));
+}
+
+// The whole of OptimizeBoundaryBased (mesh_clustering.h) with the decide stage that
+// `make_decide(energy, num_clusters, threads)` builds for the problem's energy (clusters
+// renumbered 0..num_clusters-1 by first appearance): it returns an
+// absl::StatusOr of a decide stage (CpuBoundaryDecider, or a device's). The same checks,
+// compact labels, partition, guards and sweeps, so a device backend replaces the decide
+// stage and nothing else (gpu/stages/boundary_based_gpu.cc). On an error `labels` are
+// unchanged.
+template <typename MakeDecide>
+absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedWith(const MeshProblem& problem,
+                                                         std::vector<ClusterId>& labels,
+                                                         const BoundaryBasedOptions& options,
+                                                         MakeDecide&& make_decide) {
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  if (labels.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  const Renumbering<ClusterId> renumbered =
+      RenumberByFirstAppearance(std::span<const ClusterId>(labels));
+  const uint32_t k = renumbered.size();
+  const StageThreads threads(options.threads);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+  auto run = [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+    using Energy = std::decay_t<decltype(energy)>;
+    Partition<Energy> partition(energy, renumbered.dense, k);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const ConnectivityGuard guard,
+        ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
+    auto decide = make_decide(energy, k, threads);
+    if (!decide.ok()) return decide.status();
+    // The ring structure always: the conflict rule reads it whatever the guard.
+    std::optional<VertexBoundaryEdgeCountGuard> counts;
+    if (options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      counts.emplace(*problem.mesh, *problem.adjacency);
+    }
+    MLCLUST_ASSIGN_OR_RETURN(OptimizeResult result,
+                             RunBoundaryBased(guard, counts.has_value() ? &*counts : nullptr,
+                                              partition, options, threads, *decide));
+    const std::span<const uint32_t> compact = partition.labels();
+    for (size_t f = 0; f < n; ++f) labels[f] = renumbered.original[compact[f]];
+    return result;
+  };
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, run);
 }
 
 }  // namespace mlclust::boundary_based

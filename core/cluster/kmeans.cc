@@ -722,6 +722,11 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
     // was already taken out at its own position: no correction for it.
     result.inertia = std::max(0.0, energy - correction);
     result.iterations = iteration;
+    if (first && options.keep_first_assignment) {
+      result.first_labels.resize(m);
+      for (size_t i = 0; i < m; ++i) result.first_labels[i] = ClusterId(labels[i]);
+      result.first_inertia = result.inertia;
+    }
     if (options.on_iteration) options.on_iteration(iteration, result.inertia);
     if ((!first && moves == 0) || shift <= tolerance) {
       result.converged = true;

@@ -53,6 +53,12 @@ struct KmeansOptions {
   // (KmeansResult::inertia of a run stopped there). Never increases from one call to the
   // next, up to rounding (about 1e-15 relative).
   std::function<void(uint32_t iteration, double inertia)> on_iteration;
+  // With it, KmeansResult::first_labels and first_inertia keep the partition of the first
+  // iteration: every point at its nearest initial centre (empty clusters filled as below),
+  // exactly what a run with max_iterations = 1 returns as labels and inertia. A caller
+  // that reports the seeding as a level of its own so needs no second run of that
+  // iteration. Costs one copy of the labels.
+  bool keep_first_assignment = false;
   // Checked before each k-means++ centre and by every block of points in each iteration
   // (core/base/cancel.h); a set flag returns CANCELLED.
   const std::atomic<bool>* cancel = nullptr;
@@ -70,6 +76,10 @@ struct KmeansResult {
   bool converged = false;   // stopped by the tolerance or at a fixed point
   double seconds_init = 0;  // seeding (0 for RunLloyd)
   double seconds_iterations = 0;
+  // With KmeansOptions::keep_first_assignment: the labels and inertia after the first
+  // iteration (see there); empty and 0 otherwise.
+  std::vector<ClusterId> first_labels;
+  double first_inertia = 0;
 };
 
 // Seeds (options.init) and runs Lloyd (RunLloyd) on `points`.

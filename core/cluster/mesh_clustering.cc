@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <numeric>
+#include <optional>
 #include <queue>
 
 #include "absl/strings/str_cat.h"
@@ -72,14 +73,73 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& a
   return labels;
 }
 
+// The initial cluster grow of l. 671 and l. 1219: no energy; in rounds, every cluster in
+// seed order takes the free faces across its boundary (the faces it took last round are
+// its boundary's inner side). Empty if `cancel` was seen set.
+std::vector<uint32_t> GrowEnergyFree(const FaceAdjacency& adjacency,
+                                     std::span<const uint32_t> seeds,
+                                     const std::atomic<bool>* cancel) {
+  std::vector<uint32_t> labels(adjacency.num_faces(), kUnassigned);
+  std::vector<std::vector<uint32_t>> frontier(seeds.size());
+  for (uint32_t c = 0; c < seeds.size(); ++c) {
+    labels[seeds[c]] = c;
+    frontier[c].push_back(seeds[c]);
+  }
+  std::vector<uint32_t> taken;
+  uint32_t until_cancel_check = kFacesPerCancelCheck;
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (uint32_t c = 0; c < seeds.size(); ++c) {
+      taken.clear();
+      for (uint32_t f : frontier[c]) {
+        for (FaceId g : adjacency.neighbours[f]) {
+          if (!g.valid() || labels[g.value()] != kUnassigned) continue;
+          labels[g.value()] = c;
+          taken.push_back(g.value());
+          if (--until_cancel_check == 0) {
+            until_cancel_check = kFacesPerCancelCheck;
+            if (IsCancelled(cancel)) return {};
+          }
+        }
+      }
+      frontier[c].swap(taken);
+      grew = grew || !frontier[c].empty();
+    }
+  }
+  return labels;
+}
+
+// Grows `seeds` as `growth` says. The flood of the CVD family goes by distance (each
+// seed's centroid): geodesic Voronoi regions are compact discs, which the connectivity
+// guard then keeps and coarsening needs. The planar and sphere energies flood by their
+// own proxies, as VSA does: regions follow the shape's faces, and a feature may
+// legitimately sit inside another region. Empty if `cancel` was seen set.
+std::vector<uint32_t> Grow(const MeshProblem& problem, std::span<const uint32_t> seeds,
+                           SeedOptions::Growth growth, const std::atomic<bool>* cancel) {
+  if (growth == SeedOptions::Growth::kEnergyFree) {
+    return GrowEnergyFree(*problem.adjacency, seeds, cancel);
+  }
+  if (problem.energy.kind == MeshEnergyKind::kPlanar) {
+    return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                          [&](const auto& energy) {
+                            return GrowFromSeeds(energy, *problem.adjacency, seeds, cancel);
+                          });
+  }
+  return GrowFromSeeds(CvdEnergy(*problem.measures), *problem.adjacency, seeds, cancel);
+}
+
 // Section 3.1.5: merge the three clusters meeting at a vertex with the smallest summed
 // area until `target` clusters are left (a pair across an edge for the last step when the
-// parity needs it). Returns labels renumbered 0..target-1.
+// parity needs it). Returns labels renumbered 0..target-1. With `seed_faces` (in: the seed
+// face of each of the `clusters` clusters) also the seed of each cluster left, in the new
+// numbering: l. 849's "the seed's new position is assigned to the common vertex of the
+// three original clusters" (the first face around that vertex; for a pair, the face whose
+// edge joined them).
 // Empty if `cancel` was seen set.
 std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                 const FaceMeasures& measures, std::vector<uint32_t> labels,
-                                uint32_t clusters, uint32_t target,
-                                const std::atomic<bool>* cancel) {
+                                uint32_t clusters, uint32_t target, const std::atomic<bool>* cancel,
+                                std::vector<uint32_t>* seed_faces = nullptr) {
   std::vector<uint32_t> parent(clusters);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](uint32_t c) {
@@ -140,6 +200,7 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
     }
     uint32_t keep = merge_into(around[0], around[1]);
     keep = merge_into(keep, around[2]);
+    if (seed_faces != nullptr) (*seed_faces)[keep] = table.faces_around(v)[0];
     count -= 2;
     for (uint32_t f : members[keep]) {
       for (int c = 0; c < 3; ++c) consider(mesh.indices[3 * size_t{f} + c]);
@@ -149,7 +210,7 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
   while (count > target) {
     if (IsCancelled(cancel)) return {};  // each step scans every face
     double best = std::numeric_limits<double>::infinity();
-    uint32_t best_a = 0, best_b = 0;
+    uint32_t best_a = 0, best_b = 0, best_face = 0;
     for (uint32_t f = 0; f < labels.size(); ++f) {
       for (FaceId g : adjacency.neighbours[f]) {
         if (!g.valid()) continue;
@@ -158,15 +219,102 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
           best = area[a] + area[b];
           best_a = a;
           best_b = b;
+          best_face = f;
         }
       }
     }
     if (best == std::numeric_limits<double>::infinity()) break;
-    merge_into(best_a, best_b);
+    const uint32_t keep = merge_into(best_a, best_b);
+    if (seed_faces != nullptr) (*seed_faces)[keep] = best_face;
     --count;
   }
   for (uint32_t& l : labels) l = find(l);
-  return RenumberByFirstAppearance(std::span<const uint32_t>(labels)).dense;
+  Renumbering<uint32_t> renumbered = RenumberByFirstAppearance(std::span<const uint32_t>(labels));
+  if (seed_faces != nullptr) {
+    std::vector<uint32_t> kept(renumbered.size());
+    for (uint32_t c = 0; c < renumbered.size(); ++c)
+      kept[c] = (*seed_faces)[renumbered.original[c]];
+    seed_faces->swap(kept);
+  }
+  return std::move(renumbered.dense);
+}
+
+// l. 849's seed-adding variant: from `seeds` (fewer than `target`), grow; add seeds at
+// the vertices where three clusters meet, largest summed area first, each cluster taking
+// part in one new seed per round; grow again; until `target` seeds. A round that finds no
+// such vertex adds one seed in the largest cluster, at the face farthest in edge steps
+// from its seed. Returns the final growth's labels; empty if `cancel` was seen set.
+std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<uint32_t> seeds,
+                                      uint32_t target, SeedOptions::Growth growth,
+                                      const std::atomic<bool>* cancel) {
+  const TriangleMesh& mesh = *problem.mesh;
+  const FaceAdjacency& adjacency = *problem.adjacency;
+  const VertexFaceTable table = BuildVertexFaceTable(mesh);
+  std::vector<uint8_t> is_seed(adjacency.num_faces(), 0);
+  for (uint32_t f : seeds) is_seed[f] = 1;
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  while (!labels.empty() && seeds.size() < target) {
+    const uint32_t clusters = static_cast<uint32_t>(seeds.size());
+    std::vector<double> area(clusters, 0.0);
+    for (uint32_t f = 0; f < labels.size(); ++f) area[labels[f]] += problem.measures->area[f];
+    struct Candidate {
+      double area;
+      uint32_t vertex;
+      uint32_t clusters[3];
+    };
+    std::vector<Candidate> candidates;
+    for (uint32_t v = 0; v < mesh.num_vertices(); ++v) {
+      uint32_t around[4];
+      int count = 0;
+      for (uint32_t face : table.faces_around(v)) {
+        if (count == 4) break;
+        if (std::find(around, around + count, labels[face]) == around + count) {
+          around[count++] = labels[face];
+        }
+      }
+      if (count != 3) continue;
+      candidates.push_back({area[around[0]] + area[around[1]] + area[around[2]],
+                            v,
+                            {around[0], around[1], around[2]}});
+    }
+    if (IsCancelled(cancel)) return {};
+    std::stable_sort(candidates.begin(), candidates.end(),
+                     [](const Candidate& a, const Candidate& b) { return a.area > b.area; });
+    std::vector<uint8_t> used(clusters, 0);
+    for (const Candidate& candidate : candidates) {
+      if (seeds.size() == target) break;
+      const uint32_t* c = candidate.clusters;
+      if (used[c[0]] || used[c[1]] || used[c[2]]) continue;
+      for (uint32_t face : table.faces_around(candidate.vertex)) {
+        if (is_seed[face]) continue;
+        is_seed[face] = 1;
+        seeds.push_back(face);
+        used[c[0]] = used[c[1]] = used[c[2]] = 1;
+        break;
+      }
+    }
+    if (seeds.size() == clusters) {
+      // No vertex joins three clusters: the largest cluster's face farthest from its seed.
+      const uint32_t largest =
+          static_cast<uint32_t>(std::max_element(area.begin(), area.end()) - area.begin());
+      std::vector<uint32_t> queue = {seeds[largest]};
+      std::vector<uint8_t> seen(adjacency.num_faces(), 0);
+      seen[seeds[largest]] = 1;
+      for (size_t i = 0; i < queue.size(); ++i) {
+        for (FaceId g : adjacency.neighbours[queue[i]]) {
+          if (g.valid() && !seen[g.value()] && labels[g.value()] == largest) {
+            seen[g.value()] = 1;
+            queue.push_back(g.value());
+          }
+        }
+      }
+      if (is_seed[queue.back()]) break;  // a one-face cluster: nothing to add (k <= faces)
+      is_seed[queue.back()] = 1;
+      seeds.push_back(queue.back());
+    }
+    labels = Grow(problem, seeds, growth, cancel);
+  }
+  return labels;
 }
 
 std::vector<ClusterId> ToClusterIds(std::span<const uint32_t> labels) {
@@ -315,30 +463,55 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
       level = good;
     }
     if (!LNeighbourhoodSeeds(adjacency, level, options.cancel, seeds)) return cancelled();
-    if (seeds.size() < k) {
+    if (seeds.size() < k && !options.add_seeds) {
       return absl::InvalidArgumentError(absl::StrCat(
           "level: l = ", level, " gives only ", seeds.size(), " seeds, fewer than the ", k,
-          " clusters asked for; use a smaller level (or 0 to choose it)"));
+          " clusters asked for; use a smaller level (or 0 to choose it), or add-seeds"));
     }
   }
-  // The CVD family grows by distance (each seed's centroid): geodesic Voronoi regions are
-  // compact discs, which the connectivity guard then keeps and coarsening needs. The
-  // planar and sphere energies grow by their own proxies, as VSA does: regions follow
-  // the shape's faces, and a feature may legitimately sit inside another region.
   std::vector<uint32_t> labels;
-  if (problem.energy.kind == MeshEnergyKind::kPlanar) {
-    labels =
-        WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, [&](const auto& energy) {
-          return GrowFromSeeds(energy, adjacency, seeds, options.cancel);
-        });
-  } else {
-    labels = GrowFromSeeds(CvdEnergy(*problem.measures), adjacency, seeds, options.cancel);
-  }
-  if (labels.empty()) return cancelled();
-  if (seeds.size() > k) {
-    labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
-                       static_cast<uint32_t>(seeds.size()), k, options.cancel);
+  if (seeds.size() < k) {
+    labels = AddSeedsAndGrow(problem, std::move(seeds), k, options.growth, options.cancel);
     if (labels.empty()) return cancelled();
+  } else {
+    labels = Grow(problem, seeds, options.growth, options.cancel);
+    if (labels.empty()) return cancelled();
+    if (seeds.size() > k) {
+      const bool reseed = options.reduction == SeedOptions::Reduction::kReseedAndRegrow;
+      labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
+                         static_cast<uint32_t>(seeds.size()), k, options.cancel,
+                         reseed ? &seeds : nullptr);
+      if (labels.empty()) return cancelled();
+      if (reseed) {
+        labels = Grow(problem, seeds, options.growth, options.cancel);
+        if (labels.empty()) return cancelled();
+      }
+    }
+  }
+  return ToClusterIds(labels);
+}
+
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
+                                                             std::span<const uint32_t> seeds,
+                                                             SeedOptions::Growth growth,
+                                                             const std::atomic<bool>* cancel) {
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  std::vector<uint8_t> is_seed(n, 0);
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    if (seeds[i] >= n || is_seed[seeds[i]]) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range or repeated"));
+    }
+    is_seed[seeds[i]] = 1;
+  }
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  if (labels.empty() && n != 0) return absl::CancelledError("cancelled while growing seeds");
+  for (uint32_t f = 0; f < n; ++f) {
+    if (labels[f] == kUnassigned) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("seeds: face ", f, "'s connected component has no seed"));
+    }
   }
   return ToClusterIds(labels);
 }
@@ -364,9 +537,20 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
         using Energy = std::decay_t<decltype(energy)>;
         Partition<Energy> partition(energy, compact, k);
         MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "EMLO set-up"));
-        MLCLUST_ASSIGN_OR_RETURN(
-            const ConnectivityGuard guard,
-            ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
+        const ConnectivityGuardKind kind =
+            options.connectivity_guard ? options.guard : ConnectivityGuardKind::kOff;
+        std::optional<ConnectivityGuard> rings;
+        std::optional<VertexBoundaryEdgeCountGuard> counts;
+        if (kind == ConnectivityGuardKind::kRingTest) {
+          MLCLUST_ASSIGN_OR_RETURN(
+              ConnectivityGuard built,
+              ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
+          rings.emplace(std::move(built));
+        } else if (kind == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+          // Alg. 3.2: counts set from the start's boundary edges, then updated per move.
+          counts.emplace(*problem.mesh, *problem.adjacency);
+          counts->Reset(partition.labels());
+        }
         OptimizeResult result;
         result.initial_energy = partition.TotalEnergy();
         const uint64_t max_moves = options.max_moves != 0 ? options.max_moves : 1000 * n;
@@ -374,18 +558,23 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
         const uint64_t every = std::max<uint64_t>(1, options.progress_moves);
         detail::EmloScratch scratch;
         const std::vector<uint32_t> boundary = detail::BoundaryFaces(*problem.adjacency, partition);
-        const detail::EmloCounters counters = detail::RunEmloOn(
-            *problem.adjacency, options.connectivity_guard ? &guard : nullptr, partition, boundary,
-            max_moves, scratch,
-            [&](uint32_t, uint32_t, uint32_t) {
-              if (options.on_progress && ++since_report == every) {
-                since_report = 0;
-                ++result.iterations;
-                options.on_progress(result.moves + 1, partition.TotalEnergy());
-              }
-              ++result.moves;
-            },
-            [](uint32_t, uint32_t) {}, options.cancel);
+        auto on_move = [&](uint32_t face, uint32_t from, uint32_t) {
+          if (counts.has_value()) counts->OnMove(face, from, partition.labels());
+          if (options.on_progress && ++since_report == every) {
+            since_report = 0;
+            ++result.iterations;
+            options.on_progress(result.moves + 1, partition.TotalEnergy());
+          }
+          ++result.moves;
+        };
+        const detail::EmloCounters counters =
+            counts.has_value() ? detail::RunEmloOn(
+                                     *problem.adjacency, &*counts, partition, boundary, max_moves,
+                                     scratch, on_move, [](uint32_t, uint32_t) {}, options.cancel)
+                               : detail::RunEmloOn(
+                                     *problem.adjacency, rings.has_value() ? &*rings : nullptr,
+                                     partition, boundary, max_moves, scratch, on_move,
+                                     [](uint32_t, uint32_t) {}, options.cancel);
         if (counters.cancelled) return absl::CancelledError("cancelled during EMLO");
         result.converged = !counters.hit_move_limit;
         result.energy = partition.TotalEnergy();
@@ -422,9 +611,15 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
         const ConnectivityGuard guard,
         ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
     const boundary_based::CpuBoundaryDecider<Energy> decide(energy, *problem.adjacency, threads);
+    // The ring structure always: the conflict rule reads it whatever the guard.
+    std::optional<VertexBoundaryEdgeCountGuard> counts;
+    if (options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      counts.emplace(*problem.mesh, *problem.adjacency);
+    }
     MLCLUST_ASSIGN_OR_RETURN(
         OptimizeResult result,
-        boundary_based::RunBoundaryBased(guard, partition, options, threads, decide));
+        boundary_based::RunBoundaryBased(guard, counts.has_value() ? &*counts : nullptr, partition,
+                                         options, threads, decide));
     WriteBack(partition.labels(), original, labels);
     return result;
   };

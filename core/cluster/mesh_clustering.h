@@ -10,11 +10,13 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "core/base/ids.h"
 #include "core/energy/energies.h"
+#include "core/mesh/connectivity_guard.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
 #include "core/mesh/prepared_mesh.h"
@@ -53,18 +55,56 @@ struct SeedOptions {
   uint64_t seed = 1;  // random generator seed: same seed, same result on every platform
   // Checked between steps and every few thousand faces of each (core/base/cancel.h).
   const std::atomic<bool>* cancel = nullptr;
+
+  // How seeds grow into clusters.
+  enum class Growth {
+    // Alg. 2.2's flood: free faces join the reaching cluster whose proxy fits them best,
+    // cheapest first (the CVD family by distance to the seed's centroid). The default.
+    kEnergyOrdered,
+    // The "initial cluster grow" of l. 671 and l. 1219: no energy; clusters in turn, in
+    // seed order, each take every free face across their boundary, until none is free.
+    kEnergyFree,
+  };
+  Growth growth = Growth::kEnergyOrdered;
+
+  // kLNeighbourhood with more seeds than k: how the three clusters meeting at the vertex
+  // with the smallest summed area become one (l. 849), until k are left.
+  enum class Reduction {
+    // Ours, the default: the three grown regions are merged as they are.
+    kMergeRegions,
+    // l. 849: the merged cluster's seed moves to the three clusters' common vertex (a face
+    // around it), and when k are left every seed grows again from scratch.
+    kReseedAndRegrow,
+  };
+  Reduction reduction = Reduction::kMergeRegions;
+
+  // kLNeighbourhood with fewer seeds than k (an l given too large): instead of refusing,
+  // l. 849's seed-adding variant: grow, add seeds at the common vertices of three
+  // neighbouring clusters with the largest summed area (one per cluster per round), grow
+  // again, until k. Where no vertex joins three clusters (fewer than 3 seeds on a
+  // component), the face of the largest cluster farthest (in edge steps) from its seed.
+  bool add_seeds = false;
 };
 
 // Seeds and grows them to a full partition of exactly `clusters` connected clusters.
-// Growing floods from the seeds in order of each face's cost against its seed's proxy
-// (the VSA-style flood of Alg. 2.2, with the chosen energy). With kLNeighbourhood the
-// seeds' regions are reduced to exactly k by repeatedly merging the three clusters that
-// meet at a vertex with the smallest summed area (section 3.1.5), the last step merging
-// a pair if k differs in parity. INVALID_ARGUMENT names the option that is out of range
-// (k < 1, k > faces, k < connected components, l too large for k); CANCELLED if
-// options.cancel was set.
+// Growing is options.growth (by default the VSA-style flood of Alg. 2.2, with the chosen
+// energy). With kLNeighbourhood the seeds' regions are reduced to exactly k by repeatedly
+// merging the three clusters that meet at a vertex with the smallest summed area
+// (section 3.1.5, l. 849; options.reduction says whether the merged regions are kept or
+// re-seeded and regrown), the last step merging a pair if k differs in parity; with
+// options.add_seeds an l that gives fewer than k seeds gets seeds added.
+// INVALID_ARGUMENT names the option that is out of range (k < 1, k > faces, k < connected
+// components, l too large for k without add_seeds); CANCELLED if options.cancel was set.
 absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
                                                        const SeedOptions& options);
+
+// Grows distinct seed faces into a full partition, cluster i from seeds[i], as
+// `growth` says. INVALID_ARGUMENT if a seed is out of range or repeated, or a connected
+// component has no seed; CANCELLED if `cancel` (may be null) was set.
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
+                                                             std::span<const uint32_t> seeds,
+                                                             SeedOptions::Growth growth,
+                                                             const std::atomic<bool>* cancel);
 
 // Alg. 3.1 alone: the seed faces for neighbourhood size `level`, in face order.
 std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);
@@ -79,7 +119,11 @@ struct OptimizeResult {
 
 struct EmloOptions {
   // The connectivity guard (Alg. 3.2's purpose): no cluster splits or gains a hole.
+  // False is the same as guard == kOff.
   bool connectivity_guard = true;
+  // Which check (core/mesh/connectivity_guard.h): our ring test or Alg. 3.2's vertex
+  // boundary-edge counts (kept up to date after every move).
+  ConnectivityGuardKind guard = ConnectivityGuardKind::kRingTest;
   // Stop after this many moves (0: 1000 x faces, a safety net only).
   uint64_t max_moves = 0;
   // Called every `progress_moves` moves and at the end with the total energy.
@@ -99,8 +143,10 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
 
 struct BoundaryBasedOptions {
   uint32_t max_iterations = 200;
-  int threads = 0;  // 0: all cores
-  bool connectivity_guard = true;
+  int threads = 0;                 // 0: all cores
+  bool connectivity_guard = true;  // false is the same as guard == kOff
+  // Which check, as for EmloOptions::guard; asked against the sweep's starting state.
+  ConnectivityGuardKind guard = ConnectivityGuardKind::kRingTest;
   // Called after each sweep with its number (1-based) and the total energy.
   std::function<void(uint32_t iteration, double energy)> on_iteration;
   // Checked before each stage of a sweep (core/base/cancel.h).
@@ -109,12 +155,13 @@ struct BoundaryBasedOptions {
 
 // Boundary-based optimisation (Alg. 5.1): proxies are fixed for a sweep; every boundary
 // face decides on its own, in parallel, whether a neighbouring cluster's proxy fits it
-// better; moves of faces that share a vertex are not applied in the same sweep (the one
-// with the smaller id wins; the other retries next sweep) so each move's connectivity
-// check stays valid. A sweep that would raise the energy (possible for MWCVD, whose
-// weights are not fitted) is undone and ends the run. Stops when nothing moves or after
-// max_iterations. Clusters keep their ids, as for OptimizeEmlo. CANCELLED (labels
-// unchanged) if options.cancel was set. Runs as the stages of core/cluster/boundary_based.h.
+// better; proposals the connectivity guard refuses are dropped, and of the remaining
+// moves of faces that share a vertex only the one with the smaller id applies in the
+// sweep (the other retries next sweep), so each move's connectivity check stays valid. A sweep that
+// would raise the energy (possible for MWCVD, whose weights are not fitted) is undone and ends the
+// run. Stops when nothing moves or after max_iterations. Clusters keep their ids, as for
+// OptimizeEmlo. CANCELLED (labels unchanged) if options.cancel was set. Runs as the stages of
+// core/cluster/boundary_based.h.
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
                                                      std::vector<ClusterId>& labels,
                                                      const BoundaryBasedOptions& options = {});

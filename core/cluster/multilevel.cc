@@ -11,40 +11,49 @@
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
-#include "core/cluster/detail/ode_heap.h"
+#include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/partition.h"
 #include "core/hierarchy/level_recorder.h"
 #include "core/mesh/connectivity_guard.h"
+#include "tbb/blocked_range.h"
 #include "tbb/parallel_for.h"
+#include "tbb/parallel_sort.h"
 #include "tbb/task_arena.h"
 
 namespace mlclust {
 namespace {
 
-constexpr uint32_t kNone = detail::kNoCluster;
-
+// The mesh's space for the multilevel engine (detail/multilevel_engine.h): clusters of
+// faces, neighbours across face edges, EMLO or BB as the local optimisation.
 template <typename Energy>
-class Engine {
+class MeshSpace {
  public:
-  using Sums = typename Energy::Sums;
   using Proxy = typename Energy::Proxy;
+  using Engine = detail::MultilevelEngine<MeshSpace>;
+  static constexpr bool kOptimiseAllAtHandover = true;
 
-  Engine(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options,
-         LevelSink& sink)
+  MeshSpace(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options)
       : adjacency_(*problem.adjacency),
         options_(options),
-        sink_(sink),
         mesh_(*problem.mesh),
         n_(static_cast<uint32_t>(problem.mesh->num_faces())),
         partition_(energy, Identity(n_), n_),
         members_(n_),
         position_(n_, 0),
         neighbours_(n_),
-        odes_(n_),
         dirty_mark_(n_, 0),
+        affected_mark_(n_, 0),
+        check_mark_(n_, 0),
+        round_mark_(n_, 0),
         recorder_(n_, n_) {}
 
-  absl::StatusOr<MultilevelSummary> Run() {
+  uint32_t capacity() const { return n_; }
+  uint32_t start_clusters() const { return n_; }
+  uint64_t optimisation_moves() const { return optimisation_moves_; }
+  uint64_t evaluations() const { return evaluations_; }
+
+  // Level 0: every face its own cluster, energy 0 for every energy here.
+  absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
     if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone) {
       // Only an optimiser needs the guard (HC never moves single faces); built here, between
@@ -55,49 +64,177 @@ class Engine {
     }
     std::vector<ClusterId> start(n_);
     for (uint32_t f = 0; f < n_; ++f) start[f] = ClusterId(f);
-    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, n_, 0.0));
-    std::vector<ClusterId>().swap(start);
-    summary_.levels = 1;
-    if (options_.inspect_level) options_.inspect_level(0, partition_.labels());
+    recorder_.Reset(0.0);
+    return sink.OnStart(start, n_, 0.0);
+  }
 
-    clusters_ = n_;
-    // Alg. 4.2: below this count the merges are optimised.
-    const double unoptimised = std::clamp(options_.p_percent, 0.0, 100.0) / 100.0;
-    optimise_below_ = static_cast<uint32_t>(std::floor(n_ * (1.0 - unoptimised)));
-    if (options_.p_percent > 0 &&
-        options_.p_percent_rule == MultilevelOptions::PPercentRule::kSweep) {
-      MLCLUST_RETURN_IF_ERROR(SweepMerges(n_ - optimise_below_));
-      optimise_below_ = n_ + 1;  // the rest is ML
+  bool Alive(uint32_t c) const { return partition_.size(c) > 0; }
+  uint32_t Size(uint32_t c) const { return partition_.size(c); }
+  double MergeCost(uint32_t a, uint32_t b) const {
+    return partition_.energy().MergeCost(partition_.sums(a), partition_.sums(b));
+  }
+  template <typename F>
+  void ForEachCandidate(uint32_t c, const F& f) const {
+    for (const auto& [d, count] : neighbours_[c]) f(d);
+  }
+  // Equal ODE costs: the cluster with the fewest faces first (footnote 4 of section 4.2,
+  // l. 1588), or by id alone.
+  uint32_t TieKey(uint32_t c) const {
+    return options_.ties_to_fewest_faces ? partition_.size(c) : 0;
+  }
+
+  // Merges `gone` into `keep` with all bookkeeping.
+  void Merge(uint32_t keep, uint32_t gone) {
+    Touch(keep);
+    Touch(gone);
+    for (uint32_t f : members_[gone]) recorder_.RecordMove(f, gone);
+    partition_.Merge(keep, gone, members_[gone]);
+    for (uint32_t f : members_[gone]) {
+      position_[f] = static_cast<uint32_t>(members_[keep].size());
+      members_[keep].push_back(f);
     }
-    if (options_.optimizer == MultilevelOptions::Optimizer::kNone) optimise_below_ = 0;
+    std::vector<uint32_t>().swap(members_[gone]);
+    for (const auto& [c, count] : neighbours_[gone]) {
+      MarkDirty(c);  // its ODE may have been `gone`
+      AddEdgesOneSide(c, gone, -static_cast<int32_t>(count));
+      if (c == keep) continue;
+      AddEdgesOneSide(keep, c, static_cast<int32_t>(count));
+      AddEdgesOneSide(c, keep, static_cast<int32_t>(count));
+    }
+    std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+  }
 
-    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
-    bool odes_current = false;
-    if (options_.parallel) {
-      arena.execute([&] { ComputeAllOdes(); });
-      odes_current = true;
-      while (clusters_ > options_.min_clusters && clusters_ > options_.pml_until) {
-        MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
-        absl::StatusOr<bool> progressed = arena.execute([&] { return ParallelStep(); });
-        if (!progressed.ok()) return progressed.status();
-        if (!*progressed) break;
+  // Local optimisation around the `region` clusters, from their boundary faces outward.
+  void Optimise(std::span<const uint32_t> region, bool parallel_level) {
+    CollectBoundaryFaces(region);
+    const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
+    // Touch (before each move) keeps the clusters' energies from before the level; this
+    // runs after the move.
+    auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
+      recorder_.RecordMove(face, from);
+      OnFaceMoved(face, from, to);
+      ++optimisation_moves_;
+    };
+    const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
+    if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo && parallel_level &&
+        options_.parallel_optimisation) {
+      OptimiseInRounds(guard, max_moves, on_move);
+    } else if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
+      evaluations_ +=
+          detail::RunEmloOn(
+              adjacency_, guard, partition_, worklist_, max_moves, emlo_scratch_, on_move,
+              [&](uint32_t from, uint32_t to) {
+                Touch(from);
+                Touch(to);
+              },
+              options_.cancel)
+              .evaluations;
+    } else {
+      OptimiseBoundaryBased(guard, on_move);
+    }
+  }
+
+  // Section 4.2.2's flags: only clusters whose configuration changed (sums changed, or
+  // their ODE partner changed or left) get their ODE recomputed; a neighbour of a changed
+  // cluster only compares the one edge that changed, unless its ODE was that edge.
+  void UpdateOdes(Engine& engine) {
+    for (uint32_t c : recorder_.affected()) MarkDirty(c);
+    if (engine.in_parallel_level()) {
+      UpdateOdesInParallel(engine);
+      return;
+    }
+    for (uint32_t c : dirty_) {
+      if (Alive(c)) engine.RecomputeOde(c);
+    }
+    for (uint32_t c : recorder_.affected()) {
+      if (!Alive(c)) continue;
+      for (const auto& [d, count] : neighbours_[c]) {
+        if (dirty_mark_[d]) continue;  // recomputed in full above
+        if (engine.partner(d) == c) {
+          MarkDirty(d);  // its best edge changed: it may no longer be the best
+          engine.RecomputeOde(d);
+          continue;
+        }
+        engine.Offer(d, c);
       }
     }
-    if (odes_current) {
-      RebuildHeap();  // from the ODEs PML kept up to date
-    } else {
-      MLCLUST_RETURN_IF_ERROR(BuildHeap());
-    }
-    while (clusters_ > options_.min_clusters) {
-      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
-      absl::StatusOr<bool> progressed = SequentialStep();
-      if (!progressed.ok()) return progressed.status();
-      if (!*progressed) break;  // no adjacent pair left: one cluster per component
-    }
-    summary_.final_clusters = clusters_;
-    summary_.final_energy = recorder_.energy();
-    return summary_;
   }
+  // The same flags in a PML level, turned around so that each cluster's update is its
+  // own (and runs in parallel): a dirty cluster recomputes its ODE in full; a neighbour d
+  // of a changed cluster recomputes in full if its ODE was a changed cluster, and
+  // otherwise compares its ODE with the edges to the changed clusters. Each is the
+  // cheapest edge of d in the same total order (cost, then the larger id) as the push
+  // order above gives, so the ODEs are the same.
+  void UpdateOdesInParallel(Engine& engine) {
+    update_.clear();
+    for (uint32_t c : dirty_) {
+      if (Alive(c)) update_.push_back(c);
+    }
+    const size_t full = update_.size();
+    for (uint32_t c : recorder_.affected()) affected_mark_[c] = 1;
+    for (uint32_t c : recorder_.affected()) {
+      if (!Alive(c)) continue;
+      for (const auto& [d, count] : neighbours_[c]) {
+        if (dirty_mark_[d] || check_mark_[d]) continue;
+        check_mark_[d] = 1;
+        update_.push_back(d);
+      }
+    }
+    auto update = [&](size_t i) {
+      const uint32_t d = update_[i];
+      if (i < full) {
+        const auto [partner, cost] = engine.FindOde(d);
+        engine.AssignOde(d, partner, cost);
+        return;
+      }
+      uint32_t partner = engine.partner(d);
+      double cost = engine.cost(d);
+      for (const auto& [c, count] : neighbours_[d]) {
+        if (affected_mark_[c] && c == partner) {
+          const auto [full_partner, full_cost] = engine.FindOde(d);
+          engine.AssignOde(d, full_partner, full_cost);
+          return;
+        }
+      }
+      bool changed = false;
+      for (const auto& [c, count] : neighbours_[d]) {
+        if (!affected_mark_[c]) continue;
+        const double offer = MergeCost(d, c);
+        if (detail::CheaperDualEdge(offer, c, cost, partner)) {
+          cost = offer;
+          partner = c;
+          changed = true;
+        }
+      }
+      if (changed) engine.AssignOde(d, partner, cost);
+    };
+    if (update_.size() < detail::kParallelOdeGrain) {
+      for (size_t i = 0; i < update_.size(); ++i) update(i);
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, update_.size(), 128),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t i = range.begin(); i != range.end(); ++i) update(i);
+                        });
+    }
+    for (uint32_t c : recorder_.affected()) affected_mark_[c] = 0;
+    for (size_t i = full; i < update_.size(); ++i) check_mark_[update_[i]] = 0;
+  }
+
+  // Face adjacency reaches every cluster of a component: nothing more to link.
+  bool ConnectWhenStuck(Engine&) { return false; }
+
+  void Squash() {
+    recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
+                     [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; });
+  }
+  void EndLevel() {
+    for (uint32_t c : dirty_) dirty_mark_[c] = 0;
+    dirty_.clear();
+  }
+  void Inspect(size_t level) {
+    if (options_.inspect_level) options_.inspect_level(level, partition_.labels());
+  }
+  LevelRecorder& recorder() { return recorder_; }
 
  private:
   static std::vector<uint32_t> Identity(uint32_t n) {
@@ -119,11 +256,6 @@ class Engine {
       }
     }
     return absl::OkStatus();
-  }
-
-  absl::Status CheckLevelCancelled() const {
-    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
-    return CheckCancelled(options_.cancel, absl::StrCat("level ", summary_.levels));
   }
 
   void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta) {
@@ -166,76 +298,149 @@ class Engine {
     members_[x].push_back(f);
   }
 
-  // ---- level bookkeeping ------------------------------------------------------------
-
   void Touch(uint32_t cluster) {
     recorder_.Touch(cluster, [&](uint32_t c) { return partition_.cluster_energy(c); });
   }
-  void RecordMove(uint32_t face, uint32_t from) { recorder_.RecordMove(face, from); }
-
-  // Merges `gone` into `keep` with all bookkeeping.
-  void Merge(uint32_t keep, uint32_t gone) {
-    Touch(keep);
-    Touch(gone);
-    for (uint32_t f : members_[gone]) RecordMove(f, gone);
-    partition_.Merge(keep, gone, members_[gone]);
-    for (uint32_t f : members_[gone]) {
-      position_[f] = static_cast<uint32_t>(members_[keep].size());
-      members_[keep].push_back(f);
-    }
-    std::vector<uint32_t>().swap(members_[gone]);
-    for (const auto& [c, count] : neighbours_[gone]) {
-      MarkDirty(c);  // its ODE may have been `gone`
-      AddEdgesOneSide(c, gone, -static_cast<int32_t>(count));
-      if (c == keep) continue;
-      AddEdgesOneSide(keep, c, static_cast<int32_t>(count));
-      AddEdgesOneSide(c, keep, static_cast<int32_t>(count));
-    }
-    std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
-    --clusters_;
-  }
-  // The larger cluster keeps its id (fewest faces move); the smaller id on a tie.
-  std::pair<uint32_t, uint32_t> KeepAndGone(uint32_t a, uint32_t b) const {
-    const uint32_t size_a = partition_.size(a), size_b = partition_.size(b);
-    if (size_a > size_b || (size_a == size_b && a < b)) return {a, b};
-    return {b, a};
+  void MarkDirty(uint32_t c) {
+    if (dirty_mark_[c]) return;
+    dirty_mark_[c] = 1;
+    dirty_.push_back(c);
   }
 
-  // Local optimisation around the `merged` clusters, from their boundary faces outward.
-  void Optimise(std::span<const uint32_t> merged) {
-    if (clusters_ >= optimise_below_) return;
+  bool OnBoundary(uint32_t f, uint32_t c) const {
+    for (FaceId g : adjacency_.neighbours[f]) {
+      if (g.valid() && partition_.label(g.value()) != c) return true;
+    }
+    return false;
+  }
+  // worklist_: the boundary faces of the `region` clusters, cluster by cluster, each
+  // cluster's in member order; counted and filled in parallel over the clusters where
+  // there are many (the same list either way).
+  void CollectBoundaryFaces(std::span<const uint32_t> region) {
     worklist_.clear();
-    for (uint32_t c : merged) {
-      for (uint32_t f : members_[c]) {
-        for (FaceId g : adjacency_.neighbours[f]) {
-          if (g.valid() && partition_.label(g.value()) != c) {
-            worklist_.push_back(f);
-            break;
-          }
+    if (region.size() < detail::kParallelOdeGrain) {
+      for (uint32_t c : region) {
+        for (uint32_t f : members_[c]) {
+          if (OnBoundary(f, c)) worklist_.push_back(f);
+        }
+      }
+      return;
+    }
+    boundary_offset_.assign(region.size() + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, region.size(), 64), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        uint32_t count = 0;
+        for (uint32_t f : members_[region[i]]) count += OnBoundary(f, region[i]) ? 1 : 0;
+        boundary_offset_[i + 1] = count;
+      }
+    });
+    for (size_t i = 0; i < region.size(); ++i) boundary_offset_[i + 1] += boundary_offset_[i];
+    worklist_.resize(boundary_offset_.back());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, region.size(), 64), [&](const auto& range) {
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        size_t at = boundary_offset_[i];
+        for (uint32_t f : members_[region[i]]) {
+          if (OnBoundary(f, region[i])) worklist_[at++] = f;
+        }
+      }
+    });
+  }
+
+  // The best move of face f itself, from the sums as they are: the neighbouring cluster
+  // whose joining lowers E(own) + E(to) the most (eqs. 3.33-3.35), and by how much; none
+  // (kNoCluster) where no move lowers it by more than rounding, or f is its cluster's last
+  // face. Reads only; safe in parallel while nothing moves.
+  std::pair<uint32_t, double> BestOwnMove(uint32_t f) const {
+    const Energy& energy = partition_.energy();
+    const uint32_t own = partition_.label(f);
+    if (partition_.size(own) <= 1) return {detail::kNoCluster, 0.0};
+    typename Energy::Sums own_without = partition_.sums(own);
+    own_without -= energy.face_sums(f);
+    const double own_after = energy.Energy(own_without);
+    uint32_t best_to = detail::kNoCluster;
+    double best_gain = 0;
+    for (FaceId g : adjacency_.neighbours[f]) {
+      if (!g.valid()) continue;
+      const uint32_t to = partition_.label(g.value());
+      if (to == own || to == best_to) continue;
+      const double keep = partition_.cluster_energy(own) + partition_.cluster_energy(to);
+      const double after = own_after + energy.Energy(partition_.sums(to) + energy.face_sums(f));
+      const double gain = keep - after;
+      // Rounding in the sums is ~1e-16 relative; demand a real improvement.
+      if (gain > 1e-12 * keep && gain > best_gain) {
+        best_gain = gain;
+        best_to = to;
+      }
+    }
+    return {best_to, best_gain};
+  }
+
+  // MultilevelOptions::parallel_optimisation: rounds of "every face of the list finds its
+  // best move in parallel, then the moves are checked again and applied in face order".
+  template <typename OnMove>
+  void OptimiseInRounds(const ConnectivityGuard* guard, uint64_t max_moves, OnMove& on_move) {
+    // The first list: the region's boundary faces and the faces across their boundary
+    // edges (EMLO compares both sides of each edge).
+    std::vector<uint32_t>& list = worklist_;
+    const size_t first = list.size();
+    for (size_t i = 0; i < first; ++i) {
+      for (FaceId g : adjacency_.neighbours[list[i]]) {
+        if (g.valid() && partition_.label(g.value()) != partition_.label(list[i])) {
+          list.push_back(g.value());
         }
       }
     }
-    const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
-    // Touch (before each move) keeps the clusters' energies from before the level; this
-    // runs after the move.
-    auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
-      RecordMove(face, from);
-      OnFaceMoved(face, from, to);
-      ++summary_.optimisation_moves;
-    };
-    const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
-    if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo) {
-      summary_.evaluations +=
-          detail::RunEmloOn(
-              adjacency_, guard, partition_, worklist_, max_moves, emlo_scratch_, on_move,
-              [&](uint32_t from, uint32_t to) {
-                Touch(from);
-                Touch(to);
-              },
-              options_.cancel)
-              .evaluations;
-    } else {
-      OptimiseBoundaryBased(guard, on_move);
+    tbb::parallel_sort(list.begin(), list.end());  // integers: the same order on any thread count
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    std::vector<uint32_t> target, next;
+    uint64_t moves = 0;
+    while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
+      target.resize(list.size());
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t i = range.begin(); i != range.end(); ++i) {
+                            target[i] = BestOwnMove(list[i]).first;
+                          }
+                        });
+      evaluations_ += list.size();
+      next.clear();
+      for (size_t i = 0; i < list.size() && moves < max_moves; ++i) {
+        if (target[i] == detail::kNoCluster) continue;
+        const uint32_t f = list[i];
+        // Earlier moves of this round may have changed the sums: decide again where a
+        // move touched f's cluster or a neighbour's (a neighbour that moved touched both
+        // its clusters); elsewhere the decision stands as found.
+        bool stale = round_mark_[partition_.label(f)] != 0;
+        for (FaceId g : adjacency_.neighbours[f]) {
+          stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
+        }
+        const uint32_t to = stale ? BestOwnMove(f).first : target[i];
+        if (to == detail::kNoCluster) continue;
+        if (guard != nullptr && !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
+          continue;
+        }
+        const uint32_t from = partition_.label(f);
+        Touch(from);
+        Touch(to);
+        partition_.Move(f, to);
+        on_move(f, from, to);
+        ++moves;
+        for (uint32_t c : {from, to}) {
+          if (!round_mark_[c]) {
+            round_mark_[c] = 1;
+            round_marked_.push_back(c);
+          }
+        }
+        next.push_back(f);
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid()) next.push_back(g.value());
+        }
+      }
+      for (uint32_t c : round_marked_) round_mark_[c] = 0;
+      round_marked_.clear();
+      tbb::parallel_sort(next.begin(), next.end());
+      next.erase(std::unique(next.begin(), next.end()), next.end());
+      list.swap(next);
     }
   }
 
@@ -290,240 +495,8 @@ class Engine {
     }
   }
 
-  // Ends a level: squashes the moves into triplets, updates the energy, re-queues the
-  // dual edges of every cluster that changed, and reports the level.
-  absl::Status FinishLevel() {
-    recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
-                     [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; });
-    if (!skip_ode_update_) UpdateOptimalDualEdges();
-    for (uint32_t c : dirty_) dirty_mark_[c] = 0;
-    dirty_.clear();
-    MLCLUST_RETURN_IF_ERROR(recorder_.Emit(sink_, summary_.levels, clusters_));
-    summary_.moves = recorder_.moves();
-    if (options_.inspect_level) options_.inspect_level(summary_.levels, partition_.labels());
-    ++summary_.levels;
-    return absl::OkStatus();
-  }
-
-  // ---- ML: optimal dual edges and the cheapest of them from a heap ---------------------
-
-  void MarkDirty(uint32_t c) {
-    if (dirty_mark_[c]) return;
-    dirty_mark_[c] = 1;
-    dirty_.push_back(c);
-  }
-
-  double Cost(uint32_t a, uint32_t b) const {
-    return partition_.energy().MergeCost(partition_.sums(a), partition_.sums(b));
-  }
-
-  // Equal costs go to the larger id (as PML's rule), so every choice is deterministic.
-  static bool Better(double cost, uint32_t d, double best, uint32_t best_d) {
-    return detail::CheaperDualEdge(cost, d, best, best_d);
-  }
-
-  // PML keeps the ODEs without queueing them; ML queues every new one.
-  void SetOde(uint32_t c, uint32_t d, double cost) {
-    odes_.Set(c, d, cost, /*queue=*/!in_parallel_phase_, TieKey(c));
-  }
-  bool Alive(uint32_t c) const { return partition_.size(c) > 0; }
-  // Equal ODE costs: the cluster with the fewest faces first (footnote 4 of section 4.2,
-  // l. 1588), or by id alone.
-  uint32_t TieKey(uint32_t c) const {
-    return options_.ties_to_fewest_faces ? partition_.size(c) : 0;
-  }
-
-  void RecomputeOde(uint32_t c) {
-    double best = std::numeric_limits<double>::infinity();
-    uint32_t best_d = kNone;
-    for (const auto& [d, count] : neighbours_[c]) {
-      const double cost = Cost(c, d);
-      if (Better(cost, d, best, best_d)) {
-        best = cost;
-        best_d = d;
-      }
-    }
-    SetOde(c, best_d, best);
-  }
-
-  // Section 4.2.2's flags: only clusters whose configuration changed (sums changed, or
-  // their ODE partner changed or left) get their ODE recomputed; a neighbour of a changed
-  // cluster only compares the one edge that changed, unless its ODE was that edge.
-  void UpdateOptimalDualEdges() {
-    for (uint32_t c : recorder_.affected()) MarkDirty(c);
-    for (uint32_t c : dirty_) {
-      if (partition_.size(c) > 0) RecomputeOde(c);
-    }
-    for (uint32_t c : recorder_.affected()) {
-      if (partition_.size(c) == 0) continue;
-      for (const auto& [d, count] : neighbours_[c]) {
-        if (dirty_mark_[d]) continue;  // recomputed in full above
-        if (odes_.partner(d) == c) {
-          MarkDirty(d);  // its best edge changed: it may no longer be the best
-          RecomputeOde(d);
-          continue;
-        }
-        const double cost = Cost(d, c);
-        if (Better(cost, c, odes_.cost(d), odes_.partner(d))) SetOde(d, c, cost);
-      }
-    }
-    if (!in_parallel_phase_) {
-      odes_.MaybeCompact(clusters_, [&](uint32_t c) { return Alive(c); });
-    }
-  }
-
-  absl::Status BuildHeap() {
-    for (uint32_t c = 0; c < n_; ++c) {
-      if (c % 65536 == 0) {
-        MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the first optimal dual edges"));
-      }
-      if (partition_.size(c) > 0) RecomputeOde(c);
-    }
-    return absl::OkStatus();
-  }
-  void RebuildHeap() {
-    odes_.Rebuild([&](uint32_t c) { return Alive(c); });
-  }
-
-  absl::StatusOr<bool> SequentialStep() {
-    const uint32_t cheapest = odes_.PopCheapest([&](uint32_t c) { return Alive(c); });
-    if (cheapest == kNone) return false;
-    const auto [keep, gone] = KeepAndGone(cheapest, odes_.partner(cheapest));
-    Merge(keep, gone);
-    const uint32_t merged[1] = {keep};
-    Optimise(merged);
-    MLCLUST_RETURN_IF_ERROR(FinishLevel());
-    return true;
-  }
-
-  // ---- p% ML's first step (Alg. 4.2) ----------------------------------------------------
-
-  // Merges `target` clusters (fewer if min_clusters or the components stop it) in one
-  // level, without optimisation: sweeps over the clusters in id order, each one not yet in
-  // a merge of the sweep collapsing its optimal dual edge (from the current sums, ties to
-  // the larger id) unless the other cluster already took part in one; sweep after sweep
-  // until `target` have merged (l. 1868-1872).
-  absl::Status SweepMerges(uint32_t target) {
-    const uint32_t floor = std::max(options_.min_clusters, 1u);
-    target = std::min(target, clusters_ > floor ? clusters_ - floor : 0u);
-    if (target == 0) return absl::OkStatus();
-    std::vector<uint8_t> in_merge(n_, 0);
-    std::vector<uint32_t> marked;
-    uint32_t merged = 0;
-    while (merged < target) {
-      bool progressed = false;
-      for (uint32_t c = 0; c < n_ && merged < target; ++c) {
-        if (c % 65536 == 0) {
-          MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the p% sweep"));
-        }
-        if (partition_.size(c) == 0 || in_merge[c]) continue;
-        double best = std::numeric_limits<double>::infinity();
-        uint32_t best_d = kNone;
-        for (const auto& [d, count] : neighbours_[c]) {
-          const double cost = Cost(c, d);
-          if (Better(cost, d, best, best_d)) {
-            best = cost;
-            best_d = d;
-          }
-        }
-        if (best_d == kNone || in_merge[best_d]) continue;
-        const auto [keep, gone] = KeepAndGone(c, best_d);
-        Merge(keep, gone);
-        in_merge[keep] = in_merge[gone] = 1;
-        marked.push_back(keep);
-        marked.push_back(gone);
-        ++merged;
-        progressed = true;
-      }
-      for (uint32_t c : marked) in_merge[c] = 0;
-      marked.clear();
-      if (!progressed) break;  // one cluster per component
-    }
-    // One level; the ODEs are computed afresh after it (BuildHeap or ComputeAllOdes).
-    skip_ode_update_ = true;
-    absl::Status status = FinishLevel();
-    skip_ode_update_ = false;
-    return status;
-  }
-
-  // ---- PML: all mutual optimal dual edges at once --------------------------------------
-
-  // All ODEs at once, in parallel (PML's start); no heap entries.
-  void ComputeAllOdes() {
-    alive_.clear();
-    for (uint32_t c = 0; c < n_; ++c) {
-      if (partition_.size(c) > 0) alive_.push_back(c);
-    }
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, alive_.size(), 512),
-                      [&](const tbb::blocked_range<size_t>& range) {
-                        for (size_t i = range.begin(); i != range.end(); ++i) {
-                          const uint32_t c = alive_[i];
-                          double best = std::numeric_limits<double>::infinity();
-                          uint32_t best_d = kNone;
-                          for (const auto& [d, count] : neighbours_[c]) {
-                            const double cost = Cost(c, d);
-                            if (Better(cost, d, best, best_d)) {
-                              best = cost;
-                              best_d = d;
-                            }
-                          }
-                          odes_.Assign(c, best_d, best, TieKey(c));
-                        }
-                      });
-  }
-
-  // One PML level: every cluster's ODE is up to date (ComputeAllOdes, then the flags of
-  // each level); the mutual pairs collapse together. Equal costs go to the larger id,
-  // which makes the order total, so the globally cheapest edge is always mutual.
-  absl::StatusOr<bool> ParallelStep() {
-    in_parallel_phase_ = true;
-    size_t alive = 0;
-    for (uint32_t c : alive_) {
-      if (partition_.size(c) > 0) alive_[alive++] = c;
-    }
-    alive_.resize(alive);
-    pairs_.clear();
-    for (uint32_t c : alive_) {
-      const uint32_t d = odes_.partner(c);
-      if (d != kNone && c < d && odes_.partner(d) == c) pairs_.push_back({c, d});
-    }
-    if (pairs_.empty()) {
-      in_parallel_phase_ = false;
-      return false;
-    }
-    detail::SelectPmlPairs(
-        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_);
-    // Do not merge past min_clusters / pml_until: the cheapest pairs first.
-    const uint32_t floor = std::max(options_.min_clusters, 1u);
-    if (clusters_ - pairs_.size() < floor) {
-      std::sort(pairs_.begin(), pairs_.end(), [&](const auto& x, const auto& y) {
-        return partition_.energy().MergeCost(partition_.sums(x.first), partition_.sums(x.second)) <
-               partition_.energy().MergeCost(partition_.sums(y.first), partition_.sums(y.second));
-      });
-      pairs_.resize(clusters_ - floor);
-    }
-    merged_.clear();
-    for (const auto& [a, b] : pairs_) {
-      const auto [keep, gone] = KeepAndGone(a, b);
-      Merge(keep, gone);
-      merged_.push_back(keep);
-    }
-    if (clusters_ <= options_.pml_until) {
-      // The hand-over to ML: one optimisation over every cluster's boundary, so that ML
-      // continues from a state optimised as a whole, not only around the last merges.
-      Optimise(alive_);
-    } else {
-      Optimise(merged_);
-    }
-    absl::Status s = FinishLevel();
-    in_parallel_phase_ = false;
-    if (!s.ok()) return s;
-    return true;
-  }
-
   const FaceAdjacency& adjacency_;
   const MultilevelOptions& options_;
-  LevelSink& sink_;
   const TriangleMesh& mesh_;
   std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
   const uint32_t n_;
@@ -531,25 +504,23 @@ class Engine {
   std::vector<std::vector<uint32_t>> members_;
   std::vector<uint32_t> position_;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;
-  detail::OdeHeap odes_;
   std::vector<uint8_t> dirty_mark_;
   std::vector<uint32_t> dirty_;
-
+  // UpdateOdesInParallel's marks (all 0 between levels) and list.
+  std::vector<uint8_t> affected_mark_, check_mark_;
+  std::vector<uint32_t> update_;
+  // OptimiseInRounds: the clusters a move of the current round touched (marks 0 between
+  // rounds).
+  std::vector<uint8_t> round_mark_;
+  std::vector<uint32_t> round_marked_;
+  std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
-  uint32_t clusters_ = 0;
-  uint32_t optimise_below_ = 0;
-  bool in_parallel_phase_ = false;
-  bool skip_ode_update_ = false;
-  MultilevelSummary summary_;
+  uint64_t optimisation_moves_ = 0, evaluations_ = 0;
 
   // Optimisation scratch.
   std::vector<uint32_t> worklist_;
   detail::EmloScratch emlo_scratch_;
   absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
-
-  // PML scratch.
-  std::vector<uint32_t> alive_, merged_;
-  std::vector<std::pair<uint32_t, uint32_t>> pairs_;
 };
 
 }  // namespace
@@ -571,12 +542,35 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
-  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
-                        [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
-                          using Energy = std::decay_t<decltype(energy)>;
-                          Engine<Energy> engine(problem, energy, options, sink);
-                          return engine.Run();
-                        });
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
+        using Energy = std::decay_t<decltype(energy)>;
+        MeshSpace<Energy> space(problem, energy, options);
+        detail::MultilevelEngineOptions engine_options;
+        engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
+        engine_options.p_percent = options.p_percent;
+        engine_options.p_percent_sweep =
+            options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
+        engine_options.parallel = options.parallel;
+        engine_options.pml_until = options.pml_until;
+        engine_options.pml_pairs = options.pml_pairs;
+        engine_options.min_clusters = options.min_clusters;
+        engine_options.cancel = options.cancel;
+        tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+        return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
+          detail::MultilevelEngine<MeshSpace<Energy>> engine(space, engine_options, sink);
+          MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
+          MultilevelSummary summary;
+          summary.levels = run.levels;
+          summary.final_clusters = run.final_clusters;
+          summary.moves = run.moves;
+          summary.final_energy = run.final_energy;
+          summary.optimisation_moves = space.optimisation_moves();
+          summary.evaluations = space.evaluations();
+          return summary;
+        });
+      });
 }
 
 }  // namespace mlclust

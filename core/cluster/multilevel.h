@@ -61,8 +61,20 @@ struct MultilevelOptions {
   // alone (the former rule). Which partner a cluster's ODE names among equal costs is
   // the larger id either way (PML's rule, Alg. 5.3).
   bool ties_to_fewest_faces = true;
-  // Worker threads for PML's parallel steps, 0 = all cores.
+  // Worker threads for PML's parallel steps, 0 = all cores. The levels do not depend on
+  // it.
   int threads = 0;
+  // Ours: the local optimisation of a PML level (and of the hand-over to ML) in parallel
+  // rounds instead of EMLO's one queue: every face of the round's work list finds in
+  // parallel, from the sums as the round found them, the neighbouring cluster it would
+  // most lower the energy by joining (eqs. 3.33-3.35, the face's own move); then, in face
+  // order, each such move is checked again against the sums as they are by then and
+  // applied if it still lowers the energy and the connectivity guard allows it; the
+  // moved faces and their neighbours make the next round's list, until none moves. Each
+  // move lowers the energy, as EMLO's; the result differs from EMLO's (another order of
+  // moves) and does not depend on the thread count. EMLO optimiser only; ML levels keep
+  // EMLO's queue.
+  bool parallel_optimisation = false;
   // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
   // adjacency is built, while the connectivity guard is built, inside local EMLO (every
   // few thousand faces), after every level and every 65,536 ODEs of the first ODE pass and

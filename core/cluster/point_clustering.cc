@@ -12,7 +12,7 @@
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
-#include "core/cluster/detail/ode_heap.h"
+#include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/kmeans.h"
 #include "core/energy/variance_energy.h"
 #include "core/hierarchy/level_recorder.h"
@@ -371,15 +371,18 @@ absl::Status LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& 
   return absl::OkStatus();
 }
 
-// The multilevel engine for points: the mesh engine's structure with local neighbours in
-// place of face adjacency and LN k-means in place of EMLO.
-class PointEngine {
+// The points' space for the multilevel engine (detail/multilevel_engine.h): clusters of
+// points from the voxel start, the local neighbours (and who lists whom) in place of face
+// adjacency, LN k-means in place of EMLO.
+class PointSpace {
  public:
+  using Engine = detail::MultilevelEngine<PointSpace>;
+  static constexpr bool kOptimiseAllAtHandover = false;
+
   // `cells`: the voxel start (OccupiedCells), complete. The set-up stops early once
-  // options.cancel is set; Run then returns CANCELLED.
-  PointEngine(const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink,
-              const VoxelCells& cells)
-      : points_(points), options_(options), sink_(sink), d_(points.dims) {
+  // options.cancel is set; ReportStart then returns CANCELLED.
+  PointSpace(const PointSet& points, const PointMultilevelOptions& options, const VoxelCells& cells)
+      : points_(points), options_(options), d_(points.dims) {
     k0_ = static_cast<uint32_t>(cells.cell.size());
     // The engine works on a copy of the points ordered by starting cell, so that a
     // cluster's points lie together in memory (clusters grow by merging, so they stay in a
@@ -420,7 +423,6 @@ class PointEngine {
         LinkIsolated(c);
       }
     }
-    odes_ = detail::OdeHeap(k0_);
     recorder_ = LevelRecorder(points.num_points(), k0_);
     mark_.assign(k0_, 0);
     into_.assign(k0_, kNone);
@@ -431,65 +433,49 @@ class PointEngine {
     drift_.assign(k0_, 0.0);
   }
 
-  absl::StatusOr<PointMultilevelSummary> Run() {
+  uint32_t capacity() const { return k0_; }
+  uint32_t start_clusters() const { return k0_; }
+
+  // Level 0: the voxel clusters.
+  absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "the voxel start"));
-    PointMultilevelSummary summary;
-    summary.start_clusters = k0_;
     std::vector<ClusterId> start(points_.num_points());
     for (size_t i = 0; i < start.size(); ++i) start[original_[i]] = ClusterId(clusters_->label(i));
     recorder_.Reset(clusters_->TotalEnergy());
-    MLCLUST_RETURN_IF_ERROR(sink_.OnStart(start, k0_, recorder_.energy()));
-    Inspect(0);
-    alive_ = k0_;
-    levels_ = 1;
-    for (uint32_t c = 0; c < k0_; ++c) RecomputeOde(c);
-    while (alive_ > options_.min_clusters) {
-      MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());
-      bool merged;
-      if (options_.parallel && alive_ > options_.pml_until) {
-        merged = ParallelStep();
-      } else {
-        merged = SequentialStep();
-      }
-      if (!merged) {
-        // No neighbour pairs left but several clusters: groups the local neighbours never
-        // connected (far-apart data). Link the survivors by brute force and go on.
-        if (!ConnectSurvivors()) break;
-        continue;
-      }
-      MLCLUST_RETURN_IF_ERROR(FinishLevel());
-    }
-    MLCLUST_RETURN_IF_ERROR(CheckLevelCancelled());  // ConnectSurvivors may have stopped
-    summary.levels = levels_;
-    summary.final_clusters = alive_;
-    summary.moves = recorder_.moves();
-    return summary;
+    return sink.OnStart(start, k0_, recorder_.energy());
   }
+
+  bool Alive(uint32_t c) const { return clusters_->count(c) > 0; }
+  uint32_t Size(uint32_t c) const { return clusters_->count(c); }
+  double MergeCost(uint32_t a, uint32_t b) const { return clusters_->MergeCost(a, b); }
+  // Its neighbours and the clusters that list it as theirs: the dual edges are symmetric,
+  // so when x's ODE is y, y sees x too and a chain of cheaper ODEs ends in a mutual pair
+  // (PML merges only those; with one-sided edges a small cluster could wait behind far
+  // costlier mutual pairs).
+  template <typename F>
+  void ForEachCandidate(uint32_t c, const F& f) const {
+    if (clusters_->count(c) == 0) return;
+    for (uint32_t n : clusters_->neighbours(c)) {
+      if (n != kNone && clusters_->count(n) > 0) f(n);
+    }
+    for (uint32_t n : reverse_[c]) {
+      if (n != kNone && clusters_->count(n) > 0) f(n);
+    }
+  }
+  uint32_t TieKey(uint32_t) const { return 0; }
+
+  void Squash() {
+    recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },
+                     [&](uint32_t i) { return clusters_->label(i); },
+                     [&](uint32_t i) { return original_[i]; });
+  }
+  void EndLevel() {
+    merged_.clear();
+    gone_.clear();
+  }
+  LevelRecorder& recorder() { return recorder_; }
 
  private:
-  // ---- ODEs -----------------------------------------------------------------------------
-  void RecomputeOde(uint32_t c) {
-    double best = std::numeric_limits<double>::infinity();
-    uint32_t best_d = kNone;
-    if (clusters_->count(c) > 0) {
-      // Its neighbours and the clusters that list it as theirs: the dual edges are
-      // symmetric, so when x's ODE is y, y sees x too and a chain of cheaper ODEs ends in
-      // a mutual pair (PML merges only those; with one-sided edges a small cluster could
-      // wait behind far costlier mutual pairs).
-      auto consider = [&](uint32_t n) {
-        if (n == kNone || clusters_->count(n) == 0) return;
-        const double cost = clusters_->MergeCost(c, n);
-        if (cost < best || (cost == best && n > best_d)) {
-          best = cost;
-          best_d = n;
-        }
-      };
-      for (uint32_t n : clusters_->neighbours(c)) consider(n);
-      for (uint32_t n : reverse_[c]) consider(n);
-    }
-    odes_.Set(c, best_d, best);
-  }
-
   // ---- neighbour bookkeeping --------------------------------------------------------------
   void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
     std::span<uint32_t> out = clusters_->neighbours(c);
@@ -533,14 +519,9 @@ class PointEngine {
     recorder_.Touch(c, [&](uint32_t x) { return clusters_->Energy(x); });
   }
   void Record(uint32_t i, uint32_t from) { recorder_.RecordMove(i, from); }
-  bool Alive(uint32_t c) const { return clusters_->count(c) > 0; }
 
-  void Merge(uint32_t a, uint32_t b) {
-    uint32_t keep = a, gone = b;
-    if (clusters_->count(b) > clusters_->count(a) ||
-        (clusters_->count(b) == clusters_->count(a) && b < a)) {
-      std::swap(keep, gone);
-    }
+ public:
+  void Merge(uint32_t keep, uint32_t gone) {
     Touch(keep);
     Touch(gone);
     for (uint32_t i : members_[gone]) {
@@ -553,7 +534,6 @@ class PointEngine {
     clusters_->MergeSums(keep, gone);
     into_[gone] = keep;
     partner_[keep] = gone;
-    --alive_;
     merged_.push_back(keep);
     gone_.push_back(gone);
   }
@@ -579,21 +559,22 @@ class PointEngine {
     return largest;
   }
 
-  void Optimise() {
+  // (LN k-means' assignment is parallel in every level.)
+  void Optimise(std::span<const uint32_t> merged, bool /*parallel_level*/) {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
     // Round 0: the merged clusters' points get the full check. A point of a cluster next
     // to a merged one can only gain by moving to a merged cluster (its other candidates
     // are as they were), so it is compared with the merged clusters that list its cluster
     // as a neighbour, and with nothing else.
     std::vector<uint32_t> region;
-    for (uint32_t c : merged_) {
+    for (uint32_t c : merged) {
       if (!mark_[c] && clusters_->count(c) > 0) {
         mark_[c] = 1;
         region.push_back(c);
       }
     }
     std::vector<std::pair<uint32_t, uint32_t>> next_to;  // (cluster, merged cluster)
-    for (uint32_t c : merged_) {
+    for (uint32_t c : merged) {
       for (uint32_t n : clusters_->neighbours(c)) {
         if (n != kNone && !mark_[n] && clusters_->count(n) > 0) next_to.push_back({n, c});
       }
@@ -712,9 +693,9 @@ class PointEngine {
     }
   }
 
-  absl::Status FinishLevel() {
-    // Neighbours: of every cluster that changed, of those that saw a changed or gone
-    // cluster, and their ODEs.
+  // After a level: the neighbours of every cluster that changed and of those that saw a
+  // changed or gone cluster are refreshed, and their ODEs recomputed.
+  void UpdateOdes(Engine& engine) {
     std::vector<uint32_t> refresh;
     auto add = [&](uint32_t c) {
       if (!mark_[c] && clusters_->count(c) > 0) {
@@ -773,7 +754,7 @@ class PointEngine {
       }
       std::span<uint32_t> out = clusters_->neighbours(gone);
       std::fill(out.begin(), out.end(), kNone);
-      odes_.Invalidate(gone);
+      engine.Invalidate(gone);
     }
     // ODEs: of the refreshed clusters, and of the clusters the changed ones list (to
     // which they are reverse neighbours).
@@ -791,27 +772,9 @@ class PointEngine {
         refresh_odes_.push_back(c);
       }
     }
-    for (uint32_t c : refresh_odes_) {
-      mark_[c] = 0;
-      RecomputeOde(c);
-    }
+    for (uint32_t c : refresh_odes_) mark_[c] = 0;
+    engine.RecomputeOdes(refresh_odes_);
     refresh_odes_.clear();
-    odes_.MaybeCompact(alive_, [&](uint32_t c) { return Alive(c); });
-
-    recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },
-                     [&](uint32_t i) { return clusters_->label(i); },
-                     [&](uint32_t i) { return original_[i]; });
-    merged_.clear();
-    gone_.clear();
-    MLCLUST_RETURN_IF_ERROR(recorder_.Emit(sink_, levels_, alive_));
-    Inspect(levels_);
-    ++levels_;
-    return absl::OkStatus();
-  }
-
-  absl::Status CheckLevelCancelled() const {
-    if (!IsCancelled(options_.cancel)) return absl::OkStatus();
-    return CheckCancelled(options_.cancel, absl::StrCat("level ", levels_));
   }
 
   // The labels of the level, in the caller's point order, to options_.inspect_level.
@@ -822,48 +785,9 @@ class PointEngine {
     options_.inspect_level(level, labels);
   }
 
-  bool SequentialStep() {
-    for (;;) {
-      const uint32_t cheapest = odes_.PopCheapest([&](uint32_t c) { return Alive(c); });
-      if (cheapest == kNone) return false;
-      const uint32_t other = odes_.partner(cheapest);
-      if (other == kNone || clusters_->count(other) == 0) {
-        RecomputeOde(cheapest);
-        continue;
-      }
-      Merge(cheapest, other);
-      Optimise();
-      return true;
-    }
-  }
-
-  bool ParallelStep() {
-    std::vector<std::pair<uint32_t, uint32_t>> pairs;
-    for (uint32_t c = 0; c < k0_; ++c) {
-      const uint32_t o = odes_.partner(c);
-      if (clusters_->count(c) > 0 && o != kNone && c < o && clusters_->count(o) > 0 &&
-          odes_.partner(o) == c) {
-        pairs.push_back({c, o});
-      }
-    }
-    if (pairs.empty()) return SequentialStep();
-    // Cheapest first (ties by id), so that the floor below keeps the cheapest.
-    std::sort(pairs.begin(), pairs.end(), [&](const auto& x, const auto& y) {
-      return odes_.cost(x.first) != odes_.cost(y.first) ? odes_.cost(x.first) < odes_.cost(y.first)
-                                                        : x < y;
-    });
-    detail::SelectPmlPairs(
-        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs);
-    const uint32_t floor = std::max(options_.min_clusters, 1u);
-    if (alive_ - pairs.size() < floor) pairs.resize(alive_ - floor);
-    for (const auto& [a, b] : pairs) Merge(a, b);
-    Optimise();
-    return true;
-  }
-
   // When the local neighbours split the clusters into groups that never see each other,
   // give each surviving cluster its nearest cluster in each subspace among all survivors.
-  bool ConnectSurvivors() {
+  bool ConnectWhenStuck(Engine& engine) {
     std::vector<uint32_t> survivors;
     for (uint32_t c = 0; c < k0_; ++c) {
       if (clusters_->count(c) > 0) survivors.push_back(c);
@@ -876,24 +800,23 @@ class PointEngine {
     }
     bool any = false;
     for (uint32_t c : survivors) {
-      RecomputeOde(c);
-      any = any || odes_.partner(c) != kNone;
+      engine.RecomputeOde(c);
+      any = any || engine.partner(c) != kNone;
     }
     return any;
   }
 
+ private:
   const PointSet& points_;
   PointSet sorted_;                 // points_ ordered by starting cell
   std::vector<uint32_t> original_;  // sorted_'s point -> points_'s
   const PointMultilevelOptions& options_;
-  LevelSink& sink_;
   const uint32_t d_;
-  uint32_t k0_ = 0, alive_ = 0, levels_ = 0;
+  uint32_t k0_ = 0;
   std::unique_ptr<PointClusters> clusters_;
   std::vector<std::vector<uint32_t>> members_, reverse_;
   std::vector<uint32_t> position_;
   std::vector<uint8_t> mark_;
-  detail::OdeHeap odes_{0};
   LevelRecorder recorder_{0, 0};
   std::vector<uint32_t> merged_, gone_, points_to_check_, target_;
   // In the current level: the cluster each gone one merged into, and each merged one's
@@ -1068,11 +991,23 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
         StartCells(points, bounds, options.grid, options.cancel);
     const VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis, options.cancel);
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
-    PointEngine engine(points, options, sink, cells);
-    absl::StatusOr<PointMultilevelSummary> summary = engine.Run();
-    if (summary.ok()) {
-      summary->grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());
-    }
+    PointSpace space(points, options, cells);
+    detail::MultilevelEngineOptions engine_options;
+    engine_options.optimise = options.optimizer != PointMultilevelOptions::Optimizer::kNone;
+    engine_options.parallel = options.parallel;
+    engine_options.pml_until = options.pml_until;
+    engine_options.pml_pairs = options.pml_pairs;
+    engine_options.pairs_in_cost_order = true;
+    engine_options.min_clusters = options.min_clusters;
+    engine_options.cancel = options.cancel;
+    detail::MultilevelEngine<PointSpace> engine(space, engine_options, sink);
+    MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
+    PointMultilevelSummary summary;
+    summary.levels = run.levels;
+    summary.start_clusters = space.start_clusters();
+    summary.final_clusters = run.final_clusters;
+    summary.moves = run.moves;
+    summary.grid = *std::max_element(cells_per_axis.begin(), cells_per_axis.end());
     return summary;
   });
 }

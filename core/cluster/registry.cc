@@ -8,6 +8,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/device_stages.h"
 
@@ -58,17 +59,32 @@ OptionInfo Number(std::string name, double low, double high, std::string default
 }
 
 // Options several algorithms share, each writing its own field.
-OptionInfo GuardOption(std::string help_target) {
-  return Choice("guard", {"on", "off"}, "on",
-                absl::StrCat("the connectivity guard (Alg. 3.2's purpose; ours: a vertex ring "
-                             "test): no cluster splits or gains a hole (",
-                             help_target, ")"),
-                [](const OptionValue& v, JobPlan& plan) {
-                  const bool on = v.text == "on";
-                  plan.multilevel.connectivity_guard = on;
-                  plan.emlo.connectivity_guard = on;
-                  plan.boundary_based.connectivity_guard = on;
-                });
+// `vertex_count`: the driver can run Alg. 3.2's counts (EMLO and BB; ML's local
+// optimisation has the ring test only).
+OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
+  std::vector<std::string> choices = {"on", "ring", "off"};
+  if (vertex_count) choices.push_back("vertex-count");
+  return Choice(
+      "guard", std::move(choices), "on",
+      absl::StrCat("the connectivity guard: no cluster splits or gains a hole (", help_target,
+                   "); on = ring, ours: the faces around a face in its cluster and in the "
+                   "target each form one run",
+                   vertex_count ? "; vertex-count: Alg. 3.2's vertex boundary-edge counts "
+                                  "(l. 870-890)"
+                                : "",
+                   "; off: none"),
+      [](const OptionValue& v, JobPlan& plan) {
+        const bool on = v.text != "off";
+        const ConnectivityGuardKind kind = v.text == "vertex-count"
+                                               ? ConnectivityGuardKind::kVertexBoundaryEdgeCount
+                                           : on ? ConnectivityGuardKind::kRingTest
+                                                : ConnectivityGuardKind::kOff;
+        plan.multilevel.connectivity_guard = on;
+        plan.emlo.connectivity_guard = on;
+        plan.emlo.guard = kind;
+        plan.boundary_based.connectivity_guard = on;
+        plan.boundary_based.guard = kind;
+      });
 }
 
 OptionInfo ThreadsOption(std::string what, void (*set)(JobPlan&, int)) {
@@ -134,12 +150,42 @@ OptionInfo PmlPairsOption() {
 
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
-                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown by the "
-                "energy-ordered flood (Alg. 2.2)",
+                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
+                "--growth says",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.seeds.method = v.text == "random" ? SeedOptions::Method::kRandom
                                                          : SeedOptions::Method::kLNeighbourhood;
                 });
+}
+
+OptionInfo SeedGrowthOption() {
+  return Choice("growth", {"flood", "free"}, "flood",
+                "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
+                "energies by distance to the seed) or energy-free, each cluster in turn taking "
+                "the free faces across its boundary (l. 671, 1219)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.seeds.growth = v.text == "free" ? SeedOptions::Growth::kEnergyFree
+                                                       : SeedOptions::Growth::kEnergyOrdered;
+                });
+}
+
+OptionInfo SeedReductionOption() {
+  return Choice("seed-reduction", {"merge", "reseed"}, "merge",
+                "l-neighbourhood seeds above k: merge the three clusters at the vertex with "
+                "the smallest summed area, keeping the grown regions (ours) or re-seeding at "
+                "that common vertex and growing all seeds again (l. 849)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.seeds.reduction = v.text == "reseed"
+                                             ? SeedOptions::Reduction::kReseedAndRegrow
+                                             : SeedOptions::Reduction::kMergeRegions;
+                });
+}
+
+OptionInfo AddSeedsOption() {
+  return Choice("add-seeds", {"off", "on"}, "off",
+                "l-neighbourhood seeds below k (a large --level): refuse, or add seeds at the "
+                "common vertex of three neighbouring clusters and grow again (l. 849)",
+                [](const OptionValue& v, JobPlan& plan) { plan.seeds.add_seeds = v.text == "on"; });
 }
 
 OptionInfo SeedLevelOption() {
@@ -177,6 +223,8 @@ void SetPointThreads(JobPlan& plan, int threads) {
   plan.point_multilevel.threads = threads;
   plan.ln_kmeans.threads = threads;
   plan.kmeans.threads = threads;
+  plan.xmeans.threads = threads;
+  plan.bisecting.threads = threads;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -193,12 +241,13 @@ void Report(const RunContext& context, const JobPlan& plan, absl::string_view st
   if (context.on_stage) context.on_stage(Stage(plan, stage), message);
 }
 
-// A single-level algorithm's result as two levels: level 0 the initial clusters at K,
-// level 1 the elements whose cluster the optimisation changed.
-absl::Status EmitSingleLevel(std::span<const ClusterId> initial, double initial_energy,
-                             std::span<const ClusterId> result, double energy, uint32_t clusters,
-                             LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(sink.OnStart(initial, clusters, initial_energy));
+// A single-level algorithm's result as two levels: level 0 the initial clusters
+// (`initial_clusters` of them), level 1 the elements whose cluster the algorithm changed
+// (`clusters` in all).
+absl::Status EmitTwoLevels(std::span<const ClusterId> initial, uint32_t initial_clusters,
+                           double initial_energy, std::span<const ClusterId> result, double energy,
+                           uint32_t clusters, LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(initial, initial_clusters, initial_energy));
   std::vector<uint32_t> element, to, from;
   for (uint32_t i = 0; i < result.size(); ++i) {
     if (result[i] != initial[i]) {
@@ -215,6 +264,13 @@ absl::Status EmitSingleLevel(std::span<const ClusterId> initial, double initial_
   level.to_cluster = to;
   level.from_cluster = from;
   return sink.OnLevel(level);
+}
+
+// The seeding at K, then the result at K.
+absl::Status EmitSingleLevel(std::span<const ClusterId> initial, double initial_energy,
+                             std::span<const ClusterId> result, double energy, uint32_t clusters,
+                             LevelSink& sink) {
+  return EmitTwoLevels(initial, clusters, initial_energy, result, energy, clusters, sink);
 }
 
 std::string EnergyNote(const JobPlan& plan) {
@@ -372,6 +428,60 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
   return RunSummary{plan.clusters, plan.clusters};
 }
 
+// X-means (Alg. 2.5): level 0 is its line 1, k-means at k_min (JobPlan::clusters), run again
+// here as RunXmeans runs it (the same options and seed: the first draw of Random(seed)), since
+// RunXmeans hands back only the chosen round; level 1 is the chosen model, with the number of
+// clusters X-means found.
+absl::StatusOr<RunSummary> RunPointXmeans(const PointSet& points, const JobPlan& plan,
+                                          LevelSink& sink, const RunContext& context) {
+  XmeansOptions options = plan.xmeans;
+  options.min_clusters = plan.clusters;
+  options.seed = plan.seed;
+  options.cancel = context.cancel;
+  Report(context, plan, "seed",
+         absl::StrCat(points.num_points(), " points in ", points.dims, " dimensions: k-means at ",
+                      "k_min = ", options.min_clusters));
+  KmeansOptions first;
+  first.clusters = options.min_clusters;
+  first.init = options.init;
+  first.max_iterations = options.max_iterations;
+  first.tolerance = options.tolerance;
+  first.threads = options.threads;
+  first.seed = Random(options.seed).Next();
+  first.cancel = context.cancel;
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, RunKmeans(points, first));
+  Report(context, plan, "cluster",
+         absl::StrCat("X-means: virtual splits kept where the BIC rises, up to k_max = ",
+                      options.max_clusters == 0 ? points.num_points() : options.max_clusters));
+  MLCLUST_ASSIGN_OR_RETURN(XmeansResult result, RunXmeans(points, options));
+  for (size_t r = 0; r < result.rounds.size(); ++r) {
+    const XmeansRound& round = result.rounds[r];
+    Report(context, plan, "cluster",
+           absl::StrCat("round ", r, ": ", round.clusters, " clusters (", round.splits,
+                        " splits), energy ", round.inertia, ", BIC ", round.bic,
+                        r == result.chosen_round ? " (chosen: the largest BIC)" : ""));
+  }
+  MLCLUST_RETURN_IF_ERROR(EmitTwoLevels(start.labels, options.min_clusters, start.inertia,
+                                        result.labels, result.inertia, result.clusters, sink));
+  return RunSummary{options.min_clusters, result.clusters};
+}
+
+// Bisecting k-means (Alg. 2.7) down from K = JobPlan::clusters: level 0 is the K clusters,
+// then the splits undone, last first, down to one cluster (EmitBisectingLevels).
+absl::StatusOr<RunSummary> RunPointBisecting(const PointSet& points, const JobPlan& plan,
+                                             LevelSink& sink, const RunContext& context) {
+  BisectingKmeansOptions options = plan.bisecting;
+  options.clusters = plan.clusters;
+  options.seed = plan.seed;
+  options.cancel = context.cancel;
+  Report(context, plan, "cluster",
+         absl::StrCat(points.num_points(), " points in ", points.dims,
+                      " dimensions: bisecting k-means to ", options.clusters, " clusters"));
+  MLCLUST_ASSIGN_OR_RETURN(BisectingKmeansResult result, RunBisectingKmeans(points, options));
+  MLCLUST_RETURN_IF_ERROR(EmitBisectingLevels(result, sink));
+  return RunSummary{static_cast<uint32_t>(result.splits.size() + 1), 1};
+}
+
 // ---------------------------------------------------------------------------------------
 // The tables.
 
@@ -385,6 +495,8 @@ enum WireAlgorithm {
   kWireVsa = 6,
   kWireLnKmeans = 7,
   kWireKmeans = 8,
+  kWireXmeans = 9,
+  kWireBisecting = 10,
 };
 
 std::vector<EnergyInfo> BuildEnergies() {
@@ -513,7 +625,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "energy minimisation by local optimisation (Alg. 3.3)";
     a.help = "seeds k clusters, then moves boundary faces while the energy falls";
     a.energies = mesh_energies;
-    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move")};
+    a.options = {SeedInitOption(),   SeedLevelOption(),
+                 SeedGrowthOption(), SeedReductionOption(),
+                 AddSeedsOption(),   GuardOption("every move", /*vertex_count=*/true)};
     a.stages = {seed_stage, {"cluster", "boundary moves until none lowers the energy"}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
@@ -525,7 +639,12 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "boundary-based optimisation (Alg. 5.1)";
     a.help = "seeds k clusters, then parallel sweeps: every boundary face picks the best proxy";
     a.energies = mesh_energies;
-    a.options = {SeedInitOption(), SeedLevelOption(), GuardOption("every move"),
+    a.options = {SeedInitOption(),
+                 SeedLevelOption(),
+                 SeedGrowthOption(),
+                 SeedReductionOption(),
+                 AddSeedsOption(),
+                 GuardOption("every move", /*vertex_count=*/true),
                  ThreadsOption("BB", [](JobPlan& plan, int t) { plan.boundary_based.threads = t; }),
                  Integer("max-iterations", 1, 1000000, "200", "BB sweeps at most",
                          [](const OptionValue& v, JobPlan& plan) {
@@ -687,6 +806,88 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.stages = {{"cluster", "seeding, then Lloyd iterations (assignment on the GPU)",
                  /*has_gpu=*/true}};
     a.run_points = RunPointKmeans;
+    algorithms.push_back(a);
+  }
+  auto divisive_init = [](std::string default_text, std::string help,
+                          void (*set)(JobPlan&, KmeansOptions::Init)) {
+    return Choice("init", {"kmeans++", "random"}, std::move(default_text), std::move(help),
+                  [set](const OptionValue& v, JobPlan& plan) {
+                    set(plan, v.text == "random" ? KmeansOptions::Init::kRandom
+                                                 : KmeansOptions::Init::kKmeansPlusPlus);
+                  });
+  };
+  {
+    AlgorithmInfo a;
+    a.name = "xmeans";
+    a.wire = kWireXmeans;
+    a.input = InputKind::kPoints;
+    a.chooses_k = true;
+    a.title = "X-means (Alg. 2.5, Pelleg & Moore)";
+    a.help =
+        "k-means from --clusters = k_min, then every cluster split in two by 2-means where the "
+        "BIC of the halves beats the cluster's, and k-means again, until no split is kept or "
+        "k_max; the result is the round of largest BIC [K = k_min, finds its own K]";
+    a.energies = point_energies;
+    a.options = {
+        Integer("kmax", 0, UINT32_MAX, "0",
+                "k_max of Alg. 2.5: no round goes beyond it (0 = the number of points)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.xmeans.max_clusters = static_cast<uint32_t>(v.integer);
+                }),
+        Integer("split-trials", 1, 1000, "1",
+                "2-means runs per virtual split (Alg. 2.5 line 3); the halves of least energy are "
+                "tested",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.xmeans.split_trials = static_cast<uint32_t>(v.integer);
+                }),
+        divisive_init("kmeans++", "seeding of the first k-means and of every 2-means",
+                      [](JobPlan& plan, KmeansOptions::Init init) { plan.xmeans.init = init; }),
+        point_threads,
+        Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations of every k-means run",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.xmeans.max_iterations = static_cast<uint32_t>(v.integer);
+                })};
+    a.stages = {{"seed", "k-means at k_min (Alg. 2.5 line 1)"},
+                {"cluster", "rounds of virtual splits tested by the BIC, then k-means"}};
+    a.run_points = RunPointXmeans;
+    algorithms.push_back(a);
+  }
+  {
+    AlgorithmInfo a;
+    a.name = "bisecting";
+    a.wire = kWireBisecting;
+    a.input = InputKind::kPoints;
+    a.hierarchy = true;
+    a.divisive = true;
+    a.title = "bisecting k-means (Alg. 2.7, Steinbach et al.)";
+    a.help =
+        "from one cluster, split a cluster in two by 2-means until there are --clusters K; the "
+        "levels are K clusters, then the splits undone, down to one";
+    a.energies = point_energies;
+    a.options = {
+        Choice("split", {"size", "energy"}, "size",
+               "the cluster split: the largest (Alg. 2.7's \"largest cluster\") or, ours to "
+               "offer (scikit-learn's default), the one of largest energy",
+               [](const OptionValue& v, JobPlan& plan) {
+                 plan.bisecting.split = v.text == "energy"
+                                            ? BisectingKmeansOptions::SplitChoice::kLargestEnergy
+                                            : BisectingKmeansOptions::SplitChoice::kLargestSize;
+               }),
+        Integer("trials", 1, 1000, "1",
+                "L of Alg. 2.7: 2-means runs per split (seeds S, S+1, ...), the split of least "
+                "energy kept",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.bisecting.trials = static_cast<uint32_t>(v.integer);
+                }),
+        divisive_init("random", "seeding of each 2-means: two random points or k-means++",
+                      [](JobPlan& plan, KmeansOptions::Init init) { plan.bisecting.init = init; }),
+        point_threads,
+        Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations of each 2-means run",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.bisecting.max_iterations = static_cast<uint32_t>(v.integer);
+                })};
+    a.stages = {{"cluster", "splits by 2-means to K clusters"}};
+    a.run_points = RunPointBisecting;
     algorithms.push_back(a);
   }
   return algorithms;
@@ -894,6 +1095,16 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
       return absl::InvalidArgumentError(absl::StrCat("levels: the high end ", request.levels_high,
                                                      " is below the low end ", request.levels_low));
     }
+    if (algorithm.divisive) {
+      // Its top is K; the levels go down to one cluster.
+      if (request.clusters < 1) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "clusters: ", algorithm.name, " needs k >= 1 clusters (the top of its hierarchy)"));
+      }
+      plan.bisecting.clusters = request.clusters;
+      plan.bisecting.seed = request.seed;
+      return plan;
+    }
     const uint32_t lowest = std::max<uint32_t>({1, request.clusters, request.levels_low});
     plan.multilevel.min_clusters = lowest;
     plan.point_multilevel.min_clusters = lowest;
@@ -908,7 +1119,7 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
   } else {
     if (request.levels_high != 0 || request.levels_low != 0) {
       return absl::InvalidArgumentError(
-          "levels: a level range applies to the hierarchies of HC, ML and PML only");
+          "levels: a level range applies to the hierarchies (HC, ML, PML, bisecting) only");
     }
     if (plan.point_init == JobPlan::PointInit::kGrid) {
       if (request.clusters != 0) {
@@ -931,6 +1142,14 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
     plan.vsa.seed = request.seed;
     plan.kmeans.clusters = request.clusters;
     plan.kmeans.seed = request.seed;
+    plan.xmeans.min_clusters = request.clusters;
+    plan.xmeans.seed = request.seed;
+    if (algorithm.chooses_k && plan.xmeans.max_clusters != 0 &&
+        plan.xmeans.max_clusters < request.clusters) {
+      return absl::InvalidArgumentError(absl::StrCat("option kmax: ", plan.xmeans.max_clusters,
+                                                     " is below clusters (k_min) ",
+                                                     request.clusters));
+    }
   }
   return plan;
 }

@@ -25,11 +25,13 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
+#include "core/cluster/bisecting_kmeans.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
 #include "core/cluster/point_clustering.h"
 #include "core/cluster/vsa.h"
+#include "core/cluster/xmeans.h"
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/points/points.h"
@@ -161,6 +163,12 @@ struct AlgorithmInfo {
   bool hierarchy = false;
   // Single-level algorithms that can start without a K (LN k-means' init grid) say so in
   // their plan; all others need clusters >= 1.
+  // A divisive hierarchy (bisecting k-means): clusters (>= 1, required) is its top, K; its
+  // levels go from K clusters down to one.
+  bool divisive = false;
+  // A single-level algorithm that chooses its own number of clusters (X-means): clusters is
+  // the smallest it starts from (k_min); the result, the last level, may have more.
+  bool chooses_k = false;
   std::string title;  // "multilevel clustering (Alg. 4.1)"
   std::string help;
   std::vector<std::string> energies;      // the energies it runs, by name; the first is the default
@@ -229,6 +237,8 @@ struct JobPlan {
   uint32_t grid = 0;                                  // LN k-means with init grid
   LnKmeansOptions ln_kmeans;
   KmeansOptions kmeans;
+  XmeansOptions xmeans;
+  BisectingKmeansOptions bisecting;
 };
 
 // Checks the request against the registry and builds the plan: the energy is one the

@@ -614,6 +614,8 @@ absl::StatusOr<VsaResult> RunVsa(const MeshProblem& problem, const VsaOptions& o
   result.initial_energy = vsa.energy();
   double best = vsa.energy();
   std::vector<uint32_t> best_labels = vsa.labels();
+  result.initial_labels.resize(num_faces);
+  for (size_t f = 0; f < num_faces; ++f) result.initial_labels[f] = ClusterId(best_labels[f]);
   std::vector<Vec3> best_proxies = vsa.proxies();
   std::vector<uint32_t> best_seeds = vsa.seeds();
   double previous = best;

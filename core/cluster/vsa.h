@@ -91,6 +91,10 @@ struct VsaResult {
   // final regions. Equals EnergyFromSums(PlanarEnergy, labels) up to rounding.
   double energy = 0;
   double initial_energy = 0;  // the energy of the seeding's partition
+  // The seeding's partition (labels as above): what a run with iterations = 0 returns as
+  // `labels`, so a caller that reports the seeding as a level of its own needs no second
+  // run of the seeding.
+  std::vector<ClusterId> initial_labels;
   // Per region: the proxy (unit normal) fitted to it and its seed face (the face of the
   // smallest cost against that proxy, where the next partition would start).
   std::vector<Vec3> proxies;

@@ -13,6 +13,10 @@ std::vector<uint32_t> FindElbows(std::span<const uint32_t> cluster_count,
   if (!(largest > 0)) return elbows;  // a flat zero curve has no elbow
   const double floor = options.significance * largest;
   for (size_t l = 0; l + 1 < levels && elbows.size() < options.max_elbows; ++l) {
+    if (options.rule == ElbowOptions::Rule::kEndOfZeroPlateau &&
+        energy[l] > options.plateau * largest) {
+      continue;
+    }
     const double here = std::max(energy[l], floor);
     const double next = energy[l + 1];
     if (next > options.jump * here) {

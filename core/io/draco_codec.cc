@@ -1,5 +1,6 @@
 #include "core/io/draco_codec.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -7,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
+#include "core/io/allocation_budget.h"
 #include "draco/attributes/geometry_attribute.h"
 #include "draco/attributes/point_attribute.h"
 #include "draco/compression/config/compression_shared.h"
@@ -14,8 +16,10 @@
 #include "draco/compression/expert_encode.h"
 #include "draco/core/decoder_buffer.h"
 #include "draco/core/encoder_buffer.h"
+#include "draco/core/varint_decoding.h"
 #include "draco/mesh/mesh.h"
 #include "draco/metadata/geometry_metadata.h"
+#include "draco/metadata/metadata_decoder.h"
 
 namespace mlclust {
 namespace {
@@ -178,13 +182,127 @@ absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
   return std::string(buffer.data(), buffer.size());
 }
 
+namespace {
+
+// A count of a Draco mesh header, read the way Draco 1.5.5 reads it
+// (MeshSequentialDecoder / MeshEdgeBreakerDecoderImpl::DecodeConnectivity): a fixed
+// uint32 in older bitstreams, a varint (Draco's own decoder) after.
+bool ReadDeclaredCount(draco::DecoderBuffer* buffer, bool fixed_width, uint32_t* value) {
+  if (fixed_width) return buffer->Decode(value);
+  return draco::DecodeVarint(value, buffer);
+}
+
+absl::Status DeclaredTooMany(const char* what, uint64_t declared, uint64_t allowed,
+                             size_t payload_bytes) {
+  return absl::InvalidArgumentError(
+      absl::StrCat("invalid Draco mesh: its header declares ", declared, " ", what,
+                   ", more than a ", payload_bytes, "-byte payload can encode (at most ", allowed,
+                   "); refused before decoding, as Draco would allocate for all of them"));
+}
+
+}  // namespace
+
+absl::Status CheckDracoDeclaredCounts(std::string_view bytes, const DracoDecodeLimits& limits) {
+  draco::DecoderBuffer buffer;
+  buffer.Init(bytes.data(), bytes.size());
+  char magic[5];
+  uint8_t major = 0;
+  uint8_t minor = 0;
+  uint8_t encoder_type = 0;
+  uint8_t encoder_method = 0;
+  uint16_t flags = 0;
+  if (!buffer.Decode(magic, 5) || std::string_view(magic, 5) != "DRACO" || !buffer.Decode(&major) ||
+      !buffer.Decode(&minor) || !buffer.Decode(&encoder_type) || !buffer.Decode(&encoder_method) ||
+      !buffer.Decode(&flags)) {
+    return absl::OkStatus();  // not a Draco header: the decoder says so
+  }
+  if (encoder_type != draco::TRIANGULAR_MESH) return absl::OkStatus();
+  const uint16_t version = DRACO_BITSTREAM_VERSION(major, minor);
+  if (version > draco::kDracoMeshBitstreamVersion) return absl::OkStatus();  // Draco refuses it
+  buffer.set_bitstream_version(version);
+  if (version >= DRACO_BITSTREAM_VERSION(1, 3) && (flags & METADATA_FLAG_MASK) != 0) {
+    draco::MetadataDecoder metadata_decoder;
+    draco::GeometryMetadata metadata;
+    if (!metadata_decoder.DecodeGeometryMetadata(&buffer, &metadata)) return absl::OkStatus();
+  }
+
+  const uint64_t by_size =
+      std::max<uint64_t>(limits.always_allowed_faces,
+                         limits.max_faces_per_byte > UINT64_MAX / std::max<size_t>(bytes.size(), 1)
+                             ? UINT64_MAX
+                             : limits.max_faces_per_byte * bytes.size());
+  const uint64_t allowed = std::min<uint64_t>(by_size, limits.max_faces);
+
+  if (encoder_method == draco::MESH_SEQUENTIAL_ENCODING) {
+    const bool fixed = version < DRACO_BITSTREAM_VERSION(2, 2);
+    uint32_t num_faces = 0;
+    uint32_t num_points = 0;
+    if (!ReadDeclaredCount(&buffer, fixed, &num_faces) ||
+        !ReadDeclaredCount(&buffer, fixed, &num_points)) {
+      return absl::OkStatus();
+    }
+    if (num_faces > allowed) return DeclaredTooMany("faces", num_faces, allowed, bytes.size());
+    // Points past the faces' corners are unused vertices: allowed, within the same bound.
+    if (num_points > allowed && num_points > 3 * uint64_t{num_faces}) {
+      return DeclaredTooMany("points", num_points, std::max(allowed, 3 * uint64_t{num_faces}),
+                             bytes.size());
+    }
+    return absl::OkStatus();
+  }
+  if (encoder_method != draco::MESH_EDGEBREAKER_ENCODING) return absl::OkStatus();
+
+  uint8_t traversal_decoder_type = 0;  // MeshEdgebreakerDecoder::InitializeDecoder
+  if (!buffer.Decode(&traversal_decoder_type)) return absl::OkStatus();
+  const bool fixed = version < DRACO_BITSTREAM_VERSION(2, 0);
+  uint32_t num_new_vertices = 0;
+  if (version < DRACO_BITSTREAM_VERSION(2, 2) &&
+      !ReadDeclaredCount(&buffer, fixed, &num_new_vertices)) {
+    return absl::OkStatus();
+  }
+  uint32_t num_encoded_vertices = 0;
+  uint32_t num_faces = 0;
+  uint8_t num_attribute_data = 0;
+  uint32_t num_encoded_symbols = 0;
+  uint32_t num_encoded_split_symbols = 0;
+  if (!ReadDeclaredCount(&buffer, fixed, &num_encoded_vertices) ||
+      !ReadDeclaredCount(&buffer, fixed, &num_faces) || !buffer.Decode(&num_attribute_data) ||
+      !ReadDeclaredCount(&buffer, fixed, &num_encoded_symbols) ||
+      !ReadDeclaredCount(&buffer, fixed, &num_encoded_split_symbols)) {
+    return absl::OkStatus();
+  }
+  if (num_faces > allowed) return DeclaredTooMany("faces", num_faces, allowed, bytes.size());
+  // Every vertex is a corner of some face, and a split symbol is one of the symbols, so
+  // the counts of a real mesh stay within the faces'; Draco sizes its tables by the sum.
+  const uint64_t corners = 3 * uint64_t{num_faces};
+  if (uint64_t{num_encoded_vertices} + num_encoded_split_symbols > corners + 3) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("invalid Draco mesh: its header declares ", num_encoded_vertices,
+                     " vertices and ", num_encoded_split_symbols, " split symbols for ", num_faces,
+                     " faces (a mesh has at most 3 vertices per face)"));
+  }
+  if (num_new_vertices > corners + 3) {
+    return absl::InvalidArgumentError(absl::StrCat("invalid Draco mesh: its header declares ",
+                                                   num_new_vertices, " new vertices for ",
+                                                   num_faces, " faces"));
+  }
+  if (num_attribute_data > limits.max_attribute_connectivities) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("invalid Draco mesh: its header declares ", int{num_attribute_data},
+                     " attributes with their own connectivity (at most ",
+                     limits.max_attribute_connectivities, " accepted)"));
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<TriangleMesh> DecodeDracoMesh(std::string_view bytes) {
   MLCLUST_ASSIGN_OR_RETURN(DecodedDracoMesh decoded, DecodeDracoMeshWithFaceIds(bytes));
   return std::move(decoded.mesh);
 }
 
-absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view bytes) {
+absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view bytes,
+                                                            const DracoDecodeLimits& limits) {
   if (bytes.empty()) return absl::InvalidArgumentError("Draco data is empty");
+  MLCLUST_RETURN_IF_ERROR(CheckDracoDeclaredCounts(bytes, limits));
   draco::DecoderBuffer buffer;
   buffer.Init(bytes.data(), bytes.size());
   // Reading the header first lets us refuse a point cloud with a message that says so,
@@ -205,19 +323,32 @@ absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view byt
   }
 
   std::unique_ptr<draco::Mesh> decoded;
-  // A hostile header can announce billions of elements; Draco allocates before it finds
-  // the data missing. Failing the allocation must not take the server down.
+  // A hostile payload can declare more than it holds; Draco allocates before it finds the
+  // data missing. The budget bounds what it may ask for by the payload's size, and a
+  // failed allocation must not take the server down.
+  const uint64_t budget = std::max<uint64_t>(
+      limits.min_decode_budget_bytes, limits.decode_budget_per_byte > UINT64_MAX / bytes.size()
+                                          ? UINT64_MAX
+                                          : limits.decode_budget_per_byte * bytes.size());
+  bool over_budget = false;
   try {
+    ScopedAllocationBudget allocation_budget(budget);
     draco::Decoder decoder;
     auto result = decoder.DecodeMeshFromBuffer(&buffer);
-    if (!result.ok()) {
+    over_budget = allocation_budget.exceeded();
+    if (!result.ok() && !over_budget) {
       return absl::InvalidArgumentError(
           absl::StrCat("invalid Draco mesh: ", result.status().error_msg_string()));
     }
-    decoded = std::move(result).value();
+    if (result.ok()) decoded = std::move(result).value();
   } catch (const std::bad_alloc&) {
+    over_budget = true;
+  }
+  if (decoded == nullptr) {
     return absl::InvalidArgumentError(
-        "invalid Draco mesh: its header asks for more memory than is available");
+        absl::StrCat("invalid Draco mesh: decoding it asks for more memory than a ", bytes.size(),
+                     "-byte payload can need (more than ", budget >> 20,
+                     " MiB); its header or attributes declare more than the bytes hold"));
   }
 
   const draco::PointAttribute* position =

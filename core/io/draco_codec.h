@@ -16,10 +16,12 @@
 #ifndef MLCLUST_CORE_IO_DRACO_CODEC_H_
 #define MLCLUST_CORE_IO_DRACO_CODEC_H_
 
+#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "core/mesh/mesh.h"
 
@@ -83,9 +85,48 @@ struct DecodedDracoMesh {
   std::vector<uint32_t> original_face;
 };
 
+// How much a payload may declare and make the decoder allocate. Draco 1.5.5 sizes its
+// edgebreaker corner table, the sequential decoder's points and every attribute from the
+// counts a payload declares, before it finds the data missing: 110 bytes declaring 354M
+// faces made it write 8.4 GB. A legitimate payload cannot declare more than its bytes can
+// encode, so the declared counts are bounded by the payload's size, and what decoding may
+// allocate by a budget in proportion to it (allocation_budget.h) for what the header does
+// not say (attribute sizes, metadata). Measured (bench: the BENCHMARKS.md section "Draco
+// payload limits"): real meshes are 0.3–3 faces per byte (bunny00: 0.34 at 8-bit
+// positions); the most compressible mesh we could make, a 2M-face regular grid, is 16
+// faces per byte at 8-bit positions, 95 at 4-bit and 1,565 at 1-bit (both refused: their
+// faces collapse onto a few positions); decoding takes 60–110 bytes per face, 360 with
+// the face id attribute.
+struct DracoDecodeLimits {
+  // Faces (and points) a payload may declare per byte of payload.
+  uint64_t max_faces_per_byte = 64;
+  // Up to this a payload may declare any count (a small mesh is never refused for its
+  // ratio); 65,536 faces cost Draco about 3 MB.
+  uint64_t always_allowed_faces = uint64_t{1} << 16;
+  // Never more than this, whatever the payload's size (ids are 32-bit).
+  uint64_t max_faces = kMaxMeshElements;
+  // Attributes with their own connectivity (seams) an edgebreaker payload may declare;
+  // Draco keeps a corner table's worth of data for each.
+  uint32_t max_attribute_connectivities = 16;
+  // What decoding may ask of operator new in all (counted, not net):
+  // max(min_decode_budget_bytes, decode_budget_per_byte * payload bytes). 64 faces per
+  // byte at 360 bytes per face is 23 KiB per byte.
+  uint64_t decode_budget_per_byte = 32 * 1024;
+  uint64_t min_decode_budget_bytes = uint64_t{64} << 20;
+};
+
+// Reads the header of a Draco mesh payload (every bitstream version Draco 1.5.5 decodes:
+// 1.0 to 2.2, sequential and edgebreaker, metadata skipped) and checks its declared counts
+// against `limits`. OK for bytes that are not a Draco mesh at all: the decoder names those.
+// Reads no more than the header; allocates nothing in proportion to what it declares.
+absl::Status CheckDracoDeclaredCounts(std::string_view bytes, const DracoDecodeLimits& limits = {});
+
 // DecodeDracoMesh, also saying whether the payload carried face ids and how the bytes
-// ordered the faces (for a server that reports it, and for tests).
-absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view bytes);
+// ordered the faces (for a server that reports it, and for tests). Before Draco decodes,
+// the header's declared counts are checked against `limits` (INVALID_ARGUMENT naming the
+// count, what was declared and what the payload's size allows).
+absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view bytes,
+                                                            const DracoDecodeLimits& limits = {});
 
 }  // namespace mlclust
 

@@ -153,6 +153,33 @@ void VertexBoundaryEdgeCountGuard::Reset(std::span<const uint32_t> labels) {
 bool VertexBoundaryEdgeCountGuard::CanMove(uint32_t face, uint32_t to,
                                            std::span<const uint32_t> labels,
                                            std::span<const uint32_t> cluster_sizes) const {
+  return Check(face, to, labels, cluster_sizes, [&](uint32_t v2) { return count_[v2] == 0; });
+}
+
+bool VertexBoundaryEdgeCountGuard::CanMoveWithoutCounts(
+    uint32_t face, uint32_t to, std::span<const uint32_t> labels,
+    std::span<const uint32_t> cluster_sizes) const {
+  // count(V2) == 0: every face around V2 in the moving face's cluster and no mesh border
+  // edge at V2 (then every edge at V2 has the same cluster on both sides).
+  return Check(face, to, labels, cluster_sizes, [&](uint32_t v2) {
+    const uint32_t from = labels[face];
+    for (uint32_t g : vertex_faces_.faces_around(v2)) {
+      if (labels[g] != from) return false;
+      const uint32_t* corners = &mesh_.indices[3 * size_t{g}];
+      const int at = corners[0] == v2 ? 0 : corners[1] == v2 ? 1 : 2;
+      for (int e : {at, (at + 2) % 3}) {
+        if (!adjacency_.neighbours[g][e].valid()) return false;
+      }
+    }
+    return true;
+  });
+}
+
+template <typename CaseZero>
+bool VertexBoundaryEdgeCountGuard::Check(uint32_t face, uint32_t to,
+                                         std::span<const uint32_t> labels,
+                                         std::span<const uint32_t> cluster_sizes,
+                                         CaseZero&& v2_has_no_boundary_edge) const {
   const uint32_t from = labels[face];
   if (from == to || cluster_sizes[from] <= 1) return false;
   const std::array<FaceId, 3>& across = adjacency_.neighbours[face];
@@ -164,7 +191,7 @@ bool VertexBoundaryEdgeCountGuard::CanMove(uint32_t face, uint32_t to,
   const FaceId n = across[(c + 1) % 3];  // V3 -> V2
   const FaceId p = across[(c + 2) % 3];  // V2 -> V1
   const uint32_t v2 = mesh_.indices[3 * size_t{face} + (c + 2) % 3];
-  if (count_[v2] == 0) return true;              // case 0
+  if (v2_has_no_boundary_edge(v2)) return true;  // case 0
   if (in(n, to) != in(p, to)) return true;       // cases 1, 2
   if (in(n, from) == in(p, from)) return false;  // isBoundary(n) XOR isBoundary(p) fails
   // Cases 3, 4: V2 must have no boundary edge of `to` (else `to` would close a loop around

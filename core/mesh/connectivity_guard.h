@@ -27,6 +27,13 @@
 
 namespace mlclust {
 
+// Which connectivity check a driver asks before a face changes cluster.
+enum class ConnectivityGuardKind {
+  kRingTest,                 // ConnectivityGuard: ours, the default (keeps discs discs)
+  kVertexBoundaryEdgeCount,  // VertexBoundaryEdgeCountGuard: Alg. 3.2 (l. 870-890)
+  kOff,                      // none: only "a cluster keeps one face"
+};
+
 class ConnectivityGuard {
  public:
   // Builds every face's ring once (about 13 ids per face), so that a check is a scan of
@@ -91,6 +98,13 @@ class VertexBoundaryEdgeCountGuard {
   bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
                std::span<const uint32_t> cluster_sizes) const;
 
+  // The same check with count(V2) == 0 read off V2's faces (no boundary edge at V2)
+  // instead of the kept counts: O(valence), needs no Reset or OnMove, so a driver that
+  // relabels many faces at once (ML's merges) can use Alg. 3.2 without keeping counts.
+  // Gives CanMove's answer whenever the counts are up to date with `labels`.
+  bool CanMoveWithoutCounts(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
+                            std::span<const uint32_t> cluster_sizes) const;
+
   // After `face` moved from `from` to labels_after[face]: the counts of its three edges'
   // ends, updated in O(1).
   void OnMove(uint32_t face, uint32_t from, std::span<const uint32_t> labels_after);
@@ -98,6 +112,11 @@ class VertexBoundaryEdgeCountGuard {
   uint32_t count(uint32_t vertex) const { return count_[vertex]; }
 
  private:
+  // Alg. 3.2; `v2_has_no_boundary_edge(v2)` answers case 0.
+  template <typename CaseZero>
+  bool Check(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
+             std::span<const uint32_t> cluster_sizes, CaseZero&& v2_has_no_boundary_edge) const;
+
   const TriangleMesh& mesh_;
   const FaceAdjacency& adjacency_;
   VertexFaceTable vertex_faces_;

@@ -15,6 +15,7 @@ ALGORITHMS = {
     "hc": pb.ALGORITHM_HC, "ml": pb.ALGORITHM_ML, "pml": pb.ALGORITHM_PML,
     "emlo": pb.ALGORITHM_EMLO, "bb": pb.ALGORITHM_BB, "vsa": pb.ALGORITHM_VSA,
     "lnkmeans": pb.ALGORITHM_LN_KMEANS, "kmeans": pb.ALGORITHM_KMEANS,
+    "xmeans": pb.ALGORITHM_XMEANS, "bisecting": pb.ALGORITHM_BISECTING,
 }
 ENERGIES = {
     "cvd": pb.ENERGY_CVD, "cvd-adaptive": pb.ENERGY_CVD_ADAPTIVE,
@@ -287,7 +288,9 @@ class Client:
         """Clusters the rows of `points` (m x d); element ids are row indices. Energy:
         the within-cluster sum of squares. algo: ml, pml, hc (levels from the voxel grid,
         grid=A voxels per dimension, down to `clusters`), lnkmeans, kmeans (at
-        `clusters`). Options as for cluster_mesh (grid=8, init="kmeans++", ...)."""
+        `clusters`), xmeans (from k_min = `clusters`; the last level has the K it found,
+        kmax=...), bisecting (levels from `clusters` down to one). Options as for
+        cluster_mesh (grid=8, init="kmeans++", ...)."""
         x = np.asarray(points)
         if x.ndim != 2:
             raise ValueError(f"points must be a 2-d array (m x d), got shape {x.shape}")

@@ -43,13 +43,14 @@ struct EmloScratch {
 //   E(A) + E(B),   E(A - f) + E(B + f),   E(A + g) + E(B - g)
 // and the cheapest is applied if it lowers the energy by more than rounding. Every move
 // strictly lowers the energy of the two clusters it touches, so the run ends. `guard` (may
-// be null) vetoes moves that would split or pierce a cluster. `on_move(face, from, to)` is
+// be null; a ConnectivityGuard or a VertexBoundaryEdgeCountGuard, whose counts `on_move`
+// must then keep) vetoes moves that would split or pierce a cluster. `on_move(face, from, to)` is
 // called after each move. Faces whose neighbourhood changed go back on the worklist.
 // `before_move(from, to)` runs just before each move (the engine records the two clusters'
 // energies then). A set `cancel` (may be null) stops the run within
 // kEmloFacesPerCancelCheck faces with counters.cancelled; the scratch is left clean.
-template <typename Energy, typename OnMove, typename BeforeMove>
-EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* guard,
+template <typename Energy, typename OnMove, typename BeforeMove, typename Guard>
+EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const Guard* guard,
                        Partition<Energy>& partition, std::span<const uint32_t> worklist,
                        uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move,
                        BeforeMove&& before_move, const std::atomic<bool>* cancel) {

@@ -71,6 +71,16 @@ class OdeHeap {
     cost_[c] = cost;
     tie_key_[c] = tie_key;
   }
+  // Set's bookkeeping for an ODE recorded with Assign: c's older entries become stale and,
+  // with `queue` and a partner, c is queued. Assign (in parallel) then Commit (in order)
+  // is Set.
+  void Commit(uint32_t c, bool queue) {
+    ++version_[c];
+    if (queue && partner_[c] != kNoCluster) {
+      heap_.push_back({cost_[c], tie_key_[c], c, version_[c]});
+      std::push_heap(heap_.begin(), heap_.end(), CheaperLast{});
+    }
+  }
   // Makes c's queue entries stale (a cluster that is gone).
   void Invalidate(uint32_t c) { ++version_[c]; }
 

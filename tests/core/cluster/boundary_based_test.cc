@@ -90,6 +90,35 @@ TEST(ResolveConflictsTest, TheGuardVetoesAMoveThatWouldSplitACluster) {
   EXPECT_EQ(accepted, std::vector<uint32_t>{1});  // without the guard it goes
 }
 
+TEST(ResolveConflictsTest, AProposalTheGuardRefusesDoesNotBlockItsNeighbours) {
+  // The strip of the test above. Face 1 proposes to leave cluster 0 (refused: it would cut
+  // face 0 off); face 2, which shares a vertex with it, proposes too and is allowed. Face 1
+  // must not block face 2: it would block it again every sweep.
+  const testing::LoadedMesh l = testing::Load(
+      testing::MakeMesh({0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0, 0, 1, 0, 1, 1, 0, 2, 1, 0, 3, 1, 0},
+                        {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7}));
+  const ConnectivityGuard guard(l.mesh, l.adjacency);
+  const std::vector<uint32_t> labels = {0, 0, 0, 1, 1, 1}, sizes = {3, 3};
+  std::vector<uint32_t> target(6, kNoMove);
+  target[1] = 1;
+  target[2] = 1;
+  const boundary_based::StageThreads threads(2);
+  boundary_based::ConflictScratch scratch;
+  std::vector<uint32_t> accepted;
+  boundary_based::ResolveConflicts(guard, true, labels, sizes, target, threads, scratch, accepted);
+  EXPECT_EQ(accepted, std::vector<uint32_t>{2});
+  // Without the guard both are allowed, and of the two the smaller id wins.
+  boundary_based::ResolveConflicts(guard, false, labels, sizes, target, threads, scratch, accepted);
+  EXPECT_EQ(accepted, std::vector<uint32_t>{1});
+  // Alg. 3.2 as the check gives the same answer here.
+  VertexBoundaryEdgeCountGuard counts(l.mesh, l.adjacency);
+  counts.Reset(labels);
+  boundary_based::ResolveConflicts(
+      guard, [&](uint32_t f, uint32_t to) { return counts.CanMove(f, to, labels, sizes); }, target,
+      threads, scratch, accepted);
+  EXPECT_EQ(accepted, std::vector<uint32_t>{2});
+}
+
 // Runs the sweeps with the given decide stage on elephant-with-holes, CVD, k = 40.
 template <typename Decide>
 absl::StatusOr<OptimizeResult> RunWith(std::vector<uint32_t>& labels,
@@ -181,6 +210,43 @@ TEST(RunBoundaryBasedTest, ACancelledRunStopsBeforeTheNextStage) {
   absl::StatusOr<OptimizeResult> result = RunWith(labels, options, cancelling);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled);
   EXPECT_EQ(calls, 1);
+}
+
+TEST(RunBoundaryBasedTest, AlgThreeTwoWithoutCountsIsRefusedAndWithThemMatchesTheRingTest) {
+  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
+  auto decide_with = [&](const CvdEnergy& energy) {
+    return [&](std::span<const uint32_t> current, std::span<const CvdEnergy::Proxy> proxies,
+               std::span<uint32_t> target) {
+      for (uint32_t f = 0; f < target.size(); ++f) {
+        target[f] = boundary_based::DecideBoundaryMove(energy, l.adjacency, current, proxies, f);
+      }
+      return absl::OkStatus();
+    };
+  };
+  const CvdEnergy energy(l.measures);
+  BoundaryBasedOptions options;
+  options.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+  std::vector<uint32_t> labels = StartLabels();
+  const std::vector<uint32_t> before = labels;
+  absl::StatusOr<OptimizeResult> refused = RunWith(labels, options, decide_with(energy));
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(labels, before);
+  // With the counts: every cluster stays in one piece and the energy falls.
+  Partition<CvdEnergy> partition(energy, before, 40);
+  const ConnectivityGuard rings(l.mesh, l.adjacency);
+  VertexBoundaryEdgeCountGuard counts(l.mesh, l.adjacency);
+  const boundary_based::StageThreads threads(2);
+  absl::StatusOr<OptimizeResult> result = boundary_based::RunBoundaryBased(
+      rings, &counts, partition, options, threads, decide_with(energy));
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_GT(result->moves, 0u);
+  EXPECT_LT(result->energy, result->initial_energy);
+  // The counts were kept: they equal counts computed afresh from the final labels.
+  VertexBoundaryEdgeCountGuard fresh(l.mesh, l.adjacency);
+  fresh.Reset(partition.labels());
+  for (uint32_t v = 0; v < l.mesh.num_vertices(); ++v) {
+    ASSERT_EQ(counts.count(v), fresh.count(v)) << "vertex " << v;
+  }
 }
 
 }  // namespace

@@ -248,6 +248,45 @@ TEST(KmeansTest, LloydFromGivenCentresExact) {
   EXPECT_EQ(result->seconds_init, 0.0);
 }
 
+// keep_first_assignment hands back, from the one run, the partition a separate run of
+// max_iterations = 1 gives (labels and inertia bit for bit), including an empty cluster's
+// refill; the run itself is not changed by it.
+TEST(KmeansTest, FirstAssignmentKeptEqualsAOneIterationRun) {
+  const Blobs blobs = GaussianBlobs(8, 400, 6, 21);
+  for (KmeansOptions::Init init :
+       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
+    KmeansOptions options;
+    options.clusters = 11;
+    options.init = init;
+    absl::StatusOr<KmeansResult> plain = RunKmeans(blobs.points, options);
+    ASSERT_TRUE(plain.ok()) << plain.status();
+    EXPECT_TRUE(plain->first_labels.empty());
+    options.keep_first_assignment = true;
+    absl::StatusOr<KmeansResult> kept = RunKmeans(blobs.points, options);
+    ASSERT_TRUE(kept.ok()) << kept.status();
+    options.keep_first_assignment = false;
+    options.max_iterations = 1;
+    absl::StatusOr<KmeansResult> one = RunKmeans(blobs.points, options);
+    ASSERT_TRUE(one.ok()) << one.status();
+    EXPECT_EQ(kept->first_labels, one->labels);
+    EXPECT_EQ(kept->first_inertia, one->inertia);
+    EXPECT_GT(kept->iterations, 1u);
+    EXPECT_NE(kept->first_labels, kept->labels);  // later iterations moved points
+    EXPECT_EQ(kept->labels, plain->labels);
+    EXPECT_EQ(kept->inertia, plain->inertia);
+  }
+  // From given centres, with centre 100 attracting no point: the first partition is the
+  // one after the refill.
+  PointSet points{1, {0, 1, 2, 10}};
+  KmeansOptions options;
+  options.keep_first_assignment = true;
+  absl::StatusOr<KmeansResult> result = RunLloyd(points, {0, 10, 100}, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_THAT(result->first_labels,
+              ::testing::ElementsAre(ClusterId(0), ClusterId(0), ClusterId(2), ClusterId(1)));
+  EXPECT_EQ(result->first_inertia, 0.5);
+}
+
 TEST(KmeansTest, EmptyClusterTakesTheFarthestPoint) {
   // Centre 100 attracts no point; the point farthest from its centre (2, at distance 2 from
   // centre 0) moves to it.

@@ -123,6 +123,115 @@ TEST(InitialClustersTest, BadKIsRefusedNamingTheOption) {
   EXPECT_TRUE(InitialClusters(split.problem(), {SeedOptions::Method::kRandom, 2}).ok());
 }
 
+// A 1 x 3 strip of squares, two triangles each: faces 0..5 form a chain (face i shares an
+// edge with i + 1 only).
+Loaded Strip() {
+  return Load(
+      testing::MakeMesh({0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0, 0, 1, 0, 1, 1, 0, 2, 1, 0, 3, 1, 0},
+                        {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7}));
+}
+
+std::vector<uint32_t> RawLabels(const std::vector<ClusterId>& labels) {
+  std::vector<uint32_t> out;
+  for (ClusterId c : labels) out.push_back(c.value());
+  return out;
+}
+
+TEST(GrowClustersFromSeedsTest, EnergyFreeGrowthTakesTurnsInSeedOrder) {
+  const Loaded l = Strip();
+  auto grow = [&](std::vector<uint32_t> seeds) {
+    absl::StatusOr<std::vector<ClusterId>> labels = GrowClustersFromSeeds(
+        l.problem(), seeds, SeedOptions::Growth::kEnergyFree, /*cancel=*/nullptr);
+    EXPECT_TRUE(labels.ok()) << labels.status();
+    return labels.ok() ? RawLabels(*labels) : std::vector<uint32_t>{};
+  };
+  // Seeds at both ends meet in the middle, one face per round each.
+  EXPECT_EQ(grow({0, 5}), (std::vector<uint32_t>{0, 0, 0, 1, 1, 1}));
+  // Seeds 0 and 2: in round one cluster 0 takes face 1 before cluster 1 can, so cluster 1
+  // grows only to the right.
+  EXPECT_EQ(grow({0, 2}), (std::vector<uint32_t>{0, 0, 1, 1, 1, 1}));
+  // The same faces in the other order: now the seed at face 2 goes first and takes face 1.
+  EXPECT_EQ(grow({2, 0}), (std::vector<uint32_t>{1, 0, 0, 0, 0, 0}));
+}
+
+TEST(GrowClustersFromSeedsTest, RefusesRepeatedSeedsAndComponentsWithoutOne) {
+  const Loaded l = Strip();
+  const std::vector<uint32_t> repeated = {1, 1}, out_of_range = {6};
+  for (auto growth : {SeedOptions::Growth::kEnergyOrdered, SeedOptions::Growth::kEnergyFree}) {
+    EXPECT_EQ(GrowClustersFromSeeds(l.problem(), repeated, growth, nullptr).status().code(),
+              absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(GrowClustersFromSeeds(l.problem(), out_of_range, growth, nullptr).status().code(),
+              absl::StatusCode::kInvalidArgument);
+  }
+  const Loaded split = Load(testing::Grid(4, {1, 5, 9, 13}));
+  const std::vector<uint32_t> one = {0};
+  absl::Status status =
+      GrowClustersFromSeeds(split.problem(), one, SeedOptions::Growth::kEnergyFree, nullptr)
+          .status();
+  EXPECT_THAT(std::string(status.message()), HasSubstr("component"));
+}
+
+TEST(InitialClustersTest, EveryGrowthAndReductionGivesExactlyKConnectedClusters) {
+  for (const char* file : {"fandisk.off", "elephant-with-holes.off"}) {
+    const Loaded& l = File(file);
+    for (auto growth : {SeedOptions::Growth::kEnergyOrdered, SeedOptions::Growth::kEnergyFree}) {
+      for (uint32_t k : {7u, 100u}) {
+        SeedOptions options;
+        options.clusters = k;
+        options.level = 3;  // more seeds than k, so that the reduction runs
+        ASSERT_GT(LNeighbourhoodSeeds(l.adjacency, options.level).size(), k);
+        options.growth = growth;
+        absl::StatusOr<std::vector<ClusterId>> merged = InitialClusters(l.problem(), options);
+        options.reduction = SeedOptions::Reduction::kReseedAndRegrow;
+        absl::StatusOr<std::vector<ClusterId>> reseeded = InitialClusters(l.problem(), options);
+        ASSERT_TRUE(merged.ok() && reseeded.ok());
+        for (const auto* labels : {&*merged, &*reseeded}) {
+          EXPECT_EQ(CountClusters(*labels), k) << file;
+          for (const auto& [c, t] : Topology(l, *labels)) ASSERT_EQ(t.pieces, 1) << file;
+        }
+        // Regrowing from the common vertices is a different partition from the merged one.
+        EXPECT_NE(*merged, *reseeded) << file << " k = " << k;
+      }
+    }
+  }
+}
+
+TEST(InitialClustersTest, TheDefaultGrowthIsTheEnergyOrderedFlood) {
+  // The default must stay the flood (results of existing runs unchanged), and the
+  // energy-free growth must give a different partition from the same seeds.
+  const Loaded& l = File("fandisk.off");
+  SeedOptions options;
+  options.clusters = 50;
+  absl::StatusOr<std::vector<ClusterId>> by_default = InitialClusters(l.problem(), options);
+  options.growth = SeedOptions::Growth::kEnergyOrdered;
+  absl::StatusOr<std::vector<ClusterId>> flood = InitialClusters(l.problem(), options);
+  options.growth = SeedOptions::Growth::kEnergyFree;
+  absl::StatusOr<std::vector<ClusterId>> free = InitialClusters(l.problem(), options);
+  ASSERT_TRUE(by_default.ok() && flood.ok() && free.ok());
+  EXPECT_EQ(*by_default, *flood);
+  EXPECT_NE(*flood, *free);
+}
+
+TEST(InitialClustersTest, AddSeedsReachesKFromTooFewLNeighbourhoodSeeds) {
+  const Loaded& l = File("fandisk.off");
+  // l = 12 gives 37 seeds on fandisk, l = 1000 a single one (no vertex joins three
+  // clusters then: the farthest-face rule adds the next seeds).
+  for (uint32_t level : {12u, 1000u}) {
+    SeedOptions options{SeedOptions::Method::kLNeighbourhood, 200, level, 1};
+    ASSERT_LT(LNeighbourhoodSeeds(l.adjacency, level).size(), 200u);
+    EXPECT_EQ(InitialClusters(l.problem(), options).status().code(),
+              absl::StatusCode::kInvalidArgument);
+    options.add_seeds = true;
+    for (auto growth : {SeedOptions::Growth::kEnergyOrdered, SeedOptions::Growth::kEnergyFree}) {
+      options.growth = growth;
+      absl::StatusOr<std::vector<ClusterId>> labels = InitialClusters(l.problem(), options);
+      ASSERT_TRUE(labels.ok()) << labels.status();
+      EXPECT_EQ(CountClusters(*labels), 200u) << "l = " << level;
+      for (const auto& [c, t] : Topology(l, *labels)) ASSERT_EQ(t.pieces, 1);
+    }
+  }
+}
+
 class OptimizerTest : public ::testing::TestWithParam<MeshEnergyKind> {};
 
 TEST_P(OptimizerTest, EmloNeverRaisesTheEnergyAndKeepsClustersConnectedDiscs) {
@@ -209,6 +318,41 @@ TEST(OptimizerTest, GuardOffCanSplitClustersGuardOnNever) {
   EXPECT_LE(split(guarded), split(*start));
   for (const auto& [c, t] : Topology(l, guarded)) EXPECT_EQ(t.pieces, 1);
   EXPECT_GT(split(free), split(*start));  // the guard is what keeps them whole
+}
+
+TEST(OptimizerTest, VertexBoundaryEdgeCountGuardNeverSplitsAClusterInEmloOrBb) {
+  // Alg. 3.2 as the guard, kept up to date move by move in EMLO and sweep by sweep in BB.
+  for (const char* file : {"fandisk.off", "elephant-with-holes.off"}) {
+    const Loaded& l = File(file);
+    const MeshProblem problem = l.problem(MeshEnergyKind::kPlanar);
+    absl::StatusOr<std::vector<ClusterId>> start =
+        InitialClusters(problem, {SeedOptions::Method::kRandom, 200, 0, 11});
+    ASSERT_TRUE(start.ok());
+    int start_pieces = 0;
+    for (const auto& [c, t] : Topology(l, *start)) start_pieces += t.pieces;
+    std::vector<ClusterId> emlo = *start, bb = *start, free = *start;
+    EmloOptions emlo_options;
+    emlo_options.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+    absl::StatusOr<OptimizeResult> emlo_result = OptimizeEmlo(problem, emlo, emlo_options);
+    ASSERT_TRUE(emlo_result.ok());
+    EXPECT_LT(emlo_result->energy, emlo_result->initial_energy);
+    BoundaryBasedOptions bb_options;
+    bb_options.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+    absl::StatusOr<OptimizeResult> bb_result = OptimizeBoundaryBased(problem, bb, bb_options);
+    ASSERT_TRUE(bb_result.ok());
+    EXPECT_LT(bb_result->energy, bb_result->initial_energy);
+    for (const auto* labels : {&emlo, &bb}) {
+      EXPECT_EQ(CountClusters(*labels), 200u);
+      for (const auto& [c, t] : Topology(l, *labels)) EXPECT_EQ(t.pieces, 1) << file;
+    }
+    // Without a guard the same runs split clusters: the guard is what keeps them whole.
+    EmloOptions off;
+    off.guard = ConnectivityGuardKind::kOff;
+    ASSERT_TRUE(OptimizeEmlo(problem, free, off).ok());
+    int free_pieces = 0;
+    for (const auto& [c, t] : Topology(l, free)) free_pieces += t.pieces;
+    EXPECT_GT(free_pieces, start_pieces) << file;
+  }
 }
 
 // A cube split into 12 triangles, clustered into 6 by EMLO with the planar energy: each

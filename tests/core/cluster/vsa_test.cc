@@ -245,6 +245,26 @@ TEST(VsaTest, ExactlyKConnectedRegionsOnARealMesh) {
   }
 }
 
+// A full run hands back the seeding's partition as initial_labels: the labels (and
+// energy) of a run with no Lloyd iteration, so the seeding need not run twice.
+TEST(VsaTest, InitialLabelsAreTheSeedingsPartition) {
+  const Loaded& l = Elephant();
+  for (Seeding seeding : kAllSeedings) {
+    SCOPED_TRACE(VsaSeedingName(seeding));
+    VsaOptions options = Options(40, seeding, 3);
+    absl::StatusOr<VsaResult> full = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
+    ASSERT_TRUE(full.ok()) << full.status();
+    options.iterations = 0;
+    absl::StatusOr<VsaResult> seeded = RunVsa(l.problem(MeshEnergyKind::kPlanar), options);
+    ASSERT_TRUE(seeded.ok()) << seeded.status();
+    EXPECT_EQ(full->initial_labels, seeded->labels);
+    EXPECT_EQ(full->initial_energy, seeded->energy);
+    EXPECT_EQ(seeded->initial_labels, seeded->labels);
+    EXPECT_GT(full->iterations, 0u);
+    EXPECT_LE(full->energy, full->initial_energy);
+  }
+}
+
 // Without relaxations or iterations the seeding's partition comes back as it is; it is a
 // flood's all the same, so its regions are connected.
 TEST(VsaTest, NoIterationsStillGiveConnectedRegions) {

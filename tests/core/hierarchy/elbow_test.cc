@@ -22,15 +22,47 @@ TEST(FindElbowsTest, TheEndOfAZeroPlateauIsAnElbow) {
   // Exactly zero down to 6 clusters, then a fast rise: the text's picture (Fig. 4.22).
   const std::vector<uint32_t> counts = {9, 8, 7, 6, 5, 4, 3, 2, 1};
   const std::vector<double> energy = {0, 0, 0, 0, 1.2, 2.3, 3.5, 5.1, 12};
-  EXPECT_THAT(FindElbows(counts, energy), ElementsAre(6u, 2u));
+  EXPECT_THAT(FindElbows(counts, energy), ElementsAre(6u));
+  // Our any-jump rule also reports the jump at 2, which no plateau precedes.
+  ElbowOptions any_jump;
+  any_jump.rule = ElbowOptions::Rule::kAnyJump;
+  EXPECT_THAT(FindElbows(counts, energy, any_jump), ElementsAre(6u, 2u));
+}
+
+TEST(FindElbowsTest, ASteadyRiseFromZeroHasNoElbowByTheTextsDefinition) {
+  // fandisk's ML curve with the planar energy from 64 clusters down to 1 (ml_bench
+  // data/fandisk.off --energy planar --curve): zero while the clusters are flat (down to
+  // 7,646 clusters), then a steady rise, at most 1.6x per level, and 2.5x for the last
+  // merge. No zero plateau ends in a jump, so by the text's definition there is no elbow;
+  // our any-jump rule reports the last merge, 2.
+  const std::vector<double> energy = {
+      0.003536, 0.003697, 0.003798, 0.003932, 0.004096, 0.004342, 0.004593, 0.004853,
+      0.005035, 0.005256, 0.005597, 0.005955, 0.00623,  0.006457, 0.006715, 0.006939,
+      0.007368, 0.007599, 0.007772, 0.008143, 0.008479, 0.00886,  0.009455, 0.01006,
+      0.01071,  0.01125,  0.01181,  0.01245,  0.01305,  0.01374,  0.0147,   0.01557,
+      0.01658,  0.0179,   0.01997,  0.02271,  0.02454,  0.02807,  0.03096,  0.03388,
+      0.03943,  0.04286,  0.04715,  0.05268,  0.06416,  0.07311,  0.08712,  0.0993,
+      0.1129,   0.1283,   0.1345,   0.1571,   0.2003,   0.2153,   0.2738,   0.299,
+      0.3802,   0.4201,   0.5132,   0.6289,   0.7568,   1.216,    1.749,    4.412};
+  std::vector<uint32_t> counts;
+  for (uint32_t k = 64; k >= 1; --k) counts.push_back(k);
+  ASSERT_EQ(counts.size(), energy.size());
+  EXPECT_TRUE(FindElbows(counts, energy).empty());
+  ElbowOptions any_jump;
+  any_jump.rule = ElbowOptions::Rule::kAnyJump;
+  EXPECT_THAT(FindElbows(counts, energy, any_jump), ElementsAre(2u));
 }
 
 TEST(FindElbowsTest, ElbowsComeInLevelOrderNotByStrength) {
   // A weak jump at 7 (x3) before a strong one at 3 (x20): the first met comes first.
   const std::vector<uint32_t> counts = {8, 7, 6, 5, 4, 3, 2, 1};
   const std::vector<double> energy = {90, 100, 300, 310, 320, 330, 6600, 6800};
-  EXPECT_THAT(FindElbows(counts, energy), ElementsAre(7u, 3u));
-  ElbowOptions one;
+  ElbowOptions any_jump;
+  any_jump.rule = ElbowOptions::Rule::kAnyJump;
+  EXPECT_THAT(FindElbows(counts, energy, any_jump), ElementsAre(7u, 3u));
+  // By the text's rule only 7 ends a plateau (100 is under 2 % of 6,800; 330 is not).
+  EXPECT_THAT(FindElbows(counts, energy), ElementsAre(7u));
+  ElbowOptions one = any_jump;
   one.max_elbows = 1;
   EXPECT_THAT(FindElbows(counts, energy, one), ElementsAre(7u));
 }

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/io/allocation_budget.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/mesh.h"
 #include "draco/attributes/geometry_attribute.h"
@@ -579,6 +580,173 @@ TEST(DracoCodecTest, SurvivesCorruptedBytes) {
       }
     }
   }
+}
+
+// A Draco mesh header ("DRACO", version, mesh, method, no flags) followed by `body`.
+std::string DracoHeader(uint8_t major, uint8_t minor, uint8_t method, const std::string& body) {
+  std::string bytes = "DRACO";
+  bytes += static_cast<char>(major);
+  bytes += static_cast<char>(minor);
+  bytes += static_cast<char>(draco::TRIANGULAR_MESH);
+  bytes += static_cast<char>(method);
+  bytes += std::string(2, '\0');  // flags: no metadata
+  return bytes + body;
+}
+
+std::string Fixed32(uint32_t value) {
+  std::string bytes(4, '\0');
+  for (int i = 0; i < 4; ++i) bytes[i] = static_cast<char>((value >> (8 * i)) & 0xff);
+  return bytes;
+}
+
+std::string Varint(uint32_t value) {
+  std::string bytes;
+  do {
+    uint8_t byte = value & 0x7f;
+    value >>= 7;
+    if (value != 0) byte |= 0x80;
+    bytes += static_cast<char>(byte);
+  } while (value != 0);
+  return bytes;
+}
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// fuzz/corpus/draco/edgebreaker_declares_354m_faces.drc: 110 bytes of bitstream 1.0 whose
+// edgebreaker header declares 353,703,189 faces. Before the header check Draco sized its
+// corner table from that count: 8.4 GB written and 14 s before "Failed to decode".
+TEST(DracoCodecTest, RefusesTheFuzzersHugeDeclaredConnectivityWithoutAllocating) {
+  const std::string bytes = ReadBytes(std::string(MLCLUST_DATA_DIR) +
+                                      "/../fuzz/corpus/draco/edgebreaker_declares_354m_faces.drc");
+  ASSERT_EQ(bytes.size(), 110u);
+  ScopedAllocationBudget watch(size_t{1} << 40);
+  const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes);
+  EXPECT_LT(watch.allocated_bytes(), size_t{1} << 20);
+  ASSERT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("declares 353703189 faces"));
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("110-byte payload"));
+}
+
+// Every layout Draco 1.5.5 reads counts in: fixed 32-bit before bitstream 2.0, varints
+// from 2.0, edgebreaker's num_new_vertices before 2.2, sequential fixed before 2.2.
+TEST(DracoCodecTest, RefusesHugeDeclaredCountsInEveryBitstreamVersion) {
+  const uint32_t huge = 300'000'000;
+  const uint8_t eb = draco::MESH_EDGEBREAKER_ENCODING;
+  const uint8_t seq = draco::MESH_SEQUENTIAL_ENCODING;
+  const std::string tail(64, '\x15');
+  struct Case {
+    const char* name;
+    std::string bytes;
+  };
+  const std::vector<Case> cases = {
+      {"edgebreaker 1.0", DracoHeader(1, 0, eb,
+                                      "\x02" + Fixed32(0) + Fixed32(3) + Fixed32(huge) + "\x00" +
+                                          Fixed32(1) + Fixed32(0) + tail)},
+      {"edgebreaker 2.0", DracoHeader(2, 0, eb,
+                                      "\x02" + Varint(0) + Varint(3) + Varint(huge) +
+                                          std::string(1, '\0') + Varint(1) + Varint(0) + tail)},
+      {"edgebreaker 2.2", DracoHeader(2, 2, eb,
+                                      std::string("\x00", 1) + Varint(3) + Varint(huge) +
+                                          std::string(1, '\0') + Varint(1) + Varint(0) + tail)},
+      {"sequential 2.1", DracoHeader(2, 1, seq, Fixed32(huge) + Fixed32(3) + tail)},
+      {"sequential 2.2", DracoHeader(2, 2, seq, Varint(huge) + Varint(3) + tail)},
+      {"sequential 2.2 points", DracoHeader(2, 2, seq, Varint(1) + Varint(huge) + tail)},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    EXPECT_EQ(CheckDracoDeclaredCounts(c.bytes).code(), absl::StatusCode::kInvalidArgument);
+    ScopedAllocationBudget watch(size_t{1} << 40);
+    const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(c.bytes);
+    EXPECT_LT(watch.allocated_bytes(), size_t{1} << 20);
+    ASSERT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(Message(decoded.status()), HasSubstr("declares 300000000"));
+  }
+}
+
+TEST(DracoCodecTest, RefusesVerticesAndAttributeConnectivitiesTheFacesCannotHave) {
+  const uint8_t eb = draco::MESH_EDGEBREAKER_ENCODING;
+  const std::string tail(64, '\x15');
+  const std::string vertices =
+      DracoHeader(2, 2, eb,
+                  std::string("\x00", 1) + Varint(1000) + Varint(10) + std::string(1, '\0') +
+                      Varint(10) + Varint(0) + tail);
+  EXPECT_THAT(Message(CheckDracoDeclaredCounts(vertices)), HasSubstr("1000 vertices"));
+  const std::string attributes =
+      DracoHeader(2, 2, eb,
+                  std::string("\x00", 1) + Varint(12) + Varint(10) + std::string(1, '\xff') +
+                      Varint(10) + Varint(0) + tail);
+  EXPECT_THAT(Message(CheckDracoDeclaredCounts(attributes)),
+              HasSubstr("255 attributes with their own connectivity"));
+}
+
+TEST(DracoCodecTest, RealPayloadsPassTheLimitsWithEveryMethod) {
+  const TriangleMesh fandisk = Fandisk();
+  for (DracoMethod method : {DracoMethod::kSequential, DracoMethod::kEdgebreaker}) {
+    for (int bits : {0, 8, 14}) {
+      DracoEncodeOptions options;
+      options.method = method;
+      options.position_quantization_bits = bits;
+      options.write_face_ids = method == DracoMethod::kEdgebreaker;
+      const std::string bytes = *EncodeMeshToDraco(fandisk, options);
+      EXPECT_TRUE(CheckDracoDeclaredCounts(bytes).ok());
+      const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes);
+      ASSERT_TRUE(decoded.ok()) << decoded.status();
+      EXPECT_EQ(decoded->mesh.num_faces(), fandisk.num_faces());
+    }
+  }
+  // A regular grid at 8-bit positions is the most compressible real mesh we could make
+  // (16 faces per byte at speed 0): under the 64-per-byte bound.
+  DracoEncodeOptions dense;
+  dense.method = DracoMethod::kEdgebreaker;
+  dense.position_quantization_bits = 8;
+  dense.speed = 0;
+  const TriangleMesh grid = Grid(300);
+  const std::string bytes = *EncodeMeshToDraco(grid, dense);
+  EXPECT_GT(grid.num_faces(), 5 * bytes.size());
+  const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.status();
+  EXPECT_EQ(decoded->mesh.num_faces(), grid.num_faces());
+}
+
+TEST(DracoCodecTest, TheDecodeBudgetStopsWhatTheHeaderDoesNotSay) {
+  const std::string bytes = *EncodeMeshToDraco(Fandisk());
+  DracoDecodeLimits tight;
+  tight.min_decode_budget_bytes = 64 * 1024;
+  tight.decode_budget_per_byte = 0;
+  const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes, tight);
+  ASSERT_EQ(decoded.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(Message(decoded.status()), HasSubstr("more memory than a"));
+  // The same bytes within the default budget.
+  EXPECT_TRUE(DecodeDracoMeshWithFaceIds(bytes).ok());
+}
+
+TEST(AllocationBudgetTest, RefusesPastTheBudgetOnlyInsideTheScope) {
+  {
+    ScopedAllocationBudget budget(1 << 20);
+    std::vector<char> small(1000);
+    EXPECT_GE(budget.allocated_bytes(), 1000u);
+    EXPECT_THROW(std::vector<char>(2 << 20), std::bad_alloc);
+    EXPECT_TRUE(budget.exceeded());
+    EXPECT_EQ(new (std::nothrow) char[2 << 20], nullptr);
+  }
+  std::vector<char> big(2 << 20);  // no scope: no budget
+  EXPECT_EQ(big.size(), size_t{2} << 20);
+}
+
+TEST(AllocationBudgetTest, InnerScopesCountAgainstTheOuterOnes) {
+  ScopedAllocationBudget outer(1 << 20);
+  {
+    ScopedAllocationBudget inner(size_t{1} << 30);
+    std::vector<char> within(600 << 10);
+    EXPECT_GE(inner.allocated_bytes(), size_t{600} << 10);
+    // The inner budget allows it; the outer one, with 600 KiB spent, does not.
+    EXPECT_THROW(std::vector<char>(600 << 10), std::bad_alloc);
+    EXPECT_TRUE(outer.exceeded());
+  }
+  EXPECT_GE(outer.allocated_bytes(), size_t{600} << 10);
 }
 
 }  // namespace

@@ -619,6 +619,56 @@ TEST_F(MeshIoTest, PlyIndexOutOfRangeIsRefused) {
   EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("polygon 1 refers to vertex 9"));
 }
 
+TEST_F(MeshIoTest, AsciiPlyBodiesThatDoNotMatchTheirHeaderAreRefusedBeforeAssimp) {
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+  struct BadPly {
+    const char* name;
+    std::string text;
+    const char* message;
+  };
+  const BadPly cases[] = {
+      {"count_out_of_type", header + "3 0 1 2\n256 0 1 2\n",
+       "PLY body line 6 (face 1): list count '256' is not a uchar"},
+      {"count_not_a_number", header + "3 0 1 2\nx 0 1 2\n", "list count 'x' is not a uchar"},
+      {"list_past_the_end", header + "3 0 1 2\n200 0 1 3\n",
+       "(face 1): the body ends inside a list of 200"},
+      {"truncated_vertices",
+       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+       "0 0 0\n1 0 0\n0 1 0\n0 0",
+       "(vertex 3): the body ends early"},
+      {"float_count_type",
+       "ply\nformat ascii 1.0\nelement face 1\nproperty list float int vertex_indices\n"
+       "end_header\n3 0 1 2\n",
+       "a list's count type must be an integer type, found 'float'"},
+  };
+  for (const BadPly& bad : cases) {
+    const std::string path = Write(absl::StrCat(bad.name, ".ply"), bad.text);
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
+    EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument) << bad.name;
+    EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
+  }
+  // fuzz_ply's 268 bytes whose list count 3555555555555555555555500 kept Assimp busy for
+  // minutes (fuzz/corpus/ply/ascii_list_count_overflow.ply).
+  std::ifstream fuzzer_input(
+      std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/ply/ascii_list_count_overflow.ply",
+      std::ios::binary);
+  ASSERT_TRUE(fuzzer_input.good());
+  const absl::StatusOr<TriangleMesh> fuzzed = ReadMeshFile(
+      Write("overflow.ply", std::string(std::istreambuf_iterator<char>(fuzzer_input), {})));
+  EXPECT_THAT(std::string(fuzzed.status().message()),
+              HasSubstr("list count '3555555555555555555555500' is not a uchar"));
+  // The same layout with a body that matches it reads: two triangles, the tetrahedron's
+  // other corners unused.
+  const absl::StatusOr<TriangleMesh> good =
+      ReadMeshFile(Write("good.ply", header + "3 0 1 2\n3 0 1 3\n"));
+  ASSERT_TRUE(good.ok()) << good.status();
+  EXPECT_EQ(good->num_faces(), 2u);
+}
+
 TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
   // Each of these made Assimp 5.2's PLY reader loop forever.
   const BadOff cases[] = {

@@ -226,6 +226,9 @@ TEST(VertexBoundaryEdgeCountTest, RandomMovesKeepCountsExactAndClustersConnected
       const uint32_t to = s.labels[across.value()];
       const bool allowed = guard.CanMove(f, to, s.labels, s.sizes);
       ring_only += !allowed && ring.CanMove(f, to, s.labels, s.sizes);
+      // The stateless form (no counts) decides the same on every proposal.
+      ASSERT_EQ(guard.CanMoveWithoutCounts(f, to, s.labels, s.sizes), allowed)
+          << name << " face " << f << " to " << to;
       if (!allowed) continue;
       const uint32_t from = s.labels[f];
       s.labels[f] = to;

@@ -1,0 +1,124 @@
+// PML on the CPU's cores against ML: wall time of the whole hierarchy and to the first
+// level with at most k clusters, and the energy there.
+//
+//   pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] [--energy cvd|planar]
+//                 [--optimizer emlo|bb|none] [--parallel-optimisation] [--at 1000]
+//                 [--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]
+//
+// Prints one CSV row (best total time of R runs; the energy is the same in every run):
+// mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,threads,
+// seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include "absl/time/clock.h"
+#include "bench/bench_util.h"
+#include "core/cluster/multilevel.h"
+
+namespace {
+
+// Notes the time and energy at the first level with at most `k` clusters.
+class AtKSink : public mlclust::LevelSink {
+ public:
+  AtKSink(uint32_t k, absl::Time start) : k_(k), start_(start) {}
+  absl::Status OnStart(std::span<const mlclust::ClusterId>, uint32_t count,
+                       double energy) override {
+    Note(count, energy);
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    Note(level.cluster_count, level.energy);
+    return absl::OkStatus();
+  }
+  double seconds = 0, energy = 0;
+  uint32_t clusters = 0;
+  bool seen = false;
+
+ private:
+  void Note(uint32_t count, double e) {
+    if (seen || count > k_) return;
+    seen = true;
+    seconds = absl::ToDoubleSeconds(absl::Now() - start_);
+    energy = e;
+    clusters = count;
+  }
+  uint32_t k_;
+  absl::Time start_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  mlclust::bench::Args args(
+      argc, argv,
+      "usage: pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] "
+      "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] [--at K] "
+      "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]");
+  const bool header = args.Flag("header");
+  const bool parallel_optimisation = args.Flag("parallel-optimisation");
+  const std::string algo = args.Get<std::string>("algo", "ml");
+  const uint32_t pml_until = args.Get<uint32_t>("pml-until", 0);
+  const int threads = args.Get<int>("threads", 0);
+  const std::string energy_name = args.Get<std::string>("energy", "cvd");
+  const std::string optimizer = args.Get<std::string>("optimizer", "emlo");
+  const uint32_t k = args.Get<uint32_t>("at", 1000);
+  const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const double p_percent = args.Get<double>("p-percent", 0.0);
+  const std::string p_rule = args.Get<std::string>("p-rule", "sweep");
+  const std::string path = args.Positional(0);
+  if (!args.Done()) return 2;
+
+  const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
+  mlclust::MeshEnergyOptions energy;
+  absl::StatusOr<mlclust::MeshEnergyKind> kind = mlclust::ParseMeshEnergyKind(energy_name);
+  if (!kind.ok()) {
+    std::fprintf(stderr, "%s\n", kind.status().ToString().c_str());
+    return 2;
+  }
+  energy.kind = *kind;
+  const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, energy);
+  mlclust::MultilevelOptions options;
+  options.parallel = algo == "pml";
+  options.pml_until = pml_until;
+  options.threads = threads;
+  options.parallel_optimisation = parallel_optimisation;
+  options.p_percent = p_percent;
+  if (p_rule == "hc-first") {
+    options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
+  }
+  if (optimizer == "bb") options.optimizer = mlclust::MultilevelOptions::Optimizer::kBoundaryBased;
+  if (optimizer == "none") options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
+
+  double best = std::numeric_limits<double>::infinity(), best_to_k = 0, energy_at_k = 0;
+  uint32_t levels = 0, clusters_at_k = 0;
+  for (uint32_t r = 0; r < repeats; ++r) {
+    const absl::Time start = absl::Now();
+    AtKSink sink(k, start);
+    absl::StatusOr<mlclust::MultilevelSummary> summary =
+        mlclust::RunMultilevel(problem, options, sink);
+    const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    if (!summary.ok()) {
+      std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
+      return 1;
+    }
+    if (seconds < best) {
+      best = seconds;
+      best_to_k = sink.seconds;
+    }
+    energy_at_k = sink.energy;
+    clusters_at_k = sink.clusters;
+    levels = summary->levels;
+  }
+  if (header) {
+    std::printf(
+        "mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,"
+        "threads,seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k\n");
+  }
+  const std::string name = path.substr(path.find_last_of('/') + 1);
+  std::printf("%s,%zu,%s,%s,%s,%d,%g,%s,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g\n", name.c_str(),
+              prepared.mesh.num_faces(), algo.c_str(), energy_name.c_str(), optimizer.c_str(),
+              parallel_optimisation ? 1 : 0, p_percent, p_rule.c_str(), pml_until, threads, best,
+              best_to_k, levels, k, clusters_at_k, energy_at_k);
+  return 0;
+}

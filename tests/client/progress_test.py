@@ -1,0 +1,128 @@
+"""The wire contract's Progress.fraction and Accepted's face order, against a real server
+(`mlclust serve`), with the raw generated stubs (a foreign client sees the same).
+
+Run by ctest (tests/CMakeLists.txt, CliWiringProgress) as
+    MLCLUST_BIN=build/client/mlclust MLCLUST_DATA=data PYTHONPATH=build/python \
+        /usr/bin/python3 -m unittest tests/client/progress_test.py -v
+"""
+
+import os
+import re
+import subprocess
+import tempfile
+import time
+import unittest
+
+import grpc
+import numpy as np
+
+import mlclust
+from mlclust import _draco
+from mlclust.v1 import mlclust_pb2 as pb
+from mlclust.v1 import mlclust_pb2_grpc as pb_grpc
+
+BIN = os.environ.get("MLCLUST_BIN", "build/client/mlclust")
+DATA = os.environ.get("MLCLUST_DATA", "data")
+STAGES = {"queued", "decode", "measures", "seed", "cluster"}
+
+
+class ProgressTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.TemporaryDirectory()
+        cls.log = open(os.path.join(cls.dir.name, "server.log"), "w+")
+        cls.server = subprocess.Popen([BIN, "serve", "--listen", "127.0.0.1:0"],
+                                      stdout=cls.log, stderr=cls.log)
+        deadline = time.time() + 60
+        port = None
+        while port is None and time.time() < deadline:
+            cls.log.seek(0)
+            match = re.search(r"listening on port (\d+)", cls.log.read())
+            if match:
+                port = int(match.group(1))
+            elif cls.server.poll() is not None:
+                break
+            else:
+                time.sleep(0.05)
+        if port is None:
+            cls.tearDownClass()
+            raise RuntimeError("the server did not start")
+        cls.channel = grpc.insecure_channel(f"127.0.0.1:{port}")  # default limits
+        cls.stub = pb_grpc.ClusteringStub(cls.channel)
+        cls.vertices, cls.faces = mlclust.read_mesh(os.path.join(DATA, "fandisk.off"))
+
+    @classmethod
+    def tearDownClass(cls):
+        if hasattr(cls, "channel"):
+            cls.channel.close()
+        cls.server.terminate()
+        cls.server.wait(timeout=30)
+        cls.log.close()
+        cls.dir.cleanup()
+
+    def run_job(self, spec, payload):
+        spec.input_bytes = len(payload)
+        events = list(self.stub.Run(iter([pb.RunRequest(spec=spec, chunk=payload)])))
+        self.assertTrue(events[-1].final)
+        self.assertEqual(events[-1].WhichOneof("event"), "done", events[-1])
+        return events
+
+    def mesh_payload(self, method):
+        payload, code, message = _draco.encode_mesh(
+            self.vertices, self.faces, method=method, face_ids=method == "edgebreaker")
+        self.assertEqual(code, 0, message)
+        return payload
+
+    def check_progress(self, events):
+        """Every fraction in [0, 1], stages from the list in the proto, the cluster stage's
+        fractions never decreasing and ending at 1."""
+        progress = [e.progress for e in events if e.WhichOneof("event") == "progress"]
+        for p in progress:
+            self.assertIn(p.stage, STAGES, p)
+            self.assertGreaterEqual(p.fraction, 0, p)
+            self.assertLessEqual(p.fraction, 1, p)
+        cluster = [p.fraction for p in progress if p.stage == "cluster"]
+        self.assertEqual(cluster, sorted(cluster))
+        self.assertEqual(cluster[-1], 1.0)
+        return progress
+
+    def test_mesh_hierarchy_fraction_and_decoded_order(self):
+        spec = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_HC)
+        events = self.run_job(spec, self.mesh_payload("sequential"))
+        progress = self.check_progress(events)
+        measures = [p for p in progress if p.stage == "measures"]
+        self.assertEqual(measures[-1].fraction, 1.0)
+        accepted = events[0].accepted
+        self.assertFalse(accepted.face_ids)
+        self.assertEqual(accepted.draco_method, "sequential")
+        self.assertIn("decoded face order", accepted.face_order)
+
+    def test_mesh_single_level_with_face_ids(self):
+        spec = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_EMLO,
+                          clusters=20)
+        events = self.run_job(spec, self.mesh_payload("edgebreaker"))
+        self.check_progress(events)
+        accepted = events[0].accepted
+        self.assertTrue(accepted.face_ids)
+        self.assertEqual(accepted.draco_method, "edgebreaker")
+        self.assertIn("mlclust_face_id", accepted.face_order)
+
+    def test_points_divisive_hierarchy_and_xmeans(self):
+        rng = np.random.default_rng(2)
+        x = np.concatenate([c + rng.normal(size=(200, 3)) for c in
+                            ([0, 0, 0], [30, 0, 0], [0, 30, 0])]).astype(np.float32)
+        for algorithm in (pb.ALGORITHM_BISECTING, pb.ALGORITHM_XMEANS):
+            spec = pb.JobSpec(input_kind=pb.INPUT_KIND_POINTS_F32, point_dims=3,
+                              algorithm=algorithm, clusters=6 if algorithm ==
+                              pb.ALGORITHM_BISECTING else 1)
+            events = self.run_job(spec, x.tobytes())
+            self.check_progress(events)
+            accepted = events[0].accepted
+            self.assertFalse(accepted.face_ids)
+            self.assertEqual(accepted.face_order, "")
+            if algorithm == pb.ALGORITHM_XMEANS:
+                self.assertEqual(events[-1].done.final_clusters, 3)
+
+
+if __name__ == "__main__":
+    unittest.main()
