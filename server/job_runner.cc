@@ -5,11 +5,13 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/device_stages.h"
 #include "core/cluster/registry.h"
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
@@ -23,6 +25,7 @@
 #include "server/preview.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/kernels/face_measures_gpu.h"
+#include "gpu/stages/gl_device_stages.h"
 #endif
 
 namespace mlclust::server {
@@ -262,11 +265,13 @@ absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const JobPla
   return ComputeFaceMeasures(mesh);
 }
 
-// Progress events for the run functions' stages, naming the device each runs on.
-RunContext MakeRunContext(const Job& job, const DeviceCaps& caps) {
+// Progress events for the run functions' stages, naming the device each runs on; the GPU
+// stages (over the worker's GL context) where the plan puts a stage on the GPU.
+RunContext MakeRunContext(const Job& job, const DeviceCaps& caps, DeviceStages* devices) {
   EventChannel& events = *job.events;
   RunContext run;
   run.cancel = job.cancel_flag();
+  run.devices = devices;
   run.on_stage = [&events, caps](const StagePlan& stage, const std::string& message) {
     EmitProgress(events, stage.name, message, StageDeviceName(stage, caps));
   };
@@ -303,7 +308,7 @@ void AddElbows(const StreamingLevelSink& sink, v1::Done& done) {
 }
 
 absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
-                                      const JobRunnerContext& context) {
+                                      const JobRunnerContext& context, DeviceStages* devices) {
   const v1::JobSpec& spec = job.spec;
   EventChannel& events = *job.events;
   EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu", 0);
@@ -373,7 +378,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
                             plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
-      plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps));
+      plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps, devices));
   if (!summary.ok()) return summary.status();
   if (!sink.started()) {
     return absl::FailedPreconditionError(
@@ -384,6 +389,10 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   MLCLUST_RETURN_IF_ERROR(sink.Flush());
   sink.ReportProgressDone();
   JobOutcome outcome;
+  const StagePlan* cluster_stage = FindStage(plan, "cluster");
+  if (cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu) {
+    device_used = StageDeviceName(*cluster_stage, caps);
+  }
   if (preview_levels.has_value()) {
     EmitProgress(
         events, "preview",
@@ -408,7 +417,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
 }
 
 absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
-                                        const JobRunnerContext& context) {
+                                        const JobRunnerContext& context, DeviceStages* devices) {
   const v1::JobSpec& spec = job.spec;
   // m x d float32, little-endian, row-major.
   const uint32_t d = spec.point_dims();
@@ -430,8 +439,11 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
   }
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
   JobOutcome outcome;
-  outcome.done.set_device("cpu");
-  const RunContext run = MakeRunContext(job, caps);
+  const StagePlan* cluster_stage = FindStage(plan, "cluster");
+  outcome.done.set_device(cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu
+                              ? StageDeviceName(*cluster_stage, caps)
+                              : "cpu");
+  const RunContext run = MakeRunContext(job, caps, devices);
   if (plan.algorithm->hierarchy) {
     // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary
     // names the BIC's choice over the whole hierarchy, whatever range is sent.
@@ -501,8 +513,18 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
           "device or platform gave OpenGL 4.5, or the server runs with the GPU off)");
     }
   }
-  if (kind == v1::INPUT_KIND_DRACO_MESH) return RunMeshJob(job, *plan, caps, context);
-  return RunPointsJob(job, *plan, caps, context);
+  // The GPU stages, over the context of this (the GL-owning) worker; none without a GL
+  // context, and a plan that puts a stage on the GPU then fails in its run function.
+  std::unique_ptr<DeviceStages> devices;
+#ifdef MLCLUST_HAVE_GPU
+  if (context.gl != nullptr && UsesGpu(*plan)) {
+    devices = std::make_unique<gpu::GlDeviceStages>(*context.gl);
+  }
+#endif
+  if (kind == v1::INPUT_KIND_DRACO_MESH) {
+    return RunMeshJob(job, *plan, caps, context, devices.get());
+  }
+  return RunPointsJob(job, *plan, caps, context, devices.get());
 }
 
 }  // namespace mlclust::server
