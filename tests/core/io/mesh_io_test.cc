@@ -640,6 +640,12 @@ TEST_F(MeshIoTest, AsciiPlyBodiesThatDoNotMatchTheirHeaderAreRefusedBeforeAssimp
        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
        "0 0 0\n1 0 0\n0 1 0\n0 0",
        "(vertex 3): the body ends early"},
+      {"nul_in_body", header + "3 0 1 2\n3 0 1" + std::string(1, '\0') + " 3\n",
+       "PLY body line 6: control character 0x00"},
+      {"numeric_element_name",
+       "ply\nformat ascii 1.0\nelement 888888888888face 2\nproperty list uchar int "
+       "vertex_indices\nend_header\n0\n0\n",
+       "element name '888888888888face' is not a name"},
       {"float_count_type",
        "ply\nformat ascii 1.0\nelement face 1\nproperty list float int vertex_indices\n"
        "end_header\n3 0 1 2\n",
