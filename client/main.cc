@@ -59,6 +59,10 @@ constexpr char kMeshUsage[] = R"(
       receives every level. Without --server the server runs inside this process.
       --clusters K     the level written by --labels, --ply and --coarse (for single-level
                        algorithms the number of clusters to compute)
+      --auto-k elbow   instead of --clusters, for hierarchies: the level at the first
+                       elbow of the energy curve (section 4.4: the end of a near-zero
+                       plateau, e.g. a cube's 6 sides with --energy planar); an error where
+                       the curve has none
       --labels FILE    one line per input face: its cluster (0..K-1) at that level
       --levels-csv F   a row "clusters,energy" per level received
       --ply FILE       the mesh with one colour per cluster at that level
@@ -793,8 +797,22 @@ int Mesh(const Arguments& args) {
   const std::string& input_path = args.positional()[0];
   absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
   if (!clusters.ok()) return Fail(clusters.status());
-  if ((args.has("labels") || args.has("ply")) && *clusters == 0) {
-    return Fail(absl::InvalidArgumentError("--labels and --ply need --clusters K (K >= 1)"));
+  // --auto-k elbow: the level K is the first elbow of the energy curve (section 4.4).
+  const std::string auto_k = args.get("auto-k", "");
+  if (!auto_k.empty() && auto_k != "elbow") {
+    return Fail(absl::InvalidArgumentError(
+        "--auto-k for meshes must be elbow (section 4.4; the BIC is for points)"));
+  }
+  if (!auto_k.empty() && *clusters > 0) {
+    return Fail(absl::InvalidArgumentError("give --clusters K or --auto-k elbow, not both"));
+  }
+  if (!auto_k.empty() && args.has("preview")) {
+    return Fail(absl::InvalidArgumentError(
+        "--preview needs --clusters K: the server draws the level before --auto-k chooses it"));
+  }
+  if ((args.has("labels") || args.has("ply")) && *clusters == 0 && auto_k.empty()) {
+    return Fail(absl::InvalidArgumentError(
+        "--labels and --ply need --clusters K (K >= 1) or --auto-k elbow"));
   }
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
@@ -809,6 +827,10 @@ int Mesh(const Arguments& args) {
   if (!hierarchy && *clusters == 0) {
     return Fail(absl::InvalidArgumentError(absl::StrCat("--clusters: ", algo, " needs K >= 1")));
   }
+  if (!auto_k.empty() && !hierarchy) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--auto-k needs a hierarchy (--algo ml, pml or hc), not ", algo)));
+  }
   if (!hierarchy) spec.set_clusters(static_cast<uint32_t>(*clusters));
   if (absl::Status status = SetLevels(args, hierarchy, spec); !status.ok()) return Fail(status);
   absl::StatusOr<uint64_t> seed = args.GetUint("seed", 1);
@@ -819,8 +841,8 @@ int Mesh(const Arguments& args) {
   if (placement != "centroid" && placement != "qem") {
     return Fail(absl::InvalidArgumentError("--coarse-placement must be centroid or qem"));
   }
-  if (args.has("coarse") && *clusters == 0) {
-    return Fail(absl::InvalidArgumentError("--coarse needs --clusters K (K >= 1)"));
+  if (args.has("coarse") && *clusters == 0 && auto_k.empty()) {
+    return Fail(absl::InvalidArgumentError("--coarse needs --clusters K (K >= 1) or --auto-k"));
   }
   // --planar-merge DEG: a post-pass over the level written, for a planar clustering.
   double planar_merge_degrees = -1;
@@ -932,6 +954,18 @@ int Mesh(const Arguments& args) {
       return Fail(s);
     }
   }
+  std::string elbow_note;
+  if (auto_k == "elbow") {
+    if (result->done.elbow_cluster_counts().empty()) {
+      return Fail(absl::NotFoundError(
+          "--auto-k elbow: the energy curve has no elbow by section 4.4's definition (the "
+          "energy stays near zero up to the true number of shapes, then jumps); this one "
+          "rises steadily, as when the energy does not fit the model's shapes exactly: choose "
+          "--clusters K (--plot FILE.png shows the curve)"));
+    }
+    clusters = result->done.elbow_cluster_counts(0);
+    elbow_note = absl::StrCat("; --auto-k: the first elbow, ", *clusters, " clusters");
+  }
   std::string level_note;
   std::optional<size_t> chosen_level;
   std::string coarse_error;
@@ -1025,7 +1059,7 @@ int Mesh(const Arguments& args) {
         return Fail(s);
       }
     }
-    level_note = absl::StrFormat("; level %zu: %u clusters, energy %.10g%s", *level,
+    level_note = absl::StrFormat("%s; level %zu: %u clusters, energy %.10g%s", elbow_note, *level,
                                  log.cluster_count(*level), log.energy(*level), merge_note);
     chosen_level = *level;
   }
@@ -1040,7 +1074,7 @@ int Mesh(const Arguments& args) {
   if (args.has("json")) {
     std::string json = SummaryJson(
         args, input_path, "faces", mesh->num_faces(), **algorithm, spec, log, seconds, result->done,
-        chosen_level, "",
+        chosen_level, auto_k,
         coarse_error.empty() ? std::set<std::string>{} : std::set<std::string>{"coarse"});
     // The upload, and --coarse's failure (its file is then not among the outputs).
     json.pop_back();
@@ -1166,7 +1200,8 @@ int Points(const Arguments& args) {
   std::string chosen;
   if (auto_k == "elbow") {
     if (result->done.elbow_cluster_counts().empty()) {
-      return Fail(absl::NotFoundError("--auto-k elbow: the energy curve has no elbow"));
+      return Fail(absl::NotFoundError(
+          "--auto-k elbow: the energy curve has no jump (ours for points; try --auto-k bic)"));
     }
     const uint32_t k = result->done.elbow_cluster_counts(0);
     level = log.LastLevelWith(k);
@@ -1395,11 +1430,11 @@ const std::vector<Command>& Commands() {
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
          return With(
-             With({"server",           "algo",    "energy",       "clusters",    "labels",
-                   "levels-csv",       "ply",     "device",       "quiet",       "coarse",
-                   "coarse-placement", "seed",    "levels",       "json",        "planar-merge",
-                   "repair",           "plot",    "upload",       "quantize",    "per-polygon",
-                   "detach",           "preview", "preview-size", "preview-view"},
+             With({"server",           "algo",    "energy",       "clusters",     "labels",
+                   "levels-csv",       "ply",     "device",       "quiet",        "coarse",
+                   "coarse-placement", "seed",    "levels",       "json",         "planar-merge",
+                   "repair",           "plot",    "upload",       "quantize",     "per-polygon",
+                   "detach",           "preview", "preview-size", "preview-view", "auto-k"},
                   ConnectionFlagNames()),
              RegistryOptionNames(InputKind::kMesh));
        },

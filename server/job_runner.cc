@@ -301,8 +301,13 @@ StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunner
   return sink;
 }
 
-void AddElbows(const StreamingLevelSink& sink, v1::Done& done) {
-  for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies())) {
+// Meshes: section 4.4's elbow, the end of a (near) zero plateau (shape identification,
+// where the right energy stays zero up to the true number of shapes). Points: ours, any jump
+// of the curve (the variance is never near zero; chapter 6 chooses K by the BIC).
+void AddElbows(const StreamingLevelSink& sink, v1::Done& done, ElbowOptions::Rule rule) {
+  ElbowOptions options;
+  options.rule = rule;
+  for (uint32_t k : FindElbows(sink.curve_counts(), sink.curve_energies(), options)) {
     done.add_elbow_cluster_counts(k);
   }
 }
@@ -410,7 +415,9 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   }
   outcome.done.set_device(device_used);
   outcome.done.set_final_clusters(summary->final_clusters);
-  if (plan.algorithm->hierarchy) AddElbows(sink, outcome.done);
+  if (plan.algorithm->hierarchy) {
+    AddElbows(sink, outcome.done, ElbowOptions::Rule::kEndOfZeroPlateau);
+  }
   outcome.done.set_levels(sink.levels_sent());
   outcome.done.set_triplets(sink.triplets_sent());
   return outcome;
@@ -460,7 +467,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     MLCLUST_RETURN_IF_ERROR(sink.Flush());
     sink.ReportProgressDone();
     outcome.done.set_final_clusters(summary->final_clusters);
-    AddElbows(sink, outcome.done);
+    AddElbows(sink, outcome.done, ElbowOptions::Rule::kAnyJump);
     absl::StatusOr<BicChoice> choice = ChooseByBic(bic.levels(), bic.num_points(), d);
     if (!choice.ok()) return choice.status();
     outcome.done.set_bic_best_cluster_count(choice->best_k);

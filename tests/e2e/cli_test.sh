@@ -159,6 +159,37 @@ printf '1,2,3\n4,5\n' > "$work/ragged.csv"
 if "$mlclust" points "$work/ragged.csv" --quiet 2> "$work/ragged.err"; then fail "ragged CSV accepted"; fi
 grep -q "2" "$work/ragged.err" || fail "no row named for the ragged CSV: $(cat "$work/ragged.err")"
 
+# --auto-k elbow for meshes (section 4.4): a cube cut into 8 x 8 squares per side, with the
+# planar energy, has its elbow at its 6 sides; fandisk's planar curve rises steadily and has
+# none, which is an error that says so.
+awk 'BEGIN {
+  n = 8; nv = 0; nf = 0
+  for (axis = 0; axis < 3; axis++) for (side = 0; side <= n; side += n)
+    for (i = 0; i < n; i++) for (j = 0; j < n; j++) {
+      for (c = 0; c < 4; c++) {
+        a = i + (c == 1 || c == 2); b = j + (c >= 2)
+        p[axis] = side; p[(axis + 1) % 3] = a; p[(axis + 2) % 3] = b
+        key = p[0] " " p[1] " " p[2]
+        if (!(key in id)) { id[key] = nv; vert[nv++] = key }
+        q[c] = id[key]
+      }
+      if (side == 0) { face[nf++] = q[0] " " q[2] " " q[1]; face[nf++] = q[0] " " q[3] " " q[2] }
+      else { face[nf++] = q[0] " " q[1] " " q[2]; face[nf++] = q[0] " " q[2] " " q[3] }
+    }
+  print "OFF"; print nv, nf, 0
+  for (v = 0; v < nv; v++) print vert[v]
+  for (f = 0; f < nf; f++) print 3, face[f]
+}' > "$work/cube.off"
+"$mlclust" mesh "$work/cube.off" --energy planar --auto-k elbow --labels "$work/cube.labels" \
+  --server "127.0.0.1:$port" > "$work/cube.out" || fail "cube --auto-k elbow failed"
+[ "$(sort -un "$work/cube.labels" | wc -l)" -eq 6 ] || fail "cube elbow: $(cat "$work/cube.out")"
+grep -q "the first elbow, 6 clusters" "$work/cube.out" || fail "cube summary: $(cat "$work/cube.out")"
+if "$mlclust" mesh "$data/fandisk.off" --energy planar --auto-k elbow --labels "$work/f.labels" \
+  --server "127.0.0.1:$port" --quiet 2> "$work/fandisk_elbow.err"; then
+  fail "fandisk planar: an elbow where the text's definition has none"
+fi
+grep -q "no elbow by section 4.4" "$work/fandisk_elbow.err" || fail "$(cat "$work/fandisk_elbow.err")"
+
 kill -TERM "$server_pid"
 wait "$server_pid" || fail "server exited with an error on SIGTERM"
 server_pid=""
