@@ -634,14 +634,20 @@ TEST_F(MeshIoTest, AsciiPlyBodiesThatDoNotMatchTheirHeaderAreRefusedBeforeAssimp
        "PLY body line 6 (face 1): list count '256' is not a uchar"},
       {"count_not_a_number", header + "3 0 1 2\nx 0 1 2\n", "list count 'x' is not a uchar"},
       {"list_past_the_end", header + "3 0 1 2\n200 0 1 3\n",
-       "(face 1): the body ends inside a list of 200"},
+       "(face 1): the line ends inside a list of 200"},
       {"truncated_vertices",
        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
        "0 0 0\n1 0 0\n0 1 0\n0 0",
-       "(vertex 3): the body ends early"},
+       "PLY body line 4 (vertex 3): the line ends early"},
       {"nul_in_body", header + "3 0 1 2\n3 0 1" + std::string(1, '\0') + " 3\n",
-       "PLY body line 6: control character 0x00"},
+       "PLY body line 6: byte 0x00 in an ASCII file"},
+      {"word_in_body", header + "3 0 1 2\n3 0 1 two\n",
+       "(face 1): 'two' in a list is not a number"},
+      {"word_for_a_coordinate",
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+       "end_header\nzero\n",
+       "(vertex 0): 'zero' is not a number"},
       {"numeric_element_name",
        "ply\nformat ascii 1.0\nelement 888888888888face 2\nproperty list uchar int "
        "vertex_indices\nend_header\n0\n0\n",
@@ -665,8 +671,10 @@ TEST_F(MeshIoTest, AsciiPlyBodiesThatDoNotMatchTheirHeaderAreRefusedBeforeAssimp
   ASSERT_TRUE(fuzzer_input.good());
   const absl::StatusOr<TriangleMesh> fuzzed = ReadMeshFile(
       Write("overflow.ply", std::string(std::istreambuf_iterator<char>(fuzzer_input), {})));
+  // (It also holds bytes that are not text further on; the first problem is named.)
   EXPECT_THAT(std::string(fuzzed.status().message()),
-              HasSubstr("list count '3555555555555555555555500' is not a uchar"));
+              HasSubstr("PLY body line 5 (face 0): list count '3555555555555555555555500' is "
+                        "not a uchar"));
   // The same layout with a body that matches it reads: two triangles, the tetrahedron's
   // other corners unused.
   const absl::StatusOr<TriangleMesh> good =
