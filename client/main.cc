@@ -18,6 +18,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/job_commands.h"
 #include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
@@ -35,6 +36,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #include "server/server.h"
 #ifdef MLCLUST_HAVE_PLOT
 #include "client/plot.h"
@@ -51,6 +53,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
+                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]
                      [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
@@ -94,6 +97,13 @@ constexpr char kMeshUsage[] = R"(
       --quantize BITS  Draco position quantisation (0 = lossless float32, the default: the
                        server's energies are those of the input; 11-14 make uploads several
                        times smaller, at positions moved by up to 2^-BITS of the box)
+      --preview FILE.png  a picture of that level (without --clusters: the last level;
+                       the server's level, before --planar-merge), drawn by the server's GL
+                       context: a three-quarter view, one colour per cluster, dark lines
+                       between clusters
+      --preview-size WxH  its size in pixels (default 1024x768; each side 16 to 4096)
+      --preview-view AZ,EL  the camera in degrees (default 35,25: from the right of +z,
+                       above; 215,25 looks from the other side)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -216,6 +226,8 @@ void PrintUsage(std::FILE* out) {
   std::fputs(kEnergyUsage, out);
   std::fputs(kStatsUsage, out);
   std::fputs(kInfoUsage, out);
+  std::fputs(JobCommandsUsage(), out);
+  std::fputs(ConnectionFlagsUsage(), out);
 }
 
 // The names of every registry option of `input` (each algorithm's own, and for meshes the
@@ -246,7 +258,8 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair", "per-polygon"};
+    static const std::set<std::string> kFlags = {"quiet",  "json",   "help",
+                                                 "detach", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -488,6 +501,31 @@ class ProgressLine {
   absl::Time last_ = absl::InfinitePast();
 };
 
+// --server and the connection flags (client/job_commands.h).
+absl::StatusOr<ServerFlags> FlagsOf(const Arguments& args) {
+  return ServerFlagsFrom([&](const std::string& name) -> std::optional<std::string> {
+    if (!args.has(name)) return std::nullopt;
+    return args.get(name);
+  });
+}
+
+// --detach: the job is submitted and its id printed; watch it with `mlclust watch`.
+int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload) {
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  for (const char* output :
+       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair"}) {
+    if (args.has(output)) {
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
+    }
+  }
+  if (args.has("server")) {
+    if (absl::Status s = CheckServerAddress(args.get("server")); !s.ok()) return Fail(s);
+  }
+  return SubmitDetachedCommand(*flags, spec, payload, args.has("quiet"));
+}
+
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
@@ -495,9 +533,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
                                               v1::Accepted* accepted = nullptr) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
+  MLCLUST_ASSIGN_OR_RETURN(const ServerFlags flags, FlagsOf(args));
   if (args.has("server")) {
     MLCLUST_RETURN_IF_ERROR(CheckServerAddress(args.get("server")));
-    channel = client::Connect(args.get("server"));
+    MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -512,9 +551,11 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
     progress.Update(event);
   };
+  run_options.deadline = flags.deadline;
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  if (!result.ok()) result = ExplainDeadline(result.status(), flags, "the job");
   if (!result.ok() && args.has("server")) {
     return PlainConnectionError(result.status(), args.get("server"));
   }
@@ -573,7 +614,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot"}) {
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot", "preview"}) {
     if (args.has(name) && !not_written.contains(name))
       outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
   }
@@ -706,6 +747,46 @@ std::optional<uint32_t> NearestCoarsening(const HierarchyLog& log, size_t level,
   return std::nullopt;
 }
 
+// --preview FILE.png [--preview-size WxH]: the server draws the level --clusters K chooses
+// (the last level without K) and sends it as a Preview event.
+absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& spec) {
+  if (!args.has("preview")) {
+    for (const char* name : {"preview-size", "preview-view"}) {
+      if (args.has(name)) {
+        return absl::InvalidArgumentError(absl::StrCat("--", name, " needs --preview FILE.png"));
+      }
+    }
+    return absl::OkStatus();
+  }
+  if (args.get("preview").empty()) return absl::InvalidArgumentError("--preview: no file name");
+  v1::PreviewRequest* preview = spec.mutable_preview();
+  preview->set_cluster_count(clusters);
+  if (args.has("preview-size")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto size,
+                             server::ParsePreviewSize(args.get("preview-size"), "--preview-size"));
+    preview->set_width(size.first);
+    preview->set_height(size.second);
+  }
+  if (args.has("preview-view")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto view,
+                             server::ParsePreviewView(args.get("preview-view"), "--preview-view"));
+    preview->set_azimuth_degrees(view.first);
+    preview->set_elevation_degrees(view.second);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status WritePreview(const std::string& path, const v1::Preview& preview) {
+  if (preview.png().empty()) {
+    return absl::DataLossError("--preview: the server sent no preview");
+  }
+  std::ofstream out(path, std::ios::binary);
+  out.write(preview.png().data(), static_cast<std::streamsize>(preview.png().size()));
+  out.close();
+  if (!out) return absl::UnavailableError(absl::StrCat("--preview: cannot write ", path));
+  return absl::OkStatus();
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -773,6 +854,10 @@ int Mesh(const Arguments& args) {
   if (!quantize.ok()) return Fail(quantize.status());
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
+  if (absl::Status status = SetPreview(args, static_cast<uint32_t>(*clusters), spec);
+      !status.ok()) {
+    return Fail(status);
+  }
 
   // The mesh is read locally (its faces are the ids of every output) and sent compressed;
   // a .drc file is sent as it is.
@@ -822,6 +907,7 @@ int Mesh(const Arguments& args) {
     payload = EncodeMeshToDraco(sent, encode);
   }
   if (!payload.ok()) return Fail(payload.status());
+  if (args.has("detach")) return Detach(args, spec, *payload);
 
   double seconds = 0;
   v1::Accepted accepted;
@@ -944,6 +1030,14 @@ int Mesh(const Arguments& args) {
                                  log.cluster_count(*level), log.energy(*level), merge_note);
     chosen_level = *level;
   }
+  std::string preview_note;
+  if (args.has("preview")) {
+    const v1::Preview& preview = result->preview;
+    if (absl::Status s = WritePreview(args.get("preview"), preview); !s.ok()) return Fail(s);
+    preview_note = absl::StrFormat("; preview %ux%u of %u clusters in %.3f s: %s", preview.width(),
+                                   preview.height(), preview.cluster_count(),
+                                   result->done.seconds_preview(), args.get("preview"));
+  }
   if (args.has("json")) {
     std::string json = SummaryJson(
         args, input_path, "faces", mesh->num_faces(), **algorithm, spec, log, seconds, result->done,
@@ -963,17 +1057,17 @@ int Mesh(const Arguments& args) {
     }
     std::printf("%s}\n", json.c_str());
   } else {
-    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
+    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s%s\n",
                 input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
                 result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-                level_note.c_str(), ElbowNote(result->done).c_str());
+                level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   }
   if (!coarse_error.empty()) {
     std::fprintf(stderr,
                  "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
                  "  written: %s\n  %s\n",
                  args.get("coarse").c_str(), coarse_error.c_str(),
-                 OutputList(args, {"labels", "levels-csv", "ply", "plot"}).c_str(),
+                 OutputList(args, {"labels", "levels-csv", "ply", "plot", "preview"}).c_str(),
                  coarse_nearest.has_value()
                      ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
                                     " clusters: --clusters ", *coarse_nearest)
@@ -1049,6 +1143,7 @@ int Points(const Arguments& args) {
   SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
                             points->values.size() * sizeof(float));
+  if (args.has("detach")) return Detach(args, spec, payload);
   double seconds = 0;
   absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, payload, &seconds);
   if (!result.ok()) return Fail(result.status());
@@ -1167,9 +1262,14 @@ int Stats(const Arguments& args) {
   if (!args.has("server")) return Fail(absl::InvalidArgumentError("stats: give --server ADDR"));
   const std::string address = args.get("server");
   if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-  auto stub = v1::Clustering::NewStub(client::Connect(address));
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*flags);
+  if (!channel.ok()) return Fail(channel.status());
+  auto stub = v1::Clustering::NewStub(*channel);
   grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  context.set_deadline(
+      absl::ToChronoTime(absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
@@ -1230,7 +1330,11 @@ int Info(const Arguments& args) {
   const std::string address = args.get("server", "embedded");
   if (args.has("server")) {
     if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-    channel = client::Connect(address);
+    absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+    if (!flags.ok()) return Fail(flags.status());
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> connected = ConnectTo(*flags);
+    if (!connected.ok()) return Fail(connected.status());
+    channel = *connected;
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -1291,17 +1395,21 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With({"server",           "algo", "energy", "clusters", "labels",
-                      "levels-csv",       "ply",  "device", "quiet",    "coarse",
-                      "coarse-placement", "seed", "levels", "json",     "planar-merge",
-                      "repair",           "plot", "upload", "quantize", "per-polygon"},
-                     RegistryOptionNames(InputKind::kMesh));
+         return With(
+             With({"server",           "algo",    "energy",       "clusters",    "labels",
+                   "levels-csv",       "ply",     "device",       "quiet",       "coarse",
+                   "coarse-placement", "seed",    "levels",       "json",        "planar-merge",
+                   "repair",           "plot",    "upload",       "quantize",    "per-polygon",
+                   "detach",           "preview", "preview-size", "preview-view"},
+                  ConnectionFlagNames()),
+             RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },
        [] {
-         return With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
-                      "auto-k", "levels", "quiet", "device", "json", "plot"},
+         return With(With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
+                           "auto-k", "levels", "quiet", "device", "json", "plot", "detach"},
+                          ConnectionFlagNames()),
                      RegistryOptionNames(InputKind::kPoints));
        },
        Points},
@@ -1314,12 +1422,12 @@ const std::vector<Command>& Commands() {
        Energy},
       {"stats", [] { return std::string(kStatsUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Stats},
       {"info", [] { return std::string(kInfoUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Info},
   };
@@ -1355,11 +1463,16 @@ int main(int argc, char** argv) {
       std::fputs(mlclust::cli::ServeUsage(), stdout);
       return 0;
     }
+    if (argc >= 3 && IsJobCommand(argv[2])) {
+      std::fputs(JobCommandsUsage(), stdout);
+      std::fputs(ConnectionFlagsUsage(), stdout);
+      return 0;
+    }
     if (argc >= 3) {
       const Command* found = FindCommand(argv[2]);
       if (found == nullptr) {
         std::fprintf(stderr, "mlclust: no command '%s'; the commands: serve, %s\n", argv[2],
-                     "mesh, points, energy, stats, info");
+                     "mesh, points, energy, stats, info, watch, cancel, jobs");
         return 2;
       }
       std::fputs(found->usage().c_str(), stdout);
@@ -1369,6 +1482,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (command == "serve") return RunServeCommand(argc - 2, argv + 2);
+  if (IsJobCommand(command)) return RunJobCommand(command, argc - 2, argv + 2);
   const Command* found = FindCommand(command);
   if (found == nullptr) {
     std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());
