@@ -329,8 +329,17 @@ absl::StatusOr<RunSummary> RunMeshVsa(const MeshProblem& problem, const JobPlan&
   MLCLUST_ASSIGN_OR_RETURN(VsaResult start, RunVsa(problem, seeding));
   Report(context, plan, "cluster", absl::StrCat("VSA", EnergyNote(plan)));
   VsaOptions options = plan.vsa;
+  // Without min-relative-decrease every iteration runs, so the share done is known.
+  const bool fixed_count = plan.vsa.min_relative_decrease == 0 && plan.vsa.iterations > 0;
   options.on_iteration = [&](uint32_t iteration, double energy) {
-    Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", energy));
+    const std::string message = absl::StrCat("iteration ", iteration, ": energy ", energy);
+    if (fixed_count && context.on_fraction) {
+      context.on_fraction(Stage(plan, "cluster"),
+                          std::min(1.0, static_cast<double>(iteration) / plan.vsa.iterations),
+                          message);
+    } else {
+      Report(context, plan, "cluster", message);
+    }
   };
   MLCLUST_ASSIGN_OR_RETURN(VsaResult result, RunVsa(problem, options));
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.energy, result.labels, result.energy,
