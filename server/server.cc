@@ -815,8 +815,8 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       : service_(service), waker_(std::make_shared<Waker>(this)) {
     ++service_->watch_calls_active();
     if (!record.ok()) {
+      finished_ = true;  // before Finish: OnDone may delete this at once
       Finish(ToGrpc(record.status()));
-      finished_ = true;
       return;
     }
     record_ = *std::move(record);
@@ -826,7 +826,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       cursor_.phase = WatchCursor::Phase::kLevels;
       cursor_.next_level = request.from_level() + 1;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnWriteDone(bool ok) override {
@@ -835,7 +835,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       write_in_flight_ = false;
       if (!ok) cancelled_ = true;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnCancel() override {
@@ -843,7 +843,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       cancelled_ = true;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnDone() override {
@@ -856,6 +856,12 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
  private:
+  // Through a copy of the waker: the call may end (and be deleted) inside.
+  void Wake() {
+    std::shared_ptr<Waker> waker = waker_;
+    waker->Wake();
+  }
+
   // Registered with the record while the call waits; outlives the call (the record holds
   // it weakly, a wake may be on its way as the call ends).
   struct Waker : RecordWaiter {
