@@ -352,6 +352,8 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
     switch (cursor.phase) {
       case WatchCursor::Phase::kHeader: {
         v1::Accepted* accepted = event.mutable_accepted();
+        *accepted = accepted_;
+        accepted->set_queue_position(0);
         accepted->set_job_id(id_);
         accepted->set_detached(true);
         accepted->set_tenant(tenant_);

@@ -82,6 +82,9 @@ class JobRecord : public EventChannel {
 
   // State, for every job.
   void set_job(std::weak_ptr<Job> job) { job_ = std::move(job); }
+  // What the job's Accepted event said about its input (face ids, Draco method): a
+  // watcher's first event repeats it. Call before the job is queued.
+  void set_accepted(const v1::Accepted& accepted) { accepted_ = accepted; }
   std::shared_ptr<Job> job() const { return job_.lock(); }
   void MarkRunning();
   // The job ended (the first call counts): its status, and for a successful job its Done.
@@ -133,6 +136,7 @@ class JobRecord : public EventChannel {
   const size_t max_event_bytes_;
   const absl::Time accepted_at_;
   std::weak_ptr<Job> job_;
+  v1::Accepted accepted_;
   std::atomic<bool> cancelled_{false};
   std::atomic<bool> ended_{false};
   std::atomic<uint64_t> kept_bytes_{0};

@@ -739,6 +739,7 @@ void RunCall::Submit() {
   job_ = job;
   v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
   DescribeInput(job->spec, job->input, described);
+  record->set_accepted(described);
   std::shared_ptr<Job> queued = job;
   v1::JobEvent accepted_event;
   // The Accepted event is queued while the queue's lock is held, so it is always the

@@ -118,10 +118,21 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   EXPECT_EQ(whole->done.levels(), attached->done.levels());
   EXPECT_EQ(whole->done.triplets(), attached->done.triplets());
 
-  // After the job ended, again: the same.
-  absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id());
+  // After the job ended, again: the same, and the first event repeats what Accepted said
+  // about the input.
+  v1::Accepted header;
+  client::WatchOptions capture;
+  capture.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted()) header = event.accepted();
+  };
+  absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id(), capture);
   ASSERT_TRUE(again.ok()) << again.status();
   ExpectSameLevels(attached->hierarchy, again->hierarchy);
+  EXPECT_EQ(header.job_id(), accepted->job_id());
+  EXPECT_TRUE(header.detached());
+  EXPECT_FALSE(accepted->draco_method().empty());
+  EXPECT_EQ(header.draco_method(), accepted->draco_method());
+  EXPECT_EQ(header.face_order(), accepted->face_order());
 
   // The list knows both jobs, in order, with their state.
   const v1::JobList list = List(channel);
