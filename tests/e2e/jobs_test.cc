@@ -396,6 +396,38 @@ TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
           .ok());
 }
 
+// Drain: a queued detached job ends with UNAVAILABLE; its watcher gets that final status
+// at once (not taken for a broken stream and retried), the running job's watcher its Done.
+TEST(DetachTest, DrainEndsQueuedDetachedJobsAndTheirWatchers) {
+  server::ServerOptions options;
+  options.drain_time = absl::Seconds(60);
+  std::unique_ptr<server::Server> server = StartServer(options);  // one worker
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  absl::StatusOr<v1::Accepted> running = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(300)));
+  absl::StatusOr<v1::Accepted> queued = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(10)));
+  ASSERT_TRUE(running.ok() && queued.ok());
+  int resumes = 0;
+  client::WatchOptions watch;
+  watch.on_resume = [&](const absl::Status&) { ++resumes; };
+  absl::StatusOr<client::JobResult> running_result, queued_result;
+  std::thread running_watcher(
+      [&] { running_result = client::WatchJob(channel, running->job_id(), watch); });
+  std::thread queued_watcher(
+      [&] { queued_result = client::WatchJob(channel, queued->job_id(), watch); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  server->Shutdown();
+  running_watcher.join();
+  queued_watcher.join();
+  EXPECT_EQ(resumes, 0);
+  ASSERT_TRUE(running_result.ok()) << running_result.status();
+  EXPECT_EQ(running_result->hierarchy.num_levels(), 180000u);
+  EXPECT_EQ(queued_result.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(queued_result.status().message(), HasSubstr("shutting down"));
+}
+
 }  // namespace
 }  // namespace mlclust
 
