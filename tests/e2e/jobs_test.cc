@@ -396,6 +396,54 @@ TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
           .ok());
 }
 
+// Many watchers at once, started while the job runs, some from late levels, some cancelled
+// half-way: every one that reads to the end gets the levels of a solo run.
+TEST(DetachTest, ManyWatchersOfARunningJobAllSeeTheSameLevels) {
+  server::ServerOptions options;
+  options.max_event_bytes = 32 << 10;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(120));  // 28,800 faces
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(accepted.ok());
+  constexpr int kWatchers = 12;
+  std::vector<absl::StatusOr<client::JobResult>> results(kWatchers);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kWatchers; ++i) {
+    threads.emplace_back([&, i] {
+      client::WatchOptions watch;
+      watch.from_level = i % 3 == 0 ? 0 : 20000 + 500 * i;  // below 28,800
+      // Every fourth gives up after a while (its call cancelled: the job runs on).
+      if (i % 4 == 3) watch.deadline = absl::Milliseconds(50);
+      results[i] = client::WatchJob(ChannelTo(*server), accepted->job_id(), watch);
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  int complete = 0;
+  for (int i = 0; i < kWatchers; ++i) {
+    if (i % 4 == 3 && !results[i].ok()) {
+      EXPECT_EQ(results[i].status().code(), absl::StatusCode::kDeadlineExceeded);
+      continue;
+    }
+    ASSERT_TRUE(results[i].ok()) << i << ": " << results[i].status();
+    ExpectSameLevels(solo->hierarchy, results[i]->hierarchy, results[i]->first_level);
+    ++complete;
+  }
+  EXPECT_GE(complete, 9);
+  WaitEnded(channel, accepted->job_id());
+  EXPECT_EQ(FindJob(List(channel), accepted->job_id())->state(), "succeeded");
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  ASSERT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  EXPECT_EQ(stats.watch_calls_active(), 0u);
+}
+
 // Drain: a queued detached job ends with UNAVAILABLE; its watcher gets that final status
 // at once (not taken for a broken stream and retried), the running job's watcher its Done.
 TEST(DetachTest, DrainEndsQueuedDetachedJobsAndTheirWatchers) {
