@@ -112,11 +112,11 @@ class JobRecord : public EventChannel {
                  const std::shared_ptr<RecordWaiter>& waiter);
 
  private:
-  struct Level {
-    uint32_t cluster_count;
+  struct Level {  // 24 bytes: the 8-byte fields first
     double energy;
-    uint32_t source_level;
     uint64_t triplet_end;  // triplets [end of the previous level, triplet_end)
+    uint32_t cluster_count;
+    uint32_t source_level;
   };
 
   // Levels a watcher can read: the snapshot (level 0) and the complete levels after it.
@@ -211,7 +211,8 @@ class JobRegistry {
   absl::Duration retention() const { return options_.retention; }
 
  private:
-  void DropLocked(const std::string& id, const std::string& reason);
+  // `id` by value: callers pass an element of order_, which this erases.
+  void DropLocked(std::string id, const std::string& reason);
 
   const JobRegistryOptions options_;
   MemoryBudget kept_;
@@ -221,7 +222,7 @@ class JobRegistry {
   std::map<std::string, std::shared_ptr<JobRecord>> records_;
   // Why a job is gone, for NOT_FOUND messages (the newest few thousand).
   std::deque<std::string> dropped_order_;
-  std::map<std::string, std::string> dropped_reasons_;
+  std::map<std::string, std::pair<std::string, std::string>> dropped_reasons_;  // tenant, why
 };
 
 }  // namespace mlclust::server
