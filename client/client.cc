@@ -55,6 +55,9 @@ class HierarchyAssembler {
         return AddSnapshot(event.snapshot());
       case v1::JobEvent::kLevels:
         return AddLevels(event.levels());
+      case v1::JobEvent::kPreview:
+        result_.preview = event.preview();
+        return absl::OkStatus();
       case v1::JobEvent::kDone:
         if (continuing_) return absl::DataLossError("the job ended inside a split level");
         result_.done = event.done();

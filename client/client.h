@@ -53,6 +53,8 @@ struct JobResult {
   // Level 0 of `hierarchy` is the first level the server sent (the snapshot).
   HierarchyLog hierarchy;
   v1::Done done;
+  // The picture JobSpec.preview asked for (empty png when none came).
+  v1::Preview preview;
   // The job's level number of `hierarchy`'s level 0 (WatchJob's from_level; 0 for RunJob).
   uint32_t first_level = 0;
 };

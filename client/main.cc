@@ -19,6 +19,7 @@
 #include "absl/time/clock.h"
 #include "client/client.h"
 #include "client/job_commands.h"
+#include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -35,6 +36,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #include "server/server.h"
 #ifdef MLCLUST_HAVE_PLOT
 #include "client/plot.h"
@@ -51,6 +53,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
+                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]
                      [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
@@ -76,6 +79,9 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
+      --per-polygon    OFF/OBJ input with quads or n-gons: each polygon goes to the cluster of
+                       most of its area (ours: a post-pass over the triangles' clustering,
+                       the energy recomputed); --labels writes one line per polygon
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
                        (default) keeps the face order by itself. edgebreaker carries a
                        per-face id attribute, by which the server puts the faces back in
@@ -90,6 +96,13 @@ constexpr char kMeshUsage[] = R"(
       --quantize BITS  Draco position quantisation (0 = lossless float32, the default: the
                        server's energies are those of the input; 11-14 make uploads several
                        times smaller, at positions moved by up to 2^-BITS of the box)
+      --preview FILE.png  a picture of that level (without --clusters: the last level;
+                       the server's level, before --planar-merge), drawn by the server's GL
+                       context: a three-quarter view, one colour per cluster, dark lines
+                       between clusters
+      --preview-size WxH  its size in pixels (default 1024x768; each side 16 to 4096)
+      --preview-view AZ,EL  the camera in degrees (default 35,25: from the right of +z,
+                       above; 215,25 looks from the other side)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -171,9 +184,13 @@ std::string RegistryUsage(InputKind input) {
       absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(
-        &out, "        ", algorithm.name, ": ", algorithm.title, "\n",
-        Wrap(absl::StrCat(algorithm.help, algorithm.hierarchy ? " [hierarchy]" : " [one K]"), 10));
+    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "\n",
+                    Wrap(absl::StrCat(algorithm.help,
+                                      algorithm.divisive    ? " [hierarchy from K down to one]"
+                                      : algorithm.hierarchy ? " [hierarchy]"
+                                      : algorithm.chooses_k ? " [from K = k_min, finds its own K]"
+                                                            : " [one K]"),
+                         10));
   }
   if (input == InputKind::kMesh) {
     absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
@@ -240,7 +257,8 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "detach", "repair"};
+    static const std::set<std::string> kFlags = {"quiet",  "json",   "help",
+                                                 "detach", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -595,7 +613,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot"}) {
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot", "preview"}) {
     if (args.has(name) && !not_written.contains(name))
       outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
   }
@@ -661,6 +679,9 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name);
+
 // Exit code of a mesh job whose other outputs were written but whose --coarse failed.
 constexpr int kExitCoarseFailed = 3;
 
@@ -725,6 +746,46 @@ std::optional<uint32_t> NearestCoarsening(const HierarchyLog& log, size_t level,
   return std::nullopt;
 }
 
+// --preview FILE.png [--preview-size WxH]: the server draws the level --clusters K chooses
+// (the last level without K) and sends it as a Preview event.
+absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& spec) {
+  if (!args.has("preview")) {
+    for (const char* name : {"preview-size", "preview-view"}) {
+      if (args.has(name)) {
+        return absl::InvalidArgumentError(absl::StrCat("--", name, " needs --preview FILE.png"));
+      }
+    }
+    return absl::OkStatus();
+  }
+  if (args.get("preview").empty()) return absl::InvalidArgumentError("--preview: no file name");
+  v1::PreviewRequest* preview = spec.mutable_preview();
+  preview->set_cluster_count(clusters);
+  if (args.has("preview-size")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto size,
+                             server::ParsePreviewSize(args.get("preview-size"), "--preview-size"));
+    preview->set_width(size.first);
+    preview->set_height(size.second);
+  }
+  if (args.has("preview-view")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto view,
+                             server::ParsePreviewView(args.get("preview-view"), "--preview-view"));
+    preview->set_azimuth_degrees(view.first);
+    preview->set_elevation_degrees(view.second);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status WritePreview(const std::string& path, const v1::Preview& preview) {
+  if (preview.png().empty()) {
+    return absl::DataLossError("--preview: the server sent no preview");
+  }
+  std::ofstream out(path, std::ios::binary);
+  out.write(preview.png().data(), static_cast<std::streamsize>(preview.png().size()));
+  out.close();
+  if (!out) return absl::UnavailableError(absl::StrCat("--preview: cannot write ", path));
+  return absl::OkStatus();
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -781,6 +842,9 @@ int Mesh(const Arguments& args) {
       return Fail(absl::InvalidArgumentError("--planar-merge needs --clusters K (K >= 1)"));
     }
   }
+  if (args.has("per-polygon") && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--per-polygon needs --clusters K (K >= 1)"));
+  }
   const std::string upload = args.get("upload", "sequential");
   if (upload != "auto" && upload != "sequential" && upload != "edgebreaker") {
     return Fail(absl::InvalidArgumentError("--upload must be auto, sequential or edgebreaker"));
@@ -789,6 +853,10 @@ int Mesh(const Arguments& args) {
   if (!quantize.ok()) return Fail(quantize.status());
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
+  if (absl::Status status = SetPreview(args, static_cast<uint32_t>(*clusters), spec);
+      !status.ok()) {
+    return Fail(status);
+  }
 
   // The mesh is read locally (its faces are the ids of every output) and sent compressed;
   // a .drc file is sent as it is.
@@ -797,6 +865,12 @@ int Mesh(const Arguments& args) {
   if (*clusters > mesh->num_faces()) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
+  std::vector<uint32_t> polygon_triangles;  // --per-polygon: triangles of each polygon
+  if (args.has("per-polygon")) {
+    absl::StatusOr<std::vector<uint32_t>> counts = client::ReadPolygonTriangleCounts(input_path);
+    if (!counts.ok()) return Fail(counts.status());
+    polygon_triangles = *std::move(counts);
   }
   // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
   // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
@@ -862,6 +936,7 @@ int Mesh(const Arguments& args) {
   std::optional<size_t> chosen_level;
   std::string coarse_error;
   std::optional<uint32_t> coarse_nearest;
+  std::string post_pass_json;  // --planar-merge and --per-polygon in the JSON summary
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
@@ -882,9 +957,46 @@ int Mesh(const Arguments& args) {
       merge_note =
           absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
                           planar_merge_degrees, merged->input_clusters, merged->output_clusters);
+      absl::StrAppend(&post_pass_json, R"(, "planar_merge": {"degrees": )",
+                      JsonNumber(planar_merge_degrees),
+                      ", \"clusters_before\": ", merged->input_clusters,
+                      ", \"clusters_after\": ", merged->output_clusters, "}");
+    }
+    std::vector<uint32_t> written = compact;  // what --labels writes
+    if (args.has("per-polygon")) {
+      std::vector<ClusterId> face_ids(compact.begin(), compact.end());
+      absl::StatusOr<client::PolygonLabels> polygons =
+          client::LabelsPerPolygon(*mesh, polygon_triangles, face_ids);
+      if (!polygons.ok()) return Fail(polygons.status());
+      compact = client::CompactLabels(polygons->per_face);
+      written.clear();
+      size_t first = 0;
+      for (uint32_t count : polygon_triangles) {
+        written.push_back(compact[first]);
+        first += count;
+      }
+      // The energy of the labels written, from its definition (as `mlclust energy`).
+      absl::StatusOr<MeshEnergyOptions> energy_options = EnergyFromArguments(args, energy_name);
+      if (!energy_options.ok()) return Fail(energy_options.status());
+      absl::StatusOr<PreparedMesh> prepared = PrepareMesh(sent);
+      if (!prepared.ok()) return Fail(prepared.status());
+      std::vector<ClusterId> labels_now(compact.begin(), compact.end());
+      const double energy =
+          WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
+                         [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      absl::StrAppend(&post_pass_json, R"(, "per_polygon": {"polygons": )",
+                      polygon_triangles.size(), ", \"split_polygons\": ", polygons->split_polygons,
+                      ", \"clusters\": ", *std::max_element(compact.begin(), compact.end()) + 1,
+                      ", \"energy\": ", JsonNumber(energy), "}");
+      merge_note = absl::StrCat(
+          merge_note,
+          absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
+                          "of most of their area: %u clusters, energy %.10g",
+                          polygon_triangles.size(), polygons->split_polygons,
+                          *std::max_element(compact.begin(), compact.end()) + 1, energy));
     }
     if (args.has("labels")) {
-      if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
+      if (absl::Status s = WriteLabels(args.get("labels"), written); !s.ok()) return Fail(s);
     }
     std::vector<ClusterId> ids(compact.size());
     for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
@@ -917,6 +1029,14 @@ int Mesh(const Arguments& args) {
                                  log.cluster_count(*level), log.energy(*level), merge_note);
     chosen_level = *level;
   }
+  std::string preview_note;
+  if (args.has("preview")) {
+    const v1::Preview& preview = result->preview;
+    if (absl::Status s = WritePreview(args.get("preview"), preview); !s.ok()) return Fail(s);
+    preview_note = absl::StrFormat("; preview %ux%u of %u clusters in %.3f s: %s", preview.width(),
+                                   preview.height(), preview.cluster_count(),
+                                   result->done.seconds_preview(), args.get("preview"));
+  }
   if (args.has("json")) {
     std::string json = SummaryJson(
         args, input_path, "faces", mesh->num_faces(), **algorithm, spec, log, seconds, result->done,
@@ -928,6 +1048,7 @@ int Mesh(const Arguments& args) {
                     ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
                     ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
                     ", \"face_order\": ", JsonString(accepted.face_order()), "}");
+    absl::StrAppend(&json, post_pass_json);
     if (!coarse_error.empty()) {
       absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
                       ", \"coarse_nearest_clusters\": ",
@@ -935,17 +1056,17 @@ int Mesh(const Arguments& args) {
     }
     std::printf("%s}\n", json.c_str());
   } else {
-    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
+    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s%s\n",
                 input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
                 result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-                level_note.c_str(), ElbowNote(result->done).c_str());
+                level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   }
   if (!coarse_error.empty()) {
     std::fprintf(stderr,
                  "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
                  "  written: %s\n  %s\n",
                  args.get("coarse").c_str(), coarse_error.c_str(),
-                 OutputList(args, {"labels", "levels-csv", "ply", "plot"}).c_str(),
+                 OutputList(args, {"labels", "levels-csv", "ply", "plot", "preview"}).c_str(),
                  coarse_nearest.has_value()
                      ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
                                     " clusters: --clusters ", *coarse_nearest)
@@ -1096,8 +1217,9 @@ int Points(const Arguments& args) {
 }
 
 // --energy (default cvd; every mesh energy, also those not on the wire) and its options.
-absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args) {
-  const std::string name = args.get("energy", "cvd");
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name) {
+  const std::string name = args.get("energy", default_name);
   const EnergyInfo* energy = FindEnergy(InputKind::kMesh, name);
   if (energy == nullptr) {
     return absl::InvalidArgumentError(
@@ -1119,7 +1241,7 @@ int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
+  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args, "cvd");
   if (!options.ok()) return Fail(options.status());
   // The one set-up path (core/io/prepare_mesh.h): read, validate, adjacency, measures.
   absl::StatusOr<PreparedMesh> mesh = PrepareMeshFile(args.positional()[0]);
@@ -1272,12 +1394,14 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With(With({"server",           "algo", "energy", "clusters", "labels",
-                           "levels-csv",       "ply",  "device", "quiet",    "coarse",
-                           "coarse-placement", "seed", "levels", "json",     "planar-merge",
-                           "repair",           "plot", "upload", "quantize", "detach"},
-                          ConnectionFlagNames()),
-                     RegistryOptionNames(InputKind::kMesh));
+         return With(
+             With({"server",           "algo",    "energy",       "clusters",    "labels",
+                   "levels-csv",       "ply",     "device",       "quiet",       "coarse",
+                   "coarse-placement", "seed",    "levels",       "json",        "planar-merge",
+                   "repair",           "plot",    "upload",       "quantize",    "per-polygon",
+                   "detach",           "preview", "preview-size", "preview-view"},
+                  ConnectionFlagNames()),
+             RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },

@@ -404,6 +404,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     std::lock_guard<std::mutex> lock(gl_mutex_);
     if (gl_renderer_.empty()) return JobLane::kCpu;
     if (spec.device() == "gpu") return JobLane::kGl;
+    if (spec.has_preview()) return JobLane::kGl;  // the preview draws with the GL context
     if ((spec.device().empty() || spec.device() == "auto") && !gl_is_software_) {
       return JobLane::kGl;
     }

@@ -18,18 +18,23 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "absl/functional/function_ref.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/ids.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/partition.h"
+#include "core/energy/energies.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/mesh.h"
 
@@ -262,6 +267,56 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
                                                 const StageThreads& threads, Decide&& decide) {
   return RunBoundaryBased(guard, nullptr, partition, options, threads,
                           std::forward<Decide>(decide));
+}
+
+// The whole of OptimizeBoundaryBased (mesh_clustering.h) with the decide stage that
+// `make_decide(energy, num_clusters, threads)` builds for the problem's energy (clusters
+// renumbered 0..num_clusters-1 by first appearance): it returns an
+// absl::StatusOr of a decide stage (CpuBoundaryDecider, or a device's). The same checks,
+// compact labels, partition, guards and sweeps, so a device backend replaces the decide
+// stage and nothing else (gpu/stages/boundary_based_gpu.cc). On an error `labels` are
+// unchanged.
+template <typename MakeDecide>
+absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedWith(const MeshProblem& problem,
+                                                         std::vector<ClusterId>& labels,
+                                                         const BoundaryBasedOptions& options,
+                                                         MakeDecide&& make_decide) {
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  if (labels.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  const Renumbering<ClusterId> renumbered =
+      RenumberByFirstAppearance(std::span<const ClusterId>(labels));
+  const uint32_t k = renumbered.size();
+  const StageThreads threads(options.threads);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+  auto run = [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
+    using Energy = std::decay_t<decltype(energy)>;
+    Partition<Energy> partition(energy, renumbered.dense, k);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const ConnectivityGuard guard,
+        ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
+    auto decide = make_decide(energy, k, threads);
+    if (!decide.ok()) return decide.status();
+    // The ring structure always: the conflict rule reads it whatever the guard.
+    std::optional<VertexBoundaryEdgeCountGuard> counts;
+    if (options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      counts.emplace(*problem.mesh, *problem.adjacency);
+    }
+    MLCLUST_ASSIGN_OR_RETURN(OptimizeResult result,
+                             RunBoundaryBased(guard, counts.has_value() ? &*counts : nullptr,
+                                              partition, options, threads, *decide));
+    const std::span<const uint32_t> compact = partition.labels();
+    for (size_t f = 0; f < n; ++f) labels[f] = renumbered.original[compact[f]];
+    return result;
+  };
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, run);
 }
 
 }  // namespace mlclust::boundary_based

@@ -10,6 +10,7 @@
 #include "absl/strings/str_join.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/device_stages.h"
 
 namespace mlclust {
 namespace {
@@ -301,7 +302,15 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
     options.on_iteration = [&](uint32_t iteration, double energy) {
       Report(context, plan, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
     };
-    result = OptimizeBoundaryBased(problem, labels, options);
+    if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+      if (context.devices == nullptr) {
+        return absl::FailedPreconditionError(
+            "BB: the plan puts the decide stage on the GPU but this run has no GPU stages");
+      }
+      result = context.devices->OptimizeBoundaryBased(problem, labels, options);
+    } else {
+      result = OptimizeBoundaryBased(problem, labels, options);
+    }
   }
   if (!result.ok()) return result.status();
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result->initial_energy, labels, result->energy,
@@ -363,7 +372,18 @@ absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPla
                                              plan.seed, plan.ln_kmeans.threads));
   LnKmeansOptions options = plan.ln_kmeans;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(LnKmeansResult result, RunLnKmeans(points, initial, options));
+  absl::StatusOr<LnKmeansResult> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "LN k-means: the plan puts the assign stage on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunLnKmeans(points, initial, options);
+  } else {
+    ran = RunLnKmeans(points, initial, options);
+  }
+  if (!ran.ok()) return ran.status();
+  const LnKmeansResult& result = *ran;
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(initial, result.initial_energy, result.labels,
                                           result.energy, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
@@ -378,6 +398,16 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
   // nearest initial centre (one assignment, as SeedPointClusters does; Lloyd's own first
   // assignment repeats it, since RunLloyd does not hand back its first labels).
   const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
+  const bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
+  if (on_gpu && context.devices == nullptr) {
+    return absl::FailedPreconditionError(
+        "k-means: the plan puts the assignment on the GPU but this run has no GPU stages");
+  }
+  auto lloyd = [&](std::vector<float> start_centres,
+                   const KmeansOptions& options) -> absl::StatusOr<KmeansResult> {
+    if (on_gpu) return context.devices->RunLloyd(points, std::move(start_centres), options);
+    return RunLloyd(points, std::move(start_centres), options);
+  };
   MLCLUST_ASSIGN_OR_RETURN(
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
@@ -386,13 +416,13 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
   assign.clusters = plan.clusters;
   assign.max_iterations = 1;
   assign.threads = plan.kmeans.threads;
-  MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, RunLloyd(points, centres, assign));
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, lloyd(centres, assign));
   KmeansOptions options = plan.kmeans;
   options.clusters = plan.clusters;
   options.on_iteration = [&](uint32_t iteration, double inertia) {
     Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
-  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, RunLloyd(points, std::move(centres), options));
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.inertia, result.labels,
                                           result.inertia, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
@@ -620,7 +650,23 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
                          })};
-    a.stages = {seed_stage, {"cluster", "parallel sweeps with proxies fixed per sweep"}};
+    // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
+    // the list of gpu::HasGpuBoundaryDecide (gpu/stages/boundary_based_gpu.h).
+    a.stages = {seed_stage,
+                {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
+                 /*has_gpu=*/true, [](const JobPlan& plan) {
+                   switch (plan.mesh_energy.kind) {
+                     case MeshEnergyKind::kCvd:
+                     case MeshEnergyKind::kCvdAdaptive:
+                     case MeshEnergyKind::kMwcvdArea:
+                     case MeshEnergyKind::kMwcvdVariance:
+                     case MeshEnergyKind::kMwcvdMax:
+                     case MeshEnergyKind::kPlanar:
+                       return true;
+                     default:
+                       return false;
+                   }
+                 }}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
   }
@@ -734,7 +780,10 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.ln_kmeans.max_iterations = static_cast<uint32_t>(v.integer);
                          })};
-    a.stages = {{"cluster", "seeding, then LN k-means iterations"}};
+    // Assign and the initial neighbours on the GPU (gpu/kernels/ln_kmeans.h), from seeds.
+    a.stages = {{"cluster", "seeding, then LN k-means iterations (assign on the GPU)",
+                 /*has_gpu=*/true,
+                 [](const JobPlan& plan) { return plan.point_init != JobPlan::PointInit::kGrid; }}};
     a.run_points = RunPointLnKmeans;
     algorithms.push_back(a);
   }
@@ -753,7 +802,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);
                 })};
-    a.stages = {{"cluster", "seeding, then Lloyd iterations"}};
+    // The assignment on the GPU (gpu/kernels/kmeans_assign.h).
+    a.stages = {{"cluster", "seeding, then Lloyd iterations (assignment on the GPU)",
+                 /*has_gpu=*/true}};
     a.run_points = RunPointKmeans;
     algorithms.push_back(a);
   }
@@ -775,7 +826,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help =
         "k-means from --clusters = k_min, then every cluster split in two by 2-means where the "
         "BIC of the halves beats the cluster's, and k-means again, until no split is kept or "
-        "k_max; the result is the round of largest BIC [K = k_min, finds its own K]";
+        "k_max; the result is the round of largest BIC";
     a.energies = point_energies;
     a.options = {
         Integer("kmax", 0, UINT32_MAX, "0",
@@ -1128,8 +1179,9 @@ absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan) {
                                     (plan.device == DeviceChoice::kAuto && !caps.gpu_is_software));
   plan.stages.clear();
   for (const StageInfo& stage : stages) {
+    const bool covered = !stage.gpu_covers || stage.gpu_covers(plan);
     plan.stages.push_back(
-        {stage.name, stage.has_gpu && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
+        {stage.name, stage.has_gpu && covered && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
   }
   return absl::OkStatus();
 }

@@ -38,6 +38,9 @@
 
 namespace mlclust {
 
+class DeviceStages;  // core/cluster/device_stages.h
+struct JobPlan;
+
 enum class InputKind { kMesh, kPoints };
 const char* InputKindName(InputKind input);  // "mesh", "points"
 
@@ -66,6 +69,9 @@ struct StageInfo {
   std::string name;  // "measures", "seed", "cluster": Progress.stage
   std::string help;
   bool has_gpu = false;  // a GPU implementation exists
+  // Where set, the GPU implementation covers only the plans it accepts (energies, inits);
+  // the stage stays on the CPU for the others.
+  std::function<bool(const JobPlan&)> gpu_covers;
 };
 
 // One stage of a job's plan: where it runs.
@@ -132,6 +138,9 @@ const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind);
 struct RunContext {
   std::function<void(const StagePlan& stage, const std::string& message)> on_stage;
   const std::atomic<bool>* cancel = nullptr;
+  // The stages on the GPU (core/cluster/device_stages.h), where the runner has one; a run
+  // function whose plan puts a stage on the GPU fails with FAILED_PRECONDITION without it.
+  DeviceStages* devices = nullptr;
 };
 
 struct RunSummary {

@@ -305,6 +305,20 @@ class ServerTest(unittest.TestCase):
         km = self.client.cluster_points(x, algo="kmeans", clusters=4)
         self.assertEqual(len(np.unique(km.labels(4))), 4)
 
+    def test_xmeans_finds_k_and_bisecting_gives_levels_down_to_one(self):
+        rng = np.random.default_rng(5)
+        centres = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10]], dtype=np.float32)
+        x = np.concatenate([c + rng.normal(size=(300, 3)).astype(np.float32) for c in centres])
+        xm = self.client.cluster_points(x, algo="xmeans", clusters=1, kmax=16)
+        self.assertEqual([l.cluster_count for l in xm.levels], [1, 4])  # k_min, then found
+        labels = xm.labels(4)
+        for block in range(4):
+            self.assertEqual(len(np.unique(labels[300 * block:300 * (block + 1)])), 1)
+        bk = self.client.cluster_points(x, algo="bisecting", clusters=6, split="energy")
+        self.assertEqual([l.cluster_count for l in bk.levels], [6, 5, 4, 3, 2, 1])
+        energies = [l.energy for l in bk.levels]
+        self.assertEqual(energies, sorted(energies))  # undoing splits never lowers it
+
     # --- errors ------------------------------------------------------------------------
     def test_errors_raise_with_the_status_code_and_message(self):
         vertices, faces = self.fandisk

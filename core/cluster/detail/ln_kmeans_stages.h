@@ -11,6 +11,10 @@
 #include <span>
 #include <vector>
 
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
+#include "core/base/status_macros.h"
 #include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/point_clustering.h"
 #include "core/energy/variance_energy.h"
@@ -44,6 +48,12 @@ class PointClusters {
   }
 
   uint32_t dims() const { return d_; }
+  // Flat views for a device stage: the data's mean (d), every centroid (k x d, relative to
+  // the mean) and every neighbour list (k x 2d, kNoCluster where none).
+  std::span<const double> origin() const { return origin_; }
+  std::span<const double> centroids() const { return centroid_; }
+  std::span<const uint32_t> neighbour_table() const { return neighbours_; }
+  std::span<uint32_t> neighbour_table() { return neighbours_; }
   uint32_t capacity() const { return static_cast<uint32_t>(count_.size()); }
   uint32_t label(size_t i) const { return labels_[i]; }
   std::span<const uint32_t> labels() const { return labels_; }
@@ -216,6 +226,70 @@ std::vector<uint32_t> ApplyMoves(PointClusters& clusters, std::span<const uint32
 // as for ApplyMoves.
 std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
                                     std::vector<uint8_t>& mark);
+
+// Alg. 6.1's iterations on clusters whose neighbours are set, with the assign stage
+// `assign` (the shape of ChooseTargets without a margin):
+//   absl::Status assign(const PointClusters&, std::span<const uint32_t> points_to_check,
+//                       std::span<uint32_t> target)
+// then ApplyMoves and RefreshAround; after the first iteration a point is checked again
+// only if its cluster, a neighbour of it or a neighbour's neighbour changed (its centroid
+// or its neighbour list). Fills result's energies, iterations, moves and converged (not
+// labels). CANCELLED once options.cancel is set (checked after each stage); the assign
+// stage's errors as they are. The device backends (gpu/stages/point_stages_gpu.h) run it;
+// point_clustering.cc's LnKmeansIterations is the same loop with ChooseTargets in
+// slices (to be folded into this one).
+template <typename Assign>
+absl::Status RunLnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
+                                   LnKmeansResult& result, Assign&& assign) {
+  const size_t m = clusters.labels().size();
+  const uint32_t k = clusters.capacity();
+  auto cancelled = [&](uint32_t iteration) {
+    if (!IsCancelled(options.cancel)) return absl::OkStatus();
+    return CheckCancelled(options.cancel, absl::StrCat("LN k-means iteration ", iteration));
+  };
+  result.initial_energy = clusters.TotalEnergy();
+  std::vector<uint32_t> check(m), target(m);
+  for (size_t i = 0; i < m; ++i) check[i] = static_cast<uint32_t>(i);
+  std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
+  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    MLCLUST_RETURN_IF_ERROR(cancelled(iteration));
+    target.resize(check.size());
+    MLCLUST_RETURN_IF_ERROR(assign(static_cast<const PointClusters&>(clusters),
+                                   std::span<const uint32_t>(check), std::span<uint32_t>(target)));
+    MLCLUST_RETURN_IF_ERROR(cancelled(iteration));
+    uint64_t moved = 0;
+    const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
+    result.iterations = iteration;
+    result.moves += moved;
+    if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
+    if (moved == 0) {
+      result.converged = true;
+      break;
+    }
+    const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
+    MLCLUST_RETURN_IF_ERROR(cancelled(iteration));
+    std::fill(dirty.begin(), dirty.end(), 0);
+    for (uint32_t c : changed) dirty[c] = 1;
+    for (uint32_t c : refreshed) dirty[c] = 1;
+    for (uint32_t c = 0; c < k; ++c) {
+      bool any = dirty[c];
+      for (uint32_t n : clusters.neighbours(c)) {
+        if (any || n == kNoCluster) continue;
+        any = dirty[n];
+        for (uint32_t nn : clusters.neighbours(n)) {
+          if (nn != kNoCluster && dirty[nn]) any = true;
+        }
+      }
+      active[c] = any;
+    }
+    check.clear();
+    for (size_t i = 0; i < m; ++i) {
+      if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
+    }
+  }
+  result.energy = clusters.TotalEnergy();
+  return absl::OkStatus();
+}
 
 }  // namespace mlclust::detail
 

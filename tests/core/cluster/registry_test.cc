@@ -217,12 +217,29 @@ TEST(RegistryTest, DevicesFollowThePlan) {
   EXPECT_EQ(device_of(DeviceChoice::kCpu, hardware, "measures"), "cpu");
   EXPECT_EQ(device_of(DeviceChoice::kAuto, none, "measures"), "cpu");
   EXPECT_THAT(device_of(DeviceChoice::kGpu, none, "measures"), HasSubstr("no GPU"));
-  // A point algorithm has no GPU stage: device gpu says so.
+  // A point algorithm without a GPU stage: device gpu says so.
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "hc");
+  EXPECT_THAT(device_of(DeviceChoice::kGpu, hardware, "cluster"),
+              HasSubstr("no stage of hc on points has a GPU implementation"));
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  // LN k-means assigns on the GPU from seeds, not from the voxel grid (whose neighbours
+  // are the CPU's).
   request.algorithm = FindAlgorithm(InputKind::kPoints, "lnkmeans");
   request.clusters = 3;
-  EXPECT_THAT(device_of(DeviceChoice::kGpu, hardware, "cluster"),
-              HasSubstr("no stage of lnkmeans on points has a GPU implementation"));
-  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "cluster"), "llvmpipe");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "NVIDIA H100");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, software, "cluster"), "cpu");
+  request.clusters = 0;
+  request.options = {{"init", "grid"}, {"grid", "4"}};
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, hardware, "cluster"), "cpu");
+  request.options = {};
+  // BB decides on the GPU for the proxy-point energies only.
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "bb");
+  request.clusters = 10;
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "cluster"), "llvmpipe");
+  request.energy = FindEnergy(InputKind::kMesh, "sphere");
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "cluster"), "cpu");
+  request.energy = nullptr;
   // The worker a job needs follows from its plan.
   JobRequest ml;
   ml.algorithm = FindAlgorithm(InputKind::kMesh, "ml");

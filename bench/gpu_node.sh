@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Takes the figures of issue 10's "Speed" section that exist so far, in one run, on a GPU
+# node (NVIDIA H100/H200 with 16 cores; DEVELOPERS.md / docker/ say how to get there): the
+# GPU stages against the CPU path on the same machine's cores, with the renderer named on
+# every row. Writes bench/results/gpu_node_<host>.csv (appended: one block per run, each
+# row a CSV line, blocks separated by a "# run" line with date, host, cores and renderer).
+#
+#   bench/gpu_node.sh                 # the GPU-node sizes (issue 10)
+#   bench/gpu_node.sh --quick         # small sizes: what a 2-core machine on llvmpipe can run
+#   BIN=build/bench bench/gpu_node.sh # use an existing build (default: build/bench, built
+#                                     # with scripts/build.sh when missing)
+#
+# Figures taken (GPU vs the CPU stage on $THREADS cores, default: all):
+#   BB decide per sweep and whole BB runs, CVD, k = 1000 and 10,000, on bunny00 and the
+#     1M-face armadillo_1m (scripts/fetch-bench-meshes.sh)       -> issue: >= 20x per sweep
+#   cluster sums of 10^6 elements of 5 doubles (the CVD face sums) against an fp64 loop
+#   LN k-means, 10M 3-D points, k = 10,000, seconds per iteration -> issue: >= 20x
+#   brute-force k-means (ours, GPU assignment) on the same points and k, per iteration, and
+#     the PyTorch peer (bench/peers/torch_kmeans.py: chunked cdist + argmin) where torch
+#     with CUDA is installed                                        -> issue: LN faster
+# Not taken yet, because the GPU stages do not exist yet: PML/ML hierarchies on the GPU,
+# meshlet-sized levels, ML for points on the GPU (issue 10's other rows).
+set -euo pipefail
+repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo_root"
+quick=0
+[ "${1:-}" = "--quick" ] && quick=1
+BIN="${BIN:-build/bench}"
+THREADS="${THREADS:-$(nproc)}"
+if [ ! -x "$BIN/gpu_stages_bench" ]; then
+  CMAKE_CXX_COMPILER_LAUNCHER="${CMAKE_CXX_COMPILER_LAUNCHER:-}" bash scripts/build.sh
+  BIN=build/bench
+fi
+bench="$BIN/gpu_stages_bench"
+mkdir -p bench/results
+out="bench/results/gpu_node_$(hostname -s).csv"
+[ "$quick" = 1 ] && out="bench/results/gpu_stages_quick.csv"
+renderer="$("$BIN/../gpu/mlclust-gpu-info" 2>/dev/null | grep -m1 -i renderer || echo "renderer: ?")"
+{
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc) threads=$THREADS $renderer"
+} | tee -a "$out"
+
+run() { "$bench" "$@" --threads "$THREADS" | tee -a "$out"; }
+
+if [ "$quick" = 1 ]; then
+  meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  ks=(100 1000)
+  points=200000; point_k=1000; kmeans_points=100000; kmeans_k=100
+else
+  meshes=(data/bench/bunny00.off data/bench/armadillo_1m.off)
+  ks=(1000 10000)
+  points=10000000; point_k=10000; kmeans_points=10000000; kmeans_k=10000
+fi
+header=--header
+for mesh in "${meshes[@]}"; do
+  for k in "${ks[@]}"; do
+    run bb "$mesh" --k "$k" --energy cvd --repeats 5 $header
+    header=
+  done
+done
+"$bench" sums --elements 1000000 --k "$point_k" --values 5 --header | tee -a "$out"
+run lnkmeans --points "$points" --k "$point_k" --header
+run kmeans --points "$kmeans_points" --k "$kmeans_k" --iterations 3 --header
+if /usr/bin/env python3 -c "import torch, sys; sys.exit(0 if torch.cuda.is_available() else 1)" 2>/dev/null; then
+  echo "stage,points,dims,k,iterations,seconds,seconds_per_iteration,inertia,device" | tee -a "$out"
+  python3 bench/peers/torch_kmeans.py --points "$kmeans_points" --k "$kmeans_k" --iterations 3 | tee -a "$out"
+else
+  echo "# torch with CUDA not available: the PyTorch peer was not run" | tee -a "$out"
+fi
+echo "wrote $out"

@@ -1,0 +1,48 @@
+// The seam between the registry's run functions (core, which knows no GL) and stages
+// implemented on a device: the server hands an implementation in RunContext::devices
+// (gpu/stages/gl_device_stages.h implements it over the server's GL context), and a run
+// function whose plan puts a stage on the GPU calls it instead of the CPU stage.
+//
+// Each method runs a whole driver with one stage on the device and every other stage the
+// CPU's own (shared templates, so the rules cannot drift): the caller has already chosen
+// the device at plan time, so a device error is the job's error (no fallback mid-job).
+#ifndef MLCLUST_CORE_CLUSTER_DEVICE_STAGES_H_
+#define MLCLUST_CORE_CLUSTER_DEVICE_STAGES_H_
+
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/base/ids.h"
+#include "core/cluster/kmeans.h"
+#include "core/cluster/mesh_clustering.h"
+#include "core/cluster/point_clustering.h"
+#include "core/energy/energies.h"
+#include "core/points/points.h"
+
+namespace mlclust {
+
+class DeviceStages {
+ public:
+  virtual ~DeviceStages() = default;
+
+  // OptimizeBoundaryBased (mesh_clustering.h) with the decide stage on the device; same
+  // contract, plus the device's errors (naming the pass).
+  virtual absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(
+      const MeshProblem& problem, std::vector<ClusterId>& labels,
+      const BoundaryBasedOptions& options) = 0;
+
+  // RunLnKmeans (point_clustering.h) with the initial neighbours and the assign stage
+  // on the device; same contract, plus the device's errors.
+  virtual absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points,
+                                                     std::vector<ClusterId> labels,
+                                                     const LnKmeansOptions& options) = 0;
+
+  // RunLloyd (kmeans.h) with the assignment on the device; same contract, plus the
+  // device's errors.
+  virtual absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
+                                                const KmeansOptions& options) = 0;
+};
+
+}  // namespace mlclust
+
+#endif  // MLCLUST_CORE_CLUSTER_DEVICE_STAGES_H_

@@ -1,0 +1,82 @@
+// LnKmeansKernel::Assign (ln_kmeans.h): LN k-means' assign stage (Alg. 6.1), one
+// invocation per point to check. The same rule as ChooseTargets
+// (core/cluster/detail/ln_kmeans_stages.h): the point's best cluster among its own, its
+// cluster's local neighbours and the neighbours of the neighbour in the point's subspace
+// (eq. 6.1), in that order, at most 256 candidates; ties to the smaller id. Distances in
+// fp64 from the float coordinates less the data's mean. After the prelude of
+// gpu/context/compute.h.
+layout(std430, binding = 0) readonly buffer Points { float points[]; };         // d per point
+layout(std430, binding = 1) readonly buffer Origin { double origin[]; };        // d
+layout(std430, binding = 2) readonly buffer Labels { uint labels[]; };          // per point
+layout(std430, binding = 3) readonly buffer Centroids { double centroids[]; };  // d per cluster
+layout(std430, binding = 4) readonly buffer Neighbours { uint neighbours[]; };  // 2d per cluster
+layout(std430, binding = 5) readonly buffer Counts { uint counts[]; };          // per cluster
+layout(std430, binding = 6) readonly buffer Check { uint check[]; };            // points to check
+layout(std430, binding = 7) writeonly buffer Targets { uint targets[]; };       // per check entry
+layout(location = 0) uniform uint u_count;  // entries of check
+layout(location = 1) uniform uint u_dims;   // d
+const uint kNone = 0xFFFFFFFFu;
+const uint kMaxCandidates = 256u;
+
+double Coordinate(uint point, uint j) { return double(points[point * u_dims + j]) - origin[j]; }
+
+double Distance(uint point, uint cluster) {
+  precise double dist = 0.0LF;
+  for (uint j = 0u; j < u_dims; ++j) {
+    precise double diff = Coordinate(point, j) - centroids[cluster * u_dims + j];
+    dist += diff * diff;
+  }
+  return dist;
+}
+
+uint own;
+uint best_cluster;
+double best;
+
+void Consider(uint point, uint n) {
+  if (n == best_cluster || counts[n] == 0u) return;
+  double dist = Distance(point, n);
+  if (dist < best || (dist == best && n < best_cluster && n != own)) {
+    best = dist;
+    best_cluster = n;
+  }
+}
+
+void main() {
+  uint r = LinearInvocationIndex();
+  if (r >= u_count) return;
+  uint point = check[r];
+  own = labels[point];
+  // SubspaceIndex(centroid(own), x): the axis of the largest difference (ties to the lower
+  // axis) and its sign.
+  uint axis = 0u;
+  double largest = -1.0LF;
+  for (uint j = 0u; j < u_dims; ++j) {
+    double diff = abs(Coordinate(point, j) - centroids[own * u_dims + j]);
+    if (diff > largest) {
+      largest = diff;
+      axis = j;
+    }
+  }
+  uint subspace = 2u * axis + (Coordinate(point, axis) > centroids[own * u_dims + axis] ? 0u : 1u);
+  best = Distance(point, own);
+  best_cluster = own;
+  uint count = 0u;
+  uint width = 2u * u_dims;
+  for (uint t = 0u; t < width; ++t) {
+    uint n = neighbours[own * width + t];
+    if (n == kNone || count >= kMaxCandidates) continue;
+    ++count;
+    Consider(point, n);
+  }
+  uint towards = neighbours[own * width + subspace];
+  if (towards != kNone) {
+    for (uint t = 0u; t < width; ++t) {
+      uint n = neighbours[towards * width + t];
+      if (n == kNone || n == own || count >= kMaxCandidates) continue;
+      ++count;
+      Consider(point, n);
+    }
+  }
+  targets[r] = best_cluster != own ? best_cluster : kNone;
+}

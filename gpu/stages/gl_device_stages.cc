@@ -1,0 +1,28 @@
+#include "gpu/stages/gl_device_stages.h"
+
+#include <utility>
+
+#include "gpu/stages/boundary_based_gpu.h"
+#include "gpu/stages/point_stages_gpu.h"
+
+namespace mlclust::gpu {
+
+absl::StatusOr<OptimizeResult> GlDeviceStages::OptimizeBoundaryBased(
+    const MeshProblem& problem, std::vector<ClusterId>& labels,
+    const BoundaryBasedOptions& options) {
+  return OptimizeBoundaryBasedGpu(context_, problem, labels, options);
+}
+
+absl::StatusOr<LnKmeansResult> GlDeviceStages::RunLnKmeans(const PointSet& points,
+                                                           std::vector<ClusterId> labels,
+                                                           const LnKmeansOptions& options) {
+  return RunLnKmeansGpu(context_, points, std::move(labels), options);
+}
+
+absl::StatusOr<KmeansResult> GlDeviceStages::RunLloyd(const PointSet& points,
+                                                      std::vector<float> centres,
+                                                      const KmeansOptions& options) {
+  return RunLloydGpu(context_, points, std::move(centres), options);
+}
+
+}  // namespace mlclust::gpu

@@ -1,0 +1,151 @@
+// End-to-end tests of the GPU stages through the server (llvmpipe where there is no GPU):
+// BB with --device gpu runs its decide stage on the GL context and says so in its events;
+// a GL failure injected into a pass is a clean job error and the server keeps serving.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "client/client.h"
+#include "core/io/draco_codec.h"
+#include "core/io/mesh_io.h"
+#include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/server.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+class GpuStagesTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server::ServerOptions options;
+    options.listen_address = "127.0.0.1:0";
+    options.log = false;
+    options.gpu = server::GpuMode::kOn;  // llvmpipe at least: the build has MLCLUST_WITH_GPU
+    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    ASSERT_TRUE(started.ok()) << started.status();
+    server_ = *std::move(started);
+    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
+    ASSERT_TRUE(mesh.ok()) << mesh.status();
+    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(*mesh);
+    ASSERT_TRUE(bytes.ok()) << bytes.status();
+    fandisk_ = *std::move(bytes);
+  }
+  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
+
+  static v1::JobSpec BbSpec(const std::string& device) {
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+    spec.set_algorithm(v1::ALGORITHM_BB);
+    spec.set_energy(v1::ENERGY_CVD);
+    spec.set_clusters(100);
+    spec.set_device(device);
+    return spec;
+  }
+
+  // Runs a job and keeps its progress events.
+  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
+                                        std::vector<v1::Progress>* progress = nullptr) {
+    client::RunOptions options;
+    options.on_event = [progress](const v1::JobEvent& event) {
+      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
+    };
+    return client::RunJob(channel_, spec, fandisk_, options);
+  }
+
+  std::unique_ptr<server::Server> server_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::string fandisk_;
+};
+
+TEST_F(GpuStagesTest, BbWithDeviceGpuRunsTheDecideStageOnTheGlContext) {
+  const std::string renderer = server_->gl_renderer();
+  ASSERT_FALSE(renderer.empty());
+  std::vector<v1::Progress> progress;
+  absl::StatusOr<client::JobResult> gpu = Run(BbSpec("gpu"), &progress);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  absl::StatusOr<client::JobResult> cpu = Run(BbSpec("cpu"));
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+
+  // The cluster stage's events name the renderer; Done names it too.
+  bool cluster_on_gpu = false;
+  for (const v1::Progress& p : progress) {
+    if (p.stage() == "cluster") {
+      EXPECT_EQ(p.device(), renderer) << p.message();
+      cluster_on_gpu = true;
+    }
+  }
+  EXPECT_TRUE(cluster_on_gpu);
+  EXPECT_EQ(gpu->done.device(), renderer);
+  EXPECT_EQ(cpu->done.device(), "cpu");
+
+  // Same seeding, energies within 1% (identical on llvmpipe).
+  ASSERT_EQ(gpu->hierarchy.num_levels(), 2u);
+  ASSERT_EQ(cpu->hierarchy.num_levels(), 2u);
+  EXPECT_EQ(gpu->hierarchy.energy(0), cpu->hierarchy.energy(0));
+  EXPECT_LT(gpu->hierarchy.energy(1), gpu->hierarchy.energy(0));
+  EXPECT_NEAR(gpu->hierarchy.energy(1), cpu->hierarchy.energy(1), 0.01 * cpu->hierarchy.energy(1));
+}
+
+TEST_F(GpuStagesTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
+  ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", "bb decide", 1), 0);
+  absl::StatusOr<client::JobResult> failed = Run(BbSpec("gpu"));
+  EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal);
+  EXPECT_THAT(failed.status().message(), HasSubstr("GPU pass 'bb decide'"));
+  // A CPU job is untouched by the hook; after it is cleared the GPU serves again.
+  absl::StatusOr<client::JobResult> cpu = Run(BbSpec("cpu"));
+  EXPECT_TRUE(cpu.ok()) << cpu.status();
+  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
+  absl::StatusOr<client::JobResult> gpu = Run(BbSpec("gpu"));
+  EXPECT_TRUE(gpu.ok()) << gpu.status();
+}
+
+// Points around 20 centres, as float32 bytes (the wire's layout).
+std::string BlobBytes(uint32_t m) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> box(-30, 30);
+  std::normal_distribution<float> spread(0, 1);
+  std::vector<float> centres(60);
+  for (float& c : centres) c = box(random);
+  std::vector<float> values;
+  for (uint32_t i = 0; i < m; ++i) {
+    for (int j = 0; j < 3; ++j) values.push_back(centres[(i % 20) * 3 + j] + spread(random));
+  }
+  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
+}
+
+TEST_F(GpuStagesTest, LnKmeansAndKmeansWithDeviceGpu) {
+  const std::string points = BlobBytes(6000);
+  for (v1::Algorithm algorithm : {v1::ALGORITHM_LN_KMEANS, v1::ALGORITHM_KMEANS}) {
+    v1::JobSpec spec;
+    spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+    spec.set_point_dims(3);
+    spec.set_algorithm(algorithm);
+    spec.set_clusters(25);
+    spec.set_device("gpu");
+    absl::StatusOr<client::JobResult> gpu = client::RunJob(channel_, spec, points);
+    ASSERT_TRUE(gpu.ok()) << gpu.status();
+    spec.set_device("cpu");
+    absl::StatusOr<client::JobResult> cpu = client::RunJob(channel_, spec, points);
+    ASSERT_TRUE(cpu.ok()) << cpu.status();
+    EXPECT_EQ(gpu->done.device(), server_->gl_renderer());
+    EXPECT_EQ(cpu->done.device(), "cpu");
+    ASSERT_EQ(gpu->hierarchy.num_levels(), 2u);
+    ASSERT_EQ(cpu->hierarchy.num_levels(), 2u);
+    // Issue 10: inertia within 0.5%.
+    EXPECT_NEAR(gpu->hierarchy.energy(1), cpu->hierarchy.energy(1),
+                0.005 * cpu->hierarchy.energy(1))
+        << v1::Algorithm_Name(algorithm);
+    EXPECT_LE(gpu->hierarchy.energy(1), gpu->hierarchy.energy(0));
+  }
+}
+
+}  // namespace
+}  // namespace mlclust

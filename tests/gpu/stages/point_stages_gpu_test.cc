@@ -1,0 +1,165 @@
+#include "gpu/stages/point_stages_gpu.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <random>
+
+#include "core/base/renumber.h"
+#include "core/cluster/detail/ln_kmeans_stages.h"
+#include "core/cluster/kmeans.h"
+#include "core/cluster/point_clustering.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/context/pass.h"
+#include "gpu/kernels/ln_kmeans.h"
+
+namespace mlclust::gpu {
+namespace {
+
+using ::testing::HasSubstr;
+
+GlContext& Context() {
+  static GlContext* context = [] {
+    absl::StatusOr<std::unique_ptr<GlContext>> made = GlContext::Create();
+    EXPECT_TRUE(made.ok()) << made.status();
+    return made.ok() ? made->release() : nullptr;
+  }();
+  return *context;
+}
+
+// m points in d dimensions around `blobs` random centres (unit spread in a box of 40).
+PointSet Blobs(uint32_t m, uint32_t d, uint32_t blobs, uint32_t seed) {
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<float> box(-20, 20);
+  std::normal_distribution<float> spread(0, 1);
+  std::vector<float> centres(size_t{blobs} * d);
+  for (float& c : centres) c = box(random);
+  PointSet points;
+  points.dims = d;
+  points.values.resize(size_t{m} * d);
+  for (uint32_t i = 0; i < m; ++i) {
+    const uint32_t b = i % blobs;
+    for (uint32_t j = 0; j < d; ++j)
+      points.values[size_t{i} * d + j] = centres[b * d + j] + spread(random);
+  }
+  return points;
+}
+
+std::vector<ClusterId> Seeds(const PointSet& points, uint32_t k) {
+  absl::StatusOr<std::vector<ClusterId>> seeds = SeedPointClusters(points, k, false, 5);
+  EXPECT_TRUE(seeds.ok()) << seeds.status();
+  return seeds.ok() ? *seeds : std::vector<ClusterId>{};
+}
+
+// The assign kernel against ChooseTargets on the same clusters and neighbours: identical
+// targets on llvmpipe (fp64, `precise`). The neighbours come from the GPU's brute force.
+TEST(LnKmeansKernel, SameTargetsAsChooseTargets) {
+  const PointSet points = Blobs(20000, 3, 40, 1);
+  const std::vector<ClusterId> seeds = Seeds(points, 60);
+  const Renumbering<ClusterId> compact =
+      RenumberByFirstAppearance(std::span<const ClusterId>(seeds));
+  mlclust::detail::PointClusters clusters(points, compact.dense, compact.size());
+  absl::StatusOr<LnKmeansKernel> kernel =
+      LnKmeansKernel::Create(Context(), points, clusters.origin(), compact.size());
+  ASSERT_TRUE(kernel.ok()) << kernel.status();
+  std::vector<uint32_t> counts(compact.size());
+  for (uint32_t c = 0; c < counts.size(); ++c) counts[c] = static_cast<uint32_t>(clusters.count(c));
+  ASSERT_TRUE(kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts).ok());
+  ASSERT_TRUE(kernel->InitialNeighbours(clusters.neighbour_table()).ok());
+  size_t with_neighbours = 0;
+  for (uint32_t n : clusters.neighbour_table()) with_neighbours += n != mlclust::detail::kNoCluster;
+  EXPECT_GT(with_neighbours, 60u);
+  ASSERT_TRUE(kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts).ok());
+
+  std::vector<uint32_t> check(points.num_points());
+  for (uint32_t i = 0; i < check.size(); ++i) check[i] = i;
+  std::vector<uint32_t> cpu(check.size()), gpu(check.size());
+  mlclust::detail::ChooseTargets(clusters, check, cpu);
+  ASSERT_TRUE(kernel->Assign(clusters.labels(), check, gpu).ok());
+  size_t moves = 0;
+  for (uint32_t t : cpu) moves += t != mlclust::detail::kNoCluster;
+  EXPECT_GT(moves, 0u);
+  EXPECT_EQ(gpu, cpu);
+}
+
+// Issue 10: LN k-means inertia within 0.5% of the CPU's (identical on llvmpipe).
+TEST(RunLnKmeansGpu, InertiaWithinHalfAPercentOfTheCpu) {
+  const PointSet points = Blobs(30000, 3, 50, 2);
+  const std::vector<ClusterId> seeds = Seeds(points, 80);
+  absl::StatusOr<LnKmeansResult> cpu = RunLnKmeans(points, seeds);
+  absl::StatusOr<LnKmeansResult> gpu = RunLnKmeansGpu(Context(), points, seeds);
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_LT(gpu->energy, gpu->initial_energy);
+  EXPECT_NEAR(gpu->energy, cpu->energy, 0.005 * cpu->energy);
+  EXPECT_EQ(gpu->labels.size(), points.num_points());
+  size_t same = 0;
+  for (size_t i = 0; i < gpu->labels.size(); ++i) same += gpu->labels[i] == cpu->labels[i];
+  std::printf("LN k-means: energy gpu %.9g cpu %.9g, %zu of %zu labels equal, %u / %u iterations\n",
+              gpu->energy, cpu->energy, same, gpu->labels.size(), gpu->iterations, cpu->iterations);
+}
+
+// Issue 10: brute-force k-means inertia within 0.5% of the CPU's from the same centres.
+TEST(RunLloydGpu, InertiaWithinHalfAPercentOfTheCpu) {
+  const PointSet points = Blobs(20000, 4, 30, 3);
+  absl::StatusOr<std::vector<float>> centres = KmeansPlusPlusCentres(points, 40, 7);
+  ASSERT_TRUE(centres.ok()) << centres.status();
+  KmeansOptions options;
+  options.clusters = 40;
+  absl::StatusOr<KmeansResult> cpu = RunLloyd(points, *centres, options);
+  absl::StatusOr<KmeansResult> gpu = RunLloydGpu(Context(), points, *centres, options);
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_NEAR(gpu->inertia, cpu->inertia, 0.005 * cpu->inertia);
+  // Every cluster keeps at least one point.
+  std::vector<int> sizes(40, 0);
+  for (ClusterId c : gpu->labels) ++sizes[c.value()];
+  for (int size : sizes) EXPECT_GT(size, 0);
+  std::printf("k-means: inertia gpu %.9g cpu %.9g, %u / %u iterations\n", gpu->inertia,
+              cpu->inertia, gpu->iterations, cpu->iterations);
+}
+
+TEST(RunLloydGpu, EmptyClustersTakeTheFarthestPoints) {
+  // Three centres on one far-away spot: two of them end up empty after the first
+  // assignment and must take points.
+  const PointSet points = Blobs(3000, 2, 3, 4);
+  std::vector<float> centres = {100, 100, 100, 100, 100, 100};
+  KmeansOptions options;
+  absl::StatusOr<KmeansResult> gpu = RunLloydGpu(Context(), points, centres, options);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  std::vector<int> sizes(3, 0);
+  for (ClusterId c : gpu->labels) ++sizes[c.value()];
+  for (int size : sizes) EXPECT_GT(size, 0);
+}
+
+TEST(RunLnKmeansGpu, CancelledRunsReturnCancelled) {
+  const PointSet points = Blobs(2000, 3, 10, 6);
+  const std::vector<ClusterId> seeds = Seeds(points, 12);
+  const std::atomic<bool> cancel{true};
+  LnKmeansOptions options;
+  options.cancel = &cancel;
+  EXPECT_EQ(RunLnKmeansGpu(Context(), points, seeds, options).status().code(),
+            absl::StatusCode::kCancelled);
+  KmeansOptions lloyd;
+  lloyd.cancel = &cancel;
+  absl::StatusOr<std::vector<float>> centres = RandomPointCentres(points, 12, 1);
+  ASSERT_TRUE(centres.ok());
+  EXPECT_EQ(RunLloydGpu(Context(), points, *centres, lloyd).status().code(),
+            absl::StatusCode::kCancelled);
+}
+
+TEST(RunLnKmeansGpu, InjectedGlFailureNamesThePass) {
+  const PointSet points = Blobs(2000, 3, 10, 5);
+  const std::vector<ClusterId> seeds = Seeds(points, 12);
+  ASSERT_EQ(setenv(kFailPassVariable, "ln-kmeans assign", 1), 0);
+  absl::StatusOr<LnKmeansResult> failed = RunLnKmeansGpu(Context(), points, seeds);
+  ASSERT_EQ(unsetenv(kFailPassVariable), 0);
+  EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal);
+  EXPECT_THAT(failed.status().message(), HasSubstr("GPU pass 'ln-kmeans assign'"));
+  EXPECT_TRUE(RunLnKmeansGpu(Context(), points, seeds).ok());
+}
+
+}  // namespace
+}  // namespace mlclust::gpu
