@@ -360,9 +360,11 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
     std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream = stub->Watch(&context, request);
     absl::Status stream_status;
     bool progressed = false;
+    bool final_seen = false;  // the job's own end: its status is not a broken stream
     v1::JobEvent event;
     while (stream->Read(&event)) {
       progressed = true;
+      final_seen = final_seen || event.final();
       if (options.on_event) options.on_event(event);
       if (stream_status.ok()) stream_status = assembler->Add(event);
       if (!stream_status.ok()) context.TryCancel();
@@ -375,7 +377,9 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
       return result;
     }
     const absl::Status failed = FromGrpc(status);
-    if (!IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) return failed;
+    if (final_seen || !IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) {
+      return failed;
+    }
     if (progressed) resumes = 0;
     if (++resumes > options.max_resumes) return failed;
     if (options.on_resume) options.on_resume(failed);
