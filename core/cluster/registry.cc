@@ -59,8 +59,8 @@ OptionInfo Number(std::string name, double low, double high, std::string default
 }
 
 // Options several algorithms share, each writing its own field.
-// `vertex_count`: the driver can run Alg. 3.2's counts (EMLO and BB; ML's local
-// optimisation has the ring test only).
+// `vertex_count`: the driver can run Alg. 3.2 (EMLO and BB with kept counts; ML's local
+// optimisation without, as a merge relabels whole clusters).
 OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
   std::vector<std::string> choices = {"on", "ring", "off"};
   if (vertex_count) choices.push_back("vertex-count");
@@ -80,6 +80,7 @@ OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
                                            : on ? ConnectivityGuardKind::kRingTest
                                                 : ConnectivityGuardKind::kOff;
         plan.multilevel.connectivity_guard = on;
+        plan.multilevel.guard = kind;
         plan.emlo.connectivity_guard = on;
         plan.emlo.guard = kind;
         plan.boundary_based.connectivity_guard = on;
@@ -606,8 +607,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "multilevel clustering (Alg. 4.1)";
     a.help = "merge the cheapest dual edge (eq. 4.1), then optimise locally; every level";
     a.energies = mesh_energies;
-    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption(),
-                 PPercentRuleOption()};
+    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves", /*vertex_count=*/true),
+                 PPercentOption(), PPercentRuleOption()};
     a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
@@ -621,7 +622,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "collapse all mutual optimal dual edges of a level at once, then optimise";
     a.energies = mesh_energies;
     a.options = {MeshOptimizerOption(),
-                 GuardOption("the optimiser's moves"),
+                 GuardOption("the optimiser's moves", /*vertex_count=*/true),
                  PPercentOption(),
                  PPercentRuleOption(),
                  PmlUntilOption(false),
