@@ -3,7 +3,10 @@
 # libraries resolve, the server starts in the container and reaches SERVING on the gRPC
 # health service, a client outside the container gets the same labels as an in-process
 # run, /metrics answers, TLS + a bearer token work through a mounted volume (and plaintext
-# and a wrong token are refused), and `podman stop` (SIGTERM) drains and exits 0.
+# and a wrong token are refused), `podman stop` (SIGTERM) exits 0, and a job running at
+# SIGTERM finishes within the drain time while docker/compose.yaml's healthcheck fails.
+# The server containers run as docker/k8s/base/deployment.yaml's securityContext asks:
+# user 65534, read-only root file system with a /tmp tmpfs, no capabilities.
 #
 #   bash scripts/verify-image.sh            # needs root, podman, runc, mmdebstrap (apt)
 #
@@ -104,10 +107,15 @@ wait_serving() {  # wait_serving ADDR -> 0 when mlclust.v1.Clustering is SERVING
   return 1
 }
 
+SECURE=(--read-only --tmpfs /tmp --cap-drop ALL --security-opt no-new-privileges
+  --user 65534:65534)
+# docker/compose.yaml's healthcheck, run inside the container.
+HEALTHCHECK="exec 3<>/dev/tcp/127.0.0.1/9464 && printf 'GET /metrics HTTP/1.0\r\nHost: localhost\r\n\r\n' >&3 && grep -q '^mlclust_draining 0' <&3"
+
 step "plaintext server in the container, client outside"
 $PODMAN rm -f "$NAME" >/dev/null 2>&1 || true
 # shellcheck disable=SC2086
-$PODMAN run -d --name "$NAME" $RUNTIME -p "127.0.0.1:$PORT_GRPC:50051" \
+$PODMAN run -d --name "$NAME" $RUNTIME "${SECURE[@]}" -p "127.0.0.1:$PORT_GRPC:50051" \
   -p "127.0.0.1:$PORT_METRICS:9464" "$IMAGE" --metrics 0.0.0.0:9464 --workers 1 >/dev/null
 if wait_serving "127.0.0.1:$PORT_GRPC"; then
   ok "health mlclust.v1.Clustering: SERVING; overall: $(health "127.0.0.1:$PORT_GRPC" '')"
@@ -142,6 +150,11 @@ if grep -q '^mlclust_jobs_accepted_total 2$' <<<"$metrics" &&
 else
   fail "/metrics counts"
 fi
+if $PODMAN exec "$NAME" bash -c "$HEALTHCHECK"; then
+  ok "compose healthcheck passes while serving"
+else
+  fail "compose healthcheck fails while serving"
+fi
 start=$(date +%s.%N)
 $PODMAN stop -t 35 "$NAME" >/dev/null
 stopped=$(date +%s.%N)
@@ -152,6 +165,36 @@ if [ "$code" = 0 ]; then
 else
   fail "exit code $code after SIGTERM"
 fi
+$PODMAN rm -f "$NAME" >/dev/null
+
+step "SIGTERM with a job running (armadillo_1m, 832,000 faces, ML): drain"
+# The job takes 20-30 s on this shared machine: --drain-seconds 60 (the last one given
+# wins over the entrypoint's 25) so that load cannot make the drain time run out.
+# shellcheck disable=SC2086
+$PODMAN run -d --name "$NAME" $RUNTIME "${SECURE[@]}" -p "127.0.0.1:$PORT_GRPC:50051" "$IMAGE" \
+  --metrics 0.0.0.0:9464 --drain-seconds 60 >/dev/null
+wait_serving "127.0.0.1:$PORT_GRPC" || fail "never SERVING"
+"$M" mesh data/bench/armadillo_1m.off --server "127.0.0.1:$PORT_GRPC" --clusters 100 \
+  --labels "$WORK/drain.txt" >"$WORK/drain.log" 2>&1 &
+client=$!
+sleep 6
+start=$(date +%s.%N)
+$PODMAN kill -s TERM "$NAME" >/dev/null
+sleep 1
+if $PODMAN exec "$NAME" bash -c "$HEALTHCHECK" 2>/dev/null; then
+  fail "compose healthcheck still passes while draining"
+else
+  ok "compose healthcheck fails while draining"
+fi
+$PODMAN wait "$NAME" >/dev/null
+stopped=$(date +%s.%N)
+code=$($PODMAN inspect "$NAME" --format '{{.State.ExitCode}}')
+if wait "$client" && [ "$(wc -l <"$WORK/drain.txt")" = 832000 ] && [ "$code" = 0 ]; then
+  ok "the running job finished during the drain ($(tail -1 "$WORK/drain.log")); server exit 0 $(awk "BEGIN{printf \"%.1f\", $stopped - $start}") s after SIGTERM"
+else
+  fail "drain: client $(tail -1 "$WORK/drain.log"), exit code $code"
+fi
+$PODMAN logs "$NAME" 2>&1 | tail -4 | sed 's/^/  container: /'
 $PODMAN rm -f "$NAME" >/dev/null
 
 step "TLS + bearer token from a mounted volume"
@@ -165,7 +208,7 @@ printf 'wrong-token\n' >"$WORK/wrong-token"
 chmod 0755 "$WORK/secrets"
 chmod 0644 "$WORK/secrets/"*
 # shellcheck disable=SC2086
-$PODMAN run -d --name "$NAME" $RUNTIME -p "127.0.0.1:$PORT_GRPC:50051" \
+$PODMAN run -d --name "$NAME" $RUNTIME "${SECURE[@]}" -p "127.0.0.1:$PORT_GRPC:50051" \
   -v "$WORK/secrets:/run/secrets/mlclust:ro" "$IMAGE" \
   --tls-cert /run/secrets/mlclust/tls.crt --tls-key /run/secrets/mlclust/tls.key \
   --auth-token-file /run/secrets/mlclust/tokens >/dev/null
