@@ -5,11 +5,11 @@
 #include <sstream>
 #include <thread>
 
-#include "absl/container/flat_hash_map.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -360,9 +360,11 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
     std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream = stub->Watch(&context, request);
     absl::Status stream_status;
     bool progressed = false;
+    bool final_seen = false;  // the job's own end: its status is not a broken stream
     v1::JobEvent event;
     while (stream->Read(&event)) {
       progressed = true;
+      final_seen = final_seen || event.final();
       if (options.on_event) options.on_event(event);
       if (stream_status.ok()) stream_status = assembler->Add(event);
       if (!stream_status.ok()) context.TryCancel();
@@ -375,7 +377,9 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
       return result;
     }
     const absl::Status failed = FromGrpc(status);
-    if (!IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) return failed;
+    if (final_seen || !IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) {
+      return failed;
+    }
     if (progressed) resumes = 0;
     if (++resumes > options.max_resumes) return failed;
     if (options.on_resume) options.on_resume(failed);
@@ -414,14 +418,7 @@ absl::StatusOr<v1::JobList> ListJobs(const std::shared_ptr<grpc::Channel>& chann
 }
 
 std::vector<uint32_t> CompactLabels(std::span<const ClusterId> labels) {
-  absl::flat_hash_map<uint32_t, uint32_t> compact;
-  std::vector<uint32_t> out(labels.size());
-  for (size_t i = 0; i < labels.size(); ++i) {
-    auto [it, inserted] =
-        compact.try_emplace(labels[i].value(), static_cast<uint32_t>(compact.size()));
-    out[i] = it->second;
-  }
-  return out;
+  return RenumberByFirstAppearance(labels).dense;
 }
 
 }  // namespace mlclust::client

@@ -94,9 +94,10 @@ constexpr char kMeshUsage[] = R"(
                        are the same, but a face's corners may come back rotated and the
                        vertices renumbered, which changes the order EMLO, BB and ML visit
                        neighbours, so their results differ from a sequential upload's
-                       (equal quality, not equal labels). auto: edgebreaker where the mesh
-                       passes the server's checks (edgebreaker would drop degenerate faces
-                       and split non-manifold vertices unseen), else sequential
+                       (the same algorithm on a renumbered mesh: not the same labels).
+                       auto: edgebreaker where the mesh passes the server's checks
+                       (edgebreaker would drop degenerate faces and split non-manifold
+                       vertices unseen), else sequential
       --quantize BITS  Draco position quantisation (0 = lossless float32, the default: the
                        server's energies are those of the input; 11-14 make uploads several
                        times smaller, at positions moved by up to 2^-BITS of the box)

@@ -144,7 +144,7 @@ bool JobRecord::StoreLocked(const v1::JobEvent& event) {
         levels_.back().triplet_end = end;  // the rest of a split level
       } else {
         levels_.push_back(
-            {batch.cluster_count(i), batch.energy(i), has_source ? batch.source_level(i) : 0, end});
+            {batch.energy(i), end, batch.cluster_count(i), has_source ? batch.source_level(i) : 0});
       }
     }
     if (count > 0) last_level_open_ = batch.last_level_continues();
@@ -352,6 +352,8 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
     switch (cursor.phase) {
       case WatchCursor::Phase::kHeader: {
         v1::Accepted* accepted = event.mutable_accepted();
+        *accepted = accepted_;
+        accepted->set_queue_position(0);
         accepted->set_job_id(id_);
         accepted->set_detached(true);
         accepted->set_tenant(tenant_);
@@ -478,7 +480,10 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
   }
   auto dropped = dropped_reasons_.find(id);
   if (dropped != dropped_reasons_.end()) {
-    return absl::NotFoundError(absl::StrCat("job ", id, ": ", dropped->second));
+    if (dropped->second.first != tenant) {
+      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
+    }
+    return absl::NotFoundError(absl::StrCat("job ", id, ": ", dropped->second.second));
   }
   return absl::NotFoundError(
       absl::StrCat("no job '", id,
@@ -546,16 +551,17 @@ size_t JobRegistry::size() {
   return records_.size();
 }
 
-void JobRegistry::DropLocked(const std::string& id, const std::string& reason) {
+void JobRegistry::DropLocked(std::string id, const std::string& reason) {
   auto it = records_.find(id);
   if (it == records_.end()) return;
   kept_.Release(it->second->DropLevels(reason));
+  const std::string tenant = it->second->tenant();
   records_.erase(it);
   order_.erase(std::find(order_.begin(), order_.end(), id));
   dropped_.fetch_add(1, std::memory_order_relaxed);
   constexpr size_t kMaxDroppedNotes = 4096;
   dropped_order_.push_back(id);
-  dropped_reasons_[id] = reason;
+  dropped_reasons_[id] = {tenant, reason};
   if (dropped_order_.size() > kMaxDroppedNotes) {
     dropped_reasons_.erase(dropped_order_.front());
     dropped_order_.pop_front();

@@ -82,6 +82,9 @@ class JobRecord : public EventChannel {
 
   // State, for every job.
   void set_job(std::weak_ptr<Job> job) { job_ = std::move(job); }
+  // What the job's Accepted event said about its input (face ids, Draco method): a
+  // watcher's first event repeats it. Call before the job is queued.
+  void set_accepted(const v1::Accepted& accepted) { accepted_ = accepted; }
   std::shared_ptr<Job> job() const { return job_.lock(); }
   void MarkRunning();
   // The job ended (the first call counts): its status, and for a successful job its Done.
@@ -109,11 +112,11 @@ class JobRecord : public EventChannel {
                  const std::shared_ptr<RecordWaiter>& waiter);
 
  private:
-  struct Level {
-    uint32_t cluster_count;
+  struct Level {  // 24 bytes: the 8-byte fields first
     double energy;
-    uint32_t source_level;
     uint64_t triplet_end;  // triplets [end of the previous level, triplet_end)
+    uint32_t cluster_count;
+    uint32_t source_level;
   };
 
   // Levels a watcher can read: the snapshot (level 0) and the complete levels after it.
@@ -133,6 +136,7 @@ class JobRecord : public EventChannel {
   const size_t max_event_bytes_;
   const absl::Time accepted_at_;
   std::weak_ptr<Job> job_;
+  v1::Accepted accepted_;
   std::atomic<bool> cancelled_{false};
   std::atomic<bool> ended_{false};
   std::atomic<uint64_t> kept_bytes_{0};
@@ -207,7 +211,8 @@ class JobRegistry {
   absl::Duration retention() const { return options_.retention; }
 
  private:
-  void DropLocked(const std::string& id, const std::string& reason);
+  // `id` by value: callers pass an element of order_, which this erases.
+  void DropLocked(std::string id, const std::string& reason);
 
   const JobRegistryOptions options_;
   MemoryBudget kept_;
@@ -217,7 +222,7 @@ class JobRegistry {
   std::map<std::string, std::shared_ptr<JobRecord>> records_;
   // Why a job is gone, for NOT_FOUND messages (the newest few thousand).
   std::deque<std::string> dropped_order_;
-  std::map<std::string, std::string> dropped_reasons_;
+  std::map<std::string, std::pair<std::string, std::string>> dropped_reasons_;  // tenant, why
 };
 
 }  // namespace mlclust::server

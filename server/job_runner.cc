@@ -275,6 +275,10 @@ RunContext MakeRunContext(const Job& job, const DeviceCaps& caps, DeviceStages* 
   run.on_stage = [&events, caps](const StagePlan& stage, const std::string& message) {
     EmitProgress(events, stage.name, message, StageDeviceName(stage, caps));
   };
+  run.on_fraction = [&events, caps](const StagePlan& stage, double fraction,
+                                    const std::string& message) {
+    EmitProgress(events, stage.name, message, StageDeviceName(stage, caps), fraction);
+  };
   return run;
 }
 

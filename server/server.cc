@@ -740,6 +740,7 @@ void RunCall::Submit() {
   job_ = job;
   v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
   DescribeInput(job->spec, job->input, described);
+  record->set_accepted(described);
   std::shared_ptr<Job> queued = job;
   v1::JobEvent accepted_event;
   // The Accepted event is queued while the queue's lock is held, so it is always the
@@ -816,8 +817,8 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       : service_(service), waker_(std::make_shared<Waker>(this)) {
     ++service_->watch_calls_active();
     if (!record.ok()) {
+      finished_ = true;  // before Finish: OnDone may delete this at once
       Finish(ToGrpc(record.status()));
-      finished_ = true;
       return;
     }
     record_ = *std::move(record);
@@ -827,7 +828,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       cursor_.phase = WatchCursor::Phase::kLevels;
       cursor_.next_level = request.from_level() + 1;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnWriteDone(bool ok) override {
@@ -836,7 +837,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       write_in_flight_ = false;
       if (!ok) cancelled_ = true;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnCancel() override {
@@ -844,7 +845,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       cancelled_ = true;
     }
-    waker_->Wake();
+    Wake();
   }
 
   void OnDone() override {
@@ -857,6 +858,12 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
  private:
+  // Through a copy of the waker: the call may end (and be deleted) inside.
+  void Wake() {
+    std::shared_ptr<Waker> waker = waker_;
+    waker->Wake();
+  }
+
   // Registered with the record while the call waits; outlives the call (the record holds
   // it weakly, a wake may be on its way as the call ends).
   struct Waker : RecordWaiter {

@@ -396,10 +396,10 @@ absl::Status ValidateMeshProblem(const MeshProblem& problem) {
   return ValidateMeshEnergyOptions(problem.energy);
 }
 
-std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
   std::vector<uint32_t> seeds;
   LNeighbourhoodSeeds(adjacency, level, nullptr, seeds);
-  return seeds;
+  return std::vector<FaceId>(seeds.begin(), seeds.end());
 }
 
 absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
@@ -496,11 +496,13 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
 }
 
 absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const uint32_t> seeds,
+                                                             std::span<const FaceId> typed_seeds,
                                                              SeedOptions::Growth growth,
                                                              const std::atomic<bool>* cancel) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t n = problem.mesh->num_faces();
+  std::vector<uint32_t> seeds(typed_seeds.size());
+  for (size_t i = 0; i < seeds.size(); ++i) seeds[i] = typed_seeds[i].value();
   std::vector<uint8_t> is_seed(n, 0);
   for (size_t i = 0; i < seeds.size(); ++i) {
     if (seeds[i] >= n || is_seed[seeds[i]]) {
@@ -591,43 +593,15 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
                                                      std::vector<ClusterId>& labels,
                                                      const BoundaryBasedOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
-  const size_t n = problem.mesh->num_faces();
-  if (labels.size() != n) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("labels: ", labels.size(), " for a mesh of ", n, " faces"));
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
-  }
-  const Renumbering<ClusterId> renumbered =
-      RenumberByFirstAppearance(std::span<const ClusterId>(labels));
-  const std::vector<uint32_t>& compact = renumbered.dense;
-  const std::vector<ClusterId>& original = renumbered.original;
-  const uint32_t k = renumbered.size();
-  const boundary_based::StageThreads threads(options.threads);
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
-  auto run = [&](const auto& energy) -> absl::StatusOr<OptimizeResult> {
-    using Energy = std::decay_t<decltype(energy)>;
-    Partition<Energy> partition(energy, compact, k);
-    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
-    MLCLUST_ASSIGN_OR_RETURN(
-        const ConnectivityGuard guard,
-        ConnectivityGuard::Build(*problem.mesh, *problem.adjacency, options.cancel));
-    const boundary_based::CpuBoundaryDecider<Energy> decide(energy, *problem.adjacency, threads);
-    // The ring structure always: the conflict rule reads it whatever the guard.
-    std::optional<VertexBoundaryEdgeCountGuard> counts;
-    if (options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
-      counts.emplace(*problem.mesh, *problem.adjacency);
-    }
-    MLCLUST_ASSIGN_OR_RETURN(
-        OptimizeResult result,
-        boundary_based::RunBoundaryBased(guard, counts.has_value() ? &*counts : nullptr, partition,
-                                         options, threads, decide));
-    WriteBack(partition.labels(), original, labels);
-    return result;
-  };
-  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures, run);
+  // The staged BB with the CPU's decide stage; a device backend passes its own.
+  return boundary_based::OptimizeBoundaryBasedWith(
+      problem, labels, options,
+      [&](const auto& energy, uint32_t /*num_clusters*/,
+          const boundary_based::StageThreads& threads)
+          -> absl::StatusOr<boundary_based::CpuBoundaryDecider<std::decay_t<decltype(energy)>>> {
+        return boundary_based::CpuBoundaryDecider<std::decay_t<decltype(energy)>>(
+            energy, *problem.adjacency, threads);
+      });
 }
 
 }  // namespace mlclust

@@ -55,7 +55,11 @@ class MeshSpace {
   // Level 0: every face its own cluster, energy 0 for every energy here.
   absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
-    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone) {
+    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone &&
+        options_.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+      vertex_count_guard_.emplace(mesh_, adjacency_);
+    } else if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
+               options_.optimizer != MultilevelOptions::Optimizer::kNone) {
       // Only an optimiser needs the guard (HC never moves single faces); built here, between
       // cancellation checks, as it is the longest part of the set-up.
       MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard,
@@ -107,7 +111,25 @@ class MeshSpace {
   // Local optimisation around the `region` clusters, from their boundary faces outward.
   void Optimise(std::span<const uint32_t> region, bool parallel_level) {
     CollectBoundaryFaces(region);
-    const ConnectivityGuard* guard = guard_.has_value() ? &*guard_ : nullptr;
+    if (vertex_count_guard_.has_value()) {
+      const VertexCountGuardWithoutCounts guard{&*vertex_count_guard_};
+      OptimiseWith(&guard, parallel_level);
+    } else {
+      OptimiseWith(guard_.has_value() ? &*guard_ : nullptr, parallel_level);
+    }
+  }
+
+  // Alg. 3.2 asked without kept counts: a merge relabels a whole cluster at once.
+  struct VertexCountGuardWithoutCounts {
+    const VertexBoundaryEdgeCountGuard* guard;
+    bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
+                 std::span<const uint32_t> cluster_sizes) const {
+      return guard->CanMoveWithoutCounts(face, to, labels, cluster_sizes);
+    }
+  };
+
+  template <typename Guard>
+  void OptimiseWith(const Guard* guard, bool parallel_level) {
     // Touch (before each move) keeps the clusters' energies from before the level; this
     // runs after the move.
     auto on_move = [&](uint32_t face, uint32_t from, uint32_t to) {
@@ -377,8 +399,8 @@ class MeshSpace {
 
   // MultilevelOptions::parallel_optimisation: rounds of "every face of the list finds its
   // best move in parallel, then the moves are checked again and applied in face order".
-  template <typename OnMove>
-  void OptimiseInRounds(const ConnectivityGuard* guard, uint64_t max_moves, OnMove& on_move) {
+  template <typename Guard, typename OnMove>
+  void OptimiseInRounds(const Guard* guard, uint64_t max_moves, OnMove& on_move) {
     // The first list: the region's boundary faces and the faces across their boundary
     // edges (EMLO compares both sides of each edge).
     std::vector<uint32_t>& list = worklist_;
@@ -447,8 +469,8 @@ class MeshSpace {
   // Local boundary-based optimisation: sweeps over the worklist with the touched
   // clusters' proxies fixed per sweep; the faces that moved put their neighbours on the
   // next sweep's list. At most a few sweeps per level.
-  template <typename OnMove>
-  void OptimiseBoundaryBased(const ConnectivityGuard* guard, OnMove& on_move) {
+  template <typename Guard, typename OnMove>
+  void OptimiseBoundaryBased(const Guard* guard, OnMove& on_move) {
     std::vector<uint32_t> next;
     for (int sweep = 0; sweep < 8 && !worklist_.empty(); ++sweep) {
       proxy_cache_.clear();
@@ -499,6 +521,8 @@ class MeshSpace {
   const MultilevelOptions& options_;
   const TriangleMesh& mesh_;
   std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
+  // Instead of guard_, with options.guard == kVertexBoundaryEdgeCount.
+  std::optional<VertexBoundaryEdgeCountGuard> vertex_count_guard_;
   const uint32_t n_;
   Partition<Energy> partition_;
   std::vector<std::vector<uint32_t>> members_;

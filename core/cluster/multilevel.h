@@ -59,6 +59,11 @@ struct MultilevelOptions {
   // Stop at this many clusters (>= 1); a mesh with C components stops at C at the least.
   uint32_t min_clusters = 1;
   bool connectivity_guard = true;
+  // Which guard the local optimisation asks, with connectivity_guard: the ring test (ours,
+  // the default) or Alg. 3.2 (kVertexBoundaryEdgeCount, l. 870-890), read without kept
+  // counts (VertexBoundaryEdgeCountGuard::CanMoveWithoutCounts) since a merge relabels a
+  // whole cluster at once. kOff is the same as connectivity_guard = false.
+  ConnectivityGuardKind guard = ConnectivityGuardKind::kRingTest;
   // Equal ODE costs: true (the default), the cluster with the fewest faces merges first
   // (footnote 4 of section 4.2, l. 1588), then the smaller id; false, the smaller id
   // alone (the former rule). Which partner a cluster's ODE names among equal costs is

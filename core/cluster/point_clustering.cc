@@ -138,10 +138,8 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
 
 namespace {
 
-using detail::ApplyMoves;
 using detail::ChooseTargets;
 using detail::PointClusters;
-using detail::RefreshAround;
 
 constexpr uint32_t kNone = detail::kNoCluster;
 // LN k-means rounds after a merge (the first checks the merged clusters and their
@@ -318,57 +316,21 @@ absl::Status CheckLnKmeansCancelled(const std::atomic<bool>* cancel, uint32_t it
 // iterations, moves and converged (not labels). CANCELLED once options.cancel is set.
 absl::Status LnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
                                 LnKmeansResult& result) {
-  const size_t m = clusters.labels().size();
-  const uint32_t k = clusters.capacity();
-  result.initial_energy = clusters.TotalEnergy();
-  // Only points whose candidate clusters changed can move: after the first iteration a
-  // point is checked again only if its cluster, a neighbour of it or a neighbour's
-  // neighbour changed (its centroid or its neighbour list) in the last iteration.
-  std::vector<uint32_t> check(m), target(m);
-  std::iota(check.begin(), check.end(), 0);
-  std::vector<uint8_t> mark(k, 0), dirty(k, 0), active(k, 0);
-  for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
-    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
-    target.resize(check.size());
-    // In slices, so that a cancel is seen within one slice of a large set.
-    for (size_t begin = 0; begin < check.size(); begin += kAssignSlice) {
-      const size_t count = std::min(kAssignSlice, check.size() - begin);
-      ChooseTargets(clusters, std::span<const uint32_t>(check).subspan(begin, count),
-                    std::span<uint32_t>(target).subspan(begin, count));
-      MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
-    }
-    uint64_t moved = 0;
-    const std::vector<uint32_t> changed = ApplyMoves(clusters, check, target, mark, moved, {});
-    result.iterations = iteration;
-    result.moves += moved;
-    if (options.on_iteration) options.on_iteration(iteration, moved, clusters.TotalEnergy());
-    if (moved == 0) {
-      result.converged = true;
-      break;
-    }
-    const std::vector<uint32_t> refreshed = RefreshAround(clusters, changed, mark);
-    MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
-    std::fill(dirty.begin(), dirty.end(), 0);
-    for (uint32_t c : changed) dirty[c] = 1;
-    for (uint32_t c : refreshed) dirty[c] = 1;
-    for (uint32_t c = 0; c < k; ++c) {
-      bool any = dirty[c];
-      for (uint32_t n : clusters.neighbours(c)) {
-        if (any || n == kNone) continue;
-        any = dirty[n];
-        for (uint32_t nn : clusters.neighbours(n)) {
-          if (nn != kNone && dirty[nn]) any = true;
+  // The staged loop (detail/ln_kmeans_stages.h) with the CPU's assign stage, in slices so
+  // that a cancel is seen within one slice of a large set.
+  uint32_t iteration = 0;
+  return detail::RunLnKmeansIterations(
+      clusters, options, result,
+      [&](const PointClusters& current, std::span<const uint32_t> check,
+          std::span<uint32_t> target) -> absl::Status {
+        ++iteration;
+        for (size_t begin = 0; begin < check.size(); begin += kAssignSlice) {
+          const size_t count = std::min(kAssignSlice, check.size() - begin);
+          ChooseTargets(current, check.subspan(begin, count), target.subspan(begin, count));
+          MLCLUST_RETURN_IF_ERROR(CheckLnKmeansCancelled(options.cancel, iteration));
         }
-      }
-      active[c] = any;
-    }
-    check.clear();
-    for (size_t i = 0; i < m; ++i) {
-      if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
-    }
-  }
-  result.energy = clusters.TotalEnergy();
-  return absl::OkStatus();
+        return absl::OkStatus();
+      });
 }
 
 // The points' space for the multilevel engine (detail/multilevel_engine.h): clusters of

@@ -59,8 +59,8 @@ OptionInfo Number(std::string name, double low, double high, std::string default
 }
 
 // Options several algorithms share, each writing its own field.
-// `vertex_count`: the driver can run Alg. 3.2's counts (EMLO and BB; ML's local
-// optimisation has the ring test only).
+// `vertex_count`: the driver can run Alg. 3.2 (EMLO and BB with kept counts; ML's local
+// optimisation without, as a merge relabels whole clusters).
 OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
   std::vector<std::string> choices = {"on", "ring", "off"};
   if (vertex_count) choices.push_back("vertex-count");
@@ -80,6 +80,7 @@ OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
                                            : on ? ConnectivityGuardKind::kRingTest
                                                 : ConnectivityGuardKind::kOff;
         plan.multilevel.connectivity_guard = on;
+        plan.multilevel.guard = kind;
         plan.emlo.connectivity_guard = on;
         plan.emlo.guard = kind;
         plan.boundary_based.connectivity_guard = on;
@@ -320,21 +321,26 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
 
 absl::StatusOr<RunSummary> RunMeshVsa(const MeshProblem& problem, const JobPlan& plan,
                                       LevelSink& sink, const RunContext& context) {
-  // Level 0 is the seeding's partition: VSA with no Lloyd iteration (RunVsa does not hand
-  // back the seeding of a full run, so the seeding runs twice).
+  // Level 0 is the seeding's partition (VsaResult::initial_labels), the last level the
+  // result.
   Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial regions"));
-  VsaOptions seeding = plan.vsa;
-  seeding.iterations = 0;
-  seeding.on_iteration = nullptr;
-  MLCLUST_ASSIGN_OR_RETURN(VsaResult start, RunVsa(problem, seeding));
   Report(context, plan, "cluster", absl::StrCat("VSA", EnergyNote(plan)));
   VsaOptions options = plan.vsa;
+  // Without min-relative-decrease every iteration runs, so the share done is known.
+  const bool fixed_count = plan.vsa.min_relative_decrease == 0 && plan.vsa.iterations > 0;
   options.on_iteration = [&](uint32_t iteration, double energy) {
-    Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", energy));
+    const std::string message = absl::StrCat("iteration ", iteration, ": energy ", energy);
+    if (fixed_count && context.on_fraction) {
+      context.on_fraction(Stage(plan, "cluster"),
+                          std::min(1.0, static_cast<double>(iteration) / plan.vsa.iterations),
+                          message);
+    } else {
+      Report(context, plan, "cluster", message);
+    }
   };
   MLCLUST_ASSIGN_OR_RETURN(VsaResult result, RunVsa(problem, options));
-  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.energy, result.labels, result.energy,
-                                          plan.clusters, sink));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.initial_labels, result.initial_energy,
+                                          result.labels, result.energy, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
 }
 
@@ -395,8 +401,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   // Lloyd from k-means++ (or random) centres. Level 0 is the seeding: every point at its
-  // nearest initial centre (one assignment, as SeedPointClusters does; Lloyd's own first
-  // assignment repeats it, since RunLloyd does not hand back its first labels).
+  // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment;
+  // the GPU's Lloyd does not keep it, so there it is one more assignment).
   const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
   const bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
   if (on_gpu && context.devices == nullptr) {
@@ -412,17 +418,25 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
                 : RandomPointCentres(points, plan.clusters, plan.seed));
-  KmeansOptions assign;
-  assign.clusters = plan.clusters;
-  assign.max_iterations = 1;
-  assign.threads = plan.kmeans.threads;
-  MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, lloyd(centres, assign));
+  KmeansResult start;
+  if (on_gpu) {
+    KmeansOptions assign;
+    assign.clusters = plan.clusters;
+    assign.max_iterations = 1;
+    assign.threads = plan.kmeans.threads;
+    MLCLUST_ASSIGN_OR_RETURN(start, lloyd(centres, assign));
+  }
   KmeansOptions options = plan.kmeans;
   options.clusters = plan.clusters;
+  options.keep_first_assignment = !on_gpu;
   options.on_iteration = [&](uint32_t iteration, double inertia) {
     Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
+  if (!on_gpu) {
+    start.labels = std::move(result.first_labels);
+    start.inertia = result.first_inertia;
+  }
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.inertia, result.labels,
                                           result.inertia, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
@@ -593,8 +607,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "multilevel clustering (Alg. 4.1)";
     a.help = "merge the cheapest dual edge (eq. 4.1), then optimise locally; every level";
     a.energies = mesh_energies;
-    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves"), PPercentOption(),
-                 PPercentRuleOption()};
+    a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves", /*vertex_count=*/true),
+                 PPercentOption(), PPercentRuleOption()};
     a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
@@ -608,7 +622,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "collapse all mutual optimal dual edges of a level at once, then optimise";
     a.energies = mesh_energies;
     a.options = {MeshOptimizerOption(),
-                 GuardOption("the optimiser's moves"),
+                 GuardOption("the optimiser's moves", /*vertex_count=*/true),
                  PPercentOption(),
                  PPercentRuleOption(),
                  PmlUntilOption(false),

@@ -137,6 +137,10 @@ const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind);
 // event naming the stage's device.
 struct RunContext {
   std::function<void(const StagePlan& stage, const std::string& message)> on_stage;
+  // How far a stage is, 0..1, where the run function knows it (Progress.fraction: VSA's
+  // iterations of a fixed count); may be empty. Hierarchies' fractions come from the levels.
+  std::function<void(const StagePlan& stage, double fraction, const std::string& message)>
+      on_fraction;
   const std::atomic<bool>* cancel = nullptr;
   // The stages on the GPU (core/cluster/device_stages.h), where the runner has one; a run
   // function whose plan puts a stage on the GPU fails with FAILED_PRECONDITION without it.

@@ -107,6 +107,14 @@ class ProgressTest(unittest.TestCase):
         self.assertEqual(accepted.draco_method, "edgebreaker")
         self.assertIn("mlclust_face_id", accepted.face_order)
 
+    def test_vsa_iterations_report_their_share(self):
+        spec = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_VSA,
+                          clusters=20, options={"max-iterations": "4"})
+        progress = self.check_progress(self.run_job(spec, self.mesh_payload("sequential")))
+        cluster = [p.fraction for p in progress if p.stage == "cluster"]
+        for share in (0.25, 0.5, 0.75):
+            self.assertIn(share, cluster)
+
     def test_points_divisive_hierarchy_and_xmeans(self):
         rng = np.random.default_rng(2)
         x = np.concatenate([c + rng.normal(size=(200, 3)) for c in

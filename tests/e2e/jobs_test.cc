@@ -118,10 +118,21 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   EXPECT_EQ(whole->done.levels(), attached->done.levels());
   EXPECT_EQ(whole->done.triplets(), attached->done.triplets());
 
-  // After the job ended, again: the same.
-  absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id());
+  // After the job ended, again: the same, and the first event repeats what Accepted said
+  // about the input.
+  v1::Accepted header;
+  client::WatchOptions capture;
+  capture.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted()) header = event.accepted();
+  };
+  absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id(), capture);
   ASSERT_TRUE(again.ok()) << again.status();
   ExpectSameLevels(attached->hierarchy, again->hierarchy);
+  EXPECT_EQ(header.job_id(), accepted->job_id());
+  EXPECT_TRUE(header.detached());
+  EXPECT_FALSE(accepted->draco_method().empty());
+  EXPECT_EQ(header.draco_method(), accepted->draco_method());
+  EXPECT_EQ(header.face_order(), accepted->face_order());
 
   // The list knows both jobs, in order, with their state.
   const v1::JobList list = List(channel);
@@ -383,6 +394,86 @@ TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
   EXPECT_TRUE(
       client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
           .ok());
+}
+
+// Many watchers at once, started while the job runs, some from late levels, some cancelled
+// half-way: every one that reads to the end gets the levels of a solo run.
+TEST(DetachTest, ManyWatchersOfARunningJobAllSeeTheSameLevels) {
+  server::ServerOptions options;
+  options.max_event_bytes = 32 << 10;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(120));  // 28,800 faces
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(accepted.ok());
+  constexpr int kWatchers = 12;
+  std::vector<absl::StatusOr<client::JobResult>> results(kWatchers);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kWatchers; ++i) {
+    threads.emplace_back([&, i] {
+      client::WatchOptions watch;
+      watch.from_level = i % 3 == 0 ? 0 : 20000 + 500 * i;  // below 28,800
+      // Every fourth gives up after a while (its call cancelled: the job runs on).
+      if (i % 4 == 3) watch.deadline = absl::Milliseconds(50);
+      results[i] = client::WatchJob(ChannelTo(*server), accepted->job_id(), watch);
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  int complete = 0;
+  for (int i = 0; i < kWatchers; ++i) {
+    if (i % 4 == 3 && !results[i].ok()) {
+      EXPECT_EQ(results[i].status().code(), absl::StatusCode::kDeadlineExceeded);
+      continue;
+    }
+    ASSERT_TRUE(results[i].ok()) << i << ": " << results[i].status();
+    ExpectSameLevels(solo->hierarchy, results[i]->hierarchy, results[i]->first_level);
+    ++complete;
+  }
+  EXPECT_GE(complete, 9);
+  WaitEnded(channel, accepted->job_id());
+  EXPECT_EQ(FindJob(List(channel), accepted->job_id())->state(), "succeeded");
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  ASSERT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  EXPECT_EQ(stats.watch_calls_active(), 0u);
+}
+
+// Drain: a queued detached job ends with UNAVAILABLE; its watcher gets that final status
+// at once (not taken for a broken stream and retried), the running job's watcher its Done.
+TEST(DetachTest, DrainEndsQueuedDetachedJobsAndTheirWatchers) {
+  server::ServerOptions options;
+  options.drain_time = absl::Seconds(60);
+  std::unique_ptr<server::Server> server = StartServer(options);  // one worker
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  absl::StatusOr<v1::Accepted> running = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(300)));
+  absl::StatusOr<v1::Accepted> queued = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(10)));
+  ASSERT_TRUE(running.ok() && queued.ok());
+  int resumes = 0;
+  client::WatchOptions watch;
+  watch.on_resume = [&](const absl::Status&) { ++resumes; };
+  absl::StatusOr<client::JobResult> running_result, queued_result;
+  std::thread running_watcher(
+      [&] { running_result = client::WatchJob(channel, running->job_id(), watch); });
+  std::thread queued_watcher(
+      [&] { queued_result = client::WatchJob(channel, queued->job_id(), watch); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  server->Shutdown();
+  running_watcher.join();
+  queued_watcher.join();
+  EXPECT_EQ(resumes, 0);
+  ASSERT_TRUE(running_result.ok()) << running_result.status();
+  EXPECT_EQ(running_result->hierarchy.num_levels(), 180000u);
+  EXPECT_EQ(queued_result.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(queued_result.status().message(), HasSubstr("shutting down"));
 }
 
 }  // namespace

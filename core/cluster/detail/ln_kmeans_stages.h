@@ -235,9 +235,8 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
 // only if its cluster, a neighbour of it or a neighbour's neighbour changed (its centroid
 // or its neighbour list). Fills result's energies, iterations, moves and converged (not
 // labels). CANCELLED once options.cancel is set (checked after each stage); the assign
-// stage's errors as they are. The device backends (gpu/stages/point_stages_gpu.h) run it;
-// point_clustering.cc's LnKmeansIterations is the same loop with ChooseTargets in
-// slices (to be folded into this one).
+// stage's errors as they are. The CPU (point_clustering.cc, ChooseTargets in slices) and
+// the device backends (gpu/stages/point_stages_gpu.h) run it.
 template <typename Assign>
 absl::Status RunLnKmeansIterations(PointClusters& clusters, const LnKmeansOptions& options,
                                    LnKmeansResult& result, Assign&& assign) {

@@ -162,6 +162,31 @@ TEST(MultilevelTest, MlEnergyIsAtMostHcAtNearlyEveryLevel) {
   }
 }
 
+// Alg. 3.2 (read without kept counts) as ML's guard: every cluster of every sampled level
+// is one edge-connected piece, as with the ring test, and the energies stay close to the
+// ring test's (the two guards allow nearly the same moves).
+TEST(MultilevelTest, VertexCountGuardKeepsEveryClusterConnected) {
+  for (const char* name : {"fandisk.off", "elephant-with-holes.off"}) {
+    const Loaded& l = File(name);
+    MultilevelOptions vertex_count, ring;
+    vertex_count.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+    HierarchyLog with_counts, with_rings;
+    ASSERT_TRUE(RunMultilevel(l.problem(MeshEnergyKind::kCvd), vertex_count, with_counts).ok());
+    ASSERT_TRUE(RunMultilevel(l.problem(MeshEnergyKind::kCvd), ring, with_rings).ok());
+    const auto count_energy = EnergyByCount(with_counts), ring_energy = EnergyByCount(with_rings);
+    for (uint32_t k : {2000u, 500u, 100u, 20u}) {
+      const size_t level = *with_counts.LastLevelWith(k);
+      const std::vector<ClusterId> labels = *with_counts.LabelsAt(level);
+      std::vector<uint32_t> region(labels.size());
+      for (size_t f = 0; f < labels.size(); ++f) region[f] = labels[f].value();
+      std::vector<uint32_t> component;
+      EXPECT_EQ(LabelFaceComponents(l.adjacency, component, region), k) << name << " k=" << k;
+      EXPECT_LT(count_energy.at(k), 1.05 * ring_energy.at(k)) << name << " k=" << k;
+      EXPECT_GT(count_energy.at(k), 0.95 * ring_energy.at(k)) << name << " k=" << k;
+    }
+  }
+}
+
 TEST(MultilevelTest, MlIsAtMostTheMedianOfRandomSeededEmlo) {
   const Loaded& l = File("fandisk.off");
   for (MeshEnergyKind kind : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
