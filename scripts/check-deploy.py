@@ -3,6 +3,8 @@
 
   /usr/bin/python3 scripts/check-deploy.py [--mlclust build-image/client/mlclust]
 
+Needs python3-yaml (scripts/install-deps.sh --deploy); kubectl is used where present.
+
 What it checks (no kubeconform or API server here, so no full schema validation):
 - every file parses as YAML (python3-yaml); `kubectl kustomize` renders docker/k8s/base
   and docker/k8s/tls (the latter with empty stand-in secret files) when kubectl exists;

@@ -8,7 +8,8 @@
 # The server containers run as docker/k8s/base/deployment.yaml's securityContext asks:
 # user 65534, read-only root file system with a /tmp tmpfs, no capabilities.
 #
-#   bash scripts/verify-image.sh            # needs root, podman, runc, mmdebstrap (apt)
+#   bash scripts/install-deps.sh --deploy   # podman, buildah, runc, mmdebstrap, python3-yaml
+#   bash scripts/verify-image.sh            # as root
 #
 # What it does not do: compile inside the image (the Dockerfile's "build" stage; here
 # MLCLUST_ARTIFACTS=prebuilt copies the install tree of build-image/, made on this Debian 12
