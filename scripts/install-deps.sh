@@ -32,6 +32,12 @@ packages=(
   clang-format clang-tidy
 )
 
+if [ "${1:-}" = "--deploy" ]; then
+  # scripts/verify-image.sh (podman build and run of docker/Dockerfile, debian:12 from
+  # Debian's archive where no registry answers) and scripts/check-deploy.py (YAML checks)
+  packages+=(podman buildah runc mmdebstrap python3-yaml)
+fi
+
 if [ "${1:-}" = "--bench" ]; then
   # peers and plotting for bench/ (CGAL VSA, scikit-learn, fastcluster, faiss, matplotlib;
   # the Python peers run under Debian's /usr/bin/python3)
