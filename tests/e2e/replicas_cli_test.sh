@@ -3,7 +3,8 @@
 # job, is frozen (SIGSTOP) while a batch of jobs is submitted and then killed (SIGKILL)
 # mid-batch: every job of the batch still finishes with the labels of a solo run (a job
 # that was waiting on B is retried elsewhere, as B never accepted it), and the detached
-# job on B reports clearly that its replica is gone.
+# job on B reports clearly that its replica is gone. A fourth replica killed after it
+# accepted a job fails that job with a message saying so; it is not submitted again.
 #   replicas_cli_test.sh MLCLUST_BINARY DATA_DIR
 set -euo pipefail
 mlclust=$1
@@ -94,4 +95,37 @@ grep -q "replica $b" "$work/jobs.err" || fail "jobs does not name the gone repli
 grep -q "^$a/job-" "$work/jobs.out" || fail "jobs: $(cat "$work/jobs.out")"
 [ "$noreplica_rc" = 2 ] || fail "an id without its replica and several servers: exit $noreplica_rc"
 grep -q "HOST:PORT/JOBID" "$work/noreplica.err" || fail "$(cat "$work/noreplica.err")"
+
+# A replica that dies AFTER accepting a job: the job fails with a message saying so, and is
+# not submitted to another replica (A and C list no job of that label).
+awk 'BEGIN { n = 250; print "OFF"; print (n + 1) * (n + 1), 2 * n * n, 0;
+  for (j = 0; j <= n; ++j) for (i = 0; i <= n; ++i) print i, j, 0.3 * sin(i * 0.7) * cos(j * 0.4);
+  for (j = 0; j < n; ++j) for (i = 0; i < n; ++i) { a = j * (n + 1) + i; b = a + 1;
+    c = a + n + 1; d = c + 1; print 3, a, b, d; print 3, a, d, c } }' > "$work/grid.off"
+port=$((base + 3))
+"$mlclust" serve --listen "127.0.0.1:$port" --gpu off 2> "$work/server3.log" &
+d_pid=$!
+pids+=($d_pid)
+d="127.0.0.1:$port"
+for _ in $(seq 100); do
+  grep -q "serving" "$work/server3.log" 2>/dev/null && break
+  sleep 0.1
+done
+"$mlclust" mesh "$work/grid.off" --server "$d,$a,$c" --spread in-order --algo ml   --quiet > /dev/null 2> "$work/accepted.err" &
+run_pid=$!
+for _ in $(seq 200); do
+  "$mlclust" jobs --server "$d" 2> /dev/null | grep -q "running" && break
+  sleep 0.05
+done
+kill -KILL "$d_pid"
+set +e
+wait "$run_pid"
+accepted_rc=$?
+set -e
+[ "$accepted_rc" = 1 ] || fail "a job whose replica died after accepting it: exit $accepted_rc"
+grep -q "replica $d accepted the job and then became unreachable; the job is not submitted again" \
+  "$work/accepted.err" || fail "$(cat "$work/accepted.err")"
+if "$mlclust" jobs --server "$a,$c" 2> /dev/null | grep -q "grid.off"; then
+  fail "the accepted job was submitted again"
+fi
 echo "replicas_cli_test: OK"
