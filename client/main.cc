@@ -1335,7 +1335,7 @@ int Stats(const Arguments& args) {
     for (const std::string& replica : *replicas) {
       ServerFlags one = *flags;
       one.server = replica;
-      args.has("json") ? std::printf("{\"replica\": %s, \"stats\": ", JsonString(replica).c_str())
+      args.has("json") ? std::printf(R"({"replica": %s, "stats": )", JsonString(replica).c_str())
                        : std::printf("== %s ==\n", replica.c_str());
       std::fflush(stdout);
       absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(one);
