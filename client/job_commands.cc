@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -400,14 +401,18 @@ int Jobs(const Flags& flags) {
     std::printf("%s", MessageJson(*list).c_str());
     return 0;
   }
-  std::printf("%-12s %-10s %-9s %-8s %7s %10s %9s %9s  %s\n", "JOB", "STATE", "ALGO", "DETACHED",
-              "LEVELS", "TRIPLETS", "QUEUED_S", "RUN_S", "LABEL / MESSAGE");
+  int id_width = 12;  // replica ids (HOST:PORT/JOBID) are longer
+  for (const v1::JobSummary& job : list->jobs()) {
+    id_width = std::max(id_width, static_cast<int>(job.job_id().size()));
+  }
+  std::printf("%-*s %-10s %-9s %-8s %7s %10s %9s %9s  %s\n", id_width, "JOB", "STATE", "ALGO",
+              "DETACHED", "LEVELS", "TRIPLETS", "QUEUED_S", "RUN_S", "LABEL / MESSAGE");
   for (const v1::JobSummary& job : list->jobs()) {
     std::string note = job.label();
     if (job.state() == "failed" || job.state() == "cancelled") {
       absl::StrAppend(&note, note.empty() ? "" : ": ", job.message());
     }
-    std::printf("%-12s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", job.job_id().c_str(),
+    std::printf("%-*s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", id_width, job.job_id().c_str(),
                 job.state().c_str(), AlgorithmName(job).c_str(), job.detached() ? "yes" : "no",
                 job.levels(), static_cast<unsigned long long>(job.triplets()), job.seconds_queued(),
                 job.seconds_running(), note.c_str());

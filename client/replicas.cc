@@ -18,6 +18,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
+#include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 
@@ -99,6 +100,16 @@ std::optional<uint64_t> ProbeLoad(const std::string& replica, const ReplicaOptio
     return std::nullopt;
   }
   return uint64_t{stats.queue_depth()} + stats.jobs_running() + (stats.job_running() ? 1 : 0);
+}
+
+// What is left of `deadline` (one for all the replicas tried) since `start`.
+absl::StatusOr<absl::Duration> DeadlineLeft(absl::Duration deadline, absl::Time start) {
+  if (deadline == absl::InfiniteDuration()) return deadline;
+  const absl::Duration left = deadline - (absl::Now() - start);
+  if (left <= absl::ZeroDuration()) {
+    return absl::DeadlineExceededError("the deadline passed while trying replicas");
+  }
+  return left;
 }
 
 // Tries `attempt` on each replica in turn until one accepts the job (`accepted` set by the
@@ -228,9 +239,13 @@ absl::StatusOr<JobResult> RunJobOnReplicas(const std::vector<std::string>& repli
                                            const v1::JobSpec& spec, std::string_view input,
                                            const RunOptions& run_options,
                                            const ReplicaOptions& options, std::string* replica) {
+  const absl::Time start = absl::Now();
   return OnReplicas<JobResult>(replicas, options, replica,
-                               [&](const std::shared_ptr<grpc::Channel>& channel, bool* accepted) {
+                               [&](const std::shared_ptr<grpc::Channel>& channel,
+                                   bool* accepted) -> absl::StatusOr<JobResult> {
                                  RunOptions attempt = run_options;
+                                 MLCLUST_ASSIGN_OR_RETURN(
+                                     attempt.deadline, DeadlineLeft(run_options.deadline, start));
                                  attempt.on_event = [&](const v1::JobEvent& event) {
                                    if (event.has_accepted()) *accepted = true;
                                    if (run_options.on_event) run_options.on_event(event);
@@ -243,9 +258,13 @@ absl::StatusOr<v1::Accepted> SubmitDetachedOnReplicas(
     const std::vector<std::string>& replicas, const v1::JobSpec& spec, std::string_view input,
     const RunOptions& run_options, const ReplicaOptions& options, std::string* replica) {
   std::string used;
+  const absl::Time start = absl::Now();
   absl::StatusOr<v1::Accepted> accepted = OnReplicas<v1::Accepted>(
-      replicas, options, &used, [&](const std::shared_ptr<grpc::Channel>& channel, bool* seen) {
+      replicas, options, &used,
+      [&](const std::shared_ptr<grpc::Channel>& channel,
+          bool* seen) -> absl::StatusOr<v1::Accepted> {
         RunOptions attempt = run_options;
+        MLCLUST_ASSIGN_OR_RETURN(attempt.deadline, DeadlineLeft(run_options.deadline, start));
         attempt.on_event = [&](const v1::JobEvent& event) {
           if (event.has_accepted()) *seen = true;
           if (run_options.on_event) run_options.on_event(event);

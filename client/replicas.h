@@ -61,7 +61,8 @@ std::vector<std::string> OrderReplicas(const std::vector<std::string>& replicas,
 // UNAVAILABLE (unreachable, died, draining) or RESOURCE_EXHAUSTED (queue or budgets full).
 bool TryAnotherReplica(const absl::Status& status);
 
-// RunJob on the replicas in OrderReplicas' order until one accepts the job. `replica`
+// RunJob on the replicas in OrderReplicas' order until one accepts the job (the deadline
+// of `run_options` is one for all the attempts). `replica`
 // receives the one that accepted it (or the last tried). UNAVAILABLE naming every replica
 // when none accepted it; a replica that fails after accepting the job fails the call
 // (the message says that the job was not submitted again).

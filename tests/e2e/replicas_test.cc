@@ -190,6 +190,38 @@ TEST(ReplicasTest, EveryJobFinishesWithASoloRunsLevelsWhenReplicasAreGone) {
   EXPECT_THAT(none.message(), HasSubstr(replicas[1]));
 }
 
+TEST(ReplicasTest, ADeadlineHitOnOneReplicaEndsTheJobThere) {
+  std::unique_ptr<server::Server> a = StartServer();
+  ASSERT_TRUE(a);
+  // A replica that never answers: the kernel completes the TCP handshake, nobody speaks.
+  const int silent = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(bind(silent, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+  ASSERT_EQ(listen(silent, 8), 0);
+  socklen_t length = sizeof(address);
+  getsockname(silent, reinterpret_cast<sockaddr*>(&address), &length);
+  const std::string silent_address = absl::StrCat("127.0.0.1:", ntohs(address.sin_port));
+
+  client::ReplicaOptions in_order;
+  in_order.in_order = true;
+  client::RunOptions run;
+  run.deadline = absl::Milliseconds(500);
+  std::string used;
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(10));
+  absl::Status status = client::RunJobOnReplicas({silent_address, AddressOf(*a)}, MeshSpec(), bytes,
+                                                 run, in_order, &used)
+                            .status();
+  close(silent);
+  // DEADLINE_EXCEEDED is no reason to try another replica: the job is not sent to A.
+  EXPECT_EQ(status.code(), absl::StatusCode::kDeadlineExceeded) << status;
+  EXPECT_EQ(used, silent_address);
+  absl::StatusOr<v1::JobList> jobs = client::ListJobs(client::Connect(AddressOf(*a)));
+  ASSERT_TRUE(jobs.ok()) << jobs.status();
+  EXPECT_EQ(jobs->jobs_size(), 0);
+}
+
 TEST(ReplicasTest, DetachedIdNamesItsReplicaAndAGoneReplicaIsReportedClearly) {
   std::unique_ptr<server::Server> a = StartServer();
   ASSERT_TRUE(a);
