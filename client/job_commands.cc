@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -12,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/replicas.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
 #include "google/protobuf/util/json_util.h"
@@ -51,6 +53,14 @@ constexpr char kConnectionFlagsUsage[] = R"(
       --tls-cert FILE, --tls-key FILE
                             a client certificate, for servers that check them
       --auth-token-file F   send the bearer token in F (its first word; needs TLS)
+
+  several servers: --server A:PORT,B:PORT,... or --server dns:///NAME:PORT (every address
+  the name resolves to) spreads jobs over the replicas, the least loaded first (GetStats:
+  queue depth plus running jobs; ties at random), or in the order given with
+      --spread in-order     (default least-loaded)
+  A replica that is unreachable, draining or full BEFORE it accepted the job is skipped
+  and the job tried on the next; a job a replica accepted is never submitted again. A
+  detached job's id names its replica (HOST:PORT/JOBID): watch and cancel go there.
 )";
 
 // --name value / --name=value; --json, --quiet and --help take no value.
@@ -141,6 +151,40 @@ absl::StatusOr<std::string> OneJobId(const Flags& flags, const std::string& comm
   return flags.positional()[0];
 }
 
+// A job id "HOST:PORT/JOBID" (a job submitted to several replicas) goes to its replica,
+// whatever --server says (it may be left out); others to --server.
+struct RoutedJob {
+  ServerFlags server;
+  std::string job_id;   // the server's id
+  std::string replica;  // empty: the id named none
+};
+absl::StatusOr<RoutedJob> RouteJob(const Flags& flags, const std::string& command) {
+  absl::StatusOr<std::string> id = OneJobId(flags, command);
+  if (!id.ok()) return id.status();
+  RoutedJob routed;
+  if (std::optional<client::SplitJobId> split = client::SplitReplicaJobId(*id)) {
+    absl::StatusOr<ServerFlags> server =
+        ServerFlagsFrom([&](const std::string& name) { return flags.get(name); });
+    if (!server.ok()) return server.status();
+    routed.server = *std::move(server);
+    routed.server.server = split->replica;
+    routed.replica = split->replica;
+    routed.job_id = split->job_id;
+    return routed;
+  }
+  absl::StatusOr<ServerFlags> server = RequireServer(flags, command);
+  if (!server.ok()) return server.status();
+  if (client::NamesReplicas(server->server)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        command, ": job id '", *id,
+        "' does not name its replica; with several servers give the id that --detach printed "
+        "(HOST:PORT/JOBID)"));
+  }
+  routed.server = *std::move(server);
+  routed.job_id = *id;
+  return routed;
+}
+
 std::string MessageJson(const google::protobuf::Message& message) {
   std::string json;
   google::protobuf::util::JsonPrintOptions options;
@@ -170,10 +214,11 @@ absl::Status WriteText(const std::string& path, const std::string& text) {
 }
 
 int Watch(const Flags& flags) {
-  absl::StatusOr<std::string> id = OneJobId(flags, "watch");
-  if (!id.ok()) return Fail(id.status());
-  absl::StatusOr<ServerFlags> server = RequireServer(flags, "watch");
-  if (!server.ok()) return Fail(server.status());
+  absl::StatusOr<RoutedJob> routed = RouteJob(flags, "watch");
+  if (!routed.ok()) return Fail(routed.status());
+  const std::string& full_id = flags.positional()[0];  // with its replica, if any
+  const std::string& id = routed->job_id;
+  const ServerFlags* server = &routed->server;
   absl::StatusOr<uint32_t> from_level = flags.GetUint32("from-level", 0);
   absl::StatusOr<uint32_t> clusters = flags.GetUint32("clusters", 0);
   for (const auto* value : {&from_level, &clusters}) {
@@ -220,13 +265,16 @@ int Watch(const Flags& flags) {
     }
   };
   const absl::Time started = absl::Now();
-  absl::StatusOr<client::JobResult> result = client::WatchJob(*channel, *id, options);
+  absl::StatusOr<client::JobResult> result = client::WatchJob(*channel, id, options);
   const double seconds = absl::ToDoubleSeconds(absl::Now() - started);
+  if (!result.ok() && !routed->replica.empty()) {
+    result = client::ExplainReplicaFailure(result.status(), routed->replica, id);
+  }
   if (!result.ok()) return Fail(ExplainDeadline(result.status(), *server, "the watch"));
   const HierarchyLog& log = result->hierarchy;
   if (mesh.has_value() && mesh->num_faces() != log.num_elements()) {
     return Fail(absl::InvalidArgumentError(absl::StrCat("--mesh: ", *flags.get("mesh"), " has ",
-                                                        mesh->num_faces(), " faces; job ", *id,
+                                                        mesh->num_faces(), " faces; job ", id,
                                                         " has ", log.num_elements(), " elements")));
   }
   if (flags.has("levels-csv")) {
@@ -265,10 +313,10 @@ int Watch(const Flags& flags) {
   const v1::Done& done = result->done;
   if (flags.has("json")) {
     std::string json = absl::StrCat(
-        R"({"job_id": ")", *id, R"(", "elements": )", log.num_elements(), R"(, "first_level": )",
-        result->first_level, R"(, "levels": )", log.num_levels(), R"(, "triplets": )",
-        log.num_moves(), R"(, "final_clusters": )", done.final_clusters(), R"(, "device": ")",
-        done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
+        R"({"job_id": ")", full_id, R"(", "elements": )", log.num_elements(),
+        R"(, "first_level": )", result->first_level, R"(, "levels": )", log.num_levels(),
+        R"(, "triplets": )", log.num_moves(), R"(, "final_clusters": )", done.final_clusters(),
+        R"(, "device": ")", done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
       absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
                       R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
@@ -286,24 +334,27 @@ int Watch(const Flags& flags) {
         absl::StrFormat("; level %zu: %u clusters, energy %.10g", result->first_level + *level,
                         log.cluster_count(*level), log.energy(*level));
   }
-  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n", id->c_str(),
-              log.num_elements(), result->first_level, result->first_level + log.num_levels() - 1,
-              log.num_moves(), seconds, done.device().c_str(), level_note.c_str());
+  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n",
+              full_id.c_str(), log.num_elements(), result->first_level,
+              result->first_level + log.num_levels() - 1, log.num_moves(), seconds,
+              done.device().c_str(), level_note.c_str());
   return 0;
 }
 
 int Cancel(const Flags& flags) {
-  absl::StatusOr<std::string> id = OneJobId(flags, "cancel");
-  if (!id.ok()) return Fail(id.status());
-  absl::StatusOr<ServerFlags> server = RequireServer(flags, "cancel");
-  if (!server.ok()) return Fail(server.status());
-  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
+  absl::StatusOr<RoutedJob> routed = RouteJob(flags, "cancel");
+  if (!routed.ok()) return Fail(routed.status());
+  const ServerFlags& server = routed->server;
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(server);
   if (!channel.ok()) return Fail(channel.status());
   absl::StatusOr<std::string> state = client::CancelJob(
-      *channel, *id,
-      server->deadline == absl::InfiniteDuration() ? absl::Seconds(30) : server->deadline);
-  if (!state.ok()) return Fail(ExplainDeadline(state.status(), *server, "the cancel"));
-  std::printf("%s: %s\n", id->c_str(), state->c_str());
+      *channel, routed->job_id,
+      server.deadline == absl::InfiniteDuration() ? absl::Seconds(30) : server.deadline);
+  if (!state.ok() && !routed->replica.empty()) {
+    state = client::ExplainReplicaFailure(state.status(), routed->replica, routed->job_id);
+  }
+  if (!state.ok()) return Fail(ExplainDeadline(state.status(), server, "the cancel"));
+  std::printf("%s: %s\n", flags.positional()[0].c_str(), state->c_str());
   return 0;
 }
 
@@ -313,24 +364,55 @@ int Jobs(const Flags& flags) {
   }
   absl::StatusOr<ServerFlags> server = RequireServer(flags, "jobs");
   if (!server.ok()) return Fail(server.status());
-  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
-  if (!channel.ok()) return Fail(channel.status());
-  absl::StatusOr<v1::JobList> list =
-      client::ListJobs(*channel, server->deadline == absl::InfiniteDuration() ? absl::Seconds(30)
-                                                                              : server->deadline);
+  const absl::Duration deadline =
+      server->deadline == absl::InfiniteDuration() ? absl::Seconds(30) : server->deadline;
+  absl::StatusOr<v1::JobList> list;
+  if (client::NamesReplicas(server->server)) {
+    // Several replicas: every one's jobs, their ids naming the replica; a replica that does
+    // not answer is named on stderr (the exit code says whether any did).
+    absl::StatusOr<std::vector<std::string>> replicas = client::ResolveReplicas(server->server);
+    if (!replicas.ok()) return Fail(replicas.status());
+    list = v1::JobList();
+    bool any = false;
+    for (const std::string& replica : *replicas) {
+      absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+          client::Connect(replica, server->connect);
+      if (!channel.ok()) return Fail(channel.status());
+      absl::StatusOr<v1::JobList> one = client::ListJobs(*channel, deadline);
+      if (!one.ok()) {
+        std::fprintf(stderr, "mlclust: replica %s: %s\n", replica.c_str(),
+                     std::string(one.status().message()).c_str());
+        continue;
+      }
+      any = true;
+      for (v1::JobSummary& job : *one->mutable_jobs()) {
+        job.set_job_id(client::ReplicaJobId(replica, job.job_id()));
+        *list->add_jobs() = std::move(job);
+      }
+    }
+    if (!any) return Fail(absl::UnavailableError("jobs: no replica answered"));
+  } else {
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
+    if (!channel.ok()) return Fail(channel.status());
+    list = client::ListJobs(*channel, deadline);
+  }
   if (!list.ok()) return Fail(ExplainDeadline(list.status(), *server, "the list"));
   if (flags.has("json")) {
     std::printf("%s", MessageJson(*list).c_str());
     return 0;
   }
-  std::printf("%-12s %-10s %-9s %-8s %7s %10s %9s %9s  %s\n", "JOB", "STATE", "ALGO", "DETACHED",
-              "LEVELS", "TRIPLETS", "QUEUED_S", "RUN_S", "LABEL / MESSAGE");
+  int id_width = 12;  // replica ids (HOST:PORT/JOBID) are longer
+  for (const v1::JobSummary& job : list->jobs()) {
+    id_width = std::max(id_width, static_cast<int>(job.job_id().size()));
+  }
+  std::printf("%-*s %-10s %-9s %-8s %7s %10s %9s %9s  %s\n", id_width, "JOB", "STATE", "ALGO",
+              "DETACHED", "LEVELS", "TRIPLETS", "QUEUED_S", "RUN_S", "LABEL / MESSAGE");
   for (const v1::JobSummary& job : list->jobs()) {
     std::string note = job.label();
     if (job.state() == "failed" || job.state() == "cancelled") {
       absl::StrAppend(&note, note.empty() ? "" : ": ", job.message());
     }
-    std::printf("%-12s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", job.job_id().c_str(),
+    std::printf("%-*s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", id_width, job.job_id().c_str(),
                 job.state().c_str(), AlgorithmName(job).c_str(), job.detached() ? "yes" : "no",
                 job.levels(), static_cast<unsigned long long>(job.triplets()), job.seconds_queued(),
                 job.seconds_running(), note.c_str());
@@ -341,7 +423,7 @@ int Jobs(const Flags& flags) {
 }  // namespace
 
 std::vector<std::string> ConnectionFlagNames() {
-  return {"deadline", "tls-ca", "tls-cert", "tls-key", "auth-token-file"};
+  return {"deadline", "tls-ca", "tls-cert", "tls-key", "auth-token-file", "spread"};
 }
 
 absl::StatusOr<ServerFlags> ServerFlagsFrom(
@@ -359,6 +441,13 @@ absl::StatusOr<ServerFlags> ServerFlagsFrom(
           absl::StrCat("--deadline: '", *deadline, "' is not a number of seconds > 0"));
     }
     flags.deadline = absl::Seconds(seconds);
+  }
+  if (std::optional<std::string> spread = get("spread")) {
+    if (*spread != "least-loaded" && *spread != "in-order") {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--spread: '", *spread, "' is not least-loaded or in-order"));
+    }
+    flags.spread_in_order = *spread == "in-order";
   }
   return flags;
 }
@@ -388,10 +477,37 @@ int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
     return Fail(absl::InvalidArgumentError(
         "--detach needs --server ADDR: an embedded server ends with this command"));
   }
-  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(flags);
-  if (!channel.ok()) return Fail(channel.status());
   client::RunOptions options;
   options.deadline = flags.deadline;
+  if (client::NamesReplicas(flags.server)) {
+    // Several replicas: the id printed names the one that accepted the job.
+    absl::StatusOr<std::vector<std::string>> replicas = client::ResolveReplicas(flags.server);
+    if (!replicas.ok()) return Fail(replicas.status());
+    client::ReplicaOptions replica_options;
+    replica_options.connect = flags.connect;
+    replica_options.in_order = flags.spread_in_order;
+    replica_options.on_retry = [&](const std::string& replica, const absl::Status& status) {
+      if (!quiet) {
+        std::fprintf(stderr, "mlclust: replica %s did not accept the job (%s); trying another\n",
+                     replica.c_str(), std::string(status.message()).c_str());
+      }
+    };
+    std::string replica;
+    absl::StatusOr<v1::Accepted> accepted = client::SubmitDetachedOnReplicas(
+        *replicas, spec, payload, options, replica_options, &replica);
+    if (!accepted.ok()) return Fail(ExplainDeadline(accepted.status(), flags, "the upload"));
+    if (!quiet) {
+      std::printf(
+          "queued on replica %s (%u jobs ahead); results kept %.0f s after it ends; `mlclust "
+          "watch %s`\n",
+          replica.c_str(), accepted->queue_position(), accepted->retention_seconds(),
+          accepted->job_id().c_str());
+    }
+    std::printf("%s\n", accepted->job_id().c_str());
+    return 0;
+  }
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(flags);
+  if (!channel.ok()) return Fail(channel.status());
   absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(*channel, spec, payload, options);
   if (!accepted.ok()) return Fail(ExplainDeadline(accepted.status(), flags, "the upload"));
   if (!quiet) {

@@ -24,10 +24,13 @@ struct ServerFlags {
   client::ConnectOptions connect;
   // --deadline SECONDS: every call's gRPC deadline (a Run's job is cancelled when it hits).
   absl::Duration deadline = absl::InfiniteDuration();
+  // --spread least-loaded|in-order: with several servers (client/replicas.h), the least
+  // loaded first, or the order given.
+  bool spread_in_order = false;
 };
 
 // The names of the connection flags, for a command's list of known options: deadline,
-// tls-ca, tls-cert, tls-key, auth-token-file.
+// tls-ca, tls-cert, tls-key, auth-token-file, spread.
 std::vector<std::string> ConnectionFlagNames();
 
 // Reads the flags through `get` (the value of --NAME, or nullopt). INVALID_ARGUMENT for a

@@ -20,6 +20,7 @@
 #include "client/client.h"
 #include "client/job_commands.h"
 #include "client/polygons.h"
+#include "client/replicas.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -329,6 +330,10 @@ int Fail(const absl::Status& status) {
 // --server ADDR: HOST:PORT (a name, IPv4 or [IPv6]) with a port in 1..65535, or a gRPC
 // URI (unix:PATH, dns:///HOST:PORT, ...) passed as it is.
 absl::Status CheckServerAddress(const std::string& address) {
+  if (client::NamesReplicas(address)) {
+    // Several replicas (client/replicas.h): each item is checked, a dns: name resolved.
+    return client::ResolveReplicas(address).status();
+  }
   if (absl::StrContains(address, ":/") || absl::StartsWith(address, "unix:")) {
     return absl::OkStatus();
   }
@@ -540,7 +545,9 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   MLCLUST_ASSIGN_OR_RETURN(const ServerFlags flags, FlagsOf(args));
   if (args.has("server")) {
     MLCLUST_RETURN_IF_ERROR(CheckServerAddress(args.get("server")));
-    MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
+    if (!client::NamesReplicas(args.get("server"))) {
+      MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
+    }
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -557,6 +564,26 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
   };
   run_options.deadline = flags.deadline;
   const absl::Time started_at = absl::Now();
+  if (args.has("server") && client::NamesReplicas(args.get("server"))) {
+    // Several replicas: the least loaded first, the next where one did not accept the job.
+    MLCLUST_ASSIGN_OR_RETURN(const std::vector<std::string> replicas,
+                             client::ResolveReplicas(args.get("server")));
+    client::ReplicaOptions replica_options;
+    replica_options.connect = flags.connect;
+    replica_options.in_order = flags.spread_in_order;
+    replica_options.on_retry = [&](const std::string& replica, const absl::Status& status) {
+      if (!args.has("quiet")) {
+        std::cerr << "mlclust: replica " << replica << " did not accept the job ("
+                  << status.message() << "); trying another\n";
+      }
+    };
+    std::string replica;
+    absl::StatusOr<client::JobResult> result =
+        client::RunJobOnReplicas(replicas, spec, payload, run_options, replica_options, &replica);
+    *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+    if (!result.ok()) return ExplainDeadline(result.status(), flags, "the job");
+    return result;
+  }
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
   if (!result.ok()) result = ExplainDeadline(result.status(), flags, "the job");
@@ -1299,6 +1326,40 @@ int Stats(const Arguments& args) {
   if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
   absl::StatusOr<ServerFlags> flags = FlagsOf(args);
   if (!flags.ok()) return Fail(flags.status());
+  if (client::NamesReplicas(address)) {
+    // Several replicas: each one's stats under its address; one that does not answer is
+    // named (exit 1 when any did not).
+    absl::StatusOr<std::vector<std::string>> replicas = client::ResolveReplicas(address);
+    if (!replicas.ok()) return Fail(replicas.status());
+    int code = 0;
+    for (const std::string& replica : *replicas) {
+      ServerFlags one = *flags;
+      one.server = replica;
+      args.has("json") ? std::printf(R"({"replica": %s, "stats": )", JsonString(replica).c_str())
+                       : std::printf("== %s ==\n", replica.c_str());
+      std::fflush(stdout);
+      absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(one);
+      if (!channel.ok()) return Fail(channel.status());
+      auto stub = v1::Clustering::NewStub(*channel);
+      grpc::ClientContext context;
+      context.set_deadline(
+          absl::ToChronoTime(absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
+      v1::Stats stats;
+      grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
+      if (!status.ok()) {
+        code = 1;
+        if (args.has("json")) std::printf("null}\n");
+        std::fflush(stdout);
+        Fail(PlainConnectionError(absl::Status(static_cast<absl::StatusCode>(status.error_code()),
+                                               status.error_message()),
+                                  replica));
+        continue;
+      }
+      args.has("json") ? std::printf("%s}\n", MessageJson(stats).c_str())
+                       : std::printf("%s", stats.DebugString().c_str());
+    }
+    return code;
+  }
   absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*flags);
   if (!channel.ok()) return Fail(channel.status());
   auto stub = v1::Clustering::NewStub(*channel);
@@ -1367,6 +1428,14 @@ int Info(const Arguments& args) {
     if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
     absl::StatusOr<ServerFlags> flags = FlagsOf(args);
     if (!flags.ok()) return Fail(flags.status());
+    if (client::NamesReplicas(address)) {
+      // Several replicas: the first that answers GetStats (replicas run the same build).
+      absl::StatusOr<std::vector<std::string>> replicas = client::ResolveReplicas(address);
+      if (!replicas.ok()) return Fail(replicas.status());
+      client::ReplicaOptions probe;
+      probe.connect = flags->connect;
+      flags->server = client::OrderReplicas(*replicas, probe).front();
+    }
     absl::StatusOr<std::shared_ptr<grpc::Channel>> connected = ConnectTo(*flags);
     if (!connected.ok()) return Fail(connected.status());
     channel = *connected;

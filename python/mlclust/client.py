@@ -1,6 +1,9 @@
 """A client for the mlclust gRPC service (proto/mlclust/v1/mlclust.proto)."""
 
+import random
+import socket
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, NamedTuple, Optional
 
 import grpc
@@ -30,11 +33,71 @@ class Error(Exception):
     """A failed job or call: `code` is a grpc.StatusCode, `details` the server's message
     (what is wrong and where)."""
 
-    def __init__(self, code, details):
+    def __init__(self, code, details, accepted=False):
         self.code = code if isinstance(code, grpc.StatusCode) else _CODES.get(
             code, grpc.StatusCode.UNKNOWN)
         self.details = details
+        # The server had accepted the job (its Accepted event arrived) before it failed.
+        self.accepted = accepted
         super().__init__(f"{self.code.name}: {details}")
+
+
+def _host_port(text):
+    """(host, port) of "HOST:PORT" or "[IPv6]:PORT"; ValueError when it is neither."""
+    if text.startswith("["):
+        host, sep, port = text[1:].partition("]:")
+    else:
+        host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ValueError(f"{text!r} is not HOST:PORT (port 1-65535)")
+    return host, port
+
+
+def resolve_replicas(address):
+    """The replicas an address names, each "HOST:PORT": the items of a list or of a
+    comma-separated string as written, or every address a "dns:///NAME:PORT" resolves
+    to; duplicates removed. None for a single plain address (one server)."""
+    if isinstance(address, str):
+        if "," not in address and not address.startswith("dns:"):
+            return None
+        items = address.split(",")
+    else:
+        items = list(address)
+    out = []
+    for item in items:
+        item = item.strip()
+        if not item:
+            raise ValueError(f"an empty server address in {address!r}")
+        if item.startswith("dns:"):
+            name = item[len("dns:"):]
+            if name.startswith("//"):
+                name = name[2:].partition("/")[2]  # the authority is left to the system's
+            host, port = _host_port(name)
+            try:
+                found = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+            except socket.gaierror as e:
+                raise Error(grpc.StatusCode.NOT_FOUND, f"cannot resolve {item} ({e})") from None
+            resolved = [f"[{a[4][0]}]:{port}" if a[0] == socket.AF_INET6 else
+                        f"{a[4][0]}:{port}" for a in found]
+        else:
+            _host_port(item)
+            resolved = [item]
+        for one in resolved:
+            if one not in out:
+                out.append(one)
+    return out
+
+
+def split_job_id(job_id):
+    """(replica, server id) of "HOST:PORT/JOBID", or (None, job_id)."""
+    replica, sep, job = job_id.rpartition("/")
+    if sep and replica and job:
+        try:
+            _host_port(replica)
+            return replica, job
+        except ValueError:
+            pass
+    return None, job_id
 
 
 class Progress(NamedTuple):
@@ -218,8 +281,26 @@ class Client:
     channel arguments; `credentials` (grpc.ssl_channel_credentials) makes it TLS.
     """
 
-    def __init__(self, address: str, *, max_receive_message_length: Optional[int] = None,
-                 options=None, credentials=None):
+    def __init__(self, address, *, max_receive_message_length: Optional[int] = None,
+                 options=None, credentials=None, spread: str = "least-loaded"):
+        # Several servers (replicas): a list of "host:port", a comma-separated string, or
+        # "dns:///name:port". Jobs go to the least loaded replica (GetStats: queue depth
+        # plus running jobs; ties at random) or, with spread="in-order", in the order
+        # given; a replica unreachable, draining or full BEFORE it accepted the job is
+        # skipped and the next tried. A job a replica accepted is never submitted again.
+        # A detached job's id names its replica ("host:port/job-000001"); watch and
+        # cancel go there. jobs() lists every replica's, stats() is {replica: Stats}.
+        if spread not in ("least-loaded", "in-order"):
+            raise ValueError(f"spread must be least-loaded or in-order, got {spread!r}")
+        self._replicas = resolve_replicas(address)
+        self._spread = spread
+        self._member_args = dict(max_receive_message_length=max_receive_message_length,
+                                 options=options, credentials=credentials)
+        self._members = {}
+        if self._replicas is not None:
+            if not self._replicas:
+                raise ValueError("no server address given")
+            return
         channel_options = list(options or [])
         if max_receive_message_length is not None:
             channel_options.append(("grpc.max_receive_message_length",
@@ -238,7 +319,83 @@ class Client:
             response_deserializer=None)
 
     def close(self):
-        self._channel.close()
+        for member in self._members.values():
+            member.close()
+        if self._replicas is None:
+            self._channel.close()
+
+    # --- several replicas ------------------------------------------------------------
+    def _member(self, replica):
+        if replica not in self._members:
+            self._members[replica] = Client(replica, **self._member_args)
+        return self._members[replica]
+
+    def _order(self):
+        """The replicas in the order they are tried."""
+        if self._spread == "in-order":
+            return list(self._replicas)
+
+        def load(replica):
+            try:
+                stats = self._member(replica).stats(timeout=2.0)
+            except Error:
+                return None
+            if stats.draining:
+                return None
+            return stats.queue_depth + stats.jobs_running + (1 if stats.job_running else 0)
+
+        for replica in self._replicas:
+            self._member(replica)  # created here, not in the threads
+        with ThreadPoolExecutor(len(self._replicas)) as pool:
+            loads = list(pool.map(load, self._replicas))
+        order = list(range(len(self._replicas)))
+        random.shuffle(order)
+        order.sort(key=lambda i: float("inf") if loads[i] is None else loads[i])
+        return [self._replicas[i] for i in order]
+
+    def _route(self, job_id):
+        """(client, server id, replica) for a job id."""
+        replica, job = split_job_id(job_id)
+        if replica is not None:
+            return self._member(replica), job, replica
+        if self._replicas is not None:
+            raise ValueError(f"job id {job_id!r} does not name its replica; with several "
+                             "servers give the id a detached job returned (HOST:PORT/JOBID)")
+        return self, job_id, None
+
+    @staticmethod
+    def _explain(error, replica, job):
+        if error.code == grpc.StatusCode.UNAVAILABLE:
+            return Error(error.code, f"replica {replica}, which holds job {job}, does not "
+                         "answer: it was stopped or died, and its jobs and their results went "
+                         f"with it (a job is never moved to another replica) ({error.details})")
+        return Error(error.code, f"replica {replica}: {error.details}")
+
+    def _run_on_replicas(self, spec, payload, progress, timeout, chunk_bytes):
+        refused = []
+        for replica in self._order():
+            try:
+                result = self._member(replica)._run(spec, payload, progress, timeout,
+                                                    chunk_bytes)
+            except Error as e:
+                if e.accepted:
+                    if e.code == grpc.StatusCode.UNAVAILABLE:
+                        raise Error(e.code, f"replica {replica} accepted the job and then "
+                                    "became unreachable; the job is not submitted again "
+                                    f"elsewhere (an accepted job may have run) ({e.details})",
+                                    accepted=True) from None
+                    raise Error(e.code, f"replica {replica}: {e.details}", accepted=True) from None
+                if e.code not in (grpc.StatusCode.UNAVAILABLE,
+                                  grpc.StatusCode.RESOURCE_EXHAUSTED):
+                    raise Error(e.code, f"replica {replica}: {e.details}") from None
+                refused.append(f"{replica} ({e.details})")
+                continue
+            if spec.detach:
+                return f"{replica}/{result}"
+            result.job_id = f"{replica}/{result.job_id}"
+            return result
+        raise Error(grpc.StatusCode.UNAVAILABLE,
+                    "no replica accepted the job: " + "; ".join(refused))
 
     def __enter__(self):
         return self
@@ -254,6 +411,14 @@ class Client:
         hierarchy's first level) and every level after it. Raises Error: NOT_FOUND once
         the server dropped the job's results (the details say when and why),
         PERMISSION_DENIED for another tenant's job. The job runs on if this ends."""
+        client, job, replica = self._route(job_id)
+        if client is not self:
+            try:
+                hierarchy = client.watch(job, from_level, progress=progress, timeout=timeout)
+            except Error as e:
+                raise self._explain(e, replica, job) from None
+            hierarchy.job_id = job_id
+            return hierarchy
         call = self._watch_raw(pb.WatchRequest(job_id=job_id, from_level=int(from_level)),
                                timeout=timeout)
         assembler = _Assembler(progress, absolute_levels=True)
@@ -272,6 +437,12 @@ class Client:
 
     def cancel(self, job_id: str, timeout: float = 30.0) -> str:
         """Cancels a queued or running job; returns its state after the call."""
+        client, job, replica = self._route(job_id)
+        if client is not self:
+            try:
+                return client.cancel(job, timeout)
+            except Error as e:
+                raise self._explain(e, replica, job) from None
         try:
             return self._stub.Cancel(pb.CancelRequest(job_id=job_id), timeout=timeout).state
         except grpc.RpcError as e:
@@ -279,14 +450,39 @@ class Client:
 
     def jobs(self, timeout: float = 30.0):
         """This tenant's jobs on the server (JobSummary messages: job_id, state, levels,
-        seconds_queued, seconds_running, ...), in submission order."""
+        seconds_queued, seconds_running, ...), in submission order. With several
+        replicas: every replica's that answers, ids "HOST:PORT/JOBID"; Error UNAVAILABLE
+        when none answers."""
+        if self._replicas is not None:
+            out, answered = [], False
+            for replica in self._replicas:
+                try:
+                    jobs = self._member(replica).jobs(timeout)
+                except Error:
+                    continue
+                answered = True
+                for job in jobs:
+                    job.job_id = f"{replica}/{job.job_id}"
+                    out.append(job)
+            if not answered:
+                raise Error(grpc.StatusCode.UNAVAILABLE, "no replica answered ListJobs")
+            return out
         try:
             return list(self._stub.ListJobs(pb.ListJobsRequest(), timeout=timeout).jobs)
         except grpc.RpcError as e:
             raise Error(e.code(), e.details()) from None
 
     def stats(self, timeout: float = 10.0):
-        """The server's Stats message (queue depth, job counts, GL device)."""
+        """The server's Stats message (queue depth, job counts, GL device). With several
+        replicas: {replica: Stats, or the Error it answered}."""
+        if self._replicas is not None:
+            out = {}
+            for replica in self._replicas:
+                try:
+                    out[replica] = self._member(replica).stats(timeout)
+                except Error as e:
+                    out[replica] = e
+            return out
         try:
             return self._stub.GetStats(pb.GetStatsRequest(), timeout=timeout)
         except grpc.RpcError as e:
@@ -369,6 +565,8 @@ class Client:
         return spec
 
     def _run(self, spec, payload, progress, timeout, chunk_bytes):
+        if self._replicas is not None:
+            return self._run_on_replicas(spec, payload, progress, timeout, chunk_bytes)
         spec.input_bytes = len(payload)
         chunk_bytes = max(1, int(chunk_bytes))
 
@@ -390,14 +588,15 @@ class Client:
             for event in call:
                 assembler.add_bytes(event)
         except grpc.RpcError as e:
-            raise Error(e.code(), e.details()) from None
+            raise Error(e.code(), e.details(), accepted=bool(assembler.job_id)) from None
         except BaseException:
             # A broken stream, or the progress callback raised (Ctrl-C too): the job is
             # cancelled on the server, not left running for nobody.
             call.cancel()
             raise
         if assembler.failed is not None:
-            raise Error(assembler.failed.code, assembler.failed.message)
+            raise Error(assembler.failed.code, assembler.failed.message,
+                        accepted=bool(assembler.job_id))
         if spec.detach:
             if not assembler.job_id:
                 raise Error(grpc.StatusCode.DATA_LOSS, "the server did not detach the job")
