@@ -57,19 +57,26 @@ int main(int argc, char** argv) {
   mlclust::v1::JobSpec spec;
   spec.set_input_kind(mlclust::v1::INPUT_KIND_DRACO_MESH);
   spec.set_algorithm(mlclust::v1::ALGORITHM_HC);
+  // Each route with the repeated (varint) triplets and with JobSpec.packed_triplets.
   struct Route {
     const char* name;
     std::shared_ptr<grpc::Channel> channel;
-  } routes[] = {
-      {"embedded", (*server)->InProcessChannel()},
-      {"tcp", mlclust::client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()))},
+    bool packed;
+  };
+  const std::shared_ptr<grpc::Channel> tcp =
+      mlclust::client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()));
+  const Route routes[] = {
+      {"embedded varint", (*server)->InProcessChannel(), false},
+      {"embedded packed", (*server)->InProcessChannel(), true},
+      {"tcp varint", tcp, false},
+      {"tcp packed", tcp, true},
   };
   double no_wire = 1e30;
   uint64_t no_wire_triplets = 0;
   for (int r = 0; r < repeats; ++r)
     no_wire = std::min(no_wire, NoWireSeconds(*bytes, &no_wire_triplets));
   std::printf(
-      "%-8s decode + validate + HC into a HierarchyLog in one process: %.3f s, %llu "
+      "%-15s decode + validate + HC into a HierarchyLog in one process: %.3f s, %llu "
       "triplets; best of %d\n",
       "no wire", no_wire, static_cast<unsigned long long>(no_wire_triplets), repeats);
   for (const Route& route : routes) {
@@ -77,7 +84,9 @@ int main(int argc, char** argv) {
     uint64_t triplets = 0;
     for (int r = 0; r < repeats; ++r) {
       const absl::Time start = absl::Now();
-      auto result = mlclust::client::RunJob(route.channel, spec, *bytes);
+      mlclust::client::RunOptions run_options;
+      run_options.packed_triplets = route.packed;
+      auto result = mlclust::client::RunJob(route.channel, spec, *bytes, run_options);
       const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
       if (!result.ok()) {
         std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
@@ -92,7 +101,7 @@ int main(int argc, char** argv) {
     // Levels stream while HC runs, so the wire's cost is what end to end adds beyond the
     // same work in one process.
     std::printf(
-        "%-8s end to end %.3f s (server side %.3f s), %llu triplets = %.2f M "
+        "%-15s end to end %.3f s (server side %.3f s), %llu triplets = %.2f M "
         "triplets/s end to end; the wire adds %+.3f s; best of %d\n",
         route.name, best, server_running, static_cast<unsigned long long>(triplets),
         triplets / best / 1e6, best - no_wire, repeats);
