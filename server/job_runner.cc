@@ -142,10 +142,8 @@ class StreamingLevelSink : public LevelSink {
   }
 
   // JobSpec.packed_triplets: triplets go as raw little-endian uint32 in LevelBatch's packed
-  // fields. The sink then keeps every batch under the result store's message limit itself
-  // (the store splits only the repeated fields): at most min(batch_triplets,
-  // kPackedMaxTriplets) triplets a batch, a bigger level continued in the next batch
-  // (last_level_continues).
+  // fields (levels whole, as with the repeated fields; the result store cuts a batch over
+  // its message limit, packed or not).
   void UsePackedTriplets() { packed_ = true; }
 
   uint32_t levels_sent() const { return levels_sent_; }
@@ -168,9 +166,6 @@ class StreamingLevelSink : public LevelSink {
   static constexpr absl::Duration kMaxDelay = absl::Milliseconds(200);
   static constexpr absl::Duration kProgressEvery = absl::Milliseconds(250);
 
-  // 12 bytes a triplet plus at most ~23 a level (kMaxLevelsPerBatch of them): under 3 MiB.
-  static constexpr size_t kPackedMaxTriplets = 200000;
-
   static void AppendPacked(std::string* bytes, std::span<const uint32_t> values) {
     static_assert(std::endian::native == std::endian::little,
                   "packed triplets are little-endian uint32");
@@ -180,38 +175,25 @@ class StreamingLevelSink : public LevelSink {
   }
 
   absl::Status AddPackedLevel(const LevelMoves& level) {
-    const size_t count = level.element.size();
-    const size_t batch_limit = std::min<size_t>(batch_triplets_, kPackedMaxTriplets);
-    size_t done = 0;
-    while (true) {
-      v1::LevelBatch* batch = pending_.mutable_levels();
-      if (batch->cluster_count_size() == 0) {
-        batch->set_first_level(levels_sent_);
-        const size_t reserve = std::min(batch_limit, count - done) * sizeof(uint32_t);
-        batch->mutable_packed_element()->reserve(reserve);
-        batch->mutable_packed_to_cluster()->reserve(reserve);
-        batch->mutable_packed_from_cluster()->reserve(reserve);
-      }
-      // Flushed at batch_limit below, so there is room for at least one triplet here; a
-      // level bigger than the room continues in the next batch.
-      const size_t take = std::min(count - done, batch_limit - pending_triplets_);
-      batch->add_cluster_count(level.cluster_count);
-      batch->add_energy(level.energy);
-      batch->add_source_level(level.level);
-      AppendPacked(batch->mutable_packed_element(), level.element.subspan(done, take));
-      AppendPacked(batch->mutable_packed_to_cluster(), level.to_cluster.subspan(done, take));
-      AppendPacked(batch->mutable_packed_from_cluster(), level.from_cluster.subspan(done, take));
-      pending_triplets_ += take;
-      done += take;
-      batch->add_triplet_end(static_cast<uint32_t>(pending_triplets_));
-      if (done == count) break;
-      batch->set_last_level_continues(true);
-      MLCLUST_RETURN_IF_ERROR(Flush());
+    v1::LevelBatch* batch = pending_.mutable_levels();
+    if (batch->cluster_count_size() == 0) {
+      batch->set_first_level(levels_sent_);
+      const size_t reserve = std::min<size_t>(batch_triplets_, size_t{1} << 18) * 4;
+      batch->mutable_packed_element()->reserve(reserve);
+      batch->mutable_packed_to_cluster()->reserve(reserve);
+      batch->mutable_packed_from_cluster()->reserve(reserve);
     }
+    batch->add_cluster_count(level.cluster_count);
+    batch->add_energy(level.energy);
+    batch->add_source_level(level.level);
+    AppendPacked(batch->mutable_packed_element(), level.element);
+    AppendPacked(batch->mutable_packed_to_cluster(), level.to_cluster);
+    AppendPacked(batch->mutable_packed_from_cluster(), level.from_cluster);
+    pending_triplets_ += level.element.size();
+    batch->add_triplet_end(static_cast<uint32_t>(pending_triplets_));
     ++levels_sent_;
-    triplets_sent_ += count;
-    if (pending_triplets_ >= batch_limit ||
-        pending_.levels().cluster_count_size() >= kMaxLevelsPerBatch ||
+    triplets_sent_ += level.element.size();
+    if (pending_triplets_ >= batch_triplets_ || batch->cluster_count_size() >= kMaxLevelsPerBatch ||
         absl::Now() - last_flush_ > kMaxDelay) {
       return Flush();
     }

@@ -71,16 +71,19 @@ void ExpectSameHierarchy(const HierarchyLog& a, const HierarchyLog& b) {
 
 class PackedTripletsTest : public ::testing::Test {
  protected:
-  void SetUp() override {
+  void SetUp() override { bytes_ = *EncodeMeshToDraco(testing::Grid(40)); }  // 3,200 faces
+
+  // `max_event_bytes` 0: the server's default (3 MiB).
+  void StartServer(size_t max_event_bytes = 0) {
     server::ServerOptions options;
     options.listen_address = "127.0.0.1:0";
     options.log = false;
     options.gpu = server::GpuMode::kOff;
+    if (max_event_bytes != 0) options.max_event_bytes = max_event_bytes;
     absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
     ASSERT_TRUE(started.ok()) << started.status();
     server_ = *std::move(started);
     channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    bytes_ = *EncodeMeshToDraco(testing::Grid(40));  // 3,200 faces
   }
 
   void ExpectSame(v1::Algorithm algorithm, uint32_t clusters, uint32_t batch_triplets,
@@ -111,16 +114,24 @@ class PackedTripletsTest : public ::testing::Test {
 };
 
 TEST_F(PackedTripletsTest, HcSameLevelsWithDefaultBatches) {
+  StartServer();
   ExpectSame(v1::ALGORITHM_HC, 0, 0, false);
 }
 
-TEST_F(PackedTripletsTest, MlSameLevelsWithLevelsSplitAcrossBatches) {
-  // Seven triplets a batch: ML's larger levels continue over several batches.
-  ExpectSame(v1::ALGORITHM_ML, 0, 7, true);
+TEST_F(PackedTripletsTest, MlSameLevelsWithSmallBatches) {
+  StartServer();
+  ExpectSame(v1::ALGORITHM_ML, 0, 7, false);
+}
+
+TEST_F(PackedTripletsTest, MlSameLevelsWithBatchesSplitUnderASmallMessageLimit) {
+  // 2 KiB messages (at most ~160 packed triplets): the store cuts batches and levels.
+  StartServer(2 << 10);
+  ExpectSame(v1::ALGORITHM_ML, 0, 0, true);
 }
 
 TEST_F(PackedTripletsTest, EmloSameResultWithItsLevelSplit) {
-  ExpectSame(v1::ALGORITHM_EMLO, 20, 100, true);
+  StartServer(2 << 10);
+  ExpectSame(v1::ALGORITHM_EMLO, 20, 0, true);
 }
 
 }  // namespace
