@@ -63,8 +63,7 @@ std::vector<v1::JobEvent> BuildEvents(const HierarchyLog& log, uint32_t batch_tr
     while (true) {
       v1::LevelBatch* batch = pending.mutable_levels();
       if (batch->cluster_count_size() == 0) batch->set_first_level(static_cast<uint32_t>(l));
-      const size_t take =
-          packed ? std::min(count - done, batch_triplets - pending_triplets) : count;
+      const size_t take = count;  // levels whole, as the sink sends them
       batch->add_cluster_count(level.cluster_count);
       batch->add_energy(level.energy);
       batch->add_source_level(static_cast<uint32_t>(l));
