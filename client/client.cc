@@ -9,11 +9,11 @@
 #include <string>
 #include <thread>
 
-#include "absl/container/flat_hash_map.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -451,14 +451,7 @@ absl::StatusOr<v1::JobList> ListJobs(const std::shared_ptr<grpc::Channel>& chann
 }
 
 std::vector<uint32_t> CompactLabels(std::span<const ClusterId> labels) {
-  absl::flat_hash_map<uint32_t, uint32_t> compact;
-  std::vector<uint32_t> out(labels.size());
-  for (size_t i = 0; i < labels.size(); ++i) {
-    auto [it, inserted] =
-        compact.try_emplace(labels[i].value(), static_cast<uint32_t>(compact.size()));
-    out[i] = it->second;
-  }
-  return out;
+  return RenumberByFirstAppearance(labels).dense;
 }
 
 }  // namespace mlclust::client

@@ -3,8 +3,9 @@
 // server's rule); and its first decrease in the agglomerative direction, from the
 // voxel-grid start towards one cluster ("the ML algorithm stops when the BIC value starts
 // to decrease", l. 2798): the first level whose BIC is above that of the next level.
-//   bic_direction FILE.npy [--grid A]
-// Prints "start_clusters,bic_max_k,first_decrease_few_to_many_k,first_decrease_agglomerative_k".
+//   bic_direction FILE.npy [--grid A] [--curve CURVE.csv]
+// Prints "start_clusters,bic_max_k,first_decrease_few_to_many_k,first_decrease_agglomerative_k";
+// --curve writes "clusters,bic" per level (Figs. 6.14/6.16).
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -20,8 +21,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   mlclust::PointMultilevelOptions options;
-  if (argc == 4 && std::string(argv[2]) == "--grid" && !absl::SimpleAtoi(argv[3], &options.grid)) {
-    std::fprintf(stderr, "bad --grid\n");
+  std::string curve_path;
+  for (int i = 2; i + 1 < argc; i += 2) {
+    const std::string flag = argv[i];
+    if (flag == "--grid" && absl::SimpleAtoi(argv[i + 1], &options.grid)) continue;
+    if (flag == "--curve") {
+      curve_path = argv[i + 1];
+      continue;
+    }
+    std::fprintf(stderr, "bad option %s\n", argv[i]);
     return 2;
   }
   absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(argv[1]);
@@ -43,6 +51,20 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto& levels = recorder.levels();
+  if (!curve_path.empty()) {
+    FILE* curve = std::fopen(curve_path.c_str(), "w");
+    if (curve == nullptr) {
+      std::fprintf(stderr, "cannot write %s\n", curve_path.c_str());
+      return 1;
+    }
+    std::fprintf(curve, "clusters,bic\n");
+    for (size_t l = 0; l < choice->bic.size(); ++l) {
+      if (std::isfinite(choice->bic[l])) {
+        std::fprintf(curve, "%u,%.6f\n", levels[l].clusters, choice->bic[l]);
+      }
+    }
+    std::fclose(curve);
+  }
   uint32_t agglomerative = levels.back().clusters;
   for (size_t l = 0; l + 1 < choice->bic.size(); ++l) {
     if (std::isfinite(choice->bic[l]) && choice->bic[l] > choice->bic[l + 1]) {

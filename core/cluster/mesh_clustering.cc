@@ -396,10 +396,10 @@ absl::Status ValidateMeshProblem(const MeshProblem& problem) {
   return ValidateMeshEnergyOptions(problem.energy);
 }
 
-std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
   std::vector<uint32_t> seeds;
   LNeighbourhoodSeeds(adjacency, level, nullptr, seeds);
-  return seeds;
+  return std::vector<FaceId>(seeds.begin(), seeds.end());
 }
 
 absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
@@ -496,11 +496,13 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
 }
 
 absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const uint32_t> seeds,
+                                                             std::span<const FaceId> typed_seeds,
                                                              SeedOptions::Growth growth,
                                                              const std::atomic<bool>* cancel) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t n = problem.mesh->num_faces();
+  std::vector<uint32_t> seeds(typed_seeds.size());
+  for (size_t i = 0; i < seeds.size(); ++i) seeds[i] = typed_seeds[i].value();
   std::vector<uint8_t> is_seed(n, 0);
   for (size_t i = 0; i < seeds.size(); ++i) {
     if (seeds[i] >= n || is_seed[seeds[i]]) {

@@ -103,12 +103,12 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
 // `growth` says. INVALID_ARGUMENT if a seed is out of range or repeated, or a connected
 // component has no seed; CANCELLED if `cancel` (may be null) was set.
 absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const uint32_t> seeds,
+                                                             std::span<const FaceId> seeds,
                                                              SeedOptions::Growth growth,
                                                              const std::atomic<bool>* cancel);
 
 // Alg. 3.1 alone: the seed faces for neighbourhood size `level`, in face order.
-std::vector<uint32_t> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);
+std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);
 
 struct OptimizeResult {
   double initial_energy = 0;

@@ -138,10 +138,8 @@ std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uin
 
 namespace {
 
-using detail::ApplyMoves;
 using detail::ChooseTargets;
 using detail::PointClusters;
-using detail::RefreshAround;
 
 constexpr uint32_t kNone = detail::kNoCluster;
 // LN k-means rounds after a merge (the first checks the merged clusters and their

@@ -5,6 +5,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
+#include "core/base/renumber.h"
 
 namespace mlclust {
 
@@ -416,13 +417,9 @@ absl::Status ValidateMeshEnergyOptions(const MeshEnergyOptions& options) {
 }
 
 uint32_t CompactClusterIds(std::span<const ClusterId> labels, std::vector<uint32_t>& compact) {
-  absl::flat_hash_map<uint32_t, uint32_t> ids;
-  compact.resize(labels.size());
-  for (size_t f = 0; f < labels.size(); ++f) {
-    auto [it, inserted] = ids.try_emplace(labels[f].value(), static_cast<uint32_t>(ids.size()));
-    compact[f] = it->second;
-  }
-  return static_cast<uint32_t>(ids.size());
+  Renumbering<ClusterId> renumbered = RenumberByFirstAppearance(labels);
+  compact = std::move(renumbered.dense);
+  return renumbered.size();
 }
 
 std::vector<double> EnergyFaceDensity(const MeshEnergyOptions& options, const TriangleMesh& mesh,

@@ -89,10 +89,10 @@ bool ScopedAllocationBudget::exceeded() const {
 // allocates nothing.
 void* operator new(size_t size) { return mlclust::AllocateOrThrow(size, 0); }
 void* operator new[](size_t size) { return mlclust::AllocateOrThrow(size, 0); }
-void* operator new(size_t size, const std::nothrow_t&) noexcept {
+void* operator new(size_t size, const std::nothrow_t& /*tag*/) noexcept {
   return mlclust::AllocateOrNull(size, 0);
 }
-void* operator new[](size_t size, const std::nothrow_t&) noexcept {
+void* operator new[](size_t size, const std::nothrow_t& /*tag*/) noexcept {
   return mlclust::AllocateOrNull(size, 0);
 }
 void* operator new(size_t size, std::align_val_t alignment) {
@@ -101,10 +101,12 @@ void* operator new(size_t size, std::align_val_t alignment) {
 void* operator new[](size_t size, std::align_val_t alignment) {
   return mlclust::AllocateOrThrow(size, static_cast<size_t>(alignment));
 }
-void* operator new(size_t size, std::align_val_t alignment, const std::nothrow_t&) noexcept {
+void* operator new(size_t size, std::align_val_t alignment,
+                   const std::nothrow_t& /*tag*/) noexcept {
   return mlclust::AllocateOrNull(size, static_cast<size_t>(alignment));
 }
-void* operator new[](size_t size, std::align_val_t alignment, const std::nothrow_t&) noexcept {
+void* operator new[](size_t size, std::align_val_t alignment,
+                     const std::nothrow_t& /*tag*/) noexcept {
   return mlclust::AllocateOrNull(size, static_cast<size_t>(alignment));
 }
 
@@ -113,13 +115,23 @@ void* operator new[](size_t size, std::align_val_t alignment, const std::nothrow
 // would report malloc's memory reaching their operator delete).
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, size_t) noexcept { std::free(p); }
-void operator delete[](void* p, size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete(void* p, size_t /*size*/) noexcept { std::free(p); }
+void operator delete[](void* p, size_t /*size*/) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t& /*tag*/) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t& /*tag*/) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t /*alignment*/) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t /*alignment*/) noexcept { std::free(p); }
+void operator delete(void* p, size_t /*size*/, std::align_val_t /*alignment*/) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, size_t /*size*/, std::align_val_t /*alignment*/) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::align_val_t /*alignment*/,
+                     const std::nothrow_t& /*tag*/) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, std::align_val_t /*alignment*/,
+                       const std::nothrow_t& /*tag*/) noexcept {
+  std::free(p);
+}

@@ -98,7 +98,7 @@ TEST(InitialClustersTest, LNeighbourhoodSeedsDoNotOverlap) {
   EXPECT_EQ(LNeighbourhoodSeeds(l.adjacency, 0).size(), l.mesh.num_faces());
   size_t previous = l.mesh.num_faces();
   for (uint32_t level = 1; level <= 4; ++level) {
-    const std::vector<uint32_t> seeds = LNeighbourhoodSeeds(l.adjacency, level);
+    const std::vector<FaceId> seeds = LNeighbourhoodSeeds(l.adjacency, level);
     EXPECT_LT(seeds.size(), previous);
     previous = seeds.size();
   }
@@ -139,24 +139,24 @@ std::vector<uint32_t> RawLabels(const std::vector<ClusterId>& labels) {
 
 TEST(GrowClustersFromSeedsTest, EnergyFreeGrowthTakesTurnsInSeedOrder) {
   const Loaded l = Strip();
-  auto grow = [&](std::vector<uint32_t> seeds) {
+  auto grow = [&](std::vector<FaceId> seeds) {
     absl::StatusOr<std::vector<ClusterId>> labels = GrowClustersFromSeeds(
         l.problem(), seeds, SeedOptions::Growth::kEnergyFree, /*cancel=*/nullptr);
     EXPECT_TRUE(labels.ok()) << labels.status();
     return labels.ok() ? RawLabels(*labels) : std::vector<uint32_t>{};
   };
   // Seeds at both ends meet in the middle, one face per round each.
-  EXPECT_EQ(grow({0, 5}), (std::vector<uint32_t>{0, 0, 0, 1, 1, 1}));
+  EXPECT_EQ(grow({FaceId(0), FaceId(5)}), (std::vector<uint32_t>{0, 0, 0, 1, 1, 1}));
   // Seeds 0 and 2: in round one cluster 0 takes face 1 before cluster 1 can, so cluster 1
   // grows only to the right.
-  EXPECT_EQ(grow({0, 2}), (std::vector<uint32_t>{0, 0, 1, 1, 1, 1}));
+  EXPECT_EQ(grow({FaceId(0), FaceId(2)}), (std::vector<uint32_t>{0, 0, 1, 1, 1, 1}));
   // The same faces in the other order: now the seed at face 2 goes first and takes face 1.
-  EXPECT_EQ(grow({2, 0}), (std::vector<uint32_t>{1, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(grow({FaceId(2), FaceId(0)}), (std::vector<uint32_t>{1, 0, 0, 0, 0, 0}));
 }
 
 TEST(GrowClustersFromSeedsTest, RefusesRepeatedSeedsAndComponentsWithoutOne) {
   const Loaded l = Strip();
-  const std::vector<uint32_t> repeated = {1, 1}, out_of_range = {6};
+  const std::vector<FaceId> repeated = {FaceId(1), FaceId(1)}, out_of_range = {FaceId(6)};
   for (auto growth : {SeedOptions::Growth::kEnergyOrdered, SeedOptions::Growth::kEnergyFree}) {
     EXPECT_EQ(GrowClustersFromSeeds(l.problem(), repeated, growth, nullptr).status().code(),
               absl::StatusCode::kInvalidArgument);
@@ -164,7 +164,7 @@ TEST(GrowClustersFromSeedsTest, RefusesRepeatedSeedsAndComponentsWithoutOne) {
               absl::StatusCode::kInvalidArgument);
   }
   const Loaded split = Load(testing::Grid(4, {1, 5, 9, 13}));
-  const std::vector<uint32_t> one = {0};
+  const std::vector<FaceId> one = {FaceId(0)};
   absl::Status status =
       GrowClustersFromSeeds(split.problem(), one, SeedOptions::Growth::kEnergyFree, nullptr)
           .status();
