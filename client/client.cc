@@ -1,8 +1,12 @@
 #include "client/client.h"
 
+#include <bit>
+#include <cstring>
 #include <fstream>
 #include <optional>
+#include <span>
 #include <sstream>
+#include <string>
 #include <thread>
 
 #include "absl/strings/ascii.h"
@@ -104,8 +108,23 @@ class HierarchyAssembler {
       return absl::DataLossError(
           absl::StrCat("levels from ", batch.first_level(), " arrived, expected level ", expected));
     }
-    if (batch.to_cluster_size() != batch.element_size() ||
-        batch.from_cluster_size() != batch.element_size()) {
+    std::span<const uint32_t> all_element(batch.element().data(), batch.element_size());
+    std::span<const uint32_t> all_to(batch.to_cluster().data(), batch.to_cluster_size());
+    std::span<const uint32_t> all_from(batch.from_cluster().data(), batch.from_cluster_size());
+    if (!batch.packed_element().empty() || !batch.packed_to_cluster().empty() ||
+        !batch.packed_from_cluster().empty()) {
+      // JobSpec.packed_triplets: raw little-endian uint32, copied out to aligned arrays.
+      if (!all_element.empty() || !all_to.empty() || !all_from.empty()) {
+        return absl::DataLossError("a level batch with both packed and repeated triplets");
+      }
+      MLCLUST_RETURN_IF_ERROR(Unpack(batch.packed_element(), unpacked_element_));
+      MLCLUST_RETURN_IF_ERROR(Unpack(batch.packed_to_cluster(), unpacked_to_));
+      MLCLUST_RETURN_IF_ERROR(Unpack(batch.packed_from_cluster(), unpacked_from_));
+      all_element = unpacked_element_;
+      all_to = unpacked_to_;
+      all_from = unpacked_from_;
+    }
+    if (all_to.size() != all_element.size() || all_from.size() != all_element.size()) {
       return absl::DataLossError("a level batch with triplet arrays of different lengths");
     }
     if (count == 0 && batch.last_level_continues()) {
@@ -114,12 +133,12 @@ class HierarchyAssembler {
     uint32_t begin = 0;
     for (int i = 0; i < count; ++i) {
       const uint32_t end = batch.triplet_end(i);
-      if (end < begin || end > static_cast<uint32_t>(batch.element_size())) {
+      if (end < begin || end > all_element.size()) {
         return absl::DataLossError("a level batch with triplet_end out of order");
       }
-      const std::span<const uint32_t> element(batch.element().data() + begin, end - begin);
-      const std::span<const uint32_t> to(batch.to_cluster().data() + begin, end - begin);
-      const std::span<const uint32_t> from(batch.from_cluster().data() + begin, end - begin);
+      const std::span<const uint32_t> element = all_element.subspan(begin, end - begin);
+      const std::span<const uint32_t> to = all_to.subspan(begin, end - begin);
+      const std::span<const uint32_t> from = all_from.subspan(begin, end - begin);
       begin = end;
       const bool continued = i == 0 && continuing_;
       const bool continues = i == count - 1 && batch.last_level_continues();
@@ -155,6 +174,17 @@ class HierarchyAssembler {
     return absl::OkStatus();
   }
 
+  static absl::Status Unpack(const std::string& bytes, std::vector<uint32_t>& values) {
+    static_assert(std::endian::native == std::endian::little,
+                  "packed triplets are little-endian uint32");
+    if (bytes.size() % sizeof(uint32_t) != 0) {
+      return absl::DataLossError("a packed triplet array whose length is not a multiple of 4");
+    }
+    values.resize(bytes.size() / sizeof(uint32_t));
+    if (!bytes.empty()) std::memcpy(values.data(), bytes.data(), bytes.size());
+    return absl::OkStatus();
+  }
+
   absl::Status ApplyLevel(uint32_t cluster_count, double energy, std::span<const uint32_t> element,
                           std::span<const uint32_t> to, std::span<const uint32_t> from) {
     LevelMoves level;
@@ -177,6 +207,7 @@ class HierarchyAssembler {
   uint32_t pending_cluster_count_ = 0;
   double pending_energy_ = 0;
   std::vector<uint32_t> pending_element_, pending_to_, pending_from_;
+  std::vector<uint32_t> unpacked_element_, unpacked_to_, unpacked_from_;  // packed batches
   bool started_ = false;
   bool done_ = false;
 };
@@ -293,6 +324,8 @@ absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, 
   std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream =
       stub->Run(&context);
   spec.set_detach(false);
+  // Raw uint32 triplets (issue 13); an older server ignores the flag and sends varints.
+  spec.set_packed_triplets(options.packed_triplets);
   Upload(*stream, std::move(spec), input, options.chunk_bytes);
 
   JobResult result;

@@ -46,6 +46,9 @@ struct RunOptions {
   absl::Duration deadline = absl::InfiniteDuration();
   // Called for every event as it arrives, on the calling thread (for progress lines).
   std::function<void(const v1::JobEvent&)> on_event;
+  // Asks for raw uint32 triplets (JobSpec.packed_triplets, issue 13): no varint coding on
+  // either side. The levels received are the same either way.
+  bool packed_triplets = true;
 };
 
 struct JobResult {

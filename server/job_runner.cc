@@ -1,12 +1,15 @@
 #include "server/job_runner.h"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
+#include <string>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
@@ -109,6 +112,7 @@ class StreamingLevelSink : public LevelSink {
       return s;
     }
     if (!InRange(level.cluster_count)) return absl::OkStatus();
+    if (packed_) return AddPackedLevel(level);
     v1::LevelBatch* batch = pending_.mutable_levels();
     if (batch->cluster_count_size() == 0) batch->set_first_level(levels_sent_);
     batch->add_cluster_count(level.cluster_count);
@@ -131,10 +135,16 @@ class StreamingLevelSink : public LevelSink {
   absl::Status Flush() {
     if (!pending_.has_levels()) return absl::OkStatus();
     last_flush_ = absl::Now();
+    pending_triplets_ = 0;
     v1::JobEvent event = std::move(pending_);
     pending_.Clear();
     return Send(std::move(event));
   }
+
+  // JobSpec.packed_triplets: triplets go as raw little-endian uint32 in LevelBatch's packed
+  // fields (levels whole, as with the repeated fields; the result store cuts a batch over
+  // its message limit, packed or not).
+  void UsePackedTriplets() { packed_ = true; }
 
   uint32_t levels_sent() const { return levels_sent_; }
   uint64_t triplets_sent() const { return triplets_sent_; }
@@ -155,6 +165,40 @@ class StreamingLevelSink : public LevelSink {
   static constexpr size_t kSnapshotLabels = size_t{1} << 20;
   static constexpr absl::Duration kMaxDelay = absl::Milliseconds(200);
   static constexpr absl::Duration kProgressEvery = absl::Milliseconds(250);
+
+  static void AppendPacked(std::string* bytes, std::span<const uint32_t> values) {
+    static_assert(std::endian::native == std::endian::little,
+                  "packed triplets are little-endian uint32");
+    const size_t old_size = bytes->size();
+    bytes->resize(old_size + values.size_bytes());
+    if (!values.empty()) std::memcpy(bytes->data() + old_size, values.data(), values.size_bytes());
+  }
+
+  absl::Status AddPackedLevel(const LevelMoves& level) {
+    v1::LevelBatch* batch = pending_.mutable_levels();
+    if (batch->cluster_count_size() == 0) {
+      batch->set_first_level(levels_sent_);
+      const size_t reserve = std::min<size_t>(batch_triplets_, size_t{1} << 18) * 4;
+      batch->mutable_packed_element()->reserve(reserve);
+      batch->mutable_packed_to_cluster()->reserve(reserve);
+      batch->mutable_packed_from_cluster()->reserve(reserve);
+    }
+    batch->add_cluster_count(level.cluster_count);
+    batch->add_energy(level.energy);
+    batch->add_source_level(level.level);
+    AppendPacked(batch->mutable_packed_element(), level.element);
+    AppendPacked(batch->mutable_packed_to_cluster(), level.to_cluster);
+    AppendPacked(batch->mutable_packed_from_cluster(), level.from_cluster);
+    pending_triplets_ += level.element.size();
+    batch->add_triplet_end(static_cast<uint32_t>(pending_triplets_));
+    ++levels_sent_;
+    triplets_sent_ += level.element.size();
+    if (pending_triplets_ >= batch_triplets_ || batch->cluster_count_size() >= kMaxLevelsPerBatch ||
+        absl::Now() - last_flush_ > kMaxDelay) {
+      return Flush();
+    }
+    return absl::OkStatus();
+  }
 
   bool InRange(uint32_t count) const { return (high_ == 0 || count <= high_) && count >= low_; }
 
@@ -212,6 +256,8 @@ class StreamingLevelSink : public LevelSink {
   std::vector<uint32_t> curve_counts_;
   std::vector<double> curve_energies_;
   v1::JobEvent pending_;
+  bool packed_ = false;
+  size_t pending_triplets_ = 0;  // in pending_, packed only
   uint32_t levels_sent_ = 0;
   uint64_t triplets_sent_ = 0;
   absl::Time last_flush_;
@@ -290,6 +336,8 @@ StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunner
       *job.events,
       spec.batch_triplets() != 0 ? spec.batch_triplets() : context.default_batch_triplets,
       hierarchy ? spec.levels_high() : 0, hierarchy ? spec.levels_low() : 0);
+  // Detached jobs' levels go to the result store's record, which reads the repeated fields.
+  if (spec.packed_triplets() && !spec.detach()) sink.UsePackedTriplets();
   // The hierarchy's far end: one cluster for a divisive one, else the lowest count asked for
   // (the engine may stop above it: one cluster per connected component).
   const uint32_t target =

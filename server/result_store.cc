@@ -19,14 +19,19 @@ size_t Varint(uint32_t value) { return CodedOutputStream::VarintSize32(value); }
 // A LevelBatch cut into pieces of at most `budget` serialized bytes: levels whole where
 // they fit, a level bigger than the rest of a piece continued in the next piece (the
 // piece it starts in has last_level_continues set; the next starts at the same level).
+// Packed batches (JobSpec.packed_triplets) are cut the same way and stay packed.
 std::vector<v1::JobEvent> SplitLevelBatch(const v1::LevelBatch& batch, size_t budget) {
   std::vector<v1::JobEvent> pieces;
   v1::LevelBatch* piece = nullptr;
   size_t piece_bytes = 0;
+  const bool packed = !batch.packed_element().empty() || !batch.packed_to_cluster().empty() ||
+                      !batch.packed_from_cluster().empty();
+  uint32_t packed_triplets = 0;  // in the current piece, packed only
   auto start_piece = [&](uint32_t first_level) {
     piece = pieces.emplace_back().mutable_levels();
     piece->set_first_level(first_level);
     piece_bytes = kPieceOverhead;
+    packed_triplets = 0;
   };
   const bool has_source = batch.source_level_size() == batch.cluster_count_size();
   uint32_t begin = 0;
@@ -42,7 +47,7 @@ std::vector<v1::JobEvent> SplitLevelBatch(const v1::LevelBatch& batch, size_t bu
     uint32_t t = begin;
     if (piece == nullptr ||
         (piece->cluster_count_size() > 0 &&
-         piece_bytes + header_bytes + (t < end ? triplet_bytes(t) : 0) > budget)) {
+         piece_bytes + header_bytes + (t < end ? (packed ? 12 : triplet_bytes(t)) : 0) > budget)) {
       start_piece(level);
     }
     while (true) {
@@ -50,6 +55,26 @@ std::vector<v1::JobEvent> SplitLevelBatch(const v1::LevelBatch& batch, size_t bu
       piece->add_energy(batch.energy(i));
       if (has_source) piece->add_source_level(batch.source_level(i));
       piece_bytes += header_bytes;
+      if (packed) {
+        // JobSpec.packed_triplets: 12 bytes a triplet, copied in ranges.
+        const size_t room = budget > piece_bytes ? (budget - piece_bytes) / 12 : 0;
+        const uint32_t take = static_cast<uint32_t>(
+            std::min<size_t>(end - t, std::max<size_t>(room, packed_triplets == 0 ? 1 : 0)));
+        for (auto [from, to] :
+             {std::pair{&batch.packed_element(), piece->mutable_packed_element()},
+              std::pair{&batch.packed_to_cluster(), piece->mutable_packed_to_cluster()},
+              std::pair{&batch.packed_from_cluster(), piece->mutable_packed_from_cluster()}}) {
+          to->append(*from, size_t{t} * 4, size_t{take} * 4);
+        }
+        t += take;
+        packed_triplets += take;
+        piece_bytes += size_t{take} * 12;
+        piece->add_triplet_end(packed_triplets);
+        if (t == end) break;
+        piece->set_last_level_continues(true);
+        start_piece(level);
+        continue;
+      }
       for (; t < end; ++t) {
         const size_t bytes = triplet_bytes(t);
         // Every piece takes at least one triplet, so the split always progresses.

@@ -110,6 +110,16 @@ def _doubles(fields, number):
     return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
 
+def _packed_le_uint32s(fields, number):
+    """A bytes field of raw little-endian uint32 (LevelBatch.packed_*, JobSpec.packed_triplets)."""
+    parts = []
+    for wire_type, value in fields.get(number, ()):
+        if wire_type != 2 or len(value) % 4:
+            raise ValueError("a packed triplet array of the wrong wire type or length")
+        parts.append(bytes(value))
+    return np.frombuffer(b"".join(parts), dtype="<u4").astype(np.uint32)
+
+
 def parse_bulk_event(data):
     """("levels", dict) or ("snapshot", dict) for a JobEvent holding a LevelBatch or a
     LevelSnapshot, with numpy arrays; None for any other event or anything unexpected."""
@@ -122,16 +132,23 @@ def parse_bulk_event(data):
             return None
         body = _fields(top[kinds[0]][0][1])
         if kinds[0] == 4:
-            if not set(body) <= set(range(1, 10)):
+            if not set(body) <= set(range(1, 13)):
                 return None
+            if set(body) & {10, 11, 12}:
+                if set(body) & {5, 6, 7}:
+                    return None  # both kinds: the slow path refuses it
+                triplets = {"element": _packed_le_uint32s(body, 10),
+                            "to_cluster": _packed_le_uint32s(body, 11),
+                            "from_cluster": _packed_le_uint32s(body, 12)}
+            else:
+                triplets = {"element": _uint32s(body, 5), "to_cluster": _uint32s(body, 6),
+                            "from_cluster": _uint32s(body, 7)}
             return "levels", {
                 "first_level": _scalar(body, 1),
                 "cluster_count": _uint32s(body, 2),
                 "energy": _doubles(body, 3),
                 "triplet_end": _uint32s(body, 4),
-                "element": _uint32s(body, 5),
-                "to_cluster": _uint32s(body, 6),
-                "from_cluster": _uint32s(body, 7),
+                **triplets,
                 "source_level": _uint32s(body, 8),
                 "last_level_continues": bool(_scalar(body, 9)),
             }

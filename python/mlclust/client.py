@@ -163,9 +163,21 @@ class _Assembler:
                            s.first_element, s.total_elements)
         elif kind == "levels":
             b = event.levels
+            triplets = (b.element, b.to_cluster, b.from_cluster)
+            if b.packed_element or b.packed_to_cluster or b.packed_from_cluster:
+                # JobSpec.packed_triplets: raw little-endian uint32 instead of varints.
+                if len(b.element) or len(b.to_cluster) or len(b.from_cluster):
+                    raise Error(grpc.StatusCode.DATA_LOSS,
+                                "a level batch with both packed and repeated triplets")
+                if any(len(a) % 4 for a in (b.packed_element, b.packed_to_cluster,
+                                            b.packed_from_cluster)):
+                    raise Error(grpc.StatusCode.DATA_LOSS,
+                                "a packed triplet array whose length is not a multiple of 4")
+                triplets = tuple(np.frombuffer(a, dtype="<u4") for a in (
+                    b.packed_element, b.packed_to_cluster, b.packed_from_cluster))
             self._levels(b.first_level, *(np.array(a, dtype=t) for a, t in (
                 (b.cluster_count, np.uint32), (b.energy, np.float64), (b.triplet_end, np.uint32),
-                (b.element, np.uint32), (b.to_cluster, np.uint32), (b.from_cluster, np.uint32),
+                (triplets[0], np.uint32), (triplets[1], np.uint32), (triplets[2], np.uint32),
                 (b.source_level, np.uint32))), last_level_continues=b.last_level_continues)
         elif kind == "done":
             self.done = event.done
@@ -558,6 +570,9 @@ class Client:
         spec = pb.JobSpec(input_kind=kind, algorithm=ALGORITHMS[algo], energy=ENERGIES[energy],
                           clusters=int(clusters), seed=int(seed), device=device, label=label,
                           batch_triplets=int(batch_triplets))
+        # Raw uint32 triplets (issue 13) where the server has them; older servers ignore it.
+        if "packed_triplets" in pb.JobSpec.DESCRIPTOR.fields_by_name:
+            spec.packed_triplets = True
         if levels is not None:
             spec.levels_high, spec.levels_low = (int(levels[0] or 0), int(levels[1] or 0))
         for name, value in options.items():

@@ -67,6 +67,33 @@ class WireTest(unittest.TestCase):
                           fast["total_elements"]), (3, 7, 9, 13))
         np.testing.assert_array_equal(fast["labels"], [5, 2**31, 0, 7])
 
+    def test_packed_triplets_read_as_the_repeated_ones(self):
+        # JobSpec.packed_triplets (issue 13): LevelBatch fields 10-12, raw little-endian uint32.
+        rng = np.random.default_rng(3)
+        element = rng.integers(0, 2**32, size=257, dtype=np.uint64).astype(np.uint32)
+        to = rng.integers(0, 300, size=257).astype(np.uint32)
+        frm = rng.integers(0, 2**20, size=257).astype(np.uint32)
+        packed = pb.JobEvent(levels=pb.LevelBatch(
+            first_level=4, cluster_count=[9, 8], energy=[0.5, 0.25], triplet_end=[100, 257],
+            packed_element=element.astype("<u4").tobytes(),
+            packed_to_cluster=to.astype("<u4").tobytes(),
+            packed_from_cluster=frm.astype("<u4").tobytes()))
+        kind, fast = _wire.parse_bulk_event(packed.SerializeToString())
+        self.assertEqual(kind, "levels")
+        np.testing.assert_array_equal(fast["element"], element)
+        np.testing.assert_array_equal(fast["to_cluster"], to)
+        np.testing.assert_array_equal(fast["from_cluster"], frm)
+        np.testing.assert_array_equal(fast["triplet_end"], [100, 257])
+        # Both kinds in one batch, or a length that is not whole uint32s: left to protobuf.
+        both = pb.JobEvent()
+        both.CopyFrom(packed)
+        both.levels.element.append(1)
+        self.assertIsNone(_wire.parse_bulk_event(both.SerializeToString()))
+        broken = pb.JobEvent()
+        broken.CopyFrom(packed)
+        broken.levels.packed_element = b"\x01\x02\x03"
+        self.assertIsNone(_wire.parse_bulk_event(broken.SerializeToString()))
+
     def test_anything_else_is_left_to_protobuf(self):
         self.assertIsNone(_wire.parse_bulk_event(
             pb.JobEvent(accepted=pb.Accepted(job_id="j")).SerializeToString()))
