@@ -4,17 +4,7 @@
 # one; bad input gets a message and a non-zero exit while the server keeps serving; points
 # with --auto-k bic recover the number of blobs.
 #   cli_test.sh MLCLUST_BINARY DATA_DIR
-set -euo pipefail
-mlclust=$1
-data=$2
-work=$(mktemp -d)
-server_pid=""
-cleanup() {
-  [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/cli_lib.sh" "$@"
 
 # Embedded.
 "$mlclust" mesh "$data/fandisk.off" --algo hc --clusters 100 --labels "$work/embedded.labels" \

@@ -4,17 +4,7 @@
 # `jobs` lists them; `cancel` ends a queued job; --deadline ends a call with a clear message;
 # a dropped or unknown job is NOT_FOUND with a reason.
 #   jobs_cli_test.sh MLCLUST_BINARY DATA_DIR
-set -euo pipefail
-mlclust=$1
-data=$2
-work=$(mktemp -d)
-server_pid=""
-cleanup() {
-  [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/cli_lib.sh" "$@"
 
 port=$((20000 + RANDOM % 20000))
 "$mlclust" serve --listen "127.0.0.1:$port" --retention-seconds 3 --gpu off 2> "$work/server.log" &

@@ -4,17 +4,7 @@
 # with a message and exit status 2. (The picture's colours are checked in
 # tests/e2e/preview/preview_test.cc and tests/gpu/render/.)
 #   preview_cli_test.sh MLCLUST_BINARY DATA_DIR
-set -euo pipefail
-mlclust=$1
-data=$2
-work=$(mktemp -d)
-server_pid=""
-cleanup() {
-  [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+source "$(dirname "$0")/cli_lib.sh" "$@"
 
 # "WIDTH HEIGHT" from a PNG's IHDR, after checking the signature.
 png_size() {
