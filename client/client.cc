@@ -1,5 +1,7 @@
 #include "client/client.h"
 
+#include <zlib.h>
+
 #include <bit>
 #include <cstring>
 #include <fstream>
@@ -222,12 +224,14 @@ std::shared_ptr<grpc::Channel> Connect(const std::string& address) {
 
 namespace {
 
-// Sends `spec` (its input_bytes set here) with the first chunk of `input`, then the rest. A
-// failed write means the server has already answered (for example a full queue); its
-// status comes from the stream's Finish.
+// Sends `spec` (its input_bytes and input_crc32 set here) with the first chunk of `input`,
+// then the rest. A failed write means the server has already answered (for example a full
+// queue); its status comes from the stream's Finish.
 void Upload(grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>& stream, v1::JobSpec spec,
             std::string_view input, size_t chunk_bytes) {
   spec.set_input_bytes(input.size());
+  spec.set_input_crc32(static_cast<uint32_t>(
+      crc32_z(0, reinterpret_cast<const Bytef*>(input.data()), input.size())));
   const size_t chunk = std::max<size_t>(1, chunk_bytes);
   v1::RunRequest request;
   *request.mutable_spec() = std::move(spec);

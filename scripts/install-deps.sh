@@ -20,6 +20,8 @@ packages=(
   libcairo2-dev fonts-dejavu-core
   # the --preview PNG (gpu/render/png_codec.h)
   libpng-dev
+  # the upload's CRC-32 (JobSpec.input_crc32; server and client)
+  zlib1g-dev
   # tests
   libgtest-dev libgmock-dev
   # TLS tests make their certificates at test time (tests/e2e/tls_test.cc)

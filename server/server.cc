@@ -1,6 +1,7 @@
 #include "server/server.h"
 
 #include <malloc.h>
+#include <zlib.h>
 
 #include <atomic>
 #include <condition_variable>
@@ -191,6 +192,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   bool have_spec_ = false;
   std::string input_;
   uint64_t upload_reserved_ = 0;  // bytes of input_ counted in the upload budget
+  uint32_t input_crc32_ = 0;      // zlib's crc32 of input_, kept as chunks arrive
   // Uploads this big that never became a job are trimmed back to the system at the end.
   static constexpr size_t kTrimAfterBytes = size_t{16} << 20;
   bool held_big_upload_ = false;
@@ -686,8 +688,18 @@ void RunCall::OnReadDone(bool ok) {
           std::max<uint64_t>(2 * input_.capacity(), input_.size() + chunk.size())));
     }
     input_.append(chunk);
+    input_crc32_ = static_cast<uint32_t>(
+        crc32_z(input_crc32_, reinterpret_cast<const Bytef*>(chunk.data()), chunk.size()));
   }
   if (input_.size() == spec_.input_bytes()) {
+    if (spec_.has_input_crc32() && spec_.input_crc32() != input_crc32_) {
+      Fail(absl::InvalidArgumentError(
+          absl::StrCat("input checksum: the ", input_.size(), " bytes received have CRC-32 ",
+                       absl::Hex(input_crc32_, absl::kZeroPad8), ", spec.input_crc32 says ",
+                       absl::Hex(spec_.input_crc32(), absl::kZeroPad8),
+                       " (a chunk was lost, repeated or reordered on the way)")));
+      return;
+    }
     Submit();
     return;
   }

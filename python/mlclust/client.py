@@ -3,6 +3,7 @@
 import random
 import socket
 import sys
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, NamedTuple, Optional
 
@@ -583,6 +584,9 @@ class Client:
         if self._replicas is not None:
             return self._run_on_replicas(spec, payload, progress, timeout, chunk_bytes)
         spec.input_bytes = len(payload)
+        if "input_crc32" in spec.DESCRIPTOR.fields_by_name:
+            # The whole input's CRC-32, checked by the server (a lost or reordered chunk).
+            spec.input_crc32 = zlib.crc32(payload) & 0xFFFFFFFF
         chunk_bytes = max(1, int(chunk_bytes))
 
         def requests():

@@ -3,6 +3,7 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <future>
@@ -235,6 +236,43 @@ TEST_F(ServerTest, ChunkedUploadOfManySmallChunks) {
   absl::StatusOr<client::JobResult> result = Run(mesh, HcSpec(), options);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(result->hierarchy.num_levels(), mesh.num_faces());
+}
+
+// JobSpec.input_crc32: chunks that arrive reordered (a broken client) give an input of the
+// right size but the wrong checksum, refused before queueing; the same chunks in order run.
+TEST_F(ServerTest, AnInputWhoseChecksumDiffersIsRefused) {
+  const absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(10));
+  ASSERT_TRUE(bytes.ok());
+  const size_t half = bytes->size() / 2;
+  auto send = [&](bool swap_halves) {
+    auto stub = v1::Clustering::NewStub(channel_);
+    grpc::ClientContext context;
+    auto stream = stub->Run(&context);
+    v1::RunRequest first;
+    *first.mutable_spec() = HcSpec();
+    first.mutable_spec()->set_input_bytes(bytes->size());
+    first.mutable_spec()->set_input_crc32(static_cast<uint32_t>(
+        crc32_z(0, reinterpret_cast<const Bytef*>(bytes->data()), bytes->size())));
+    first.set_chunk(swap_halves ? bytes->substr(half) : bytes->substr(0, half));
+    v1::RunRequest second;
+    second.set_chunk(swap_halves ? bytes->substr(0, half) : bytes->substr(half));
+    stream->Write(first);
+    stream->Write(second);
+    stream->WritesDone();
+    v1::JobEvent event;
+    bool done = false;
+    while (stream->Read(&event)) done = done || event.has_done();
+    const grpc::Status status = stream->Finish();
+    return std::make_pair(status, done);
+  };
+  const auto [reordered, reordered_done] = send(/*swap_halves=*/true);
+  EXPECT_EQ(reordered.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(reordered.error_message(), HasSubstr("input checksum"));
+  EXPECT_FALSE(reordered_done);
+  const auto [in_order, in_order_done] = send(/*swap_halves=*/false);
+  EXPECT_TRUE(in_order.ok()) << in_order.error_message();
+  EXPECT_TRUE(in_order_done);
+  EXPECT_TRUE(Healthy());
 }
 
 TEST(ServerLimitsTest, InputOverTheLimitIsResourceExhaustedBeforeUpload) {
