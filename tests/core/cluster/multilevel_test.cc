@@ -13,6 +13,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/hierarchy/elbow.h"
 #include "core/io/mesh_io.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -290,29 +291,7 @@ TEST(MultilevelTest, PmlThenMlIsCloseToMlAndPPercentRuns) {
             absl::StatusCode::kInvalidArgument);
 }
 
-// Every level in full (counts, energies bit for bit, triplets), to compare two runs.
-class RecordingSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
-    for (ClusterId c : labels) start.push_back(c.value());
-    counts.push_back(count);
-    energies.push_back(energy);
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    moves.push_back(level.element.size());
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.push_back(level.element[i]);
-      moves.push_back(level.to_cluster[i]);
-      moves.push_back(level.from_cluster[i]);
-    }
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> start, counts, moves;
-  std::vector<double> energies;
-};
+using testing::RecordingSink;
 
 // PML's parallel steps (ODEs, mutual pairs, the ODE update per level, the optimisation
 // rounds of parallel_optimisation) give the same levels on one thread as on two; the

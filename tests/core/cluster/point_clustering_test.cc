@@ -10,6 +10,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/base/random.h"
 #include "core/hierarchy/model_selection.h"
+#include "tests/fixtures/recording_sink.h"
 
 namespace mlclust {
 namespace {
@@ -264,28 +265,7 @@ TEST(PointMultilevelTest, PmlStaysCloseToMlAtEveryLevel) {
   }
 }
 
-// Every level in full (counts, energies bit for bit, triplets), to compare two runs.
-class RecordingSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
-    for (ClusterId c : labels) moves.push_back(c.value());
-    counts.push_back(count);
-    energies.push_back(energy);
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.push_back(level.element[i]);
-      moves.push_back(level.to_cluster[i]);
-      moves.push_back(level.from_cluster[i]);
-    }
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> counts, moves;
-  std::vector<double> energies;
-};
+using testing::RecordingSink;
 
 // The engine's parallel steps (ODEs, mutual pairs, the ODE refresh of a level, LN
 // k-means' assignment) give the same levels on one thread as on two: PML, PML then ML,
@@ -305,6 +285,7 @@ TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
     EXPECT_GT(one.counts.size(), 5u);
     EXPECT_EQ(one.counts, two.counts);
     EXPECT_EQ(one.energies, two.energies);
+    EXPECT_EQ(one.start, two.start);
     EXPECT_EQ(one.moves, two.moves);
   }
 }
