@@ -134,6 +134,24 @@ TEST(OptimizeBoundaryBasedGpu, EnergyWithinOnePercentOfTheCpuOnFandisk) {
   }
 }
 
+// With Alg. 3.2's vertex boundary-edge counts as the guard the GPU run follows the CPU's
+// too: the driver is the CPU's, only the decide stage differs.
+TEST(OptimizeBoundaryBasedGpu, SameEnergyWithTheVertexCountGuard) {
+  const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
+  const MeshProblem problem = mesh.problem();
+  const std::vector<ClusterId> seeded = Seeds(problem, 100);
+  BoundaryBasedOptions options;
+  options.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+  std::vector<ClusterId> cpu = seeded, gpu = seeded;
+  absl::StatusOr<OptimizeResult> on_cpu = OptimizeBoundaryBased(problem, cpu, options);
+  absl::StatusOr<OptimizeResult> on_gpu =
+      OptimizeBoundaryBasedGpu(Context(), problem, gpu, options);
+  ASSERT_TRUE(on_cpu.ok()) << on_cpu.status();
+  ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+  EXPECT_LT(on_gpu->energy, on_gpu->initial_energy);
+  EXPECT_NEAR(on_gpu->energy, on_cpu->energy, 0.01 * on_cpu->energy);
+}
+
 TEST(OptimizeBoundaryBasedGpu, RefusesAnEnergyWithoutAGpuDecide) {
   const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
   const MeshProblem problem = mesh.problem(MeshEnergyKind::kSphere);
