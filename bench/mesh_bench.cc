@@ -17,43 +17,9 @@
 #include <string>
 
 #include "bench/bench_util.h"
+#include "bench/experiments/clustered_ply.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/io/mesh_io.h"
-
-namespace {
-
-// The binary PLY bench/render_ply.py reads: float x y z + uchar r g b per vertex (grey),
-// uchar count + int indices + uchar r g b per face (its cluster's colour).
-bool WritePly(const std::string& path, const mlclust::TriangleMesh& mesh,
-              const std::vector<mlclust::ClusterId>& labels) {
-  std::FILE* out = std::fopen(path.c_str(), "wb");
-  if (out == nullptr) return false;
-  std::fprintf(out,
-               "ply\nformat binary_little_endian 1.0\nelement vertex %zu\nproperty float x\n"
-               "property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
-               "property uchar blue\nelement face %zu\nproperty list uchar int "
-               "vertex_indices\nproperty uchar red\nproperty uchar green\nproperty uchar "
-               "blue\nend_header\n",
-               mesh.num_vertices(), mesh.num_faces());
-  const uint8_t grey[3] = {200, 200, 200};
-  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-    std::fwrite(&mesh.positions[3 * v], sizeof(float), 3, out);
-    std::fwrite(grey, 1, 3, out);
-  }
-  for (size_t f = 0; f < mesh.num_faces(); ++f) {
-    const uint8_t three = 3;
-    std::fwrite(&three, 1, 1, out);
-    for (int c = 0; c < 3; ++c) {
-      const int32_t index = static_cast<int32_t>(mesh.indices[3 * f + c]);
-      std::fwrite(&index, sizeof(index), 1, out);
-    }
-    const std::array<uint8_t, 3> colour = mlclust::ClusterColour(labels[f].value());
-    std::fwrite(colour.data(), 1, 3, out);
-  }
-  return std::fclose(out) == 0;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   using namespace mlclust;
@@ -154,7 +120,7 @@ int main(int argc, char** argv) {
       }
       if (!result.ok()) return 1;
       const double total = watch.Seconds();
-      if (!ply.empty() && !WritePly(ply, prepared.mesh, *labels)) return 1;
+      if (!ply.empty() && !bench::WriteClusteredPly(ply, prepared.mesh, *labels)) return 1;
       if (total < best_total) {
         best_total = total;
         best_init = init_s;

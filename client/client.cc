@@ -1,7 +1,15 @@
 #include "client/client.h"
 
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <thread>
+
 #include "absl/container/flat_hash_map.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "core/base/status_macros.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -17,7 +25,26 @@ absl::Status FromGrpc(const grpc::Status& status) {
 // consistent (the snapshot complete before any level, levels consecutive).
 class HierarchyAssembler {
  public:
-  explicit HierarchyAssembler(JobResult& result) : result_(result) {}
+  // `absolute_levels`: level batches number levels as the job does (Watch), starting
+  // after the snapshot's level; otherwise the snapshot is level 0 (Run).
+  explicit HierarchyAssembler(JobResult& result, bool absolute_levels = false)
+      : result_(result), absolute_levels_(absolute_levels) {}
+
+  // The job's number of the last complete level held, or -1 before the snapshot is.
+  int64_t last_complete_level() const {
+    if (!started_) return -1;
+    return static_cast<int64_t>(result_.first_level + result_.hierarchy.num_levels()) - 1;
+  }
+  bool started() const { return started_; }
+
+  // A stream broke: a level split across messages and not yet complete is dropped (the
+  // resumed stream sends it again whole).
+  void DropPartialLevel() {
+    continuing_ = false;
+    pending_element_.clear();
+    pending_to_.clear();
+    pending_from_.clear();
+  }
 
   absl::Status Add(const v1::JobEvent& event) {
     switch (event.event_case()) {
@@ -28,6 +55,9 @@ class HierarchyAssembler {
         return AddSnapshot(event.snapshot());
       case v1::JobEvent::kLevels:
         return AddLevels(event.levels());
+      case v1::JobEvent::kPreview:
+        result_.preview = event.preview();
+        return absl::OkStatus();
       case v1::JobEvent::kDone:
         if (continuing_) return absl::DataLossError("the job ended inside a split level");
         result_.done = event.done();
@@ -54,6 +84,7 @@ class HierarchyAssembler {
     }
     if (labels_.size() == snapshot.total_elements()) {
       started_ = true;
+      if (absolute_levels_) result_.first_level = snapshot.level();
       absl::Status status =
           result_.hierarchy.OnStart(labels_, snapshot.cluster_count(), snapshot.energy());
       std::vector<ClusterId>().swap(labels_);
@@ -68,10 +99,10 @@ class HierarchyAssembler {
     if (batch.energy_size() != count || batch.triplet_end_size() != count) {
       return absl::DataLossError("a level batch with arrays of different lengths");
     }
-    if (batch.first_level() != result_.hierarchy.num_levels()) {
-      return absl::DataLossError(absl::StrCat("levels from ", batch.first_level(),
-                                              " arrived, expected level ",
-                                              result_.hierarchy.num_levels()));
+    const uint64_t expected = result_.first_level + result_.hierarchy.num_levels();
+    if (batch.first_level() != expected) {
+      return absl::DataLossError(
+          absl::StrCat("levels from ", batch.first_level(), " arrived, expected level ", expected));
     }
     if (batch.to_cluster_size() != batch.element_size() ||
         batch.from_cluster_size() != batch.element_size()) {
@@ -139,6 +170,7 @@ class HierarchyAssembler {
   }
 
   JobResult& result_;
+  const bool absolute_levels_;
   std::vector<ClusterId> labels_;
   // A level whose triplets arrive in several batches, joined here.
   bool continuing_ = false;
@@ -157,35 +189,111 @@ std::shared_ptr<grpc::Channel> Connect(const std::string& address) {
   return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), arguments);
 }
 
-absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, v1::JobSpec spec,
-                                 std::string_view input, const RunOptions& options) {
-  auto stub = v1::Clustering::NewStub(channel);
-  grpc::ClientContext context;
-  if (options.deadline != absl::InfiniteDuration()) {
-    context.set_deadline(absl::ToChronoTime(absl::Now() + options.deadline));
-  }
-  std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream =
-      stub->Run(&context);
+namespace {
 
-  // Upload: the spec with the first chunk, then the rest. A failed write means the server
-  // has already answered (for example a full queue); its status comes from Finish below.
+// Sends `spec` (its input_bytes set here) with the first chunk of `input`, then the rest. A
+// failed write means the server has already answered (for example a full queue); its
+// status comes from the stream's Finish.
+void Upload(grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>& stream, v1::JobSpec spec,
+            std::string_view input, size_t chunk_bytes) {
   spec.set_input_bytes(input.size());
-  const size_t chunk = std::max<size_t>(1, options.chunk_bytes);
+  const size_t chunk = std::max<size_t>(1, chunk_bytes);
   v1::RunRequest request;
-  *request.mutable_spec() = spec;
+  *request.mutable_spec() = std::move(spec);
   size_t offset = 0;
-  bool writing = true;
   do {
     const size_t n = std::min(chunk, input.size() - offset);
     request.set_chunk(input.data() + offset, n);
     offset += n;
-    if (!stream->Write(request)) {
-      writing = false;
-      break;
-    }
+    if (!stream.Write(request)) return;
     request.clear_spec();
   } while (offset < input.size());
-  if (writing) stream->WritesDone();
+  stream.WritesDone();
+}
+
+void SetDeadline(grpc::ClientContext& context, absl::Duration deadline) {
+  if (deadline != absl::InfiniteDuration()) {
+    context.set_deadline(absl::ToChronoTime(absl::Now() + deadline));
+  }
+}
+
+absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::InvalidArgumentError(absl::StrCat(what, ": cannot read ", path));
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
+// A stream that broke on the way (the server restarted its listener, a proxy dropped the
+// connection) rather than a job or request that failed.
+bool IsBrokenStream(const absl::Status& status) {
+  return status.code() == absl::StatusCode::kUnavailable ||
+         (status.code() == absl::StatusCode::kInternal &&
+          absl::StrContains(status.message(), "RST_STREAM")) ||
+         (status.code() == absl::StatusCode::kUnknown &&
+          absl::StrContains(status.message(), "Stream removed"));
+}
+
+}  // namespace
+
+absl::StatusOr<std::shared_ptr<grpc::Channel>> Connect(const std::string& address,
+                                                       const ConnectOptions& options) {
+  grpc::ChannelArguments arguments;
+  arguments.SetMaxReceiveMessageSize(-1);
+  std::shared_ptr<grpc::ChannelCredentials> credentials;
+  if (options.tls_ca_file.empty()) {
+    if (!options.auth_token_file.empty()) {
+      return absl::InvalidArgumentError(
+          "--auth-token-file needs TLS (--tls-ca FILE): a bearer token is never sent in "
+          "plaintext");
+    }
+    if (!options.tls_cert_file.empty() || !options.tls_key_file.empty()) {
+      return absl::InvalidArgumentError("--tls-cert and --tls-key need --tls-ca");
+    }
+    credentials = grpc::InsecureChannelCredentials();
+  } else {
+    grpc::SslCredentialsOptions ssl;
+    MLCLUST_ASSIGN_OR_RETURN(ssl.pem_root_certs, ReadFile(options.tls_ca_file, "--tls-ca"));
+    if (!options.tls_cert_file.empty() || !options.tls_key_file.empty()) {
+      if (options.tls_cert_file.empty() || options.tls_key_file.empty()) {
+        return absl::InvalidArgumentError("--tls-cert and --tls-key go together");
+      }
+      MLCLUST_ASSIGN_OR_RETURN(ssl.pem_cert_chain, ReadFile(options.tls_cert_file, "--tls-cert"));
+      MLCLUST_ASSIGN_OR_RETURN(ssl.pem_private_key, ReadFile(options.tls_key_file, "--tls-key"));
+    }
+    credentials = grpc::SslCredentials(ssl);
+    if (!options.auth_token_file.empty()) {
+      MLCLUST_ASSIGN_OR_RETURN(const std::string text,
+                               ReadFile(options.auth_token_file, "--auth-token-file"));
+      std::string token;
+      for (absl::string_view line : absl::StrSplit(text, '\n')) {
+        line = absl::StripAsciiWhitespace(line);
+        if (line.empty() || line.front() == '#') continue;
+        // The first word: a server's token file (token tenant) works here as well.
+        token = std::string(line.substr(0, line.find_first_of(" \t")));
+        break;
+      }
+      if (token.empty()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("--auth-token-file: ", options.auth_token_file, " holds no token"));
+      }
+      credentials =
+          grpc::CompositeChannelCredentials(credentials, grpc::AccessTokenCredentials(token));
+    }
+  }
+  return grpc::CreateCustomChannel(address, credentials, arguments);
+}
+
+absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, v1::JobSpec spec,
+                                 std::string_view input, const RunOptions& options) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  SetDeadline(context, options.deadline);
+  std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream =
+      stub->Run(&context);
+  spec.set_detach(false);
+  Upload(*stream, std::move(spec), input, options.chunk_bytes);
 
   JobResult result;
   HierarchyAssembler assembler(result);
@@ -201,6 +309,108 @@ absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, 
   if (!status.ok()) return FromGrpc(status);
   if (!assembler.done()) return absl::DataLossError("the job ended without a done event");
   return result;
+}
+
+absl::StatusOr<v1::Accepted> SubmitDetached(const std::shared_ptr<grpc::Channel>& channel,
+                                            v1::JobSpec spec, std::string_view input,
+                                            const RunOptions& options) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  SetDeadline(context, options.deadline);
+  std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream =
+      stub->Run(&context);
+  spec.set_detach(true);
+  Upload(*stream, std::move(spec), input, options.chunk_bytes);
+  std::optional<v1::Accepted> accepted;
+  v1::JobEvent event;
+  while (stream->Read(&event)) {
+    if (options.on_event) options.on_event(event);
+    if (event.has_accepted()) accepted = event.accepted();
+  }
+  const grpc::Status status = stream->Finish();
+  if (!status.ok()) return FromGrpc(status);
+  if (!accepted.has_value() || !accepted->detached()) {
+    return absl::DataLossError(
+        "the server did not detach the job (an older server without JobSpec.detach?)");
+  }
+  return *accepted;
+}
+
+absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel,
+                                   const std::string& job_id, const WatchOptions& options) {
+  auto stub = v1::Clustering::NewStub(channel);
+  const absl::Time deadline = options.deadline == absl::InfiniteDuration()
+                                  ? absl::InfiniteFuture()
+                                  : absl::Now() + options.deadline;
+  JobResult result;
+  auto assembler = std::make_unique<HierarchyAssembler>(result, /*absolute_levels=*/true);
+  int resumes = 0;
+  while (true) {
+    grpc::ClientContext context;
+    if (deadline != absl::InfiniteFuture()) context.set_deadline(absl::ToChronoTime(deadline));
+    v1::WatchRequest request;
+    request.set_job_id(job_id);
+    if (assembler->started()) {
+      // Resume where the stream stopped: no snapshot, the levels after the last complete one.
+      request.set_from_level(static_cast<uint32_t>(assembler->last_complete_level()));
+      request.set_resume(true);
+    } else {
+      request.set_from_level(options.from_level);
+    }
+    std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream = stub->Watch(&context, request);
+    absl::Status stream_status;
+    bool progressed = false;
+    v1::JobEvent event;
+    while (stream->Read(&event)) {
+      progressed = true;
+      if (options.on_event) options.on_event(event);
+      if (stream_status.ok()) stream_status = assembler->Add(event);
+      if (!stream_status.ok()) context.TryCancel();
+    }
+    const grpc::Status status = stream->Finish();
+    if (!stream_status.ok()) return stream_status;
+    if (status.ok()) {
+      if (!assembler->done()) return absl::DataLossError("the watch ended without a done event");
+      result.job_id = job_id;
+      return result;
+    }
+    const absl::Status failed = FromGrpc(status);
+    if (!IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) return failed;
+    if (progressed) resumes = 0;
+    if (++resumes > options.max_resumes) return failed;
+    if (options.on_resume) options.on_resume(failed);
+    assembler->DropPartialLevel();
+    if (!assembler->started()) {
+      // The snapshot was cut short: start again from it.
+      result = JobResult();
+      assembler = std::make_unique<HierarchyAssembler>(result, /*absolute_levels=*/true);
+    }
+    std::this_thread::sleep_for(absl::ToChronoNanoseconds(options.resume_delay));
+  }
+}
+
+absl::StatusOr<std::string> CancelJob(const std::shared_ptr<grpc::Channel>& channel,
+                                      const std::string& job_id, absl::Duration deadline) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  SetDeadline(context, deadline);
+  v1::CancelRequest request;
+  request.set_job_id(job_id);
+  v1::CancelReply reply;
+  const grpc::Status status = stub->Cancel(&context, request, &reply);
+  if (!status.ok()) return FromGrpc(status);
+  return reply.state();
+}
+
+absl::StatusOr<v1::JobList> ListJobs(const std::shared_ptr<grpc::Channel>& channel,
+                                     absl::Duration deadline) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  SetDeadline(context, deadline);
+  v1::JobList list;
+  const grpc::Status status = stub->ListJobs(&context, v1::ListJobsRequest(), &list);
+  if (!status.ok()) return FromGrpc(status);
+  return list;
 }
 
 std::vector<uint32_t> CompactLabels(std::span<const ClusterId> labels) {

@@ -20,6 +20,25 @@ namespace mlclust::client {
 // A channel to a server at "host:port" (plaintext), accepting messages of any size.
 std::shared_ptr<grpc::Channel> Connect(const std::string& address);
 
+struct ConnectOptions {
+  // PEM file of the certificate authority that signed the server's certificate: TLS.
+  // Empty: plaintext.
+  std::string tls_ca_file;
+  // With TLS and a server that checks client certificates (serve --tls-client-ca): this
+  // client's certificate and key (PEM files).
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  // A file whose first non-empty, non-comment line is the bearer token sent with every
+  // call (the server's --auth-token-file names its tenant). The token is never printed.
+  std::string auth_token_file;
+};
+
+// A channel to `address` with TLS and a bearer token as `options` say. INVALID_ARGUMENT
+// when a file cannot be read or holds no token, or for a token without TLS (a bearer
+// token never travels in plaintext).
+absl::StatusOr<std::shared_ptr<grpc::Channel>> Connect(const std::string& address,
+                                                       const ConnectOptions& options);
+
 struct RunOptions {
   // Input is uploaded in chunks of this many bytes (the server accepts up to 64 MiB).
   size_t chunk_bytes = size_t{1} << 20;
@@ -34,6 +53,10 @@ struct JobResult {
   // Level 0 of `hierarchy` is the first level the server sent (the snapshot).
   HierarchyLog hierarchy;
   v1::Done done;
+  // The picture JobSpec.preview asked for (empty png when none came).
+  v1::Preview preview;
+  // The job's level number of `hierarchy`'s level 0 (WatchJob's from_level; 0 for RunJob).
+  uint32_t first_level = 0;
 };
 
 // Runs one job to the end: sends `spec` (its input_bytes is set here) and `input`, then
@@ -42,6 +65,42 @@ struct JobResult {
 // full queue, ...); DATA_LOSS if the stream of levels is inconsistent.
 absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, v1::JobSpec spec,
                                  std::string_view input, const RunOptions& options = {});
+
+// Submits a detached job (JobSpec.detach): uploads `input` and returns the server's
+// Accepted event (the job id) as soon as the job is queued; the job runs on.
+absl::StatusOr<v1::Accepted> SubmitDetached(const std::shared_ptr<grpc::Channel>& channel,
+                                            v1::JobSpec spec, std::string_view input,
+                                            const RunOptions& options = {});
+
+struct WatchOptions {
+  // The first level wanted, sent as a snapshot (0: the job's first level).
+  uint32_t from_level = 0;
+  // The whole watch ends (the job does not) after this long.
+  absl::Duration deadline = absl::InfiniteDuration();
+  // A stream that breaks (UNAVAILABLE, a reset connection) is resumed where it stopped, at
+  // most this many times in a row, `resume_delay` apart.
+  int max_resumes = 5;
+  absl::Duration resume_delay = absl::Milliseconds(500);
+  std::function<void(const v1::JobEvent&)> on_event;
+  // Called before each resume, with the status that broke the stream.
+  std::function<void(const absl::Status&)> on_resume;
+};
+
+// Reads a detached job's levels (Watch): level `from_level` and every level after it
+// (level 0 of the returned hierarchy is `from_level` of the job), to the job's end. On
+// failure the server's status (NOT_FOUND once its results were dropped, with a message
+// saying when and why).
+absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel,
+                                   const std::string& job_id, const WatchOptions& options = {});
+
+// Cancels a job; returns its state after the call.
+absl::StatusOr<std::string> CancelJob(const std::shared_ptr<grpc::Channel>& channel,
+                                      const std::string& job_id,
+                                      absl::Duration deadline = absl::Seconds(30));
+
+// The jobs of the caller's tenant.
+absl::StatusOr<v1::JobList> ListJobs(const std::shared_ptr<grpc::Channel>& channel,
+                                     absl::Duration deadline = absl::Seconds(30));
 
 // The labels at `level` renumbered 0..k-1 in order of first appearance, so that outputs
 // do not depend on the server's internal cluster ids.

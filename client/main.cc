@@ -18,6 +18,8 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "client/client.h"
+#include "client/job_commands.h"
+#include "client/polygons.h"
 #include "client/serve_command.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -34,6 +36,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #include "server/server.h"
 #ifdef MLCLUST_HAVE_PLOT
 #include "client/plot.h"
@@ -50,6 +53,7 @@ usage:
 constexpr char kMeshUsage[] = R"(
   mlclust mesh INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]
                      [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]
+                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]
                      [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy options]
       Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and
       receives every level. Without --server the server runs inside this process.
@@ -75,6 +79,9 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
+      --per-polygon    OFF/OBJ input with quads or n-gons: each polygon goes to the cluster of
+                       most of its area (ours: a post-pass over the triangles' clustering,
+                       the energy recomputed); --labels writes one line per polygon
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
                        (default) keeps the face order by itself. edgebreaker carries a
                        per-face id attribute, by which the server puts the faces back in
@@ -89,6 +96,13 @@ constexpr char kMeshUsage[] = R"(
       --quantize BITS  Draco position quantisation (0 = lossless float32, the default: the
                        server's energies are those of the input; 11-14 make uploads several
                        times smaller, at positions moved by up to 2^-BITS of the box)
+      --preview FILE.png  a picture of that level (without --clusters: the last level;
+                       the server's level, before --planar-merge), drawn by the server's GL
+                       context: a three-quarter view, one colour per cluster, dark lines
+                       between clusters
+      --preview-size WxH  its size in pixels (default 1024x768; each side 16 to 4096)
+      --preview-view AZ,EL  the camera in degrees (default 35,25: from the right of +z,
+                       above; 215,25 looks from the other side)
       --levels K_HI:K_LO  hierarchies: only the levels with K_LO..K_HI clusters (a snapshot,
                        then deltas)
       --seed S         random seed (default 1)
@@ -170,9 +184,13 @@ std::string RegistryUsage(InputKind input) {
       absl::StrCat("      --algo ALGO      (default ", DefaultAlgorithm(input).name, ")\n");
   for (const AlgorithmInfo& algorithm : Algorithms()) {
     if (algorithm.input != input) continue;
-    absl::StrAppend(
-        &out, "        ", algorithm.name, ": ", algorithm.title, "\n",
-        Wrap(absl::StrCat(algorithm.help, algorithm.hierarchy ? " [hierarchy]" : " [one K]"), 10));
+    absl::StrAppend(&out, "        ", algorithm.name, ": ", algorithm.title, "\n",
+                    Wrap(absl::StrCat(algorithm.help,
+                                      algorithm.divisive    ? " [hierarchy from K down to one]"
+                                      : algorithm.hierarchy ? " [hierarchy]"
+                                      : algorithm.chooses_k ? " [from K = k_min, finds its own K]"
+                                                            : " [one K]"),
+                         10));
   }
   if (input == InputKind::kMesh) {
     absl::StrAppend(&out, "      --energy E       (default: the algorithm's first below)\n");
@@ -207,6 +225,8 @@ void PrintUsage(std::FILE* out) {
   std::fputs(kEnergyUsage, out);
   std::fputs(kStatsUsage, out);
   std::fputs(kInfoUsage, out);
+  std::fputs(JobCommandsUsage(), out);
+  std::fputs(ConnectionFlagsUsage(), out);
 }
 
 // The names of every registry option of `input` (each algorithm's own, and for meshes the
@@ -237,7 +257,8 @@ class Arguments {
                                          const std::vector<std::string>& known) {
     static const std::map<std::string, std::string> kShort = {
         {"-k", "clusters"}, {"-o", "labels"}, {"-q", "quiet"}, {"-h", "help"}};
-    static const std::set<std::string> kFlags = {"quiet", "json", "help", "repair"};
+    static const std::set<std::string> kFlags = {"quiet",  "json",   "help",
+                                                 "detach", "repair", "per-polygon"};
     Arguments args;
     for (int i = first; i < argc; ++i) {
       std::string arg = argv[i];
@@ -479,6 +500,31 @@ class ProgressLine {
   absl::Time last_ = absl::InfinitePast();
 };
 
+// --server and the connection flags (client/job_commands.h).
+absl::StatusOr<ServerFlags> FlagsOf(const Arguments& args) {
+  return ServerFlagsFrom([&](const std::string& name) -> std::optional<std::string> {
+    if (!args.has(name)) return std::nullopt;
+    return args.get(name);
+  });
+}
+
+// --detach: the job is submitted and its id printed; watch it with `mlclust watch`.
+int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload) {
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  for (const char* output :
+       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair"}) {
+    if (args.has(output)) {
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
+    }
+  }
+  if (args.has("server")) {
+    if (absl::Status s = CheckServerAddress(args.get("server")); !s.ok()) return Fail(s);
+  }
+  return SubmitDetachedCommand(*flags, spec, payload, args.has("quiet"));
+}
+
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
@@ -486,9 +532,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
                                               v1::Accepted* accepted = nullptr) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
+  MLCLUST_ASSIGN_OR_RETURN(const ServerFlags flags, FlagsOf(args));
   if (args.has("server")) {
     MLCLUST_RETURN_IF_ERROR(CheckServerAddress(args.get("server")));
-    channel = client::Connect(args.get("server"));
+    MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -503,9 +550,11 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
     progress.Update(event);
   };
+  run_options.deadline = flags.deadline;
   const absl::Time started_at = absl::Now();
   absl::StatusOr<client::JobResult> result = client::RunJob(channel, spec, payload, run_options);
   *seconds = absl::ToDoubleSeconds(absl::Now() - started_at);
+  if (!result.ok()) result = ExplainDeadline(result.status(), flags, "the job");
   if (!result.ok() && args.has("server")) {
     return PlainConnectionError(result.status(), args.get("server"));
   }
@@ -564,7 +613,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot"}) {
+  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot", "preview"}) {
     if (args.has(name) && !not_written.contains(name))
       outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
   }
@@ -630,6 +679,9 @@ void SetOptions(const Arguments& args, InputKind input, v1::JobSpec& spec) {
   }
 }
 
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name);
+
 // Exit code of a mesh job whose other outputs were written but whose --coarse failed.
 constexpr int kExitCoarseFailed = 3;
 
@@ -694,6 +746,46 @@ std::optional<uint32_t> NearestCoarsening(const HierarchyLog& log, size_t level,
   return std::nullopt;
 }
 
+// --preview FILE.png [--preview-size WxH]: the server draws the level --clusters K chooses
+// (the last level without K) and sends it as a Preview event.
+absl::Status SetPreview(const Arguments& args, uint32_t clusters, v1::JobSpec& spec) {
+  if (!args.has("preview")) {
+    for (const char* name : {"preview-size", "preview-view"}) {
+      if (args.has(name)) {
+        return absl::InvalidArgumentError(absl::StrCat("--", name, " needs --preview FILE.png"));
+      }
+    }
+    return absl::OkStatus();
+  }
+  if (args.get("preview").empty()) return absl::InvalidArgumentError("--preview: no file name");
+  v1::PreviewRequest* preview = spec.mutable_preview();
+  preview->set_cluster_count(clusters);
+  if (args.has("preview-size")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto size,
+                             server::ParsePreviewSize(args.get("preview-size"), "--preview-size"));
+    preview->set_width(size.first);
+    preview->set_height(size.second);
+  }
+  if (args.has("preview-view")) {
+    MLCLUST_ASSIGN_OR_RETURN(const auto view,
+                             server::ParsePreviewView(args.get("preview-view"), "--preview-view"));
+    preview->set_azimuth_degrees(view.first);
+    preview->set_elevation_degrees(view.second);
+  }
+  return absl::OkStatus();
+}
+
+absl::Status WritePreview(const std::string& path, const v1::Preview& preview) {
+  if (preview.png().empty()) {
+    return absl::DataLossError("--preview: the server sent no preview");
+  }
+  std::ofstream out(path, std::ios::binary);
+  out.write(preview.png().data(), static_cast<std::streamsize>(preview.png().size()));
+  out.close();
+  if (!out) return absl::UnavailableError(absl::StrCat("--preview: cannot write ", path));
+  return absl::OkStatus();
+}
+
 int Mesh(const Arguments& args) {
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
@@ -750,6 +842,9 @@ int Mesh(const Arguments& args) {
       return Fail(absl::InvalidArgumentError("--planar-merge needs --clusters K (K >= 1)"));
     }
   }
+  if (args.has("per-polygon") && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--per-polygon needs --clusters K (K >= 1)"));
+  }
   const std::string upload = args.get("upload", "sequential");
   if (upload != "auto" && upload != "sequential" && upload != "edgebreaker") {
     return Fail(absl::InvalidArgumentError("--upload must be auto, sequential or edgebreaker"));
@@ -758,6 +853,10 @@ int Mesh(const Arguments& args) {
   if (!quantize.ok()) return Fail(quantize.status());
   spec.set_device(args.get("device", "auto"));
   spec.set_label(input_path);
+  if (absl::Status status = SetPreview(args, static_cast<uint32_t>(*clusters), spec);
+      !status.ok()) {
+    return Fail(status);
+  }
 
   // The mesh is read locally (its faces are the ids of every output) and sent compressed;
   // a .drc file is sent as it is.
@@ -766,6 +865,12 @@ int Mesh(const Arguments& args) {
   if (*clusters > mesh->num_faces()) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
+  }
+  std::vector<uint32_t> polygon_triangles;  // --per-polygon: triangles of each polygon
+  if (args.has("per-polygon")) {
+    absl::StatusOr<std::vector<uint32_t>> counts = client::ReadPolygonTriangleCounts(input_path);
+    if (!counts.ok()) return Fail(counts.status());
+    polygon_triangles = *std::move(counts);
   }
   // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
   // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
@@ -801,6 +906,7 @@ int Mesh(const Arguments& args) {
     payload = EncodeMeshToDraco(sent, encode);
   }
   if (!payload.ok()) return Fail(payload.status());
+  if (args.has("detach")) return Detach(args, spec, *payload);
 
   double seconds = 0;
   v1::Accepted accepted;
@@ -830,6 +936,7 @@ int Mesh(const Arguments& args) {
   std::optional<size_t> chosen_level;
   std::string coarse_error;
   std::optional<uint32_t> coarse_nearest;
+  std::string post_pass_json;  // --planar-merge and --per-polygon in the JSON summary
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
@@ -850,9 +957,46 @@ int Mesh(const Arguments& args) {
       merge_note =
           absl::StrFormat("; planar merge (Delta_merging %g deg): %u -> %u clusters",
                           planar_merge_degrees, merged->input_clusters, merged->output_clusters);
+      absl::StrAppend(&post_pass_json, R"(, "planar_merge": {"degrees": )",
+                      JsonNumber(planar_merge_degrees),
+                      ", \"clusters_before\": ", merged->input_clusters,
+                      ", \"clusters_after\": ", merged->output_clusters, "}");
+    }
+    std::vector<uint32_t> written = compact;  // what --labels writes
+    if (args.has("per-polygon")) {
+      std::vector<ClusterId> face_ids(compact.begin(), compact.end());
+      absl::StatusOr<client::PolygonLabels> polygons =
+          client::LabelsPerPolygon(*mesh, polygon_triangles, face_ids);
+      if (!polygons.ok()) return Fail(polygons.status());
+      compact = client::CompactLabels(polygons->per_face);
+      written.clear();
+      size_t first = 0;
+      for (uint32_t count : polygon_triangles) {
+        written.push_back(compact[first]);
+        first += count;
+      }
+      // The energy of the labels written, from its definition (as `mlclust energy`).
+      absl::StatusOr<MeshEnergyOptions> energy_options = EnergyFromArguments(args, energy_name);
+      if (!energy_options.ok()) return Fail(energy_options.status());
+      absl::StatusOr<PreparedMesh> prepared = PrepareMesh(sent);
+      if (!prepared.ok()) return Fail(prepared.status());
+      std::vector<ClusterId> labels_now(compact.begin(), compact.end());
+      const double energy =
+          WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
+                         [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      absl::StrAppend(&post_pass_json, R"(, "per_polygon": {"polygons": )",
+                      polygon_triangles.size(), ", \"split_polygons\": ", polygons->split_polygons,
+                      ", \"clusters\": ", *std::max_element(compact.begin(), compact.end()) + 1,
+                      ", \"energy\": ", JsonNumber(energy), "}");
+      merge_note = absl::StrCat(
+          merge_note,
+          absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
+                          "of most of their area: %u clusters, energy %.10g",
+                          polygon_triangles.size(), polygons->split_polygons,
+                          *std::max_element(compact.begin(), compact.end()) + 1, energy));
     }
     if (args.has("labels")) {
-      if (absl::Status s = WriteLabels(args.get("labels"), compact); !s.ok()) return Fail(s);
+      if (absl::Status s = WriteLabels(args.get("labels"), written); !s.ok()) return Fail(s);
     }
     std::vector<ClusterId> ids(compact.size());
     for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
@@ -885,6 +1029,14 @@ int Mesh(const Arguments& args) {
                                  log.cluster_count(*level), log.energy(*level), merge_note);
     chosen_level = *level;
   }
+  std::string preview_note;
+  if (args.has("preview")) {
+    const v1::Preview& preview = result->preview;
+    if (absl::Status s = WritePreview(args.get("preview"), preview); !s.ok()) return Fail(s);
+    preview_note = absl::StrFormat("; preview %ux%u of %u clusters in %.3f s: %s", preview.width(),
+                                   preview.height(), preview.cluster_count(),
+                                   result->done.seconds_preview(), args.get("preview"));
+  }
   if (args.has("json")) {
     std::string json = SummaryJson(
         args, input_path, "faces", mesh->num_faces(), **algorithm, spec, log, seconds, result->done,
@@ -896,6 +1048,7 @@ int Mesh(const Arguments& args) {
                     ", \"bytes\": ", payload->size(), ", \"quantization_bits\": ", *quantize,
                     ", \"face_ids\": ", accepted.face_ids() ? "true" : "false",
                     ", \"face_order\": ", JsonString(accepted.face_order()), "}");
+    absl::StrAppend(&json, post_pass_json);
     if (!coarse_error.empty()) {
       absl::StrAppend(&json, ", \"coarse_error\": ", JsonString(coarse_error),
                       ", \"coarse_nearest_clusters\": ",
@@ -903,17 +1056,17 @@ int Mesh(const Arguments& args) {
     }
     std::printf("%s}\n", json.c_str());
   } else {
-    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s\n",
+    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s%s\n",
                 input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
                 result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
-                level_note.c_str(), ElbowNote(result->done).c_str());
+                level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   }
   if (!coarse_error.empty()) {
     std::fprintf(stderr,
                  "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
                  "  written: %s\n  %s\n",
                  args.get("coarse").c_str(), coarse_error.c_str(),
-                 OutputList(args, {"labels", "levels-csv", "ply", "plot"}).c_str(),
+                 OutputList(args, {"labels", "levels-csv", "ply", "plot", "preview"}).c_str(),
                  coarse_nearest.has_value()
                      ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
                                     " clusters: --clusters ", *coarse_nearest)
@@ -989,6 +1142,7 @@ int Points(const Arguments& args) {
   SetOptions(args, InputKind::kPoints, spec);
   const std::string payload(reinterpret_cast<const char*>(points->values.data()),
                             points->values.size() * sizeof(float));
+  if (args.has("detach")) return Detach(args, spec, payload);
   double seconds = 0;
   absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, payload, &seconds);
   if (!result.ok()) return Fail(result.status());
@@ -1063,8 +1217,9 @@ int Points(const Arguments& args) {
 }
 
 // --energy (default cvd; every mesh energy, also those not on the wire) and its options.
-absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args) {
-  const std::string name = args.get("energy", "cvd");
+absl::StatusOr<MeshEnergyOptions> EnergyFromArguments(const Arguments& args,
+                                                      const std::string& default_name) {
+  const std::string name = args.get("energy", default_name);
   const EnergyInfo* energy = FindEnergy(InputKind::kMesh, name);
   if (energy == nullptr) {
     return absl::InvalidArgumentError(
@@ -1086,7 +1241,7 @@ int Energy(const Arguments& args) {
   if (args.positional().size() != 1 || !args.has("labels")) {
     return Fail(absl::InvalidArgumentError("energy: give INPUT and --labels FILE"));
   }
-  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args);
+  absl::StatusOr<MeshEnergyOptions> options = EnergyFromArguments(args, "cvd");
   if (!options.ok()) return Fail(options.status());
   // The one set-up path (core/io/prepare_mesh.h): read, validate, adjacency, measures.
   absl::StatusOr<PreparedMesh> mesh = PrepareMeshFile(args.positional()[0]);
@@ -1106,9 +1261,14 @@ int Stats(const Arguments& args) {
   if (!args.has("server")) return Fail(absl::InvalidArgumentError("stats: give --server ADDR"));
   const std::string address = args.get("server");
   if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-  auto stub = v1::Clustering::NewStub(client::Connect(address));
+  absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+  if (!flags.ok()) return Fail(flags.status());
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*flags);
+  if (!channel.ok()) return Fail(channel.status());
+  auto stub = v1::Clustering::NewStub(*channel);
   grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  context.set_deadline(
+      absl::ToChronoTime(absl::Now() + std::min(flags->deadline, absl::Seconds(10))));
   v1::Stats stats;
   grpc::Status status = stub->GetStats(&context, v1::GetStatsRequest(), &stats);
   if (!status.ok()) {
@@ -1169,7 +1329,11 @@ int Info(const Arguments& args) {
   const std::string address = args.get("server", "embedded");
   if (args.has("server")) {
     if (absl::Status s = CheckServerAddress(address); !s.ok()) return Fail(s);
-    channel = client::Connect(address);
+    absl::StatusOr<ServerFlags> flags = FlagsOf(args);
+    if (!flags.ok()) return Fail(flags.status());
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> connected = ConnectTo(*flags);
+    if (!connected.ok()) return Fail(connected.status());
+    channel = *connected;
   } else {
     server::ServerOptions options;
     options.log = false;
@@ -1230,16 +1394,21 @@ const std::vector<Command>& Commands() {
   static const auto* commands = new std::vector<Command>{
       {"mesh", [] { return kMeshUsage + RegistryUsage(InputKind::kMesh); },
        [] {
-         return With({"server", "algo", "energy", "clusters", "labels", "levels-csv", "ply",
-                      "device", "quiet", "coarse", "coarse-placement", "seed", "levels", "json",
-                      "planar-merge", "repair", "plot", "upload", "quantize"},
-                     RegistryOptionNames(InputKind::kMesh));
+         return With(
+             With({"server",           "algo",    "energy",       "clusters",    "labels",
+                   "levels-csv",       "ply",     "device",       "quiet",       "coarse",
+                   "coarse-placement", "seed",    "levels",       "json",        "planar-merge",
+                   "repair",           "plot",    "upload",       "quantize",    "per-polygon",
+                   "detach",           "preview", "preview-size", "preview-view"},
+                  ConnectionFlagNames()),
+             RegistryOptionNames(InputKind::kMesh));
        },
        Mesh},
       {"points", [] { return kPointsUsage + RegistryUsage(InputKind::kPoints); },
        [] {
-         return With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
-                      "auto-k", "levels", "quiet", "device", "json", "plot"},
+         return With(With({"server", "algo", "clusters", "labels", "levels-csv", "dims", "seed",
+                           "auto-k", "levels", "quiet", "device", "json", "plot", "detach"},
+                          ConnectionFlagNames()),
                      RegistryOptionNames(InputKind::kPoints));
        },
        Points},
@@ -1252,12 +1421,12 @@ const std::vector<Command>& Commands() {
        Energy},
       {"stats", [] { return std::string(kStatsUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Stats},
       {"info", [] { return std::string(kInfoUsage); },
        [] {
-         return std::vector<std::string>{"server", "json"};
+         return With({"server", "json"}, ConnectionFlagNames());
        },
        Info},
   };
@@ -1293,11 +1462,16 @@ int main(int argc, char** argv) {
       std::fputs(mlclust::cli::ServeUsage(), stdout);
       return 0;
     }
+    if (argc >= 3 && IsJobCommand(argv[2])) {
+      std::fputs(JobCommandsUsage(), stdout);
+      std::fputs(ConnectionFlagsUsage(), stdout);
+      return 0;
+    }
     if (argc >= 3) {
       const Command* found = FindCommand(argv[2]);
       if (found == nullptr) {
         std::fprintf(stderr, "mlclust: no command '%s'; the commands: serve, %s\n", argv[2],
-                     "mesh, points, energy, stats, info");
+                     "mesh, points, energy, stats, info, watch, cancel, jobs");
         return 2;
       }
       std::fputs(found->usage().c_str(), stdout);
@@ -1307,6 +1481,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (command == "serve") return RunServeCommand(argc - 2, argv + 2);
+  if (IsJobCommand(command)) return RunJobCommand(command, argc - 2, argv + 2);
   const Command* found = FindCommand(command);
   if (found == nullptr) {
     std::fprintf(stderr, "mlclust: unknown command '%s'\n\n", command.c_str());

@@ -4,7 +4,9 @@
 
 #include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <map>
+#include <sstream>
 #include <string>
 
 #include "absl/status/status.h"
@@ -13,6 +15,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
+#include "server/auth.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -40,6 +43,25 @@ constexpr char kServeUsage[] =
                            before it is cut off with RESOURCE_EXHAUSTED and the job
                            cancelled: producing levels never waits on a reader
       --result-total-mb N  the same over all jobs (default 1024)
+    detached jobs (mesh|points --detach; watch, cancel, jobs):
+      --retention-seconds S  an ended job's results are kept this long (default 3600)
+      --kept-results-mb N  memory for kept levels, all jobs together (default 1024); the
+                           oldest ended jobs' results are dropped first to make room
+      --max-jobs-per-tenant N  jobs one tenant may have queued or running (default 0: no
+                           limit; without tokens every client is one tenant)
+    security (plaintext is meant for loopback only):
+      --tls-cert FILE --tls-key FILE   TLS with this certificate chain and key (PEM)
+      --tls-client-ca FILE  require client certificates signed by this CA (PEM)
+      --auth-token-file F   bearer tokens, one "TOKEN TENANT" per line (needs TLS): every
+                           call needs a known token (UNAUTHENTICATED otherwise) and sees only
+                           its tenant's jobs (PERMISSION_DENIED for another's); health checks
+                           need none. Tokens are never logged.
+    operations:
+      --metrics ADDR       Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by
+                           state and algorithm, queue depth, job durations (histograms),
+                           bytes in and out, the device
+      --log-format text|json  json: one JSON object per line (job id, tenant, algorithm,
+                           sizes, durations, outcome)
 )";
 
 // --name value / --name=value; every name must be one `serve` knows.
@@ -56,7 +78,16 @@ absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** a
                                        "max-calls",
                                        "max-calls-per-connection",
                                        "max-calls-per-peer",
-                                       "drain-seconds"};
+                                       "drain-seconds",
+                                       "retention-seconds",
+                                       "kept-results-mb",
+                                       "max-jobs-per-tenant",
+                                       "tls-cert",
+                                       "tls-key",
+                                       "tls-client-ca",
+                                       "auth-token-file",
+                                       "metrics",
+                                       "log-format"};
   std::map<std::string, std::string> flags;
   for (int i = 0; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -91,6 +122,18 @@ absl::StatusOr<uint64_t> GetUint(const std::map<std::string, std::string>& flags
   return value;
 }
 
+absl::StatusOr<std::string> ReadFlagFile(const std::map<std::string, std::string>& flags,
+                                         const std::string& name) {
+  auto it = flags.find(name);
+  if (it == flags.end()) return std::string();
+  std::ifstream in(it->second, std::ios::binary);
+  if (!in)
+    return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", it->second));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 int Fail(const absl::Status& status) {
   std::fprintf(stderr, "mlclust: %s\n", std::string(status.message()).c_str());
   return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
@@ -119,6 +162,7 @@ int RunServeCommand(int argc, char** argv) {
     uint64_t unit;
   };
   uint64_t drain_seconds = 30;
+  uint64_t retention_seconds = 3600;
   const Number numbers[] = {
       {"queue", nullptr, nullptr, &options.queue_capacity, 1},
       {"workers", nullptr, nullptr, &options.cpu_workers, 1},
@@ -131,6 +175,9 @@ int RunServeCommand(int argc, char** argv) {
       {"max-calls-per-connection", nullptr, &options.max_calls_per_connection, nullptr, 1},
       {"max-calls-per-peer", nullptr, &options.max_calls_per_peer, nullptr, 1},
       {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
+      {"retention-seconds", &retention_seconds, nullptr, nullptr, 1},
+      {"kept-results-mb", &options.kept_results_bytes, nullptr, nullptr, 1 << 20},
+      {"max-jobs-per-tenant", nullptr, &options.max_jobs_per_tenant, nullptr, 1},
   };
   for (const Number& number : numbers) {
     const uint64_t current = number.bytes   ? *number.bytes / number.unit
@@ -152,6 +199,33 @@ int RunServeCommand(int argc, char** argv) {
     return Fail(absl::InvalidArgumentError("--queue: over 100000"));
   }
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
+  options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
+  if (auto metrics = flags->find("metrics"); metrics != flags->end()) {
+    options.metrics_address = metrics->second;
+  }
+  if (auto format = flags->find("log-format"); format != flags->end()) {
+    if (format->second != "text" && format->second != "json") {
+      return Fail(absl::InvalidArgumentError("--log-format must be text or json"));
+    }
+    options.log_json = format->second == "json";
+  }
+  for (auto [name, pem] :
+       {std::pair{"tls-cert", &options.tls_cert_pem}, std::pair{"tls-key", &options.tls_key_pem},
+        std::pair{"tls-client-ca", &options.tls_client_ca_pem}}) {
+    absl::StatusOr<std::string> text = ReadFlagFile(*flags, name);
+    if (!text.ok()) return Fail(text.status());
+    *pem = *std::move(text);
+  }
+  if (flags->contains("auth-token-file")) {
+    absl::StatusOr<std::string> text = ReadFlagFile(*flags, "auth-token-file");
+    if (!text.ok()) return Fail(text.status());
+    absl::StatusOr<std::map<std::string, std::string>> tokens = server::ParseTokenFile(*text);
+    if (!tokens.ok()) {
+      return Fail(absl::InvalidArgumentError(absl::StrCat(
+          "--auth-token-file ", flags->at("auth-token-file"), ": ", tokens.status().message())));
+    }
+    options.auth_tokens = *std::move(tokens);
+  }
   auto gpu_flag = flags->find("gpu");
   const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
   if (gpu == "auto")
@@ -173,13 +247,19 @@ int RunServeCommand(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
   if (!server.ok()) return Fail(server.status());
-  std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: listening on port %d (Ctrl-C to stop)\n", (*server)->port());
+  }
   int received = 0;
   sigwait(&signals, &received);
-  std::fprintf(stderr, "mlclust: signal %d, draining (up to %llu s for running jobs)\n", received,
-               static_cast<unsigned long long>(drain_seconds));
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: signal %d, draining (up to %llu s for running jobs)\n", received,
+                 static_cast<unsigned long long>(drain_seconds));
+  }
   (*server)->Shutdown();
-  std::fprintf(stderr, "mlclust: stopped\n");
+  if (!options.log_json) {
+    std::fprintf(stderr, "mlclust: stopped\n");
+  }
   return 0;
 }
 

@@ -18,8 +18,14 @@ packages=(
   python3 python3-grpcio python3-protobuf python3-numpy
   # the --plot PNG (client/plot.h): cairo, and a font for its labels
   libcairo2-dev fonts-dejavu-core
+  # the --preview PNG (gpu/render/png_codec.h)
+  libpng-dev
   # tests
   libgtest-dev libgmock-dev
+  # TLS tests make their certificates at test time (tests/e2e/tls_test.cc)
+  openssl
+  # the server's Prometheus endpoint (serve --metrics; server/metrics.h)
+  libcpp-httplib-dev
   # the libFuzzer targets (fuzz/, scripts/fuzz-smoke.sh): clang-14 with libFuzzer
   clang-14 libclang-rt-14-dev
   # habits checked in CI: formatting (scripts/check-format.sh), lint (.clang-tidy)

@@ -4,7 +4,9 @@ option key of every algorithm with its type, range and default, from the registr
 `mlclust info --json` reports it (GetServerInfo). The registry is the one list; this block
 is its copy for readers of the proto, checked by tests/client/wiring_cli_test.sh.
 
-    /usr/bin/python3 scripts/proto_options_doc.py build/client/mlclust
+    /usr/bin/python3 scripts/proto_options_doc.py build/client/mlclust            # print it
+    /usr/bin/python3 scripts/proto_options_doc.py build/client/mlclust --write \
+        proto/mlclust/v1/mlclust.proto                                          # replace it
 """
 import json
 import subprocess
@@ -44,7 +46,16 @@ def main():
         text = "every mesh algorithm, energy options: " + "; ".join(items)
         lines += ["  //   " + l for l in textwrap.wrap(text, 88 - 7, subsequent_indent="  ", break_on_hyphens=False)]
     lines.append("  // END options")
-    print("\n".join(lines))
+    block = "\n".join(lines) + "\n"
+    if len(sys.argv) == 4 and sys.argv[2] == "--write":
+        with open(sys.argv[3]) as f:
+            text = f.read()
+        begin = text.index("  // BEGIN options")
+        end = text.index("  // END options\n", begin) + len("  // END options\n")
+        with open(sys.argv[3], "w") as f:
+            f.write(text[:begin] + block + text[end:])
+    else:
+        sys.stdout.write(block)
 
 
 main()

@@ -31,6 +31,15 @@ class EventChannel {
 
   virtual bool cancelled() const = 0;
 
+  // Cancels the job and ends it now with `status`, after a final Failed event carrying it
+  // where one can still be sent: drain, Cancel. The default ends it through Finish.
+  virtual void Abort(const grpc::Status& status) {
+    v1::JobEvent failed;
+    failed.mutable_failed()->set_code(status.error_code());
+    failed.mutable_failed()->set_message(status.error_message());
+    Finish(std::move(failed), status);
+  }
+
   // The flag cancelled() reads, for drivers' options (core/base/cancel.h). Valid as long
   // as the channel. The server's channel (ResultStore) has one; null (never cancelled)
   // for channels without.
@@ -43,6 +52,8 @@ enum class JobLane {
   kCpu,  // the pool of CPU workers (--workers N); with none, the GL worker takes these too
 };
 
+class JobRecord;
+
 struct Job {
   std::string id;
   v1::JobSpec spec;
@@ -54,6 +65,10 @@ struct Job {
   // Bytes of `input` counted against the server's queued-input budget until the job
   // leaves the queue.
   uint64_t queued_bytes = 0;
+  // The job's entry in the server's registry (state, tenant; for a detached job also its
+  // kept levels, and then the same object as `events`).
+  std::shared_ptr<JobRecord> record;
+  std::string tenant;
 
   // Set when the job is cancelled: client cancel, deadline, a reader cut off, drain.
   // Drivers take it in their options (`cancel = job.cancel_flag()`) and stop at the next

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
@@ -21,6 +22,7 @@
 #include "core/mesh/mesh.h"
 #include "core/points/points.h"
 #include "server/job_options.h"
+#include "server/preview.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/kernels/face_measures_gpu.h"
 #include "gpu/stages/gl_device_stages.h"
@@ -336,20 +338,25 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   } else {
     // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
     // steps are spelled out here.
-    absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(job.input);  // face ids as above
-    if (!mesh.ok()) return WithContext(mesh.status(), "input mesh");
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
+    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
     std::string().swap(job.input);
-    if (absl::Status valid = ValidateMesh(*mesh); !valid.ok()) {
+    const bool face_ids = decoded->has_face_ids;
+    TriangleMesh mesh = std::move(decoded->mesh);
+    if (absl::Status valid = ValidateMesh(mesh); !valid.ok()) {
       return WithContext(valid, "input mesh");
     }
-    EmitProgress(events, "measures",
-                 absl::StrCat(mesh->num_faces(), " faces, ", mesh->num_vertices(), " vertices"),
-                 StageDeviceName(*measures_stage, caps), 0);
-    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
+    const std::string measures_note =
+        absl::StrCat(mesh.num_faces(), " faces, ", mesh.num_vertices(), " vertices; ",
+                     face_ids ? "faces put back in order by the face id attribute"
+                              : "faces in the decoded order");
+    EmitProgress(events, "measures", measures_note, StageDeviceName(*measures_stage, caps), 0);
+    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
     if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
-    absl::StatusOr<FaceMeasures> measures = MeasureFaces(*mesh, plan, context, device_used);
+    absl::StatusOr<FaceMeasures> measures = MeasureFaces(mesh, plan, context, device_used);
     if (!measures.ok()) return measures.status();
-    prepared.mesh = *std::move(mesh);
+    EmitProgress(events, "measures", measures_note, device_used, 1);
+    prepared.mesh = std::move(mesh);
     prepared.adjacency = *std::move(adjacency);
     prepared.measures = *std::move(measures);
   }
@@ -360,10 +367,18 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   }
 
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
+  // The preview (JobSpec.preview) follows every level to the one it draws.
+  LevelSink* run_sink = &sink;
+  std::optional<PreviewLevelSink> preview_levels;
+  std::optional<TeeSink> with_preview;
+  if (spec.has_preview()) {
+    preview_levels.emplace(spec.preview().cluster_count());
+    run_sink = &with_preview.emplace(sink, *preview_levels);
+  }
   const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
                             plan.mesh_energy};
   absl::StatusOr<RunSummary> summary =
-      plan.algorithm->run_mesh(problem, plan, sink, MakeRunContext(job, caps, devices));
+      plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps, devices));
   if (!summary.ok()) return summary.status();
   if (!sink.started()) {
     return absl::FailedPreconditionError(
@@ -377,6 +392,21 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   const StagePlan* cluster_stage = FindStage(plan, "cluster");
   if (cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu) {
     device_used = StageDeviceName(*cluster_stage, caps);
+  }
+  if (preview_levels.has_value()) {
+    EmitProgress(
+        events, "preview",
+        absl::StrCat("drawing the level with ", preview_levels->cluster_count(), " clusters"),
+        context.gl_renderer);
+    const absl::Time preview_start = absl::Now();
+    absl::StatusOr<v1::Preview> preview =
+        RenderPreview(context.gl, context.gl_renderer, prepared.mesh, prepared.adjacency,
+                      *preview_levels, spec.preview());
+    if (!preview.ok()) return preview.status();
+    outcome.done.set_seconds_preview(absl::ToDoubleSeconds(absl::Now() - preview_start));
+    v1::JobEvent event;
+    *event.mutable_preview() = *std::move(preview);
+    if (!events.Emit(std::move(event))) return absl::CancelledError("the call was cancelled");
   }
   outcome.done.set_device(device_used);
   outcome.done.set_final_clusters(summary->final_clusters);
@@ -471,6 +501,18 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
   caps.gpu_is_software = context.gl_is_software;
   caps.renderer = context.gl_renderer;
   MLCLUST_RETURN_IF_ERROR(PlanDevices(caps, *plan));
+  if (job.spec.has_preview()) {
+    // Refused before the job runs, not after.
+    if (kind != v1::INPUT_KIND_DRACO_MESH) {
+      return absl::InvalidArgumentError("preview: only for meshes (a picture of the clusters)");
+    }
+    MLCLUST_RETURN_IF_ERROR(CheckPreviewRequest(job.spec.preview()).status());
+    if (context.gl == nullptr) {
+      return absl::FailedPreconditionError(
+          "preview: drawing needs the server's GL context, and this server has none (no EGL "
+          "device or platform gave OpenGL 4.5, or the server runs with the GPU off)");
+    }
+  }
   // The GPU stages, over the context of this (the GL-owning) worker; none without a GL
   // context, and a plan that puts a stage on the GPU then fails in its run function.
   std::unique_ptr<DeviceStages> devices;

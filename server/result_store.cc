@@ -248,6 +248,7 @@ void ResultStore::Pump(std::unique_lock<std::mutex>& lock) {
     server_budget_->Release(next.bytes);
     in_flight_ = std::move(next.event);
     write_in_flight_ = true;
+    if (options_.bytes_written != nullptr) *options_.bytes_written += in_flight_.ByteSizeLong();
     lock.unlock();
     writer->StartWrite(&in_flight_);
     return;

@@ -44,6 +44,8 @@ struct ResultStoreOptions {
   size_t max_event_bytes = size_t{3} << 20;
   // Called once when the reader is cut off (for counters and logs).
   std::function<void(const grpc::Status&)> on_cut_off;
+  // Where the serialized bytes written to the client are counted (metrics), if set.
+  std::atomic<uint64_t>* bytes_written = nullptr;
 };
 
 // `max_bytes` >= 1 KiB. Splits a LevelBatch or LevelSnapshot event whose serialized size
@@ -65,7 +67,7 @@ class ResultStore : public EventChannel {
 
   // Cancels the job and ends the call now with `status` (after a final Failed event
   // carrying it, if the call can still take one): drain, an operator's cancel.
-  void Abort(const grpc::Status& status);
+  void Abort(const grpc::Status& status) override;
 
   // The writer's side.
   void OnWriteDone(bool ok);

@@ -14,17 +14,21 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "core/cluster/registry.h"
 #include "grpc/grpc.h"
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/auth.h"
 #include "server/job.h"
 #include "server/job_options.h"
 #include "server/job_queue.h"
+#include "server/job_record.h"
 #include "server/job_runner.h"
 #include "server/log.h"
 #include "server/memory_budget.h"
+#include "server/metrics.h"
 #include "server/result_store.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/context/gl_context.h"
@@ -62,9 +66,31 @@ bool IsLoopback(const std::string& address) {
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
 }
 
+// The registry's name of a job's algorithm ("ml", "lnkmeans", ...), for logs and metrics.
+std::string AlgorithmName(const v1::JobSpec& spec) {
+  const InputKind input =
+      spec.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
+  const AlgorithmInfo* algorithm = FindAlgorithmByWire(
+      input, spec.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : spec.algorithm());
+  return algorithm != nullptr ? algorithm->name : absl::StrCat("unknown-", spec.algorithm());
+}
+
+const char* InputKindText(const v1::JobSpec& spec) {
+  switch (spec.input_kind()) {
+    case v1::INPUT_KIND_DRACO_MESH:
+      return "mesh";
+    case v1::INPUT_KIND_POINTS_F32:
+      return "points";
+    default:
+      return "unknown";
+  }
+}
+
 struct Counters {
   std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
       readers_cut_off{0}, calls_refused{0};
+  // Input bytes received and serialized event bytes written (Run and Watch calls).
+  std::atomic<uint64_t> bytes_in{0}, bytes_out{0};
   std::atomic<uint32_t> jobs_running{0};
 };
 
@@ -130,7 +156,7 @@ class ServiceImpl;
 class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
  public:
   // `refusal` not OK: the call was not admitted and is answered with it at once.
-  RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal);
+  RunCall(ServiceImpl* service, std::string peer, std::string tenant, const absl::Status& refusal);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
@@ -156,6 +182,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
 
   ServiceImpl* service_;
   const std::string peer_;
+  const std::string tenant_;
   const bool admitted_;
   Writer writer_{this};
   std::shared_ptr<ResultStore> channel_;
@@ -178,13 +205,15 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         admission_(options_),
         upload_budget_(options.max_upload_bytes_in_flight),
         queued_budget_(options.max_queued_input_bytes),
-        result_budget_(options.result_server_budget_bytes) {}
+        result_budget_(options.result_server_budget_bytes),
+        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}) {}
 
   // A new job's store of events, writing to `writer`.
   std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
     ResultStoreOptions store_options;
     store_options.job_budget_bytes = options_.result_job_budget_bytes;
     store_options.max_event_bytes = options_.max_event_bytes;
+    store_options.bytes_written = &counters_.bytes_out;
     store_options.on_cut_off = [this](const grpc::Status& status) {
       ++counters_.readers_cut_off;
       LogLine(options_.log, "a reader was cut off: ", status.error_message());
@@ -199,12 +228,95 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                             "the server is shutting down; submit the job to "
                                             "another server or try again later")
                                       : admission_.Admit(peer);
-    return new RunCall(this, std::move(peer), admitted);
+    absl::StatusOr<std::string> tenant = Authorize(context);
+    if (!tenant.ok()) {
+      if (admitted.ok()) admission_.Release(peer);
+      admitted = tenant.status();
+    }
+    return new RunCall(this, std::move(peer), tenant.value_or(""), admitted);
+  }
+
+  grpc::ServerWriteReactor<v1::JobEvent>* Watch(grpc::CallbackServerContext* context,
+                                                const v1::WatchRequest* request) override;
+
+  // The call's tenant; UNAUTHENTICATED on a server with tokens when the call has none
+  // (a wrong one never gets here: the token check refuses it).
+  absl::StatusOr<std::string> Authorize(const grpc::ServerContextBase* context) const {
+    if (options_.auth_tokens.empty()) return std::string();
+    std::optional<std::string_view> authorization;
+    const auto& metadata = context->client_metadata();
+    if (auto header = metadata.find("authorization"); header != metadata.end()) {
+      authorization = std::string_view(header->second.data(), header->second.size());
+    }
+    return TenantOfCall(options_.auth_tokens, authorization);
+  }
+
+  // A unary call refused by Authorize: finished with its status; nullptr when authorized.
+  grpc::ServerUnaryReactor* RefuseUnauthorized(grpc::CallbackServerContext* context,
+                                               std::string* tenant) {
+    absl::StatusOr<std::string> authorized = Authorize(context);
+    if (authorized.ok()) {
+      *tenant = *authorized;
+      return nullptr;
+    }
+    LogRefusal(context->peer(), "", "", authorized.status());
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(ToGrpc(authorized.status()));
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* Cancel(grpc::CallbackServerContext* context,
+                                   const v1::CancelRequest* request,
+                                   v1::CancelReply* reply) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    absl::StatusOr<std::shared_ptr<JobRecord>> record = registry_.Find(request->job_id(), tenant);
+    if (!record.ok()) {
+      reactor->Finish(ToGrpc(record.status()));
+      return reactor;
+    }
+    const grpc::Status cancelled(
+        grpc::StatusCode::CANCELLED,
+        absl::StrCat("job ", request->job_id(), " was cancelled by a Cancel call"));
+    if (std::shared_ptr<Job> job = (*record)->job()) {
+      if (queue_.Remove(job.get())) {
+        LeftQueue(*job);
+        ++counters_.cancelled;
+        AnnounceQueuePositions();
+      }
+      job->events->Abort(cancelled);
+      if ((*record)->state() == JobState::kQueued) {
+        (*record)->MarkEnded(cancelled);
+        JobEnded(*job, "cancelled", absl::Now(), absl::Now(), cancelled.error_code(),
+                 cancelled.error_message(), nullptr);
+      }
+      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ",
+              context->peer());
+    }
+    reply->set_state(JobStateName((*record)->state()));
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
+  }
+
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* context,
+                                     const v1::ListJobsRequest* request,
+                                     v1::JobList* list) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
+    for (v1::JobSummary& summary : registry_.List(tenant)) {
+      *list->add_jobs() = std::move(summary);
+    }
+    grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
+    reactor->Finish(grpc::Status::OK);
+    return reactor;
   }
 
   grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* context,
                                      const v1::GetStatsRequest* request,
                                      v1::Stats* stats) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
     stats->set_queue_depth(static_cast<uint32_t>(queue_.size()));
     stats->set_queue_capacity(static_cast<uint32_t>(queue_.capacity()));
     stats->set_jobs_accepted(counters_.accepted);
@@ -226,6 +338,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_readers_cut_off(counters_.readers_cut_off);
     stats->set_cpu_workers(static_cast<uint32_t>(options_.cpu_workers));
     stats->set_draining(draining_);
+    stats->set_jobs_known(static_cast<uint32_t>(registry_.size()));
+    stats->set_kept_result_bytes(registry_.kept_bytes());
+    stats->set_kept_result_limit(registry_.kept_limit());
+    stats->set_results_dropped(registry_.dropped());
+    stats->set_watch_calls_active(watch_calls_active_);
+    stats->set_retention_seconds(absl::ToDoubleSeconds(registry_.retention()));
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
       stats->set_gpu_available(!gl_renderer_.empty());
@@ -240,6 +358,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   grpc::ServerUnaryReactor* GetServerInfo(grpc::CallbackServerContext* context,
                                           const v1::GetServerInfoRequest* request,
                                           v1::ServerInfo* info) override {
+    std::string tenant;
+    if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
     ServerFacts facts;
     {
       std::lock_guard<std::mutex> lock(gl_mutex_);
@@ -284,6 +404,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     std::lock_guard<std::mutex> lock(gl_mutex_);
     if (gl_renderer_.empty()) return JobLane::kCpu;
     if (spec.device() == "gpu") return JobLane::kGl;
+    if (spec.has_preview()) return JobLane::kGl;  // the preview draws with the GL context
     if ((spec.device().empty() || spec.device() == "auto") && !gl_is_software_) {
       return JobLane::kGl;
     }
@@ -294,12 +415,137 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
 
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
+  JobRegistry& registry() { return registry_; }
+  std::atomic<uint32_t>& watch_calls_active() { return watch_calls_active_; }
+  std::atomic<uint64_t>& bytes_out() { return counters_.bytes_out; }
   Counters& counters() { return counters_; }
   CallAdmission& admission() { return admission_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
   MemoryBudget& queued_budget() { return queued_budget_; }
   bool draining() const { return draining_; }
   void set_draining() { draining_ = true; }
+
+  // A refused call: counted and logged (never its token).
+  void LogRefusal(const std::string& peer, const std::string& tenant, const std::string& label,
+                  const absl::Status& status) {
+    ++counters_.calls_refused;
+    LogEvent("call_refused")
+        .Add("peer", peer)
+        .Add("tenant", tenant)
+        .Add("label", label)
+        .Add("code", static_cast<int>(status.code()))
+        .Add("message", std::string(status.message()))
+        .Write(options_.log,
+               absl::StrCat("refused a call from ", peer,
+                            label.empty() ? std::string() : absl::StrCat(" (label '", label, "')"),
+                            ": ", status.ToString()));
+  }
+
+  // A job ended (after running, or while queued): metrics and one log event.
+  void JobEnded(const Job& job, const std::string& outcome, absl::Time started_at,
+                absl::Time ended_at, int code, const std::string& message, const v1::Done* done) {
+    const std::string algorithm = AlgorithmName(job.spec);
+    const double queued = absl::ToDoubleSeconds(started_at - job.accepted_at);
+    const double running = absl::ToDoubleSeconds(ended_at - started_at);
+    job_metrics_.JobEnded(algorithm, outcome, queued, running);
+    LogEvent event("job_ended");
+    event.Add("job_id", job.id)
+        .Add("tenant", job.tenant)
+        .Add("peer", job.peer)
+        .Add("label", job.spec.label())
+        .Add("algorithm", algorithm)
+        .Add("input_kind", InputKindText(job.spec))
+        .Add("input_bytes", uint64_t{job.spec.input_bytes()})
+        .Add("detached", job.spec.detach())
+        .Add("outcome", outcome)
+        .Add("code", code)
+        .Add("seconds_queued", queued)
+        .Add("seconds_running", running);
+    if (done != nullptr) {
+      event.Add("levels", uint64_t{done->levels()})
+          .Add("triplets", uint64_t{done->triplets()})
+          .Add("final_clusters", uint64_t{done->final_clusters()})
+          .Add("device", done->device());
+    } else {
+      event.Add("message", message);
+    }
+    const std::string text =
+        done != nullptr
+            ? absl::StrCat(job.id, " done in ", absl::FormatDuration(ended_at - started_at), ": ",
+                           done->levels(), " levels, ", done->triplets(), " triplets")
+            : absl::StrCat(job.id, " ", outcome, " after ",
+                           absl::FormatDuration(ended_at - started_at), ": ", message);
+    event.Write(options_.log, text);
+  }
+
+  // The Prometheus exposition of the server's state (serve --metrics).
+  std::string RenderMetrics() {
+    std::string out;
+    auto metric = [&](const char* name, const char* type, const char* help, auto value) {
+      absl::StrAppend(&out, "# HELP ", name, " ", help, "\n# TYPE ", name, " ", type, "\n", name,
+                      " ", value, "\n");
+    };
+    metric("mlclust_queue_depth", "gauge", "Jobs waiting in the queue.", queue_.size());
+    metric("mlclust_queue_capacity", "gauge", "Jobs that may wait.", queue_.capacity());
+    metric("mlclust_jobs_running_count", "gauge", "Jobs running now.",
+           counters_.jobs_running.load());
+    metric("mlclust_jobs_accepted_total", "counter", "Jobs accepted.", counters_.accepted.load());
+    metric("mlclust_jobs_rejected_total", "counter", "Jobs refused before queueing.",
+           counters_.rejected.load());
+    metric("mlclust_calls_refused_total", "counter", "Calls refused (admission, auth, limits).",
+           counters_.calls_refused.load());
+    metric("mlclust_calls_active", "gauge", "Run calls in progress.", admission_.total());
+    metric("mlclust_input_bytes_total", "counter", "Input bytes received.",
+           counters_.bytes_in.load());
+    metric("mlclust_output_bytes_total", "counter", "Event bytes written to clients (serialized).",
+           counters_.bytes_out.load());
+    metric("mlclust_upload_bytes_in_flight", "gauge", "Bytes of uploads not yet complete.",
+           upload_budget_.used());
+    metric("mlclust_queued_input_bytes", "gauge", "Inputs of the queued jobs.",
+           queued_budget_.used());
+    metric("mlclust_unread_event_bytes", "gauge", "Events produced and not yet read (memory).",
+           result_budget_.used());
+    metric("mlclust_kept_result_bytes", "gauge", "Kept levels of detached jobs (memory).",
+           registry_.kept_bytes());
+    metric("mlclust_results_dropped_total", "counter", "Ended jobs' results dropped.",
+           registry_.dropped());
+    metric("mlclust_watch_calls_active", "gauge", "Watch calls in progress.",
+           watch_calls_active_.load());
+    metric("mlclust_readers_cut_off_total", "counter", "Readers cut off for reading too slowly.",
+           counters_.readers_cut_off.load());
+    metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.",
+           options_.cpu_workers);
+    metric("mlclust_draining", "gauge", "1 while shutting down.", draining_ ? 1 : 0);
+    // Jobs by state (queued, running) and algorithm, from the registry.
+    std::map<std::pair<std::string, std::string>, uint64_t> by_state;
+    registry_.ForEach([&](const JobRecord& record) {
+      const JobState state = record.state();
+      if (state == JobState::kQueued || state == JobState::kRunning) {
+        ++by_state[{AlgorithmName(record.spec()), JobStateName(state)}];
+      }
+    });
+    absl::StrAppend(&out,
+                    "# HELP mlclust_jobs Jobs queued or running, by algorithm and state.\n"
+                    "# TYPE mlclust_jobs gauge\n");
+    for (const auto& [key, count] : by_state) {
+      absl::StrAppend(&out, "mlclust_jobs{algorithm=\"", PrometheusLabel(key.first), "\",state=\"",
+                      key.second, "\"} ", count, "\n");
+    }
+    absl::StrAppend(&out, job_metrics_.Render());
+    {
+      std::lock_guard<std::mutex> lock(gl_mutex_);
+      absl::StrAppend(&out,
+                      "# HELP mlclust_device_info The GL device (renderer \"\" without one).\n"
+                      "# TYPE mlclust_device_info gauge\n"
+                      "mlclust_device_info{renderer=\"",
+                      PrometheusLabel(gl_renderer_), "\",software=\"",
+                      gl_is_software_ ? "true" : "false", "\"} 1\n",
+                      "# HELP mlclust_gpu_available 1 when a GL context is up.\n"
+                      "# TYPE mlclust_gpu_available gauge\nmlclust_gpu_available ",
+                      gl_renderer_.empty() ? 0 : 1, "\n");
+    }
+    return out;
+  }
 
   // A job leaves the queue (to a worker, cancelled, or drained): its input no longer
   // counts as queued.
@@ -332,6 +578,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   Counters counters_;
   CallAdmission admission_;
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
+  JobRegistry registry_;
+  JobMetrics job_metrics_;
+  std::atomic<uint32_t> watch_calls_active_{0};
   std::atomic<uint64_t> next_job_number_{0};
   std::atomic<bool> draining_{false};
   mutable std::mutex gl_mutex_;
@@ -339,9 +588,11 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   bool gl_is_software_ = false;
 };
 
-RunCall::RunCall(ServiceImpl* service, std::string peer, const absl::Status& refusal)
+RunCall::RunCall(ServiceImpl* service, std::string peer, std::string tenant,
+                 const absl::Status& refusal)
     : service_(service),
       peer_(std::move(peer)),
+      tenant_(std::move(tenant)),
       admitted_(refusal.ok()),
       channel_(service->NewResultStore(&writer_)) {
   if (!admitted_) {
@@ -376,10 +627,7 @@ void RunCall::Fail(const absl::Status& status) {
 }
 
 void RunCall::Refuse(const absl::Status& status) {
-  ++service_->counters().calls_refused;
-  LogLine(service_->options().log, "refused a call from ", peer_,
-          have_spec_ ? absl::StrCat(" (label '", spec_.label(), "')") : std::string(), ": ",
-          status.ToString());
+  service_->LogRefusal(peer_, tenant_, have_spec_ ? spec_.label() : std::string(), status);
   Fail(status);
 }
 
@@ -414,6 +662,7 @@ void RunCall::OnReadDone(bool ok) {
     return;
   }
   const std::string& chunk = request_.chunk();
+  service_->counters().bytes_in += chunk.size();
   if (input_.size() + chunk.size() > spec_.input_bytes()) {
     Fail(absl::InvalidArgumentError(
         absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
@@ -454,11 +703,22 @@ void RunCall::Submit() {
   job->accepted_at = absl::Now();
   job->peer = peer_;
   job->lane = service_->LaneFor(job->spec);
+  job->tenant = tenant_;
   const std::string id = job->id;
   const std::string label = job->spec.label();
   const uint64_t bytes = job->input.size();
+  const bool detach = job->spec.detach();
   // The input moves from the uploads in flight to the queued inputs.
   ReleaseUpload();
+  const uint32_t per_tenant = service_->options().max_jobs_per_tenant;
+  if (per_tenant > 0 && service_->registry().ActiveJobs(tenant_) >= per_tenant) {
+    ++service_->counters().rejected;
+    spec_.set_label(label);
+    Refuse(absl::ResourceExhaustedError(absl::StrCat(
+        tenant_.empty() ? std::string("this server") : absl::StrCat("tenant '", tenant_, "'"),
+        " has ", per_tenant, " jobs queued or running, its limit; try again later")));
+    return;
+  }
   if (!service_->queued_budget().TryReserve(bytes)) {
     ++service_->counters().rejected;
     spec_.set_label(label);
@@ -469,23 +729,37 @@ void RunCall::Submit() {
     return;
   }
   job->queued_bytes = bytes;
+  // The job's entry in the registry; a detached job's events go to it (its kept levels),
+  // an attached job's to this call.
+  auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
+                                            service_->options().max_event_bytes);
+  record->set_job(job);
+  job->record = record;
+  job->events = detach ? std::shared_ptr<EventChannel>(record) : channel_;
+  service_->registry().Add(record);
   job_ = job;
   v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
   DescribeInput(job->spec, job->input, described);
   std::shared_ptr<Job> queued = job;
+  v1::JobEvent accepted_event;
   // The Accepted event is queued while the queue's lock is held, so it is always the
   // first event even if a worker picks the job up at once.
   absl::StatusOr<size_t> ahead = service_->queue().Push(
       std::move(queued), static_cast<unsigned>(job->lane), [&](size_t jobs_ahead) {
-        v1::JobEvent event;
-        *event.mutable_accepted() = described;
-        event.mutable_accepted()->set_job_id(id);
-        event.mutable_accepted()->set_queue_position(static_cast<uint32_t>(jobs_ahead));
-        event.mutable_accepted()->set_input_bytes(bytes);
-        channel_->Emit(std::move(event));
+        v1::Accepted* accepted = accepted_event.mutable_accepted();
+        *accepted = described;
+        accepted->set_job_id(id);
+        accepted->set_queue_position(static_cast<uint32_t>(jobs_ahead));
+        accepted->set_input_bytes(bytes);
+        accepted->set_detached(detach);
+        accepted->set_tenant(tenant_);
+        accepted->set_retention_seconds(
+            absl::ToDoubleSeconds(service_->options().result_retention));
+        if (!detach) channel_->Emit(accepted_event);
         ++service_->counters().accepted;  // before a worker can finish it
       });
   if (!ahead.ok()) {
+    service_->registry().Remove(id);
     service_->LeftQueue(*job);
     ++service_->counters().rejected;
     const absl::Status status =
@@ -498,20 +772,150 @@ void RunCall::Submit() {
     Refuse(status);
     return;
   }
-  LogLine(service_->options().log, id, " accepted from ", peer_, " (label '", label, "', ", bytes,
-          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
-          " ahead)");
+  LogEvent("job_accepted")
+      .Add("job_id", id)
+      .Add("tenant", tenant_)
+      .Add("peer", peer_)
+      .Add("label", label)
+      .Add("algorithm", AlgorithmName(job->spec))
+      .Add("input_kind", InputKindText(job->spec))
+      .Add("input_bytes", uint64_t{bytes})
+      .Add("worker", job->lane == JobLane::kGl ? "gl" : "cpu")
+      .Add("jobs_ahead", uint64_t{*ahead})
+      .Add("detached", detach)
+      .Write(service_->options().log,
+             absl::StrCat(id, " accepted from ", peer_, " (label '", label, "', ", bytes,
+                          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ",
+                          *ahead, " ahead", detach ? ", detached" : "", ")"));
+  // A detached job's call ends here; the job runs on and Watch reads its levels.
+  if (detach) channel_->Finish(std::move(accepted_event), grpc::Status::OK);
 }
 
 void RunCall::OnCancel() {
   channel_->OnCancel();
-  if (std::shared_ptr<Job> job = job_.lock()) {
+  std::shared_ptr<Job> job = job_.lock();
+  // A detached job does not depend on the call that submitted it.
+  if (job != nullptr && !job->spec.detach()) {
     if (service_->queue().Remove(job.get())) {
       service_->LeftQueue(*job);
       ++service_->counters().cancelled;
-      LogLine(service_->options().log, job->id, " cancelled while queued");
+      job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
+      service_->JobEnded(*job, "cancelled", absl::Now(), absl::Now(), grpc::StatusCode::CANCELLED,
+                         "cancelled while queued", nullptr);
     }
   }
+}
+
+// The reactor of one Watch call: writes the job's kept events one at a time from its
+// record, each when the previous write is done, and waits (registered with the record)
+// when it has read everything so far. The job never waits for it.
+class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
+ public:
+  WatchCall(ServiceImpl* service, absl::StatusOr<std::shared_ptr<JobRecord>> record,
+            const v1::WatchRequest& request)
+      : service_(service), waker_(std::make_shared<Waker>(this)) {
+    ++service_->watch_calls_active();
+    if (!record.ok()) {
+      Finish(ToGrpc(record.status()));
+      finished_ = true;
+      return;
+    }
+    record_ = *std::move(record);
+    cursor_.from_level = request.from_level();
+    cursor_.resume = request.resume();
+    if (request.resume()) {
+      cursor_.phase = WatchCursor::Phase::kLevels;
+      cursor_.next_level = request.from_level() + 1;
+    }
+    waker_->Wake();
+  }
+
+  void OnWriteDone(bool ok) override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      write_in_flight_ = false;
+      if (!ok) cancelled_ = true;
+    }
+    waker_->Wake();
+  }
+
+  void OnCancel() override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      cancelled_ = true;
+    }
+    waker_->Wake();
+  }
+
+  void OnDone() override {
+    {
+      std::lock_guard<std::mutex> lock(waker_->mutex);
+      waker_->call = nullptr;
+    }
+    --service_->watch_calls_active();
+    delete this;
+  }
+
+ private:
+  // Registered with the record while the call waits; outlives the call (the record holds
+  // it weakly, a wake may be on its way as the call ends).
+  struct Waker : RecordWaiter {
+    explicit Waker(WatchCall* c) : call(c) {}
+    void Wake() override {
+      std::unique_lock<std::mutex> lock(mutex);
+      if (call != nullptr) call->Pump(lock);
+    }
+    std::mutex mutex;
+    WatchCall* call;
+  };
+
+  // With the waker's lock held: starts the next write or ends the call. The lock is
+  // released before calling into gRPC; the call cannot end in between (only Finish, here,
+  // ends it, and a write in flight keeps it).
+  void Pump(std::unique_lock<std::mutex>& lock) {
+    if (finished_ || write_in_flight_) return;
+    if (cancelled_) {
+      finished_ = true;
+      lock.unlock();
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the watch was cancelled"));
+      return;
+    }
+    grpc::Status status;
+    switch (record_->NextEvent(cursor_, event_, status, waker_)) {
+      case JobRecord::Next::kEvent:
+        write_in_flight_ = true;
+        service_->bytes_out() += event_.ByteSizeLong();
+        lock.unlock();
+        StartWrite(&event_);
+        return;
+      case JobRecord::Next::kEnd:
+        finished_ = true;
+        lock.unlock();
+        Finish(status);
+        return;
+      case JobRecord::Next::kWait:
+        return;
+    }
+  }
+
+  ServiceImpl* service_;
+  std::shared_ptr<Waker> waker_;
+  std::shared_ptr<JobRecord> record_;
+  WatchCursor cursor_;
+  v1::JobEvent event_;
+  bool write_in_flight_ = false;
+  bool finished_ = false;
+  bool cancelled_ = false;
+};
+
+grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
+                                                           const v1::WatchRequest* request) {
+  absl::StatusOr<std::string> tenant = Authorize(context);
+  if (!tenant.ok()) {
+    LogRefusal(context->peer(), "", "", tenant.status());
+    return new WatchCall(this, tenant.status(), *request);
+  }
+  return new WatchCall(this, registry_.Find(request->job_id(), *tenant), *request);
 }
 
 }  // namespace
@@ -522,6 +926,7 @@ class ServerImpl {
 
   absl::Status Start() {
     const ServerOptions& options = service_.options();
+    JsonLogs() = options.log_json;
     // The GL worker owns the GL context: it creates it on its own thread and reports back.
     std::promise<absl::Status> started;
     std::future<absl::Status> started_future = started.get_future();
@@ -531,6 +936,16 @@ class ServerImpl {
       gl_worker_.join();
       return status;
     }
+    // Ended jobs past the retention time are dropped even when nobody asks.
+    sweeper_ = std::thread([this] {
+      std::unique_lock<std::mutex> lock(sweeper_mutex_);
+      while (!sweeper_stop_) {
+        sweeper_wake_.wait_for(lock, std::chrono::seconds(1));
+        lock.unlock();
+        service_.registry().Sweep();
+        lock.lock();
+      }
+    });
     for (size_t i = 0; i < options.cpu_workers; ++i) {
       cpu_workers_.emplace_back([this] {
         JobRunnerContext context;  // no GL: every stage on the CPU
@@ -542,7 +957,12 @@ class ServerImpl {
     grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     if (!options.listen_address.empty()) {
-      builder.AddListeningPort(options.listen_address, grpc::InsecureServerCredentials(), &port_);
+      absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = Credentials(options);
+      if (!credentials.ok()) {
+        StopWorkers();
+        return credentials.status();
+      }
+      builder.AddListeningPort(options.listen_address, *credentials, &port_);
     }
     builder.RegisterService(&service_);
     builder.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
@@ -565,6 +985,19 @@ class ServerImpl {
       return absl::UnavailableError(absl::StrCat("cannot listen on '", options.listen_address,
                                                  "' (in use, or not an address of this host)"));
     }
+    if (!options.metrics_address.empty()) {
+      absl::StatusOr<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Start(
+          options.metrics_address, [this] { return service_.RenderMetrics(); });
+      if (!metrics.ok()) {
+        server_->Shutdown();
+        StopWorkers();
+        return metrics.status();
+      }
+      metrics_ = *std::move(metrics);
+      LogLine(options.log, "metrics on http://",
+              options.metrics_address.substr(0, options.metrics_address.rfind(':')), ":",
+              metrics_->port(), "/metrics");
+    }
     // The device is ready (the GL worker has started): serving from here on.
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
     LogLine(
@@ -574,11 +1007,51 @@ class ServerImpl {
         "; queue capacity ", options.queue_capacity, "; CPU workers ", options.cpu_workers,
         "; GL: ",
         gl_renderer_.empty() ? absl::StrCat("none (", gl_unavailable_reason_, ")") : gl_renderer_);
-    if (!options.listen_address.empty() && !IsLoopback(options.listen_address)) {
+    if (!options.listen_address.empty() && !IsLoopback(options.listen_address) &&
+        options.auth_tokens.empty()) {
       LogLine(options.log, "warning: listening on ", options.listen_address,
-              " without TLS or authentication: anyone who can reach it can submit jobs");
+              options.tls_cert_pem.empty() ? " without TLS or authentication"
+                                           : " with TLS but without tokens",
+              ": anyone who can reach it can submit jobs");
+    }
+    if (!options.tls_cert_pem.empty()) {
+      LogLine(options.log, "TLS on; client certificates ",
+              options.tls_client_ca_pem.empty() ? "not requested" : "required", "; bearer tokens ",
+              options.auth_tokens.empty() ? std::string("off")
+                                          : absl::StrCat("on (", options.auth_tokens.size(), ")"));
     }
     return absl::OkStatus();
+  }
+
+  // The listener's credentials: plaintext, or TLS (optionally requiring client
+  // certificates) with the token check.
+  static absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> Credentials(
+      const ServerOptions& options) {
+    if (options.tls_cert_pem.empty() != options.tls_key_pem.empty()) {
+      return absl::InvalidArgumentError("TLS needs both a certificate and its key");
+    }
+    if (options.tls_cert_pem.empty()) {
+      if (!options.auth_tokens.empty()) {
+        return absl::InvalidArgumentError(
+            "bearer tokens need TLS (--tls-cert and --tls-key): a token is never accepted in "
+            "plaintext");
+      }
+      if (!options.tls_client_ca_pem.empty()) {
+        return absl::InvalidArgumentError("--tls-client-ca needs --tls-cert and --tls-key");
+      }
+      return grpc::InsecureServerCredentials();
+    }
+    grpc::SslServerCredentialsOptions ssl(
+        options.tls_client_ca_pem.empty()
+            ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+            : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    ssl.pem_root_certs = options.tls_client_ca_pem;
+    ssl.pem_key_cert_pairs.push_back({options.tls_key_pem, options.tls_cert_pem});
+    std::shared_ptr<grpc::ServerCredentials> credentials = grpc::SslServerCredentials(ssl);
+    if (!options.auth_tokens.empty()) {
+      credentials->SetAuthMetadataProcessor(MakeTokenProcessor(options.auth_tokens));
+    }
+    return credentials;
   }
 
   void Shutdown() {
@@ -597,11 +1070,14 @@ class ServerImpl {
     for (const std::shared_ptr<Job>& job : queued) {
       service_.LeftQueue(*job);
       ++service_.counters().cancelled;
-      static_cast<ResultStore&>(*job->events)
-          .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                              "the server is shutting down and the job had not started; submit "
-                              "it to another server or try again later"));
-      LogLine(options.log, job->id, " not started: the server is shutting down");
+      const grpc::Status unavailable(grpc::StatusCode::UNAVAILABLE,
+                                     "the server is shutting down and the job had not started; "
+                                     "submit it to another server or try again later");
+      job->events->Abort(unavailable);
+      job->record->MarkEnded(unavailable);
+      service_.JobEnded(*job, JobStateName(job->record->state()), absl::Now(), absl::Now(),
+                        unavailable.error_code(), "not started: the server is shutting down",
+                        nullptr);
     }
     // 3. Running jobs may finish within the drain time; then they are cancelled.
     {
@@ -613,14 +1089,15 @@ class ServerImpl {
       running_done_.wait_for(running_lock, absl::ToChronoNanoseconds(options.drain_time),
                              [&] { return running_.empty(); });
       for (const std::shared_ptr<Job>& job : running_) {
-        static_cast<ResultStore&>(*job->events)
-            .Abort(grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                                "the server is shutting down and the drain time ran out; the job "
-                                "was cancelled"));
+        job->events->Abort(
+            grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                         "the server is shutting down and the drain time ran out; the job "
+                         "was cancelled"));
         LogLine(options.log, job->id, " cancelled: the drain time ran out");
       }
     }
     StopWorkers();
+    metrics_.reset();
     if (server_ != nullptr) {
       // Calls still open (clients that stopped reading) are cancelled after 2 s.
       server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
@@ -635,6 +1112,7 @@ class ServerImpl {
   }
 
   int port() const { return port_; }
+  int metrics_port() const { return metrics_ != nullptr ? metrics_->port() : 0; }
   std::shared_ptr<grpc::Channel> InProcessChannel() {
     grpc::ChannelArguments arguments;
     arguments.SetMaxReceiveMessageSize(-1);
@@ -646,6 +1124,14 @@ class ServerImpl {
  private:
   void StopWorkers() {
     service_.queue().Stop();
+    if (sweeper_.joinable()) {
+      {
+        std::lock_guard<std::mutex> lock(sweeper_mutex_);
+        sweeper_stop_ = true;
+      }
+      sweeper_wake_.notify_all();
+      sweeper_.join();
+    }
     if (gl_worker_.joinable()) gl_worker_.join();
     for (std::thread& worker : cpu_workers_) worker.join();
     cpu_workers_.clear();
@@ -697,8 +1183,12 @@ class ServerImpl {
       service_.AnnounceQueuePositions();
       if (job->events->cancelled()) {
         ++counters.cancelled;
+        job->record->MarkEnded(grpc::Status(grpc::StatusCode::CANCELLED, "cancelled while queued"));
+        service_.JobEnded(*job, "cancelled", absl::Now(), absl::Now(), grpc::StatusCode::CANCELLED,
+                          "cancelled while queued", nullptr);
         continue;
       }
+      job->record->MarkRunning();
       {
         std::lock_guard<std::mutex> lock(running_mutex_);
         running_.push_back(job);
@@ -714,16 +1204,21 @@ class ServerImpl {
             absl::ToDoubleSeconds(started_at - job->accepted_at));
         event.mutable_done()->set_seconds_running(absl::ToDoubleSeconds(ended_at - started_at));
         ++counters.succeeded;  // before Finish, so a client that saw Done sees it counted
+        const v1::Done done = event.done();
         job->events->Finish(std::move(event), grpc::Status::OK);
-        LogLine(options.log, job->id, " done in ", absl::FormatDuration(ended_at - started_at),
-                ": ", outcome->done.levels(), " levels, ", outcome->done.triplets(), " triplets");
+        job->record->MarkEnded(grpc::Status::OK, &done);
+        service_.JobEnded(*job, JobStateName(job->record->state()), started_at, ended_at, 0, "",
+                          &done);
       } else {
         const grpc::Status status = ToGrpc(outcome.status());
         ++(outcome.status().code() == absl::StatusCode::kCancelled ? counters.cancelled
                                                                    : counters.failed);
         job->events->Finish(FailedEvent(status), status);
-        LogLine(options.log, job->id, " failed after ", absl::FormatDuration(ended_at - started_at),
-                ": ", outcome.status().ToString());
+        job->record->MarkEnded(status);
+        // The record's state: the first ending wins (a cut-off's RESOURCE_EXHAUSTED, a
+        // Cancel call's CANCELLED) over the runner's CANCELLED that followed it.
+        service_.JobEnded(*job, JobStateName(job->record->state()), started_at, ended_at,
+                          status.error_code(), outcome.status().ToString(), nullptr);
       }
       const std::string id = job->id;
       // The input and anything else the job holds go now, not when the call ends.
@@ -744,7 +1239,11 @@ class ServerImpl {
 
   ServiceImpl service_;
   std::unique_ptr<grpc::Server> server_;
-  std::thread gl_worker_;
+  std::unique_ptr<MetricsHttpServer> metrics_;
+  std::thread gl_worker_, sweeper_;
+  std::mutex sweeper_mutex_;
+  std::condition_variable sweeper_wake_;
+  bool sweeper_stop_ = false;
   std::vector<std::thread> cpu_workers_;
   int port_ = 0;
   std::string gl_renderer_, gl_unavailable_reason_;
@@ -765,6 +1264,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
 Server::Server(std::unique_ptr<ServerImpl> impl) : impl_(std::move(impl)) {}
 Server::~Server() { Shutdown(); }
 int Server::port() const { return impl_->port(); }
+int Server::metrics_port() const { return impl_->metrics_port(); }
 std::shared_ptr<grpc::Channel> Server::InProcessChannel() { return impl_->InProcessChannel(); }
 std::string Server::gl_renderer() const { return impl_->gl_renderer(); }
 std::string Server::gl_unavailable_reason() const { return impl_->gl_unavailable_reason(); }

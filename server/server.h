@@ -10,6 +10,7 @@
 #define MLCLUST_SERVER_SERVER_H_
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -63,9 +64,31 @@ struct ServerOptions {
   // Largest message sent; larger level batches and snapshots are split (under gRPC's
   // default 4 MiB receive limit).
   size_t max_event_bytes = size_t{3} << 20;
+  // Detached jobs (JobSpec.detach) keep their levels for Watch: an ended job stays this
+  // long, and the kept levels of all jobs take at most `kept_results_bytes` (the oldest
+  // ended jobs' are dropped first to make room; a job that cannot fit is cancelled).
+  absl::Duration result_retention = absl::Hours(1);
+  uint64_t kept_results_bytes = uint64_t{1} << 30;
+  // Jobs one tenant may have queued or running at once (0: no limit); more are refused
+  // with RESOURCE_EXHAUSTED.
+  uint32_t max_jobs_per_tenant = 0;
+  // TLS: the server's certificate chain and private key (PEM text). Empty: plaintext.
+  std::string tls_cert_pem, tls_key_pem;
+  // With TLS: clients must present a certificate signed by this CA (PEM text).
+  std::string tls_client_ca_pem;
+  // Bearer tokens, token -> tenant (server/auth.h); they need TLS. With them every
+  // Clustering call needs a known token (UNAUTHENTICATED otherwise) and sees only its
+  // tenant's jobs (PERMISSION_DENIED for another's). Empty: one tenant, "".
+  std::map<std::string, std::string> auth_tokens;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;
+  // One JSON object per log line (job id, tenant, algorithm, sizes, durations, outcome)
+  // instead of text. Process-wide: the last server started decides.
+  bool log_json = false;
+  // "HOST:PORT" for Prometheus metrics over HTTP (GET /metrics; port 0 picks one); empty:
+  // none. A port in use is refused.
+  std::string metrics_address;
 };
 
 class ServerImpl;
@@ -79,6 +102,8 @@ class Server {
 
   // The port bound for listen_address (the chosen one for port 0), or 0 if none.
   int port() const;
+  // The metrics port (the chosen one for port 0), or 0 without metrics.
+  int metrics_port() const;
   // A channel to this server inside the process, no network involved.
   std::shared_ptr<grpc::Channel> InProcessChannel();
   // The GL renderer the worker got ("" without a GL context) and why there is none.

@@ -5,22 +5,31 @@
 # EMLO from
 # RUNS random seeds at a few K, and the elbows (core/hierarchy/elbow.h) of each curve.
 #   bash bench/experiments/fig4_21_sphere_fit.sh [RUNS]
-# Needs build/bench/{ml_bench,mesh_bench,plot_levels}. Writes into
+# Needs build/bench/{ml_bench,mesh_bench,plot_levels,ml_labels}. Writes into
 # bench/results/experiments/: fig4_2x_MODEL_{ml,hc}.csv (every level), fig4_2x_MODEL_emlo.csv,
-# fig4_2x_MODEL_{ml,hc}_elbows.png and fig4_2x_MODEL.png (all three together).
+# fig4_2x_MODEL_{ml,hc}_elbows.png, fig4_2x_MODEL.png (all three together) and
+# fig4_2x_MODEL_{ml,hc}_K.png (the clusterings at the true count K).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 RUNS=${1:-20}
 OUT=bench/results/experiments
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-for spec in "cube_sphere 4_22 7,8,10,15,20,30" "beads11 4_24 11,12,15,20,30" \
-            "patches12 4_25 12,13,15,20,30"; do
+for spec in "cube_sphere 4_22 7,8,10,15,20,30 7 20 30" "beads11 4_24 11,12,15,20,30 11 20 30" \
+            "patches12 4_25 12,13,15,20,30 12 60 -60"; do
   set -- $spec
-  model=$1 fig=$2 ks=$3
+  model=$1 fig=$2 ks=$3 true_k=$4 elev=$5 azim=$6
   /usr/bin/python3 bench/experiments/sphere_models.py "$model" "$TMP/$model.off"
   echo "$model: the true shapes' energy: $(build/bench/mesh_bench "$TMP/$model.off" \
     --energy sphere --truth "$TMP/$model.truth")"
+  # The pictures (Figs. 4.21, 4.23, 4.25): ML's clustering at the true count, and HC's.
+  for algo in ml hc; do
+    build/bench/ml_labels "$TMP/$model.off" --energy sphere --algo $algo --at "$true_k" \
+      --out "$TMP/${model}_$algo" > /dev/null
+    /usr/bin/python3 bench/render_ply.py "$TMP/${model}_${algo}_$true_k.ply" \
+      "$OUT/fig${fig}_${model}_${algo}_$true_k.png" --elev "$elev" --azim "$azim" \
+      --title "$model, ${algo^^} at $true_k clusters, sphere energy" > /dev/null
+  done
   for algo in ml hc; do
     build/bench/ml_bench "$TMP/$model.off" --algo $algo --energy sphere --repeats 1 \
       --curve "$TMP/${model}_$algo.csv" --at 1 > /dev/null 2>&1

@@ -294,9 +294,13 @@ std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<ui
       }
     }
     if (seeds.size() == clusters) {
-      // No vertex joins three clusters: the largest cluster's face farthest from its seed.
-      const uint32_t largest =
-          static_cast<uint32_t>(std::max_element(area.begin(), area.end()) - area.begin());
+      // No vertex joins three clusters: in the cluster with the most faces (so that it has
+      // a face to spare while there are fewer seeds than faces), the face farthest from its
+      // seed.
+      std::vector<uint32_t> faces_in(clusters, 0);
+      for (uint32_t label : labels) ++faces_in[label];
+      const uint32_t largest = static_cast<uint32_t>(
+          std::max_element(faces_in.begin(), faces_in.end()) - faces_in.begin());
       std::vector<uint32_t> queue = {seeds[largest]};
       std::vector<uint8_t> seen(adjacency.num_faces(), 0);
       seen[seeds[largest]] = 1;
@@ -308,7 +312,7 @@ std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<ui
           }
         }
       }
-      if (is_seed[queue.back()]) break;  // a one-face cluster: nothing to add (k <= faces)
+      if (is_seed[queue.back()]) break;  // every cluster one face: seeds == faces >= k
       is_seed[queue.back()] = 1;
       seeds.push_back(queue.back());
     }

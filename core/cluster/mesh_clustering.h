@@ -82,7 +82,8 @@ struct SeedOptions {
   // l. 849's seed-adding variant: grow, add seeds at the common vertices of three
   // neighbouring clusters with the largest summed area (one per cluster per round), grow
   // again, until k. Where no vertex joins three clusters (fewer than 3 seeds on a
-  // component), the face of the largest cluster farthest (in edge steps) from its seed.
+  // component), the face of the cluster with the most faces farthest (in edge steps) from
+  // its seed.
   bool add_seeds = false;
 };
 

@@ -187,26 +187,26 @@ class MeshSpace {
         engine.AssignOde(d, partner, cost);
         return;
       }
-      uint32_t partner = engine.partner(d);
-      double cost = engine.cost(d);
+      uint32_t best_partner = engine.partner(d);
+      double best_cost = engine.cost(d);
       for (const auto& [c, count] : neighbours_[d]) {
-        if (affected_mark_[c] && c == partner) {
-          const auto [full_partner, full_cost] = engine.FindOde(d);
-          engine.AssignOde(d, full_partner, full_cost);
+        if (affected_mark_[c] && c == best_partner) {
+          const auto [partner, cost] = engine.FindOde(d);
+          engine.AssignOde(d, partner, cost);
           return;
         }
       }
       bool changed = false;
-      for (const auto& [c, count] : neighbours_[d]) {
-        if (!affected_mark_[c]) continue;
-        const double offer = MergeCost(d, c);
-        if (detail::CheaperDualEdge(offer, c, cost, partner)) {
-          cost = offer;
-          partner = c;
+      for (const auto& [candidate, count] : neighbours_[d]) {
+        if (!affected_mark_[candidate]) continue;
+        const double cost = MergeCost(d, candidate);
+        if (detail::CheaperDualEdge(cost, candidate, best_cost, best_partner)) {
+          best_cost = cost;
+          best_partner = candidate;
           changed = true;
         }
       }
-      if (changed) engine.AssignOde(d, partner, cost);
+      if (changed) engine.AssignOde(d, best_partner, best_cost);
     };
     if (update_.size() < detail::kParallelOdeGrain) {
       for (size_t i = 0; i < update_.size(); ++i) update(i);
@@ -221,7 +221,7 @@ class MeshSpace {
   }
 
   // Face adjacency reaches every cluster of a component: nothing more to link.
-  bool ConnectWhenStuck(Engine&) { return false; }
+  bool ConnectWhenStuck(Engine& /*engine*/) { return false; }
 
   void Squash() {
     recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },

@@ -7,6 +7,9 @@
 // form, BB for proxy-only ones, or none), spreading outward only while something
 // changes. Every level goes to a LevelSink as the faces whose cluster changed, with the
 // cluster count and the energy (kept from sums, never re-scanned).
+//
+// The engine is core/cluster/detail/multilevel_engine.h, shared with the points' ML
+// (core/cluster/point_clustering.h): the same ODE rules, ties, PML pair rule and levels.
 #ifndef MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
 #define MLCLUST_CORE_CLUSTER_MULTILEVEL_H_
 

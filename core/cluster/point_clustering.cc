@@ -462,7 +462,7 @@ class PointSpace {
       if (n != kNone && clusters_->count(n) > 0) f(n);
     }
   }
-  uint32_t TieKey(uint32_t) const { return 0; }
+  uint32_t TieKey(uint32_t /*c*/) const { return 0; }
 
   void Squash() {
     recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },

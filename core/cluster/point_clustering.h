@@ -9,6 +9,9 @@
 // 2d neighbours, the closest cluster (by centroid) in each half-axis subspace around its
 // centroid (eq. 6.1). After any change they are refreshed from the second-order
 // neighbours (the neighbours' neighbours), so no step looks at all clusters.
+//
+// ML / PML / HC for points run on the mesh's multilevel engine
+// (core/cluster/detail/multilevel_engine.h) with the local neighbours as the neighbourhood.
 #ifndef MLCLUST_CORE_CLUSTER_POINT_CLUSTERING_H_
 #define MLCLUST_CORE_CLUSTER_POINT_CLUSTERING_H_
 

@@ -826,7 +826,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help =
         "k-means from --clusters = k_min, then every cluster split in two by 2-means where the "
         "BIC of the halves beats the cluster's, and k-means again, until no split is kept or "
-        "k_max; the result is the round of largest BIC [K = k_min, finds its own K]";
+        "k_max; the result is the round of largest BIC";
     a.energies = point_energies;
     a.options = {
         Integer("kmax", 0, UINT32_MAX, "0",

@@ -50,8 +50,11 @@ class Progress(NamedTuple):
 class _Assembler:
     """Collects one job's events into a Hierarchy, checking the stream is consistent."""
 
-    def __init__(self, progress):
+    def __init__(self, progress, absolute_levels=False):
         self._progress = progress
+        # Watch numbers levels as the job does: the snapshot's level is the first.
+        self._absolute_levels = absolute_levels
+        self._offset = 0
         self._pieces = []
         self._have = 0
         self._total = None
@@ -127,6 +130,8 @@ class _Assembler:
             raise Error(grpc.StatusCode.DATA_LOSS, "snapshot holds more labels than its total_elements")
         if self._have == total_elements:
             self._started = True
+            if self._absolute_levels:
+                self._offset = int(level)
             self._counts.append(np.array([cluster_count], dtype=np.int64))
             self._energies.append(np.array([energy], dtype=np.float64))
             self._sources.append(np.array([level], dtype=np.int64))
@@ -138,6 +143,7 @@ class _Assembler:
                 from_cluster, source_level, last_level_continues=False):
         if not self._started:
             raise Error(grpc.StatusCode.DATA_LOSS, "levels arrived before the snapshot")
+        first_level -= self._offset
         n = len(cluster_count)
         if len(energy) != n or len(triplet_end) != n:
             raise Error(grpc.StatusCode.DATA_LOSS, "a level batch with arrays of different lengths")
@@ -227,6 +233,9 @@ class Client:
         self._run_raw = self._channel.stream_stream(
             "/mlclust.v1.Clustering/Run", request_serializer=pb.RunRequest.SerializeToString,
             response_deserializer=None)
+        self._watch_raw = self._channel.unary_stream(
+            "/mlclust.v1.Clustering/Watch", request_serializer=pb.WatchRequest.SerializeToString,
+            response_deserializer=None)
 
     def close(self):
         self._channel.close()
@@ -236,6 +245,45 @@ class Client:
 
     def __exit__(self, *exc):
         self.close()
+
+    def watch(self, job_id: str, from_level: int = 0, *,
+              progress: Optional[Callable[[Progress], None]] = None,
+              timeout: Optional[float] = None) -> Hierarchy:
+        """The levels of a detached job (submitted with detach=True), while it runs or
+        after it ended: level `from_level` of the job (as a snapshot, the returned
+        hierarchy's first level) and every level after it. Raises Error: NOT_FOUND once
+        the server dropped the job's results (the details say when and why),
+        PERMISSION_DENIED for another tenant's job. The job runs on if this ends."""
+        call = self._watch_raw(pb.WatchRequest(job_id=job_id, from_level=int(from_level)),
+                               timeout=timeout)
+        assembler = _Assembler(progress, absolute_levels=True)
+        try:
+            for event in call:
+                assembler.add_bytes(event)
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
+        except BaseException:
+            call.cancel()
+            raise
+        if assembler.failed is not None:
+            raise Error(assembler.failed.code, assembler.failed.message)
+        assembler.job_id = job_id
+        return assembler.finish()
+
+    def cancel(self, job_id: str, timeout: float = 30.0) -> str:
+        """Cancels a queued or running job; returns its state after the call."""
+        try:
+            return self._stub.Cancel(pb.CancelRequest(job_id=job_id), timeout=timeout).state
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
+
+    def jobs(self, timeout: float = 30.0):
+        """This tenant's jobs on the server (JobSummary messages: job_id, state, levels,
+        seconds_queued, seconds_running, ...), in submission order."""
+        try:
+            return list(self._stub.ListJobs(pb.ListJobsRequest(), timeout=timeout).jobs)
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
 
     def stats(self, timeout: float = 10.0):
         """The server's Stats message (queue depth, job counts, GL device)."""
@@ -248,7 +296,7 @@ class Client:
                      clusters: int = 0, *, seed: int = 1, levels=None, device: str = "auto",
                      label: str = "", progress: Optional[Callable[[Progress], None]] = None,
                      timeout: Optional[float] = None, draco=None, batch_triplets: int = 0,
-                     chunk_bytes: int = 1 << 20, **options) -> Hierarchy:
+                     chunk_bytes: int = 1 << 20, detach: bool = False, **options):
         """Clusters a triangle mesh; element ids are face indices (rows of `faces`).
 
         vertices (V, 3) floats, faces (F, 3) vertex indices. algo: hc, ml, pml (every
@@ -264,6 +312,8 @@ class Client:
         lossless (positions bit for bit); {"method": "edgebreaker",
         "quantization_bits": 14} is several times smaller and writes per-face ids so
         that labels still follow `faces` (positions then arrive quantised).
+        detach=True returns the job's id (a str) once the server has queued it; the job
+        runs on and `watch(job_id)` reads its levels, from this client or any other.
         Raises Error (with the gRPC status code) on any failure.
         """
         draco = dict(draco or {})
@@ -278,13 +328,14 @@ class Client:
             raise Error(code, f"encoding the mesh: {message}")
         spec = self._spec(pb.INPUT_KIND_DRACO_MESH, algo, energy, clusters, seed, levels,
                           device, label, batch_triplets, options)
+        spec.detach = bool(detach)
         return self._run(spec, payload, progress, timeout, chunk_bytes)
 
     def cluster_points(self, points, algo: str = "ml", clusters: int = 0, *, seed: int = 1,
                        levels=None, device: str = "auto", label: str = "",
                        progress: Optional[Callable[[Progress], None]] = None,
                        timeout: Optional[float] = None, batch_triplets: int = 0,
-                       chunk_bytes: int = 1 << 20, **options) -> Hierarchy:
+                       chunk_bytes: int = 1 << 20, detach: bool = False, **options):
         """Clusters the rows of `points` (m x d); element ids are row indices. Energy:
         the within-cluster sum of squares. algo: ml, pml, hc (levels from the voxel grid,
         grid=A voxels per dimension, down to `clusters`), lnkmeans, kmeans (at
@@ -298,6 +349,7 @@ class Client:
         spec = self._spec(pb.INPUT_KIND_POINTS_F32, algo, "variance", clusters, seed, levels,
                           device, label, batch_triplets, options)
         spec.point_dims = x.shape[1]
+        spec.detach = bool(detach)
         return self._run(spec, payload, progress, timeout, chunk_bytes)
 
     @staticmethod
@@ -346,4 +398,8 @@ class Client:
             raise
         if assembler.failed is not None:
             raise Error(assembler.failed.code, assembler.failed.message)
+        if spec.detach:
+            if not assembler.job_id:
+                raise Error(grpc.StatusCode.DATA_LOSS, "the server did not detach the job")
+            return assembler.job_id
         return assembler.finish()

@@ -122,6 +122,36 @@ class ServerTest(unittest.TestCase):
         return os.path.join(self.dir.name, name)
 
     # --- meshes ------------------------------------------------------------------------
+    def test_a_detached_job_watched_from_any_level_equals_an_attached_run(self):
+        vertices, faces = grid(20)  # 800 faces
+        attached = self.client.cluster_mesh(vertices, faces, algo="hc")
+        job = self.client.cluster_mesh(vertices, faces, algo="hc", detach=True)
+        self.assertRegex(job, r"^job-\d+$")
+        whole = self.client.watch(job)
+        part = self.client.watch(job, from_level=700)
+        self.assertEqual(whole.job_id, job)
+        self.assertEqual([(l.cluster_count, l.energy) for l in whole.levels],
+                         [(l.cluster_count, l.energy) for l in attached.levels])
+        self.assertEqual([(l.cluster_count, l.energy) for l in part.levels],
+                         [(l.cluster_count, l.energy) for l in attached.levels][700:])
+        for k in (400, 50, 3):
+            np.testing.assert_array_equal(whole.labels(k), attached.labels(k))
+        for k in (100, 50, 3):  # level 700 of 800 faces: 100 clusters
+            np.testing.assert_array_equal(part.labels(k), attached.labels(k))
+        summary = {j.job_id: j for j in self.client.jobs()}[job]
+        self.assertEqual(summary.state, "succeeded")
+        self.assertTrue(summary.detached)
+        self.assertEqual(summary.levels, len(attached.levels))
+        self.assertEqual(self.client.cancel(job), "succeeded")  # ended: left as it is
+        with self.assertRaises(mlclust.Error) as missing:
+            self.client.watch("job-999999")
+        self.assertEqual(missing.exception.code, grpc.StatusCode.NOT_FOUND)
+        # The CLI watches the same job from another process: the same labels.
+        self.cli("watch", job, "--clusters", "50", "--labels", self.path("watched.txt"))
+        with open(self.path("watched.txt")) as f:
+            cli_labels = np.array(f.read().split(), dtype=np.int64)
+        np.testing.assert_array_equal(cli_labels, attached.labels(50))
+
     def test_fandisk_ml_levels_and_labels_equal_the_clis(self):
         vertices, faces = self.fandisk
         h = self.client.cluster_mesh(vertices, faces, algo="ml", energy="cvd")
@@ -274,6 +304,20 @@ class ServerTest(unittest.TestCase):
             self.assertEqual(len(np.unique(labels[300 * block:300 * (block + 1)])), 1)
         km = self.client.cluster_points(x, algo="kmeans", clusters=4)
         self.assertEqual(len(np.unique(km.labels(4))), 4)
+
+    def test_xmeans_finds_k_and_bisecting_gives_levels_down_to_one(self):
+        rng = np.random.default_rng(5)
+        centres = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10]], dtype=np.float32)
+        x = np.concatenate([c + rng.normal(size=(300, 3)).astype(np.float32) for c in centres])
+        xm = self.client.cluster_points(x, algo="xmeans", clusters=1, kmax=16)
+        self.assertEqual([l.cluster_count for l in xm.levels], [1, 4])  # k_min, then found
+        labels = xm.labels(4)
+        for block in range(4):
+            self.assertEqual(len(np.unique(labels[300 * block:300 * (block + 1)])), 1)
+        bk = self.client.cluster_points(x, algo="bisecting", clusters=6, split="energy")
+        self.assertEqual([l.cluster_count for l in bk.levels], [6, 5, 4, 3, 2, 1])
+        energies = [l.energy for l in bk.levels]
+        self.assertEqual(energies, sorted(energies))  # undoing splits never lowers it
 
     # --- errors ------------------------------------------------------------------------
     def test_errors_raise_with_the_status_code_and_message(self):

@@ -264,6 +264,51 @@ TEST(PointMultilevelTest, PmlStaysCloseToMlAtEveryLevel) {
   }
 }
 
+// Every level in full (counts, energies bit for bit, triplets), to compare two runs.
+class RecordingSink : public LevelSink {
+ public:
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
+    for (ClusterId c : labels) moves.push_back(c.value());
+    counts.push_back(count);
+    energies.push_back(energy);
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const LevelMoves& level) override {
+    counts.push_back(level.cluster_count);
+    energies.push_back(level.energy);
+    for (size_t i = 0; i < level.element.size(); ++i) {
+      moves.push_back(level.element[i]);
+      moves.push_back(level.to_cluster[i]);
+      moves.push_back(level.from_cluster[i]);
+    }
+    return absl::OkStatus();
+  }
+  std::vector<uint32_t> counts, moves;
+  std::vector<double> energies;
+};
+
+// The engine's parallel steps (ODEs, mutual pairs, the ODE refresh of a level, LN
+// k-means' assignment) give the same levels on one thread as on two: PML, PML then ML,
+// and ML.
+TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
+  auto [points, truth] = Blobs(60, 200, 3, 23, 4);
+  for (int variant = 0; variant < 3; ++variant) {
+    SCOPED_TRACE(variant);
+    PointMultilevelOptions options;
+    options.parallel = variant < 2;
+    options.pml_until = variant == 1 ? 200 : 0;
+    RecordingSink one, two;
+    options.threads = 1;
+    ASSERT_TRUE(RunPointMultilevel(points, options, one).ok());
+    options.threads = 2;
+    ASSERT_TRUE(RunPointMultilevel(points, options, two).ok());
+    EXPECT_GT(one.counts.size(), 5u);
+    EXPECT_EQ(one.counts, two.counts);
+    EXPECT_EQ(one.energies, two.energies);
+    EXPECT_EQ(one.moves, two.moves);
+  }
+}
+
 TEST(PointMultilevelTest, AnIsolatedOutlierCellStillMergesWhereItIsCheapest) {
   // Two dense groups joined by a bridge of points (so their cells touch face to face) and
   // one outlier whose cell touches no occupied cell. Once the groups have merged into

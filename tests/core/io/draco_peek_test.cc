@@ -1,5 +1,8 @@
 #include "core/io/draco_peek.h"
 
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "core/io/allocation_budget.h"
@@ -76,6 +79,28 @@ TEST(DracoPeekTest, MetadataDeclaringMoreThanThePayloadHoldsNamesNoFaceIds) {
   EXPECT_FALSE(facts.names_face_ids);
   EXPECT_LT(outer.allocated_bytes(), size_t{8} << 20);
   EXPECT_FALSE(outer.exceeded());
+}
+
+// The fuzz corpus (fuzz/corpus/draco): what the peek says at acceptance holds for every
+// payload the decoder accepts, as fuzz_draco checks on random bytes.
+TEST(DracoPeekTest, AgreesWithTheDecoderOnTheFuzzCorpus) {
+  const std::filesystem::path corpus =
+      std::filesystem::path(MLCLUST_DATA_DIR) / ".." / "fuzz" / "corpus" / "draco";
+  int files = 0, decoded_with_ids = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(corpus)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    std::stringstream bytes;
+    bytes << in.rdbuf();
+    const DracoPayloadFacts facts = PeekDracoPayload(bytes.str());
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes.str());
+    ++files;
+    if (!decoded.ok()) continue;
+    EXPECT_TRUE(facts.is_draco && facts.is_mesh) << entry.path();
+    EXPECT_EQ(facts.names_face_ids, decoded->has_face_ids) << entry.path();
+    decoded_with_ids += decoded->has_face_ids ? 1 : 0;
+  }
+  EXPECT_GE(files, 5);
+  EXPECT_GE(decoded_with_ids, 1);  // grid_edgebreaker_face_ids.drc
 }
 
 }  // namespace

@@ -1,0 +1,434 @@
+#include "client/job_commands.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "core/cluster/registry.h"
+#include "core/io/mesh_io.h"
+#include "google/protobuf/util/json_util.h"
+
+namespace mlclust::cli {
+namespace {
+
+constexpr char kJobCommandsUsage[] = R"(
+  mlclust mesh|points INPUT --server ADDR --detach [job options]
+      Submits the job and returns as soon as the server has queued it; the job id is the
+      last line of stdout. The server keeps the job's levels for its retention time
+      (serve --retention-seconds) within its memory for results.
+
+  mlclust watch JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]
+                    [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]
+      Streams a detached job's levels, while it runs or after it ended, from any client:
+      a snapshot of level N (default 0, the job's first), then every level after it. A
+      stream that breaks is resumed where it stopped. The outputs are those of `mesh`:
+      --clusters K picks the level written by --labels (one cluster per element) and --ply
+      (the mesh INPUT coloured by cluster); --levels-csv writes "clusters,energy" per level
+      received. NOT_FOUND once the server has dropped the job's results (the message says
+      when and why).
+
+  mlclust cancel JOB --server ADDR
+      Cancels a queued or running job; prints its state.
+
+  mlclust jobs --server ADDR [--json]
+      The jobs of this client's tenant on the server: queued, running, and those ended
+      within the retention time, with their state, levels and times.
+)";
+
+constexpr char kConnectionFlagsUsage[] = R"(
+  connection flags (mesh, points, stats, info, watch, cancel, jobs, with --server):
+      --deadline SECONDS    the call's deadline: a job still running then is cancelled
+                            (watch: the watch stops, the job runs on)
+      --tls-ca FILE         TLS: the CA certificate (PEM) that signed the server's
+      --tls-cert FILE, --tls-key FILE
+                            a client certificate, for servers that check them
+      --auth-token-file F   send the bearer token in F (its first word; needs TLS)
+)";
+
+// --name value / --name=value; --json, --quiet and --help take no value.
+class Flags {
+ public:
+  static absl::StatusOr<Flags> Parse(int argc, char** argv, const std::set<std::string>& known) {
+    static const std::set<std::string> kNoValue = {"json", "quiet", "help"};
+    Flags flags;
+    for (int i = 0; i < argc; ++i) {
+      std::string arg = argv[i];
+      if (arg == "-h") arg = "--help";
+      if (arg == "-q") arg = "--quiet";
+      if (arg == "-k") arg = "--clusters";
+      if (arg == "-o") arg = "--labels";
+      if (!absl::StartsWith(arg, "--")) {
+        flags.positional_.push_back(arg);
+        continue;
+      }
+      std::string name = arg.substr(2), value;
+      const size_t eq = name.find('=');
+      if (eq != std::string::npos) {
+        value = name.substr(eq + 1);
+        name = name.substr(0, eq);
+      } else if (!kNoValue.contains(name)) {
+        if (i + 1 >= argc) return absl::InvalidArgumentError(absl::StrCat(arg, " needs a value"));
+        value = argv[++i];
+      }
+      if (!known.contains(name) && !kNoValue.contains(name)) {
+        return absl::InvalidArgumentError(absl::StrCat("unknown option --", name));
+      }
+      flags.values_[name] = value;
+    }
+    return flags;
+  }
+
+  bool has(const std::string& name) const { return values_.contains(name); }
+  std::optional<std::string> get(const std::string& name) const {
+    auto it = values_.find(name);
+    if (it == values_.end()) return std::nullopt;
+    return it->second;
+  }
+  absl::StatusOr<uint32_t> GetUint32(const std::string& name, uint32_t fallback) const {
+    const std::optional<std::string> text = get(name);
+    if (!text.has_value()) return fallback;
+    uint32_t value;
+    if (!absl::SimpleAtoi(*text, &value)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--", name, ": '", *text, "' is not an integer in [0, 4294967295]"));
+    }
+    return value;
+  }
+  const std::vector<std::string>& positional() const { return positional_; }
+
+ private:
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> positional_;
+};
+
+int Fail(const absl::Status& status) {
+  std::fprintf(stderr, "mlclust: %s\n", std::string(status.message()).c_str());
+  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+std::set<std::string> Known(std::initializer_list<const char*> names) {
+  std::set<std::string> known(names.begin(), names.end());
+  known.insert("server");
+  for (const std::string& name : ConnectionFlagNames()) known.insert(name);
+  return known;
+}
+
+absl::StatusOr<ServerFlags> RequireServer(const Flags& flags, const std::string& command) {
+  absl::StatusOr<ServerFlags> server =
+      ServerFlagsFrom([&](const std::string& name) { return flags.get(name); });
+  if (!server.ok()) return server.status();
+  if (server->server.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(command,
+                     ": give --server ADDR (the server that accepted the job; an embedded server "
+                     "ends with the command that started it)"));
+  }
+  return server;
+}
+
+absl::StatusOr<std::string> OneJobId(const Flags& flags, const std::string& command) {
+  if (flags.positional().size() != 1) {
+    return absl::InvalidArgumentError(absl::StrCat(command, ": give exactly one JOB id"));
+  }
+  return flags.positional()[0];
+}
+
+std::string MessageJson(const google::protobuf::Message& message) {
+  std::string json;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  options.always_print_primitive_fields = true;
+  options.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
+  return json;
+}
+
+std::string AlgorithmName(const v1::JobSummary& job) {
+  const InputKind input =
+      job.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
+  const AlgorithmInfo* algorithm = FindAlgorithmByWire(
+      input, job.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : job.algorithm());
+  return algorithm != nullptr ? algorithm->name : absl::StrCat(job.algorithm());
+}
+
+absl::Status WriteText(const std::string& path, const std::string& text) {
+  std::FILE* out = std::fopen(path.c_str(), "w");
+  if (out == nullptr) return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  const bool written = std::fwrite(text.data(), 1, text.size(), out) == text.size();
+  if (std::fclose(out) != 0 || !written) {
+    return absl::UnavailableError(absl::StrCat("cannot write ", path));
+  }
+  return absl::OkStatus();
+}
+
+int Watch(const Flags& flags) {
+  absl::StatusOr<std::string> id = OneJobId(flags, "watch");
+  if (!id.ok()) return Fail(id.status());
+  absl::StatusOr<ServerFlags> server = RequireServer(flags, "watch");
+  if (!server.ok()) return Fail(server.status());
+  absl::StatusOr<uint32_t> from_level = flags.GetUint32("from-level", 0);
+  absl::StatusOr<uint32_t> clusters = flags.GetUint32("clusters", 0);
+  for (const auto* value : {&from_level, &clusters}) {
+    if (!value->ok()) return Fail(value->status());
+  }
+  if ((flags.has("labels") || flags.has("ply")) && *clusters == 0) {
+    return Fail(absl::InvalidArgumentError("--labels and --ply need --clusters K (K >= 1)"));
+  }
+  if (flags.has("ply") != flags.has("mesh")) {
+    return Fail(absl::InvalidArgumentError(
+        "--ply FILE needs --mesh INPUT (the mesh file the job was submitted from)"));
+  }
+  // The mesh first: a wrong path fails before the watch starts.
+  std::optional<TriangleMesh> mesh;
+  if (flags.has("mesh")) {
+    absl::StatusOr<TriangleMesh> read = ReadMeshFile(*flags.get("mesh"));
+    if (!read.ok()) return Fail(read.status());
+    mesh = *std::move(read);
+  }
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
+  if (!channel.ok()) return Fail(channel.status());
+
+  const bool quiet = flags.has("quiet") || flags.has("json");
+  const bool progress = !quiet && isatty(STDERR_FILENO);
+  client::WatchOptions options;
+  options.from_level = *from_level;
+  options.deadline = server->deadline;
+  size_t levels_seen = 0;
+  options.on_event = [&](const v1::JobEvent& event) {
+    if (!progress) return;
+    if (event.has_levels()) levels_seen += event.levels().cluster_count_size();
+    if (event.has_snapshot()) levels_seen = 1;
+    if (event.has_progress()) {
+      std::fprintf(stderr, "\r\033[Kmlclust: %s", event.progress().stage().c_str());
+    } else if (levels_seen > 0) {
+      std::fprintf(stderr, "\r\033[Kmlclust: %zu levels received", levels_seen);
+    }
+    if (event.final()) std::fputc('\n', stderr);
+  };
+  options.on_resume = [&](const absl::Status& status) {
+    if (!quiet) {
+      std::fprintf(stderr, "mlclust: the stream broke (%s); resuming\n",
+                   std::string(status.message()).c_str());
+    }
+  };
+  const absl::Time started = absl::Now();
+  absl::StatusOr<client::JobResult> result = client::WatchJob(*channel, *id, options);
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - started);
+  if (!result.ok()) return Fail(ExplainDeadline(result.status(), *server, "the watch"));
+  const HierarchyLog& log = result->hierarchy;
+  if (mesh.has_value() && mesh->num_faces() != log.num_elements()) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--mesh: ", *flags.get("mesh"), " has ",
+                                                        mesh->num_faces(), " faces; job ", *id,
+                                                        " has ", log.num_elements(), " elements")));
+  }
+  if (flags.has("levels-csv")) {
+    std::string csv = "clusters,energy\n";
+    for (size_t l = 0; l < log.num_levels(); ++l) {
+      absl::StrAppendFormat(&csv, "%u,%.17g\n", log.cluster_count(l), log.energy(l));
+    }
+    if (absl::Status s = WriteText(*flags.get("levels-csv"), csv); !s.ok()) return Fail(s);
+  }
+  std::optional<size_t> level;
+  if (*clusters > 0) {
+    level = log.LastLevelWith(*clusters);
+    if (!level.has_value()) level = log.FirstLevelWithAtMost(*clusters);
+    if (!level.has_value()) {
+      return Fail(absl::NotFoundError(absl::StrCat("no level received has ", *clusters,
+                                                   " clusters or fewer (the last has ",
+                                                   log.cluster_count(log.num_levels() - 1), ")")));
+    }
+    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
+    if (!labels.ok()) return Fail(labels.status());
+    const std::vector<uint32_t> compact = client::CompactLabels(*labels);
+    if (flags.has("labels")) {
+      std::string text;
+      text.reserve(compact.size() * 4);
+      for (uint32_t label : compact) absl::StrAppend(&text, label, "\n");
+      if (absl::Status s = WriteText(*flags.get("labels"), text); !s.ok()) return Fail(s);
+    }
+    if (mesh.has_value()) {
+      std::vector<ClusterId> ids(compact.size());
+      for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
+      if (absl::Status s = WriteClusteredPly(*flags.get("ply"), *mesh, ids); !s.ok()) {
+        return Fail(s);
+      }
+    }
+  }
+  const v1::Done& done = result->done;
+  if (flags.has("json")) {
+    std::string json = absl::StrCat(
+        R"({"job_id": ")", *id, R"(", "elements": )", log.num_elements(), R"(, "first_level": )",
+        result->first_level, R"(, "levels": )", log.num_levels(), R"(, "triplets": )",
+        log.num_moves(), R"(, "final_clusters": )", done.final_clusters(), R"(, "device": ")",
+        done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
+    if (level.has_value()) {
+      absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
+                      R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
+                      std::isfinite(log.energy(*level))
+                          ? absl::StrFormat("%.17g", log.energy(*level))
+                          : std::string("null"),
+                      "}");
+    }
+    std::printf("%s}\n", json.c_str());
+    return 0;
+  }
+  std::string level_note;
+  if (level.has_value()) {
+    level_note =
+        absl::StrFormat("; level %zu: %u clusters, energy %.10g", result->first_level + *level,
+                        log.cluster_count(*level), log.energy(*level));
+  }
+  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n", id->c_str(),
+              log.num_elements(), result->first_level, result->first_level + log.num_levels() - 1,
+              log.num_moves(), seconds, done.device().c_str(), level_note.c_str());
+  return 0;
+}
+
+int Cancel(const Flags& flags) {
+  absl::StatusOr<std::string> id = OneJobId(flags, "cancel");
+  if (!id.ok()) return Fail(id.status());
+  absl::StatusOr<ServerFlags> server = RequireServer(flags, "cancel");
+  if (!server.ok()) return Fail(server.status());
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
+  if (!channel.ok()) return Fail(channel.status());
+  absl::StatusOr<std::string> state = client::CancelJob(
+      *channel, *id,
+      server->deadline == absl::InfiniteDuration() ? absl::Seconds(30) : server->deadline);
+  if (!state.ok()) return Fail(ExplainDeadline(state.status(), *server, "the cancel"));
+  std::printf("%s: %s\n", id->c_str(), state->c_str());
+  return 0;
+}
+
+int Jobs(const Flags& flags) {
+  if (!flags.positional().empty()) {
+    return Fail(absl::InvalidArgumentError("jobs: takes no positional arguments"));
+  }
+  absl::StatusOr<ServerFlags> server = RequireServer(flags, "jobs");
+  if (!server.ok()) return Fail(server.status());
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(*server);
+  if (!channel.ok()) return Fail(channel.status());
+  absl::StatusOr<v1::JobList> list =
+      client::ListJobs(*channel, server->deadline == absl::InfiniteDuration() ? absl::Seconds(30)
+                                                                              : server->deadline);
+  if (!list.ok()) return Fail(ExplainDeadline(list.status(), *server, "the list"));
+  if (flags.has("json")) {
+    std::printf("%s", MessageJson(*list).c_str());
+    return 0;
+  }
+  std::printf("%-12s %-10s %-9s %-8s %7s %10s %9s %9s  %s\n", "JOB", "STATE", "ALGO", "DETACHED",
+              "LEVELS", "TRIPLETS", "QUEUED_S", "RUN_S", "LABEL / MESSAGE");
+  for (const v1::JobSummary& job : list->jobs()) {
+    std::string note = job.label();
+    if (job.state() == "failed" || job.state() == "cancelled") {
+      absl::StrAppend(&note, note.empty() ? "" : ": ", job.message());
+    }
+    std::printf("%-12s %-10s %-9s %-8s %7u %10llu %9.2f %9.2f  %s\n", job.job_id().c_str(),
+                job.state().c_str(), AlgorithmName(job).c_str(), job.detached() ? "yes" : "no",
+                job.levels(), static_cast<unsigned long long>(job.triplets()), job.seconds_queued(),
+                job.seconds_running(), note.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::vector<std::string> ConnectionFlagNames() {
+  return {"deadline", "tls-ca", "tls-cert", "tls-key", "auth-token-file"};
+}
+
+absl::StatusOr<ServerFlags> ServerFlagsFrom(
+    const std::function<std::optional<std::string>(const std::string&)>& get) {
+  ServerFlags flags;
+  flags.server = get("server").value_or("");
+  flags.connect.tls_ca_file = get("tls-ca").value_or("");
+  flags.connect.tls_cert_file = get("tls-cert").value_or("");
+  flags.connect.tls_key_file = get("tls-key").value_or("");
+  flags.connect.auth_token_file = get("auth-token-file").value_or("");
+  if (std::optional<std::string> deadline = get("deadline")) {
+    double seconds = 0;
+    if (!absl::SimpleAtod(*deadline, &seconds) || !(seconds > 0) || seconds > 1e7) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--deadline: '", *deadline, "' is not a number of seconds > 0"));
+    }
+    flags.deadline = absl::Seconds(seconds);
+  }
+  return flags;
+}
+
+absl::StatusOr<std::shared_ptr<grpc::Channel>> ConnectTo(const ServerFlags& flags) {
+  return client::Connect(flags.server, flags.connect);
+}
+
+absl::Status ExplainDeadline(const absl::Status& status, const ServerFlags& flags,
+                             const std::string& what) {
+  if (status.code() != absl::StatusCode::kDeadlineExceeded ||
+      flags.deadline == absl::InfiniteDuration()) {
+    return status;
+  }
+  std::string after = what == "the job" ? "; the server cancelled the job"
+                      : what == "the watch"
+                          ? "; the job itself runs on (watch it again, or `mlclust cancel` it)"
+                          : "";
+  return absl::DeadlineExceededError(absl::StrCat(what, " did not finish within --deadline ",
+                                                  absl::FormatDuration(flags.deadline), after,
+                                                  " (gRPC: ", status.message(), ")"));
+}
+
+int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
+                          const std::string& payload, bool quiet) {
+  if (flags.server.empty()) {
+    return Fail(absl::InvalidArgumentError(
+        "--detach needs --server ADDR: an embedded server ends with this command"));
+  }
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = ConnectTo(flags);
+  if (!channel.ok()) return Fail(channel.status());
+  client::RunOptions options;
+  options.deadline = flags.deadline;
+  absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(*channel, spec, payload, options);
+  if (!accepted.ok()) return Fail(ExplainDeadline(accepted.status(), flags, "the upload"));
+  if (!quiet) {
+    std::printf(
+        "queued on %s (%u jobs ahead); results kept %.0f s after it ends; `mlclust watch "
+        "%s --server %s`\n",
+        flags.server.c_str(), accepted->queue_position(), accepted->retention_seconds(),
+        accepted->job_id().c_str(), flags.server.c_str());
+  }
+  std::printf("%s\n", accepted->job_id().c_str());
+  return 0;
+}
+
+const char* JobCommandsUsage() { return kJobCommandsUsage; }
+const char* ConnectionFlagsUsage() { return kConnectionFlagsUsage; }
+
+bool IsJobCommand(const std::string& name) {
+  return name == "watch" || name == "cancel" || name == "jobs";
+}
+
+int RunJobCommand(const std::string& name, int argc, char** argv) {
+  std::set<std::string> known;
+  if (name == "watch") {
+    known = Known({"from-level", "clusters", "labels", "levels-csv", "ply", "mesh"});
+  } else {
+    known = Known({});
+  }
+  absl::StatusOr<Flags> flags = Flags::Parse(argc, argv, known);
+  if (!flags.ok()) return Fail(flags.status());
+  if (flags->has("help")) {
+    std::fputs(kJobCommandsUsage, stdout);
+    std::fputs(kConnectionFlagsUsage, stdout);
+    return 0;
+  }
+  if (name == "watch") return Watch(*flags);
+  if (name == "cancel") return Cancel(*flags);
+  return Jobs(*flags);
+}
+
+}  // namespace mlclust::cli

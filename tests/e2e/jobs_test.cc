@@ -1,0 +1,501 @@
+// Detached jobs over loopback gRPC: submit with detach, Watch from any level while the job
+// runs or after, resume a broken stream, Cancel, ListJobs, and the retention time and
+// memory budget that drop kept results (NOT_FOUND saying why).
+#include <arpa/inet.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <thread>
+
+#include "client/client.h"
+#include "core/io/draco_codec.h"
+#include "grpcpp/grpcpp.h"
+#include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/server.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  options.gpu = server::GpuMode::kOff;
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  EXPECT_TRUE(started.ok()) << started.status();
+  return started.ok() ? *std::move(started) : nullptr;
+}
+
+std::shared_ptr<grpc::Channel> ChannelTo(const server::Server& server) {
+  return client::Connect(absl::StrCat("127.0.0.1:", server.port()));
+}
+
+v1::JobSpec MeshSpec(v1::Algorithm algorithm, uint32_t clusters = 0) {
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  spec.set_algorithm(algorithm);
+  spec.set_energy(v1::ENERGY_CVD);
+  spec.set_clusters(clusters);
+  spec.set_label("jobs_test");
+  return spec;
+}
+
+// Levels [from, from + b.num_levels()) of `a` equal the levels of `b`.
+void ExpectSameLevels(const HierarchyLog& a, const HierarchyLog& b, size_t from = 0) {
+  ASSERT_EQ(a.num_elements(), b.num_elements());
+  ASSERT_EQ(a.num_levels(), from + b.num_levels());
+  for (size_t level = 0; level < b.num_levels(); ++level) {
+    ASSERT_EQ(a.cluster_count(from + level), b.cluster_count(level)) << "level " << level;
+    ASSERT_EQ(a.energy(from + level), b.energy(level)) << "level " << level;
+  }
+  for (size_t level : {size_t{0}, b.num_levels() / 2, b.num_levels() - 1}) {
+    EXPECT_EQ(*a.LabelsAt(from + level), *b.LabelsAt(level)) << "level " << level;
+  }
+}
+
+v1::JobList List(const std::shared_ptr<grpc::Channel>& channel) {
+  absl::StatusOr<v1::JobList> list = client::ListJobs(channel);
+  EXPECT_TRUE(list.ok()) << list.status();
+  return list.ok() ? *list : v1::JobList();
+}
+
+const v1::JobSummary* FindJob(const v1::JobList& list, const std::string& id) {
+  for (const v1::JobSummary& job : list.jobs()) {
+    if (job.job_id() == id) return &job;
+  }
+  return nullptr;
+}
+
+// Waits until job `id` has ended (ListJobs), up to 60 s.
+void WaitEnded(const std::shared_ptr<grpc::Channel>& channel, const std::string& id) {
+  for (int i = 0; i < 6000; ++i) {
+    const v1::JobList list = List(channel);
+    const v1::JobSummary* job = FindJob(list, id);
+    if (job != nullptr && job->state() != "queued" && job->state() != "running") return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ADD_FAILURE() << id << " did not end";
+}
+
+TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
+  std::unique_ptr<server::Server> server = StartServer({});
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(40));  // 3,200 faces
+  absl::StatusOr<client::JobResult> attached =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(attached.ok()) << attached.status();
+
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_ML), bytes);
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  EXPECT_TRUE(accepted->detached());
+  EXPECT_EQ(accepted->input_bytes(), bytes.size());
+  EXPECT_GT(accepted->retention_seconds(), 0);
+  EXPECT_NE(accepted->job_id(), attached->job_id);
+
+  // Two watchers at once, from the start and from level 3,000, on other channels.
+  client::WatchOptions from_middle;
+  from_middle.from_level = 3000;
+  absl::StatusOr<client::JobResult> middle;
+  std::thread second(
+      [&] { middle = client::WatchJob(ChannelTo(*server), accepted->job_id(), from_middle); });
+  absl::StatusOr<client::JobResult> whole =
+      client::WatchJob(ChannelTo(*server), accepted->job_id());
+  second.join();
+  ASSERT_TRUE(whole.ok()) << whole.status();
+  ASSERT_TRUE(middle.ok()) << middle.status();
+  ExpectSameLevels(attached->hierarchy, whole->hierarchy);
+  EXPECT_EQ(whole->first_level, 0u);
+  EXPECT_EQ(middle->first_level, 3000u);
+  ExpectSameLevels(attached->hierarchy, middle->hierarchy, 3000);
+  EXPECT_EQ(whole->done.levels(), attached->done.levels());
+  EXPECT_EQ(whole->done.triplets(), attached->done.triplets());
+
+  // After the job ended, again: the same.
+  absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id());
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectSameLevels(attached->hierarchy, again->hierarchy);
+
+  // The list knows both jobs, in order, with their state.
+  const v1::JobList list = List(channel);
+  ASSERT_EQ(list.jobs_size(), 2);
+  EXPECT_EQ(list.jobs(0).job_id(), attached->job_id);
+  EXPECT_FALSE(list.jobs(0).detached());
+  EXPECT_EQ(list.jobs(0).kept_bytes(), 0u);
+  EXPECT_EQ(list.jobs(1).job_id(), accepted->job_id());
+  EXPECT_TRUE(list.jobs(1).detached());
+  for (const v1::JobSummary& job : list.jobs()) {
+    EXPECT_EQ(job.state(), "succeeded");
+    EXPECT_EQ(job.levels(), attached->done.levels());
+    EXPECT_EQ(job.triplets(), attached->done.triplets());
+    EXPECT_EQ(job.label(), "jobs_test");
+    EXPECT_GT(job.expires_in_seconds(), 0);
+  }
+  // 4 bytes per label, 12 per triplet, and a little per level.
+  EXPECT_GE(list.jobs(1).kept_bytes(), 4 * 3200 + 12 * attached->done.triplets());
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  ASSERT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  EXPECT_EQ(stats.jobs_known(), 2u);
+  EXPECT_EQ(stats.kept_result_bytes(), list.jobs(1).kept_bytes());
+  EXPECT_EQ(stats.watch_calls_active(), 0u);
+}
+
+TEST(DetachTest, AWatchStartedWhileTheJobIsQueuedFollowsItToTheEnd) {
+  std::unique_ptr<server::Server> server = StartServer({});  // one worker
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string small = *EncodeMeshToDraco(testing::Grid(30));
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), small);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  // A longer job first keeps the worker busy while the watched one waits.
+  absl::StatusOr<v1::Accepted> blocker = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_ML), *EncodeMeshToDraco(testing::Grid(200)));
+  ASSERT_TRUE(blocker.ok()) << blocker.status();
+  absl::StatusOr<v1::Accepted> watched =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), small);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  std::vector<std::string> stages;
+  client::WatchOptions options;
+  options.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_progress()) stages.push_back(event.progress().stage());
+  };
+  absl::StatusOr<client::JobResult> result = client::WatchJob(channel, watched->job_id(), options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ExpectSameLevels(solo->hierarchy, result->hierarchy);
+  EXPECT_FALSE(stages.empty());  // it saw the job's progress while waiting for levels
+}
+
+TEST(DetachTest, ABrokenStreamResumesWhereItStopped) {
+  server::ServerOptions options;
+  options.max_event_bytes = 8 << 10;  // many small events, and split levels
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(40));
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  WaitEnded(channel, accepted->job_id());
+
+  // Read the snapshot and a few level batches, then break the stream.
+  auto stub = v1::Clustering::NewStub(channel);
+  std::vector<uint32_t> counts;   // cluster count per complete level received
+  std::vector<uint64_t> moves;    // triplets per complete level
+  uint64_t open_level_moves = 0;  // of a split level not complete yet
+  auto take = [&](const v1::JobEvent& event) {
+    if (event.has_snapshot() && event.snapshot().first_element() == 0) {
+      counts.push_back(event.snapshot().cluster_count());
+      moves.push_back(0);
+    }
+    if (!event.has_levels()) return;
+    const v1::LevelBatch& batch = event.levels();
+    ASSERT_EQ(batch.first_level(), counts.size()) << "levels out of order";
+    uint32_t begin = 0;
+    for (int i = 0; i < batch.cluster_count_size(); ++i) {
+      const uint64_t n = batch.triplet_end(i) - begin + open_level_moves;
+      begin = batch.triplet_end(i);
+      if (i == batch.cluster_count_size() - 1 && batch.last_level_continues()) {
+        open_level_moves = n;
+      } else {
+        open_level_moves = 0;
+        counts.push_back(batch.cluster_count(i));
+        moves.push_back(n);
+      }
+    }
+  };
+  {
+    grpc::ClientContext context;
+    v1::WatchRequest request;
+    request.set_job_id(accepted->job_id());
+    auto stream = stub->Watch(&context, request);
+    v1::JobEvent event;
+    int batches = 0;
+    while (batches < 5 && stream->Read(&event)) {
+      take(event);
+      batches += event.has_levels();
+    }
+    context.TryCancel();
+    while (stream->Read(&event)) {
+    }
+    EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  }
+  ASSERT_GT(counts.size(), 1u);
+  ASSERT_LT(counts.size(), solo->hierarchy.num_levels());
+  // Resume after the last complete level: no snapshot, no Accepted, the rest to Done.
+  open_level_moves = 0;
+  grpc::ClientContext context;
+  v1::WatchRequest request;
+  request.set_job_id(accepted->job_id());
+  request.set_from_level(static_cast<uint32_t>(counts.size() - 1));
+  request.set_resume(true);
+  auto stream = stub->Watch(&context, request);
+  v1::JobEvent event;
+  bool done = false;
+  while (stream->Read(&event)) {
+    EXPECT_FALSE(event.has_snapshot() || event.has_accepted());
+    take(event);
+    done = done || event.has_done();
+  }
+  ASSERT_TRUE(stream->Finish().ok());
+  EXPECT_TRUE(done);
+  ASSERT_EQ(counts.size(), solo->hierarchy.num_levels());
+  uint64_t total = 0;
+  for (size_t level = 0; level < counts.size(); ++level) {
+    EXPECT_EQ(counts[level], solo->hierarchy.cluster_count(level)) << "level " << level;
+    total += moves[level];
+  }
+  EXPECT_EQ(total, solo->hierarchy.num_moves());
+}
+
+TEST(DetachTest, UnknownDroppedAndUnkeptJobsAreRefusedWithReasons) {
+  server::ServerOptions options;
+  options.result_retention = absl::Seconds(1);
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(10));
+  absl::StatusOr<client::JobResult> unknown = client::WatchJob(channel, "job-424242");
+  EXPECT_EQ(unknown.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(unknown.status().message(), HasSubstr("no job 'job-424242'"));
+
+  absl::StatusOr<client::JobResult> attached =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(attached.ok());
+  absl::StatusOr<client::JobResult> unkept = client::WatchJob(channel, attached->job_id);
+  EXPECT_EQ(unkept.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(unkept.status().message(), HasSubstr("without detach"));
+
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(accepted.ok());
+  WaitEnded(channel, accepted->job_id());
+  client::WatchOptions past_end;
+  past_end.from_level = 200;  // 200 faces: levels 0..199
+  absl::StatusOr<client::JobResult> out_of_range =
+      client::WatchJob(channel, accepted->job_id(), past_end);
+  EXPECT_EQ(out_of_range.status().code(), absl::StatusCode::kOutOfRange);
+  EXPECT_THAT(out_of_range.status().message(), HasSubstr("200 levels"));
+  ASSERT_TRUE(client::WatchJob(channel, accepted->job_id()).ok());
+
+  // Past the retention time: dropped, and the message says so.
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  absl::StatusOr<client::JobResult> dropped = client::WatchJob(channel, accepted->job_id());
+  EXPECT_EQ(dropped.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(dropped.status().message(), HasSubstr("retention time"));
+  EXPECT_EQ(List(channel).jobs_size(), 0);
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  ASSERT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  EXPECT_EQ(stats.results_dropped(), 2u);
+  EXPECT_EQ(stats.kept_result_bytes(), 0u);
+  EXPECT_EQ(stats.jobs_known(), 0u);
+}
+
+TEST(DetachTest, TheMemoryBudgetDropsTheOldestResultsFirstAndCancelsWhatCannotFit) {
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(30));  // 1,800 faces
+  uint64_t one_job = 0;
+  {
+    std::unique_ptr<server::Server> server = StartServer({});
+    auto channel = ChannelTo(*server);
+    absl::StatusOr<v1::Accepted> accepted =
+        client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+    ASSERT_TRUE(accepted.ok());
+    WaitEnded(channel, accepted->job_id());
+    one_job = FindJob(List(channel), accepted->job_id())->kept_bytes();
+  }
+  ASSERT_GT(one_job, 0u);
+  server::ServerOptions options;
+  options.kept_results_bytes = one_job + one_job / 2;  // room for one job's levels
+  std::unique_ptr<server::Server> server = StartServer(options);
+  auto channel = ChannelTo(*server);
+  absl::StatusOr<v1::Accepted> first =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(first.ok());
+  WaitEnded(channel, first->job_id());
+  absl::StatusOr<v1::Accepted> second =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(second.ok());
+  WaitEnded(channel, second->job_id());
+  absl::StatusOr<client::JobResult> dropped = client::WatchJob(channel, first->job_id());
+  EXPECT_EQ(dropped.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(dropped.status().message(), HasSubstr("make room"));
+  absl::StatusOr<client::JobResult> kept = client::WatchJob(channel, second->job_id());
+  ASSERT_TRUE(kept.ok()) << kept.status();
+  EXPECT_EQ(kept->done.triplets(), kept->hierarchy.num_moves());
+
+  // A job bigger than the whole budget is cancelled, saying why.
+  absl::StatusOr<v1::Accepted> too_big = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(60)));
+  ASSERT_TRUE(too_big.ok());
+  absl::StatusOr<client::JobResult> refused = client::WatchJob(channel, too_big->job_id());
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(refused.status().message(), HasSubstr("memory for kept results"));
+  // The server keeps serving.
+  EXPECT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes).ok());
+}
+
+TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {
+  std::unique_ptr<server::Server> server = StartServer({});  // one worker
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string big = *EncodeMeshToDraco(testing::Grid(300));  // 180,000 faces
+  absl::StatusOr<v1::Accepted> running =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_ML), big);
+  absl::StatusOr<v1::Accepted> queued =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_ML), big);
+  ASSERT_TRUE(running.ok() && queued.ok());
+  EXPECT_LE(queued->queue_position(), 1u);
+
+  absl::StatusOr<std::string> state = client::CancelJob(channel, queued->job_id());
+  ASSERT_TRUE(state.ok()) << state.status();
+  EXPECT_EQ(*state, "cancelled");
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(channel, queued->job_id());
+  EXPECT_EQ(watched.status().code(), absl::StatusCode::kCancelled);
+  EXPECT_THAT(watched.status().message(), HasSubstr("Cancel call"));
+
+  // The running one: its watcher ends with CANCELLED soon after the cancel.
+  absl::StatusOr<client::JobResult> running_watch;
+  std::thread watcher([&] { running_watch = client::WatchJob(channel, running->job_id()); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(client::CancelJob(channel, running->job_id()).ok());
+  watcher.join();
+  EXPECT_EQ(running_watch.status().code(), absl::StatusCode::kCancelled);
+  WaitEnded(channel, running->job_id());
+  EXPECT_EQ(FindJob(List(channel), running->job_id())->state(), "cancelled");
+  // Cancelling an ended job leaves it as it is; an unknown one is NOT_FOUND.
+  EXPECT_EQ(*client::CancelJob(channel, running->job_id()), "cancelled");
+  EXPECT_EQ(client::CancelJob(channel, "job-999999").status().code(), absl::StatusCode::kNotFound);
+  // The worker is free again.
+  EXPECT_TRUE(
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
+          .ok());
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// A TCP forwarder on loopback that cuts its first connection after `cut_after` bytes from
+// the server to the client; later connections are forwarded whole. A broken network in
+// the middle of a watch.
+class CuttingProxy {
+ public:
+  CuttingProxy(int server_port, size_t cut_after)
+      : server_port_(server_port), cut_after_(cut_after) {
+    listener_ = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(listener_, reinterpret_cast<sockaddr*>(&address), sizeof(address));
+    socklen_t length = sizeof(address);
+    getsockname(listener_, reinterpret_cast<sockaddr*>(&address), &length);
+    port_ = ntohs(address.sin_port);
+    listen(listener_, 8);
+    acceptor_ = std::thread([this] { Accept(); });
+  }
+  ~CuttingProxy() {
+    stopping_ = true;
+    shutdown(listener_, SHUT_RDWR);
+    close(listener_);
+    acceptor_.join();
+    for (std::thread& pump : pumps_) pump.join();
+  }
+  int port() const { return port_; }
+  int connections() const { return connections_; }
+
+ private:
+  void Accept() {
+    while (!stopping_) {
+      const int client = accept(listener_, nullptr, nullptr);
+      if (client < 0) return;
+      const int upstream = socket(AF_INET, SOCK_STREAM, 0);
+      sockaddr_in address{};
+      address.sin_family = AF_INET;
+      address.sin_port = htons(static_cast<uint16_t>(server_port_));
+      address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+      if (connect(upstream, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+        close(client);
+        close(upstream);
+        continue;
+      }
+      const size_t limit = connections_++ == 0 ? cut_after_ : SIZE_MAX;
+      pumps_.emplace_back([=] { Pump(client, upstream, SIZE_MAX); });
+      pumps_.emplace_back([=] { Pump(upstream, client, limit); });
+    }
+  }
+  // Copies from -> to until either side closes or `limit` bytes passed; then closes both.
+  static void Pump(int from, int to, size_t limit) {
+    char buffer[16384];
+    size_t passed = 0;
+    while (passed < limit) {
+      const ssize_t n = read(from, buffer, std::min(sizeof(buffer), limit - passed));
+      if (n <= 0) break;
+      if (write(to, buffer, static_cast<size_t>(n)) != n) break;
+      passed += static_cast<size_t>(n);
+    }
+    shutdown(from, SHUT_RDWR);
+    shutdown(to, SHUT_RDWR);
+  }
+
+  const int server_port_;
+  const size_t cut_after_;
+  int listener_ = -1;
+  int port_ = 0;
+  std::atomic<bool> stopping_{false};
+  std::atomic<int> connections_{0};
+  std::thread acceptor_;
+  std::vector<std::thread> pumps_;
+};
+
+// The client's own resume: the connection breaks in the middle of the levels, WatchJob
+// reconnects and asks for the levels after the last complete one; the result is whole.
+TEST(DetachTest, WatchJobResumesAfterTheConnectionBreaks) {
+  server::ServerOptions options;
+  options.max_event_bytes = 16 << 10;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(60));  // 7,200 faces
+  absl::StatusOr<client::JobResult> solo =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(solo.ok()) << solo.status();
+  absl::StatusOr<v1::Accepted> accepted =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
+  ASSERT_TRUE(accepted.ok());
+  WaitEnded(channel, accepted->job_id());
+
+  CuttingProxy proxy(server->port(), 100 << 10);  // the stream is ~400 KB
+  int resumes = 0;
+  client::WatchOptions watch;
+  watch.resume_delay = absl::Milliseconds(50);
+  watch.on_resume = [&](const absl::Status& status) {
+    ++resumes;
+    EXPECT_EQ(status.code(), absl::StatusCode::kUnavailable) << status;
+  };
+  absl::StatusOr<client::JobResult> result = client::WatchJob(
+      client::Connect(absl::StrCat("127.0.0.1:", proxy.port())), accepted->job_id(), watch);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(resumes, 1);
+  EXPECT_EQ(proxy.connections(), 2);
+  ExpectSameLevels(solo->hierarchy, result->hierarchy);
+  EXPECT_EQ(result->hierarchy.num_moves(), solo->hierarchy.num_moves());
+}
+
+}  // namespace
+}  // namespace mlclust

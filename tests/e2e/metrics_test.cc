@@ -1,0 +1,141 @@
+// The Prometheus endpoint and the JSON log lines of a real server on loopback: counts by
+// algorithm and outcome, histograms, bytes in and out, 404 elsewhere, a port in use
+// refused; one JSON object per log line with the job's fields.
+#include <arpa/inet.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_split.h"
+#include "client/client.h"
+#include "core/io/draco_codec.h"
+#include "server/log.h"
+#include "server/server.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using ::testing::HasSubstr;
+
+// GET `path` from 127.0.0.1:`port` over plain HTTP/1.0; the whole response.
+std::string HttpGet(int port, const std::string& path) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+    close(fd);
+    return "";
+  }
+  const std::string request = "GET " + path + " HTTP/1.0\r\nHost: localhost\r\n\r\n";
+  (void)!write(fd, request.data(), request.size());
+  std::string response;
+  char buffer[4096];
+  ssize_t n;
+  while ((n = read(fd, buffer, sizeof(buffer))) > 0) response.append(buffer, n);
+  close(fd);
+  return response;
+}
+
+// The value of the sample line that starts with `name` (labels included), or -1.
+double Sample(const std::string& metrics, const std::string& name) {
+  for (absl::string_view line : absl::StrSplit(metrics, '\n')) {
+    if (line.size() > name.size() && line.substr(0, name.size()) == name &&
+        line[name.size()] == ' ') {
+      return std::stod(std::string(line.substr(name.size() + 1)));
+    }
+  }
+  return -1;
+}
+
+v1::JobSpec MeshSpec(v1::Algorithm algorithm) {
+  v1::JobSpec spec;
+  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
+  spec.set_algorithm(algorithm);
+  spec.set_label("metrics \"test\"");
+  return spec;
+}
+
+TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.metrics_address = "127.0.0.1:0";
+  options.gpu = server::GpuMode::kOff;
+  options.log_json = true;
+  ::testing::internal::CaptureStderr();
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  ASSERT_TRUE(started.ok()) << started.status();
+  server::Server& server = **started;
+  ASSERT_GT(server.metrics_port(), 0);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server.port()));
+
+  const std::string mesh = *EncodeMeshToDraco(testing::Grid(10));
+  ASSERT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), mesh).ok());
+  ASSERT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), mesh).ok());
+  const std::string garbage(1000, 'x');
+  EXPECT_EQ(client::RunJob(channel, MeshSpec(v1::ALGORITHM_ML), garbage).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  absl::StatusOr<v1::Accepted> detached =
+      client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), mesh);
+  ASSERT_TRUE(detached.ok());
+  ASSERT_TRUE(client::WatchJob(channel, detached->job_id()).ok());
+
+  const std::string response = HttpGet(server.metrics_port(), "/metrics");
+  EXPECT_THAT(response, HasSubstr("200 OK"));
+  EXPECT_THAT(response, HasSubstr("text/plain; version=0.0.4"));
+  EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="hc",outcome="succeeded"})"), 3);
+  EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="ml",outcome="failed"})"), 1);
+  EXPECT_EQ(Sample(response, R"(mlclust_job_running_seconds_count{algorithm="hc"})"), 3);
+  EXPECT_EQ(Sample(response, R"(mlclust_job_running_seconds_bucket{algorithm="hc",le="+Inf"})"), 3);
+  EXPECT_GE(Sample(response, R"(mlclust_job_running_seconds_bucket{algorithm="hc",le="300"})"),
+            Sample(response, R"(mlclust_job_running_seconds_bucket{algorithm="hc",le="0.01"})"));
+  EXPECT_EQ(Sample(response, "mlclust_input_bytes_total"), 3 * mesh.size() + garbage.size());
+  EXPECT_GT(Sample(response, "mlclust_output_bytes_total"), 3 * 200 * 4);
+  EXPECT_EQ(Sample(response, "mlclust_queue_depth"), 0);
+  EXPECT_EQ(Sample(response, "mlclust_jobs_accepted_total"), 4);
+  EXPECT_EQ(Sample(response, "mlclust_gpu_available"), 0);
+  EXPECT_GT(Sample(response, "mlclust_kept_result_bytes"), 0);
+  EXPECT_THAT(HttpGet(server.metrics_port(), "/other"), HasSubstr("404"));
+
+  // A metrics port in use is refused.
+  server::ServerOptions second = options;
+  second.metrics_address = absl::StrCat("127.0.0.1:", server.metrics_port());
+  second.log = false;
+  absl::StatusOr<std::unique_ptr<server::Server>> refused = server::Server::Start(second);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(refused.status().message(), HasSubstr("--metrics"));
+
+  started->reset();
+  const std::string logs = ::testing::internal::GetCapturedStderr();
+  int accepted = 0, ended = 0;
+  for (absl::string_view line : absl::StrSplit(logs, '\n', absl::SkipEmpty())) {
+    ASSERT_EQ(line.front(), '{') << line;
+    ASSERT_EQ(line.back(), '}') << line;
+    EXPECT_THAT(std::string(line), HasSubstr(R"("time":")"));
+    if (absl::StrContains(line, R"("event":"job_accepted")")) {
+      ++accepted;
+      EXPECT_THAT(std::string(line), HasSubstr(R"("label":"metrics \"test\"")"));
+      EXPECT_THAT(std::string(line), HasSubstr(R"("tenant":"")"));
+    }
+    if (absl::StrContains(line, R"("event":"job_ended")")) {
+      ++ended;
+      EXPECT_THAT(std::string(line), HasSubstr(R"("seconds_running":)"));
+      EXPECT_THAT(std::string(line), HasSubstr(R"("input_bytes":)"));
+      if (absl::StrContains(line, R"("outcome":"failed")")) {
+        EXPECT_THAT(std::string(line), HasSubstr(R"("algorithm":"ml")"));
+        EXPECT_THAT(std::string(line), HasSubstr(R"("code":3)"));
+      }
+    }
+  }
+  EXPECT_EQ(accepted, 4);
+  EXPECT_EQ(ended, 4);
+  server::JsonLogs() = false;
+}
+
+}  // namespace
+}  // namespace mlclust
