@@ -118,7 +118,8 @@ TEST(BoundaryDecideGpu, SameTargetsAsTheCpuOnFandisk) {
 // within 1% (issue 10; on llvmpipe the runs are identical).
 TEST(OptimizeBoundaryBasedGpu, EnergyWithinOnePercentOfTheCpuOnFandisk) {
   const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
-  for (MeshEnergyKind kind : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
+  for (MeshEnergyKind kind :
+       {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar, MeshEnergyKind::kMwcvdArea}) {
     const MeshProblem problem = mesh.problem(kind);
     const std::vector<ClusterId> seeded = Seeds(problem, 100);
     std::vector<ClusterId> cpu = seeded, gpu = seeded;
