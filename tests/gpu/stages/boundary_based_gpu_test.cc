@@ -118,7 +118,8 @@ TEST(BoundaryDecideGpu, SameTargetsAsTheCpuOnFandisk) {
 // within 1% (issue 10; on llvmpipe the runs are identical).
 TEST(OptimizeBoundaryBasedGpu, EnergyWithinOnePercentOfTheCpuOnFandisk) {
   const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
-  for (MeshEnergyKind kind : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
+  for (MeshEnergyKind kind :
+       {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar, MeshEnergyKind::kMwcvdArea}) {
     const MeshProblem problem = mesh.problem(kind);
     const std::vector<ClusterId> seeded = Seeds(problem, 100);
     std::vector<ClusterId> cpu = seeded, gpu = seeded;
@@ -132,6 +133,24 @@ TEST(OptimizeBoundaryBasedGpu, EnergyWithinOnePercentOfTheCpuOnFandisk) {
     // Clusters keep their ids, and every face has one of the seeding's.
     EXPECT_EQ(RenumberByFirstAppearance(std::span<const ClusterId>(gpu)).size(), 100u);
   }
+}
+
+// With Alg. 3.2's vertex boundary-edge counts as the guard the GPU run follows the CPU's
+// too: the driver is the CPU's, only the decide stage differs.
+TEST(OptimizeBoundaryBasedGpu, SameEnergyWithTheVertexCountGuard) {
+  const testing::LoadedMesh& mesh = testing::LoadDataFile("fandisk.off");
+  const MeshProblem problem = mesh.problem();
+  const std::vector<ClusterId> seeded = Seeds(problem, 100);
+  BoundaryBasedOptions options;
+  options.guard = ConnectivityGuardKind::kVertexBoundaryEdgeCount;
+  std::vector<ClusterId> cpu = seeded, gpu = seeded;
+  absl::StatusOr<OptimizeResult> on_cpu = OptimizeBoundaryBased(problem, cpu, options);
+  absl::StatusOr<OptimizeResult> on_gpu =
+      OptimizeBoundaryBasedGpu(Context(), problem, gpu, options);
+  ASSERT_TRUE(on_cpu.ok()) << on_cpu.status();
+  ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+  EXPECT_LT(on_gpu->energy, on_gpu->initial_energy);
+  EXPECT_NEAR(on_gpu->energy, on_cpu->energy, 0.01 * on_cpu->energy);
 }
 
 TEST(OptimizeBoundaryBasedGpu, RefusesAnEnergyWithoutAGpuDecide) {
