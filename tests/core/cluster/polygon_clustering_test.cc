@@ -122,9 +122,21 @@ std::vector<ClusterId> MajorityPerPolygon(const PolygonMesh& m, const MeshPolygo
   return out;
 }
 
+// fandisk (data/fandisk.off, 12,946 triangles), every triangle a polygon of its own.
+PolygonMesh FandiskTriangles() {
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(std::string(MLCLUST_DATA_DIR) + "/fandisk.off");
+  EXPECT_TRUE(mesh.ok()) << mesh.status();
+  const size_t faces = mesh->num_faces();
+  return Prepare(*std::move(mesh), std::vector<uint32_t>(faces, 1));
+}
+
 class PolygonClusteringTest : public ::testing::TestWithParam<int> {
  protected:
-  PolygonMesh Mesh() const { return GetParam() == 0 ? WavyQuadGrid(12) : DoubleTorus(); }
+  PolygonMesh Mesh() const {
+    return GetParam() == 0   ? WavyQuadGrid(12)
+           : GetParam() == 1 ? DoubleTorus()
+                             : FandiskTriangles();
+  }
 };
 
 TEST_P(PolygonClusteringTest, HierarchiesNeverSplitAPolygon) {
@@ -271,6 +283,42 @@ INSTANTIATE_TEST_SUITE_P(Meshes, PolygonClusteringTest, ::testing::Values(0, 1),
                            return info.param == 0 ? std::string("QuadGrid")
                                                   : std::string("DoubleTorus");
                          });
+
+// The exact equality of polygons of one triangle and triangles on a real mesh too.
+class OneTrianglePolygonsTest : public PolygonClusteringTest {};
+TEST_P(OneTrianglePolygonsTest, OnFandisk) {
+  const PolygonMesh m = Mesh();
+  absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(m.counts, m.prepared.adjacency);
+  ASSERT_TRUE(polygons.ok()) << polygons.status();
+  for (MeshEnergyKind energy : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
+    const MeshProblem triangles = MakeMeshProblem(m.prepared, {.kind = energy});
+    MeshProblem singles = triangles;
+    singles.polygons = &*polygons;
+    HierarchyLog expected, got;
+    ASSERT_TRUE(RunMultilevel(triangles, {}, expected).ok());
+    ASSERT_TRUE(RunMultilevel(singles, {}, got).ok());
+    ASSERT_EQ(got.num_levels(), expected.num_levels());
+    ASSERT_EQ(got.num_moves(), expected.num_moves());
+    for (size_t level :
+         {size_t{1}, got.num_levels() / 2, got.num_levels() - 1000, got.num_levels() - 1}) {
+      EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
+    }
+    SeedOptions seeds;
+    seeds.clusters = 200;
+    absl::StatusOr<std::vector<ClusterId>> a = InitialClusters(triangles, seeds);
+    absl::StatusOr<std::vector<ClusterId>> b = InitialClusters(singles, seeds);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(*a, *b);
+    std::vector<ClusterId> emlo_a = *a, emlo_b = *b, bb_a = *a, bb_b = *b;
+    ASSERT_TRUE(OptimizeEmlo(triangles, emlo_a).ok());
+    ASSERT_TRUE(OptimizeEmlo(singles, emlo_b).ok());
+    EXPECT_EQ(emlo_a, emlo_b);
+    ASSERT_TRUE(OptimizeBoundaryBased(triangles, bb_a).ok());
+    ASSERT_TRUE(OptimizeBoundaryBased(singles, bb_b).ok());
+    EXPECT_EQ(bb_a, bb_b);
+  }
+}
+INSTANTIATE_TEST_SUITE_P(Fandisk, OneTrianglePolygonsTest, ::testing::Values(2));
 
 TEST(MakeMeshPolygonsTest, RefusesBadListsNamingTheIndex) {
   const PolygonMesh m = WavyQuadGrid(3);  // 18 faces
