@@ -397,6 +397,9 @@ struct TriangleElements {
   uint32_t Components(std::vector<uint32_t>& component) const {
     return LabelFaceComponents(*problem.adjacency, component);
   }
+  bool Seeds(uint32_t level, std::vector<uint32_t>& seeds) const {
+    return LNeighbourhoodSeeds(*problem.adjacency, level, options.cancel, seeds);
+  }
   std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
     return mlclust::Grow(problem, seeds, options.growth, options.cancel);
   }
@@ -415,9 +418,13 @@ struct TriangleElements {
   }
 };
 
-// The polygons (problem.polygons) as InitialElementClusters' elements: the same seeding
-// on the polygons' dual graph, growth with the polygon energy, and the reduction's
-// vertices those of a polygon's triangles. No seed adding (refused before).
+// The polygons (problem.polygons) as InitialElementClusters' elements: growth with the
+// polygon energy on the polygons' dual graph, and the reduction's vertices those of a
+// polygon's triangles. Alg. 3.1 runs on the triangles (l counts triangle edge steps) and
+// each seed moves to its polygon, a polygon seeded twice counting once: ours, since on the
+// dual graph of a coarse polygon mesh the seeds' neighbourhoods are too coarse (on CGAL's
+// double torus at K = 50 the grown seeds had 4x the energy of the triangles' seeds moved
+// to polygons; BENCHMARKS.md). No seed adding (refused before).
 struct PolygonElements {
   const MeshProblem& problem;
   const SeedOptions& options;
@@ -431,6 +438,20 @@ struct PolygonElements {
   }
   const PolygonAdjacency& adjacency() const { return problem.polygons->adjacency; }
   const char* noun() const { return "polygons"; }
+  bool Seeds(uint32_t level, std::vector<uint32_t>& seeds) const {
+    std::vector<uint32_t> faces;
+    if (!LNeighbourhoodSeeds(*problem.adjacency, level, options.cancel, faces)) return false;
+    seeds.clear();
+    std::vector<uint8_t> seeded(problem.polygons->num_polygons(), 0);
+    for (uint32_t f : faces) {
+      const uint32_t p = problem.polygons->polygon_of_face[f];
+      if (!seeded[p]) {
+        seeded[p] = 1;
+        seeds.push_back(p);
+      }
+    }
+    return true;
+  }
   // A polygon is edge-connected: its component is its first triangle's.
   uint32_t Components(std::vector<uint32_t>& component) const {
     std::vector<uint32_t> of_face;
@@ -479,8 +500,8 @@ struct PolygonElements {
 
 // InitialClusters over `elements`: faces (TriangleElements) or polygons (PolygonElements),
 // each giving its adjacency(), a noun for messages, the elements' connected components,
-// Grow(seeds), Reduce(labels, clusters, target, seeds or null) and AddSeedsAndGrow(seeds,
-// target). Labels are per element.
+// Seeds(l, seeds) (Alg. 3.1; false if cancelled), Grow(seeds), Reduce(labels, clusters,
+// target, seeds or null) and AddSeedsAndGrow(seeds, target). Labels are per element.
 template <typename Elements>
 absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& elements,
                                                              const SeedOptions& options) {
@@ -529,7 +550,7 @@ absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& ele
       // The largest l that still gives k seeds: grow l by doubling, then bisect.
       uint32_t good = 0, bad = 0;
       for (uint32_t l = 1;; l *= 2) {
-        if (!LNeighbourhoodSeeds(adjacency, l, options.cancel, seeds)) return cancelled();
+        if (!elements.Seeds(l, seeds)) return cancelled();
         if (seeds.size() >= k) {
           good = l;
         } else {
@@ -540,12 +561,12 @@ absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& ele
       }
       while (bad > good + 1) {
         const uint32_t mid = good + (bad - good) / 2;
-        if (!LNeighbourhoodSeeds(adjacency, mid, options.cancel, seeds)) return cancelled();
+        if (!elements.Seeds(mid, seeds)) return cancelled();
         (seeds.size() >= k ? good : bad) = mid;
       }
       level = good;
     }
-    if (!LNeighbourhoodSeeds(adjacency, level, options.cancel, seeds)) return cancelled();
+    if (!elements.Seeds(level, seeds)) return cancelled();
     if (seeds.size() < k && !options.add_seeds) {
       return absl::InvalidArgumentError(absl::StrCat(
           "level: l = ", level, " gives only ", seeds.size(), " seeds, fewer than the ", k,

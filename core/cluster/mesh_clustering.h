@@ -37,7 +37,9 @@ struct MeshProblem {
   // cluster, a polygon's sums are its triangles' sums added, polygons neighbour across
   // triangle edges and the ring test guards polygon moves (core/mesh/polygons.h).
   // Labels stay one per face; labels passed in must keep each polygon's triangles in one
-  // cluster (INVALID_ARGUMENT naming the polygon otherwise). Alg. 3.2's vertex
+  // cluster (INVALID_ARGUMENT naming the polygon otherwise). InitialClusters' Alg. 3.1
+  // runs on the triangles and moves each seed to its polygon (ours: the polygons' dual
+  // graph is too coarse for it; BENCHMARKS.md). Alg. 3.2's vertex
   // boundary-edge count guard and SeedOptions::add_seeds are per triangle and refused
   // with polygons.
   const MeshPolygons* polygons = nullptr;
