@@ -4,7 +4,7 @@
 //   sequential|edgebreaker|edgebreaker-no-ids] [--quantize BITS] [--option NAME=VALUE]...
 //   [--labels FILE] [--accepted] [--varint] [--quiet]
 // node cluster.js --info --server ADDR
-// Clusters an OFF mesh through an mlclust server and prints one line per level range;
+// Clusters an OFF mesh through an mlclust server and prints a summary of the levels;
 // --labels FILE writes the level with K clusters, one line per face (as `mlclust mesh`).
 const fs = require('fs');
 const mlclust = require('./mlclust');
@@ -27,29 +27,53 @@ function readOff(file) {
 }
 
 function parseArgs(argv) {
-  const args = {server: 'localhost:50051', algo: 'ml', energy: 'cvd', k: 0, upload: 'sequential',
-    quantize: 0, options: {}, labels: '', info: false, accepted: false, varint: false, quiet: false, mesh: ''};
+  const args = {
+    server: 'localhost:50051',
+    algo: 'ml',
+    energy: 'cvd',
+    k: 0,
+    upload: 'sequential',
+    quantize: 0,
+    options: {},
+    labels: '',
+    info: false,
+    accepted: false,
+    varint: false,
+    quiet: false,
+    mesh: ''
+  };
   for (let i = 0; i < argv.length; i++) {
     const flag = argv[i];
     const value = () => {
       if (i + 1 >= argv.length) throw new Error(`${flag} needs a value`);
       return argv[++i];
     };
-    if (flag === '--server') args.server = value();
-    else if (flag === '--algo') args.algo = value();
-    else if (flag === '--energy') args.energy = value();
-    else if (flag === '-k' || flag === '--clusters') args.k = Number(value());
-    else if (flag === '--upload') args.upload = value();
-    else if (flag === '--quantize') args.quantize = Number(value());
-    else if (flag === '--labels') args.labels = value();
+    if (flag === '--server')
+      args.server = value();
+    else if (flag === '--algo')
+      args.algo = value();
+    else if (flag === '--energy')
+      args.energy = value();
+    else if (flag === '-k' || flag === '--clusters')
+      args.k = Number(value());
+    else if (flag === '--upload')
+      args.upload = value();
+    else if (flag === '--quantize')
+      args.quantize = Number(value());
+    else if (flag === '--labels')
+      args.labels = value();
     else if (flag === '--option') {
       const [name, ...rest] = value().split('=');
       args.options[name] = rest.join('=');
-    } else if (['--info', '--accepted', '--varint', '--quiet'].includes(flag)) args[flag.slice(2)] = true;
-    else if (!flag.startsWith('-') && !args.mesh) args.mesh = flag;
-    else throw new Error(`unknown argument ${flag}`);
+    } else if (['--info', '--accepted', '--varint', '--quiet'].includes(flag))
+      args[flag.slice(2)] = true;
+    else if (!flag.startsWith('-') && !args.mesh)
+      args.mesh = flag;
+    else
+      throw new Error(`unknown argument ${flag}`);
   }
-  if (!args.info && !args.mesh) throw new Error('usage: cluster.js MESH.off --server ADDR [--algo ml] [-k K]');
+  if (!args.info && !args.mesh)
+    throw new Error('usage: cluster.js MESH.off --server ADDR [--algo ml] [-k K]');
   if (!['sequential', 'edgebreaker', 'edgebreaker-no-ids'].includes(args.upload)) {
     throw new Error(`--upload ${args.upload}: sequential, edgebreaker or edgebreaker-no-ids`);
   }
@@ -64,43 +88,59 @@ async function main() {
     if (args.info) {
       console.log(`mlclust ${info.version} (${info.build}); GL: ${info.gl_renderer || 'none'}`);
       for (const a of info.algorithms) {
-        console.log(`${a.input_kind === 'INPUT_KIND_DRACO_MESH' ? 'mesh' : 'points'} ${a.name}: ` +
-          `${a.title}; options: ${a.options.map((o) => o.name).join(', ') || 'none'}`);
+        console.log(
+            `${a.input_kind === 'INPUT_KIND_DRACO_MESH' ? 'mesh' : 'points'} ${a.name}: ` +
+            `${a.title}; options: ${a.options.map((o) => o.name).join(', ') || 'none'}`);
       }
       return;
     }
     // Hierarchies compute every level (-k picks the one written); others compute K.
-    const algorithm = info.algorithms.find((a) => a.name === args.algo &&
-      a.input_kind === 'INPUT_KIND_DRACO_MESH');
+    const algorithm = info.algorithms.find(
+        (a) => a.name === args.algo && a.input_kind === 'INPUT_KIND_DRACO_MESH');
     if (!algorithm) throw new Error(`the server has no mesh algorithm '${args.algo}'`);
     const clock = [Date.now()];
     const mesh = readOff(args.mesh);
     clock.push(Date.now());
-    const payload = await mlclust.encodeMesh(mesh, {quantizationBits: args.quantize,
+    const payload = await mlclust.encodeMesh(mesh, {
+      quantizationBits: args.quantize,
       method: args.upload === 'sequential' ? 'sequential' : 'edgebreaker',
-      faceIds: args.upload === 'edgebreaker'});
+      faceIds: args.upload === 'edgebreaker'
+    });
     clock.push(Date.now());
     let lastStage = '';
-    const h = await client.clusterMesh(null, {algo: args.algo, energy: args.energy, payload,
-      clusters: algorithm.hierarchy ? 0 : args.k, options: args.options, packed: !args.varint,
+    const h = await client.clusterMesh(null, {
+      algo: args.algo,
+      energy: args.energy,
+      payload,
+      clusters: algorithm.hierarchy ? 0 : args.k,
+      options: args.options,
+      packed: !args.varint,
       progress: (p) => {
         if (!args.quiet && p.stage !== lastStage) console.error(`[${p.stage}] ${p.message}`);
         lastStage = p.stage;
-      }});
+      }
+    });
     const a = h.accepted;
     if (args.accepted) {
-      console.log(`accepted: job ${a.job_id}, ${a.input_bytes} bytes, draco_method ` +
-        `${a.draco_method}, face_ids ${a.face_ids}, face_order: ${a.face_order}`);
+      console.log(
+          `accepted: job ${a.job_id}, ${a.input_bytes} bytes, draco_method ` +
+          `${a.draco_method}, face_ids ${a.face_ids}, face_order: ${a.face_order}`);
     }
     clock.push(Date.now());
-    const first = h.levels[0]; const last = h.levels[h.levels.length - 1];
-    console.log(`${h.levels.length} levels, ${first.clusterCount} -> ${last.clusterCount} ` +
-      `clusters, ${h.element.length} triplets, ${h.done.seconds_running.toFixed(3)} s on ${h.done.device}`);
+    const first = h.levels[0];
+    const last = h.levels[h.levels.length - 1];
+    console.log(
+        `${h.levels.length} levels, ${first.clusterCount} -> ${last.clusterCount} ` +
+        `clusters, ${h.element.length} triplets, ${h.done.seconds_running.toFixed(3)} s on ${
+            h.done.device}`);
     if (!args.quiet) {
-      const m = h.messages; const s = (i) => ((clock[i + 1] - clock[i]) / 1000).toFixed(2);
-      console.error(`read ${s(0)} s, Draco ${payload.length} bytes in ${s(1)} s, job ${s(2)} s ` +
-        `(queued ${h.done.seconds_queued.toFixed(2)}, running ${h.done.seconds_running.toFixed(2)}); ` +
-        `${m.snapshot} snapshot and ${m.levels} level messages (${m.continued} continued)`);
+      const m = h.messages;
+      const s = (i) => ((clock[i + 1] - clock[i]) / 1000).toFixed(2);
+      console.error(
+          `read ${s(0)} s, Draco ${payload.length} bytes in ${s(1)} s, job ${s(2)} s ` +
+          `(queued ${h.done.seconds_queued.toFixed(2)}, running ${
+              h.done.seconds_running.toFixed(2)}); ` +
+          `${m.snapshot} snapshot and ${m.levels} level messages (${m.continued} continued)`);
     }
     if (args.labels) {
       const labels = args.k ? h.labels(args.k) : h.labels(0, {level: h.levels.length - 1});

@@ -44,8 +44,12 @@ let encoderModule = null;  // draco3d's encoder (WebAssembly), created once
  * its face's index, a GENERIC uint32 attribute with metadata name "mlclust_face_id". The
  * encoder's deduplication welds corners at equal positions back into vertices.
  */
-async function encodeMesh({vertices, faces}, {method = 'sequential', quantizationBits = 0,
-  faceIds = method === 'edgebreaker', speed = 5} = {}) {
+async function encodeMesh(
+    {vertices, faces},
+    {method = 'sequential',
+     quantizationBits = 0,
+     faceIds = method === 'edgebreaker',
+     speed = 5} = {}) {
   encoderModule = encoderModule || await draco3d.createEncoderModule({});
   const M = encoderModule;
   const positions = Float32Array.from(vertices.flat ? vertices.flat() : vertices);
@@ -73,12 +77,13 @@ async function encodeMesh({vertices, faces}, {method = 'sequential', quantizatio
       new M.MetadataBuilder().AddStringEntry(metadata, 'name', FACE_ID_NAME);
       builder.SetMetadataForAttribute(mesh, idAttribute, metadata);
     }
-    encoder.SetEncodingMethod(method === 'edgebreaker' ? M.MESH_EDGEBREAKER_ENCODING
-      : M.MESH_SEQUENTIAL_ENCODING);
+    encoder.SetEncodingMethod(
+        method === 'edgebreaker' ? M.MESH_EDGEBREAKER_ENCODING : M.MESH_SEQUENTIAL_ENCODING);
     encoder.SetSpeedOptions(speed, speed);
     if (quantizationBits > 0) encoder.SetAttributeQuantization(M.POSITION, quantizationBits);
     const length = encoder.EncodeMeshToDracoBuffer(mesh, out);
-    if (length <= 0) throw new MlclustError(grpc.status.INVALID_ARGUMENT, 'draco3d could not encode the mesh');
+    if (length <= 0)
+      throw new MlclustError(grpc.status.INVALID_ARGUMENT, 'draco3d could not encode the mesh');
     const bytes = Buffer.alloc(length);
     for (let i = 0; i < length; i++) bytes[i] = out.GetValue(i) & 0xff;
     return bytes;
@@ -90,15 +95,20 @@ async function encodeMesh({vertices, faces}, {method = 'sequential', quantizatio
 /** uint32 values of a repeated field (an array) or of a packed little-endian bytes field. */
 function uint32s(repeated, packed) {
   if (!packed || packed.length === 0) return Uint32Array.from(repeated);
-  if (repeated.length) throw new MlclustError(grpc.status.DATA_LOSS, 'both packed and repeated triplets');
-  if (packed.length % 4) throw new MlclustError(grpc.status.DATA_LOSS, 'packed triplets not a multiple of 4 bytes');
+  if (repeated.length)
+    throw new MlclustError(grpc.status.DATA_LOSS, 'both packed and repeated triplets');
+  if (packed.length % 4)
+    throw new MlclustError(grpc.status.DATA_LOSS, 'packed triplets not a multiple of 4 bytes');
   if (LITTLE_ENDIAN) return new Uint32Array(Uint8Array.from(packed).buffer);
   return Uint32Array.from({length: packed.length / 4}, (_, i) => packed.readUInt32LE(4 * i));
 }
 
 /** A growable Uint32Array. */
 class Column {
-  constructor() { this.data = new Uint32Array(1024); this.size = 0; }
+  constructor() {
+    this.data = new Uint32Array(1024);
+    this.size = 0;
+  }
   push(values) {
     if (this.size + values.length > this.data.length) {
       const grown = new Uint32Array(Math.max(2 * this.data.length, this.size + values.length));
@@ -108,7 +118,9 @@ class Column {
     this.data.set(values, this.size);
     this.size += values.length;
   }
-  view() { return this.data.subarray(0, this.size); }
+  view() {
+    return this.data.subarray(0, this.size);
+  }
 }
 
 /**
@@ -145,8 +157,10 @@ class Hierarchy {
     }
     return this;
   }
-  /** Labels at the level with k clusters (or {level}): 0..K-1 in order of first appearance
-   *  (as the CLI's --labels), or the server's own ids with {compact: false}. */
+  /**
+   * Labels at the level with k clusters (or {level}): 0..K-1 in order of first appearance
+   * (as the CLI's --labels), or the server's own ids with {compact: false}.
+   */
   labels(k, {level = undefined, compact = true} = {}) {
     this.seek(level === undefined ? this.levelFor(k) : level);
     if (!compact) return Uint32Array.from(this.current);
@@ -161,18 +175,28 @@ class Hierarchy {
 /** Collects one job's events into a Hierarchy, checking that the stream is consistent. */
 class Assembler {
   constructor() {
-    this.snapshot = null; this.have = 0; this.levels = []; this.ends = [0];
-    this.element = new Column(); this.to = new Column(); this.from = new Column();
+    this.snapshot = null;
+    this.have = 0;
+    this.levels = [];
+    this.ends = [0];
+    this.element = new Column();
+    this.to = new Column();
+    this.from = new Column();
     this.continuing = false;
     this.messages = {snapshot: 0, levels: 0, continued: 0};  // how the levels travelled
   }
   add(event) {
-    const fail = (what) => { throw new MlclustError(grpc.status.DATA_LOSS, what); };
+    const fail = (what) => {
+      throw new MlclustError(grpc.status.DATA_LOSS, what);
+    };
     if (event.event === 'snapshot') {
       const s = event.snapshot;
       this.messages.snapshot++;
-      if (s.first_element !== this.have) fail(`snapshot piece at ${s.first_element}, expected ${this.have}`);
+      if (s.first_element !== this.have)
+        fail(`snapshot piece at ${s.first_element}, expected ${this.have}`);
       if (!this.snapshot) this.snapshot = new Uint32Array(s.total_elements);
+      if (this.have + s.labels.length > this.snapshot.length)
+        fail('more labels than total_elements');
       this.snapshot.set(s.labels, this.have);
       this.have += s.labels.length;
       if (this.have === s.total_elements) {
@@ -190,14 +214,16 @@ class Assembler {
       this.element.push(element);
       this.to.push(uint32s(b.to_cluster, b.packed_to_cluster));
       this.from.push(uint32s(b.from_cluster, b.packed_from_cluster));
-      if (this.to.size !== this.element.size || this.from.size !== this.element.size) fail('triplet arrays differ in length');
+      if (this.to.size !== this.element.size || this.from.size !== this.element.size)
+        fail('triplet arrays differ in length');
       if (element.some((e) => e >= this.have)) fail('a triplet names an element out of range');
       b.cluster_count.forEach((count, i) => {
         const end = base + b.triplet_end[i];
         if (i === 0 && this.continuing) {  // the rest of the previous batch's last level
           this.ends[this.ends.length - 1] = end;
         } else {
-          this.levels.push({clusterCount: count, energy: b.energy[i], sourceLevel: b.source_level[i]});
+          this.levels.push(
+              {clusterCount: count, energy: b.energy[i], sourceLevel: b.source_level[i]});
           this.ends.push(end);
         }
       });
@@ -205,84 +231,147 @@ class Assembler {
     }
   }
   finish() {
-    if (!this.levels.length || this.continuing) throw new MlclustError(grpc.status.DATA_LOSS, 'the job ended with its levels incomplete');
-    const h = new Hierarchy(this.snapshot, this.levels, Uint32Array.from(this.ends),
-      this.element.view(), this.to.view(), this.from.view());
+    if (!this.levels.length || this.continuing)
+      throw new MlclustError(grpc.status.DATA_LOSS, 'the job ended with its levels incomplete');
+    const h = new Hierarchy(
+        this.snapshot, this.levels, Uint32Array.from(this.ends), this.element.view(),
+        this.to.view(), this.from.view());
     h.messages = this.messages;
     return h;
   }
 }
 
+/** What a job's settings default to (seed 1, as the C++ CLI). */
+const JOB_SETTINGS = {
+  algo: 'ml',
+  energy: 'cvd',
+  clusters: 0,
+  seed: 1,
+  options: {},
+  levels: null,
+  packed: true,
+  label: '',
+  device: 'auto',
+  draco: {},
+  payload: null,
+  progress: null,
+  timeoutSeconds: 0,
+  chunkBytes: 1 << 20
+};
+function jobSettings(settings) {
+  const unknown = Object.keys(settings).filter((k) => !(k in JOB_SETTINGS));
+  if (unknown.length) throw new TypeError(`unknown settings: ${unknown.join(', ')}`);
+  return {...JOB_SETTINGS, ...settings};
+}
+
+/**
+ * A JobSpec message (field names as in the proto) for `input`. `enums` has the names of
+ * the proto's enum values: protobufjs would send an unknown name as 0 (the default).
+ */
+function jobSpec(
+    enums, inputKind, input,
+    {algo, energy, clusters, seed, options, levels, packed, label, device}) {
+  const enumName = (type, name) => {
+    const value = `${type.toUpperCase()}_${name.toUpperCase().replace(/-/g, '_')}`;
+    if (!enums[type].includes(value)) {
+      const known = enums[type].slice(1).map((v) => v.slice(type.length + 1).toLowerCase());
+      known.forEach((v, i) => (known[i] = v.replace(/_/g, '-')));
+      const message = `no ${type} '${name}' in the proto (${known.join(', ')})`;
+      throw new MlclustError(grpc.status.INVALID_ARGUMENT, message);
+    }
+    return value;
+  };
+  return {
+    input_kind: inputKind,
+    input_bytes: input.length,
+    input_crc32: crc32(input),
+    algorithm: enumName('Algorithm', algo === 'lnkmeans' ? 'ln-kmeans' : algo),
+    energy: enumName('Energy', energy),
+    clusters,
+    seed,
+    label,
+    device,
+    options: Object.fromEntries(Object.entries(options).map(([k, v]) => [k, String(v)])),
+    levels_high: levels ? levels[0] : 0,
+    levels_low: levels ? levels[1] : 0,
+    packed_triplets: packed,  // an older server ignores it and sends the repeated fields
+  };
+}
+
 class Client {
-  /** address "host:port" (plaintext). channelOptions: grpc-js channel options; by default
-   *  gRPC's own limits (4 MiB received per message), which the server keeps to. */
+  /**
+   * address "host:port" (plaintext). channelOptions: grpc-js channel options; by default
+   * gRPC's own limits (4 MiB received per message), which the server keeps to.
+   */
   constructor(address, {channelOptions = {}, protoFile = PROTO_FILE} = {}) {
-    const definition = protoLoader.loadSync(protoFile, {keepCase: true, longs: Number,
-      enums: String, defaults: true, oneofs: true});
+    const definition = protoLoader.loadSync(
+        protoFile, {keepCase: true, longs: Number, enums: String, defaults: true, oneofs: true});
     const Clustering = grpc.loadPackageDefinition(definition).mlclust.v1.Clustering;
+    this.enums = Object.fromEntries(['Algorithm', 'Energy'].map(
+        (type) => [type, definition[`mlclust.v1.${type}`].type.value.map((v) => v.name)]));
     this.stub = new Clustering(address, grpc.credentials.createInsecure(), channelOptions);
   }
-  close() { this.stub.close(); }
+  close() {
+    this.stub.close();
+  }
 
   /** GetServerInfo: version, device, algorithms with their energies and options, limits. */
   info({timeoutSeconds = 10} = {}) {
-    return new Promise((resolve, reject) => this.stub.GetServerInfo({},
-      {deadline: Date.now() + 1000 * timeoutSeconds},
-      (err, reply) => (err ? reject(new MlclustError(err.code, err.details)) : resolve(reply))));
+    return new Promise(
+        (resolve, reject) => this.stub.GetServerInfo(
+            {}, {deadline: Date.now() + 1000 * timeoutSeconds},
+            (err, reply) =>
+                (err ? reject(new MlclustError(err.code, err.details)) : resolve(reply))));
   }
 
   /**
    * Clusters a triangle mesh ({vertices: [x,y,z]... or flat, faces: [a,b,c]... or flat});
-   * element ids are face indices. Options: algo ('ml', 'hc', 'pml', 'emlo', 'bb', 'vsa'),
-   * energy ('cvd', 'planar', ...), clusters (JobSpec.clusters), seed (default 1, as the
-   * CLI), options ({'p-percent': '10'}), levels ([high, low]), draco ({method,
-   * quantizationBits, faceIds}, or `payload` to send ready Draco bytes), progress(p) on
-   * every event before Done, timeoutSeconds, packed (raw uint32 triplets, default true).
+   * element ids are face indices. settings (JOB_SETTINGS has the defaults): algo ('ml', 'hc',
+   * 'pml', 'emlo', 'bb', 'vsa'), energy ('cvd', 'planar', ...), clusters (JobSpec.clusters),
+   * seed, options ({'p-percent': 10}), levels ([high, low]), draco ({method,
+   * quantizationBits, faceIds} for encodeMesh) or payload (Draco bytes to send as they are),
+   * progress(p) on every event before Done, timeoutSeconds, packed (raw uint32 triplets).
    * Resolves to a Hierarchy with .accepted and .done; rejects with MlclustError.
    */
-  async clusterMesh(mesh, {algo = 'ml', energy = 'cvd', clusters = 0, seed = 1, options = {},
-    levels = null, draco = {}, payload = null, progress = null, timeoutSeconds = 0,
-    packed = true, chunkBytes = 1 << 20, label = '', device = 'auto'} = {}) {
-    const input = payload || await encodeMesh(mesh, draco);
-    const spec = {
-      input_kind: 'INPUT_KIND_DRACO_MESH', input_bytes: input.length, input_crc32: crc32(input),
-      algorithm: `ALGORITHM_${algo.toUpperCase().replace('LNKMEANS', 'LN_KMEANS')}`,
-      energy: `ENERGY_${energy.toUpperCase().replace(/-/g, '_')}`, clusters, seed,
-      options: Object.fromEntries(Object.entries(options).map(([k, v]) => [k, String(v)])),
-      levels_high: levels ? levels[0] : 0, levels_low: levels ? levels[1] : 0,
-      packed_triplets: packed, label, device,
-    };
-    return this.run(spec, input, {progress, timeoutSeconds, chunkBytes});
+  async clusterMesh(mesh, settings = {}) {
+    const s = jobSettings(settings);
+    const input = s.payload || await encodeMesh(mesh, s.draco);
+    return this.run(jobSpec(this.enums, 'INPUT_KIND_DRACO_MESH', input, s), input, s);
   }
 
-  /** Clusters points (a Float32Array of m x dims values, row-major); element ids are
-   *  row indices. algo: 'ml', 'pml', 'hc', 'lnkmeans', 'kmeans', 'xmeans', 'bisecting';
-   *  the energy is the within-cluster variance. Other settings as for clusterMesh. */
-  clusterPoints(points, dims, {algo = 'ml', clusters = 0, seed = 1, options = {}, levels = null,
-    progress = null, timeoutSeconds = 0, packed = true, chunkBytes = 1 << 20} = {}) {
+  /**
+   * Clusters points (m x dims numbers, row-major, sent as float32); element ids are row
+   * indices. algo: 'ml', 'pml', 'hc', 'lnkmeans', 'kmeans', 'xmeans', 'bisecting'; the energy
+   * is the within-cluster variance. Other settings as for clusterMesh.
+   */
+  clusterPoints(points, dims, settings = {}) {
+    const s = jobSettings({energy: 'variance', ...settings});
     const input = Buffer.alloc(4 * points.length);  // float32, little-endian
     points.forEach((v, i) => input.writeFloatLE(v, 4 * i));
-    const spec = {
-      input_kind: 'INPUT_KIND_POINTS_F32', input_bytes: input.length, input_crc32: crc32(input),
-      point_dims: dims, algorithm: `ALGORITHM_${algo.toUpperCase().replace('LNKMEANS', 'LN_KMEANS')}`,
-      energy: 'ENERGY_VARIANCE', clusters, seed, packed_triplets: packed,
-      options: Object.fromEntries(Object.entries(options).map(([k, v]) => [k, String(v)])),
-      levels_high: levels ? levels[0] : 0, levels_low: levels ? levels[1] : 0,
-    };
-    return this.run(spec, input, {progress, timeoutSeconds, chunkBytes});
+    const spec = jobSpec(this.enums, 'INPUT_KIND_POINTS_F32', input, s);
+    spec.point_dims = dims;
+    return this.run(spec, input, s);
   }
 
   /** Runs one job: the spec with the first chunk, further chunks, then the events. */
   run(spec, input, {progress = null, timeoutSeconds = 0, chunkBytes = 1 << 20} = {}) {
     return new Promise((resolve, reject) => {
-      const call = this.stub.Run(timeoutSeconds ? {deadline: Date.now() + 1000 * timeoutSeconds} : {});
+      const call =
+          this.stub.Run(timeoutSeconds ? {deadline: Date.now() + 1000 * timeoutSeconds} : {});
       const assembler = new Assembler();
       const state = {stage: '', fraction: 0, message: '', queuePosition: 0};
-      let accepted = null; let done = null; let failed = null; let settled = false;
+      let accepted = null;
+      let done = null;
+      let failed = null;
+      let settled = false;
       const finish = (error, value) => {
         if (settled) return;
         settled = true;
-        if (error) { call.cancel(); reject(error); } else resolve(value);
+        if (error) {
+          call.cancel();
+          reject(error);
+        } else
+          resolve(value);
       };
       call.on('data', (event) => {
         try {
@@ -290,8 +379,11 @@ class Client {
             accepted = event.accepted;
             Object.assign(state, {stage: 'queued', queuePosition: accepted.queue_position});
           } else if (event.event === 'progress') {
-            Object.assign(state, {stage: event.progress.stage, fraction: event.progress.fraction,
-              message: event.progress.message});
+            Object.assign(state, {
+              stage: event.progress.stage,
+              fraction: event.progress.fraction,
+              message: event.progress.message
+            });
           } else if (event.event === 'done') {
             done = event.done;
           } else if (event.event === 'failed') {
@@ -302,8 +394,13 @@ class Client {
           }
           if (progress && !done && !failed) {
             const last = assembler.levels[assembler.levels.length - 1];
-            progress({...state, event: event.event, accepted, levelsReceived: assembler.levels.length,
-              clusterCount: last ? last.clusterCount : 0});
+            progress({
+              ...state,
+              event: event.event,
+              accepted,
+              levelsReceived: assembler.levels.length,
+              clusterCount: last ? last.clusterCount : 0
+            });
           }
         } catch (error) {
           finish(error);
@@ -312,7 +409,8 @@ class Client {
       call.on('error', (err) => finish(failed || new MlclustError(err.code, err.details)));
       call.on('end', () => {
         if (failed) return finish(failed);
-        if (!done) return finish(new MlclustError(grpc.status.DATA_LOSS, 'the job ended without Done'));
+        if (!done)
+          return finish(new MlclustError(grpc.status.DATA_LOSS, 'the job ended without Done'));
         try {
           finish(null, Object.assign(assembler.finish(), {accepted, done}));
         } catch (error) {
@@ -332,4 +430,11 @@ class Client {
   }
 }
 
-module.exports = {Client, Hierarchy, MlclustError, encodeMesh, crc32, FACE_ID_NAME};
+module.exports = {
+  Client,
+  Hierarchy,
+  MlclustError,
+  encodeMesh,
+  crc32,
+  FACE_ID_NAME
+};

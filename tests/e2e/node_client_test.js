@@ -64,7 +64,8 @@ function sameArrays(a, b, what) {
 (async () => {
   await check('info: GetServerInfo lists the mesh algorithms', async () => {
     const info = await client.info();
-    const ml = info.algorithms.find((a) => a.name === 'ml' && a.input_kind === 'INPUT_KIND_DRACO_MESH');
+    const ml =
+        info.algorithms.find((a) => a.name === 'ml' && a.input_kind === 'INPUT_KIND_DRACO_MESH');
     assert.ok(ml && ml.hierarchy, 'ml is a mesh hierarchy');
     assert.ok(ml.options.some((o) => o.name === 'p-percent'), 'ml has p-percent');
   });
@@ -72,55 +73,70 @@ function sameArrays(a, b, what) {
   let sequentialMl = null;
   await check('(a) sequential upload: labels equal the C++ CLI\'s for the same job', async () => {
     const stages = new Set();
-    sequentialMl = await client.clusterMesh(mesh, {algo: 'ml', energy: 'cvd',
-      progress: (p) => stages.add(p.stage)});
+    sequentialMl = await client.clusterMesh(
+        mesh, {algo: 'ml', energy: 'cvd', progress: (p) => stages.add(p.stage)});
     assert.strictEqual(sequentialMl.accepted.draco_method, 'sequential');
     assert.strictEqual(sequentialMl.accepted.face_ids, false);
-    for (const stage of ['queued', 'measures', 'cluster', 'levels']) assert.ok(stages.has(stage), stage);
+    for (const stage of ['queued', 'measures', 'cluster', 'levels'])
+      assert.ok(stages.has(stage), stage);
     assert.strictEqual(sequentialMl.levels[0].clusterCount, numFaces);
     const cli = fs.readFileSync(process.env.CLI_ML_LABELS, 'utf8').trim().split('\n').map(Number);
     sameArrays(Array.from(sequentialMl.labels(50)), cli, 'ml labels at 50 against the CLI');
     assert.strictEqual(new Set(cli).size, 50);
   });
 
-  await check('(a) varint triplets give the levels packed triplets give; seeking back and forth', async () => {
-    const varint = await client.clusterMesh(mesh, {algo: 'ml', packed: false});
-    assert.strictEqual(varint.levels.length, sequentialMl.levels.length);
-    sameArrays(varint.levels.map((l) => l.energy), sequentialMl.levels.map((l) => l.energy), 'energies');
-    for (const k of [1000, 50, 7]) {
-      sameArrays(varint.labels(k, {compact: false}), sequentialMl.labels(k, {compact: false}), `level ${k}`);
-    }
-    const at50 = sequentialMl.labels(50);
-    sequentialMl.labels(2);
-    sequentialMl.labels(3000);
-    sameArrays(sequentialMl.labels(50), at50, 'level 50 after stepping away and back');
-  });
+  await check(
+      '(a) varint triplets give the levels packed triplets give; seeking back and forth',
+      async () => {
+        const varint = await client.clusterMesh(mesh, {algo: 'ml', packed: false});
+        assert.strictEqual(varint.levels.length, sequentialMl.levels.length);
+        sameArrays(
+            varint.levels.map((l) => l.energy), sequentialMl.levels.map((l) => l.energy),
+            'energies');
+        for (const k of [1000, 50, 7]) {
+          sameArrays(
+              varint.labels(k, {compact: false}), sequentialMl.labels(k, {compact: false}),
+              `level ${k}`);
+        }
+        const at50 = sequentialMl.labels(50);
+        sequentialMl.labels(2);
+        sequentialMl.labels(3000);
+        sameArrays(sequentialMl.labels(50), at50, 'level 50 after stepping away and back');
+      });
 
-  await check('(b) edgebreaker + quantisation + face ids (draco3d): labels map back exactly', async () => {
-    const draco = {method: 'edgebreaker', quantizationBits: 14};
-    const payload = await mlclust.encodeMesh(mesh, draco);
-    const ids = await decodedFaceIds(payload);
-    assert.strictEqual(ids.length, numFaces);
-    const seen = new Uint8Array(numFaces);
-    ids.forEach((id) => { assert.ok(id < numFaces && !seen[id], `id ${id} once`); seen[id] = 1; });
-    assert.ok(ids.filter((id, f) => id === f).length < numFaces / 10, 'edgebreaker reordered the faces');
-    const edgebreaker = await client.clusterMesh(mesh, {algo: 'hc', payload});
-    assert.strictEqual(edgebreaker.accepted.draco_method, 'edgebreaker');
-    assert.strictEqual(edgebreaker.accepted.face_ids, true);
-    // HC does not depend on the vertex order: the same quantised positions sent
-    // sequentially (faces in order by themselves) give the same hierarchy.
-    const sequential = await client.clusterMesh(mesh, {algo: 'hc',
-      draco: {method: 'sequential', quantizationBits: 14}});
-    assert.ok(payload.length * 3 < sequential.accepted.input_bytes, 'edgebreaker is smaller');
-    sameArrays(edgebreaker.levels.map((l) => l.energy), sequential.levels.map((l) => l.energy), 'energies');
-    for (const k of [5000, 100, 12]) {
-      sameArrays(edgebreaker.labels(k), sequential.labels(k), `hc labels at ${k}`);
-    }
-  });
+  await check(
+      '(b) edgebreaker + quantisation + face ids (draco3d): labels map back exactly', async () => {
+        const draco = {method: 'edgebreaker', quantizationBits: 14};
+        const payload = await mlclust.encodeMesh(mesh, draco);
+        const ids = await decodedFaceIds(payload);
+        assert.strictEqual(ids.length, numFaces);
+        const seen = new Uint8Array(numFaces);
+        ids.forEach((id) => {
+          assert.ok(id < numFaces && !seen[id], `id ${id} once`);
+          seen[id] = 1;
+        });
+        assert.ok(
+            ids.filter((id, f) => id === f).length < numFaces / 10,
+            'edgebreaker reordered the faces');
+        const edgebreaker = await client.clusterMesh(mesh, {algo: 'hc', payload});
+        assert.strictEqual(edgebreaker.accepted.draco_method, 'edgebreaker');
+        assert.strictEqual(edgebreaker.accepted.face_ids, true);
+        // HC does not depend on the vertex order: the same quantised positions sent
+        // sequentially (faces in order by themselves) give the same hierarchy.
+        const sequential = await client.clusterMesh(
+            mesh, {algo: 'hc', draco: {method: 'sequential', quantizationBits: 14}});
+        assert.ok(payload.length * 3 < sequential.accepted.input_bytes, 'edgebreaker is smaller');
+        sameArrays(
+            edgebreaker.levels.map((l) => l.energy), sequential.levels.map((l) => l.energy),
+            'energies');
+        for (const k of [5000, 100, 12]) {
+          sameArrays(edgebreaker.labels(k), sequential.labels(k), `hc labels at ${k}`);
+        }
+      });
 
   await check('(c) edgebreaker without the id attribute: Accepted says decoded order', async () => {
-    const h = await client.clusterMesh(mesh, {algo: 'hc',
-      draco: {method: 'edgebreaker', quantizationBits: 14, faceIds: false}});
+    const h = await client.clusterMesh(
+        mesh, {algo: 'hc', draco: {method: 'edgebreaker', quantizationBits: 14, faceIds: false}});
     assert.strictEqual(h.accepted.draco_method, 'edgebreaker');
     assert.strictEqual(h.accepted.face_ids, false);
     assert.match(h.accepted.face_order, /decoded face order/);
@@ -128,42 +144,56 @@ function sameArrays(a, b, what) {
   });
 
   await check('(d) a bad request: INVALID_ARGUMENT with the message', async () => {
-    await assert.rejects(client.clusterMesh(mesh, {algo: 'ml', options: {'no-such-option': '1'}}),
-      (e) => e instanceof mlclust.MlclustError && e.code === grpc.status.INVALID_ARGUMENT &&
-        /no-such-option/.test(e.details));
+    await assert.rejects(
+        client.clusterMesh(mesh, {algo: 'ml', options: {'no-such-option': '1'}}),
+        (e) => e instanceof mlclust.MlclustError && e.code === grpc.status.INVALID_ARGUMENT &&
+            /no-such-option/.test(e.details));
+    // A name the proto's enum lacks is refused before sending (protobufjs would send 0, ML).
+    await assert.rejects(
+        client.clusterMesh(mesh, {algo: 'mll'}),
+        (e) => e.code === grpc.status.INVALID_ARGUMENT && /no Algorithm 'mll'/.test(e.details));
     // Three faces on edge 0-1: a non-manifold edge.
-    const fin = {vertices: [0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1], faces: [0, 1, 2, 1, 0, 3, 0, 1, 4]};
-    await assert.rejects(client.clusterMesh(fin, {algo: 'ml'}),
-      (e) => e.code === grpc.status.INVALID_ARGUMENT && e.codeName === 'INVALID_ARGUMENT' &&
-        /non-manifold edge/.test(e.details));
+    const fin = {
+      vertices: [0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1],
+      faces: [0, 1, 2, 1, 0, 3, 0, 1, 4]
+    };
+    await assert.rejects(
+        client.clusterMesh(fin, {algo: 'ml'}),
+        (e) => e.code === grpc.status.INVALID_ARGUMENT && e.codeName === 'INVALID_ARGUMENT' &&
+            /non-manifold edge/.test(e.details));
   });
 
-  await check('a level over 4 MiB arrives split (default limits): k-means on 10^6 points', async () => {
-    let seed = 7;
-    const random = () => (seed = (seed * 1103515245 + 12345) % 2147483648) / 2147483648;
-    const points = new Float32Array(3 * 1000000).map(random);
-    const h = await client.clusterPoints(points, 3, {algo: 'kmeans', clusters: 8,
-      options: {init: 'random'}});
-    assert.strictEqual(h.levels.length, 2);
-    assert.ok(h.element.length * 12 > 4 << 20, `${h.element.length} triplets: over 4 MiB packed`);
-    assert.ok(h.messages.continued >= 1, 'a level continued in the next batch');
-    // The labels rebuilt from the split level give the energy the server reports (the
-    // within-cluster sum of squared distances), at both levels.
-    for (const level of [0, 1]) {
-      const labels = h.labels(0, {level});
-      const sums = new Float64Array(4 * 8);
-      labels.forEach((l, i) => {
-        for (let d = 0; d < 3; d++) sums[4 * l + d] += points[3 * i + d];
-        sums[4 * l + 3]++;
+  await check(
+      'a level over 4 MiB arrives split (default limits): k-means on 10^6 points', async () => {
+        let seed = 7;
+        const random = () => (seed = (seed * 1103515245 + 12345) % 2147483648) / 2147483648;
+        const points = new Float32Array(3 * 1000000).map(random);
+        const h = await client.clusterPoints(
+            points, 3, {algo: 'kmeans', clusters: 8, options: {init: 'random'}});
+        assert.strictEqual(h.levels.length, 2);
+        assert.ok(
+            h.element.length * 12 > 4 << 20, `${h.element.length} triplets: over 4 MiB packed`);
+        assert.ok(h.messages.continued >= 1, 'a level continued in the next batch');
+        // The labels rebuilt from the split level give the energy the server reports (the
+        // within-cluster sum of squared distances), at both levels.
+        for (const level of [0, 1]) {
+          const labels = h.labels(0, {level});
+          const sums = new Float64Array(4 * 8);
+          labels.forEach((l, i) => {
+            for (let d = 0; d < 3; d++) sums[4 * l + d] += points[3 * i + d];
+            sums[4 * l + 3]++;
+          });
+          let energy = 0;
+          labels.forEach((l, i) => {
+            for (let d = 0; d < 3; d++)
+              energy += (points[3 * i + d] - sums[4 * l + d] / sums[4 * l + 3]) ** 2;
+          });
+          const reported = h.levels[level].energy;
+          assert.ok(
+              Math.abs(energy - reported) <= 1e-6 * reported,
+              `level ${level}: energy ${energy}, reported ${reported}`);
+        }
       });
-      let energy = 0;
-      labels.forEach((l, i) => {
-        for (let d = 0; d < 3; d++) energy += (points[3 * i + d] - sums[4 * l + d] / sums[4 * l + 3]) ** 2;
-      });
-      const reported = h.levels[level].energy;
-      assert.ok(Math.abs(energy - reported) <= 1e-6 * reported, `level ${level}: energy ${energy}, reported ${reported}`);
-    }
-  });
 
   client.close();
   console.log(`${passed} passed, ${failed} failed`);
