@@ -217,6 +217,16 @@ class Assembler {
       if (this.to.size !== this.element.size || this.from.size !== this.element.size)
         fail('triplet arrays differ in length');
       if (element.some((e) => e >= this.have)) fail('a triplet names an element out of range');
+      const n = b.cluster_count.length;
+      if (b.energy.length !== n || b.triplet_end.length !== n)
+        fail('level arrays differ in length');
+      if (b.triplet_end.some((end, i) => end < (i ? b.triplet_end[i - 1] : 0)) ||
+          (n && b.triplet_end[n - 1] > element.length)) {
+        fail('triplet_end out of order');
+      }
+      if (this.continuing && n && b.cluster_count[0] !== this.levels[expected].clusterCount) {
+        fail(`level ${expected} continued with another cluster count`);
+      }
       b.cluster_count.forEach((count, i) => {
         const end = base + b.triplet_end[i];
         if (i === 0 && this.continuing) {  // the rest of the previous batch's last level
