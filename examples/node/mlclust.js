@@ -446,5 +446,6 @@ module.exports = {
   MlclustError,
   encodeMesh,
   crc32,
-  FACE_ID_NAME
+  FACE_ID_NAME,
+  Assembler,  // for tests
 };

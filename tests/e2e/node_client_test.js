@@ -61,7 +61,73 @@ function sameArrays(a, b, what) {
   assert.strictEqual(first, -1, `${what}: first difference at ${first}`);
 }
 
+/** Events as the server sends them (JobEvent, field names as in the proto). */
+const snapshot = (first, labels, total) => ({
+  event: 'snapshot',
+  snapshot:
+      {level: 0, cluster_count: 4, energy: 4, labels, first_element: first, total_elements: total}
+});
+const batch = (first, counts, ends, triplets, more = {}) => ({
+  event: 'levels',
+  levels: {
+    first_level: first,
+    cluster_count: counts,
+    energy: counts,
+    source_level: counts,
+    triplet_end: ends,
+    element: triplets.map((t) => t[0]),
+    to_cluster: triplets.map((t) => t[1]),
+    from_cluster: triplets.map((t) => t[2]),
+    last_level_continues: false,
+    packed_element: Buffer.alloc(0),
+    packed_to_cluster: Buffer.alloc(0),
+    packed_from_cluster: Buffer.alloc(0),
+    ...more
+  }
+});
+const packed = (values) => Buffer.from(Uint32Array.from(values).buffer);
+
 (async () => {
+  await check(
+      'offline: split snapshot and split level joined; packed read; bad streams refused', () => {
+        const assembler = new mlclust.Assembler();
+        [snapshot(0, [0, 1], 4),
+         snapshot(2, [2, 3], 4),
+         batch(1, [3, 2], [1, 2], [[1, 0, 1], [3, 2, 3]], {last_level_continues: true}),
+         batch(2, [2], [1], [], {
+           packed_element: packed([2]),
+           packed_to_cluster: packed([0]),
+           packed_from_cluster: packed([2])
+         }),
+        ].forEach((e) => assembler.add(e));
+        const h = assembler.finish();
+        assert.deepStrictEqual(h.levels.map((l) => l.clusterCount), [4, 3, 2]);
+        assert.deepStrictEqual(Array.from(h.labels(2, {compact: false})), [0, 0, 0, 2]);
+        assert.deepStrictEqual(Array.from(h.labels(3, {compact: false})), [0, 0, 2, 3]);
+        assert.deepStrictEqual(Array.from(h.labels(4)), [0, 1, 2, 3]);
+        const refused = (events, pattern) => {
+          const a = new mlclust.Assembler();
+          assert.throws(
+              () => events.forEach((e) => a.add(e)) || a.finish(),
+              (e) => e.code === grpc.status.DATA_LOSS && pattern.test(e.details), `${pattern}`);
+        };
+        const start = snapshot(0, [0, 1, 2, 3], 4);
+        refused([batch(1, [3], [1], [[1, 0, 1]])], /before the snapshot/);
+        refused([start, batch(2, [3], [1], [[1, 0, 1]])], /expected 1/);
+        refused([start, batch(1, [3], [2], [[1, 0, 1]])], /triplet_end/);
+        refused([start, batch(1, [3], [1], [[9, 0, 1]])], /out of range/);
+        refused(
+            [start, batch(1, [3], [1], [[1, 0, 1]], {packed_element: packed([1])})], /both packed/);
+        refused(
+            [start, batch(1, [3], [1], [[1, 0, 1]], {last_level_continues: true})], /incomplete/);
+        refused(
+            [
+              start, batch(1, [3], [1], [[1, 0, 1]], {last_level_continues: true}),
+              batch(1, [2], [0], [])
+            ],
+            /another cluster count/);
+      });
+
   await check('info: GetServerInfo lists the mesh algorithms', async () => {
     const info = await client.info();
     const ml =
