@@ -66,11 +66,13 @@ async function encodeMesh(
     } else {
       const cornerPositions = new Float32Array(9 * numFaces);
       const ids = new Uint32Array(3 * numFaces);
-      for (let c = 0; c < 3 * numFaces; c++) {
-        cornerPositions.set(positions.subarray(3 * corners[c], 3 * corners[c] + 3), 3 * c);
-        ids[c] = Math.floor(c / 3);
+      const points = new Uint32Array(3 * numFaces);  // point 3f + c: corner c of face f
+      for (let p = 0; p < 3 * numFaces; p++) {
+        for (let d = 0; d < 3; d++) cornerPositions[3 * p + d] = positions[3 * corners[p] + d];
+        ids[p] = (p - (p % 3)) / 3;
+        points[p] = p;
       }
-      builder.AddFacesToMesh(mesh, numFaces, Uint32Array.from(ids.keys()));
+      builder.AddFacesToMesh(mesh, numFaces, points);
       builder.AddFloatAttribute(mesh, M.POSITION, 3 * numFaces, 3, cornerPositions);
       const idAttribute = builder.AddUInt32Attribute(mesh, M.GENERIC, 3 * numFaces, 1, ids);
       const metadata = new M.Metadata();
