@@ -101,7 +101,10 @@ function uint32s(repeated, packed) {
     throw new MlclustError(grpc.status.DATA_LOSS, 'both packed and repeated triplets');
   if (packed.length % 4)
     throw new MlclustError(grpc.status.DATA_LOSS, 'packed triplets not a multiple of 4 bytes');
-  if (LITTLE_ENDIAN) return new Uint32Array(Uint8Array.from(packed).buffer);
+  if (LITTLE_ENDIAN) {  // viewed in place where 4-byte aligned, copied otherwise
+    const bytes = packed.byteOffset % 4 ? new Uint8Array(packed) : packed;
+    return new Uint32Array(bytes.buffer, bytes.byteOffset, bytes.length / 4);
+  }
   return Uint32Array.from({length: packed.length / 4}, (_, i) => packed.readUInt32LE(4 * i));
 }
 
