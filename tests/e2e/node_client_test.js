@@ -209,6 +209,26 @@ const packed = (values) => Buffer.from(Uint32Array.from(values).buffer);
     assert.strictEqual(h.labels(0, {level: 0}).length, numFaces);
   });
 
+  await check(
+      'draco3d welds vertices at equal positions (README says so), faces kept', async () => {
+        // A square's two triangles with three vertices each: a seam along the diagonal.
+        const square = {
+          vertices: [0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 0],
+          faces: [0, 1, 2, 3, 4, 5]
+        };
+        for (const method of ['sequential', 'edgebreaker']) {
+          let measures = '';
+          await client.clusterMesh(square, {
+            algo: 'hc',
+            draco: {method},
+            progress: (p) => {
+              if (p.stage === 'measures') measures = p.message;
+            }
+          });
+          assert.match(measures, /^2 faces, 4 vertices/, method);
+        }
+      });
+
   await check('(d) a bad request: INVALID_ARGUMENT with the message', async () => {
     await assert.rejects(
         client.clusterMesh(mesh, {algo: 'ml', options: {'no-such-option': '1'}}),
