@@ -26,52 +26,53 @@ function readOff(file) {
   return {vertices, faces: Uint32Array.from(faces)};
 }
 
+const VALUE_FLAGS = {
+  '--server': 'server',
+  '--algo': 'algo',
+  '--energy': 'energy',
+  '-k': 'k',
+  '--clusters': 'k',
+  '--upload': 'upload',
+  '--quantize': 'quantize',
+  '--labels': 'labels'
+};
+const SWITCHES = ['--info', '--accepted', '--varint', '--quiet'];
+
 function parseArgs(argv) {
   const args = {
     server: 'localhost:50051',
     algo: 'ml',
     energy: 'cvd',
-    k: 0,
+    k: '0',
     upload: 'sequential',
-    quantize: 0,
+    quantize: '0',
     options: {},
     labels: '',
-    info: false,
-    accepted: false,
-    varint: false,
-    quiet: false,
     mesh: ''
   };
   for (let i = 0; i < argv.length; i++) {
     const flag = argv[i];
-    const value = () => {
+    if (flag in VALUE_FLAGS || flag === '--option') {
       if (i + 1 >= argv.length) throw new Error(`${flag} needs a value`);
-      return argv[++i];
-    };
-    if (flag === '--server')
-      args.server = value();
-    else if (flag === '--algo')
-      args.algo = value();
-    else if (flag === '--energy')
-      args.energy = value();
-    else if (flag === '-k' || flag === '--clusters')
-      args.k = Number(value());
-    else if (flag === '--upload')
-      args.upload = value();
-    else if (flag === '--quantize')
-      args.quantize = Number(value());
-    else if (flag === '--labels')
-      args.labels = value();
-    else if (flag === '--option') {
-      const [name, ...rest] = value().split('=');
-      args.options[name] = rest.join('=');
-    } else if (['--info', '--accepted', '--varint', '--quiet'].includes(flag))
+      const value = argv[++i];
+      if (flag !== '--option') {
+        args[VALUE_FLAGS[flag]] = value;
+      } else {
+        const [name, ...rest] = value.split('=');
+        args.options[name] = rest.join('=');
+      }
+    } else if (SWITCHES.includes(flag)) {
       args[flag.slice(2)] = true;
-    else if (!flag.startsWith('-') && !args.mesh)
+    } else if (!flag.startsWith('-') && !args.mesh) {
       args.mesh = flag;
-    else
+    } else {
       throw new Error(`unknown argument ${flag}`);
+    }
   }
+  [args.k, args.quantize] = [args.k, args.quantize].map((text) => {
+    if (!/^\d+$/.test(text)) throw new Error(`'${text}' is not a non-negative integer`);
+    return Number(text);
+  });
   if (!args.info && !args.mesh)
     throw new Error('usage: cluster.js MESH.off --server ADDR [--algo ml] [-k K]');
   if (!['sequential', 'edgebreaker', 'edgebreaker-no-ids'].includes(args.upload)) {
