@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "core/cluster/multilevel.h"
+#include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/pml_levels.h"
@@ -229,6 +230,43 @@ TEST(PmlGpu, BuffersOverTheLimitAreResourceExhausted) {
       RunParallelMultilevelGpu(**small, mesh.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
   EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'pml odes'"));
+}
+
+// The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only and the
+// CVD energies, with device gpu even on llvmpipe, with auto only on hardware.
+TEST(PmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
+  const DeviceCaps hardware{true, false, "NVIDIA H100"};
+  const DeviceCaps software{true, true, "llvmpipe"};
+  auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* energy,
+                      const char* optimizer) -> std::string {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
+    request.energy = FindEnergy(InputKind::kMesh, energy);
+    request.clusters = 10;
+    request.device = choice;
+    request.options = {{"optimizer", optimizer}};
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    EXPECT_TRUE(plan.ok()) << plan.status();
+    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return "error";
+    const StagePlan* stage = FindStage(*plan, "cluster");
+    return stage == nullptr ? "none" : StageDeviceName(*stage, caps);
+  };
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd", "none"), "llvmpipe");
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive", "none"), "llvmpipe");
+  EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "cvd", "none"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "cvd", "none"), "NVIDIA H100");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "cvd", "none"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "cvd", "emlo"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "planar", "none"), "cpu");
+  // HC and ML keep their levels on the CPU.
+  JobRequest ml;
+  ml.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
+  ml.device = DeviceChoice::kGpu;
+  ml.options = {{"optimizer", "none"}};
+  absl::StatusOr<JobPlan> plan = PlanJob(ml);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  ASSERT_TRUE(PlanDevices(hardware, *plan).ok());
+  EXPECT_EQ(FindStage(*plan, "cluster")->device, StageDevice::kCpu);
 }
 
 }  // namespace
