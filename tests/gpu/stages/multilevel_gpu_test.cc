@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdlib>
 #include <tuple>
 
@@ -230,6 +231,30 @@ TEST(PmlGpu, BuffersOverTheLimitAreResourceExhausted) {
       RunParallelMultilevelGpu(**small, mesh.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
   EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
   EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'pml odes'"));
+}
+
+// Cancellation is checked between levels: a sink that sets the flag at level 3 stops the
+// run there with CANCELLED.
+TEST(PmlGpu, CancelledBetweenLevels) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  std::atomic<bool> cancel{false};
+  class CancellingSink : public LevelsSink {
+   public:
+    explicit CancellingSink(std::atomic<bool>& flag) : flag_(flag) {}
+    absl::Status OnLevel(const LevelMoves& level) override {
+      if (level.level == 3) flag_ = true;
+      return LevelsSink::OnLevel(level);
+    }
+
+   private:
+    std::atomic<bool>& flag_;
+  } sink(cancel);
+  MultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
+  options.cancel = &cancel;
+  absl::StatusOr<MultilevelSummary> result =
+      RunParallelMultilevelGpu(Context(), mesh.problem(), options, sink);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(sink.counts.size(), 4u);  // level 0 and levels 1-3
 }
 
 // The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only and the
