@@ -87,6 +87,14 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
       header=
     done
   done
+  # For context: the CPU's PML as jobs run it by default (EMLO after each level), which the
+  # GPU does not do yet (merges only).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    "$BIN/pml_cpu_bench" "$mesh" --algo pml --optimizer emlo --threads "$THREADS" $header |
+      tee -a "$out"
+    header=
+  done
 else
   echo "# $BIN/pml_gpu_bench missing: the PML rows were not taken" | tee -a "$out"
 fi

@@ -51,10 +51,10 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     return absl::InvalidArgumentError(
         absl::StrCat("pml: ", face_sums.size(), " face sums for ", n, " faces"));
   }
-  // Edge indices (2 * edge) and sums indices (5 * cluster) are 32-bit in the shaders.
-  if (n > kMaxMeshElements / 3) {
+  // Shader indices are 32-bit: 2 * edge (3 edges per face at most), 5 * cluster, 3 * face.
+  if (n > kMaxMeshElements / 6) {
     return absl::InvalidArgumentError(
-        absl::StrCat("pml: ", n, " faces exceed the limit of ", kMaxMeshElements / 3));
+        absl::StrCat("pml: ", n, " faces exceed the limit of ", kMaxMeshElements / 6));
   }
   std::vector<uint32_t> edges;
   edges.reserve(6 * n);

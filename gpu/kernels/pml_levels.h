@@ -68,7 +68,7 @@ class PmlLevelsGpu {
  public:
   // Uploads one cluster per face (face_sums[f], CvdEnergy::face_sums) and the directed
   // face edges of `adjacency`. INVALID_ARGUMENT for a size mismatch, a neighbour out of
-  // range or more than kMaxMeshElements / 3 faces; RESOURCE_EXHAUSTED if a buffer exceeds
+  // range or more than kMaxMeshElements / 6 faces; RESOURCE_EXHAUSTED if a buffer exceeds
   // context.max_storage_buffer_bytes() or GPU memory runs out; INTERNAL on GL errors.
   static absl::StatusOr<PmlLevelsGpu> Create(GlContext& context, std::span<const CvdSums> face_sums,
                                              const FaceAdjacency& adjacency);
