@@ -272,6 +272,7 @@ int main(int argc, char** argv) {
   const std::string sweeps_text = args.Get<std::string>("sweeps", "4");
   const std::string growth = args.Get<std::string>("growth", "free");
   const int threads = args.Get<int>("threads", 0);
+  const uint32_t reseeds = args.Get<uint32_t>("reseeds", 0);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
   auto with_peer = [&](absl::string_view name) {
@@ -319,6 +320,7 @@ int main(int argc, char** argv) {
       PatchOptions options;
       options.clusters = k;
       options.sweeps = sweeps;
+      options.reseeds = reseeds;
       options.threads = threads;
       options.growth = growth == "flood" ? SeedOptions::Growth::kEnergyOrdered
                                          : SeedOptions::Growth::kEnergyFree;

@@ -74,6 +74,13 @@ std::vector<uint32_t> FacesInMortonOrder(std::span<const uint32_t> codes,
   return order;
 }
 
+// ConnectivityGuard::CanMove's ring test with the ring built on demand into `ring`.
+bool RingTest(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face,
+              uint32_t to, std::span<const uint32_t> labels, std::vector<uint32_t>& ring) {
+  BuildFaceRing(mesh, adjacency, face, ring);
+  return RingTestAllows(ring, labels[face], to, labels);
+}
+
 struct SweepResult {
   double initial_energy = 0, energy = 0;
   uint32_t sweeps = 0;
@@ -128,9 +135,9 @@ absl::StatusOr<SweepResult> Sweep(const MeshProblem& problem, const Energy& ener
                                      std::span<const typename Energy::Proxy>(proxies),
                                      static_cast<uint32_t>(f))
                                : kNoMove;
-        if (to != kNoMove && guard) {
-          BuildFaceRing(*problem.mesh, adjacency, static_cast<uint32_t>(f), block_ring);
-          if (!RingTestAllows(block_ring, own, to, now)) to = kNoMove;
+        if (to != kNoMove && guard &&
+            !RingTest(*problem.mesh, adjacency, static_cast<uint32_t>(f), to, now, block_ring)) {
+          to = kNoMove;
         }
         target[f] = to;
       }
@@ -150,10 +157,7 @@ absl::StatusOr<SweepResult> Sweep(const MeshProblem& problem, const Energy& ener
         bool touches = false;
         for (FaceId g : adjacency.neighbours[f]) touches |= g.valid() && now[g.value()] == to;
         if (!touches) continue;
-        if (guard) {
-          BuildFaceRing(*problem.mesh, adjacency, f, ring);
-          if (!RingTestAllows(ring, from, to, now)) continue;
-        }
+        if (guard && !RingTest(*problem.mesh, adjacency, f, to, now, ring)) continue;
       }
       applied.push_back({f, from});
       partition.Move(f, to);
@@ -236,12 +240,41 @@ absl::StatusOr<PatchResult> BuildPatches(const MeshProblem& problem, const Patch
   if (options.threads < 0) {
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
-  MLCLUST_ASSIGN_OR_RETURN(const std::vector<FaceId> seeds,
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<FaceId> seeds,
                            SpreadSeeds(problem, options.clusters, options.cancel));
   PatchResult result;
   MLCLUST_ASSIGN_OR_RETURN(
       result.initial_labels,
       GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel));
+  for (uint32_t step = 0; step < options.reseeds; ++step) {
+    // Lloyd on the seeds: each cluster's seed moves to its face nearest the cluster's
+    // area-weighted centroid, and all grow again.
+    const FaceMeasures& measures = *problem.measures;
+    std::vector<Vec3> centre(seeds.size());
+    std::vector<double> area(seeds.size(), 0.0);
+    for (size_t f = 0; f < result.initial_labels.size(); ++f) {
+      const uint32_t c = result.initial_labels[f].value();
+      const double a = measures.area[f];
+      centre[c] += measures.centroid[f] * a;
+      area[c] += a;
+    }
+    for (size_t c = 0; c < seeds.size(); ++c) {
+      if (area[c] > 0) centre[c] = centre[c] * (1.0 / area[c]);
+    }
+    std::vector<double> best(seeds.size(), std::numeric_limits<double>::infinity());
+    for (size_t f = 0; f < result.initial_labels.size(); ++f) {
+      const uint32_t c = result.initial_labels[f].value();
+      const Vec3 d = measures.centroid[f] - centre[c];
+      const double distance = d.x * d.x + d.y * d.y + d.z * d.z;
+      if (distance < best[c]) {
+        best[c] = distance;
+        seeds[c] = FaceId(static_cast<uint32_t>(f));
+      }
+    }
+    MLCLUST_ASSIGN_OR_RETURN(
+        result.initial_labels,
+        GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel));
+  }
   result.labels = result.initial_labels;
   if (options.sweeps == 0) {
     result.initial_energy = MeshEnergyOfLabels(problem.energy, *problem.mesh, result.labels);

@@ -16,7 +16,11 @@
 //                      core/cluster/boundary_based.h, in parallel) with the connectivity
 //                      guard: no patch splits, the energy never rises
 //
-// The result is one partition of exactly K connected clusters.
+// with, by default, one Lloyd step on the seeds between 2 and 3 (each seed moves to its
+// cluster's face nearest the cluster's centroid, and all grow again). The defaults (6 sweeps,
+// 1 Lloyd step) were chosen on bunny00, armadillo and armadillo_1m at K = faces / 124 to
+// take less time than meshoptimizer's meshopt_buildMeshlets (BENCHMARKS.md, "Meshlet-sized
+// patches"). The result is one partition of exactly K connected clusters.
 #ifndef MLCLUST_CORE_CLUSTER_PATCHES_H_
 #define MLCLUST_CORE_CLUSTER_PATCHES_H_
 
@@ -45,9 +49,12 @@ struct PatchOptions {
   // How the seeds grow (SeedOptions::Growth); energy-free by default: a BFS, the fastest,
   // and the sweeps then fit the patches to the energy.
   SeedOptions::Growth growth = SeedOptions::Growth::kEnergyFree;
+  // Lloyd steps on the seeds before the sweeps: every seed moves to its cluster's face
+  // nearest the cluster's centroid and all grow again (ours).
+  uint32_t reseeds = 1;
   // BB sweeps at most after growth (0: the grown seeds are the result). BB stops earlier
   // when nothing moves.
-  uint32_t sweeps = 8;
+  uint32_t sweeps = 6;
   int threads = 0;  // BB's worker threads, 0 = all cores
   // Which connectivity check BB asks (kOff lets patches split: for experiments only).
   ConnectivityGuardKind guard = ConnectivityGuardKind::kRingTest;
