@@ -149,6 +149,21 @@ OptionInfo PmlPairsOption() {
                 });
 }
 
+// MultilevelOptions::parallel_optimisation and independent_moves (ours), for the mesh PML.
+OptionInfo ParallelOptimisationOption() {
+  return Choice(
+      "parallel-optimisation", {"off", "rounds", "independent"}, "off",
+      "ours: a PML level's local optimisation (EMLO only) in parallel rounds instead of EMLO's "
+      "one queue, every boundary face finding its best move at once; rounds: the moves then "
+      "checked again and applied in face order with the guard; independent: only moves on "
+      "clusters no earlier move of the round reads, guard-checked in parallel, the rest next "
+      "round. Other levels than EMLO's, the same on any thread count",
+      [](const OptionValue& v, JobPlan& plan) {
+        plan.multilevel.parallel_optimisation = v.text != "off";
+        plan.multilevel.independent_moves = v.text == "independent";
+      });
+}
+
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
                 "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
@@ -677,7 +692,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PPercentRuleOption(),
                  PmlUntilOption(false),
                  PmlPairsOption(),
-                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
+                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
+                 ParallelOptimisationOption()};
     // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
