@@ -74,6 +74,17 @@ class ConnectivityGuard {
   std::vector<uint32_t> ring_faces_;
 };
 
+// The ring of `face` as ConnectivityGuard stores it (faces around it in cyclic order, kGap
+// where the mesh boundary breaks it), built on demand into `ring`: for a driver that
+// checks few faces and cannot afford every face's ring up front (core/cluster/patches.h).
+void BuildFaceRing(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face,
+                   std::vector<uint32_t>& ring);
+
+// ConnectivityGuard::CanMove's test on a given ring: the faces of `from` and those of `to`
+// each form exactly one run (the caller checks that `from` keeps another face).
+bool RingTestAllows(std::span<const uint32_t> ring, uint32_t from, uint32_t to,
+                    std::span<const uint32_t> labels);
+
 // Alg. 3.2, the Vertex Boundary-Edge Count check (l. 870-890). A face F = (V1, V2, V3) of
 // cluster A may join the cluster `curr` across a boundary edge c = V1 -> V3 (F's edge whose
 // neighbour is in curr; the first such in F's edge order), with n = V3 -> V2 the next and
