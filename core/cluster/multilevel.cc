@@ -797,7 +797,8 @@ class MeshSpace {
 
 // RunMultilevel with problem.polygons (ours, issue 13): the engine over the polygons
 // (detail::PolygonEnergy, their dual graph, their ring test), the levels passed to `sink`
-// over faces (detail::PolygonLevelSink).
+// over faces (detail::PolygonLevelSink). options.inspect_level and the summary's moves
+// see the engine's own elements, the polygons.
 absl::StatusOr<MultilevelSummary> RunMultilevelOnPolygons(const MeshProblem& problem,
                                                           const MultilevelOptions& options,
                                                           LevelSink& sink) {

@@ -371,6 +371,20 @@ TEST(MakeMeshPolygonsTest, DriversRefuseSplitLabelsAndTheVertexCountGuard) {
   seeds.add_seeds = false;
   seeds.clusters = 17;  // 16 quads
   EXPECT_EQ(InitialClusters(problem, seeds).status().code(), absl::StatusCode::kInvalidArgument);
+  // Seed faces grow as their polygons; two seeds in one polygon are refused.
+  const std::vector<FaceId> two = {FaceId(1), FaceId(30)};
+  absl::StatusOr<std::vector<ClusterId>> grown =
+      GrowClustersFromSeeds(problem, two, SeedOptions::Growth::kEnergyOrdered, nullptr);
+  ASSERT_TRUE(grown.ok()) << grown.status();
+  EXPECT_EQ(ExpectWholeAndConnected(m, *polygons, *grown, "grown"), 2u);
+  EXPECT_EQ((*grown)[0], (*grown)[1]);
+  const std::vector<FaceId> same = {FaceId(0), FaceId(1)};
+  absl::StatusOr<std::vector<ClusterId>> refused =
+      GrowClustersFromSeeds(problem, same, SeedOptions::Growth::kEnergyFree, nullptr);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("in polygon 0, which has a seed already"),
+            std::string::npos)
+      << refused.status();
 }
 
 }  // namespace
