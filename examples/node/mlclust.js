@@ -368,7 +368,7 @@ class Client {
    * indices. algo: 'ml', 'pml', 'hc', 'lnkmeans', 'kmeans', 'xmeans', 'bisecting'; the energy
    * is the within-cluster variance. Other settings as for clusterMesh.
    */
-  clusterPoints(points, dims, settings = {}) {
+  async clusterPoints(points, dims, settings = {}) {
     const s = jobSettings({energy: 'variance', ...settings});
     const input = Buffer.alloc(4 * points.length);  // float32, little-endian
     points.forEach((v, i) => input.writeFloatLE(v, 4 * i));
