@@ -1,7 +1,7 @@
 // Meshlet-sized patches: ours (core/cluster/patches.h) against meshoptimizer's
 // meshopt_buildMeshlets and METIS k-way on the face dual graph, at K = faces / 124.
 //
-//   meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--growth free|flood]
+//   meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] [--growth free|flood]
 //                  [--threads T] [--peers meshoptimizer,metis|none] [--ml] [--emlo]
 //                  [--header]
 //
@@ -16,7 +16,9 @@
 //                   call alone (output buffers allocated before).
 //   metis           METIS_PartGraphKway on the face dual graph (edge neighbours), K parts,
 //                   METIS_OPTION_CONTIG. Timed: the call alone (the CSR graph built before).
-//   ours-sS         BuildPatches with S BB sweeps at most (S = 0: spread seeds grown).
+//   ours-sS         BuildPatches with S BB sweeps at most (S = 0: spread seeds grown) and L
+//                   Lloyd steps on the seeds (--reseeds, default 1; --sweeps default 6: the
+//                   defaults of PatchOptions and of BB's preset patches).
 //                   Timed: the call (spread seeds, growth, sweeps), on a prepared mesh.
 //   emlo            InitialClusters (l-neighbourhood seeds, flood) + OptimizeEmlo, the
 //                   dissertation's single-level route (--emlo).
@@ -263,16 +265,16 @@ bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
 int main(int argc, char** argv) {
   using namespace mlclust;
   bench::Args args(argc, argv,
-                   "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] "
+                   "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] "
                    "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] [--emlo] [--header]");
   const bool header = args.Flag("header");
   const bool with_ml = args.Flag("ml");
   const bool with_emlo = args.Flag("emlo");
   const int repeats = args.Get<int>("repeats", 5);
-  const std::string sweeps_text = args.Get<std::string>("sweeps", "4");
+  const std::string sweeps_text = args.Get<std::string>("sweeps", "6");
   const std::string growth = args.Get<std::string>("growth", "free");
   const int threads = args.Get<int>("threads", 0);
-  const uint32_t reseeds = args.Get<uint32_t>("reseeds", 0);
+  const uint32_t reseeds = args.Get<uint32_t>("reseeds", 1);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
   auto with_peer = [&](absl::string_view name) {

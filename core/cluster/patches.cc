@@ -74,7 +74,9 @@ std::vector<uint32_t> FacesInMortonOrder(std::span<const uint32_t> codes,
   return order;
 }
 
-// ConnectivityGuard::CanMove's ring test with the ring built on demand into `ring`.
+// ConnectivityGuard::CanMove's ring test with the ring built on demand into `ring`. (A walk
+// that counts the runs as it goes, without storing the ring and without branches on the
+// corner, measured no faster: the walk waits on memory, one face after the next.)
 bool RingTest(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face,
               uint32_t to, std::span<const uint32_t> labels, std::vector<uint32_t>& ring) {
   BuildFaceRing(mesh, adjacency, face, ring);
