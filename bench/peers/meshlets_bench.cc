@@ -187,9 +187,8 @@ bool RunMeshoptimizer(const PreparedMesh& prepared, int repeats, Row& row) {
       [&] {
         count = meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(),
                                       meshlet_triangles.data(), mesh.indices.data(), index_count,
-                                      mesh.positions.data(), mesh.num_vertices(),
-                                      3 * sizeof(float), kVerticesPerMeshlet,
-                                      kTrianglesPerMeshlet, 0.0f);
+                                      mesh.positions.data(), mesh.num_vertices(), 3 * sizeof(float),
+                                      kVerticesPerMeshlet, kTrianglesPerMeshlet, 0.0f);
         return count > 0;
       },
       row);
@@ -241,21 +240,24 @@ bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
   std::vector<idx_t> part(n, 0);
   row.method = "metis";
   row.k = k;
-  return Time(repeats, [&] {
-    idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
-    idx_t cut = 0;
-    idx_t options[METIS_NOPTIONS];
-    METIS_SetDefaultOptions(options);
-    options[METIS_OPTION_CONTIG] = 1;
-    const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
-                                           nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
-                                           options, &cut, part.data());
-    if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
-    if (status != METIS_OK) return false;
-    row.labels.resize(n);
-    for (size_t f = 0; f < n; ++f) row.labels[f] = ClusterId(static_cast<uint32_t>(part[f]));
-    return true;
-  }, row);
+  return Time(
+      repeats,
+      [&] {
+        idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
+        idx_t cut = 0;
+        idx_t options[METIS_NOPTIONS];
+        METIS_SetDefaultOptions(options);
+        options[METIS_OPTION_CONTIG] = 1;
+        const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
+                                               nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
+                                               options, &cut, part.data());
+        if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
+        if (status != METIS_OK) return false;
+        row.labels.resize(n);
+        for (size_t f = 0; f < n; ++f) row.labels[f] = ClusterId(static_cast<uint32_t>(part[f]));
+        return true;
+      },
+      row);
 }
 #endif
 
@@ -266,7 +268,8 @@ int main(int argc, char** argv) {
   using namespace mlclust;
   bench::Args args(argc, argv,
                    "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] "
-                   "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] [--emlo] [--header]");
+                   "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] "
+                   "[--emlo] [--header]");
   const bool header = args.Flag("header");
   const bool with_ml = args.Flag("ml");
   const bool with_emlo = args.Flag("emlo");
@@ -375,16 +378,15 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;
       }
-      std::printf("%s,%u,ml,%u,%.4f,%.4f,%.10g,1,,,,\n", bench::BaseName(path).c_str(), faces,
-                  k, watch.Seconds(), ProcessCpuSeconds() - cpu, ml.At(k));
+      std::printf("%s,%u,ml,%u,%.4f,%.4f,%.10g,1,,,,\n", bench::BaseName(path).c_str(), faces, k,
+                  watch.Seconds(), ProcessCpuSeconds() - cpu, ml.At(k));
     }
     for (const Row& row : rows) {
       const double energy = MeshEnergyOfLabels(problem.energy, prepared.mesh, row.labels);
       const double reference = ml.At(row.k);
       const Shape shape = MeasureShape(prepared, row.labels);
-      std::printf("%s,%u,%s,%u,%.4f,%.4f,%.10g,%s,%u,%u,%u,%u\n",
-                  bench::BaseName(path).c_str(), faces, row.method.c_str(), row.k, row.seconds,
-                  row.cpu_seconds, energy,
+      std::printf("%s,%u,%s,%u,%.4f,%.4f,%.10g,%s,%u,%u,%u,%u\n", bench::BaseName(path).c_str(),
+                  faces, row.method.c_str(), row.k, row.seconds, row.cpu_seconds, energy,
                   reference > 0 ? absl::StrCat(energy / reference).c_str() : "", shape.patches,
                   shape.disconnected, shape.max_faces, shape.max_vertices);
       std::fflush(stdout);

@@ -107,8 +107,8 @@ TEST(SpreadSeedsTest, SeedsAreSpreadOverTheSurface) {
   // The seeds are at least two squares apart from each other.
   for (size_t a = 0; a < seeds->size(); ++a) {
     for (size_t b = a + 1; b < seeds->size(); ++b) {
-      const Vec3 d = l.measures.centroid[(*seeds)[a].value()] -
-                     l.measures.centroid[(*seeds)[b].value()];
+      const Vec3 d =
+          l.measures.centroid[(*seeds)[a].value()] - l.measures.centroid[(*seeds)[b].value()];
       EXPECT_GT(d.x * d.x + d.y * d.y + d.z * d.z, (2.0 / 16) * (2.0 / 16)) << a << " " << b;
     }
   }
@@ -203,12 +203,10 @@ TEST(BuildPatchesTest, RefusesAndCancels) {
   const testing::LoadedMesh& l = testing::LoadDataFile("fandisk.off");
   PatchOptions options;
   options.clusters = 0;
-  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kInvalidArgument);
   options.clusters = 10;
   options.threads = -1;
-  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kInvalidArgument);
   options.threads = 0;
   std::atomic<bool> cancel{true};
   options.cancel = &cancel;
