@@ -49,6 +49,12 @@ if [ "${1:-}" = "--bench" ]; then
   packages+=(libmeshoptimizer-dev libmetis-dev)
 fi
 
+# The Node example and its test (examples/node, tests/e2e/node_client_test.sh): Debian 12's
+# nodejs 18 and npm 9, unless a node with its own npm is there already.
+if ! command -v node > /dev/null || ! command -v npm > /dev/null; then
+  packages+=(nodejs npm)
+fi
+
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

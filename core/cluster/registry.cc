@@ -149,6 +149,21 @@ OptionInfo PmlPairsOption() {
                 });
 }
 
+// MultilevelOptions::parallel_optimisation and independent_moves (ours), for the mesh PML.
+OptionInfo ParallelOptimisationOption() {
+  return Choice(
+      "parallel-optimisation", {"off", "rounds", "independent"}, "off",
+      "ours: a PML level's local optimisation (EMLO only) in parallel rounds instead of EMLO's "
+      "one queue, every boundary face finding its best move at once; rounds: the moves then "
+      "checked again and applied in face order with the guard; independent: only moves on "
+      "clusters no earlier move of the round reads, guard-checked in parallel, the rest next "
+      "round. Other levels than EMLO's, the same on any thread count",
+      [](const OptionValue& v, JobPlan& plan) {
+        plan.multilevel.parallel_optimisation = v.text != "off";
+        plan.multilevel.independent_moves = v.text == "independent";
+      });
+}
+
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
                 "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
@@ -301,12 +316,33 @@ std::string EnergyNote(const JobPlan& plan) {
   return absl::StrCat(" (", plan.energy != nullptr ? plan.energy->name : "?", ")");
 }
 
+// Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
+// says the same): merges only (optimizer none), without p% or the switch to ML, for the
+// energies whose merge cost the GPU has (cvd, cvd-adaptive).
+bool PmlLevelsOnGpu(const JobPlan& plan) {
+  const MeshEnergyKind kind = plan.mesh_energy.kind;
+  return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+         plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
+         plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
+}
+
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
   Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
   MultilevelOptions options = plan.multilevel;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary, RunMultilevel(problem, options, sink));
+  absl::StatusOr<MultilevelSummary> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    // PML's levels on the GPU (the plan took it only where PmlLevelsOnGpu covers it).
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunMultilevel(problem, options, sink);
+  } else {
+    ran = RunMultilevel(problem, options, sink);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary, std::move(ran));
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
@@ -679,8 +715,10 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PPercentRuleOption(),
                  PmlUntilOption(false),
                  PmlPairsOption(),
-                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
-    a.stages = {merge_stage};
+                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
+                 ParallelOptimisationOption()};
+    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <utility>
 
 #include "core/base/cancel.h"
 
@@ -69,6 +70,14 @@ absl::StatusOr<ConnectivityGuard> ConnectivityGuard::Build(const TriangleMesh& m
   if (!guard.BuildRings(mesh, adjacency, cancel)) {
     return absl::CancelledError("cancelled while building the connectivity guard");
   }
+  return guard;
+}
+
+ConnectivityGuard ConnectivityGuard::FromRings(std::vector<uint64_t> offset,
+                                               std::vector<uint32_t> ring_elements) {
+  ConnectivityGuard guard;
+  guard.ring_offset_ = std::move(offset);
+  guard.ring_faces_ = std::move(ring_elements);
   return guard;
 }
 

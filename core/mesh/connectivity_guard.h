@@ -46,6 +46,12 @@ class ConnectivityGuard {
                                                  const FaceAdjacency& adjacency,
                                                  const std::atomic<bool>* cancel);
 
+  // The same test over any elements from their rings given in compressed rows (element
+  // i's ring is ring_elements[offset[i] .. offset[i + 1]), element ids or kGap, cyclic):
+  // core/mesh/polygons.h builds the polygons' guard this way.
+  static ConnectivityGuard FromRings(std::vector<uint64_t> offset,
+                                     std::vector<uint32_t> ring_elements);
+
   // Whether face `face` may move from its cluster labels[face] to cluster `to`, given the
   // cluster sizes (faces per cluster id). labels holds one cluster id per face.
   bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
