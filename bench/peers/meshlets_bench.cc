@@ -261,11 +261,7 @@ bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
 }
 #endif
 
-}  // namespace
-}  // namespace mlclust
-
-int main(int argc, char** argv) {
-  using namespace mlclust;
+int Run(int argc, char** argv) {
   bench::Args args(argc, argv,
                    "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] "
                    "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] "
@@ -394,3 +390,8 @@ int main(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace
+}  // namespace mlclust
+
+int main(int argc, char** argv) { return mlclust::Run(argc, argv); }
