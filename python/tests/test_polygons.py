@@ -52,6 +52,11 @@ class PolygonTest(served.ServedTestCase):
     def connect(cls):
         cls.client = mlclust.Client(cls.address)
 
+    @classmethod
+    def disconnect(cls):
+        if hasattr(cls, "client"):
+            cls.client.close()
+
     def check(self, faces, counts, labels, k, what):
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))
         per_polygon = mlclust.labels_per_polygon(labels, counts)
