@@ -99,3 +99,22 @@ else
   echo "# $BIN/pml_gpu_bench missing: the PML rows were not taken" | tee -a "$out"
 fi
 echo "wrote $out"
+
+# ---------------------------------------------------------------------------------------
+# Meshlet-sized patches (helper "meshlets"; BENCHMARKS.md "Meshlet-sized patches: ours
+# against meshoptimizer and METIS"): K = faces / 124 on bunny00, armadillo and armadillo_1m,
+# ours (BB preset patches) against meshopt_buildMeshlets and METIS k-way, with ML's energy
+# at K. CPU only (the patches have no GPU stage): the row for a 16-core node. The peers are
+# compiled in where libmeshoptimizer-dev and libmetis-dev were found at build time
+# (scripts/install-deps.sh --bench); without them the table has ours alone.
+if [ -x "$BIN/meshlets_bench" ]; then
+  meshlets_out="bench/results/meshlets_$(hostname -s).csv"
+  [ "$quick" = 1 ] && meshlets_out="bench/results/meshlets_quick.csv"
+  meshlets_meshes=(data/bench/bunny00.off data/bench/armadillo.off data/bench/armadillo_1m.off)
+  [ "$quick" = 1 ] && meshlets_meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc) threads=$THREADS" \
+    | tee -a "$meshlets_out"
+  "$BIN/meshlets_bench" "${meshlets_meshes[@]}" --repeats 5 --threads "$THREADS" \
+    --sweeps 4,6,8 --ml --header | tee -a "$meshlets_out"
+  echo "wrote $meshlets_out"
+fi
