@@ -716,10 +716,10 @@ class MeshSpace {
           move.dirty[move.dirty_count++] = c;  // at most 6: two per edge neighbour
         });
       };
-      if (winners.size() < 256) {
+      if (winners.size() < 64) {
         for (size_t w = 0; w < winners.size(); ++w) apply_one(w);
       } else {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 128),
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 32),
                           [&](const tbb::blocked_range<size_t>& range) {
                             for (size_t w = range.begin(); w != range.end(); ++w) apply_one(w);
                           });

@@ -108,11 +108,11 @@ struct TbbBlocks {
   }
 };
 
-// out = the indices i < n with keep(i), in order; in parallel blocks of 16,384 where n is
+// out = the indices i < n with keep(i), in order; in parallel blocks of 4096 where n is
 // large (count per block, then each block fills its share): the same list either way.
 template <typename Keep>
 void CompactIndices(size_t n, const Keep& keep, std::vector<uint32_t>& out) {
-  constexpr size_t kBlock = 16384;
+  constexpr size_t kBlock = 4096;
   out.clear();
   if (n < 2 * kBlock) {
     for (size_t i = 0; i < n; ++i) {
