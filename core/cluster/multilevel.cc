@@ -611,6 +611,7 @@ class MeshSpace {
     }
     tbb::parallel_sort(list.begin(), list.end());
     list.erase(std::unique(list.begin(), list.end()), list.end());
+    if (kept_target_.size() != n_) kept_target_.assign(n_, kUndecided);
     if (reserve_.size() != n_) {
       reserve_ = std::vector<std::atomic<uint32_t>>(n_);
       for (auto& r : reserve_) r.store(kUnreserved, std::memory_order_relaxed);
@@ -644,7 +645,9 @@ class MeshSpace {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
                         [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t i = range.begin(); i != range.end(); ++i) {
-                            target[i] = BestOwnMove(list[i]).first;
+                            uint32_t& kept = kept_target_[list[i]];
+                            target[i] = kept != kUndecided ? kept : BestOwnMove(list[i]).first;
+                            kept = kUndecided;
                           }
                         });
       evaluations_ += list.size();
@@ -708,6 +711,7 @@ class MeshSpace {
         move.touched_from = recorder_.TouchUnlisted(from, energy_of);
         move.touched_to = recorder_.TouchUnlisted(to, energy_of);
         partition_.Move(f, to);
+        round_mark_[from] = round_mark_[to] = 1;
         move.first_move = recorder_.RecordMoveUnlisted(f, from);
         move.dirty_count = 0;
         OnFaceMoved(f, from, to, [&](uint32_t c) {
@@ -736,6 +740,22 @@ class MeshSpace {
       // kNoCluster where there is no neighbour), and the faces that waited.
       detail::CompactIndices(
           candidates.size(), [&](size_t j) { return apply[j] == 2; }, waiting);
+      // A face that waited keeps its move for the next round where no winner wrote a
+      // cluster its decision read (its own and its edge neighbours'): BestOwnMove would
+      // find the same.
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, waiting.size(), 1024),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t k = range.begin(); k != range.end(); ++k) {
+                            const uint32_t i = candidates[waiting[k]], f = list[i];
+                            bool stale = round_mark_[partition_.label(f)] != 0;
+                            for (FaceId g : adjacency_.neighbours[f]) {
+                              stale = stale ||
+                                      (g.valid() && round_mark_[partition_.label(g.value())] != 0);
+                            }
+                            if (!stale) kept_target_[f] = target[i];
+                          }
+                        });
+      for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
       next.assign(4 * winners.size() + waiting.size(), detail::kNoCluster);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
                         [&](const tbb::blocked_range<size_t>& range) {
@@ -756,6 +776,7 @@ class MeshSpace {
       if (!next.empty() && next.back() == detail::kNoCluster) next.pop_back();
       list.swap(next);
     }
+    for (uint32_t f : list) kept_target_[f] = kUndecided;  // stopped early: none kept
   }
 
   // Local boundary-based optimisation: sweeps over the worklist with the touched
@@ -837,6 +858,10 @@ class MeshSpace {
   // it (kUnreserved between rounds).
   static constexpr uint32_t kUnreserved = 0xffffffffu;
   std::vector<std::atomic<uint32_t>> reserve_;
+  // Per face, the move it keeps from the round before (kUndecided: none kept; all so
+  // between levels).
+  static constexpr uint32_t kUndecided = 0xfffffffeu;
+  std::vector<uint32_t> kept_target_;
   std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;
