@@ -14,6 +14,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/detail/multilevel_engine.h"
+#include "core/cluster/detail/polygon_energy.h"
 #include "core/cluster/partition.h"
 #include "core/hierarchy/level_recorder.h"
 #include "core/mesh/connectivity_guard.h"
@@ -26,19 +27,23 @@ namespace mlclust {
 namespace {
 
 // The mesh's space for the multilevel engine (detail/multilevel_engine.h): clusters of
-// faces, neighbours across face edges, EMLO or BB as the local optimisation.
-template <typename Energy>
+// faces, neighbours across face edges, EMLO or BB as the local optimisation. With
+// problem.polygons (Adjacency = PolygonAdjacency, Energy a detail::PolygonEnergy) the
+// elements are the polygons: level 0 is one cluster per polygon, with its energy.
+template <typename Energy, typename Adjacency = FaceAdjacency>
 class MeshSpace {
  public:
   using Proxy = typename Energy::Proxy;
   using Engine = detail::MultilevelEngine<MeshSpace>;
   static constexpr bool kOptimiseAllAtHandover = true;
 
-  MeshSpace(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options)
-      : adjacency_(*problem.adjacency),
+  MeshSpace(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options,
+            const Adjacency& adjacency)
+      : adjacency_(adjacency),
         options_(options),
         mesh_(*problem.mesh),
-        n_(static_cast<uint32_t>(problem.mesh->num_faces())),
+        problem_(problem),
+        n_(static_cast<uint32_t>(adjacency.num_faces())),
         partition_(energy, Identity(n_), n_),
         members_(n_),
         position_(n_, 0),
@@ -57,8 +62,22 @@ class MeshSpace {
   // Level 0: every face its own cluster, energy 0 for every energy here.
   absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
-    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone &&
-        options_.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    if constexpr (!std::is_same_v<Adjacency, FaceAdjacency>) {
+      // Polygons (RunMultilevel refused Alg. 3.2's per-triangle counts): their ring test.
+      if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
+          options_.optimizer != MultilevelOptions::Optimizer::kNone) {
+        MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard, BuildPolygonConnectivityGuard(
+                                                              mesh_, *problem_.adjacency,
+                                                              *problem_.polygons, options_.cancel));
+        guard_.emplace(std::move(guard));
+      }
+      std::vector<ClusterId> start(n_);
+      for (uint32_t p = 0; p < n_; ++p) start[p] = ClusterId(p);
+      recorder_.Reset(partition_.TotalEnergy());
+      return sink.OnStart(start, n_, partition_.TotalEnergy());
+    } else if (options_.connectivity_guard &&
+               options_.optimizer != MultilevelOptions::Optimizer::kNone &&
+               options_.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
       vertex_count_guard_.emplace(mesh_, adjacency_);
     } else if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
                options_.optimizer != MultilevelOptions::Optimizer::kNone) {
@@ -637,8 +656,10 @@ class MeshSpace {
       bool touched_from, touched_to, first_move;
       uint32_t dirty_count;
       uint32_t dirty[8];
+      std::vector<uint32_t> dirty_overflow;
     };
     std::vector<AppliedMove> applied;
+    std::vector<size_t> next_offset;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
       target.resize(list.size());
@@ -714,10 +735,16 @@ class MeshSpace {
         round_mark_[from] = round_mark_[to] = 1;
         move.first_move = recorder_.RecordMoveUnlisted(f, from);
         move.dirty_count = 0;
+        move.dirty_overflow.clear();
         OnFaceMoved(f, from, to, [&](uint32_t c) {
           if (dirty_mark_[c]) return;
           dirty_mark_[c] = 1;
-          move.dirty[move.dirty_count++] = c;  // at most 6: two per edge neighbour
+          // Triangles: at most 4 (from and three neighbours); polygons may have more.
+          if (move.dirty_count < 8) {
+            move.dirty[move.dirty_count++] = c;
+          } else {
+            move.dirty_overflow.push_back(c);
+          }
         });
       };
       if (winners.size() < 64) {
@@ -734,10 +761,11 @@ class MeshSpace {
         if (move.touched_to) recorder_.ListTouched(move.to);
         if (move.first_move) recorder_.ListMoved(list[candidates[winners[w]]]);
         for (uint32_t d = 0; d < move.dirty_count; ++d) dirty_.push_back(move.dirty[d]);
+        dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
       }
       optimisation_moves_ += winners.size();
-      // The next list: each moved face and its edge neighbours (four slots per move,
-      // kNoCluster where there is no neighbour), and the faces that waited.
+      // The next list: each moved face and its edge neighbours (at offsets counted per
+      // move), and the faces that waited.
       detail::CompactIndices(
           candidates.size(), [&](size_t j) { return apply[j] == 2; }, waiting);
       // A face that waited keeps its move for the next round where no winner wrote a
@@ -756,24 +784,35 @@ class MeshSpace {
                           }
                         });
       for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
-      next.assign(4 * winners.size() + waiting.size(), detail::kNoCluster);
+      next_offset.assign(winners.size() + 1, 0);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t w = range.begin(); w != range.end(); ++w) {
+                            size_t count = 1;
+                            for (FaceId g : adjacency_.neighbours[list[candidates[winners[w]]]]) {
+                              count += g.valid() ? 1 : 0;
+                            }
+                            next_offset[w + 1] = count;
+                          }
+                        });
+      for (size_t w = 0; w < winners.size(); ++w) next_offset[w + 1] += next_offset[w];
+      next.resize(next_offset.back() + waiting.size());
       tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
                         [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t w = range.begin(); w != range.end(); ++w) {
                             const uint32_t f = list[candidates[winners[w]]];
-                            next[4 * w] = f;
-                            for (size_t e = 0; e < 3; ++e) {
-                              const FaceId g = adjacency_.neighbours[f][e];
-                              if (g.valid()) next[4 * w + 1 + e] = g.value();
+                            size_t at = next_offset[w];
+                            next[at++] = f;
+                            for (FaceId g : adjacency_.neighbours[f]) {
+                              if (g.valid()) next[at++] = g.value();
                             }
                           }
                         });
       for (size_t k = 0; k < waiting.size(); ++k) {
-        next[4 * winners.size() + k] = list[candidates[waiting[k]]];
+        next[next_offset.back() + k] = list[candidates[waiting[k]]];
       }
       tbb::parallel_sort(next.begin(), next.end());
       next.erase(std::unique(next.begin(), next.end()), next.end());
-      if (!next.empty() && next.back() == detail::kNoCluster) next.pop_back();
       list.swap(next);
     }
     for (uint32_t f : list) kept_target_[f] = kUndecided;  // stopped early: none kept
@@ -830,9 +869,10 @@ class MeshSpace {
     }
   }
 
-  const FaceAdjacency& adjacency_;
+  const Adjacency& adjacency_;
   const MultilevelOptions& options_;
   const TriangleMesh& mesh_;
+  const MeshProblem& problem_;
   std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
   // Instead of guard_, with options.guard == kVertexBoundaryEdgeCount.
   std::optional<VertexBoundaryEdgeCountGuard> vertex_count_guard_;
@@ -872,6 +912,58 @@ class MeshSpace {
   absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
 };
 
+// RunMultilevel with problem.polygons (ours, issue 13): the engine over the polygons
+// (detail::PolygonEnergy, their dual graph, their ring test), the levels passed to `sink`
+// over faces (detail::PolygonLevelSink).
+absl::StatusOr<MultilevelSummary> RunMultilevelOnPolygons(const MeshProblem& problem,
+                                                          const MultilevelOptions& options,
+                                                          LevelSink& sink) {
+  const MeshPolygons& polygons = *problem.polygons;
+  if (polygons.num_faces() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError(absl::StrCat("polygons of ", polygons.num_faces(),
+                                                   " faces for a mesh of ",
+                                                   problem.mesh->num_faces(), " faces"));
+  }
+  if (options.connectivity_guard && options.optimizer != MultilevelOptions::Optimizer::kNone &&
+      options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    return absl::InvalidArgumentError(
+        "guard: Alg. 3.2's vertex boundary-edge counts are per triangle; with polygons use the "
+        "ring test (or none)");
+  }
+  detail::PolygonLevelSink face_sink(polygons, sink);
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& triangles) -> absl::StatusOr<MultilevelSummary> {
+        using Energy = detail::PolygonEnergy<std::decay_t<decltype(triangles)>>;
+        const Energy energy(triangles, polygons);
+        using Space = MeshSpace<Energy, PolygonAdjacency>;
+        Space space(problem, energy, options, polygons.adjacency);
+        detail::MultilevelEngineOptions engine_options;
+        engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
+        engine_options.p_percent = options.p_percent;
+        engine_options.p_percent_sweep =
+            options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
+        engine_options.parallel = options.parallel;
+        engine_options.pml_until = options.pml_until;
+        engine_options.pml_pairs = options.pml_pairs;
+        engine_options.min_clusters = options.min_clusters;
+        engine_options.cancel = options.cancel;
+        tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+        return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
+          detail::MultilevelEngine<Space> engine(space, engine_options, face_sink);
+          MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
+          MultilevelSummary summary;
+          summary.levels = run.levels;
+          summary.final_clusters = run.final_clusters;
+          summary.moves = run.moves;
+          summary.final_energy = run.final_energy;
+          summary.optimisation_moves = space.optimisation_moves();
+          summary.evaluations = space.evaluations();
+          return summary;
+        });
+      });
+}
+
 }  // namespace
 
 absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
@@ -891,11 +983,12 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
+  if (problem.polygons != nullptr) return RunMultilevelOnPolygons(problem, options, sink);
   return WithMeshEnergy(
       problem.energy, *problem.mesh, *problem.measures,
       [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
         using Energy = std::decay_t<decltype(energy)>;
-        MeshSpace<Energy> space(problem, energy, options);
+        MeshSpace<Energy> space(problem, energy, options, *problem.adjacency);
         detail::MultilevelEngineOptions engine_options;
         engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
         engine_options.p_percent = options.p_percent;
