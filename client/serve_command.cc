@@ -43,7 +43,7 @@ constexpr char kServeUsage[] =
                            before it is cut off with RESOURCE_EXHAUSTED and the job
                            cancelled: producing levels never waits on a reader
       --result-total-mb N  the same over all jobs (default 1024)
-    detached jobs (mesh|points --detach; watch, cancel, jobs):
+    kept results (every job's levels, for watch; cancel, jobs):
       --retention-seconds S  an ended job's results are kept this long (default 3600)
       --kept-results-mb N  memory for kept levels, all jobs together (default 1024); the
                            oldest ended jobs' results are dropped first to make room

@@ -1,6 +1,8 @@
 #include "server/job_record.h"
 
 #include <algorithm>
+#include <bit>
+#include <cstring>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -17,6 +19,23 @@ constexpr int kMaxLevelsPerBatch = 16384;
 
 std::string Timestamp(absl::Time time) {
   return absl::FormatTime("%Y-%m-%dT%H:%M:%SZ", time, absl::UTCTimeZone());
+}
+
+bool IsPacked(const v1::LevelBatch& batch) {
+  return !batch.packed_element().empty() || !batch.packed_to_cluster().empty() ||
+         !batch.packed_from_cluster().empty();
+}
+
+// Appends a packed array (raw little-endian uint32) to `values`; false for a length that is
+// not a multiple of 4.
+bool AppendPacked(const std::string& bytes, std::vector<uint32_t>& values) {
+  static_assert(std::endian::native == std::endian::little,
+                "packed triplets are little-endian uint32");
+  if (bytes.size() % sizeof(uint32_t) != 0) return false;
+  const size_t old_size = values.size();
+  values.resize(old_size + bytes.size() / sizeof(uint32_t));
+  if (!bytes.empty()) std::memcpy(values.data() + old_size, bytes.data(), bytes.size());
+  return true;
 }
 
 v1::JobEvent FailedEvent(const grpc::Status& status) {
@@ -45,12 +64,12 @@ const char* JobStateName(JobState state) {
 }
 
 JobRecord::JobRecord(JobRegistry* registry, std::string id, std::string tenant, v1::JobSpec spec,
-                     bool keep_levels, size_t max_event_bytes)
+                     bool detached, size_t max_event_bytes)
     : registry_(registry),
       id_(std::move(id)),
       tenant_(std::move(tenant)),
       spec_(std::move(spec)),
-      keep_levels_(keep_levels),
+      detached_(detached),
       max_event_bytes_(std::max<size_t>(max_event_bytes, 4 * kBatchOverhead)),
       accepted_at_(absl::Now()) {}
 
@@ -62,40 +81,78 @@ JobRecord::~JobRecord() {
 uint64_t JobRecord::BytesOf(const v1::JobEvent& event) {
   if (event.has_snapshot()) return uint64_t{4} * event.snapshot().labels_size();
   if (event.has_levels()) {
-    return uint64_t{12} * event.levels().element_size() +
-           uint64_t{sizeof(Level)} * event.levels().cluster_count_size();
+    const v1::LevelBatch& batch = event.levels();
+    // 12 bytes per triplet: three repeated uint32, or three packed arrays of 4 bytes each.
+    const uint64_t triplets = IsPacked(batch) ? batch.packed_element().size() / 4
+                                              : static_cast<uint64_t>(batch.element_size());
+    return uint64_t{12} * triplets + uint64_t{sizeof(Level)} * batch.cluster_count_size();
   }
   return 0;
 }
 
-bool JobRecord::Emit(v1::JobEvent event) {
-  if (cancelled()) return false;
-  if (!keep_levels_) return true;
+JobRecord::Stored JobRecord::Store(const v1::JobEvent& event) {
   const uint64_t bytes = BytesOf(event);
-  if (bytes > 0 && !registry_->ReserveKept(bytes, this)) {
-    Abort(grpc::Status(
-        grpc::StatusCode::RESOURCE_EXHAUSTED,
-        absl::StrCat("the job's levels do not fit the server's memory for kept results (",
-                     registry_->kept_limit() >> 20, " MiB, ", registry_->kept_bytes() >> 20,
-                     " MiB in use by running jobs); the job was cancelled")));
-    return false;
+  if (bytes > 0) {
+    // Closed records reserve nothing (a reservation may drop other jobs' levels).
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (final_set_ || cancelled() || !dropped_reason_.empty()) return Stored::kClosed;
   }
+  if (bytes > 0 && !registry_->ReserveKept(bytes, this)) return Stored::kNoRoom;
   std::unique_lock<std::mutex> lock(mutex_);
   if (final_set_ || cancelled() || !dropped_reason_.empty()) {
     lock.unlock();
     registry_->ReleaseKept(bytes);
-    return false;
+    return Stored::kClosed;
   }
   if (!StoreLocked(event)) {
     lock.unlock();
     registry_->ReleaseKept(bytes);
-    Abort(grpc::Status(grpc::StatusCode::INTERNAL,
-                       "the job produced an inconsistent stream of levels"));
-    return false;
+    return Stored::kInconsistent;
   }
   kept_bytes_ += bytes;
   WakeAll(lock);
-  return true;
+  return Stored::kStored;
+}
+
+bool JobRecord::Emit(v1::JobEvent event) {
+  if (cancelled()) return false;
+  switch (Store(event)) {
+    case Stored::kStored:
+      return true;
+    case Stored::kClosed:
+      return false;
+    case Stored::kNoRoom:
+      Abort(grpc::Status(
+          grpc::StatusCode::RESOURCE_EXHAUSTED,
+          absl::StrCat("the job's levels do not fit the server's memory for kept results (",
+                       registry_->kept_limit() >> 20, " MiB, ", registry_->kept_bytes() >> 20,
+                       " MiB in use by running jobs); the job was cancelled")));
+      return false;
+    case Stored::kInconsistent:
+      Abort(grpc::Status(grpc::StatusCode::INTERNAL,
+                         "the job produced an inconsistent stream of levels"));
+      return false;
+  }
+  return false;
+}
+
+void JobRecord::Keep(const v1::JobEvent& event) {
+  std::string reason;
+  switch (Store(event)) {
+    case Stored::kStored:
+    case Stored::kClosed:
+      return;
+    case Stored::kNoRoom:
+      reason = absl::StrCat(
+          "its levels were not kept: they did not fit the server's memory for "
+          "kept results (",
+          registry_->kept_limit() >> 20, " MiB); the call that submitted it received them");
+      break;
+    case Stored::kInconsistent:
+      reason = "its levels were not kept: the job produced an inconsistent stream of levels";
+      break;
+  }
+  registry_->ReleaseKept(DropLevels(reason));
 }
 
 bool JobRecord::StoreLocked(const v1::JobEvent& event) {
@@ -133,10 +190,23 @@ bool JobRecord::StoreLocked(const v1::JobEvent& event) {
     }
     const bool has_source = batch.source_level_size() == count;
     const uint64_t base = element_.size();
-    element_.insert(element_.end(), batch.element().begin(), batch.element().end());
-    to_cluster_.insert(to_cluster_.end(), batch.to_cluster().begin(), batch.to_cluster().end());
-    from_cluster_.insert(from_cluster_.end(), batch.from_cluster().begin(),
-                         batch.from_cluster().end());
+    if (IsPacked(batch)) {
+      // JobSpec.packed_triplets (an attached job's copy): raw little-endian uint32.
+      if (batch.element_size() != 0 || batch.to_cluster_size() != 0 ||
+          batch.from_cluster_size() != 0 ||
+          batch.packed_to_cluster().size() != batch.packed_element().size() ||
+          batch.packed_from_cluster().size() != batch.packed_element().size() ||
+          !AppendPacked(batch.packed_element(), element_) ||
+          !AppendPacked(batch.packed_to_cluster(), to_cluster_) ||
+          !AppendPacked(batch.packed_from_cluster(), from_cluster_)) {
+        return false;
+      }
+    } else {
+      element_.insert(element_.end(), batch.element().begin(), batch.element().end());
+      to_cluster_.insert(to_cluster_.end(), batch.to_cluster().begin(), batch.to_cluster().end());
+      from_cluster_.insert(from_cluster_.end(), batch.from_cluster().begin(),
+                           batch.from_cluster().end());
+    }
     for (int i = 0; i < count; ++i) {
       const uint64_t end = base + batch.triplet_end(i);
       if (end > element_.size()) return false;
@@ -183,10 +253,6 @@ void JobRecord::MarkEnded(const grpc::Status& status, const v1::Done* done) {
   v1::JobEvent final_event;
   if (status.ok() && done != nullptr) {
     *final_event.mutable_done() = *done;
-    if (!keep_levels_) {
-      levels_total_ = done->levels();
-      triplets_total_ = done->triplets();
-    }
   } else {
     final_event = FailedEvent(status);
   }
@@ -195,6 +261,11 @@ void JobRecord::MarkEnded(const grpc::Status& status, const v1::Done* done) {
 }
 
 void JobRecord::EndLocked(v1::JobEvent final_event, const grpc::Status& status) {
+  if (final_event.has_done() && !dropped_reason_.empty()) {
+    // Levels not kept (an attached job's that did not fit): the counts from the job's Done.
+    levels_total_ = final_event.done().levels();
+    triplets_total_ = final_event.done().triplets();
+  }
   final_event.set_final(true);
   final_event_ = std::move(final_event);
   final_set_ = true;
@@ -226,7 +297,7 @@ v1::JobSummary JobRecord::Summary(absl::Time now, absl::Duration retention) cons
   summary.set_input_kind(spec_.input_kind());
   summary.set_input_bytes(spec_.input_bytes());
   summary.set_label(spec_.label());
-  summary.set_detached(keep_levels_);
+  summary.set_detached(detached_);
   summary.set_levels(static_cast<uint32_t>(levels_total_));
   summary.set_triplets(triplets_total_);
   const absl::Time started = state_ == JobState::kQueued ? now : started_at_;
@@ -332,13 +403,6 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
         grpc::Status(grpc::StatusCode::NOT_FOUND, absl::StrCat("job ", id_, ": ", dropped_reason_));
     return Next::kEnd;
   }
-  if (!keep_levels_) {
-    status = grpc::Status(grpc::StatusCode::FAILED_PRECONDITION,
-                          absl::StrCat("job ", id_,
-                                       " was submitted without detach: its levels go only to the "
-                                       "call that submitted it and are not kept"));
-    return Next::kEnd;
-  }
   auto wait = [&] {
     if (progress_seq_ > cursor.progress_seen) {
       cursor.progress_seen = progress_seq_;
@@ -355,7 +419,7 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
         *accepted = accepted_;
         accepted->set_queue_position(0);
         accepted->set_job_id(id_);
-        accepted->set_detached(true);
+        accepted->set_detached(detached_);
         accepted->set_tenant(tenant_);
         accepted->set_input_bytes(spec_.input_bytes());
         accepted->set_retention_seconds(absl::ToDoubleSeconds(registry_->retention()));
@@ -519,7 +583,9 @@ bool JobRegistry::ReserveKept(uint64_t bytes, const JobRecord* for_record) {
   for (size_t i = 0; i < order_.size();) {
     if (kept_.TryReserve(bytes)) return true;
     const std::shared_ptr<JobRecord>& record = records_.at(order_[i]);
-    if (record.get() != for_record && record->ended() && record->kept_bytes() > 0) {
+    // An attached job's caller has its levels: it never drops a detached job's.
+    if (record.get() != for_record && record->ended() && record->kept_bytes() > 0 &&
+        (for_record->detached() || !record->detached())) {
       DropLocked(order_[i], absl::StrCat("its results were dropped at ", Timestamp(absl::Now()),
                                          " to make room for newer jobs' (the server keeps ",
                                          options_.kept_bytes_limit >> 20, " MiB of results)"));
@@ -566,6 +632,23 @@ void JobRegistry::DropLocked(std::string id, const std::string& reason) {
     dropped_reasons_.erase(dropped_order_.front());
     dropped_order_.pop_front();
   }
+}
+
+// ---------------------------------------------------------------------------------------
+
+bool RecordingChannel::Emit(v1::JobEvent event) {
+  record_->Keep(event);
+  return call_->Emit(std::move(event));
+}
+
+void RecordingChannel::Finish(v1::JobEvent final_event, const grpc::Status& status) {
+  record_->Finish(final_event, status);
+  call_->Finish(std::move(final_event), status);
+}
+
+void RecordingChannel::Abort(const grpc::Status& status) {
+  record_->Abort(status);
+  call_->Abort(status);
 }
 
 }  // namespace mlclust::server

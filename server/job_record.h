@@ -1,18 +1,21 @@
-// What the server knows of each job after it is accepted, and the result store of detached
-// jobs: the levels Watch reads.
+// What the server knows of each job after it is accepted, and the result store of every
+// job: the levels Watch reads.
 //
 // Every accepted job gets a JobRecord in the server's JobRegistry: its state, tenant and
-// sizes (ListJobs), and the handle Cancel uses. A detached job (JobSpec.detach) also keeps
-// its levels in its record: the record is the job's EventChannel, so the worker writes the
-// snapshot and the level batches into it (compactly: 4 bytes per label, 12 per triplet)
-// and any number of watchers read them, each at its own pace, while the job runs or after
-// it ended. Producing never waits on a watcher.
+// sizes (ListJobs), the handle Cancel uses, and its levels. A detached job (JobSpec.detach)
+// writes its events to its record only: the record is the job's EventChannel. An attached
+// job writes them to its call and a copy to its record (RecordingChannel). Either way the
+// record keeps the snapshot and the level batches (compactly: 4 bytes per label, 12 per
+// triplet) and any number of watchers read them, each at its own pace, while the job runs
+// or after it ended. Producing never waits on a watcher.
 //
 // Retention: an ended job's record stays for the registry's retention time; kept levels
 // count against the registry's memory budget, and when a running job needs more, the
-// oldest ended jobs' levels are dropped first. A job that cannot fit even then is cancelled
-// with RESOURCE_EXHAUSTED. A dropped job leaves a short note, so Watch answers NOT_FOUND
-// saying when and why.
+// oldest ended jobs' levels are dropped first (an attached job, whose caller has its levels,
+// only drops other attached jobs' levels). A detached job that cannot fit even then is
+// cancelled with RESOURCE_EXHAUSTED; an attached one runs on for its caller and only stops
+// keeping (Watch then answers NOT_FOUND saying so). A dropped job leaves a short note, so
+// Watch answers NOT_FOUND saying when and why.
 //
 // Lock order: the registry's mutex before a record's; a record never calls the registry
 // while holding its own.
@@ -67,14 +70,18 @@ struct WatchCursor {
 
 class JobRecord : public EventChannel {
  public:
-  // `keep_levels`: a detached job, whose levels are stored here. `max_event_bytes`: the
-  // largest event a watcher is sent (bigger snapshots and levels are split).
+  // `detached`: a detached job, whose only channel is this record (see Keep for attached
+  // ones). `max_event_bytes`: the largest event a watcher is sent (bigger snapshots and
+  // levels are split).
   JobRecord(JobRegistry* registry, std::string id, std::string tenant, v1::JobSpec spec,
-            bool keep_levels, size_t max_event_bytes);
+            bool detached, size_t max_event_bytes);
   ~JobRecord() override;
 
   // EventChannel: the worker's side, for a detached job.
   bool Emit(v1::JobEvent event) override;
+  // Keeps a copy of an attached job's event (RecordingChannel). Never cancels the job: when
+  // the levels do not fit the memory for kept results, the record stops keeping them.
+  void Keep(const v1::JobEvent& event);
   void Finish(v1::JobEvent final_event, const grpc::Status& status) override;
   void Abort(const grpc::Status& status) override;
   bool cancelled() const override { return cancelled_.load(std::memory_order_relaxed); }
@@ -97,7 +104,7 @@ class JobRecord : public EventChannel {
   const std::string& id() const { return id_; }
   const v1::JobSpec& spec() const { return spec_; }
   const std::string& tenant() const { return tenant_; }
-  bool keeps_levels() const { return keep_levels_; }
+  bool detached() const { return detached_; }
   // Memory taken by the kept levels (counted in the registry's budget).
   uint64_t kept_bytes() const { return kept_bytes_.load(std::memory_order_relaxed); }
   // Frees the kept levels (the registry drops the record): watchers end with NOT_FOUND
@@ -121,6 +128,9 @@ class JobRecord : public EventChannel {
 
   // Levels a watcher can read: the snapshot (level 0) and the complete levels after it.
   uint32_t ReadableLevelsLocked() const;
+  // Reserves memory for `event`'s levels and stores them.
+  enum class Stored { kStored, kClosed, kNoRoom, kInconsistent };
+  Stored Store(const v1::JobEvent& event);
   bool StoreLocked(const v1::JobEvent& event);
   void WakeAll(std::unique_lock<std::mutex>& lock);
   void EndLocked(v1::JobEvent final_event, const grpc::Status& status);
@@ -132,7 +142,7 @@ class JobRecord : public EventChannel {
   const std::string id_;
   const std::string tenant_;
   const v1::JobSpec spec_;
-  const bool keep_levels_;
+  const bool detached_;
   const size_t max_event_bytes_;
   const absl::Time accepted_at_;
   std::weak_ptr<Job> job_;
@@ -168,7 +178,7 @@ class JobRecord : public EventChannel {
 struct JobRegistryOptions {
   // How long an ended job stays (state, and a detached job's levels).
   absl::Duration retention = absl::Hours(1);
-  // Memory the kept levels of all detached jobs may take together.
+  // Memory the kept levels of all jobs may take together.
   uint64_t kept_bytes_limit = uint64_t{1} << 30;
   // Records kept at most (the oldest ended ones go first).
   size_t max_records = 10000;
@@ -197,7 +207,8 @@ class JobRegistry {
   }
 
   // Reserves memory for a record's levels, dropping the oldest ended jobs' levels to make
-  // room. False when even that is not enough.
+  // room (for an attached job's record only other attached jobs'). False when even that is
+  // not enough.
   bool ReserveKept(uint64_t bytes, const JobRecord* for_record);
   void ReleaseKept(uint64_t bytes) { kept_.Release(bytes); }
 
@@ -223,6 +234,25 @@ class JobRegistry {
   // Why a job is gone, for NOT_FOUND messages (the newest few thousand).
   std::deque<std::string> dropped_order_;
   std::map<std::string, std::pair<std::string, std::string>> dropped_reasons_;  // tenant, why
+};
+
+// The channel of an attached job: its call's channel, with a copy of every event kept in
+// the job's record, so the job can be watched like a detached one. Cancellation is the
+// call's (the call going away cancels the job); Abort reaches both.
+class RecordingChannel : public EventChannel {
+ public:
+  RecordingChannel(std::shared_ptr<EventChannel> call, std::shared_ptr<JobRecord> record)
+      : call_(std::move(call)), record_(std::move(record)) {}
+
+  bool Emit(v1::JobEvent event) override;
+  void Finish(v1::JobEvent final_event, const grpc::Status& status) override;
+  void Abort(const grpc::Status& status) override;
+  bool cancelled() const override { return call_->cancelled(); }
+  const std::atomic<bool>* cancel_flag() const override { return call_->cancel_flag(); }
+
+ private:
+  const std::shared_ptr<EventChannel> call_;
+  const std::shared_ptr<JobRecord> record_;
 };
 
 }  // namespace mlclust::server

@@ -8,6 +8,7 @@
 #include <future>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -352,6 +353,15 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       stats->set_gl_renderer(gl_renderer_);
       stats->set_gl_device(gl_device_);
     }
+    const GpuMemoryNow gpu_memory = GpuMemory();
+    stats->set_gpu_buffer_bytes(gpu_memory.buffer_bytes);
+    stats->set_gpu_buffer_peak_bytes(gpu_memory.peak_buffer_bytes);
+    if (gpu_memory.device_total_bytes > 0) {
+      stats->set_gpu_device_memory_total_bytes(gpu_memory.device_total_bytes);
+    }
+    if (gpu_memory.device_exposed) {
+      stats->set_gpu_device_memory_available_bytes(gpu_memory.device_available_bytes);
+    }
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
     reactor->Finish(grpc::Status::OK);
     return reactor;
@@ -507,7 +517,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
            queued_budget_.used());
     metric("mlclust_unread_event_bytes", "gauge", "Events produced and not yet read (memory).",
            result_budget_.used());
-    metric("mlclust_kept_result_bytes", "gauge", "Kept levels of detached jobs (memory).",
+    metric("mlclust_kept_result_bytes", "gauge", "Kept levels of jobs, for Watch (memory).",
            registry_.kept_bytes());
     metric("mlclust_results_dropped_total", "counter", "Ended jobs' results dropped.",
            registry_.dropped());
@@ -546,6 +556,24 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                       "# TYPE mlclust_gpu_available gauge\nmlclust_gpu_available ",
                       gl_renderer_.empty() ? 0 : 1, "\n");
     }
+    // GPU memory: our buffers always; the device's only where its driver exposes it.
+    const GpuMemoryNow gpu_memory = GpuMemory();
+    metric("mlclust_gpu_memory_bytes", "gauge",
+           "Storage buffers the server's GL context holds now (bytes).", gpu_memory.buffer_bytes);
+    metric("mlclust_gpu_memory_peak_bytes", "gauge",
+           "The most the server's GL context held in buffers at once (bytes).",
+           gpu_memory.peak_buffer_bytes);
+    if (gpu_memory.device_total_bytes > 0) {
+      metric("mlclust_gpu_device_memory_total_bytes", "gauge",
+             "The GPU's dedicated memory as its driver reports it (GL_NVX_gpu_memory_info).",
+             gpu_memory.device_total_bytes);
+    }
+    if (gpu_memory.device_exposed) {
+      metric("mlclust_gpu_device_memory_available_bytes", "gauge",
+             "The GPU's free memory as its driver reports it (GL_NVX_gpu_memory_info or "
+             "GL_ATI_meminfo), sampled after each GL job.",
+             gpu_memory.device_available_bytes);
+    }
     return out;
   }
 
@@ -574,6 +602,41 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     gl_is_software_ = is_software;
   }
 
+  // GPU memory (Stats 33-36, mlclust_gpu_memory_bytes and the device's memory gauges).
+  struct GpuMemoryNow {
+    uint64_t buffer_bytes = 0;
+    uint64_t peak_buffer_bytes = 0;
+    bool device_exposed = false;      // the driver reports the device's memory
+    uint64_t device_total_bytes = 0;  // 0: not reported (GL_ATI_meminfo, or not exposed)
+    uint64_t device_available_bytes = 0;
+  };
+  GpuMemoryNow GpuMemory() const {
+    std::lock_guard<std::mutex> lock(gl_mutex_);
+    GpuMemoryNow now = device_memory_;
+#ifdef MLCLUST_HAVE_GPU
+    if (gpu_memory_gauge_ != nullptr) {
+      now.buffer_bytes = gpu_memory_gauge_->buffer_bytes.load(std::memory_order_relaxed);
+      now.peak_buffer_bytes = gpu_memory_gauge_->peak_buffer_bytes.load(std::memory_order_relaxed);
+    }
+#endif
+    return now;
+  }
+#ifdef MLCLUST_HAVE_GPU
+  // The GL worker's context: its buffer gauge, and a fresh sample of the device's memory
+  // (on the context's thread).
+  void SampleGpuMemory(gpu::GlContext& gl) {
+    const std::optional<gpu::DeviceMemory> device = gl.QueryDeviceMemory();
+    std::lock_guard<std::mutex> lock(gl_mutex_);
+    gpu_memory_gauge_ = gl.memory_gauge();
+    device_memory_ = GpuMemoryNow();
+    if (device.has_value()) {
+      device_memory_.device_exposed = true;
+      device_memory_.device_total_bytes = device->total_bytes;
+      device_memory_.device_available_bytes = device->available_bytes;
+    }
+  }
+#endif
+
  private:
   const ServerOptions options_;
   BoundedJobQueue<Job> queue_;
@@ -588,6 +651,10 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   mutable std::mutex gl_mutex_;
   std::string gl_renderer_, gl_device_;
   bool gl_is_software_ = false;
+  GpuMemoryNow device_memory_;  // the device's part, sampled by the GL worker
+#ifdef MLCLUST_HAVE_GPU
+  std::shared_ptr<gpu::GpuMemoryGauge> gpu_memory_gauge_;
+#endif
 };
 
 RunCall::RunCall(ServiceImpl* service, std::string peer, std::string tenant,
@@ -741,13 +808,14 @@ void RunCall::Submit() {
     return;
   }
   job->queued_bytes = bytes;
-  // The job's entry in the registry; a detached job's events go to it (its kept levels),
-  // an attached job's to this call.
+  // The job's entry in the registry, which keeps its levels for Watch: a detached job's
+  // events go to it, an attached job's to this call with a copy to it.
   auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
                                             service_->options().max_event_bytes);
   record->set_job(job);
   job->record = record;
-  job->events = detach ? std::shared_ptr<EventChannel>(record) : channel_;
+  job->events = detach ? std::shared_ptr<EventChannel>(record)
+                       : std::make_shared<RecordingChannel>(channel_, record);
   service_->registry().Add(record);
   job_ = job;
   v1::Accepted described;  // how element ids relate to the input (server/job_runner.h)
@@ -1170,6 +1238,7 @@ class ServerImpl {
         context.gl_renderer = gl_renderer_;
         context.gl_is_software = gl->is_software();
         service_.SetGl(gl->renderer(), gl->device_description(), gl->is_software());
+        service_.SampleGpuMemory(*gl);
         LogLine(options.log, "GL context: ", gl->renderer(), " (", gl->version(), ", ",
                 gl->device_description(), ")");
       } else {
@@ -1239,6 +1308,9 @@ class ServerImpl {
         service_.JobEnded(*job, JobStateName(job->record->state()), started_at, ended_at,
                           status.error_code(), outcome.status().ToString(), nullptr);
       }
+#ifdef MLCLUST_HAVE_GPU
+      if (context.gl != nullptr) service_.SampleGpuMemory(*context.gl);
+#endif
       const std::string id = job->id;
       // The input and anything else the job holds go now, not when the call ends.
       std::string().swap(job->input);

@@ -160,13 +160,16 @@ absl::StatusOr<StorageBuffer> StorageBuffer::Create(GlContext& context, uint64_t
   const detail::GlFunctions& gl = context.gl();
   GLuint id = 0;
   gl.CreateBuffers(1, &id);
-  StorageBuffer buffer(&context, id, bytes);  // deletes `id` on the error paths below
+  StorageBuffer buffer(&context, id, 0);  // deletes `id` on the error paths below
   absl::Status status = CheckGlError(context, "glCreateBuffers");
   if (!status.ok()) return status;
   // Dynamic storage: uploads go through glNamedBufferSubData.
   gl.NamedBufferStorage(id, static_cast<GLsizeiptr>(bytes), nullptr, GL_DYNAMIC_STORAGE_BIT);
   status = CheckGlError(context, absl::StrCat("glNamedBufferStorage(", bytes, " bytes)"));
   if (!status.ok()) return status;
+  // Allocated: counted in the context's gauge until the buffer is deleted.
+  buffer.bytes_ = bytes;
+  context.memory_gauge()->Add(bytes);
   return buffer;
 }
 
@@ -177,7 +180,7 @@ StorageBuffer::StorageBuffer(StorageBuffer&& other) noexcept
 
 StorageBuffer& StorageBuffer::operator=(StorageBuffer&& other) noexcept {
   if (this != &other) {
-    if (id_ != 0) context_->gl().DeleteBuffers(1, &id_);
+    Release();
     context_ = std::exchange(other.context_, nullptr);
     id_ = std::exchange(other.id_, 0);
     bytes_ = std::exchange(other.bytes_, 0);
@@ -185,8 +188,14 @@ StorageBuffer& StorageBuffer::operator=(StorageBuffer&& other) noexcept {
   return *this;
 }
 
-StorageBuffer::~StorageBuffer() {
-  if (id_ != 0) context_->gl().DeleteBuffers(1, &id_);
+StorageBuffer::~StorageBuffer() { Release(); }
+
+void StorageBuffer::Release() {
+  if (id_ == 0) return;
+  context_->gl().DeleteBuffers(1, &id_);
+  context_->memory_gauge()->Remove(bytes_);
+  id_ = 0;
+  bytes_ = 0;
 }
 
 absl::Status StorageBuffer::Upload(uint64_t offset, const void* data, uint64_t size) {

@@ -84,7 +84,8 @@ absl::Status CheckGlError(GlContext& context, absl::string_view what);
 uint64_t MaxElementsPerBuffer(const GlContext& context, uint64_t bytes_per_element);
 
 // An immutable-size shader storage buffer (glNamedBufferStorage). Owned, movable; must be
-// destroyed before its context, on the context's thread.
+// destroyed before its context, on the context's thread. Counted in the context's
+// memory_gauge() while it lives.
 class StorageBuffer {
  public:
   // Allocates `bytes` (uninitialised). INVALID_ARGUMENT for bytes == 0; RESOURCE_EXHAUSTED
@@ -122,6 +123,8 @@ class StorageBuffer {
  private:
   StorageBuffer(GlContext* context, uint32_t id, uint64_t bytes)
       : context_(context), id_(id), bytes_(bytes) {}
+  // Deletes the buffer and takes its bytes off the context's GpuMemoryGauge.
+  void Release();
 
   GlContext* context_ = nullptr;
   uint32_t id_ = 0;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -308,11 +309,66 @@ absl::Status GlContext::Initialize(void* display_handle, const GlContextOptions&
     max_storage_buffer_bytes_ =
         std::min<int64_t>(max_storage_buffer_bytes_, options.max_storage_buffer_bytes);
   }
+  // Memory information extensions (QueryDeviceMemory).
+  GLint extension_count = 0;
+  gl_->GetIntegerv(GL_NUM_EXTENSIONS, &extension_count);
+  for (GLint i = 0; i < extension_count; ++i) {
+    const GLubyte* name = gl_->GetStringi(GL_EXTENSIONS, static_cast<GLuint>(i));
+    if (name == nullptr) continue;
+    const absl::string_view extension(reinterpret_cast<const char*>(name));
+    has_nvx_memory_info_ = has_nvx_memory_info_ || extension == "GL_NVX_gpu_memory_info";
+    has_ati_meminfo_ = has_ati_meminfo_ || extension == "GL_ATI_meminfo";
+  }
   if (const GLenum error = gl_->GetError(); error != GL_NO_ERROR) {
     return absl::UnavailableError(
         absl::StrCat("GL error 0x", absl::Hex(error), " while querying the context"));
   }
   return absl::OkStatus();
+}
+
+void GpuMemoryGauge::Add(uint64_t bytes) {
+  const uint64_t now = buffer_bytes.fetch_add(bytes, std::memory_order_relaxed) + bytes;
+  uint64_t peak = peak_buffer_bytes.load(std::memory_order_relaxed);
+  while (now > peak &&
+         !peak_buffer_bytes.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+  }
+}
+
+void GpuMemoryGauge::Remove(uint64_t bytes) {
+  buffer_bytes.fetch_sub(bytes, std::memory_order_relaxed);
+}
+
+std::optional<DeviceMemory> GlContext::QueryDeviceMemory() {
+  // The extensions' enums (registry: GL_NVX_gpu_memory_info, GL_ATI_meminfo); in kB.
+  constexpr GLenum kNvxDedicatedVideoMemory = 0x9047;
+  constexpr GLenum kNvxCurrentAvailableVideoMemory = 0x9049;
+  constexpr GLenum kAtiVboFreeMemory = 0x87FB;
+  if (!MakeCurrent().ok()) return std::nullopt;
+  while (gl_->GetError() != GL_NO_ERROR) {
+  }
+  DeviceMemory memory;
+  if (has_nvx_memory_info_) {
+    GLint total_kb = 0, available_kb = 0;
+    gl_->GetIntegerv(kNvxDedicatedVideoMemory, &total_kb);
+    gl_->GetIntegerv(kNvxCurrentAvailableVideoMemory, &available_kb);
+    if (gl_->GetError() == GL_NO_ERROR && total_kb > 0) {
+      memory.source = "GL_NVX_gpu_memory_info";
+      memory.total_bytes = uint64_t{1024} * static_cast<uint64_t>(total_kb);
+      memory.available_bytes = uint64_t{1024} * static_cast<uint64_t>(std::max(available_kb, 0));
+      return memory;
+    }
+  }
+  if (has_ati_meminfo_) {
+    // Free memory of the pool, the largest free block, and the same for auxiliary memory.
+    GLint free_kb[4] = {0, 0, 0, 0};
+    gl_->GetIntegerv(kAtiVboFreeMemory, free_kb);
+    if (gl_->GetError() == GL_NO_ERROR) {
+      memory.source = "GL_ATI_meminfo";
+      memory.available_bytes = uint64_t{1024} * static_cast<uint64_t>(std::max(free_kb[0], 0));
+      return memory;
+    }
+  }
+  return std::nullopt;
 }
 
 absl::Status GlContext::MakeCurrent() {

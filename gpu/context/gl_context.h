@@ -13,8 +13,10 @@
 #ifndef MLCLUST_GPU_CONTEXT_GL_CONTEXT_H_
 #define MLCLUST_GPU_CONTEXT_GL_CONTEXT_H_
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -48,6 +50,26 @@ struct GlContextOptions {
   // inputs into chunks that fit. For tests (to exercise chunking with small inputs) and to
   // bound memory use on a shared GPU.
   int64_t max_storage_buffer_bytes = 0;
+};
+
+// GPU memory our buffers hold (ours, issue 12: the server's mlclust_gpu_memory_bytes): every
+// StorageBuffer adds its bytes while it lives. Read from any thread; shared, so a reader
+// (the metrics page) may keep it past the context.
+struct GpuMemoryGauge {
+  std::atomic<uint64_t> buffer_bytes{0};       // held now
+  std::atomic<uint64_t> peak_buffer_bytes{0};  // the most held at once since the start
+  void Add(uint64_t bytes);
+  void Remove(uint64_t bytes);
+};
+
+// The device's memory as its driver reports it.
+struct DeviceMemory {
+  // "GL_NVX_gpu_memory_info" (NVIDIA, and Mesa's radeonsi) or "GL_ATI_meminfo" (AMD).
+  std::string source;
+  // The device's dedicated memory; 0 where the source does not say (GL_ATI_meminfo).
+  uint64_t total_bytes = 0;
+  // Free device memory now (the driver's view: other processes' use included).
+  uint64_t available_bytes = 0;
 };
 
 class GlContext {
@@ -92,6 +114,14 @@ class GlContext {
   // GL_MAX_SHADER_STORAGE_BLOCK_SIZE capped by max_storage_buffer_bytes.
   int64_t max_storage_buffer_bytes() const { return max_storage_buffer_bytes_; }
 
+  // The buffers this context holds (StorageBuffer counts itself here).
+  const std::shared_ptr<GpuMemoryGauge>& memory_gauge() const { return memory_gauge_; }
+
+  // The device's total and free memory where the driver exposes them
+  // (GL_NVX_gpu_memory_info, else GL_ATI_meminfo); nullopt on drivers with neither (Mesa's
+  // llvmpipe: "not exposed"). Queries GL: call on the context's thread.
+  std::optional<DeviceMemory> QueryDeviceMemory();
+
   // The GL entry points (gpu/context/gl_functions.h); for kernels in gpu/kernels/.
   const detail::GlFunctions& gl() const { return *gl_; }
 
@@ -118,6 +148,9 @@ class GlContext {
   uint32_t max_work_groups_[2] = {0, 0};
   int64_t max_storage_buffer_bytes_ = 0;
   absl::flat_hash_map<std::string, uint32_t> programs_;
+  std::shared_ptr<GpuMemoryGauge> memory_gauge_ = std::make_shared<GpuMemoryGauge>();
+  bool has_nvx_memory_info_ = false;
+  bool has_ati_meminfo_ = false;
 };
 
 }  // namespace mlclust::gpu

@@ -1,6 +1,6 @@
-// Detached jobs over loopback gRPC: submit with detach, Watch from any level while the job
-// runs or after, resume a broken stream, Cancel, ListJobs, and the retention time and
-// memory budget that drop kept results (NOT_FOUND saying why).
+// Detached and attached jobs over loopback gRPC: submit with detach, Watch from any level
+// while the job runs or after (attached jobs too), resume a broken stream, Cancel, ListJobs,
+// and the retention time and memory budget that drop kept results (NOT_FOUND saying why).
 #include <arpa/inet.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -9,6 +9,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 #include "client/client.h"
@@ -139,7 +141,8 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   ASSERT_EQ(list.jobs_size(), 2);
   EXPECT_EQ(list.jobs(0).job_id(), attached->job_id);
   EXPECT_FALSE(list.jobs(0).detached());
-  EXPECT_EQ(list.jobs(0).kept_bytes(), 0u);
+  // The attached job's levels are kept too (the same levels, the same bytes).
+  EXPECT_EQ(list.jobs(0).kept_bytes(), list.jobs(1).kept_bytes());
   EXPECT_EQ(list.jobs(1).job_id(), accepted->job_id());
   EXPECT_TRUE(list.jobs(1).detached());
   for (const v1::JobSummary& job : list.jobs()) {
@@ -162,7 +165,7 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_EQ(stats.jobs_known(), 2u);
-  EXPECT_EQ(stats.kept_result_bytes(), list.jobs(1).kept_bytes());
+  EXPECT_EQ(stats.kept_result_bytes(), list.jobs(0).kept_bytes() + list.jobs(1).kept_bytes());
   EXPECT_EQ(stats.watch_calls_active(), 0u);
 }
 
@@ -291,9 +294,6 @@ TEST(DetachTest, UnknownDroppedAndUnkeptJobsAreRefusedWithReasons) {
   absl::StatusOr<client::JobResult> attached =
       client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
   ASSERT_TRUE(attached.ok());
-  absl::StatusOr<client::JobResult> unkept = client::WatchJob(channel, attached->job_id);
-  EXPECT_EQ(unkept.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(unkept.status().message(), HasSubstr("without detach"));
 
   absl::StatusOr<v1::Accepted> accepted =
       client::SubmitDetached(channel, MeshSpec(v1::ALGORITHM_HC), bytes);
@@ -361,8 +361,71 @@ TEST(DetachTest, TheMemoryBudgetDropsTheOldestResultsFirstAndCancelsWhatCannotFi
   absl::StatusOr<client::JobResult> refused = client::WatchJob(channel, too_big->job_id());
   EXPECT_EQ(refused.status().code(), absl::StatusCode::kResourceExhausted);
   EXPECT_THAT(refused.status().message(), HasSubstr("memory for kept results"));
-  // The server keeps serving.
+  // The server keeps serving. An attached job whose levels do not fit beside the detached
+  // ones' runs on for its caller, does not drop a detached job's results, and says why it
+  // cannot be watched.
+  absl::StatusOr<client::JobResult> attached =
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(60)));
+  ASSERT_TRUE(attached.ok()) << attached.status();
+  EXPECT_EQ(attached->hierarchy.num_levels(), 7200u);
+  absl::StatusOr<client::JobResult> unkept = client::WatchJob(channel, attached->job_id);
+  EXPECT_EQ(unkept.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(unkept.status().message(), HasSubstr("were not kept"));
+  // The cancelled detached job's record (and the part of its levels it kept) stays.
+  EXPECT_EQ(client::WatchJob(channel, too_big->job_id()).status().code(),
+            absl::StatusCode::kResourceExhausted);
   EXPECT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), bytes).ok());
+}
+
+TEST(DetachTest, AnAttachedJobCanBeWatchedWhileItRunsAndAfter) {
+  std::unique_ptr<server::Server> server = StartServer({});
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(200));  // 80,000 faces
+  // The attached run (packed triplets, the C++ client's default) tells its id in Accepted;
+  // a watcher starts from level 70,000 as soon as it knows it, while the job runs.
+  std::mutex mutex;
+  std::condition_variable known;
+  std::string id;
+  client::RunOptions run_options;
+  run_options.on_event = [&](const v1::JobEvent& event) {
+    if (!event.has_accepted()) return;
+    std::lock_guard<std::mutex> lock(mutex);
+    id = event.accepted().job_id();
+    known.notify_all();
+  };
+  absl::StatusOr<client::JobResult> attached;
+  std::thread runner(
+      [&] { attached = client::RunJob(channel, MeshSpec(v1::ALGORITHM_ML), bytes, run_options); });
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    known.wait(lock, [&] { return !id.empty(); });
+  }
+  client::WatchOptions from_level;
+  from_level.from_level = 70000;
+  v1::Accepted header;
+  from_level.on_event = [&](const v1::JobEvent& event) {
+    if (event.has_accepted()) header = event.accepted();
+  };
+  absl::StatusOr<client::JobResult> during = client::WatchJob(ChannelTo(*server), id, from_level);
+  runner.join();
+  ASSERT_TRUE(attached.ok()) << attached.status();
+  ASSERT_TRUE(during.ok()) << during.status();
+  EXPECT_EQ(header.job_id(), id);
+  EXPECT_FALSE(header.detached());
+  EXPECT_EQ(during->first_level, 70000u);
+  ExpectSameLevels(attached->hierarchy, during->hierarchy, 70000);
+  EXPECT_EQ(during->done.levels(), attached->done.levels());
+  // After it ended, from the start: every level again.
+  absl::StatusOr<client::JobResult> after = client::WatchJob(channel, id);
+  ASSERT_TRUE(after.ok()) << after.status();
+  ExpectSameLevels(attached->hierarchy, after->hierarchy);
+  const v1::JobList list = List(channel);
+  const v1::JobSummary* summary = FindJob(list, id);
+  ASSERT_NE(summary, nullptr);
+  EXPECT_FALSE(summary->detached());
+  EXPECT_EQ(summary->state(), "succeeded");
+  EXPECT_GE(summary->kept_bytes(), 4 * 80000 + 12 * attached->done.triplets());
 }
 
 TEST(DetachTest, CancelEndsQueuedAndRunningJobs) {

@@ -12,6 +12,7 @@
 #include "absl/strings/str_split.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
+#include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/log.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
@@ -135,6 +136,55 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
   EXPECT_EQ(accepted, 4);
   EXPECT_EQ(ended, 4);
   server::JsonLogs() = false;
+}
+
+// GPU memory: the buffers of the server's GL context (llvmpipe where there is no GPU) while
+// and after a job with a GPU stage, in the metrics and in Stats; the device's total and free
+// memory only where the driver exposes them (not on llvmpipe: those lines are absent).
+TEST(MetricsTest, GpuMemoryOfTheGlContextAndTheDeviceWhereExposed) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.metrics_address = "127.0.0.1:0";
+  options.gpu = server::GpuMode::kAuto;
+  options.log = false;
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  ASSERT_TRUE(started.ok()) << started.status();
+  server::Server& server = **started;
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server.port()));
+  const bool gpu = !server.gl_renderer().empty();
+  v1::JobSpec spec = MeshSpec(v1::ALGORITHM_BB);
+  spec.set_energy(v1::ENERGY_CVD);
+  spec.set_clusters(20);
+  spec.set_device(gpu ? "gpu" : "cpu");  // BB's decide stage on the GL context
+  ASSERT_TRUE(client::RunJob(channel, spec, *EncodeMeshToDraco(testing::Grid(30))).ok());
+
+  const std::string response = HttpGet(server.metrics_port(), "/metrics");
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  ASSERT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  // Every buffer of the ended job is freed; the peak says how much it took.
+  EXPECT_EQ(Sample(response, "mlclust_gpu_memory_bytes"), 0);
+  EXPECT_EQ(stats.gpu_buffer_bytes(), 0u);
+  EXPECT_EQ(Sample(response, "mlclust_gpu_memory_peak_bytes"),
+            static_cast<double>(stats.gpu_buffer_peak_bytes()));
+  if (gpu) {
+    // 1,800 faces: at least a label (4 bytes) per face went to the GL context.
+    EXPECT_GE(stats.gpu_buffer_peak_bytes(), 4u * 1800);
+  } else {
+    EXPECT_EQ(stats.gpu_buffer_peak_bytes(), 0u);
+  }
+  const bool exposed = stats.has_gpu_device_memory_available_bytes();
+  EXPECT_EQ(Sample(response, "mlclust_gpu_device_memory_available_bytes") >= 0, exposed);
+  EXPECT_EQ(Sample(response, "mlclust_gpu_device_memory_total_bytes") >= 0,
+            stats.has_gpu_device_memory_total_bytes());
+  if (!gpu || absl::StrContains(server.gl_renderer(), "llvmpipe")) {
+    EXPECT_FALSE(exposed);  // "not exposed": the lines are left out
+    EXPECT_FALSE(stats.has_gpu_device_memory_total_bytes());
+    EXPECT_THAT(response, ::testing::Not(HasSubstr("mlclust_gpu_device_memory")));
+  } else if (stats.has_gpu_device_memory_total_bytes()) {
+    EXPECT_GE(stats.gpu_device_memory_total_bytes(), stats.gpu_device_memory_available_bytes());
+  }
 }
 
 }  // namespace

@@ -1,9 +1,12 @@
-// The job registry and a detached job's record without the network: retention and memory
-// drops leave a note under the right id; tenants; a record's levels read back by a cursor.
+// The job registry and a job's record without the network: retention and memory drops
+// leave a note under the right id; tenants; a record's levels read back by a cursor; an
+// attached job's copy (RecordingChannel), packed triplets, and what it may not drop.
 #include "server/job_record.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cstring>
 
 namespace mlclust::server {
 namespace {
@@ -20,7 +23,7 @@ std::shared_ptr<JobRecord> Record(JobRegistry& registry, const std::string& id,
 }
 
 // Level 0: labels 0..n-1; level l (1..n-1): element l moves to cluster 0.
-void EmitHierarchy(JobRecord& record, uint32_t n) {
+void EmitHierarchy(EventChannel& record, uint32_t n) {
   v1::JobEvent snapshot;
   snapshot.mutable_snapshot()->set_total_elements(n);
   snapshot.mutable_snapshot()->set_cluster_count(n);
@@ -122,6 +125,161 @@ TEST(JobRecordTest, ACursorReadsASnapshotAtAnyLevelThenTheRest) {
   EXPECT_THAT(batch.triplet_end(), ::testing::ElementsAre(1, 2, 3, 4, 5));
   EXPECT_TRUE(events[3].has_done());
   EXPECT_TRUE(events[3].final());
+}
+
+// The call's side of an attached job: counts what reaches it.
+class FakeCall : public EventChannel {
+ public:
+  bool Emit(v1::JobEvent event) override {
+    events.push_back(std::move(event));
+    return !cancelled_flag;
+  }
+  void Finish(v1::JobEvent final_event, const grpc::Status& status) override {
+    events.push_back(std::move(final_event));
+    finished_with = status;
+  }
+  bool cancelled() const override { return cancelled_flag.load(); }
+  const std::atomic<bool>* cancel_flag() const override { return &cancelled_flag; }
+
+  std::vector<v1::JobEvent> events;
+  grpc::Status finished_with = grpc::Status(grpc::StatusCode::UNKNOWN, "not finished");
+  std::atomic<bool> cancelled_flag{false};
+};
+
+std::string Packed(const std::vector<uint32_t>& values) {
+  std::string bytes(values.size() * 4, '\0');
+  std::memcpy(bytes.data(), values.data(), bytes.size());
+  return bytes;
+}
+
+// Every event the cursor gives until the end, and the call's status.
+std::vector<v1::JobEvent> ReadAll(JobRecord& record, WatchCursor cursor, grpc::Status& status) {
+  std::vector<v1::JobEvent> events;
+  v1::JobEvent event;
+  while (record.NextEvent(cursor, event, status, nullptr) == JobRecord::Next::kEvent) {
+    events.push_back(event);
+  }
+  return events;
+}
+
+TEST(RecordingChannelTest, AnAttachedJobsPackedLevelsReadBackFromItsRecord) {
+  JobRegistry registry({});
+  auto record = Record(registry, "job-p", "", /*keep=*/false);
+  auto call = std::make_shared<FakeCall>();
+  RecordingChannel channel(call, record);
+  v1::JobEvent snapshot;
+  snapshot.mutable_snapshot()->set_total_elements(4);
+  snapshot.mutable_snapshot()->set_cluster_count(4);
+  for (uint32_t i = 0; i < 4; ++i) snapshot.mutable_snapshot()->add_labels(i);
+  EXPECT_TRUE(channel.Emit(snapshot));
+  // Two levels in one packed batch: 3 -> 2, then 1 and 2 -> 0.
+  v1::JobEvent levels;
+  v1::LevelBatch* batch = levels.mutable_levels();
+  batch->set_first_level(1);
+  batch->add_cluster_count(3);
+  batch->add_energy(1.5);
+  batch->add_triplet_end(1);
+  batch->add_cluster_count(2);
+  batch->add_energy(2.5);
+  batch->add_triplet_end(3);
+  batch->set_packed_element(Packed({3, 1, 2}));
+  batch->set_packed_to_cluster(Packed({2, 0, 0}));
+  batch->set_packed_from_cluster(Packed({3, 1, 2}));
+  EXPECT_TRUE(channel.Emit(levels));
+  EXPECT_EQ(record->kept_bytes(), 4 * 4 + 3 * 12 + 2 * 24u);
+  v1::JobEvent done;
+  done.mutable_done()->set_levels(3);
+  done.mutable_done()->set_triplets(3);
+  channel.Finish(done, grpc::Status::OK);
+  // The call got every event, untouched; the record ended with the same Done.
+  ASSERT_EQ(call->events.size(), 3u);
+  EXPECT_EQ(call->events[1].levels().packed_element(), Packed({3, 1, 2}));
+  EXPECT_TRUE(call->finished_with.ok());
+  EXPECT_EQ(record->state(), JobState::kSucceeded);
+  const v1::JobSummary summary = record->Summary(absl::Now(), absl::Hours(1));
+  EXPECT_FALSE(summary.detached());
+  EXPECT_EQ(summary.levels(), 3u);
+  EXPECT_EQ(summary.triplets(), 3u);
+
+  WatchCursor cursor;
+  cursor.from_level = 1;
+  grpc::Status status;
+  const std::vector<v1::JobEvent> events = ReadAll(*record, cursor, status);
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(events.size(), 4u);  // accepted, snapshot at level 1, level 2, done
+  EXPECT_FALSE(events[0].accepted().detached());
+  EXPECT_THAT(events[1].snapshot().labels(), ::testing::ElementsAre(0, 1, 2, 2));
+  EXPECT_EQ(events[1].snapshot().cluster_count(), 3u);
+  EXPECT_EQ(events[2].levels().first_level(), 2u);
+  EXPECT_THAT(events[2].levels().element(), ::testing::ElementsAre(1, 2));
+  EXPECT_THAT(events[2].levels().to_cluster(), ::testing::ElementsAre(0, 0));
+  EXPECT_THAT(events[2].levels().from_cluster(), ::testing::ElementsAre(1, 2));
+  EXPECT_EQ(events[2].levels().energy(0), 2.5);
+  EXPECT_EQ(events[3].done().levels(), 3u);
+}
+
+TEST(RecordingChannelTest, CancellationIsTheCallsAndAbortReachesBoth) {
+  JobRegistry registry({});
+  auto record = Record(registry, "job-c", "", /*keep=*/false);
+  auto call = std::make_shared<FakeCall>();
+  RecordingChannel channel(call, record);
+  EXPECT_EQ(channel.cancel_flag(), &call->cancelled_flag);
+  EXPECT_FALSE(channel.cancelled());
+  call->cancelled_flag = true;  // the caller went away
+  EXPECT_TRUE(channel.cancelled());
+  v1::JobEvent progress;
+  progress.mutable_progress()->set_stage("cluster");
+  EXPECT_FALSE(channel.Emit(progress));
+  channel.Abort(grpc::Status(grpc::StatusCode::CANCELLED, "by a Cancel call"));
+  EXPECT_EQ(record->state(), JobState::kCancelled);
+  EXPECT_EQ(call->finished_with.error_code(), grpc::StatusCode::CANCELLED);
+}
+
+TEST(RecordingChannelTest, AnAttachedJobThatDoesNotFitRunsOnWithoutDroppingDetachedResults) {
+  JobRegistryOptions options;
+  options.kept_bytes_limit = 3000;
+  JobRegistry registry(options);
+  auto detached = Record(registry, "job-d");
+  EmitHierarchy(*detached, 50);  // 1,964 bytes
+  detached->MarkEnded(grpc::Status::OK);
+  auto record = Record(registry, "job-a", "", /*keep=*/false);
+  auto call = std::make_shared<FakeCall>();
+  RecordingChannel channel(call, record);
+  v1::JobEvent snapshot;
+  snapshot.mutable_snapshot()->set_total_elements(500);
+  for (int i = 0; i < 500; ++i) snapshot.mutable_snapshot()->add_labels(i);
+  EXPECT_TRUE(channel.Emit(snapshot));  // the job runs on for its caller
+  EXPECT_FALSE(record->cancelled());
+  EXPECT_EQ(call->events.size(), 1u);
+  EXPECT_EQ(record->kept_bytes(), 0u);
+  EXPECT_EQ(registry.kept_bytes(), 1964u);
+  ASSERT_TRUE(registry.Find("job-d", "").ok());  // the detached job's results stay
+  v1::JobEvent done;
+  done.mutable_done()->set_levels(500);
+  done.mutable_done()->set_triplets(499);
+  channel.Finish(done, grpc::Status::OK);
+  EXPECT_EQ(record->state(), JobState::kSucceeded);
+  EXPECT_EQ(record->Summary(absl::Now(), absl::Hours(1)).levels(), 500u);
+  grpc::Status status;
+  EXPECT_TRUE(ReadAll(*record, WatchCursor(), status).empty());
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_THAT(status.error_message(), HasSubstr("were not kept"));
+  EXPECT_THAT(status.error_message(), HasSubstr("the call that submitted it received them"));
+
+  // An ended attached job's results do make room for a newer attached job.
+  auto small = Record(registry, "job-s", "", /*keep=*/false);
+  RecordingChannel small_channel(std::make_shared<FakeCall>(), small);
+  EmitHierarchy(small_channel, 20);  // 80 + 19 * 36 = 764 bytes: fits beside job-d
+  small->MarkEnded(grpc::Status::OK);
+  auto newer = Record(registry, "job-n", "", /*keep=*/false);
+  RecordingChannel newer_channel(std::make_shared<FakeCall>(), newer);
+  v1::JobEvent more;
+  more.mutable_snapshot()->set_total_elements(200);
+  for (int i = 0; i < 200; ++i) more.mutable_snapshot()->add_labels(i);
+  EXPECT_TRUE(newer_channel.Emit(more));
+  EXPECT_EQ(newer->kept_bytes(), 800u);
+  EXPECT_THAT(registry.Find("job-s", "").status().message(), HasSubstr("make room"));
+  EXPECT_TRUE(registry.Find("job-d", "").ok());
 }
 
 }  // namespace
