@@ -171,6 +171,25 @@ TEST(LnKmeansTest, ReachesLloydsPartitionOnSeparatedDataAndNeverRaisesTheEnergy)
   }
 }
 
+// Over 65,536 points the points to check in the next iteration are collected in parallel
+// slices: one thread and two give the same iterations, moves and labels.
+TEST(LnKmeansTest, IterationsDoNotDependOnTheThreadCount) {
+  auto [points, truth] = Blobs(50, 1600, 3, 37, 3);
+  LnKmeansOptions options;
+  std::vector<uint64_t> moved_one, moved_two;
+  options.threads = 1;
+  options.on_iteration = [&](uint32_t, uint64_t moved, double) { moved_one.push_back(moved); };
+  absl::StatusOr<LnKmeansResult> one = RunLnKmeansFromGrid(points, 20, options);
+  options.threads = 2;
+  options.on_iteration = [&](uint32_t, uint64_t moved, double) { moved_two.push_back(moved); };
+  absl::StatusOr<LnKmeansResult> two = RunLnKmeansFromGrid(points, 20, options);
+  ASSERT_TRUE(one.ok() && two.ok());
+  EXPECT_GT(one->iterations, 2u);
+  EXPECT_EQ(moved_one, moved_two);
+  EXPECT_EQ(one->labels, two->labels);
+  EXPECT_EQ(one->energy, two->energy);
+}
+
 TEST(LnKmeansTest, BadInputIsRefused) {
   PointSet points;
   points.dims = 2;
