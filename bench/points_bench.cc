@@ -3,10 +3,12 @@
 //   points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K]
 //                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
 //                [--input FILE [--dims D]] [--until K] [--curve CSV] [--fingerprint 1]
+//                [--rounds R]
 // --until K stops the hierarchy at K clusters (for time per step at high d); --curve writes
 // every level's clusters,energy. --fingerprint 1 prints on stderr a 64-bit FNV-1a hash over
 // every level's cluster count, energy bits and triplets (as bench/engine_golden does), to
-// compare two builds on large sets. --cancel-after S sets the options' cancel flag S seconds
+// compare two builds on large sets. --rounds R: PointMultilevelOptions::optimise_rounds.
+// --cancel-after S sets the options' cancel flag S seconds
 // into the clustering (after the set-up) and reports on stderr how long the call took to
 // return after it (then exits).
 // Prints one CSV row:
@@ -101,7 +103,7 @@ mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
 int main(int argc, char** argv) {
   std::string algo = "ml", input, init = "kmeans++", curve;
   uint64_t m = 100000, seed = 1;
-  uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1;
+  uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1, rounds = 8;
   int threads = 0, fingerprint = 0;
   double cancel_after = -1;
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -135,6 +137,8 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtod(value, &cancel_after);
     else if (arg == "--curve")
       curve = value;
+    else if (arg == "--rounds")
+      ok = absl::SimpleAtoi(value, &rounds);
     else if (arg == "--fingerprint")
       ok = absl::SimpleAtoi(value, &fingerprint);
     else
@@ -221,6 +225,7 @@ int main(int argc, char** argv) {
     options.grid = grid;
     options.threads = threads;
     options.min_clusters = until;
+    options.optimise_rounds = rounds;
     options.parallel = algo == "pml";
     if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
     CurveSink sink(fingerprint != 0);

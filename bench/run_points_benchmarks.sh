@@ -21,6 +21,9 @@
 #   g  Fig. 6.13: time per ML step vs d = 2..64 (m = 20,000, 50 blobs)
 #   h  a real point cloud: the 416,002 vertices of armadillo_1m (scripts/fetch-bench-meshes.sh)
 #      as 3-D points: the hierarchies, LN k-means and Lloyd at k = 1000 vs scikit-learn
+#   i  ML for points (BENCHMARKS "ML for points: per-point margins"): the whole ML hierarchy
+#      of 100k, 300k and 1M points (1,000 blobs) with its fingerprint and CPU seconds, and
+#      optimise_rounds 8/4/2/1 at 300k with every level's energy (points_ml_rounds_r*.csv)
 #
 # Every row of ours carries the 1-minute load average when it ran (load1). Output
 # (bench/results/): points_*.csv / *.jsonl, points_true_k.png, points_fig6_1{1,2,3}.png
@@ -34,13 +37,13 @@ data="$repo_root/data/bench/points"
 bin="$repo_root/build-bench/bench"
 python=/usr/bin/python3
 peers="$python $repo_root/bench/peers/points_peers.py"
-only="a,b,c,d,e,f,g,h"
+only="a,b,c,d,e,f,g,h,i"
 build=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --only) only="${2:?--only needs a list such as a,b}"; shift 2 ;;
     --bin) bin="$(realpath "${2:?--bin needs a directory}")"; build=0; shift 2 ;;
-    -h | --help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "run_points_benchmarks: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -168,6 +171,29 @@ if wants h; then
   for algo in ml pml hc; do ours "$results/points_armadillo_ours.csv" --algo "$algo" --input "$f" --k 1000; done
   for algo in lnkmeans kmeans; do ours "$results/points_armadillo_ours.csv" --algo "$algo" --input "$f" --k 1000 --seed 1; done
   $peers sklearn-kmeans "$f" --k 1000 --seed 1 | tee "$results/points_armadillo_peers.jsonl"
+fi
+
+if wants i; then
+  echo "i: ML for points, whole hierarchy, fingerprints and CPU time; optimise_rounds"
+  out="$results/points_ml_margins.txt"
+  : > "$out"
+  timed() {  # label, then points_bench arguments: the row, the fingerprint, CPU seconds
+    local label="$1"; shift
+    local load; load="$(load1)"
+    /usr/bin/time -f "user=%U wall=%e" "$bin/points_bench" "$@" > "$out.row" 2> "$out.err"
+    echo "$label load1=$load $(cat "$out.row") $(grep -h -e fingerprint -e user= "$out.err" | tr '\n' ' ')" |
+      tee -a "$out"
+  }
+  for m in 100000 300000 1000000; do
+    for t in 2 1; do
+      timed "ml m=$m threads=$t" --algo ml --m "$m" --blobs 1000 --threads "$t" --fingerprint 1
+    done
+  done
+  for r in 8 4 2 1; do
+    timed "ml m=300000 rounds=$r" --algo ml --m 300000 --blobs 1000 --rounds "$r" \
+      --curve "$results/points_ml_rounds_r$r.csv"
+  done
+  rm -f "$out.row" "$out.err"
 fi
 
 echo "load after: $(cat /proc/loadavg)" >> "$results/machine_points.txt"

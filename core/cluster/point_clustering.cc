@@ -142,9 +142,6 @@ using detail::ChooseTargets;
 using detail::PointClusters;
 
 constexpr uint32_t kNone = detail::kNoCluster;
-// LN k-means rounds after a merge (the first checks the merged clusters and their
-// neighbours, the others the clusters that changed).
-constexpr int kOptimiseRounds = 8;
 // LN k-means' assignment runs over this many points at a time between cancellation checks.
 constexpr size_t kAssignSlice = 65536;
 
@@ -521,6 +518,52 @@ class PointSpace {
     return largest;
   }
 
+  // A later round's points to check, in region order: those not checked in this call, and
+  // those whose centroid and neighbourhood moved by more than their threshold. Without
+  // branches (which of the two is unpredictable), and in parallel over slices of the
+  // clusters where there are many points, joined in order: the same list either way.
+  void SelectForCheck(std::span<const uint32_t> region) {
+    size_t total = 0;
+    slices_.clear();
+    for (uint32_t c : region) {
+      const double drift = Drift(c) + NeighbourhoodDrift(c);
+      const size_t size = members_[c].size();
+      total += size;
+      for (size_t begin = 0; begin < size; begin += kScanSlice) {
+        slices_.push_back({c, begin, std::min(size, begin + kScanSlice), drift});
+      }
+    }
+    auto scan = [&](const Slice& slice, uint32_t* out) {
+      const uint32_t* list = members_[slice.cluster].data();
+      size_t count = 0;
+      for (size_t at = slice.begin; at < slice.end; ++at) {
+        const uint32_t i = list[at];
+        out[count] = i;
+        count += static_cast<size_t>(stamp_[i] != epoch_) |
+                 static_cast<size_t>(slice.drift > threshold_[i]);
+      }
+      return count;
+    };
+    if (total < 2 * kScanSlice) {
+      points_to_check_.resize(total);
+      size_t count = 0;
+      for (const Slice& slice : slices_) count += scan(slice, points_to_check_.data() + count);
+      points_to_check_.resize(count);
+      return;
+    }
+    picked_.resize(slices_.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, slices_.size(), 1), [&](const auto& range) {
+      for (size_t n = range.begin(); n != range.end(); ++n) {
+        std::vector<uint32_t>& out = picked_[n];
+        out.resize(slices_[n].end - slices_[n].begin);
+        out.resize(scan(slices_[n], out.data()));
+      }
+    });
+    for (size_t n = 0; n < slices_.size(); ++n) {
+      points_to_check_.insert(points_to_check_.end(), picked_[n].begin(), picked_[n].end());
+    }
+  }
+
   // (LN k-means' assignment is parallel in every level.)
   void Optimise(std::span<const uint32_t> merged, bool /*parallel_level*/) {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
@@ -549,18 +592,16 @@ class PointSpace {
     std::vector<double> old_centroids;
     // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
     std::vector<std::pair<uint32_t, uint32_t>> compare_with;
-    for (int round = 0; round < kOptimiseRounds && !region.empty() && !IsCancelled(options_.cancel);
+    const int rounds = static_cast<int>(options_.optimise_rounds);
+    for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
          ++round) {
       points_to_check_.clear();
-      for (uint32_t c : region) {
-        if (round == 0) {
+      if (round == 0) {
+        for (uint32_t c : region) {
           points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
-          continue;
         }
-        const double drift = Drift(c) + NeighbourhoodDrift(c);
-        for (uint32_t i : members_[c]) {
-          if (stamp_[i] != epoch_ || drift > threshold_[i]) points_to_check_.push_back(i);
-        }
+      } else {
+        SelectForCheck(region);
       }
       const size_t full = points_to_check_.size();
       compare_with.clear();
@@ -790,6 +831,15 @@ class PointSpace {
   uint32_t epoch_ = 0;
   std::vector<uint32_t> stamp_, drift_epoch_;
   std::vector<double> threshold_, drift_, margin_;
+  // SelectForCheck's slices of the region's member lists and what each picked.
+  static constexpr size_t kScanSlice = 16384;
+  struct Slice {
+    uint32_t cluster;
+    size_t begin, end;
+    double drift;
+  };
+  std::vector<Slice> slices_;
+  std::vector<std::vector<uint32_t>> picked_;
 };
 
 }  // namespace
@@ -945,6 +995,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
   }
   if (options.grid > (1u << 20)) {
     return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
+  }
+  if (options.optimise_rounds < 1 || options.optimise_rounds > 64) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("optimise_rounds: ", options.optimise_rounds, " is not in 1..64"));
   }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {

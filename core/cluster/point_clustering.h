@@ -105,6 +105,15 @@ struct PointMultilevelOptions {
   using PmlPairs = PmlPairRule;
   PmlPairRule pml_pairs = PmlPairRule::kCheaperHalf;
   uint32_t min_clusters = 1;
+  // LN k-means rounds after each level's merges (the first checks every point of the merged
+  // clusters and the points of their neighbours against them; each later one the points of
+  // the clusters the previous round changed that are not checked yet in this level or that
+  // their centroids' moves may have changed, until none changes). 8 (default): as since the
+  // first version. Ours, for measuring: fewer rounds cost less (the later rounds are most of
+  // ML's time on points) and raise the energy by an amount that depends on the data (2
+  // rounds: +0.5% to +8% on average; BENCHMARKS.md "ML for points: per-point margins").
+  // 1 to 64 (INVALID_ARGUMENT otherwise).
+  uint32_t optimise_rounds = 8;
   // Voxels per dimension of the start. 0: aiming at eight points per cell: (m / 8)^(1/d)
   // per dimension where that is at least 4; in higher dimensions the widest cells are
   // halved, axis by axis, until about m / 8 cells are occupied (so a 64-D set still starts

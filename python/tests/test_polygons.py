@@ -13,8 +13,10 @@ import grpc
 import numpy as np
 
 import mlclust
+import served
 import test_client
-from served import DATA, ServedTestCase
+
+DATA = test_client.DATA
 
 
 def wavy_quads(n):
@@ -45,7 +47,7 @@ def off_polygon_counts(path):
     return counts
 
 
-class PolygonTest(ServedTestCase):
+class PolygonTest(served.ServedTestCase):
     @classmethod
     def connect(cls):
         cls.client = mlclust.Client(cls.address)

@@ -19,6 +19,8 @@
 #include "core/cluster/point_clustering.h"
 #include "core/energy/variance_energy.h"
 #include "core/points/points.h"
+#include "tbb/blocked_range.h"
+#include "tbb/parallel_for.h"
 
 namespace mlclust::detail {
 
@@ -227,6 +229,36 @@ std::vector<uint32_t> ApplyMoves(PointClusters& clusters, std::span<const uint32
 std::vector<uint32_t> RefreshAround(PointClusters& clusters, std::span<const uint32_t> changed,
                                     std::vector<uint8_t>& mark);
 
+// The points whose cluster is active, in index order, into `check`: slices of the points
+// in parallel, joined in order (the same list as a plain loop, on any number of threads).
+inline void CollectActive(std::span<const uint32_t> labels, const std::vector<uint8_t>& active,
+                          std::vector<uint32_t>& check) {
+  constexpr size_t kSlice = 65536;
+  const size_t m = labels.size();
+  const size_t slices = (m + kSlice - 1) / kSlice;
+  std::vector<size_t> counts(slices, 0);
+  check.resize(m);
+  // Each slice compacts into its own part of `check`, then the parts move down in order.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, slices, 1), [&](const auto& range) {
+    for (size_t s = range.begin(); s != range.end(); ++s) {
+      const size_t begin = s * kSlice, end = std::min(m, begin + kSlice);
+      size_t count = 0;
+      for (size_t i = begin; i < end; ++i) {
+        check[begin + count] = static_cast<uint32_t>(i);
+        count += active[labels[i]];
+      }
+      counts[s] = count;
+    }
+  });
+  size_t at = 0;
+  for (size_t s = 0; s < slices; ++s) {
+    const size_t begin = s * kSlice;
+    if (at != begin) std::copy_n(check.begin() + begin, counts[s], check.begin() + at);
+    at += counts[s];
+  }
+  check.resize(at);
+}
+
 // Alg. 6.1's iterations on clusters whose neighbours are set, with the assign stage
 // `assign` (the shape of ChooseTargets without a margin):
 //   absl::Status assign(const PointClusters&, std::span<const uint32_t> points_to_check,
@@ -281,10 +313,7 @@ absl::Status RunLnKmeansIterations(PointClusters& clusters, const LnKmeansOption
       }
       active[c] = any;
     }
-    check.clear();
-    for (size_t i = 0; i < m; ++i) {
-      if (active[clusters.label(i)]) check.push_back(static_cast<uint32_t>(i));
-    }
+    CollectActive(clusters.labels(), active, check);
   }
   result.energy = clusters.TotalEnergy();
   return absl::OkStatus();
