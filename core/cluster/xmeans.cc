@@ -57,18 +57,6 @@ std::vector<std::vector<uint32_t>> MembersOf(const std::vector<ClusterId>& label
   return members;
 }
 
-PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
-  PointSet subset;
-  subset.dims = points.dims;
-  subset.values.resize(members.size() * points.dims);
-  float* out = subset.values.data();
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    out = std::copy(p.begin(), p.end(), out);
-  }
-  return subset;
-}
-
 // The BIC of a whole labelling (sizes from the labels).
 double ModelBic(const std::vector<ClusterId>& labels, uint32_t k, double inertia, uint32_t dims) {
   std::vector<uint64_t> sizes(k, 0);
@@ -136,7 +124,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       const std::vector<uint32_t>& cluster = members[c];
       const uint64_t n = cluster.size();
       if (n < 3) continue;
-      const PointSet subset = Subset(points, cluster);
+      const PointSet subset = detail::Subset(points, cluster);
       two_means.threads = n >= kParallelPoints ? options.threads : 1;
       KmeansResult best;
       for (uint32_t trial = 0; trial < options.split_trials; ++trial) {

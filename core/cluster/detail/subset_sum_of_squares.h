@@ -2,6 +2,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_DETAIL_SUBSET_SUM_OF_SQUARES_H_
 #define MLCLUST_CORE_CLUSTER_DETAIL_SUBSET_SUM_OF_SQUARES_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -21,19 +22,33 @@ inline double SubsetSumOfSquares(const PointSet& points, const std::vector<uint3
   std::vector<double>& mean = mean_out != nullptr ? *mean_out : local;
   mean.assign(d, 0.0);
   for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
+    const std::span<const float> p = points.point(PointId(i));
     for (uint32_t j = 0; j < d; ++j) mean[j] += p[j];
   }
   for (double& v : mean) v /= static_cast<double>(members.size());
   double sse = 0;
   for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
+    const std::span<const float> p = points.point(PointId(i));
     for (uint32_t j = 0; j < d; ++j) {
       const double diff = p[j] - mean[j];
       sse += diff * diff;
     }
   }
   return sse;
+}
+
+// The points `members` (ids into `points`) as a set of their own, in that order. Used by
+// X-means and bisecting k-means to run k-means on one cluster.
+inline PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
+  PointSet subset;
+  subset.dims = points.dims;
+  subset.values.resize(members.size() * points.dims);
+  float* out = subset.values.data();
+  for (uint32_t i : members) {
+    const std::span<const float> p = points.point(PointId(i));
+    out = std::copy(p.begin(), p.end(), out);
+  }
+  return subset;
 }
 
 }  // namespace mlclust::detail
