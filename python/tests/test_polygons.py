@@ -14,6 +14,7 @@ import numpy as np
 
 import mlclust
 import test_client
+from served import ServedTestCase
 
 DATA = test_client.DATA
 
@@ -46,9 +47,10 @@ def off_polygon_counts(path):
     return counts
 
 
-class PolygonTest(unittest.TestCase):
-    setUpClass = classmethod(test_client.ServerTest.setUpClass.__func__)
-    tearDownClass = classmethod(test_client.ServerTest.tearDownClass.__func__)
+class PolygonTest(ServedTestCase):
+    # The same server and client as test_client.ServerTest (python/tests/served.py).
+    connect = classmethod(test_client.ServerTest.connect.__func__)
+    disconnect = classmethod(test_client.ServerTest.disconnect.__func__)
 
     def check(self, faces, counts, labels, k, what):
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))
