@@ -40,18 +40,8 @@ absl::Status CheckOptions(const PointSet& points, const BisectingKmeansOptions& 
         "'clusters' must be in [1, ", m, "] (the number of points), not ", options.clusters));
   }
   if (options.trials < 1) return absl::InvalidArgumentError("'trials' must be at least 1");
-  if (options.max_iterations < 1) {
-    return absl::InvalidArgumentError("'max_iterations' must be at least 1");
-  }
-  if (!(options.tolerance >= 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'tolerance' must be >= 0, not ", options.tolerance));
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'threads' must be >= 0 (0: all cores), not ", options.threads));
-  }
-  return absl::OkStatus();
+  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
+                                         options.threads);
 }
 
 }  // namespace

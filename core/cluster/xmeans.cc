@@ -34,18 +34,8 @@ absl::Status CheckOptions(const PointSet& points, const XmeansOptions& options) 
   if (options.split_trials < 1) {
     return absl::InvalidArgumentError("'split_trials' must be at least 1");
   }
-  if (options.max_iterations < 1) {
-    return absl::InvalidArgumentError("'max_iterations' must be at least 1");
-  }
-  if (!(options.tolerance >= 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'tolerance' must be >= 0, not ", options.tolerance));
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'threads' must be >= 0 (0: all cores), not ", options.threads));
-  }
-  return absl::OkStatus();
+  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
+                                         options.threads);
 }
 
 // The points of each cluster (labels 0..k-1), by a counting sort.

@@ -1,4 +1,6 @@
-// The within-cluster sum of squares of a subset of points, from its definition.
+// What X-means and bisecting k-means share: the within-cluster sum of squares of a subset
+// of points from its definition, the subset as a point set, and the check of the options
+// they pass to the k-means they run on a subset.
 #ifndef MLCLUST_CORE_CLUSTER_DETAIL_SUBSET_SUM_OF_SQUARES_H_
 #define MLCLUST_CORE_CLUSTER_DETAIL_SUBSET_SUM_OF_SQUARES_H_
 
@@ -7,6 +9,8 @@
 #include <span>
 #include <vector>
 
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
 #include "core/points/points.h"
 
 namespace mlclust::detail {
@@ -49,6 +53,23 @@ inline PointSet Subset(const PointSet& points, const std::vector<uint32_t>& memb
     out = std::copy(p.begin(), p.end(), out);
   }
   return subset;
+}
+
+// OK, or INVALID_ARGUMENT naming the option: max_iterations < 1, tolerance not >= 0 (NaN
+// too), threads < 0.
+inline absl::Status CheckInnerKmeansOptions(uint32_t max_iterations, double tolerance,
+                                            int threads) {
+  if (max_iterations < 1) {
+    return absl::InvalidArgumentError("'max_iterations' must be at least 1");
+  }
+  if (!(tolerance >= 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("'tolerance' must be >= 0, not ", tolerance));
+  }
+  if (threads < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("'threads' must be >= 0 (0: all cores), not ", threads));
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace mlclust::detail
