@@ -148,7 +148,69 @@ class MeshSpace {
       }
     });
     partition_.CountMerges(static_cast<uint32_t>(keep_gone.size()));
-    for (const auto& [keep, gone] : keep_gone) MergeNeighbours(keep, gone);
+    MergeNeighboursOfPairs(keep_gone);
+  }
+
+  // The cluster adjacency after a PML level's merges of disjoint pairs: every list that
+  // changes (a kept cluster's, and those of the clusters next to a gone one) is rebuilt
+  // from the lists before, with gone ids replaced by their kept ones, in parallel. The
+  // counts are those MergeNeighbours gives pair after pair, and the same live clusters are
+  // marked dirty; only the order of a list's entries may differ, which no result depends
+  // on (a cluster's ODE is its cheapest edge in a total order: cost, then the larger id).
+  void MergeNeighboursOfPairs(std::span<const std::pair<uint32_t, uint32_t>> keep_gone) {
+    if (kept_of_.size() != n_) {
+      kept_of_.assign(n_, detail::kNoCluster);
+      gone_of_.assign(n_, detail::kNoCluster);
+      rebuild_mark_.assign(n_, 0);
+    }
+    for (const auto& [keep, gone] : keep_gone) {
+      kept_of_[gone] = keep;
+      gone_of_[keep] = gone;
+    }
+    auto kept = [&](uint32_t c) { return kept_of_[c] == detail::kNoCluster ? c : kept_of_[c]; };
+    rebuild_.clear();
+    for (const auto& [keep, gone] : keep_gone) {
+      for (const auto& [c, count] : neighbours_[gone]) {
+        const uint32_t x = kept(c);
+        MarkDirty(x);  // its ODE may have been `gone` or `c`
+        if (!rebuild_mark_[x]) {
+          rebuild_mark_[x] = 1;
+          rebuild_.push_back(x);
+        }
+      }
+    }
+    // Each task writes only its own cluster's list and reads it and its gone cluster's
+    // (no gone cluster is rebuilt).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, rebuild_.size(), 256),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        std::vector<std::pair<uint32_t, uint32_t>> merged;
+                        for (size_t k = range.begin(); k != range.end(); ++k) {
+                          const uint32_t x = rebuild_[k];
+                          merged.clear();
+                          auto add = [&](uint32_t c, uint32_t count) {
+                            const uint32_t to = kept(c);
+                            if (to == x) return;
+                            for (auto& entry : merged) {
+                              if (entry.first == to) {
+                                entry.second += count;
+                                return;
+                              }
+                            }
+                            merged.push_back({to, count});
+                          };
+                          for (const auto& [c, count] : neighbours_[x]) add(c, count);
+                          if (gone_of_[x] != detail::kNoCluster) {
+                            for (const auto& [c, count] : neighbours_[gone_of_[x]]) add(c, count);
+                          }
+                          neighbours_[x].assign(merged.begin(), merged.end());
+                        }
+                      });
+    for (const auto& [keep, gone] : keep_gone) {
+      std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+      kept_of_[gone] = detail::kNoCluster;
+      gone_of_[keep] = detail::kNoCluster;
+    }
+    for (uint32_t x : rebuild_) rebuild_mark_[x] = 0;
   }
 
   // Local optimisation around the `region` clusters, from their boundary faces outward.
@@ -568,6 +630,7 @@ class MeshSpace {
     }
     tbb::parallel_sort(list.begin(), list.end());
     list.erase(std::unique(list.begin(), list.end()), list.end());
+    if (kept_target_.size() != n_) kept_target_.assign(n_, kUndecided);
     if (reserve_.size() != n_) {
       reserve_ = std::vector<std::atomic<uint32_t>>(n_);
       for (auto& r : reserve_) r.store(kUnreserved, std::memory_order_relaxed);
@@ -585,7 +648,7 @@ class MeshSpace {
         }
       }
     };
-    std::vector<uint32_t> target, candidates, winners, next;
+    std::vector<uint32_t> target, candidates, winners, waiting, next;
     std::vector<uint8_t> apply;
     // A winner's move, as applied: its clusters and what the shared lists get from it.
     struct AppliedMove {
@@ -593,22 +656,24 @@ class MeshSpace {
       bool touched_from, touched_to, first_move;
       uint32_t dirty_count;
       uint32_t dirty[8];
+      std::vector<uint32_t> dirty_overflow;
     };
     std::vector<AppliedMove> applied;
+    std::vector<size_t> next_offset;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
       target.resize(list.size());
       tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
                         [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t i = range.begin(); i != range.end(); ++i) {
-                            target[i] = BestOwnMove(list[i]).first;
+                            uint32_t& kept = kept_target_[list[i]];
+                            target[i] = kept != kUndecided ? kept : BestOwnMove(list[i]).first;
+                            kept = kUndecided;
                           }
                         });
       evaluations_ += list.size();
-      candidates.clear();
-      for (size_t i = 0; i < list.size(); ++i) {
-        if (target[i] != detail::kNoCluster) candidates.push_back(static_cast<uint32_t>(i));
-      }
+      detail::CompactIndices(
+          list.size(), [&](size_t i) { return target[i] != detail::kNoCluster; }, candidates);
       // Reserve: every cluster keeps the first candidate that reads it.
       const tbb::blocked_range<size_t> all(0, candidates.size(), 256);
       tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
@@ -652,13 +717,10 @@ class MeshSpace {
       // The winners apply in parallel (each writes only its own clusters and faces); what
       // goes to shared lists (the recorder's, the dirty clusters) is kept per move and
       // listed after, in candidate order: the same as applying them one by one in order.
-      winners.clear();
-      for (size_t j = 0; j < candidates.size() && moves < max_moves; ++j) {
-        if (apply[j] == 1) {
-          winners.push_back(static_cast<uint32_t>(j));
-          ++moves;
-        }
-      }
+      detail::CompactIndices(
+          candidates.size(), [&](size_t j) { return apply[j] == 1; }, winners);
+      if (winners.size() > max_moves - moves) winners.resize(max_moves - moves);
+      moves += winners.size();
       applied.resize(winners.size());
       auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
       auto apply_one = [&](size_t w) {
@@ -670,43 +732,90 @@ class MeshSpace {
         move.touched_from = recorder_.TouchUnlisted(from, energy_of);
         move.touched_to = recorder_.TouchUnlisted(to, energy_of);
         partition_.Move(f, to);
+        round_mark_[from] = round_mark_[to] = 1;
         move.first_move = recorder_.RecordMoveUnlisted(f, from);
         move.dirty_count = 0;
+        move.dirty_overflow.clear();
         OnFaceMoved(f, from, to, [&](uint32_t c) {
           if (dirty_mark_[c]) return;
           dirty_mark_[c] = 1;
-          move.dirty[move.dirty_count++] = c;  // at most 6: two per edge neighbour
+          // Triangles: at most 4 (from and three neighbours); polygons may have more.
+          if (move.dirty_count < 8) {
+            move.dirty[move.dirty_count++] = c;
+          } else {
+            move.dirty_overflow.push_back(c);
+          }
         });
       };
-      if (winners.size() < 256) {
+      if (winners.size() < 64) {
         for (size_t w = 0; w < winners.size(); ++w) apply_one(w);
       } else {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 128),
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 32),
                           [&](const tbb::blocked_range<size_t>& range) {
                             for (size_t w = range.begin(); w != range.end(); ++w) apply_one(w);
                           });
       }
-      next.clear();
       for (size_t w = 0; w < winners.size(); ++w) {
         const AppliedMove& move = applied[w];
-        const uint32_t f = list[candidates[winners[w]]];
         if (move.touched_from) recorder_.ListTouched(move.from);
         if (move.touched_to) recorder_.ListTouched(move.to);
-        if (move.first_move) recorder_.ListMoved(f);
+        if (move.first_move) recorder_.ListMoved(list[candidates[winners[w]]]);
         for (uint32_t d = 0; d < move.dirty_count; ++d) dirty_.push_back(move.dirty[d]);
-        next.push_back(f);
-        for (FaceId g : adjacency_.neighbours[f]) {
-          if (g.valid()) next.push_back(g.value());
-        }
+        dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
       }
       optimisation_moves_ += winners.size();
-      for (size_t j = 0; j < candidates.size(); ++j) {
-        if (apply[j] == 2) next.push_back(list[candidates[j]]);  // waits for the next round
+      // The next list: each moved face and its edge neighbours (at offsets counted per
+      // move), and the faces that waited.
+      detail::CompactIndices(
+          candidates.size(), [&](size_t j) { return apply[j] == 2; }, waiting);
+      // A face that waited keeps its move for the next round where no winner wrote a
+      // cluster its decision read (its own and its edge neighbours'): BestOwnMove would
+      // find the same.
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, waiting.size(), 1024),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t k = range.begin(); k != range.end(); ++k) {
+                            const uint32_t i = candidates[waiting[k]], f = list[i];
+                            bool stale = round_mark_[partition_.label(f)] != 0;
+                            for (FaceId g : adjacency_.neighbours[f]) {
+                              stale = stale ||
+                                      (g.valid() && round_mark_[partition_.label(g.value())] != 0);
+                            }
+                            if (!stale) kept_target_[f] = target[i];
+                          }
+                        });
+      for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
+      next_offset.assign(winners.size() + 1, 0);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t w = range.begin(); w != range.end(); ++w) {
+                            size_t count = 1;
+                            for (FaceId g : adjacency_.neighbours[list[candidates[winners[w]]]]) {
+                              count += g.valid() ? 1 : 0;
+                            }
+                            next_offset[w + 1] = count;
+                          }
+                        });
+      for (size_t w = 0; w < winners.size(); ++w) next_offset[w + 1] += next_offset[w];
+      next.resize(next_offset.back() + waiting.size());
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t w = range.begin(); w != range.end(); ++w) {
+                            const uint32_t f = list[candidates[winners[w]]];
+                            size_t at = next_offset[w];
+                            next[at++] = f;
+                            for (FaceId g : adjacency_.neighbours[f]) {
+                              if (g.valid()) next[at++] = g.value();
+                            }
+                          }
+                        });
+      for (size_t k = 0; k < waiting.size(); ++k) {
+        next[next_offset.back() + k] = list[candidates[waiting[k]]];
       }
       tbb::parallel_sort(next.begin(), next.end());
       next.erase(std::unique(next.begin(), next.end()), next.end());
       list.swap(next);
     }
+    for (uint32_t f : list) kept_target_[f] = kUndecided;  // stopped early: none kept
   }
 
   // Local boundary-based optimisation: sweeps over the worklist with the touched
@@ -773,6 +882,10 @@ class MeshSpace {
   std::vector<uint32_t> position_;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;
   std::vector<uint8_t> dirty_mark_;
+  // MergeNeighboursOfPairs: per cluster, the cluster it merged into / the one merged into
+  // it in this level (kNoCluster otherwise), and the lists to rebuild.
+  std::vector<uint32_t> kept_of_, gone_of_, rebuild_;
+  std::vector<uint8_t> rebuild_mark_;
   std::vector<uint32_t> dirty_;
   // UpdateOdesInParallel's marks (all 0 between levels) and list.
   std::vector<uint8_t> affected_mark_, check_mark_;
@@ -785,6 +898,10 @@ class MeshSpace {
   // it (kUnreserved between rounds).
   static constexpr uint32_t kUnreserved = 0xffffffffu;
   std::vector<std::atomic<uint32_t>> reserve_;
+  // Per face, the move it keeps from the round before (kUndecided: none kept; all so
+  // between levels).
+  static constexpr uint32_t kUndecided = 0xfffffffeu;
+  std::vector<uint32_t> kept_target_;
   std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;

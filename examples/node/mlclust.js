@@ -179,7 +179,10 @@ class Hierarchy {
 
 /** Collects one job's events into a Hierarchy, checking that the stream is consistent. */
 class Assembler {
-  constructor() {
+  /** absolute: batches number levels as the job does (Watch), from the snapshot's level. */
+  constructor(absolute = false) {
+    this.absolute = absolute;
+    this.offset = 0;
     this.snapshot = null;
     this.have = 0;
     this.levels = [];
@@ -205,6 +208,7 @@ class Assembler {
       this.snapshot.set(s.labels, this.have);
       this.have += s.labels.length;
       if (this.have === s.total_elements) {
+        if (this.absolute) this.offset = s.level;
         this.levels.push({clusterCount: s.cluster_count, energy: s.energy, sourceLevel: s.level});
       }
     } else if (event.event === 'levels') {
@@ -213,7 +217,9 @@ class Assembler {
       if (b.last_level_continues) this.messages.continued++;
       if (!this.levels.length) fail('levels before the snapshot');
       const expected = this.levels.length - (this.continuing ? 1 : 0);
-      if (b.first_level !== expected) fail(`levels from ${b.first_level}, expected ${expected}`);
+      if (b.first_level - this.offset !== expected) {
+        fail(`levels from ${b.first_level}, expected ${expected + this.offset}`);
+      }
       const element = uint32s(b.element, b.packed_element);
       const base = this.element.size;
       this.element.push(element);
@@ -271,7 +277,8 @@ const JOB_SETTINGS = {
   payload: null,
   progress: null,
   timeoutSeconds: 0,
-  chunkBytes: 1 << 20
+  chunkBytes: 1 << 20,
+  detach: false
 };
 function jobSettings(settings) {
   const unknown = Object.keys(settings).filter((k) => !(k in JOB_SETTINGS));
@@ -285,7 +292,7 @@ function jobSettings(settings) {
  */
 function jobSpec(
     enums, inputKind, input,
-    {algo, energy, clusters, seed, options, levels, packed, label, device}) {
+    {algo, energy, clusters, seed, options, levels, packed, label, device, detach}) {
   const enumName = (type, name) => {
     const value = `${type.toUpperCase()}_${name.toUpperCase().replace(/-/g, '_')}`;
     if (!enums[type].includes(value)) {
@@ -310,6 +317,7 @@ function jobSpec(
     levels_high: levels ? levels[0] : 0,
     levels_low: levels ? levels[1] : 0,
     packed_triplets: packed,  // an older server ignores it and sends the repeated fields
+    detach,  // the call ends once the job is queued; watch(job_id) reads its levels
   };
 }
 
@@ -345,8 +353,9 @@ class Client {
    * 'pml', 'emlo', 'bb', 'vsa'), energy ('cvd', 'planar', ...), clusters (JobSpec.clusters),
    * seed, options ({'p-percent': 10}), levels ([high, low]), draco ({method,
    * quantizationBits, faceIds} for encodeMesh) or payload (Draco bytes to send as they are),
-   * progress(p) on every event before Done, timeoutSeconds, packed (raw uint32 triplets).
-   * Resolves to a Hierarchy with .accepted and .done; rejects with MlclustError.
+   * progress(p) on every event before Done, timeoutSeconds, packed (raw uint32 triplets),
+   * detach. Resolves to a Hierarchy with .accepted and .done (with detach, to the job's id
+   * for watch); rejects with MlclustError.
    */
   async clusterMesh(mesh, settings = {}) {
     const s = jobSettings(settings);
@@ -359,7 +368,7 @@ class Client {
    * indices. algo: 'ml', 'pml', 'hc', 'lnkmeans', 'kmeans', 'xmeans', 'bisecting'; the energy
    * is the within-cluster variance. Other settings as for clusterMesh.
    */
-  clusterPoints(points, dims, settings = {}) {
+  async clusterPoints(points, dims, settings = {}) {
     const s = jobSettings({energy: 'variance', ...settings});
     const input = Buffer.alloc(4 * points.length);  // float32, little-endian
     points.forEach((v, i) => input.writeFloatLE(v, 4 * i));
@@ -370,79 +379,103 @@ class Client {
 
   /** Runs one job: the spec with the first chunk, further chunks, then the events. */
   run(spec, input, {progress = null, timeoutSeconds = 0, chunkBytes = 1 << 20} = {}) {
-    return new Promise((resolve, reject) => {
-      const call =
-          this.stub.Run(timeoutSeconds ? {deadline: Date.now() + 1000 * timeoutSeconds} : {});
-      const assembler = new Assembler();
-      const state = {stage: '', fraction: 0, message: '', queuePosition: 0};
-      let accepted = null;
-      let done = null;
-      let failed = null;
-      let settled = false;
-      const finish = (error, value) => {
-        if (settled) return;
-        settled = true;
-        if (error) {
-          call.cancel();
-          reject(error);
-        } else
-          resolve(value);
-      };
-      call.on('data', (event) => {
-        try {
-          if (event.event === 'accepted') {
-            accepted = event.accepted;
-            Object.assign(state, {stage: 'queued', queuePosition: accepted.queue_position});
-          } else if (event.event === 'progress') {
-            Object.assign(state, {
-              stage: event.progress.stage,
-              fraction: event.progress.fraction,
-              message: event.progress.message
-            });
-          } else if (event.event === 'done') {
-            done = event.done;
-          } else if (event.event === 'failed') {
-            failed = new MlclustError(event.failed.code, event.failed.message);
-          } else {
-            assembler.add(event);
-            state.stage = 'levels';
-          }
-          if (progress && !done && !failed) {
-            const last = assembler.levels[assembler.levels.length - 1];
-            progress({
-              ...state,
-              event: event.event,
-              accepted,
-              levelsReceived: assembler.levels.length,
-              clusterCount: last ? last.clusterCount : 0
-            });
-          }
-        } catch (error) {
-          finish(error);
-        }
-      });
-      call.on('error', (err) => finish(failed || new MlclustError(err.code, err.details)));
-      call.on('end', () => {
-        if (failed) return finish(failed);
-        if (!done)
-          return finish(new MlclustError(grpc.status.DATA_LOSS, 'the job ended without Done'));
-        try {
-          finish(null, Object.assign(assembler.finish(), {accepted, done}));
-        } catch (error) {
-          finish(error);
-        }
-      });
-      (async () => {  // the upload, waiting whenever gRPC's send buffer is full
-        for (let offset = 0; offset === 0 || offset < input.length; offset += chunkBytes) {
-          const request = {chunk: input.subarray(offset, offset + chunkBytes)};
-          if (offset === 0) request.spec = spec;
-          if (!call.write(request)) await new Promise((r) => call.once('drain', r));
-          if (settled) return;
-        }
-        call.end();
-      })();
-    });
+    const call = this.stub.Run(deadline(timeoutSeconds));
+    const result = receive(call, {progress, detach: spec.detach});
+    (async () => {  // the upload, waiting whenever gRPC's send buffer is full
+      for (let offset = 0; offset === 0 || offset < input.length; offset += chunkBytes) {
+        const request = {chunk: input.subarray(offset, offset + chunkBytes)};
+        if (offset === 0) request.spec = spec;
+        if (!call.write(request)) await new Promise((r) => call.once('drain', r));
+        if (call.settled) return;
+      }
+      call.end();
+    })();
+    return result;
   }
+
+  /**
+   * The levels of a job run with {detach: true} (which resolves to its id), while it runs or
+   * after: level `fromLevel` of the job as the Hierarchy's level 0, then every later level.
+   */
+  watch(jobId, {fromLevel = 0, progress = null, timeoutSeconds = 0} = {}) {
+    const request = {job_id: jobId, from_level: fromLevel};
+    return receive(this.stub.Watch(request, deadline(timeoutSeconds)), {progress, absolute: true});
+  }
+}
+
+function deadline(timeoutSeconds) {
+  return timeoutSeconds ? {deadline: Date.now() + 1000 * timeoutSeconds} : {};
+}
+
+/**
+ * A job's events from `call` (Run or Watch) into a Hierarchy (with .accepted and .done), or
+ * the job's id for a detached Run. Sets call.settled once the promise is.
+ */
+function receive(call, {progress = null, detach = false, absolute = false}) {
+  return new Promise((resolve, reject) => {
+    const assembler = new Assembler(absolute);
+    const state = {stage: '', fraction: 0, message: '', queuePosition: 0};
+    let accepted = null;
+    let done = null;
+    let failed = null;
+    const finish = (error, value) => {
+      if (call.settled) return;
+      call.settled = true;
+      if (error) {
+        call.cancel();
+        reject(error);
+      } else
+        resolve(value);
+    };
+    call.on('data', (event) => {
+      try {
+        if (event.event === 'accepted') {
+          accepted = event.accepted;
+          Object.assign(state, {stage: 'queued', queuePosition: accepted.queue_position});
+        } else if (event.event === 'progress') {
+          Object.assign(state, {
+            stage: event.progress.stage,
+            fraction: event.progress.fraction,
+            message: event.progress.message
+          });
+        } else if (event.event === 'done') {
+          done = event.done;
+        } else if (event.event === 'failed') {
+          failed = new MlclustError(event.failed.code, event.failed.message);
+        } else {
+          assembler.add(event);
+          state.stage = 'levels';
+        }
+        if (progress && !done && !failed) {
+          const last = assembler.levels[assembler.levels.length - 1];
+          progress({
+            ...state,
+            event: event.event,
+            accepted,
+            levelsReceived: assembler.levels.length,
+            clusterCount: last ? last.clusterCount : 0
+          });
+        }
+      } catch (error) {
+        finish(error);
+      }
+    });
+    call.on('error', (err) => finish(failed || new MlclustError(err.code, err.details)));
+    call.on('end', () => {
+      if (failed) return finish(failed);
+      if (detach) {
+        if (accepted && accepted.detached) return finish(null, accepted.job_id);
+        return finish(new MlclustError(grpc.status.DATA_LOSS, 'the server did not detach the job'));
+      }
+      if (!done)
+        return finish(new MlclustError(grpc.status.DATA_LOSS, 'the job ended without Done'));
+      try {
+        finish(null, Object.assign(assembler.finish(), {accepted, done}));
+      } catch (error) {
+        finish(error);
+      }
+    });
+  });
 }
 
 module.exports = {

@@ -13,8 +13,8 @@ import grpc
 import numpy as np
 
 import mlclust
+import served
 import test_client
-from served import ServedTestCase
 
 DATA = test_client.DATA
 
@@ -47,10 +47,15 @@ def off_polygon_counts(path):
     return counts
 
 
-class PolygonTest(ServedTestCase):
-    # The same server and client as test_client.ServerTest (python/tests/served.py).
-    connect = classmethod(test_client.ServerTest.connect.__func__)
-    disconnect = classmethod(test_client.ServerTest.disconnect.__func__)
+class PolygonTest(served.ServedTestCase):
+    @classmethod
+    def connect(cls):
+        cls.client = mlclust.Client(cls.address)
+
+    @classmethod
+    def disconnect(cls):
+        if hasattr(cls, "client"):
+            cls.client.close()
 
     def check(self, faces, counts, labels, k, what):
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))

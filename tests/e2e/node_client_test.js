@@ -170,6 +170,21 @@ const packed = (values) => Buffer.from(Uint32Array.from(values).buffer);
         sameArrays(sequentialMl.labels(50), at50, 'level 50 after stepping away and back');
       });
 
+  await check('detach, then watch from level 0 and from the level with 60 clusters', async () => {
+    const jobId = await client.clusterMesh(mesh, {algo: 'ml', detach: true});
+    assert.match(jobId, /^job-/);
+    const whole = await client.watch(jobId);
+    sameArrays(
+        whole.levels.map((l) => l.energy), sequentialMl.levels.map((l) => l.energy),
+        'watched energies');
+    sameArrays(whole.labels(50), sequentialMl.labels(50), 'watched labels at 50');
+    const from = sequentialMl.levelFor(60);
+    const tail = await client.watch(jobId, {fromLevel: from});
+    assert.strictEqual(tail.levels.length, sequentialMl.levels.length - from);
+    sameArrays(tail.labels(50), sequentialMl.labels(50), 'labels at 50 watched from 60');
+    await assert.rejects(client.watch('job-999999'), (e) => e.codeName === 'NOT_FOUND');
+  });
+
   await check(
       '(b) edgebreaker + quantisation + face ids (draco3d): labels map back exactly', async () => {
         const draco = {method: 'edgebreaker', quantizationBits: 14};

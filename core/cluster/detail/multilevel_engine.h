@@ -108,6 +108,37 @@ struct TbbBlocks {
   }
 };
 
+// out = the indices i < n with keep(i), in order; in parallel blocks of 4096 where n is
+// large (count per block, then each block fills its share): the same list either way.
+template <typename Keep>
+void CompactIndices(size_t n, const Keep& keep, std::vector<uint32_t>& out) {
+  constexpr size_t kBlock = 4096;
+  out.clear();
+  if (n < 2 * kBlock) {
+    for (size_t i = 0; i < n; ++i) {
+      if (keep(i)) out.push_back(static_cast<uint32_t>(i));
+    }
+    return;
+  }
+  const size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<size_t> offset(blocks + 1, 0);
+  tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+    size_t count = 0;
+    for (size_t i = b * kBlock, end = std::min(n, (b + 1) * kBlock); i < end; ++i) {
+      count += keep(i) ? 1 : 0;
+    }
+    offset[b + 1] = count;
+  });
+  for (size_t b = 0; b < blocks; ++b) offset[b + 1] += offset[b];
+  out.resize(offset[blocks]);
+  tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+    size_t at = offset[b];
+    for (size_t i = b * kBlock, end = std::min(n, (b + 1) * kBlock); i < end; ++i) {
+      if (keep(i)) out[at++] = static_cast<uint32_t>(i);
+    }
+  });
+}
+
 template <typename Space>
 class MultilevelEngine {
  public:
