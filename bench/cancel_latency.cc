@@ -8,16 +8,16 @@
 // middle of the work) and reports the worst time from setting the flag to the call's
 // return. A call that finishes before the flag is set counts as "finished" instead.
 // Prints CSV: step,faces,solo_s,after_s,worst_latency_s,mean_latency_s,cancelled,finished
+#include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <functional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "bench/bench_util.h"
+#include "bench/cancel_timer.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/vsa.h"
@@ -43,29 +43,15 @@ struct Latency {
 Latency Measure(const Step& step, double after, int repeats) {
   Latency latency;
   for (int r = 0; r < repeats; ++r) {
-    std::atomic<bool> cancel{false};
-    std::atomic<bool> done{false};
-    absl::Time set_at = absl::InfiniteFuture();
-    std::thread setter([&] {
-      const absl::Time until = absl::Now() + absl::Seconds(after);
-      while (!done.load() && absl::Now() < until) {
-        std::this_thread::sleep_for(std::chrono::microseconds(200));
-      }
-      if (done.load()) return;
-      set_at = absl::Now();
-      cancel.store(true);
-    });
-    const absl::Status status = step.run(&cancel);
-    const absl::Time returned = absl::Now();
-    done.store(true);
-    setter.join();
+    bench::CancelTimer timer(after);
+    const absl::Status status = step.run(timer.flag());
+    const bench::CancelTimer::Outcome outcome = timer.Finish();
     if (status.ok()) {
       ++latency.finished;
-    } else if (absl::IsCancelled(status)) {
+    } else if (absl::IsCancelled(status) && outcome.flag_set) {
       ++latency.cancelled;
-      const double seconds = absl::ToDoubleSeconds(returned - set_at);
-      latency.worst = std::max(latency.worst, seconds);
-      latency.sum += seconds;
+      latency.worst = std::max(latency.worst, outcome.latency_s);
+      latency.sum += outcome.latency_s;
     } else {
       ++latency.failed;
       std::fprintf(stderr, "%s: %s\n", step.name.c_str(), status.ToString().c_str());

@@ -1,5 +1,6 @@
-// For the benches' --cancel-after S: sets a cancel flag S seconds after construction, on its
-// own thread, and reports how long the cancelled call took to return after the flag.
+// For the benches' --cancel-after S and bench/cancel_latency: sets a cancel flag S seconds
+// after construction, on its own thread, and says how long the cancelled call took to
+// return after the flag.
 #ifndef MLCLUST_BENCH_CANCEL_TIMER_H_
 #define MLCLUST_BENCH_CANCEL_TIMER_H_
 
@@ -33,20 +34,40 @@ class CancelTimer {
 
   const std::atomic<bool>* flag() const { return after_ < 0 ? nullptr : &flag_; }
 
-  // Call as soon as the cancellable call returns: prints to stderr when the flag was set
-  // and how long after it the call returned, with the call's status.
-  void Report(const absl::Status& status, const char* what) {
+  struct Outcome {
+    bool flag_set = false;
+    double returned_s = 0;  // from construction to Finish
+    double set_at_s = 0;    // from construction to the flag (flag_set only)
+    double latency_s = 0;   // from the flag to Finish (flag_set only)
+  };
+
+  // Call as soon as the cancellable call returns: stops the timer (the flag is never set
+  // after this) and says whether and when the flag was set, and how long after it the call
+  // returned.
+  Outcome Finish() {
     const absl::Time returned = absl::Now();
     Stop();
+    Outcome outcome;
+    outcome.returned_s = absl::ToDoubleSeconds(returned - start_);
+    if (!flag_) return outcome;
+    outcome.flag_set = true;
+    outcome.set_at_s = absl::ToDoubleSeconds(set_at_ - start_);
+    outcome.latency_s = absl::ToDoubleSeconds(returned - set_at_);
+    return outcome;
+  }
+
+  // Finish, then prints to stderr when the flag was set and how long after it the call
+  // returned, with the call's status (nothing when the timer never sets the flag).
+  void Report(const absl::Status& status, const char* what) {
+    const Outcome outcome = Finish();
     if (after_ < 0) return;
-    if (!flag_) {
+    if (!outcome.flag_set) {
       std::fprintf(stderr, "cancel: %s ended after %.3f s, before the flag\n", what,
-                   absl::ToDoubleSeconds(returned - start_));
+                   outcome.returned_s);
       return;
     }
     std::fprintf(stderr, "cancel: %s returned %.4f s after the flag (set at %.3f s): %s\n", what,
-                 absl::ToDoubleSeconds(returned - set_at_), absl::ToDoubleSeconds(set_at_ - start_),
-                 status.ToString().c_str());
+                 outcome.latency_s, outcome.set_at_s, status.ToString().c_str());
   }
 
  private:

@@ -9,18 +9,16 @@
 // Prints one CSV row per requested k (best time of R): mesh,faces,algo,energy,optimizer,
 // p_percent,pml_until,threads,seconds,levels,k,energy_at_k
 #include <cstdio>
-#include <cstring>
-#include <map>
 #include <string>
 #include <vector>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
 #include "core/cluster/multilevel.h"
-#include "core/io/mesh_io.h"
 
 namespace {
 
@@ -29,71 +27,47 @@ using CurveSink = mlclust::bench::CurveSink;
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: ml_bench MESH [options]; see the source\n");
-    return 2;
-  }
-  std::string path = argv[1], algo = "ml", energy_name = "cvd", optimizer = "emlo", curve,
-              pml_pairs, p_rule;
-  std::vector<uint32_t> at = {1000, 200};
-  double p_percent = 0;
-  uint32_t pml_until = 0, repeats = 1;
-  double cancel_after = -1;
-  int threads = 0;
-  bool header = false;
-  for (int i = 2; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--header") {
-      header = true;
-      continue;
-    }
-    if (i + 1 >= argc) return 2;
-    const std::string value = argv[++i];
-    bool ok = true;
-    if (arg == "--algo")
-      algo = value;
-    else if (arg == "--energy")
-      energy_name = value;
-    else if (arg == "--optimizer")
-      optimizer = value;
-    else if (arg == "--p-percent")
-      ok = absl::SimpleAtod(value, &p_percent);
-    else if (arg == "--pml-until")
-      ok = absl::SimpleAtoi(value, &pml_until);
-    else if (arg == "--p-rule")
-      ok = (p_rule = value) == "sweep" || value == "hc-first";
-    else if (arg == "--pml-pairs")
-      ok = (pml_pairs = value) == "all" || value == "cheaper-half";
-    else if (arg == "--threads")
-      ok = absl::SimpleAtoi(value, &threads);
-    else if (arg == "--repeats")
-      ok = absl::SimpleAtoi(value, &repeats);
-    else if (arg == "--cancel-after")
-      ok = absl::SimpleAtod(value, &cancel_after);
-    else if (arg == "--curve")
-      curve = value;
-    else if (arg == "--at") {
-      at.clear();
-      for (absl::string_view part : absl::StrSplit(value, ',')) {
-        uint32_t k;
-        ok = ok && absl::SimpleAtoi(part, &k);
-        at.push_back(k);
-      }
-    } else
-      ok = false;
-    if (!ok) {
-      std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
+  mlclust::bench::Args args(
+      argc, argv,
+      "usage: ml_bench MESH [--algo ml|pml|hc] [--energy cvd] [--optimizer emlo|bb|none]\n"
+      "  [--p-percent P] [--p-rule sweep|hc-first] [--pml-until K]\n"
+      "  [--pml-pairs all|cheaper-half] [--threads T] [--at K1,K2,...] [--repeats R]\n"
+      "  [--cancel-after S] [--curve FILE] [--header]");
+  const bool header = args.Flag("header");
+  const std::string path = args.Positional(0);
+  const std::string algo = args.Get<std::string>("algo", "ml");
+  const std::string energy_name = args.Get<std::string>("energy", "cvd");
+  const std::string optimizer = args.Get<std::string>("optimizer", "emlo");
+  const std::string curve = args.Get<std::string>("curve", "");
+  const std::string pml_pairs = args.Get<std::string>("pml-pairs", "");
+  const std::string p_rule = args.Get<std::string>("p-rule", "");
+  const double p_percent = args.Get<double>("p-percent", 0);
+  const uint32_t pml_until = args.Get<uint32_t>("pml-until", 0);
+  const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const double cancel_after = args.Get<double>("cancel-after", -1);
+  const int threads = args.Get<int>("threads", 0);
+  const std::string at_text = args.Get<std::string>("at", "1000,200");
+  if (!args.Done()) return 2;
+  std::vector<uint32_t> at;
+  for (absl::string_view part : absl::StrSplit(at_text, ',')) {
+    uint32_t k = 0;
+    if (!absl::SimpleAtoi(part, &k)) {
+      std::fprintf(stderr, "--at: '%s' is not a list of cluster counts\n", at_text.c_str());
       return 2;
     }
+    at.push_back(k);
   }
-  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(path);
-  if (!mesh.ok() || !mlclust::ValidateMesh(*mesh).ok()) return 1;
-  const mlclust::FaceAdjacency adjacency = *mlclust::BuildFaceAdjacency(*mesh);
-  const mlclust::FaceMeasures measures = mlclust::ComputeFaceMeasures(*mesh);
-  mlclust::MeshProblem problem{&*mesh, &adjacency, &measures, {}};
+  if ((!p_rule.empty() && p_rule != "sweep" && p_rule != "hc-first") ||
+      (!pml_pairs.empty() && pml_pairs != "all" && pml_pairs != "cheaper-half")) {
+    std::fprintf(stderr, "--p-rule is sweep or hc-first, --pml-pairs all or cheaper-half\n");
+    return 2;
+  }
+  const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
   absl::StatusOr<mlclust::MeshEnergyKind> kind = mlclust::ParseMeshEnergyKind(energy_name);
   if (!kind.ok()) return 2;
-  problem.energy.kind = *kind;
+  mlclust::MeshEnergyOptions energy;
+  energy.kind = *kind;
+  const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, energy);
   mlclust::MultilevelOptions options;
   options.optimizer = optimizer == "bb"     ? mlclust::MultilevelOptions::Optimizer::kBoundaryBased
                       : optimizer == "none" ? mlclust::MultilevelOptions::Optimizer::kNone
@@ -137,8 +111,7 @@ int main(int argc, char** argv) {
       best_sink = sink;
     }
   }
-  const char* name = std::strrchr(path.c_str(), '/');
-  name = name ? name + 1 : path.c_str();
+  const std::string name = mlclust::bench::BaseName(path);
   if (header) {
     std::printf(
         "mesh,faces,algo,energy,optimizer,p_percent,pml_until,threads,seconds,levels,"
@@ -155,9 +128,9 @@ int main(int argc, char** argv) {
         break;
       }
     }
-    std::printf("%s,%zu,%s,%s,%s,%g,%u,%d,%.4f,%zu,%u,%.10g\n", name, mesh->num_faces(),
-                algo.c_str(), energy_name.c_str(), optimizer.c_str(), p_percent, pml_until, threads,
-                best, best_sink.counts.size(), got, e);
+    std::printf("%s,%zu,%s,%s,%s,%g,%u,%d,%.4f,%zu,%u,%.10g\n", name.c_str(),
+                prepared.mesh.num_faces(), algo.c_str(), energy_name.c_str(), optimizer.c_str(),
+                p_percent, pml_until, threads, best, best_sink.counts.size(), got, e);
   }
   if (!curve.empty()) {
     std::FILE* out = std::fopen(curve.c_str(), "w");

@@ -11,50 +11,30 @@
 #include <cstdio>
 #include <string>
 
-#include "absl/strings/numbers.h"
 #include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/cluster/bisecting_kmeans.h"
 #include "core/cluster/point_clustering.h"
 #include "core/cluster/xmeans.h"
 #include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
-  std::string algo = "bisecting", input, split = "size", init;
-  uint64_t seed = 1;
-  uint32_t k = 100, trials = 1, kmin = 1, kmax = 0, dims = 0;
-  int threads = 0;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string arg = argv[i], value = argv[i + 1];
-    bool ok = true;
-    if (arg == "--algo")
-      algo = value;
-    else if (arg == "--input")
-      input = value;
-    else if (arg == "--dims")
-      ok = absl::SimpleAtoi(value, &dims);
-    else if (arg == "--k")
-      ok = absl::SimpleAtoi(value, &k);
-    else if (arg == "--split")
-      split = value;
-    else if (arg == "--trials")
-      ok = absl::SimpleAtoi(value, &trials);
-    else if (arg == "--init")
-      init = value;
-    else if (arg == "--kmin")
-      ok = absl::SimpleAtoi(value, &kmin);
-    else if (arg == "--kmax")
-      ok = absl::SimpleAtoi(value, &kmax);
-    else if (arg == "--seed")
-      ok = absl::SimpleAtoi(value, &seed);
-    else if (arg == "--threads")
-      ok = absl::SimpleAtoi(value, &threads);
-    else
-      ok = false;
-    if (!ok) {
-      std::fprintf(stderr, "bad argument %s %s\n", arg.c_str(), value.c_str());
-      return 2;
-    }
-  }
+  mlclust::bench::Args args(argc, argv,
+                            "usage: divisive_bench --algo bisecting|xmeans --input FILE [--dims D] "
+                            "[--k K] [--split size|energy] [--trials L] [--init random|kmeans++] "
+                            "[--kmin K] [--kmax K] [--seed S] [--threads T]");
+  const std::string algo = args.Get<std::string>("algo", "bisecting");
+  const std::string input = args.Get<std::string>("input", "");
+  const uint32_t dims = args.Get<uint32_t>("dims", 0);
+  const uint32_t k = args.Get<uint32_t>("k", 100);
+  const std::string split = args.Get<std::string>("split", "size");
+  const uint32_t trials = args.Get<uint32_t>("trials", 1);
+  const std::string init = args.Get<std::string>("init", "");
+  const uint32_t kmin = args.Get<uint32_t>("kmin", 1);
+  const uint32_t kmax = args.Get<uint32_t>("kmax", 0);
+  const uint64_t seed = args.Get<uint64_t>("seed", 1);
+  const int threads = args.Get<int>("threads", 0);
+  if (!args.Done()) return 2;
   if (input.empty()) {
     std::fprintf(stderr, "--input FILE is required\n");
     return 2;

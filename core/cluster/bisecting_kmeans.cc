@@ -17,18 +17,6 @@ namespace {
 // cluster over a pool costs more than it saves.
 constexpr size_t kParallelPoints = 65536;
 
-PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
-  PointSet subset;
-  subset.dims = points.dims;
-  subset.values.resize(members.size() * points.dims);
-  float* out = subset.values.data();
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    out = std::copy(p.begin(), p.end(), out);
-  }
-  return subset;
-}
-
 struct Cluster {
   std::vector<uint32_t> members;
   double sse = 0;
@@ -52,18 +40,8 @@ absl::Status CheckOptions(const PointSet& points, const BisectingKmeansOptions& 
         "'clusters' must be in [1, ", m, "] (the number of points), not ", options.clusters));
   }
   if (options.trials < 1) return absl::InvalidArgumentError("'trials' must be at least 1");
-  if (options.max_iterations < 1) {
-    return absl::InvalidArgumentError("'max_iterations' must be at least 1");
-  }
-  if (!(options.tolerance >= 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'tolerance' must be >= 0, not ", options.tolerance));
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'threads' must be >= 0 (0: all cores), not ", options.threads));
-  }
-  return absl::OkStatus();
+  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
+                                         options.threads);
 }
 
 }  // namespace
@@ -103,7 +81,7 @@ absl::StatusOr<BisectingKmeansResult> RunBisectingKmeans(const PointSet& points,
     if (split.members.size() < 2) continue;
 
     // Line 4, the bisecting step: 2-means `trials` times, the split of least energy kept.
-    const PointSet subset = Subset(points, split.members);
+    const PointSet subset = detail::Subset(points, split.members);
     KmeansOptions two_means;
     two_means.clusters = 2;
     two_means.init = options.init;

@@ -34,18 +34,8 @@ absl::Status CheckOptions(const PointSet& points, const XmeansOptions& options) 
   if (options.split_trials < 1) {
     return absl::InvalidArgumentError("'split_trials' must be at least 1");
   }
-  if (options.max_iterations < 1) {
-    return absl::InvalidArgumentError("'max_iterations' must be at least 1");
-  }
-  if (!(options.tolerance >= 0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'tolerance' must be >= 0, not ", options.tolerance));
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'threads' must be >= 0 (0: all cores), not ", options.threads));
-  }
-  return absl::OkStatus();
+  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
+                                         options.threads);
 }
 
 // The points of each cluster (labels 0..k-1), by a counting sort.
@@ -55,18 +45,6 @@ std::vector<std::vector<uint32_t>> MembersOf(const std::vector<ClusterId>& label
     members[labels[i].value()].push_back(static_cast<uint32_t>(i));
   }
   return members;
-}
-
-PointSet Subset(const PointSet& points, const std::vector<uint32_t>& members) {
-  PointSet subset;
-  subset.dims = points.dims;
-  subset.values.resize(members.size() * points.dims);
-  float* out = subset.values.data();
-  for (uint32_t i : members) {
-    const std::span<const float> p = points.point(i);
-    out = std::copy(p.begin(), p.end(), out);
-  }
-  return subset;
 }
 
 // The BIC of a whole labelling (sizes from the labels).
@@ -136,7 +114,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       const std::vector<uint32_t>& cluster = members[c];
       const uint64_t n = cluster.size();
       if (n < 3) continue;
-      const PointSet subset = Subset(points, cluster);
+      const PointSet subset = detail::Subset(points, cluster);
       two_means.threads = n >= kParallelPoints ? options.threads : 1;
       KmeansResult best;
       for (uint32_t trial = 0; trial < options.split_trials; ++trial) {

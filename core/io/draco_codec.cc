@@ -57,7 +57,7 @@ absl::Status CheckIndices(const TriangleMesh& mesh) {
                                                    " vertices, ", mesh.num_faces(),
                                                    " faces (limit ", kMaxMeshElements, ")"));
   }
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   return absl::OkStatus();
 }
 
@@ -85,8 +85,8 @@ absl::Status CheckFaceIdAttribute(const draco::PointAttribute& ids, size_t num_p
 
 absl::StatusOr<std::string> EncodeMeshToDraco(const TriangleMesh& mesh,
                                               const DracoEncodeOptions& options) {
-  if (absl::Status status = CheckOptions(options); !status.ok()) return status;
-  if (absl::Status status = CheckIndices(mesh); !status.ok()) return status;
+  MLCLUST_RETURN_IF_ERROR(CheckOptions(options));
+  MLCLUST_RETURN_IF_ERROR(CheckIndices(mesh));
   if (mesh.num_faces() == 0 && mesh.num_vertices() > 0) {
     // Draco 1.5.5 encodes this but its decoder then refuses the bytes ("Failed to decode
     // geometry data"); fail here, where the caller can still see why.
@@ -330,20 +330,19 @@ absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view byt
       limits.min_decode_budget_bytes, limits.decode_budget_per_byte > UINT64_MAX / bytes.size()
                                           ? UINT64_MAX
                                           : limits.decode_budget_per_byte * bytes.size());
-  bool over_budget = false;
   try {
     ScopedAllocationBudget allocation_budget(budget);
     draco::Decoder decoder;
     auto result = decoder.DecodeMeshFromBuffer(&buffer);
-    over_budget = allocation_budget.exceeded();
-    if (!result.ok() && !over_budget) {
+    if (!result.ok() && !allocation_budget.exceeded()) {
       return absl::InvalidArgumentError(
           absl::StrCat("invalid Draco mesh: ", result.status().error_msg_string()));
     }
     if (result.ok()) decoded = std::move(result).value();
   } catch (const std::bad_alloc&) {
-    over_budget = true;
+    // The budget refused an allocation: `decoded` stays null, reported below.
   }
+  // Null here: Draco failed over the budget, or an allocation threw.
   if (decoded == nullptr) {
     return absl::InvalidArgumentError(
         absl::StrCat("invalid Draco mesh: decoding it asks for more memory than a ", bytes.size(),

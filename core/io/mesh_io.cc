@@ -867,9 +867,8 @@ absl::StatusOr<TriangleMesh> ReadWithAssimp(const std::string& path, std::string
 }
 
 absl::StatusOr<TriangleMesh> ReadOffFile(const std::string& path) {
-  absl::StatusOr<std::string> text = ReadFileBytes(path);
-  if (!text.ok()) return text.status();
-  absl::StatusOr<PolygonPart> part = ParseOff(*text);
+  MLCLUST_ASSIGN_OR_RETURN(const std::string text, ReadFileBytes(path));
+  absl::StatusOr<PolygonPart> part = ParseOff(text);
   if (!part.ok()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": ", part.status().message()));
   }
@@ -883,24 +882,22 @@ absl::StatusOr<TriangleMesh> ReadOffFile(const std::string& path) {
 // glTF / GLB: Assimp reads them, except primitives compressed with
 // KHR_draco_mesh_compression, which are decoded first (gltf_draco.h).
 absl::StatusOr<TriangleMesh> ReadGltfFile(const std::string& path) {
-  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
-  if (!bytes.ok()) return bytes.status();
-  if (!GltfUsesDraco(*bytes)) return ReadWithAssimp(path);
+  MLCLUST_ASSIGN_OR_RETURN(std::string bytes, ReadFileBytes(path));
+  if (!GltfUsesDraco(bytes)) return ReadWithAssimp(path);
   // Relative URIs name files beside the glTF (percent-escapes are not decoded).
   const std::filesystem::path directory = std::filesystem::path(path).parent_path();
   absl::StatusOr<std::string> glb = DecompressDracoGltf(
-      *bytes, [&](const std::string& uri) { return ReadFileBytes((directory / uri).string()); });
+      bytes, [&](const std::string& uri) { return ReadFileBytes((directory / uri).string()); });
   if (!glb.ok()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": ", glb.status().message()));
   }
-  std::string().swap(*bytes);
+  std::string().swap(bytes);
   return ReadWithAssimp(path, *glb);
 }
 
 absl::StatusOr<TriangleMesh> ReadDracoFile(const std::string& path) {
-  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
-  if (!bytes.ok()) return bytes.status();
-  absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(*bytes);
+  MLCLUST_ASSIGN_OR_RETURN(const std::string bytes, ReadFileBytes(path));
+  absl::StatusOr<TriangleMesh> mesh = DecodeDracoMesh(bytes);
   if (!mesh.ok()) {
     return absl::InvalidArgumentError(absl::StrCat(path, ": ", mesh.status().message()));
   }
@@ -966,37 +963,34 @@ void SplitByCluster(const TriangleMesh& mesh, std::span<const ClusterId> labels,
 }  // namespace
 
 absl::StatusOr<TriangleMesh> ReadMeshFile(const std::string& path) {
-  if (absl::Status status = CheckIsFile(path); !status.ok()) return status;
+  MLCLUST_RETURN_IF_ERROR(CheckIsFile(path));
   const std::string extension = LowercaseExtension(path);
-  absl::StatusOr<std::string> head = ReadFileBytes(path, 4096);
-  if (!head.ok()) return head.status();
+  MLCLUST_ASSIGN_OR_RETURN(const std::string head, ReadFileBytes(path, 4096));
 
   absl::StatusOr<TriangleMesh> mesh;
   try {
-    if (extension == ".drc" || head->starts_with("DRACO")) {
+    if (extension == ".drc" || head.starts_with("DRACO")) {
       mesh = ReadDracoFile(path);
-    } else if (extension == ".off" || LooksLikeOff(*head)) {
+    } else if (extension == ".off" || LooksLikeOff(head)) {
       mesh = ReadOffFile(path);
-    } else if (extension == ".ply" || LooksLikePly(*head)) {
-      absl::StatusOr<std::string> header = ReadFileBytes(path, kMaxPlyHeaderBytes);
-      if (!header.ok()) return header.status();
+    } else if (extension == ".ply" || LooksLikePly(head)) {
+      MLCLUST_ASSIGN_OR_RETURN(const std::string header, ReadFileBytes(path, kMaxPlyHeaderBytes));
       std::error_code size_error;
       const uintmax_t file_size = std::filesystem::file_size(path, size_error);
       if (size_error) return FileError(path, size_error.value(), "cannot read its size");
       PlyLayout layout;
-      if (absl::Status status = CheckPlyHeader(*header, file_size, &layout); !status.ok()) {
+      if (absl::Status status = CheckPlyHeader(header, file_size, &layout); !status.ok()) {
         return absl::InvalidArgumentError(absl::StrCat(path, ": ", status.message()));
       }
       if (layout.ascii) {
-        absl::StatusOr<std::string> text = ReadFileBytes(path);
-        if (!text.ok()) return text.status();
-        const absl::string_view body = absl::string_view(*text).substr(layout.body_offset);
+        MLCLUST_ASSIGN_OR_RETURN(const std::string text, ReadFileBytes(path));
+        const absl::string_view body = absl::string_view(text).substr(layout.body_offset);
         if (absl::Status status = CheckPlyAsciiBody(body, layout); !status.ok()) {
           return absl::InvalidArgumentError(absl::StrCat(path, ": ", status.message()));
         }
       }
       mesh = ReadWithAssimp(path);
-    } else if (extension == ".gltf" || extension == ".glb" || head->starts_with("glTF")) {
+    } else if (extension == ".gltf" || extension == ".glb" || head.starts_with("glTF")) {
       mesh = ReadGltfFile(path);
     } else {
       mesh = ReadWithAssimp(path);
@@ -1078,7 +1072,7 @@ absl::Status WriteClusteredPly(const std::string& path, const TriangleMesh& mesh
     out.push_back(3);
     for (int c = 0; c < 3; ++c) AppendUint32(out, out_indices[3 * f + c]);
     // Two's complement: an unlabelled face's -1 is 0xFFFFFFFF.
-    AppendUint32(out, labels[f].valid() ? labels[f].value() : 0xFFFFFFFFu);
+    AppendUint32(out, labels[f].valid() ? labels[f].value() : ClusterId::kInvalidValue);
     AppendColour(out, colour_of(labels[f]));
   }
 
@@ -1234,7 +1228,7 @@ std::array<uint8_t, 3> ClusterColour(uint32_t id) {
 }
 
 absl::Status WriteMeshFile(const std::string& path, const TriangleMesh& mesh) {
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   const std::string extension = LowercaseExtension(path);
   if (extension != ".ply" && extension != ".obj" && extension != ".off") {
     return absl::InvalidArgumentError(

@@ -406,11 +406,10 @@ absl::StatusOr<NpyHeader> ReadNpyHeader(ByteSource& source, uint64_t* data_offse
 
 absl::StatusOr<PointSet> ReadNpy(ByteSource& source, const PointReadOptions& options) {
   uint64_t data_offset = 0;
-  absl::StatusOr<NpyHeader> header = ReadNpyHeader(source, &data_offset);
-  if (!header.ok()) return header.status();
+  MLCLUST_ASSIGN_OR_RETURN(const NpyHeader header, ReadNpyHeader(source, &data_offset));
 
   // '<' little-endian, '>' big-endian; NumPy always writes one of them for these types.
-  const std::string& descr = header->descr;
+  const std::string& descr = header.descr;
   if (descr.size() != 3 || (descr[0] != '<' && descr[0] != '>') || descr[1] != 'f' ||
       (descr[2] != '4' && descr[2] != '8')) {
     return absl::InvalidArgumentError(
@@ -419,11 +418,11 @@ absl::StatusOr<PointSet> ReadNpy(ByteSource& source, const PointReadOptions& opt
   const size_t item_size = descr[2] == '4' ? 4 : 8;
   const bool swap = (descr[0] == '<') != (std::endian::native == std::endian::little);
 
-  if (header->shape.size() != 2) {
+  if (header.shape.size() != 2) {
     return absl::InvalidArgumentError(
-        absl::StrCat("shape ", ShapeString(header->shape), " is not 2-D (points, dimensions)"));
+        absl::StrCat("shape ", ShapeString(header.shape), " is not 2-D (points, dimensions)"));
   }
-  const uint64_t m = header->shape[0], d = header->shape[1];
+  const uint64_t m = header.shape[0], d = header.shape[1];
   MLCLUST_RETURN_IF_ERROR(CheckShapeWithinLimits(m, d, options.limits));
   const uint64_t count = m * d;  // Within max_values, so no overflow here.
   uint64_t data_size = 0, expected_size = 0;
@@ -431,12 +430,12 @@ absl::StatusOr<PointSet> ReadNpy(ByteSource& source, const PointReadOptions& opt
       __builtin_add_overflow(data_offset, data_size, &expected_size) ||
       count > std::numeric_limits<size_t>::max() / item_size) {
     return absl::InvalidArgumentError(
-        absl::StrCat("shape ", ShapeString(header->shape), " is too large to address"));
+        absl::StrCat("shape ", ShapeString(header.shape), " is too large to address"));
   }
   if (source.size() != expected_size) {
     return absl::InvalidArgumentError(
         absl::StrCat(source.size() < expected_size ? "truncated .npy" : ".npy has trailing bytes",
-                     ": shape ", ShapeString(header->shape), " of ", descr, " needs ", data_size,
+                     ": shape ", ShapeString(header.shape), " of ", descr, " needs ", data_size,
                      " bytes of data after the ", data_offset, "-byte header, so ", expected_size,
                      " bytes in all, but the file has ", source.size()));
   }
@@ -444,7 +443,7 @@ absl::StatusOr<PointSet> ReadNpy(ByteSource& source, const PointReadOptions& opt
   PointSet points;
   points.dims = static_cast<uint32_t>(d);  // d <= max_dims, a uint32.
   points.values.resize(static_cast<size_t>(count));
-  if (item_size == 4 && !swap && !header->fortran_order) {
+  if (item_size == 4 && !swap && !header.fortran_order) {
     MLCLUST_RETURN_IF_ERROR(
         source.ReadAt(data_offset, static_cast<size_t>(data_size), points.values.data()));
     return points;
@@ -482,7 +481,7 @@ absl::StatusOr<PointSet> ReadNpy(ByteSource& source, const PointReadOptions& opt
         value = static_cast<float>(wide);
       }
       points.values[row * d + column] = value;
-      if (header->fortran_order) {
+      if (header.fortran_order) {
         if (++row == m) {
           row = 0;
           ++column;
@@ -688,19 +687,18 @@ absl::StatusOr<PointSet> ReadPointsFileUnnamed(const std::string& path,
                                                const PointReadOptions& options) {
   const Format format = FormatOf(path);
   // A missing file is NOT_FOUND even with an extension we do not read.
-  absl::StatusOr<std::unique_ptr<FileSource>> source = FileSource::Open(path);
-  if (!source.ok()) return source.status();
+  MLCLUST_ASSIGN_OR_RETURN(const std::unique_ptr<FileSource> source, FileSource::Open(path));
   absl::StatusOr<PointSet> points;
   switch (format) {
     case Format::kNpy:
-      points = ReadNpy(**source, options);
+      points = ReadNpy(*source, options);
       break;
     case Format::kRawFloat32:
-      points = ReadRawFloat32(**source, options);
+      points = ReadRawFloat32(*source, options);
       break;
     case Format::kText: {
-      std::string text(static_cast<size_t>((*source)->size()), '\0');
-      MLCLUST_RETURN_IF_ERROR((*source)->ReadAt(0, text.size(), text.data()));
+      std::string text(static_cast<size_t>(source->size()), '\0');
+      MLCLUST_RETURN_IF_ERROR(source->ReadAt(0, text.size(), text.data()));
       points = ParseText(text, options);
       break;
     }
@@ -727,15 +725,13 @@ absl::StatusOr<PointSet> ReadPointsFile(const std::string& path, const PointRead
 
 absl::StatusOr<PointSet> DecodePointsNpy(absl::string_view bytes, const PointReadOptions& options) {
   MemorySource source(bytes);
-  absl::StatusOr<PointSet> points = ReadNpy(source, options);
-  if (!points.ok()) return points.status();
-  return Finish(*std::move(points), options);
+  MLCLUST_ASSIGN_OR_RETURN(PointSet points, ReadNpy(source, options));
+  return Finish(std::move(points), options);
 }
 
 absl::StatusOr<PointSet> DecodePointsText(absl::string_view text, const PointReadOptions& options) {
-  absl::StatusOr<PointSet> points = ParseText(text, options);
-  if (!points.ok()) return points.status();
-  return Finish(*std::move(points), options);
+  MLCLUST_ASSIGN_OR_RETURN(PointSet points, ParseText(text, options));
+  return Finish(std::move(points), options);
 }
 
 absl::Status WritePointsNpy(const std::string& path, const PointSet& points) {

@@ -137,8 +137,7 @@ absl::Status CheckVertexIndices(const TriangleMesh& mesh) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(const TriangleMesh& mesh,
-                                                            const std::atomic<bool>* cancel) {
+absl::Status CheckMeshArrays(const TriangleMesh& mesh) {
   if (mesh.positions.size() % 3 != 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("positions hold ", mesh.positions.size(), " floats, not a multiple of 3"));
@@ -148,6 +147,12 @@ absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(const TriangleMesh& 
         "indices hold ", mesh.indices.size(), " values, not a multiple of 3 (triangles only)"));
   }
   if (mesh.num_faces() == 0) return absl::InvalidArgumentError("empty mesh: it has no faces");
+  return absl::OkStatus();
+}
+
+absl::StatusOr<FaceAdjacency> ValidateMeshAndBuildAdjacency(const TriangleMesh& mesh,
+                                                            const std::atomic<bool>* cancel) {
+  MLCLUST_RETURN_IF_ERROR(CheckMeshArrays(mesh));
   if (mesh.num_faces() > kMaxMeshElements || mesh.num_vertices() > kMaxMeshElements) {
     return absl::InvalidArgumentError(
         absl::StrCat("mesh too large: ", mesh.num_faces(), " faces and ", mesh.num_vertices(),
@@ -189,20 +194,21 @@ absl::Status ValidateMesh(const TriangleMesh& mesh, const std::atomic<bool>* can
 
 uint32_t LabelFaceComponents(const FaceAdjacency& adjacency, std::vector<uint32_t>& component,
                              std::span<const uint32_t> region) {
-  constexpr uint32_t kUnlabelled = std::numeric_limits<uint32_t>::max();
+  // A component is a cluster of faces: "not labelled yet" is ClusterId's sentinel.
   const size_t n = adjacency.num_faces();
-  component.assign(n, kUnlabelled);
+  component.assign(n, ClusterId::kInvalidValue);
   std::vector<uint32_t> stack;
   uint32_t count = 0;
   for (uint32_t start = 0; start < n; ++start) {
-    if (component[start] != kUnlabelled) continue;
+    if (component[start] != ClusterId::kInvalidValue) continue;
     component[start] = count;
     stack.push_back(start);
     while (!stack.empty()) {
       const uint32_t face = stack.back();
       stack.pop_back();
       for (FaceId neighbour : adjacency.neighbours[face]) {
-        if (!neighbour.valid() || component[neighbour.value()] != kUnlabelled) continue;
+        if (!neighbour.valid() || component[neighbour.value()] != ClusterId::kInvalidValue)
+          continue;
         if (!region.empty() && region[neighbour.value()] != region[face]) continue;
         component[neighbour.value()] = count;
         stack.push_back(neighbour.value());

@@ -55,6 +55,10 @@ absl::Status ValidateMesh(const TriangleMesh& mesh, const std::atomic<bool>* can
 // that must not index out of bounds but accept what ValidateMesh would refuse.
 absl::Status CheckVertexIndices(const TriangleMesh& mesh);
 
+// The array shape alone: OK, or INVALID_ARGUMENT for positions or indices that are not whole
+// triples, or no face. Part of ValidateMesh (and of RepairNonManifold's precondition).
+absl::Status CheckMeshArrays(const TriangleMesh& mesh);
+
 // The faces around each vertex, in compressed rows: the faces of vertex v are
 // faces[offset[v] .. offset[v + 1]), in increasing face order. Built by a counting sort in
 // O(faces + vertices); expects indices in range.

@@ -5,6 +5,7 @@
 #define MLCLUST_CORE_MESH_PREPARED_MESH_H_
 
 #include <atomic>
+#include <functional>
 
 #include "absl/status/statusor.h"
 #include "core/mesh/face_measures.h"
@@ -18,13 +19,22 @@ struct PreparedMesh {
   FaceMeasures measures;    // ComputeFaceMeasures(mesh)
 };
 
+// The measures step on another device (the server's GPU: gpu/kernels/face_measures_gpu.h),
+// called with the validated mesh and the options' cancel flag. It must give what
+// ComputeFaceMeasures gives (one entry per face) or an error, which PrepareMesh returns.
+using MeasureFacesFunction = std::function<absl::StatusOr<FaceMeasures>(
+    const TriangleMesh& mesh, const std::atomic<bool>* cancel)>;
+
 struct PrepareMeshOptions {
   // Checked between the steps and every few thousand elements of each (core/base/cancel.h).
   const std::atomic<bool>* cancel = nullptr;
+  // Empty: ComputeFaceMeasures on the CPU.
+  MeasureFacesFunction measure_faces;
 };
 
-// ValidateMesh, then adjacency and measures. Returns ValidateMesh's INVALID_ARGUMENT for
-// an untrusted mesh that fails it, or CANCELLED.
+// ValidateMesh, then adjacency and measures (options.measure_faces where set). Returns
+// ValidateMesh's INVALID_ARGUMENT for an untrusted mesh that fails it, CANCELLED, the
+// measures function's error, or INTERNAL where it returns measures of another size.
 absl::StatusOr<PreparedMesh> PrepareMesh(TriangleMesh mesh, const PrepareMeshOptions& options = {});
 
 }  // namespace mlclust

@@ -7,21 +7,14 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "core/base/status_macros.h"
 
 namespace mlclust {
 namespace {
 
 // Everything ValidateMesh checks except manifoldness: what cannot be repaired in place.
 absl::Status CheckRepairable(const TriangleMesh& mesh) {
-  if (mesh.positions.size() % 3 != 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("positions hold ", mesh.positions.size(), " floats, not a multiple of 3"));
-  }
-  if (mesh.indices.size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "indices hold ", mesh.indices.size(), " values, not a multiple of 3 (triangles only)"));
-  }
-  if (mesh.num_faces() == 0) return absl::InvalidArgumentError("empty mesh: it has no faces");
+  MLCLUST_RETURN_IF_ERROR(CheckMeshArrays(mesh));
   // Repair adds at most two copies per corner, so the vertex count is bounded by
   // vertices + 3 faces.
   if (mesh.num_faces() > kMaxMeshElements ||
@@ -30,7 +23,7 @@ absl::Status CheckRepairable(const TriangleMesh& mesh) {
         "mesh too large to repair: ", mesh.num_faces(), " faces and ", mesh.num_vertices(),
         " vertices; at most ", kMaxMeshElements, " vertices after splitting"));
   }
-  if (absl::Status indices = CheckVertexIndices(mesh); !indices.ok()) return indices;
+  MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   for (size_t face = 0; face < mesh.num_faces(); ++face) {
     const uint32_t* f = &mesh.indices[3 * face];
     if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) {
@@ -76,7 +69,7 @@ class Corners {
 }  // namespace
 
 absl::StatusOr<MeshRepairResult> RepairNonManifold(const TriangleMesh& mesh) {
-  if (absl::Status status = CheckRepairable(mesh); !status.ok()) return status;
+  MLCLUST_RETURN_IF_ERROR(CheckRepairable(mesh));
   const size_t num_faces = mesh.num_faces();
   const size_t num_corners = 3 * num_faces;
   const uint32_t* indices = mesh.indices.data();

@@ -1,5 +1,5 @@
 // Point sets: m points in d dimensions, float32, row-major (point i is values[i*d .. i*d+d)).
-// A point's index is its id on the wire and in every output.
+// A point's index is its id (PointId, core/base/ids.h) on the wire and in every output.
 #ifndef MLCLUST_CORE_POINTS_POINTS_H_
 #define MLCLUST_CORE_POINTS_POINTS_H_
 
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "core/base/ids.h"
 
 namespace mlclust {
 
@@ -17,6 +18,9 @@ struct PointSet {
   std::vector<float> values;  // num_points() * dims floats
 
   size_t num_points() const { return dims == 0 ? 0 : values.size() / dims; }
+  // Point `id`'s `dims` coordinates (ids are 0 .. num_points() - 1).
+  std::span<const float> point(PointId id) const { return point(size_t{id.value()}); }
+  // The same by raw index, for loops over 0 .. num_points() - 1.
   std::span<const float> point(size_t i) const { return {values.data() + i * dims, dims}; }
 };
 

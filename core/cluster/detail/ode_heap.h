@@ -21,10 +21,13 @@
 #include <limits>
 #include <vector>
 
+#include "core/base/ids.h"
+
 namespace mlclust::detail {
 
-// "No cluster": a cluster without an ODE (no neighbour left).
-inline constexpr uint32_t kNoCluster = 0xffffffffu;
+// "No cluster": a cluster without an ODE (no neighbour left). ClusterId's one sentinel
+// (core/base/ids.h), named for the raw indices of the engine's tables.
+inline constexpr uint32_t kNoCluster = ClusterId::kInvalidValue;
 
 // Whether the dual edge to `candidate` at `cost` beats the best so far (`best_partner` at
 // `best_cost`; kNoCluster when there is none yet): cheaper, or as cheap and to a larger

@@ -124,29 +124,30 @@ TriangleMesh ShuffledGrid() {
   return shuffled;
 }
 
-std::string ToOff(const TriangleMesh& mesh) {
-  std::string out = absl::StrCat("OFF\n", mesh.num_vertices(), " ", mesh.num_faces(), " 0\n");
+// The vertex lines ("PREFIX x y z") and the triangle lines ("PREFIX a b c", indices from
+// `first_index`) of the text formats below.
+void AppendVerticesAndTriangles(const TriangleMesh& mesh, const char* vertex_prefix,
+                                const char* face_prefix, uint32_t first_index, std::string& out) {
   for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-    absl::StrAppendFormat(&out, "%.9g %.9g %.9g\n", mesh.positions[3 * v],
+    absl::StrAppendFormat(&out, "%s%.9g %.9g %.9g\n", vertex_prefix, mesh.positions[3 * v],
                           mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
   }
   for (size_t f = 0; f < mesh.num_faces(); ++f) {
-    absl::StrAppend(&out, "3 ", mesh.indices[3 * f], " ", mesh.indices[3 * f + 1], " ",
-                    mesh.indices[3 * f + 2], "\n");
+    absl::StrAppend(&out, face_prefix, mesh.indices[3 * f] + first_index, " ",
+                    mesh.indices[3 * f + 1] + first_index, " ",
+                    mesh.indices[3 * f + 2] + first_index, "\n");
   }
+}
+
+std::string ToOff(const TriangleMesh& mesh) {
+  std::string out = absl::StrCat("OFF\n", mesh.num_vertices(), " ", mesh.num_faces(), " 0\n");
+  AppendVerticesAndTriangles(mesh, "", "3 ", 0, out);
   return out;
 }
 
 std::string ToObj(const TriangleMesh& mesh) {
   std::string out = "# written by mesh_io_test\n";
-  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-    absl::StrAppendFormat(&out, "v %.9g %.9g %.9g\n", mesh.positions[3 * v],
-                          mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
-  }
-  for (size_t f = 0; f < mesh.num_faces(); ++f) {  // OBJ indices are 1-based.
-    absl::StrAppend(&out, "f ", mesh.indices[3 * f] + 1, " ", mesh.indices[3 * f + 1] + 1, " ",
-                    mesh.indices[3 * f + 2] + 1, "\n");
-  }
+  AppendVerticesAndTriangles(mesh, "v ", "f ", 1, out);  // OBJ indices are 1-based.
   return out;
 }
 
@@ -155,14 +156,7 @@ std::string ToPlyAscii(const TriangleMesh& mesh) {
       absl::StrCat("ply\nformat ascii 1.0\nelement vertex ", mesh.num_vertices(),
                    "\nproperty float x\nproperty float y\nproperty float z\nelement face ",
                    mesh.num_faces(), "\nproperty list uchar int vertex_indices\nend_header\n");
-  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-    absl::StrAppendFormat(&out, "%.9g %.9g %.9g\n", mesh.positions[3 * v],
-                          mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
-  }
-  for (size_t f = 0; f < mesh.num_faces(); ++f) {
-    absl::StrAppend(&out, "3 ", mesh.indices[3 * f], " ", mesh.indices[3 * f + 1], " ",
-                    mesh.indices[3 * f + 2], "\n");
-  }
+  AppendVerticesAndTriangles(mesh, "", "3 ", 0, out);
   return out;
 }
 

@@ -32,6 +32,53 @@ TEST(PrepareMeshTest, RefusesWhatValidateMeshRefuses) {
   EXPECT_EQ(prepared.status(), ValidateMesh(testing::BowTie()));
 }
 
+TEST(PrepareMeshTest, TakesItsMeasuresFromTheMeasuresFunction) {
+  const TriangleMesh grid = testing::Grid(4);
+  std::atomic<bool> cancel{false};
+  int calls = 0;
+  PrepareMeshOptions options;
+  options.cancel = &cancel;
+  // Another device's measures: here the CPU's with every area doubled, so they can be told
+  // apart from PrepareMesh's own.
+  options.measure_faces = [&](const TriangleMesh& mesh,
+                              const std::atomic<bool>* flag) -> absl::StatusOr<FaceMeasures> {
+    ++calls;
+    EXPECT_EQ(flag, &cancel);
+    EXPECT_EQ(mesh.indices, grid.indices);
+    FaceMeasures measures = ComputeFaceMeasures(mesh);
+    for (double& area : measures.area) area *= 2;
+    return measures;
+  };
+  absl::StatusOr<PreparedMesh> prepared = PrepareMesh(grid, options);
+  ASSERT_TRUE(prepared.ok()) << prepared.status();
+  EXPECT_EQ(calls, 1);
+  const FaceMeasures cpu = ComputeFaceMeasures(grid);
+  ASSERT_EQ(prepared->measures.num_faces(), cpu.num_faces());
+  for (size_t f = 0; f < cpu.num_faces(); ++f) {
+    EXPECT_EQ(prepared->measures.area[f], 2 * cpu.area[f]) << f;
+  }
+  EXPECT_EQ(prepared->adjacency.num_faces(), grid.num_faces());
+}
+
+TEST(PrepareMeshTest, ReturnsTheMeasuresFunctionsErrorAndChecksItsSize) {
+  const TriangleMesh grid = testing::Grid(3);
+  PrepareMeshOptions options;
+  options.measure_faces = [](const TriangleMesh& /*mesh*/,
+                             const std::atomic<bool>* /*cancel*/) -> absl::StatusOr<FaceMeasures> {
+    return absl::UnavailableError("no GPU today");
+  };
+  EXPECT_EQ(PrepareMesh(grid, options).status(), absl::UnavailableError("no GPU today"));
+  // Not called for a mesh that fails validation: ValidateMesh's error comes first.
+  EXPECT_EQ(PrepareMesh(testing::BowTie(), options).status(), ValidateMesh(testing::BowTie()));
+  options.measure_faces = [](const TriangleMesh& mesh,
+                             const std::atomic<bool>* /*cancel*/) -> absl::StatusOr<FaceMeasures> {
+    FaceMeasures measures = ComputeFaceMeasures(mesh);
+    measures.unit_normal.pop_back();
+    return measures;
+  };
+  EXPECT_EQ(PrepareMesh(grid, options).status().code(), absl::StatusCode::kInternal);
+}
+
 TEST(PrepareMeshTest, ReadsAFile) {
   absl::StatusOr<PreparedMesh> prepared = PrepareMeshFile(testing::DataPath("fandisk.off"));
   ASSERT_TRUE(prepared.ok()) << prepared.status();
