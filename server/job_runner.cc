@@ -374,50 +374,33 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   const bool gpu_measures =
       measures_stage != nullptr && measures_stage->device == StageDevice::kGpu;
   std::string device_used = "cpu";
-  PreparedMesh prepared;
-  if (!gpu_measures) {
-    // Decode (faces in the client's order where the payload carries face ids), then the one
-    // set-up path (core/mesh/prepared_mesh.h): validate, adjacency, measures.
-    PrepareMeshOptions options;
-    options.cancel = job.cancel_flag();
-    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
-    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
-    std::string().swap(job.input);  // the bytes are no longer needed
-    const bool face_ids = decoded->has_face_ids;
-    absl::StatusOr<PreparedMesh> ready = PrepareMesh(std::move(decoded->mesh), options);
-    if (!ready.ok()) return WithContext(ready.status(), "input mesh");
-    prepared = *std::move(ready);
-    EmitProgress(events, "measures",
-                 absl::StrCat(prepared.mesh.num_faces(), " faces, ", prepared.mesh.num_vertices(),
-                              " vertices; ",
-                              face_ids ? "faces put back in order by the face id attribute"
-                                       : "faces in the decoded order"),
-                 "cpu", 1);
-  } else {
-    // The measures on the GPU: PrepareMesh has no hook for its measures stage yet, so the
-    // steps are spelled out here.
-    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
-    if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
-    std::string().swap(job.input);
-    const bool face_ids = decoded->has_face_ids;
-    TriangleMesh mesh = std::move(decoded->mesh);
-    if (absl::Status valid = ValidateMesh(mesh); !valid.ok()) {
-      return WithContext(valid, "input mesh");
-    }
-    const std::string measures_note =
-        absl::StrCat(mesh.num_faces(), " faces, ", mesh.num_vertices(), " vertices; ",
-                     face_ids ? "faces put back in order by the face id attribute"
-                              : "faces in the decoded order");
-    EmitProgress(events, "measures", measures_note, StageDeviceName(*measures_stage, caps), 0);
-    absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-    if (!adjacency.ok()) return WithContext(adjacency.status(), "input mesh");
-    absl::StatusOr<FaceMeasures> measures = MeasureFaces(mesh, plan, context, device_used);
-    if (!measures.ok()) return measures.status();
-    EmitProgress(events, "measures", measures_note, device_used, 1);
-    prepared.mesh = std::move(mesh);
-    prepared.adjacency = *std::move(adjacency);
-    prepared.measures = *std::move(measures);
+  // Decode (faces in the client's order where the payload carries face ids), then the one
+  // set-up path (core/mesh/prepared_mesh.h): validate, adjacency, measures -- the measures
+  // on the device the plan's "measures" stage names.
+  absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
+  if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
+  std::string().swap(job.input);  // the bytes are no longer needed
+  const std::string measures_note = absl::StrCat(
+      decoded->mesh.num_faces(), " faces, ", decoded->mesh.num_vertices(), " vertices; ",
+      decoded->has_face_ids ? "faces put back in order by the face id attribute"
+                            : "faces in the decoded order");
+  PrepareMeshOptions options;
+  options.cancel = job.cancel_flag();
+  if (gpu_measures) {
+    options.measure_faces = [&](const TriangleMesh& mesh, const std::atomic<bool>* /*cancel*/) {
+      EmitProgress(events, "measures", measures_note, StageDeviceName(*measures_stage, caps), 0);
+      return MeasureFaces(mesh, plan, context, device_used);
+    };
   }
+  absl::StatusOr<PreparedMesh> ready = PrepareMesh(std::move(decoded->mesh), options);
+  if (!ready.ok()) {
+    // Errors of the GPU measures carry their own context ("face measures on the GPU: ...").
+    return gpu_measures && ready.status().code() != absl::StatusCode::kInvalidArgument
+               ? ready.status()
+               : WithContext(ready.status(), "input mesh");
+  }
+  PreparedMesh prepared = *std::move(ready);
+  EmitProgress(events, "measures", measures_note, device_used, 1);
   const size_t num_faces = prepared.mesh.num_faces();
   if (plan.clusters > num_faces) {
     return absl::InvalidArgumentError(absl::StrCat(
