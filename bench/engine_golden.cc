@@ -144,6 +144,20 @@ int main(int argc, char** argv) {
          o.pml_pairs = mlclust::PmlPairRule::kAll;
          o.optimizer = MultilevelOptions::Optimizer::kNone;
        }},
+      // Opt-in: parallel_optimisation (ours), face-order and independent application.
+      {"pml-half-until1000-rounds",
+       [](MultilevelOptions& o) {
+         o.parallel = true;
+         o.pml_until = 1000;
+         o.parallel_optimisation = true;
+       }},
+      {"pml-half-until1000-independent",
+       [](MultilevelOptions& o) {
+         o.parallel = true;
+         o.pml_until = 1000;
+         o.parallel_optimisation = true;
+         o.independent_moves = true;
+       }},
   };
   const std::vector<std::string> meshes =
       quick ? std::vector<std::string>{"fandisk"} : std::vector<std::string>{"fandisk", "bunny00"};

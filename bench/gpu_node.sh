@@ -18,8 +18,13 @@
 #   brute-force k-means (ours, GPU assignment) on the same points and k, per iteration, and
 #     the PyTorch peer (bench/peers/torch_kmeans.py: chunked cdist + argmin) where torch
 #     with CUDA is installed                                        -> issue: LN faster
-# Not taken yet, because the GPU stages do not exist yet: PML/ML hierarchies on the GPU,
-# meshlet-sized levels, ML for points on the GPU (issue 10's other rows).
+#   PML full hierarchy for meshes, merges only, CVD, pair rules all and cheaper-half, on
+#     bunny00, armadillo and armadillo_1m: the GPU's levels (gpu/stages/multilevel_gpu.h)
+#     against the CPU engine's PML on $THREADS cores, same levels checked per level
+#     (bench/pml_gpu_bench)                                         -> issue: 1M faces < 1 s
+# Not taken yet, because the GPU stages do not exist yet: PML with local optimisation and
+# ML/HC hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+# other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
@@ -67,4 +72,49 @@ if /usr/bin/env python3 -c "import torch, sys; sys.exit(0 if torch.cuda.is_avail
 else
   echo "# torch with CUDA not available: the PyTorch peer was not run" | tee -a "$out"
 fi
+# PML full hierarchy (merges only, CVD): GPU vs the CPU engine's PML on $THREADS cores.
+if [ -x "$BIN/pml_gpu_bench" ]; then
+  if [ "$quick" = 1 ]; then
+    pml_meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  else
+    pml_meshes=(data/bench/bunny00.off data/bench/armadillo.off data/bench/armadillo_1m.off)
+  fi
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    for pairs in all cheaper-half; do
+      "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --threads "$THREADS" --repeats 3 $header |
+        tee -a "$out"
+      header=
+    done
+  done
+  # For context: the CPU's PML as jobs run it by default (EMLO after each level), which the
+  # GPU does not do yet (merges only).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    "$BIN/pml_cpu_bench" "$mesh" --algo pml --optimizer emlo --threads "$THREADS" $header |
+      tee -a "$out"
+    header=
+  done
+else
+  echo "# $BIN/pml_gpu_bench missing: the PML rows were not taken" | tee -a "$out"
+fi
 echo "wrote $out"
+
+# ---------------------------------------------------------------------------------------
+# Meshlet-sized patches (helper "meshlets"; BENCHMARKS.md "Meshlet-sized patches: ours
+# against meshoptimizer and METIS"): K = faces / 124 on bunny00, armadillo and armadillo_1m,
+# ours (BB preset patches) against meshopt_buildMeshlets and METIS k-way, with ML's energy
+# at K. CPU only (the patches have no GPU stage): the row for a 16-core node. The peers are
+# compiled in where libmeshoptimizer-dev and libmetis-dev were found at build time
+# (scripts/install-deps.sh --bench); without them the table has ours alone.
+if [ -x "$BIN/meshlets_bench" ]; then
+  meshlets_out="bench/results/meshlets_$(hostname -s).csv"
+  [ "$quick" = 1 ] && meshlets_out="bench/results/meshlets_quick.csv"
+  meshlets_meshes=(data/bench/bunny00.off data/bench/armadillo.off data/bench/armadillo_1m.off)
+  [ "$quick" = 1 ] && meshlets_meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc) threads=$THREADS" \
+    | tee -a "$meshlets_out"
+  "$BIN/meshlets_bench" "${meshlets_meshes[@]}" --repeats 5 --threads "$THREADS" \
+    --sweeps 4,6,8 --ml --header | tee -a "$meshlets_out"
+  echo "wrote $meshlets_out"
+fi

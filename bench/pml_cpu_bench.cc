@@ -2,12 +2,14 @@
 // level with at most k clusters, and the energy there.
 //
 //   pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] [--energy cvd|planar]
-//                 [--optimizer emlo|bb|none] [--parallel-optimisation] [--at 1000]
+//                 [--optimizer emlo|bb|none] [--parallel-optimisation]
+//                 [--independent-moves] [--at 1000] [--stop-at K]
 //                 [--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]
 //
 // Prints one CSV row (best total time of R runs; the energy is the same in every run):
 // mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,threads,
 // seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k
+// (parallel_optimisation: 0 off, 1 rounds, 2 rounds with --independent-moves)
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -53,16 +55,20 @@ int main(int argc, char** argv) {
   mlclust::bench::Args args(
       argc, argv,
       "usage: pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] "
-      "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] [--at K] "
+      "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] "
+      "[--independent-moves] [--at K] [--stop-at K] "
       "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]");
   const bool header = args.Flag("header");
   const bool parallel_optimisation = args.Flag("parallel-optimisation");
+  const bool independent_moves = args.Flag("independent-moves");
   const std::string algo = args.Get<std::string>("algo", "ml");
   const uint32_t pml_until = args.Get<uint32_t>("pml-until", 0);
   const int threads = args.Get<int>("threads", 0);
   const std::string energy_name = args.Get<std::string>("energy", "cvd");
   const std::string optimizer = args.Get<std::string>("optimizer", "emlo");
   const uint32_t k = args.Get<uint32_t>("at", 1000);
+  // The lowest level to compute (min_clusters; 1 = the whole hierarchy).
+  const uint32_t stop_at = args.Get<uint32_t>("stop-at", 1);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const double p_percent = args.Get<double>("p-percent", 0.0);
   const std::string p_rule = args.Get<std::string>("p-rule", "sweep");
@@ -83,6 +89,8 @@ int main(int argc, char** argv) {
   options.pml_until = pml_until;
   options.threads = threads;
   options.parallel_optimisation = parallel_optimisation;
+  options.independent_moves = independent_moves;
+  options.min_clusters = stop_at;
   options.p_percent = p_percent;
   if (p_rule == "hc-first") {
     options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
@@ -118,7 +126,7 @@ int main(int argc, char** argv) {
   const std::string name = path.substr(path.find_last_of('/') + 1);
   std::printf("%s,%zu,%s,%s,%s,%d,%g,%s,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g\n", name.c_str(),
               prepared.mesh.num_faces(), algo.c_str(), energy_name.c_str(), optimizer.c_str(),
-              parallel_optimisation ? 1 : 0, p_percent, p_rule.c_str(), pml_until, threads, best,
-              best_to_k, levels, k, clusters_at_k, energy_at_k);
+              parallel_optimisation ? (independent_moves ? 2 : 1) : 0, p_percent, p_rule.c_str(),
+              pml_until, threads, best, best_to_k, levels, k, clusters_at_k, energy_at_k);
   return 0;
 }

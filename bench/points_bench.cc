@@ -2,9 +2,11 @@
 // float32 with --dims: the files bench/points_data.py writes, which the Python peers read).
 //   points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K]
 //                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
-//                [--input FILE [--dims D]] [--until K] [--curve CSV]
+//                [--input FILE [--dims D]] [--until K] [--curve CSV] [--fingerprint 1]
 // --until K stops the hierarchy at K clusters (for time per step at high d); --curve writes
-// every level's clusters,energy. --cancel-after S sets the options' cancel flag S seconds
+// every level's clusters,energy. --fingerprint 1 prints on stderr a 64-bit FNV-1a hash over
+// every level's cluster count, energy bits and triplets (as bench/engine_golden does), to
+// compare two builds on large sets. --cancel-after S sets the options' cancel flag S seconds
 // into the clustering (after the set-up) and reports on stderr how long the call took to
 // return after it (then exits).
 // Prints one CSV row:
@@ -13,8 +15,10 @@
 // steps: levels of the hierarchy or iterations; energy: at the first level with at most k
 // clusters, or of the k-means result.
 #include <algorithm>
+#include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "absl/strings/numbers.h"
@@ -28,7 +32,50 @@
 
 namespace {
 
-using CurveSink = mlclust::bench::CurveSink;
+// The curve, and with `hash` set an FNV-1a hash over every level (counts, energy bits,
+// start labels and triplets).
+class CurveSink : public mlclust::bench::CurveSink {
+ public:
+  explicit CurveSink(bool hash) : hash_(hash) {}
+  absl::Status OnStart(std::span<const mlclust::ClusterId> labels, uint32_t count,
+                       double energy) override {
+    if (hash_) {
+      for (mlclust::ClusterId c : labels) Mix(c.value());
+      Mix(count);
+      MixDouble(energy);
+    }
+    return mlclust::bench::CurveSink::OnStart(labels, count, energy);
+  }
+  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    if (hash_) {
+      Mix(level.cluster_count);
+      MixDouble(level.energy);
+      Mix(level.element.size());
+      for (size_t i = 0; i < level.element.size(); ++i) {
+        Mix(level.element[i]);
+        Mix(level.to_cluster[i]);
+        Mix(level.from_cluster[i]);
+      }
+    }
+    return mlclust::bench::CurveSink::OnLevel(level);
+  }
+  uint64_t hash() const { return state_; }
+
+ private:
+  void Mix(uint64_t value) {
+    for (int b = 0; b < 8; ++b) {
+      state_ ^= (value >> (8 * b)) & 0xff;
+      state_ *= 1099511628211ull;
+    }
+  }
+  void MixDouble(double value) {
+    uint64_t bits = 0;
+    std::memcpy(&bits, &value, sizeof bits);
+    Mix(bits);
+  }
+  bool hash_;
+  uint64_t state_ = 14695981039346656037ull;
+};
 
 // Blobs: centres uniform in [-25, 25]^d, sigma 1, each point from a random centre.
 mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
@@ -55,7 +102,7 @@ int main(int argc, char** argv) {
   std::string algo = "ml", input, init = "kmeans++", curve;
   uint64_t m = 100000, seed = 1;
   uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1;
-  int threads = 0;
+  int threads = 0, fingerprint = 0;
   double cancel_after = -1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string arg = argv[i], value = argv[i + 1];
@@ -88,6 +135,8 @@ int main(int argc, char** argv) {
       ok = absl::SimpleAtod(value, &cancel_after);
     else if (arg == "--curve")
       curve = value;
+    else if (arg == "--fingerprint")
+      ok = absl::SimpleAtoi(value, &fingerprint);
     else
       ok = false;
     if (!ok || (init != "kmeans++" && init != "random")) {
@@ -174,7 +223,7 @@ int main(int argc, char** argv) {
     options.min_clusters = until;
     options.parallel = algo == "pml";
     if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
-    CurveSink sink;
+    CurveSink sink(fingerprint != 0);
     mlclust::bench::CancelTimer cancel(cancel_after);
     options.cancel = cancel.flag();
     auto summary = mlclust::RunPointMultilevel(points, options, sink);
@@ -185,6 +234,10 @@ int main(int argc, char** argv) {
     if (!summary.ok()) {
       std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
       return 1;
+    }
+    if (fingerprint != 0) {
+      std::fprintf(stderr, "fingerprint levels=%zu hash=%016" PRIx64 "\n", sink.counts.size(),
+                   sink.hash());
     }
     steps = summary->levels;
     used_grid = summary->grid;

@@ -84,9 +84,13 @@ constexpr char kMeshUsage[] = R"(
                        changed); face ids stay the input's
       --plot FILE.png  the energy of every level received against its clusters, elbows
                        (section 4.4) marked
-      --per-polygon    OFF/OBJ input with quads or n-gons: each polygon goes to the cluster of
-                       most of its area (ours: a post-pass over the triangles' clustering,
-                       the energy recomputed); --labels writes one line per polygon
+      --per-polygon    OFF/OBJ input with quads or n-gons: a polygon's triangles stay in one
+                       cluster and --labels writes one line per polygon. ml, hc, pml, emlo
+                       and bb cluster whole polygons on the server (ours:
+                       JobSpec.polygon_triangle_counts, on the CPU); other algorithms, or a
+                       server that splits polygons (one older than that field), get a
+                       post-pass: each polygon to the cluster of most of its area, the
+                       energy recomputed
       --upload sequential|edgebreaker|auto  how the mesh travels (Draco). sequential
                        (default) keeps the face order by itself. edgebreaker carries a
                        per-face id attribute, by which the server puts the faces back in
@@ -917,10 +921,15 @@ int Mesh(const Arguments& args) {
         "--clusters: ", *clusters, " is more than the mesh's ", mesh->num_faces(), " faces")));
   }
   std::vector<uint32_t> polygon_triangles;  // --per-polygon: triangles of each polygon
+  bool polygons_sent = false;               // --per-polygon: the server clusters whole polygons
   if (args.has("per-polygon")) {
     absl::StatusOr<std::vector<uint32_t>> counts = client::ReadPolygonTriangleCounts(input_path);
     if (!counts.ok()) return Fail(counts.status());
     polygon_triangles = *std::move(counts);
+    polygons_sent = client::ServerClustersPolygons((*algorithm)->name);
+    if (polygons_sent) {
+      for (uint32_t count : polygon_triangles) spec.add_polygon_triangle_counts(count);
+    }
   }
   // --repair: the mesh sent (and coarsened) has its non-manifold edges and vertices split;
   // faces keep their ids, so labels, --ply (the input's vertices) and --plot are unchanged.
@@ -1046,16 +1055,33 @@ int Mesh(const Arguments& args) {
       const double energy =
           WithMeshEnergy(*energy_options, prepared->mesh, prepared->measures,
                          [&](const auto& e) { return EnergyFromProxies(e, labels_now); });
+      // No polygon split: the server clustered whole polygons; otherwise this was the
+      // post-pass (an algorithm the server runs per triangle only, or an older server).
+      const bool in_algorithms = polygons_sent && polygons->split_polygons == 0;
+      if (polygons_sent && !in_algorithms) {
+        std::fprintf(stderr,
+                     "mlclust: --per-polygon: the server split %u polygons (it predates "
+                     "JobSpec.polygon_triangle_counts); each went to the cluster of most of "
+                     "its area instead\n",
+                     polygons->split_polygons);
+      }
       absl::StrAppend(&post_pass_json, R"(, "per_polygon": {"polygons": )",
-                      polygon_triangles.size(), ", \"split_polygons\": ", polygons->split_polygons,
+                      polygon_triangles.size(),
+                      ", \"in_algorithms\": ", in_algorithms ? "true" : "false",
+                      ", \"split_polygons\": ", polygons->split_polygons,
                       ", \"clusters\": ", *std::max_element(compact.begin(), compact.end()) + 1,
                       ", \"energy\": ", JsonNumber(energy), "}");
+      const uint32_t polygon_clusters = *std::max_element(compact.begin(), compact.end()) + 1;
       merge_note = absl::StrCat(
           merge_note,
-          absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the cluster "
-                          "of most of their area: %u clusters, energy %.10g",
-                          polygon_triangles.size(), polygons->split_polygons,
-                          *std::max_element(compact.begin(), compact.end()) + 1, energy));
+          in_algorithms
+              ? absl::StrFormat("; per polygon: %zu polygons, each one element of the "
+                                "clustering (none split): %u clusters, energy %.10g",
+                                polygon_triangles.size(), polygon_clusters, energy)
+              : absl::StrFormat("; per polygon: %zu polygons, %u were split and went to the "
+                                "cluster of most of their area: %u clusters, energy %.10g",
+                                polygon_triangles.size(), polygons->split_polygons,
+                                polygon_clusters, energy));
     }
     if (args.has("labels")) {
       if (absl::Status s = WriteLabels(args.get("labels"), written); !s.ok()) return Fail(s);

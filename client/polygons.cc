@@ -113,6 +113,11 @@ absl::StatusOr<std::vector<uint32_t>> ReadPolygonTriangleCounts(const std::strin
   return counts;
 }
 
+bool ServerClustersPolygons(const std::string& algorithm) {
+  return algorithm == "ml" || algorithm == "hc" || algorithm == "pml" || algorithm == "emlo" ||
+         algorithm == "bb";
+}
+
 absl::StatusOr<PolygonLabels> LabelsPerPolygon(const TriangleMesh& mesh,
                                                std::span<const uint32_t> triangle_counts,
                                                std::span<const ClusterId> face_labels) {

@@ -3,9 +3,13 @@
 // the triangles of polygon p are a run of consecutive face ids, and a clustering of the
 // triangles can be read back per polygon.
 //
-// Ours, a post-pass: the clustering runs on the triangles; each polygon then goes to the
-// cluster holding most of its area (ties to the smaller cluster id), so a polygon's
-// triangles end in one cluster. The energy of the result is recomputed from its labels.
+// The client sends the counts (JobSpec.polygon_triangle_counts) for the algorithms that
+// cluster whole polygons on the server (ServerClustersPolygons); their levels never split
+// a polygon. The fallback, ours, a post-pass for the other algorithms and for a server
+// older than that field (it then splits polygons): the clustering runs on the triangles;
+// each polygon then goes to the cluster holding most of its area (ties to the smaller
+// cluster id), so a polygon's triangles end in one cluster. The energy of the result is
+// recomputed from its labels.
 #ifndef MLCLUST_CLIENT_POLYGONS_H_
 #define MLCLUST_CLIENT_POLYGONS_H_
 
@@ -28,6 +32,10 @@ namespace mlclust::client {
 // Other formats: UNIMPLEMENTED (their readers do not report polygons yet). The caller
 // checks the total against the mesh read (LabelsPerPolygon).
 absl::StatusOr<std::vector<uint32_t>> ReadPolygonTriangleCounts(const std::string& path);
+
+// Whether the server clusters whole polygons for `algorithm` (a registry name): ml, hc,
+// pml, emlo and bb (core/mesh/polygons.h).
+bool ServerClustersPolygons(const std::string& algorithm);
 
 struct PolygonLabels {
   std::vector<ClusterId> per_polygon;  // one per polygon

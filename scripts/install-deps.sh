@@ -47,6 +47,14 @@ if [ "${1:-}" = "--bench" ]; then
   # the Python peers run under Debian's /usr/bin/python3)
   packages+=(libcgal-dev libcgal-demo python3-numpy python3-matplotlib
              python3-sklearn python3-fastcluster python3-faiss)
+  # the meshlet peers of bench/peers/meshlets_bench.cc: meshopt_buildMeshlets and METIS k-way
+  packages+=(libmeshoptimizer-dev libmetis-dev)
+fi
+
+# The Node example and its test (examples/node, tests/e2e/node_client_test.sh): Debian 12's
+# nodejs 18 and npm 9, unless a node with its own npm is there already.
+if ! command -v node > /dev/null || ! command -v npm > /dev/null; then
+  packages+=(nodejs npm)
 fi
 
 missing=()

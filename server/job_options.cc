@@ -22,6 +22,24 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
   request.seed = spec.seed();
   for (const auto& [name, value] : spec.options()) request.options.emplace_back(name, value);
   MLCLUST_ASSIGN_OR_RETURN(request.device, ParseDeviceChoice(spec.device()));
+  if (spec.polygon_triangle_counts_size() > 0) {
+    // Per-polygon clustering (issue 13): the CPU drivers of these algorithms only.
+    const std::string& name = request.algorithm->name;
+    if (input != InputKind::kMesh) {
+      return absl::InvalidArgumentError("polygon_triangle_counts: only for meshes");
+    }
+    if (name != "ml" && name != "hc" && name != "pml" && name != "emlo" && name != "bb") {
+      return absl::InvalidArgumentError(
+          absl::StrCat("polygon_triangle_counts: per-polygon clustering runs ml, hc, pml, emlo "
+                       "and bb, not ",
+                       name));
+    }
+    if (request.device == DeviceChoice::kGpu) {
+      return absl::InvalidArgumentError(
+          "polygon_triangle_counts: per-polygon clustering runs on the CPU (device 'gpu' asked)");
+    }
+    request.device = DeviceChoice::kCpu;
+  }
   return PlanJob(request);
 }
 

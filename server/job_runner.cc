@@ -23,6 +23,7 @@
 #include "core/io/prepare_mesh.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
+#include "core/mesh/polygons.h"
 #include "core/points/points.h"
 #include "server/job_options.h"
 #include "server/preview.h"
@@ -422,6 +423,23 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", plan.clusters, " is more than the mesh's ", num_faces, " faces"));
   }
+  // Per-polygon clustering (JobSpec.polygon_triangle_counts, issue 13).
+  std::optional<MeshPolygons> polygons;
+  if (spec.polygon_triangle_counts_size() > 0) {
+    absl::StatusOr<MeshPolygons> made =
+        MakeMeshPolygons(std::span<const uint32_t>(spec.polygon_triangle_counts().data(),
+                                                   spec.polygon_triangle_counts().size()),
+                         prepared.adjacency);
+    if (!made.ok()) return WithContext(made.status(), "spec.polygon_triangle_counts");
+    polygons = *std::move(made);
+    if (plan.clusters > polygons->num_polygons()) {
+      return absl::InvalidArgumentError(absl::StrCat("clusters: ", plan.clusters,
+                                                     " is more than the mesh's ",
+                                                     polygons->num_polygons(), " polygons"));
+    }
+    EmitProgress(events, "measures",
+                 absl::StrCat(polygons->num_polygons(), " polygons: each one element"), "cpu", 1);
+  }
 
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
   // The preview (JobSpec.preview) follows every level to the one it draws.
@@ -432,8 +450,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
     preview_levels.emplace(spec.preview().cluster_count());
     run_sink = &with_preview.emplace(sink, *preview_levels);
   }
-  const MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures,
-                            plan.mesh_energy};
+  MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures, plan.mesh_energy};
+  if (polygons.has_value()) problem.polygons = &*polygons;
   absl::StatusOr<RunSummary> summary =
       plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps, devices));
   if (!summary.ok()) return summary.status();

@@ -74,8 +74,9 @@ void FitProxies(const Partition<Energy>& partition, std::vector<typename Energy:
 // if that cost is below the face's cost against its own proxy by more than rounding
 // (1e-12 relative); kNoMove otherwise. A device decide stage must give the same answer
 // (up to its arithmetic).
-template <typename Energy>
-uint32_t DecideBoundaryMove(const Energy& energy, const FaceAdjacency& adjacency,
+// `adjacency` is a FaceAdjacency or the polygons' PolygonAdjacency (core/mesh/polygons.h).
+template <typename Energy, typename Adjacency = FaceAdjacency>
+uint32_t DecideBoundaryMove(const Energy& energy, const Adjacency& adjacency,
                             std::span<const uint32_t> labels,
                             std::span<const typename Energy::Proxy> proxies, uint32_t face) {
   const uint32_t own = labels[face];
@@ -98,11 +99,10 @@ uint32_t DecideBoundaryMove(const Energy& energy, const FaceAdjacency& adjacency
 // Stage 2 on the CPU: target[f] = DecideBoundaryMove(f) for every face, in parallel.
 // The shape every decide stage has:
 //   absl::Status operator()(labels, proxies, target)   (target.size() == faces)
-template <typename Energy>
+template <typename Energy, typename Adjacency = FaceAdjacency>
 class CpuBoundaryDecider {
  public:
-  CpuBoundaryDecider(const Energy& energy, const FaceAdjacency& adjacency,
-                     const StageThreads& threads)
+  CpuBoundaryDecider(const Energy& energy, const Adjacency& adjacency, const StageThreads& threads)
       : energy_(energy), adjacency_(adjacency), threads_(threads) {}
 
   absl::Status operator()(std::span<const uint32_t> labels,
@@ -119,7 +119,7 @@ class CpuBoundaryDecider {
 
  private:
   const Energy& energy_;
-  const FaceAdjacency& adjacency_;
+  const Adjacency& adjacency_;
   const StageThreads& threads_;
 };
 
@@ -282,6 +282,10 @@ absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedWith(const MeshProblem& prob
                                                          const BoundaryBasedOptions& options,
                                                          MakeDecide&& make_decide) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  if (problem.polygons != nullptr) {
+    // OptimizeBoundaryBased runs polygons on the CPU (a device decide stage is per face).
+    return absl::InvalidArgumentError("polygons: BB with a device decide stage is per triangle");
+  }
   const size_t n = problem.mesh->num_faces();
   if (labels.size() != n) {
     return absl::InvalidArgumentError(

@@ -15,8 +15,10 @@
 #include "core/base/ids.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/mesh_clustering.h"
+#include "core/cluster/multilevel.h"
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
+#include "core/hierarchy/hierarchy.h"
 #include "core/points/points.h"
 
 namespace mlclust {
@@ -41,6 +43,18 @@ class DeviceStages {
   // device's errors.
   virtual absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
                                                 const KmeansOptions& options) = 0;
+
+  // RunMultilevel (multilevel.h) for PML with its levels on the device (merges only, the
+  // energies the device has: gpu/stages/multilevel_gpu.h); same contract, plus the
+  // device's errors. UNIMPLEMENTED where the device has none (the default).
+  virtual absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
+                                                          const MultilevelOptions& options,
+                                                          LevelSink& sink) {
+    (void)problem;
+    (void)options;
+    (void)sink;
+    return absl::UnimplementedError("PML levels on this device");
+  }
 };
 
 }  // namespace mlclust

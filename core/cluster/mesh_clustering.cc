@@ -12,6 +12,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/boundary_based.h"
 #include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/detail/polygon_energy.h"
 #include "core/cluster/partition.h"
 #include "core/mesh/connectivity_guard.h"
 
@@ -28,8 +29,8 @@ constexpr uint32_t kFacesPerCancelCheck = 16384;
 // Alg. 2.2's flood: each seed's proxy is fitted to the seed face; faces join the region
 // whose proxy fits them best among regions that reach them, cheapest first.
 // Empty if `cancel` was seen set (checked every kFacesPerCancelCheck faces).
-template <typename Energy>
-std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& adjacency,
+template <typename Energy, typename Adjacency>
+std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const Adjacency& adjacency,
                                     std::span<const uint32_t> seeds,
                                     const std::atomic<bool>* cancel) {
   using Proxy = typename Energy::Proxy;
@@ -76,8 +77,8 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const FaceAdjacency& a
 // The initial cluster grow of l. 671 and l. 1219: no energy; in rounds, every cluster in
 // seed order takes the free faces across its boundary (the faces it took last round are
 // its boundary's inner side). Empty if `cancel` was seen set.
-std::vector<uint32_t> GrowEnergyFree(const FaceAdjacency& adjacency,
-                                     std::span<const uint32_t> seeds,
+template <typename Adjacency>
+std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const uint32_t> seeds,
                                      const std::atomic<bool>* cancel) {
   std::vector<uint32_t> labels(adjacency.num_faces(), kUnassigned);
   std::vector<std::vector<uint32_t>> frontier(seeds.size());
@@ -136,8 +137,15 @@ std::vector<uint32_t> Grow(const MeshProblem& problem, std::span<const uint32_t>
 // three original clusters" (the first face around that vertex; for a pair, the face whose
 // edge joined them).
 // Empty if `cancel` was seen set.
-std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
-                                const FaceMeasures& measures, std::vector<uint32_t> labels,
+//
+// Over any elements (faces, or polygons with problem.polygons): `element_area` and
+// `labels` one per element, `element_of_face(f)` the element of face f and
+// `for_each_vertex(e, fn)` fn(v) for the vertices of element e; seeds are elements.
+template <typename Adjacency, typename ElementOfFace, typename ForEachVertex>
+std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const Adjacency& adjacency,
+                                std::span<const double> element_area,
+                                const ElementOfFace& element_of_face,
+                                const ForEachVertex& for_each_vertex, std::vector<uint32_t> labels,
                                 uint32_t clusters, uint32_t target, const std::atomic<bool>* cancel,
                                 std::vector<uint32_t>* seed_faces = nullptr) {
   std::vector<uint32_t> parent(clusters);
@@ -149,7 +157,7 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
   std::vector<double> area(clusters, 0.0);
   std::vector<std::vector<uint32_t>> members(clusters);
   for (uint32_t f = 0; f < labels.size(); ++f) {
-    area[labels[f]] += measures.area[f];
+    area[labels[f]] += element_area[f];
     members[labels[f]].push_back(f);
   }
   // Distinct clusters around each vertex, from its faces.
@@ -159,7 +167,7 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
     int count = 0;
     for (uint32_t face : table.faces_around(v)) {
       if (count == 4) break;
-      const uint32_t c = find(labels[face]);
+      const uint32_t c = find(labels[element_of_face(face)]);
       if (std::find(out, out + count, c) == out + count) out[count++] = c;
     }
     return count;
@@ -200,11 +208,9 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const FaceAdjacency& a
     }
     uint32_t keep = merge_into(around[0], around[1]);
     keep = merge_into(keep, around[2]);
-    if (seed_faces != nullptr) (*seed_faces)[keep] = table.faces_around(v)[0];
+    if (seed_faces != nullptr) (*seed_faces)[keep] = element_of_face(table.faces_around(v)[0]);
     count -= 2;
-    for (uint32_t f : members[keep]) {
-      for (int c = 0; c < 3; ++c) consider(mesh.indices[3 * size_t{f} + c]);
-    }
+    for (uint32_t f : members[keep]) for_each_vertex(f, consider);
   }
   // Pairs: the last step for parity, or all steps where no vertex joins three clusters.
   while (count > target) {
@@ -336,8 +342,10 @@ void WriteBack(std::span<const uint32_t> compact_labels, std::span<const Cluster
 
 namespace {
 
-// Alg. 3.1; false (and `seeds` unspecified) if `cancel` was seen set.
-bool LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level,
+// Alg. 3.1 (over faces, or polygons); false (and `seeds` unspecified) if `cancel` was seen
+// set.
+template <typename Adjacency>
+bool LNeighbourhoodSeeds(const Adjacency& adjacency, uint32_t level,
                          const std::atomic<bool>* cancel, std::vector<uint32_t>& seeds) {
   const size_t n = adjacency.num_faces();
   seeds.clear();
@@ -378,43 +386,114 @@ bool LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level,
 
 }  // namespace
 
-MeshProblem MakeMeshProblem(const PreparedMesh& prepared, const MeshEnergyOptions& energy) {
-  return {&prepared.mesh, &prepared.adjacency, &prepared.measures, energy};
-}
+namespace {
 
-absl::Status ValidateMeshProblem(const MeshProblem& problem) {
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+// The faces as InitialElementClusters' elements.
+struct TriangleElements {
+  const MeshProblem& problem;
+  const SeedOptions& options;
+  const FaceAdjacency& adjacency() const { return *problem.adjacency; }
+  const char* noun() const { return "faces"; }
+  uint32_t Components(std::vector<uint32_t>& component) const {
+    return LabelFaceComponents(*problem.adjacency, component);
   }
-  if (problem.adjacency->num_faces() != problem.mesh->num_faces() ||
-      problem.measures->num_faces() != problem.mesh->num_faces()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("adjacency (", problem.adjacency->num_faces(), " faces) or measures (",
-                     problem.measures->num_faces(), " faces) do not match the mesh (",
-                     problem.mesh->num_faces(), " faces)"));
+  std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
+    return mlclust::Grow(problem, seeds, options.growth, options.cancel);
   }
-  return ValidateMeshEnergyOptions(problem.energy);
-}
+  std::vector<uint32_t> Reduce(std::vector<uint32_t> labels, uint32_t clusters, uint32_t target,
+                               std::vector<uint32_t>* seeds) const {
+    return ReduceToK(
+        *problem.mesh, *problem.adjacency, problem.measures->area, [](uint32_t f) { return f; },
+        [&](uint32_t f, const auto& fn) {
+          for (int c = 0; c < 3; ++c) fn(problem.mesh->indices[3 * size_t{f} + c]);
+        },
+        std::move(labels), clusters, target, options.cancel, seeds);
+  }
+  std::vector<uint32_t> AddSeedsAndGrow(std::vector<uint32_t> seeds, uint32_t target) const {
+    return mlclust::AddSeedsAndGrow(problem, std::move(seeds), target, options.growth,
+                                    options.cancel);
+  }
+};
 
-std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
-  std::vector<uint32_t> seeds;
-  LNeighbourhoodSeeds(adjacency, level, nullptr, seeds);
-  return std::vector<FaceId>(seeds.begin(), seeds.end());
-}
+// The polygons (problem.polygons) as InitialElementClusters' elements: the same seeding
+// on the polygons' dual graph, growth with the polygon energy, and the reduction's
+// vertices those of a polygon's triangles. No seed adding (refused before).
+struct PolygonElements {
+  const MeshProblem& problem;
+  const SeedOptions& options;
+  std::vector<double> area;  // per polygon
 
-absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
-                                                       const SeedOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
-  const FaceAdjacency& adjacency = *problem.adjacency;
+  PolygonElements(const MeshProblem& p, const SeedOptions& o)
+      : problem(p), options(o), area(p.polygons->num_polygons(), 0.0) {
+    for (size_t f = 0; f < p.polygons->num_faces(); ++f) {
+      area[p.polygons->polygon_of_face[f]] += p.measures->area[f];
+    }
+  }
+  const PolygonAdjacency& adjacency() const { return problem.polygons->adjacency; }
+  const char* noun() const { return "polygons"; }
+  // A polygon is edge-connected: its component is its first triangle's.
+  uint32_t Components(std::vector<uint32_t>& component) const {
+    std::vector<uint32_t> of_face;
+    const uint32_t count = LabelFaceComponents(*problem.adjacency, of_face);
+    const MeshPolygons& polygons = *problem.polygons;
+    component.resize(polygons.num_polygons());
+    for (size_t p = 0; p < component.size(); ++p) {
+      component[p] = of_face[polygons.first_face[p]];
+    }
+    return count;
+  }
+  std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
+    const PolygonAdjacency& graph = problem.polygons->adjacency;
+    if (options.growth == SeedOptions::Growth::kEnergyFree) {
+      return GrowEnergyFree(graph, seeds, options.cancel);
+    }
+    if (problem.energy.kind == MeshEnergyKind::kPlanar) {
+      return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                            [&](const auto& triangles) {
+                              const detail::PolygonEnergy energy(triangles, *problem.polygons);
+                              return GrowFromSeeds(energy, graph, seeds, options.cancel);
+                            });
+    }
+    const CvdEnergy triangles(*problem.measures);
+    return GrowFromSeeds(detail::PolygonEnergy(triangles, *problem.polygons), graph, seeds,
+                         options.cancel);
+  }
+  std::vector<uint32_t> Reduce(std::vector<uint32_t> labels, uint32_t clusters, uint32_t target,
+                               std::vector<uint32_t>* seeds) const {
+    const MeshPolygons& polygons = *problem.polygons;
+    return ReduceToK(
+        *problem.mesh, polygons.adjacency, area,
+        [&](uint32_t f) { return polygons.polygon_of_face[f]; },
+        [&](uint32_t p, const auto& fn) {
+          for (uint32_t f = polygons.first_face[p]; f < polygons.first_face[p + 1]; ++f) {
+            for (int c = 0; c < 3; ++c) fn(problem.mesh->indices[3 * size_t{f} + c]);
+          }
+        },
+        std::move(labels), clusters, target, options.cancel, seeds);
+  }
+  std::vector<uint32_t> AddSeedsAndGrow(std::vector<uint32_t> /*seeds*/,
+                                        uint32_t /*target*/) const {
+    return {};  // refused in InitialClusters
+  }
+};
+
+// InitialClusters over `elements`: faces (TriangleElements) or polygons (PolygonElements),
+// each giving its adjacency(), a noun for messages, the elements' connected components,
+// Grow(seeds), Reduce(labels, clusters, target, seeds or null) and AddSeedsAndGrow(seeds,
+// target). Labels are per element.
+template <typename Elements>
+absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& elements,
+                                                             const SeedOptions& options) {
+  const auto& adjacency = elements.adjacency();
   const size_t n = adjacency.num_faces();
   const uint32_t k = options.clusters;
   auto cancelled = [] { return absl::CancelledError("cancelled during initial clusters"); };
   if (k < 1 || k > n) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("clusters: ", k, " must be between 1 and the mesh's ", n, " faces"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "clusters: ", k, " must be between 1 and the mesh's ", n, " ", elements.noun()));
   }
   std::vector<uint32_t> component;
-  const uint32_t components = LabelFaceComponents(adjacency, component);
+  const uint32_t components = elements.Components(component);
   if (k < components) {
     return absl::InvalidArgumentError(
         absl::StrCat("clusters: ", k, " is fewer than the mesh's ", components,
@@ -475,24 +554,73 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
   }
   std::vector<uint32_t> labels;
   if (seeds.size() < k) {
-    labels = AddSeedsAndGrow(problem, std::move(seeds), k, options.growth, options.cancel);
+    labels = elements.AddSeedsAndGrow(std::move(seeds), k);
     if (labels.empty()) return cancelled();
   } else {
-    labels = Grow(problem, seeds, options.growth, options.cancel);
+    labels = elements.Grow(seeds);
     if (labels.empty()) return cancelled();
     if (seeds.size() > k) {
       const bool reseed = options.reduction == SeedOptions::Reduction::kReseedAndRegrow;
-      labels = ReduceToK(*problem.mesh, adjacency, *problem.measures, std::move(labels),
-                         static_cast<uint32_t>(seeds.size()), k, options.cancel,
-                         reseed ? &seeds : nullptr);
+      labels = elements.Reduce(std::move(labels), static_cast<uint32_t>(seeds.size()), k,
+                               reseed ? &seeds : nullptr);
       if (labels.empty()) return cancelled();
       if (reseed) {
-        labels = Grow(problem, seeds, options.growth, options.cancel);
+        labels = elements.Grow(seeds);
         if (labels.empty()) return cancelled();
       }
     }
   }
-  return ToClusterIds(labels);
+  return labels;
+}
+
+}  // namespace
+
+MeshProblem MakeMeshProblem(const PreparedMesh& prepared, const MeshEnergyOptions& energy) {
+  return {&prepared.mesh, &prepared.adjacency, &prepared.measures, energy};
+}
+
+absl::Status ValidateMeshProblem(const MeshProblem& problem) {
+  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
+    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+  }
+  if (problem.adjacency->num_faces() != problem.mesh->num_faces() ||
+      problem.measures->num_faces() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("adjacency (", problem.adjacency->num_faces(), " faces) or measures (",
+                     problem.measures->num_faces(), " faces) do not match the mesh (",
+                     problem.mesh->num_faces(), " faces)"));
+  }
+  if (problem.polygons != nullptr &&
+      (problem.polygons->num_faces() != problem.mesh->num_faces() ||
+       problem.polygons->adjacency.num_faces() != problem.polygons->num_polygons())) {
+    return absl::InvalidArgumentError(absl::StrCat("polygons of ", problem.polygons->num_faces(),
+                                                   " faces for a mesh of ",
+                                                   problem.mesh->num_faces(), " faces"));
+  }
+  return ValidateMeshEnergyOptions(problem.energy);
+}
+
+std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level) {
+  std::vector<uint32_t> seeds;
+  LNeighbourhoodSeeds(adjacency, level, nullptr, seeds);
+  return std::vector<FaceId>(seeds.begin(), seeds.end());
+}
+
+absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
+                                                       const SeedOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  if (problem.polygons == nullptr) {
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<uint32_t> labels,
+                             InitialElementClusters(TriangleElements{problem, options}, options));
+    return ToClusterIds(labels);
+  }
+  if (options.add_seeds) {
+    return absl::InvalidArgumentError(
+        "add-seeds: l. 849's seed adding is per triangle and not available with polygons");
+  }
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<uint32_t> labels,
+                           InitialElementClusters(PolygonElements(problem, options), options));
+  return FaceLabelsOfPolygons(*problem.polygons, labels);
 }
 
 absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
@@ -511,6 +639,32 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
     }
     is_seed[seeds[i]] = 1;
   }
+  if (problem.polygons != nullptr) {
+    // Each seed face's polygon; two seeds in one polygon are one seed too many.
+    const MeshPolygons& polygons = *problem.polygons;
+    std::vector<uint8_t> seeded(polygons.num_polygons(), 0);
+    for (size_t i = 0; i < seeds.size(); ++i) {
+      seeds[i] = polygons.polygon_of_face[seeds[i]];
+      if (seeded[seeds[i]]) {
+        return absl::InvalidArgumentError(absl::StrCat("seeds: seed ", i, " (face ",
+                                                       typed_seeds[i].value(), ") is in polygon ",
+                                                       seeds[i], ", which has a seed already"));
+      }
+      seeded[seeds[i]] = 1;
+    }
+    SeedOptions options;
+    options.growth = growth;
+    options.cancel = cancel;
+    const std::vector<uint32_t> polygon_labels = PolygonElements(problem, options).Grow(seeds);
+    if (polygon_labels.empty()) return absl::CancelledError("cancelled while growing seeds");
+    for (uint32_t p = 0; p < polygon_labels.size(); ++p) {
+      if (polygon_labels[p] == kUnassigned) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("seeds: polygon ", p, "'s connected component has no seed"));
+      }
+    }
+    return FaceLabelsOfPolygons(polygons, polygon_labels);
+  }
   std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
   if (labels.empty() && n != 0) return absl::CancelledError("cancelled while growing seeds");
   for (uint32_t f = 0; f < n; ++f) {
@@ -522,10 +676,127 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
   return ToClusterIds(labels);
 }
 
+namespace {
+
+// Alg. 3.2's counts are kept per triangle edge: refused with polygons.
+absl::Status CheckPolygonGuard(const MeshProblem& problem, bool connectivity_guard,
+                               ConnectivityGuardKind guard) {
+  if (problem.polygons != nullptr && connectivity_guard &&
+      guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    return absl::InvalidArgumentError(
+        "guard: Alg. 3.2's vertex boundary-edge counts are per triangle; with polygons use the "
+        "ring test (or none)");
+  }
+  return absl::OkStatus();
+}
+
+// Labels per polygon, renumbered 0..k-1 by first appearance.
+absl::StatusOr<Renumbering<ClusterId>> CompactPolygonLabels(const MeshProblem& problem,
+                                                            std::span<const ClusterId> labels) {
+  MLCLUST_ASSIGN_OR_RETURN(const std::vector<ClusterId> polygon_labels,
+                           PolygonLabelsOfFaces(*problem.polygons, labels));
+  return RenumberByFirstAppearance(std::span<const ClusterId>(polygon_labels));
+}
+
+// OptimizeEmlo with problem.polygons: EMLO over the polygons (their sums, their dual graph,
+// the polygons' ring test).
+absl::StatusOr<OptimizeResult> OptimizeEmloOnPolygons(const MeshProblem& problem,
+                                                      std::vector<ClusterId>& labels,
+                                                      const EmloOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckPolygonGuard(problem, options.connectivity_guard, options.guard));
+  const MeshPolygons& polygons = *problem.polygons;
+  MLCLUST_ASSIGN_OR_RETURN(const Renumbering<ClusterId> renumbered,
+                           CompactPolygonLabels(problem, labels));
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "EMLO set-up"));
+  std::optional<ConnectivityGuard> rings;
+  if (options.connectivity_guard && options.guard != ConnectivityGuardKind::kOff) {
+    MLCLUST_ASSIGN_OR_RETURN(
+        ConnectivityGuard built,
+        BuildPolygonConnectivityGuard(*problem.mesh, *problem.adjacency, polygons, options.cancel));
+    rings.emplace(std::move(built));
+  }
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& triangles) -> absl::StatusOr<OptimizeResult> {
+        const detail::PolygonEnergy energy(triangles, polygons);
+        Partition partition(energy, renumbered.dense, renumbered.size());
+        OptimizeResult result;
+        result.initial_energy = partition.TotalEnergy();
+        const uint64_t max_moves =
+            options.max_moves != 0 ? options.max_moves : 1000 * polygons.num_polygons();
+        uint64_t since_report = 0;
+        const uint64_t every = std::max<uint64_t>(1, options.progress_moves);
+        detail::EmloScratch scratch;
+        const std::vector<uint32_t> boundary = detail::BoundaryFaces(polygons.adjacency, partition);
+        auto on_move = [&](uint32_t, uint32_t, uint32_t) {
+          if (options.on_progress && ++since_report == every) {
+            since_report = 0;
+            ++result.iterations;
+            options.on_progress(result.moves + 1, partition.TotalEnergy());
+          }
+          ++result.moves;
+        };
+        const detail::EmloCounters counters = detail::RunEmloOn(
+            polygons.adjacency, rings.has_value() ? &*rings : nullptr, partition, boundary,
+            max_moves, scratch, on_move, [](uint32_t, uint32_t) {}, options.cancel);
+        if (counters.cancelled) return absl::CancelledError("cancelled during EMLO");
+        result.converged = !counters.hit_move_limit;
+        result.energy = partition.TotalEnergy();
+        if (options.on_progress) options.on_progress(result.moves, result.energy);
+        for (size_t f = 0; f < labels.size(); ++f) {
+          labels[f] = renumbered.original[partition.label(polygons.polygon_of_face[f])];
+        }
+        return result;
+      });
+}
+
+// OptimizeBoundaryBased with problem.polygons: the stages over the polygons, with the CPU
+// decide stage.
+absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedOnPolygons(
+    const MeshProblem& problem, std::vector<ClusterId>& labels,
+    const BoundaryBasedOptions& options) {
+  MLCLUST_RETURN_IF_ERROR(CheckPolygonGuard(problem, options.connectivity_guard, options.guard));
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  const MeshPolygons& polygons = *problem.polygons;
+  MLCLUST_ASSIGN_OR_RETURN(const Renumbering<ClusterId> renumbered,
+                           CompactPolygonLabels(problem, labels));
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "BB set-up"));
+  // The ring structure always: the conflict rule reads it whatever the guard.
+  MLCLUST_ASSIGN_OR_RETURN(
+      const ConnectivityGuard rings,
+      BuildPolygonConnectivityGuard(*problem.mesh, *problem.adjacency, polygons, options.cancel));
+  const boundary_based::StageThreads threads(options.threads);
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& triangles) -> absl::StatusOr<OptimizeResult> {
+        using Energy = detail::PolygonEnergy<std::decay_t<decltype(triangles)>>;
+        const Energy energy(triangles, polygons);
+        Partition partition(energy, renumbered.dense, renumbered.size());
+        const boundary_based::CpuBoundaryDecider<Energy, PolygonAdjacency> decide(
+            energy, polygons.adjacency, threads);
+        MLCLUST_ASSIGN_OR_RETURN(
+            OptimizeResult result,
+            boundary_based::RunBoundaryBased(rings, partition, options, threads, decide));
+        for (size_t f = 0; f < labels.size(); ++f) {
+          labels[f] = renumbered.original[partition.label(polygons.polygon_of_face[f])];
+        }
+        return result;
+      });
+}
+
+}  // namespace
+
 absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
                                             std::vector<ClusterId>& labels,
                                             const EmloOptions& options) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  if (labels.size() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError(absl::StrCat("labels: ", labels.size(), " for a mesh of ",
+                                                   problem.mesh->num_faces(), " faces"));
+  }
+  if (problem.polygons != nullptr) return OptimizeEmloOnPolygons(problem, labels, options);
   const size_t n = problem.mesh->num_faces();
   if (labels.size() != n) {
     return absl::InvalidArgumentError(
@@ -593,6 +864,14 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(const MeshProblem& problem,
                                                      std::vector<ClusterId>& labels,
                                                      const BoundaryBasedOptions& options) {
+  if (problem.polygons != nullptr) {
+    MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+    if (labels.size() != problem.mesh->num_faces()) {
+      return absl::InvalidArgumentError(absl::StrCat("labels: ", labels.size(), " for a mesh of ",
+                                                     problem.mesh->num_faces(), " faces"));
+    }
+    return OptimizeBoundaryBasedOnPolygons(problem, labels, options);
+  }
   // The staged BB with the CPU's decide stage; a device backend passes its own.
   return boundary_based::OptimizeBoundaryBasedWith(
       problem, labels, options,

@@ -19,6 +19,7 @@
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
+#include "core/mesh/polygons.h"
 #include "core/mesh/prepared_mesh.h"
 
 namespace mlclust {
@@ -30,6 +31,16 @@ struct MeshProblem {
   const FaceAdjacency* adjacency = nullptr;
   const FaceMeasures* measures = nullptr;
   MeshEnergyOptions energy;
+  // Ours, issue 13: the input's polygons (core/mesh/polygons.h; from MakeMeshPolygons on
+  // this mesh's adjacency), or null. With polygons every function here and RunMultilevel
+  // (multilevel.h) treat a polygon as one element: its triangles are always in one
+  // cluster, a polygon's sums are its triangles' sums added, polygons neighbour across
+  // triangle edges and the ring test guards polygon moves (core/mesh/polygons.h).
+  // Labels stay one per face; labels passed in must keep each polygon's triangles in one
+  // cluster (INVALID_ARGUMENT naming the polygon otherwise). Alg. 3.2's vertex
+  // boundary-edge count guard and SeedOptions::add_seeds are per triangle and refused
+  // with polygons.
+  const MeshPolygons* polygons = nullptr;
 };
 
 // The problem of a prepared mesh (core/mesh/prepared_mesh.h, core/io/prepare_mesh.h) with

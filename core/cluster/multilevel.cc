@@ -1,10 +1,12 @@
 #include "core/cluster/multilevel.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <queue>
+#include <type_traits>
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/strings/str_cat.h"
@@ -12,6 +14,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/detail/multilevel_engine.h"
+#include "core/cluster/detail/polygon_energy.h"
 #include "core/cluster/partition.h"
 #include "core/hierarchy/level_recorder.h"
 #include "core/mesh/connectivity_guard.h"
@@ -24,19 +27,23 @@ namespace mlclust {
 namespace {
 
 // The mesh's space for the multilevel engine (detail/multilevel_engine.h): clusters of
-// faces, neighbours across face edges, EMLO or BB as the local optimisation.
-template <typename Energy>
+// faces, neighbours across face edges, EMLO or BB as the local optimisation. With
+// problem.polygons (Adjacency = PolygonAdjacency, Energy a detail::PolygonEnergy) the
+// elements are the polygons: level 0 is one cluster per polygon, with its energy.
+template <typename Energy, typename Adjacency = FaceAdjacency>
 class MeshSpace {
  public:
   using Proxy = typename Energy::Proxy;
   using Engine = detail::MultilevelEngine<MeshSpace>;
   static constexpr bool kOptimiseAllAtHandover = true;
 
-  MeshSpace(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options)
-      : adjacency_(*problem.adjacency),
+  MeshSpace(const MeshProblem& problem, const Energy& energy, const MultilevelOptions& options,
+            const Adjacency& adjacency)
+      : adjacency_(adjacency),
         options_(options),
         mesh_(*problem.mesh),
-        n_(static_cast<uint32_t>(problem.mesh->num_faces())),
+        problem_(problem),
+        n_(static_cast<uint32_t>(adjacency.num_faces())),
         partition_(energy, Identity(n_), n_),
         members_(n_),
         position_(n_, 0),
@@ -55,8 +62,22 @@ class MeshSpace {
   // Level 0: every face its own cluster, energy 0 for every energy here.
   absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
-    if (options_.connectivity_guard && options_.optimizer != MultilevelOptions::Optimizer::kNone &&
-        options_.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    if constexpr (!std::is_same_v<Adjacency, FaceAdjacency>) {
+      // Polygons (RunMultilevel refused Alg. 3.2's per-triangle counts): their ring test.
+      if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
+          options_.optimizer != MultilevelOptions::Optimizer::kNone) {
+        MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard, BuildPolygonConnectivityGuard(
+                                                              mesh_, *problem_.adjacency,
+                                                              *problem_.polygons, options_.cancel));
+        guard_.emplace(std::move(guard));
+      }
+      std::vector<ClusterId> start(n_);
+      for (uint32_t p = 0; p < n_; ++p) start[p] = ClusterId(p);
+      recorder_.Reset(partition_.TotalEnergy());
+      return sink.OnStart(start, n_, partition_.TotalEnergy());
+    } else if (options_.connectivity_guard &&
+               options_.optimizer != MultilevelOptions::Optimizer::kNone &&
+               options_.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
       vertex_count_guard_.emplace(mesh_, adjacency_);
     } else if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
                options_.optimizer != MultilevelOptions::Optimizer::kNone) {
@@ -98,14 +119,36 @@ class MeshSpace {
       members_[keep].push_back(f);
     }
     std::vector<uint32_t>().swap(members_[gone]);
-    for (const auto& [c, count] : neighbours_[gone]) {
-      MarkDirty(c);  // its ODE may have been `gone`
-      AddEdgesOneSide(c, gone, -static_cast<int32_t>(count));
-      if (c == keep) continue;
-      AddEdgesOneSide(keep, c, static_cast<int32_t>(count));
-      AddEdgesOneSide(c, keep, static_cast<int32_t>(count));
+    MergeNeighbours(keep, gone);
+  }
+
+  // A PML level's merges of disjoint pairs (keep, gone), the same as Merge pair after
+  // pair: the recorder's moves, the sums and labels and the members for all pairs at once
+  // (each pair writes only its own clusters and faces), then the neighbour lists, which
+  // pairs share, in pair order.
+  void MergePairs(std::span<const std::pair<uint32_t, uint32_t>> keep_gone) {
+    const detail::TbbBlocks blocks{/*grain=*/32};
+    if (keep_gone.size() < detail::kParallelOdeGrain ||
+        !recorder_.RecordMerges(
+            keep_gone, [&](uint32_t c) { return partition_.cluster_energy(c); },
+            [&](uint32_t c) { return std::span<const uint32_t>(members_[c]); }, blocks)) {
+      for (const auto& [keep, gone] : keep_gone) Merge(keep, gone);
+      return;
     }
-    std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+    blocks(keep_gone.size(), [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        const auto [keep, gone] = keep_gone[i];
+        partition_.MergeUncounted(keep, gone, members_[gone]);
+        std::vector<uint32_t>& kept = members_[keep];
+        for (uint32_t f : members_[gone]) {
+          position_[f] = static_cast<uint32_t>(kept.size());
+          kept.push_back(f);
+        }
+        std::vector<uint32_t>().swap(members_[gone]);
+      }
+    });
+    partition_.CountMerges(static_cast<uint32_t>(keep_gone.size()));
+    for (const auto& [keep, gone] : keep_gone) MergeNeighbours(keep, gone);
   }
 
   // Local optimisation around the `region` clusters, from their boundary faces outward.
@@ -138,6 +181,13 @@ class MeshSpace {
       ++optimisation_moves_;
     };
     const uint64_t max_moves = 64 * static_cast<uint64_t>(worklist_.size()) + 1024;
+    if constexpr (std::is_same_v<Guard, ConnectivityGuard>) {  // the ring guard, or none
+      if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo && parallel_level &&
+          options_.parallel_optimisation && options_.independent_moves) {
+        OptimiseInIndependentRounds(guard, max_moves);
+        return;
+      }
+    }
     if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo && parallel_level &&
         options_.parallel_optimisation) {
       OptimiseInRounds(guard, max_moves, on_move);
@@ -247,7 +297,8 @@ class MeshSpace {
 
   void Squash() {
     recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
-                     [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; });
+                     [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; },
+                     detail::TbbBlocks{/*grain=*/1});
   }
   void EndLevel() {
     for (uint32_t c : dirty_) dirty_mark_[c] = 0;
@@ -267,20 +318,43 @@ class MeshSpace {
 
   // ---- cluster adjacency: per cluster, (neighbour, number of shared face edges) --------
 
-  // One cluster per face: the clusters' adjacency is the faces'.
+  // One cluster per face: the clusters' adjacency is the faces'. Each face writes only its
+  // own lists, so the faces are taken in parallel blocks of 16,384 (cancellation is checked
+  // per block).
   absl::Status BuildClusterAdjacency() {
-    for (uint32_t f = 0; f < n_; ++f) {
-      if (f % 16384 == 0) MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "ML set-up"));
-      members_[f] = {f};
-      for (FaceId g : adjacency_.neighbours[f]) {
-        // Each face edge is seen from both faces: one side each time.
-        if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
-      }
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, n_, 16384),
+                      [&](const tbb::blocked_range<uint32_t>& range) {
+                        if (IsCancelled(options_.cancel)) return;
+                        for (uint32_t f = range.begin(); f != range.end(); ++f) {
+                          members_[f] = {f};
+                          for (FaceId g : adjacency_.neighbours[f]) {
+                            // Each face edge is seen from both faces: one side each time;
+                            // counts only grow here, so no cluster is marked dirty.
+                            if (g.valid() && g.value() != f) AddEdgesOneSide(f, g.value(), 1);
+                          }
+                        }
+                      });
+    return CheckCancelled(options_.cancel, "ML set-up");
+  }
+
+  // The cluster adjacency after `gone` merged into `keep`.
+  void MergeNeighbours(uint32_t keep, uint32_t gone) {
+    for (const auto& [c, count] : neighbours_[gone]) {
+      MarkDirty(c);  // its ODE may have been `gone`
+      AddEdgesOneSide(c, gone, -static_cast<int32_t>(count));
+      if (c == keep) continue;
+      AddEdgesOneSide(keep, c, static_cast<int32_t>(count));
+      AddEdgesOneSide(c, keep, static_cast<int32_t>(count));
     }
-    return absl::OkStatus();
+    std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
   }
 
   void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta) {
+    AddEdgesOneSide(x, z, delta, [&](uint32_t c) { MarkDirty(c); });
+  }
+  // The same, with `mark_dirty` called instead of MarkDirty.
+  template <typename MarkDirtyFn>
+  void AddEdgesOneSide(uint32_t x, uint32_t z, int32_t delta, const MarkDirtyFn& mark_dirty) {
     auto& list = neighbours_[x];
     for (size_t i = 0; i < list.size(); ++i) {
       if (list[i].first == z) {
@@ -288,7 +362,7 @@ class MeshSpace {
         if (list[i].second == 0) {
           list[i] = list.back();
           list.pop_back();
-          MarkDirty(x);  // x's ODE may have been the neighbour it no longer touches
+          mark_dirty(x);  // x's ODE may have been the neighbour it no longer touches
         }
         return;
       }
@@ -298,16 +372,23 @@ class MeshSpace {
 
   // Face f moved from y to x: each of its edges now borders x instead of y.
   void OnFaceMoved(uint32_t f, uint32_t y, uint32_t x) {
+    OnFaceMoved(f, y, x, [&](uint32_t c) { MarkDirty(c); });
+  }
+  // The same, with `mark_dirty` called instead of MarkDirty. Writes only the lists of y,
+  // x and the clusters of f's edge neighbours, the members of y and x, and the positions
+  // of f and of a face of y.
+  template <typename MarkDirtyFn>
+  void OnFaceMoved(uint32_t f, uint32_t y, uint32_t x, const MarkDirtyFn& mark_dirty) {
     for (FaceId g : adjacency_.neighbours[f]) {
       if (!g.valid()) continue;
       const uint32_t z = partition_.label(g.value());
       if (y != z) {
-        AddEdgesOneSide(y, z, -1);
-        AddEdgesOneSide(z, y, -1);
+        AddEdgesOneSide(y, z, -1, mark_dirty);
+        AddEdgesOneSide(z, y, -1, mark_dirty);
       }
       if (x != z) {
-        AddEdgesOneSide(x, z, 1);
-        AddEdgesOneSide(z, x, 1);
+        AddEdgesOneSide(x, z, 1, mark_dirty);
+        AddEdgesOneSide(z, x, 1, mark_dirty);
       }
     }
     // Members: swap-remove from y, append to x.
@@ -466,6 +547,168 @@ class MeshSpace {
     }
   }
 
+  // MultilevelOptions::independent_moves (ours): rounds of "every face of the list finds
+  // its best move in parallel; the moves that no earlier face of the list conflicts with
+  // are checked by the guard in parallel and applied; the others wait for the next round".
+  // Face f reads the clusters of the faces around it (its ring, which holds its edge
+  // neighbours): its own cluster and every target it compares, and every label the guard
+  // reads. A move wins where it is the first of the round's moves (in list order) to read
+  // each of those clusters, so the winners read and write pairwise disjoint clusters: each
+  // one's decision and guard answer from the round's state hold after the others apply, and
+  // each lowers the energy. Which moves win does not depend on the thread count.
+  void OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
+    std::vector<uint32_t>& list = worklist_;
+    const size_t first = list.size();
+    for (size_t i = 0; i < first; ++i) {
+      for (FaceId g : adjacency_.neighbours[list[i]]) {
+        if (g.valid() && partition_.label(g.value()) != partition_.label(list[i])) {
+          list.push_back(g.value());
+        }
+      }
+    }
+    tbb::parallel_sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    if (reserve_.size() != n_) {
+      reserve_ = std::vector<std::atomic<uint32_t>>(n_);
+      for (auto& r : reserve_) r.store(kUnreserved, std::memory_order_relaxed);
+    }
+    // The clusters f reads: its own and those of the faces around it (duplicates allowed).
+    auto for_each_read = [&](uint32_t f, const auto& visit) {
+      visit(partition_.label(f));
+      if (guard != nullptr) {
+        for (uint32_t g : guard->Ring(f)) {
+          if (g != ConnectivityGuard::kGap) visit(partition_.label(g));
+        }
+      } else {
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid()) visit(partition_.label(g.value()));
+        }
+      }
+    };
+    std::vector<uint32_t> target, candidates, winners, next;
+    std::vector<uint8_t> apply;
+    // A winner's move, as applied: its clusters and what the shared lists get from it.
+    struct AppliedMove {
+      uint32_t from, to;
+      bool touched_from, touched_to, first_move;
+      uint32_t dirty_count;
+      uint32_t dirty[8];
+    };
+    std::vector<AppliedMove> applied;
+    uint64_t moves = 0;
+    while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
+      target.resize(list.size());
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
+                        [&](const tbb::blocked_range<size_t>& range) {
+                          for (size_t i = range.begin(); i != range.end(); ++i) {
+                            target[i] = BestOwnMove(list[i]).first;
+                          }
+                        });
+      evaluations_ += list.size();
+      candidates.clear();
+      for (size_t i = 0; i < list.size(); ++i) {
+        if (target[i] != detail::kNoCluster) candidates.push_back(static_cast<uint32_t>(i));
+      }
+      // Reserve: every cluster keeps the first candidate that reads it.
+      const tbb::blocked_range<size_t> all(0, candidates.size(), 256);
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t j = range.begin(); j != range.end(); ++j) {
+          const uint32_t i = candidates[j];
+          for_each_read(list[i], [&](uint32_t c) {
+            uint32_t seen = reserve_[c].load(std::memory_order_relaxed);
+            while (i < seen &&
+                   !reserve_[c].compare_exchange_weak(seen, i, std::memory_order_relaxed)) {
+            }
+          });
+        }
+      });
+      // Winners: first on every cluster they read; the guard answers for them in parallel
+      // (their rings are disjoint from the other winners' moves).
+      apply.assign(candidates.size(), 0);
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t j = range.begin(); j != range.end(); ++j) {
+          const uint32_t i = candidates[j];
+          bool first_everywhere = true;
+          for_each_read(list[i], [&](uint32_t c) {
+            first_everywhere = first_everywhere && reserve_[c].load(std::memory_order_relaxed) == i;
+          });
+          if (!first_everywhere) {
+            apply[j] = 2;  // waits for the next round
+            continue;
+          }
+          apply[j] = guard == nullptr || guard->CanMove(list[i], target[i], partition_.labels(),
+                                                        partition_.sizes())
+                         ? 1
+                         : 0;
+        }
+      });
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t j = range.begin(); j != range.end(); ++j) {
+          for_each_read(list[candidates[j]], [&](uint32_t c) {
+            reserve_[c].store(kUnreserved, std::memory_order_relaxed);
+          });
+        }
+      });
+      // The winners apply in parallel (each writes only its own clusters and faces); what
+      // goes to shared lists (the recorder's, the dirty clusters) is kept per move and
+      // listed after, in candidate order: the same as applying them one by one in order.
+      winners.clear();
+      for (size_t j = 0; j < candidates.size() && moves < max_moves; ++j) {
+        if (apply[j] == 1) {
+          winners.push_back(static_cast<uint32_t>(j));
+          ++moves;
+        }
+      }
+      applied.resize(winners.size());
+      auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
+      auto apply_one = [&](size_t w) {
+        const uint32_t i = candidates[winners[w]];
+        const uint32_t f = list[i], from = partition_.label(f), to = target[i];
+        AppliedMove& move = applied[w];
+        move.from = from;
+        move.to = to;
+        move.touched_from = recorder_.TouchUnlisted(from, energy_of);
+        move.touched_to = recorder_.TouchUnlisted(to, energy_of);
+        partition_.Move(f, to);
+        move.first_move = recorder_.RecordMoveUnlisted(f, from);
+        move.dirty_count = 0;
+        OnFaceMoved(f, from, to, [&](uint32_t c) {
+          if (dirty_mark_[c]) return;
+          dirty_mark_[c] = 1;
+          move.dirty[move.dirty_count++] = c;  // at most 6: two per edge neighbour
+        });
+      };
+      if (winners.size() < 256) {
+        for (size_t w = 0; w < winners.size(); ++w) apply_one(w);
+      } else {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 128),
+                          [&](const tbb::blocked_range<size_t>& range) {
+                            for (size_t w = range.begin(); w != range.end(); ++w) apply_one(w);
+                          });
+      }
+      next.clear();
+      for (size_t w = 0; w < winners.size(); ++w) {
+        const AppliedMove& move = applied[w];
+        const uint32_t f = list[candidates[winners[w]]];
+        if (move.touched_from) recorder_.ListTouched(move.from);
+        if (move.touched_to) recorder_.ListTouched(move.to);
+        if (move.first_move) recorder_.ListMoved(f);
+        for (uint32_t d = 0; d < move.dirty_count; ++d) dirty_.push_back(move.dirty[d]);
+        next.push_back(f);
+        for (FaceId g : adjacency_.neighbours[f]) {
+          if (g.valid()) next.push_back(g.value());
+        }
+      }
+      optimisation_moves_ += winners.size();
+      for (size_t j = 0; j < candidates.size(); ++j) {
+        if (apply[j] == 2) next.push_back(list[candidates[j]]);  // waits for the next round
+      }
+      tbb::parallel_sort(next.begin(), next.end());
+      next.erase(std::unique(next.begin(), next.end()), next.end());
+      list.swap(next);
+    }
+  }
+
   // Local boundary-based optimisation: sweeps over the worklist with the touched
   // clusters' proxies fixed per sweep; the faces that moved put their neighbours on the
   // next sweep's list. At most a few sweeps per level.
@@ -517,9 +760,10 @@ class MeshSpace {
     }
   }
 
-  const FaceAdjacency& adjacency_;
+  const Adjacency& adjacency_;
   const MultilevelOptions& options_;
   const TriangleMesh& mesh_;
+  const MeshProblem& problem_;
   std::optional<ConnectivityGuard> guard_;  // with an optimiser and options.connectivity_guard
   // Instead of guard_, with options.guard == kVertexBoundaryEdgeCount.
   std::optional<VertexBoundaryEdgeCountGuard> vertex_count_guard_;
@@ -537,6 +781,10 @@ class MeshSpace {
   // rounds).
   std::vector<uint8_t> round_mark_;
   std::vector<uint32_t> round_marked_;
+  // OptimiseInIndependentRounds: per cluster, the first candidate of the round that reads
+  // it (kUnreserved between rounds).
+  static constexpr uint32_t kUnreserved = 0xffffffffu;
+  std::vector<std::atomic<uint32_t>> reserve_;
   std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;
@@ -546,6 +794,58 @@ class MeshSpace {
   detail::EmloScratch emlo_scratch_;
   absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
 };
+
+// RunMultilevel with problem.polygons (ours, issue 13): the engine over the polygons
+// (detail::PolygonEnergy, their dual graph, their ring test), the levels passed to `sink`
+// over faces (detail::PolygonLevelSink).
+absl::StatusOr<MultilevelSummary> RunMultilevelOnPolygons(const MeshProblem& problem,
+                                                          const MultilevelOptions& options,
+                                                          LevelSink& sink) {
+  const MeshPolygons& polygons = *problem.polygons;
+  if (polygons.num_faces() != problem.mesh->num_faces()) {
+    return absl::InvalidArgumentError(absl::StrCat("polygons of ", polygons.num_faces(),
+                                                   " faces for a mesh of ",
+                                                   problem.mesh->num_faces(), " faces"));
+  }
+  if (options.connectivity_guard && options.optimizer != MultilevelOptions::Optimizer::kNone &&
+      options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    return absl::InvalidArgumentError(
+        "guard: Alg. 3.2's vertex boundary-edge counts are per triangle; with polygons use the "
+        "ring test (or none)");
+  }
+  detail::PolygonLevelSink face_sink(polygons, sink);
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& triangles) -> absl::StatusOr<MultilevelSummary> {
+        using Energy = detail::PolygonEnergy<std::decay_t<decltype(triangles)>>;
+        const Energy energy(triangles, polygons);
+        using Space = MeshSpace<Energy, PolygonAdjacency>;
+        Space space(problem, energy, options, polygons.adjacency);
+        detail::MultilevelEngineOptions engine_options;
+        engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
+        engine_options.p_percent = options.p_percent;
+        engine_options.p_percent_sweep =
+            options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
+        engine_options.parallel = options.parallel;
+        engine_options.pml_until = options.pml_until;
+        engine_options.pml_pairs = options.pml_pairs;
+        engine_options.min_clusters = options.min_clusters;
+        engine_options.cancel = options.cancel;
+        tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+        return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
+          detail::MultilevelEngine<Space> engine(space, engine_options, face_sink);
+          MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
+          MultilevelSummary summary;
+          summary.levels = run.levels;
+          summary.final_clusters = run.final_clusters;
+          summary.moves = run.moves;
+          summary.final_energy = run.final_energy;
+          summary.optimisation_moves = space.optimisation_moves();
+          summary.evaluations = space.evaluations();
+          return summary;
+        });
+      });
+}
 
 }  // namespace
 
@@ -566,11 +866,12 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
     return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
+  if (problem.polygons != nullptr) return RunMultilevelOnPolygons(problem, options, sink);
   return WithMeshEnergy(
       problem.energy, *problem.mesh, *problem.measures,
       [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
         using Energy = std::decay_t<decltype(energy)>;
-        MeshSpace<Energy> space(problem, energy, options);
+        MeshSpace<Energy> space(problem, energy, options, *problem.adjacency);
         detail::MultilevelEngineOptions engine_options;
         engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
         engine_options.p_percent = options.p_percent;

@@ -83,6 +83,14 @@ struct MultilevelOptions {
   // moves) and does not depend on the thread count. EMLO optimiser only; ML levels keep
   // EMLO's queue.
   bool parallel_optimisation = false;
+  // Ours, with parallel_optimisation and the ring guard (or none): each round applies only
+  // the moves that no earlier face of the round's list conflicts with (a face reads the
+  // clusters of the faces around it; a move wins where it is the first to read each of
+  // them), checked by the guard and applied without the one-by-one re-check, all found in
+  // parallel; the other moves wait for the next round. Each move lowers the energy; the
+  // result differs from the rounds' face-order application and does not depend on the
+  // thread count. With the vertex-count guard the rounds apply in face order as before.
+  bool independent_moves = false;
   // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
   // adjacency is built, while the connectivity guard is built, inside local EMLO (every
   // few thousand faces), after every level and every 65,536 ODEs of the first ODE pass and

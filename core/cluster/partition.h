@@ -73,15 +73,22 @@ class Partition {
   // Moves every face of cluster `gone` into `keep` at once (a merge): O(1) in the sums,
   // O(faces moved) in the labels, which the caller passes.
   void Merge(uint32_t keep, uint32_t gone, std::span<const uint32_t> faces_of_gone) {
+    MergeUncounted(keep, gone, faces_of_gone);
+    --num_clusters_;
+  }
+  // Merge for many disjoint pairs at once (PML): MergeUncounted may run for different pairs
+  // in parallel (it writes only the two clusters and the faces passed); then
+  // CountMerges(number of pairs) once.
+  void MergeUncounted(uint32_t keep, uint32_t gone, std::span<const uint32_t> faces_of_gone) {
     sums_[keep] += sums_[gone];
     sizes_[keep] += sizes_[gone];
     sums_[gone] = Sums();
     sizes_[gone] = 0;
     cluster_energy_[keep] = energy_->Energy(sums_[keep]);
     cluster_energy_[gone] = 0;
-    --num_clusters_;
     for (uint32_t f : faces_of_gone) labels_[f] = keep;
   }
+  void CountMerges(uint32_t merges) { num_clusters_ -= merges; }
 
  private:
   const Energy* energy_;

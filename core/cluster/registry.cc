@@ -149,6 +149,21 @@ OptionInfo PmlPairsOption() {
                 });
 }
 
+// MultilevelOptions::parallel_optimisation and independent_moves (ours), for the mesh PML.
+OptionInfo ParallelOptimisationOption() {
+  return Choice(
+      "parallel-optimisation", {"off", "rounds", "independent"}, "off",
+      "ours: a PML level's local optimisation (EMLO only) in parallel rounds instead of EMLO's "
+      "one queue, every boundary face finding its best move at once; rounds: the moves then "
+      "checked again and applied in face order with the guard; independent: only moves on "
+      "clusters no earlier move of the round reads, guard-checked in parallel, the rest next "
+      "round. Other levels than EMLO's, the same on any thread count",
+      [](const OptionValue& v, JobPlan& plan) {
+        plan.multilevel.parallel_optimisation = v.text != "off";
+        plan.multilevel.independent_moves = v.text == "independent";
+      });
+}
+
 OptionInfo SeedInitOption() {
   return Choice("init", {"lneigh", "random"}, "lneigh",
                 "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
@@ -278,17 +293,67 @@ std::string EnergyNote(const JobPlan& plan) {
   return absl::StrCat(" (", plan.energy != nullptr ? plan.energy->name : "?", ")");
 }
 
+// Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
+// says the same): merges only (optimizer none), without p% or the switch to ML, for the
+// energies whose merge cost the GPU has (cvd, cvd-adaptive).
+bool PmlLevelsOnGpu(const JobPlan& plan) {
+  const MeshEnergyKind kind = plan.mesh_energy.kind;
+  return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+         plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
+         plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
+}
+
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
   Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
   MultilevelOptions options = plan.multilevel;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary, RunMultilevel(problem, options, sink));
+  absl::StatusOr<MultilevelSummary> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    // PML's levels on the GPU (the plan took it only where PmlLevelsOnGpu covers it).
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunMultilevel(problem, options, sink);
+  } else {
+    ran = RunMultilevel(problem, options, sink);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(MultilevelSummary summary, std::move(ran));
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
+}
+
+// BB's preset "patches" (core/cluster/patches.h): level 0 the grown seeds, level 1 the
+// swept patches.
+absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobPlan& plan,
+                                          LevelSink& sink, const RunContext& context) {
+  if (plan.boundary_based.connectivity_guard &&
+      plan.boundary_based.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
+    return absl::InvalidArgumentError(
+        "guard: preset patches checks moves with the ring test (on) or not at all (off), not "
+        "vertex-count");
+  }
+  PatchOptions options = plan.patches;
+  options.clusters = plan.clusters;
+  options.threads = plan.boundary_based.threads;
+  options.guard = plan.boundary_based.connectivity_guard ? ConnectivityGuardKind::kRingTest
+                                                         : ConnectivityGuardKind::kOff;
+  options.cancel = context.cancel;
+  Report(context, plan, "seed",
+         absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"));
+  Report(context, plan, "cluster",
+         absl::StrCat("patches: at most ", options.sweeps, " BB sweeps", EnergyNote(plan)));
+  MLCLUST_ASSIGN_OR_RETURN(PatchResult result, BuildPatches(problem, options));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.initial_labels, result.initial_energy,
+                                          result.labels, result.energy, plan.clusters, sink));
+  return RunSummary{plan.clusters, plan.clusters};
 }
 
 absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPlan& plan,
                                         LevelSink& sink, const RunContext& context) {
+  if (plan.bb_patches && plan.algorithm->name == "bb") {
+    return RunMeshPatches(problem, plan, sink, context);
+  }
   Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
   MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, plan.seeds));
   std::vector<ClusterId> labels = initial;
@@ -627,8 +692,10 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PPercentRuleOption(),
                  PmlUntilOption(false),
                  PmlPairsOption(),
-                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; })};
-    a.stages = {merge_stage};
+                 ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
+                 ParallelOptimisationOption()};
+    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -663,12 +730,33 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  Integer("max-iterations", 1, 1000000, "200", "BB sweeps at most",
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
+                         }),
+                 // Ours: meshlet-sized patches fast (core/cluster/patches.h).
+                 Choice("preset", {"none", "patches"}, "none",
+                        "ours: patches = many small connected patches fast (e.g. K = faces / "
+                        "124, GPU meshlets): Morton-order seeds, energy-free growth, Lloyd steps "
+                        "on the seeds (patch-reseeds), then at most patch-sweeps BB sweeps "
+                        "applied in face order (on the CPU); init, level, growth, "
+                        "seed-reduction, add-seeds and max-iterations do not apply",
+                        [](const OptionValue& v, JobPlan& plan) {
+                          plan.bb_patches = v.text == "patches";
+                        }),
+                 Integer("patch-sweeps", 0, 1000000, "6", "preset patches: BB sweeps at most",
+                         [](const OptionValue& v, JobPlan& plan) {
+                           plan.patches.sweeps = static_cast<uint32_t>(v.integer);
+                         }),
+                 Integer("patch-reseeds", 0, 1000, "1",
+                         "preset patches: Lloyd steps on the seeds (each to its cluster's face "
+                         "nearest the centroid, all grown again) before the sweeps",
+                         [](const OptionValue& v, JobPlan& plan) {
+                           plan.patches.reseeds = static_cast<uint32_t>(v.integer);
                          })};
     // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
     // the list of gpu::HasGpuBoundaryDecide (gpu/stages/boundary_based_gpu.h).
     a.stages = {seed_stage,
                 {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
                  /*has_gpu=*/true, [](const JobPlan& plan) {
+                   if (plan.bb_patches) return false;  // preset patches: its own sweeps, CPU
                    switch (plan.mesh_energy.kind) {
                      case MeshEnergyKind::kCvd:
                      case MeshEnergyKind::kCvdAdaptive:

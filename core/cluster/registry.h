@@ -29,6 +29,7 @@
 #include "core/cluster/kmeans.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
+#include "core/cluster/patches.h"
 #include "core/cluster/point_clustering.h"
 #include "core/cluster/vsa.h"
 #include "core/cluster/xmeans.h"
@@ -231,6 +232,10 @@ struct JobPlan {
   SeedOptions seeds;
   EmloOptions emlo;
   BoundaryBasedOptions boundary_based;
+  // BB's preset "patches" (ours, core/cluster/patches.h); threads and guard from
+  // boundary_based.
+  bool bb_patches = false;
+  PatchOptions patches;
   MultilevelOptions multilevel;  // HC, ML, PML
   VsaOptions vsa;
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <utility>
 
 #include "core/base/cancel.h"
 
@@ -72,6 +73,14 @@ absl::StatusOr<ConnectivityGuard> ConnectivityGuard::Build(const TriangleMesh& m
   return guard;
 }
 
+ConnectivityGuard ConnectivityGuard::FromRings(std::vector<uint64_t> offset,
+                                               std::vector<uint32_t> ring_elements) {
+  ConnectivityGuard guard;
+  guard.ring_offset_ = std::move(offset);
+  guard.ring_faces_ = std::move(ring_elements);
+  return guard;
+}
+
 bool ConnectivityGuard::BuildRings(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
                                    const std::atomic<bool>* cancel) {
   const size_t n = adjacency.num_faces();
@@ -80,13 +89,7 @@ bool ConnectivityGuard::BuildRings(const TriangleMesh& mesh, const FaceAdjacency
   std::vector<uint32_t> ring;
   for (uint32_t face = 0; face < n; ++face) {
     if (face % 16384 == 0 && IsCancelled(cancel)) return false;
-    ring.clear();
-    // Corner walks go n_i .. n_{i+2}; chaining corners 0, 2, 1 closes the cycle
-    // n_0 .. n_2 .. n_1 .. n_0. Each walk's last face starts the next walk, and gaps of
-    // neighbouring walks meet: collapse equal neighbours, cyclically.
-    for (int corner : {0, 2, 1}) CornerWalk(mesh, adjacency, face, corner, ring);
-    ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-    while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+    BuildFaceRing(mesh, adjacency, face, ring);
     ring_faces_.insert(ring_faces_.end(), ring.begin(), ring.end());
     ring_offset_[face + 1] = ring_faces_.size();
   }
@@ -97,9 +100,25 @@ bool ConnectivityGuard::CanMove(uint32_t face, uint32_t to, std::span<const uint
                                 std::span<const uint32_t> cluster_sizes) const {
   const uint32_t from = labels[face];
   if (from == to || cluster_sizes[from] <= 1) return false;
+  return RingTestAllows(Ring(face), from, to, labels);
+}
+
+void BuildFaceRing(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face,
+                   std::vector<uint32_t>& ring) {
+  ring.clear();
+  // Corner walks go n_i .. n_{i+2}; chaining corners 0, 2, 1 closes the cycle
+  // n_0 .. n_2 .. n_1 .. n_0. Each walk's last face starts the next walk, and gaps of
+  // neighbouring walks meet: collapse equal neighbours, cyclically.
+  for (int corner : {0, 2, 1}) CornerWalk(mesh, adjacency, face, corner, ring);
+  ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+  while (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+}
+
+bool RingTestAllows(std::span<const uint32_t> ring, uint32_t from, uint32_t to,
+                    std::span<const uint32_t> labels) {
+  constexpr uint32_t kGap = ConnectivityGuard::kGap;
   // Count the runs of `from` and of `to` around the ring in one pass: a run starts where
   // a face of the cluster follows one that is not (a gap is in no cluster).
-  const std::span<const uint32_t> ring = Ring(face);
   const size_t n = ring.size();
   if (n == 0) return false;
   auto label_at = [&](size_t i) {

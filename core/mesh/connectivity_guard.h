@@ -46,6 +46,12 @@ class ConnectivityGuard {
                                                  const FaceAdjacency& adjacency,
                                                  const std::atomic<bool>* cancel);
 
+  // The same test over any elements from their rings given in compressed rows (element
+  // i's ring is ring_elements[offset[i] .. offset[i + 1]), element ids or kGap, cyclic):
+  // core/mesh/polygons.h builds the polygons' guard this way.
+  static ConnectivityGuard FromRings(std::vector<uint64_t> offset,
+                                     std::vector<uint32_t> ring_elements);
+
   // Whether face `face` may move from its cluster labels[face] to cluster `to`, given the
   // cluster sizes (faces per cluster id). labels holds one cluster id per face.
   bool CanMove(uint32_t face, uint32_t to, std::span<const uint32_t> labels,
@@ -67,6 +73,17 @@ class ConnectivityGuard {
   std::vector<uint64_t> ring_offset_;
   std::vector<uint32_t> ring_faces_;
 };
+
+// The ring of `face` as ConnectivityGuard stores it (faces around it in cyclic order, kGap
+// where the mesh boundary breaks it), built on demand into `ring`: for a driver that
+// checks few faces and cannot afford every face's ring up front (core/cluster/patches.h).
+void BuildFaceRing(const TriangleMesh& mesh, const FaceAdjacency& adjacency, uint32_t face,
+                   std::vector<uint32_t>& ring);
+
+// ConnectivityGuard::CanMove's test on a given ring: the faces of `from` and those of `to`
+// each form exactly one run (the caller checks that `from` keeps another face).
+bool RingTestAllows(std::span<const uint32_t> ring, uint32_t from, uint32_t to,
+                    std::span<const uint32_t> labels);
 
 // Alg. 3.2, the Vertex Boundary-Edge Count check (l. 870-890). A face F = (V1, V2, V3) of
 // cluster A may join the cluster `curr` across a boundary edge c = V1 -> V3 (F's edge whose

@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "gpu/stages/boundary_based_gpu.h"
+#include "gpu/stages/multilevel_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
 
 namespace mlclust::gpu {
@@ -23,6 +24,12 @@ absl::StatusOr<KmeansResult> GlDeviceStages::RunLloyd(const PointSet& points,
                                                       std::vector<float> centres,
                                                       const KmeansOptions& options) {
   return RunLloydGpu(context_, points, std::move(centres), options);
+}
+
+absl::StatusOr<MultilevelSummary> GlDeviceStages::RunMultilevel(const MeshProblem& problem,
+                                                                const MultilevelOptions& options,
+                                                                LevelSink& sink) {
+  return RunParallelMultilevelGpu(context_, problem, options, sink);
 }
 
 }  // namespace mlclust::gpu

@@ -22,6 +22,9 @@ class GlDeviceStages : public DeviceStages {
                                              const LnKmeansOptions& options) override;
   absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
                                         const KmeansOptions& options) override;
+  absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
+                                                  const MultilevelOptions& options,
+                                                  LevelSink& sink) override;
 
  private:
   GlContext& context_;

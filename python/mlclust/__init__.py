@@ -12,8 +12,8 @@ See Client.cluster_mesh, Client.cluster_points and Hierarchy.
 """
 
 from .client import ALGORITHMS, ENERGIES, Client, Error, Progress
-from .hierarchy import Hierarchy, Level, compact_labels
+from .hierarchy import Hierarchy, Level, compact_labels, labels_per_polygon
 from .meshio import read_mesh, write_clustered
 
 __all__ = ["ALGORITHMS", "ENERGIES", "Client", "Error", "Hierarchy", "Level", "Progress",
-           "compact_labels", "read_mesh", "write_clustered"]
+           "compact_labels", "labels_per_polygon", "read_mesh", "write_clustered"]

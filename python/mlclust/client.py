@@ -584,7 +584,8 @@ class Client:
                      clusters: int = 0, *, seed: int = 1, levels=None, device: str = "auto",
                      label: str = "", progress: Optional[Callable[[Progress], None]] = None,
                      timeout: Optional[float] = None, draco=None, batch_triplets: int = 0,
-                     chunk_bytes: int = 1 << 20, detach: bool = False, **options):
+                     chunk_bytes: int = 1 << 20, detach: bool = False, polygons=None,
+                     **options):
         """Clusters a triangle mesh; element ids are face indices (rows of `faces`).
 
         vertices (V, 3) floats, faces (F, 3) vertex indices. algo: hc, ml, pml (every
@@ -602,6 +603,11 @@ class Client:
         that labels still follow `faces` (positions then arrive quantised).
         detach=True returns the job's id (a str) once the server has queued it; the job
         runs on and `watch(job_id)` reads its levels, from this client or any other.
+        polygons: for a quad / n-gon mesh triangulated in place (read_mesh does), the
+        number of triangles of each polygon in face order (an n-gon is n - 2 consecutive
+        rows of `faces`); algo ml, hc, pml, emlo or bb then cluster whole polygons (ours,
+        JobSpec.polygon_triangle_counts): no level splits a polygon. Labels stay per face;
+        labels_per_polygon(labels, polygons) gives one per polygon.
         Raises Error (with the gRPC status code) on any failure.
         """
         draco = dict(draco or {})
@@ -616,6 +622,11 @@ class Client:
             raise Error(code, f"encoding the mesh: {message}")
         spec = self._spec(pb.INPUT_KIND_DRACO_MESH, algo, energy, clusters, seed, levels,
                           device, label, batch_triplets, options)
+        if polygons is not None:
+            counts = np.asarray(polygons).reshape(-1)
+            if counts.size and (counts.min() < 0 or counts.max() > 0xFFFFFFFF):
+                raise ValueError("polygons: triangle counts must be in [0, 2^32)")
+            spec.polygon_triangle_counts.extend(int(c) for c in counts)
         spec.detach = bool(detach)
         return self._run(spec, payload, progress, timeout, chunk_bytes)
 

@@ -152,3 +152,12 @@ class Hierarchy:
     def _check(self, level):
         if not 0 <= level < len(self):
             raise IndexError(f"level {level} is not in 0..{len(self) - 1}")
+
+
+def labels_per_polygon(labels, polygons):
+    """One label per polygon from labels per face (each polygon's first triangle's; with
+    cluster_mesh(..., polygons=...) all its triangles have it). `polygons` as for
+    cluster_mesh: the triangles of each polygon, in face order."""
+    counts = np.asarray(polygons, dtype=np.int64).reshape(-1)
+    first = np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
+    return np.asarray(labels)[first]

@@ -6,9 +6,7 @@ Run by ctest (tests/CMakeLists.txt) as
 """
 
 import os
-import re
 import subprocess
-import tempfile
 import time
 import unittest
 
@@ -16,9 +14,8 @@ import grpc
 import numpy as np
 
 import mlclust
+from served import BIN, DATA, ServedTestCase
 
-BIN = os.environ.get("MLCLUST_BIN", "build/client/mlclust")
-DATA = os.environ.get("MLCLUST_DATA", "data")
 
 
 def read_off(path):
@@ -78,39 +75,16 @@ def read_levels_csv(path):
     return [(int(r.split(",")[0]), float(r.split(",")[1])) for r in rows]
 
 
-class ServerTest(unittest.TestCase):
+class ServerTest(ServedTestCase):
     @classmethod
-    def setUpClass(cls):
-        cls.dir = tempfile.TemporaryDirectory()
-        cls.log = open(os.path.join(cls.dir.name, "server.log"), "w+")
-        cls.server = subprocess.Popen([BIN, "serve", "--listen", "127.0.0.1:0"],
-                                      stdout=cls.log, stderr=cls.log)
-        deadline = time.time() + 60
-        port = None
-        while port is None and time.time() < deadline:
-            cls.log.seek(0)
-            match = re.search(r"listening on port (\d+)", cls.log.read())
-            if match:
-                port = int(match.group(1))
-            elif cls.server.poll() is not None:
-                break
-            else:
-                time.sleep(0.05)
-        if port is None:
-            cls.tearDownClass()
-            raise RuntimeError("the server did not start")
-        cls.address = f"127.0.0.1:{port}"
+    def connect(cls):
         cls.client = mlclust.Client(cls.address)  # gRPC's default limits
         cls.fandisk = read_off(os.path.join(DATA, "fandisk.off"))
 
     @classmethod
-    def tearDownClass(cls):
+    def disconnect(cls):
         if hasattr(cls, "client"):
             cls.client.close()
-        cls.server.terminate()
-        cls.server.wait(timeout=30)
-        cls.log.close()
-        cls.dir.cleanup()
 
     def cli(self, *args):
         result = subprocess.run([BIN, *args, "--server", self.address, "--quiet"],

@@ -6,20 +6,16 @@ equal a solo run's, a detached job's id names its replica and a gone replica is 
         /usr/bin/python3 -m unittest discover -s python/tests -p 'test_replicas.py'
 """
 
-import os
 import re
 import socket
-import subprocess
 import tempfile
-import time
 import unittest
 
 import grpc
 import numpy as np
 
 import mlclust
-
-BIN = os.environ.get("MLCLUST_BIN", "build/client/mlclust")
+from served import start_server, stop_server
 
 
 def grid(n):
@@ -33,23 +29,6 @@ def grid(n):
     return vertices.astype(np.float32), faces.astype(np.uint32)
 
 
-def start_server(directory, name):
-    log = open(os.path.join(directory, f"{name}.log"), "w+")
-    process = subprocess.Popen([BIN, "serve", "--listen", "127.0.0.1:0", "--gpu", "off"],
-                               stdout=log, stderr=log)
-    deadline = time.time() + 60
-    while time.time() < deadline:
-        log.seek(0)
-        match = re.search(r"listening on port (\d+)", log.read())
-        if match:
-            return process, log, f"127.0.0.1:{match.group(1)}"
-        if process.poll() is not None:
-            break
-        time.sleep(0.05)
-    process.kill()
-    raise RuntimeError(f"server {name} did not start")
-
-
 def free_port_address():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -60,16 +39,13 @@ class ReplicasTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.dir = tempfile.TemporaryDirectory()
-        cls.servers = [start_server(cls.dir.name, name) for name in ("a", "b", "c")]
+        cls.servers = [start_server(cls.dir.name, name, "--gpu", "off") for name in "abc"]
         cls.addresses = [address for _, _, address in cls.servers]
 
     @classmethod
     def tearDownClass(cls):
         for process, log, _ in cls.servers:
-            if process.poll() is None:
-                process.terminate()
-                process.wait(timeout=30)
-            log.close()
+            stop_server(process, log)
         cls.dir.cleanup()
 
     def test_addresses(self):

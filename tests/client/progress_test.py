@@ -7,10 +7,7 @@ Run by ctest (tests/CMakeLists.txt, CliWiringProgress) as
 """
 
 import os
-import re
-import subprocess
-import tempfile
-import time
+import sys
 import unittest
 
 import grpc
@@ -21,44 +18,25 @@ from mlclust import _draco
 from mlclust.v1 import mlclust_pb2 as pb
 from mlclust.v1 import mlclust_pb2_grpc as pb_grpc
 
-BIN = os.environ.get("MLCLUST_BIN", "build/client/mlclust")
-DATA = os.environ.get("MLCLUST_DATA", "data")
+# The server set-up shared with the Python package's tests (python/tests/served.py).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..",
+                                "python", "tests"))
+from served import DATA, ServedTestCase  # noqa: E402
+
 STAGES = {"queued", "decode", "measures", "seed", "cluster"}
 
 
-class ProgressTest(unittest.TestCase):
+class ProgressTest(ServedTestCase):
     @classmethod
-    def setUpClass(cls):
-        cls.dir = tempfile.TemporaryDirectory()
-        cls.log = open(os.path.join(cls.dir.name, "server.log"), "w+")
-        cls.server = subprocess.Popen([BIN, "serve", "--listen", "127.0.0.1:0"],
-                                      stdout=cls.log, stderr=cls.log)
-        deadline = time.time() + 60
-        port = None
-        while port is None and time.time() < deadline:
-            cls.log.seek(0)
-            match = re.search(r"listening on port (\d+)", cls.log.read())
-            if match:
-                port = int(match.group(1))
-            elif cls.server.poll() is not None:
-                break
-            else:
-                time.sleep(0.05)
-        if port is None:
-            cls.tearDownClass()
-            raise RuntimeError("the server did not start")
-        cls.channel = grpc.insecure_channel(f"127.0.0.1:{port}")  # default limits
+    def connect(cls):
+        cls.channel = grpc.insecure_channel(cls.address)  # default limits
         cls.stub = pb_grpc.ClusteringStub(cls.channel)
         cls.vertices, cls.faces = mlclust.read_mesh(os.path.join(DATA, "fandisk.off"))
 
     @classmethod
-    def tearDownClass(cls):
+    def disconnect(cls):
         if hasattr(cls, "channel"):
             cls.channel.close()
-        cls.server.terminate()
-        cls.server.wait(timeout=30)
-        cls.log.close()
-        cls.dir.cleanup()
 
     def run_job(self, spec, payload):
         spec.input_bytes = len(payload)

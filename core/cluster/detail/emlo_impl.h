@@ -49,11 +49,13 @@ struct EmloScratch {
 // `before_move(from, to)` runs just before each move (the engine records the two clusters'
 // energies then). A set `cancel` (may be null) stops the run within
 // kEmloFacesPerCancelCheck faces with counters.cancelled; the scratch is left clean.
-template <typename Energy, typename OnMove, typename BeforeMove, typename Guard>
-EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const Guard* guard,
-                       Partition<Energy>& partition, std::span<const uint32_t> worklist,
-                       uint64_t max_moves, EmloScratch& scratch, OnMove&& on_move,
-                       BeforeMove&& before_move, const std::atomic<bool>* cancel) {
+// `adjacency` is a FaceAdjacency, or any neighbour lists read the same way (the polygons'
+// PolygonAdjacency, core/mesh/polygons.h, whose elements are polygons).
+template <typename Energy, typename OnMove, typename BeforeMove, typename Guard, typename Adjacency>
+EmloCounters RunEmloOn(const Adjacency& adjacency, const Guard* guard, Partition<Energy>& partition,
+                       std::span<const uint32_t> worklist, uint64_t max_moves, EmloScratch& scratch,
+                       OnMove&& on_move, BeforeMove&& before_move,
+                       const std::atomic<bool>* cancel) {
   const Energy& energy = partition.energy();
   using Sums = typename Energy::Sums;
   EmloCounters counters;
@@ -179,9 +181,9 @@ EmloCounters RunEmloOn(const FaceAdjacency& adjacency, const ConnectivityGuard* 
       nullptr);
 }
 
-// The faces that have a neighbour in another cluster.
-template <typename Energy>
-std::vector<uint32_t> BoundaryFaces(const FaceAdjacency& adjacency,
+// The faces (elements of `adjacency`) that have a neighbour in another cluster.
+template <typename Energy, typename Adjacency>
+std::vector<uint32_t> BoundaryFaces(const Adjacency& adjacency,
                                     const Partition<Energy>& partition) {
   std::vector<uint32_t> faces;
   for (uint32_t f = 0; f < adjacency.num_faces(); ++f) {

@@ -24,6 +24,10 @@
 //                                       with (duplicates allowed)
 //   uint32_t TieKey(c) const;           the queue's tie key of c's ODE (0: none)
 //   void Merge(keep, gone);             merges with all its bookkeeping (recorder too)
+//   void MergePairs(span<const pair<uint32_t, uint32_t>> keep_gone);  optional: a PML
+//                                       level's merges of disjoint pairs, the same as
+//                                       Merge(keep, gone) pair after pair (in parallel
+//                                       where it can)
 //   void Optimise(span<const uint32_t> region, bool parallel_level);  local optimisation
 //                                       around `region` (parallel_level: in a PML level)
 //   void UpdateOdes(Engine&);           after a level: the ODEs the level made stale,
@@ -91,6 +95,18 @@ struct MultilevelEngineSummary {
 // ODE computations in one parallel_for only above this many clusters (below it the
 // set-up costs more than the work).
 inline constexpr size_t kParallelOdeGrain = 256;
+
+// LevelRecorder's for_blocks on TBB: body(begin, end) over [0, n) in ranges of about
+// `grain` indices, run on the caller's arena.
+struct TbbBlocks {
+  size_t grain = 1;
+  template <typename Body>
+  void operator()(size_t n, const Body& body) const {
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, n, grain),
+        [&](const tbb::blocked_range<size_t>& range) { body(range.begin(), range.end()); });
+  }
+};
 
 template <typename Space>
 class MultilevelEngine {
@@ -291,7 +307,20 @@ class MultilevelEngine {
       pairs_.resize(clusters_ - floor);
     }
     merged_.clear();
-    for (const auto& [a, b] : pairs_) Merge(a, b);
+    if constexpr (requires {
+                    space_.MergePairs(std::span<const std::pair<uint32_t, uint32_t>>());
+                  }) {
+      // The pairs are disjoint: which cluster keeps its id does not depend on the others'
+      // merges, so it is decided for all first and the space merges them together.
+      for (auto& pair : pairs_) {
+        pair = KeepAndGone(pair.first, pair.second);
+        merged_.push_back(pair.first);
+      }
+      space_.MergePairs(pairs_);
+      clusters_ -= static_cast<uint32_t>(pairs_.size());
+    } else {
+      for (const auto& [a, b] : pairs_) Merge(a, b);
+    }
     Optimise(/*handover=*/clusters_ <= options_.pml_until);
     return true;
   }

@@ -1,0 +1,118 @@
+// PML for meshes (merges only, CVD) on the GPU (gpu/stages/multilevel_gpu.h) against the
+// CPU engine's PML with the same options on T threads: wall time of the whole hierarchy
+// (for the GPU: upload, every level, every triplet read back), levels, final energy, and
+// how many levels have the same triplets on both (an order-independent fingerprint per
+// level).
+//
+//   pml_gpu_bench MESH [--pairs all|cheaper-half] [--threads T] [--repeats R] [--header]
+//
+// Prints one CSV row per device (best time of R runs):
+// mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/time/clock.h"
+#include "bench/bench_util.h"
+#include "core/cluster/multilevel.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/stages/multilevel_gpu.h"
+
+namespace {
+
+// Per level an order-independent fingerprint of its triplets and its cluster count.
+class FingerprintSink : public mlclust::LevelSink {
+ public:
+  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
+                       double /*energy*/) override {
+    prints.push_back(count);
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    uint64_t print = level.cluster_count;
+    for (size_t i = 0; i < level.element.size(); ++i) {
+      uint64_t x = (uint64_t{level.element[i]} << 32) ^
+                   (uint64_t{level.to_cluster[i]} * 0x9E3779B97F4A7C15ull) ^ level.from_cluster[i];
+      x ^= x >> 31;
+      x *= 0xBF58476D1CE4E5B9ull;
+      x ^= x >> 29;
+      print += x;
+    }
+    prints.push_back(print);
+    return absl::OkStatus();
+  }
+  std::vector<uint64_t> prints;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  mlclust::bench::Args args(argc, argv,
+                            "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] [--threads T] "
+                            "[--repeats R] [--header]");
+  const bool header = args.Flag("header");
+  const std::string pairs = args.Get<std::string>("pairs", "all");
+  const int threads = args.Get<int>("threads", 0);
+  const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const std::string path = args.Positional(0);
+  if (!args.Done()) return 2;
+
+  const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
+  const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, {});
+  mlclust::MultilevelOptions options;
+  options.parallel = true;
+  options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
+  options.pml_pairs =
+      pairs == "cheaper-half" ? mlclust::PmlPairRule::kCheaperHalf : mlclust::PmlPairRule::kAll;
+  options.threads = threads;
+  absl::StatusOr<std::unique_ptr<mlclust::gpu::GlContext>> context =
+      mlclust::gpu::GlContext::Create();
+  if (!context.ok()) {
+    std::fprintf(stderr, "%s\n", context.status().ToString().c_str());
+    return 1;
+  }
+  struct Row {
+    std::string device;
+    double seconds = std::numeric_limits<double>::infinity();
+    mlclust::MultilevelSummary summary;
+    std::vector<uint64_t> prints;
+  };
+  Row rows[2];
+  rows[0].device = "cpu";
+  rows[1].device = (*context)->renderer();
+  for (int d = 0; d < 2; ++d) {
+    for (uint32_t r = 0; r < repeats; ++r) {
+      FingerprintSink sink;
+      const absl::Time start = absl::Now();
+      absl::StatusOr<mlclust::MultilevelSummary> summary =
+          d == 0 ? mlclust::RunMultilevel(problem, options, sink)
+                 : mlclust::gpu::RunParallelMultilevelGpu(**context, problem, options, sink);
+      const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+      if (!summary.ok()) {
+        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
+        return 1;
+      }
+      if (seconds < rows[d].seconds) rows[d].seconds = seconds;
+      rows[d].summary = *summary;
+      rows[d].prints = std::move(sink.prints);
+    }
+  }
+  size_t same = 0;
+  for (size_t l = 0; l < rows[0].prints.size() && l < rows[1].prints.size(); ++l) {
+    same += rows[0].prints[l] == rows[1].prints[l] ? 1 : 0;
+  }
+  if (header) {
+    std::printf(
+        "mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,"
+        "same_levels\n");
+  }
+  const std::string name = path.substr(path.find_last_of('/') + 1);
+  for (const Row& row : rows) {
+    std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu\n", name.c_str(),
+                prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
+                row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same);
+  }
+  return 0;
+}

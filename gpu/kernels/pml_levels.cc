@@ -1,0 +1,289 @@
+#include "gpu/kernels/pml_levels.h"
+
+#include <algorithm>
+#include <array>
+
+#include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
+#include "core/base/status_macros.h"
+#include "gpu/context/gl_functions.h"
+#include "gpu/context/pass.h"
+#include "gpu/kernels/pml_compact_glsl.h"  // kPmlCompactGlsl, generated
+#include "gpu/kernels/pml_cvd_glsl.h"      // kPmlCvdGlsl, generated
+#include "gpu/kernels/pml_merge_glsl.h"    // kPmlMergeGlsl, generated
+#include "gpu/kernels/pml_ode_glsl.h"      // kPmlOdeGlsl, generated
+#include "gpu/kernels/pml_pairs_glsl.h"    // kPmlPairsGlsl, generated
+
+namespace mlclust::gpu {
+namespace {
+
+constexpr char kOdesPass[] = "pml odes";
+constexpr char kCollapsePass[] = "pml collapse";
+constexpr char kTripletsPass[] = "pml triplets";
+
+// pml_ode.glsl's phases.
+constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
+// pml_compact.glsl's phases, kinds and counter slots.
+constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+constexpr uint32_t kFaces = 0, kEdges = 1;
+constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kEdgeSlot = 2, kCounterSlots = 4;
+
+static_assert(sizeof(CvdSums) == 5 * sizeof(double));
+
+uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
+uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
+uint64_t MaxPairs(uint64_t num_faces) { return num_faces / 2 + 1; }
+
+}  // namespace
+
+uint64_t PmlLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges) {
+  const uint64_t n = std::max<uint64_t>(num_faces, 1), m = std::max<uint64_t>(num_edges, 1);
+  const uint64_t chunks = std::max(Chunks(n), Chunks(m)), groups = std::max(Groups(n), Groups(m));
+  return n * (40 + 12 + 12 + 12) + 3 * m * 8 + MaxPairs(n) * (8 + 24 + 4) + chunks * 4 +
+         groups * 4 + kCounterSlots * 4;
+}
+
+absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
+                                                  std::span<const CvdSums> face_sums,
+                                                  const FaceAdjacency& adjacency) {
+  const size_t n = adjacency.num_faces();
+  if (face_sums.size() != n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("pml: ", face_sums.size(), " face sums for ", n, " faces"));
+  }
+  // Shader indices are 32-bit: 2 * edge (3 edges per face at most), 5 * cluster, 3 * face.
+  if (n > kMaxMeshElements / 6) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("pml: ", n, " faces exceed the limit of ", kMaxMeshElements / 6));
+  }
+  std::vector<uint32_t> edges;
+  edges.reserve(6 * n);
+  for (size_t f = 0; f < n; ++f) {
+    for (const FaceId g : adjacency.neighbours[f]) {
+      if (!g.valid() || g.value() == f) continue;
+      if (g.value() >= n) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("pml: face ", f, " has neighbour ", g.value(), " of ", n, " faces"));
+      }
+      edges.push_back(static_cast<uint32_t>(f));
+      edges.push_back(g.value());
+    }
+  }
+  const uint64_t m = edges.size() / 2;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, kOdesPass));
+  absl::StatusOr<PmlLevelsGpu> made = [&]() -> absl::StatusOr<PmlLevelsGpu> {
+    const uint64_t faces = std::max<uint64_t>(n, 1), edge_slots = std::max<uint64_t>(m, 1);
+    const uint64_t chunks = std::max(Chunks(faces), Chunks(edge_slots));
+    const uint64_t groups = std::max(Groups(faces), Groups(edge_slots));
+    const std::array<uint64_t, kBindings> bytes = {
+        faces * 40,      faces * 4,      faces * 4,  faces * 4,         edge_slots * 8,
+        edge_slots * 8,  edge_slots * 8, faces * 12, MaxPairs(n) * 8,   MaxPairs(n) * 24,
+        MaxPairs(n) * 4, chunks * 4,     groups * 4, kCounterSlots * 4, faces * 12};
+    std::vector<StorageBuffer> buffers;
+    for (const uint64_t size : bytes) {
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
+      buffers.push_back(std::move(buffer));
+    }
+    std::vector<uint32_t> ones(n, 1), identity(n);
+    for (uint32_t f = 0; f < n; ++f) identity[f] = f;
+    if (n > 0) {
+      MLCLUST_RETURN_IF_ERROR(buffers[kSums].Upload(0, face_sums.data(), face_sums.size_bytes()));
+      MLCLUST_RETURN_IF_ERROR(buffers[kSizes].Upload(std::span<const uint32_t>(ones)));
+      MLCLUST_RETURN_IF_ERROR(buffers[kLabels].Upload(std::span<const uint32_t>(identity)));
+      MLCLUST_RETURN_IF_ERROR(buffers[kRemap].Upload(std::span<const uint32_t>(identity)));
+    }
+    if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kEdgesIn].Upload(std::span<const uint32_t>(edges)));
+    Programs programs;
+    const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl);
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.ode, GetComputeProgram(context, "pml_ode", absl::StrCat(prelude, kPmlOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.pairs,
+        GetComputeProgram(context, "pml_pairs", absl::StrCat(prelude, kPmlPairsGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.merge,
+        GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.compact, GetComputeProgram(context, "pml_compact",
+                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
+    return PmlLevelsGpu(context, static_cast<uint32_t>(n), static_cast<uint32_t>(m), programs,
+                        std::move(buffers));
+  }();
+  if (!made.ok()) return PassError(kOdesPass, made.status());
+  return made;
+}
+
+void PmlLevelsGpu::BindAll() {
+  for (uint32_t b = 0; b < kBindings; ++b) buffers_[b].Bind(b);
+}
+
+absl::StatusOr<uint32_t> PmlLevelsGpu::FindPairs() {
+  const detail::GlFunctions& gl = context_->gl();
+  BindAll();
+  const std::array<uint32_t, kCounterSlots> zeros{};
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Upload(std::span<const uint32_t>(zeros)));
+  gl.UseProgram(programs_.ode);
+  gl.ProgramUniform1ui(programs_.ode, 0, num_faces_);
+  gl.ProgramUniform1ui(programs_.ode, 1, kOdeReset);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
+  for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl.ProgramUniform1ui(programs_.ode, 0, num_edges_);
+    gl.ProgramUniform1ui(programs_.ode, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_edges_));
+  }
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(programs_.pairs);
+  gl.ProgramUniform1ui(programs_.pairs, 0, num_faces_);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
+  gl.UseProgram(0);
+  uint32_t pairs = 0;
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(kPairSlot * 4, &pairs, 4));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kOdesPass));
+  return pairs;
+}
+
+absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                    uint32_t pairs, PmlLevelGpu& level) {
+  const detail::GlFunctions& gl = context_->gl();
+  const uint32_t floor = std::max(lowest, 1u);
+  const bool past_floor = clusters < floor + uint64_t{pairs};
+  uint32_t use_flags = 0;
+  level.merged = pairs;
+  if (rule != PmlPairRule::kAll || past_floor) {
+    // The CPU engine's selection (ParallelMerges) on the pairs and their costs: the pair
+    // rule, then the cheapest (cost, then pair) down to the lowest level.
+    std::vector<uint32_t> ids(size_t{2} * pairs);
+    std::vector<double> values(size_t{3} * pairs);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(ids)));
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+    struct Candidate {
+      std::pair<uint32_t, uint32_t> pair;
+      double cost;
+      uint32_t slot;
+    };
+    std::vector<Candidate> chosen(pairs);
+    for (uint32_t i = 0; i < pairs; ++i) {
+      chosen[i] = {{ids[2 * i], ids[2 * i + 1]}, values[3 * i], i};
+    }
+    // The CPU's order: by the smaller cluster.
+    std::sort(chosen.begin(), chosen.end(),
+              [](const Candidate& x, const Candidate& y) { return x.pair < y.pair; });
+    if (rule == PmlPairRule::kCheaperHalf) {
+      // detail::SelectPmlPairs's rule (core/cluster/detail/pml_pairs.h): the pairs that
+      // cost at most the median (the cost at index size / 2 in cost order).
+      std::vector<double> costs(pairs);
+      for (uint32_t i = 0; i < pairs; ++i) costs[i] = chosen[i].cost;
+      std::nth_element(costs.begin(), costs.begin() + costs.size() / 2, costs.end());
+      const double limit = costs[costs.size() / 2];
+      chosen.erase(std::remove_if(chosen.begin(), chosen.end(),
+                                  [&](const Candidate& c) { return !(c.cost <= limit); }),
+                   chosen.end());
+    }
+    if (clusters < floor + uint64_t{chosen.size()}) {
+      std::sort(chosen.begin(), chosen.end(), [](const Candidate& x, const Candidate& y) {
+        return x.cost != y.cost ? x.cost < y.cost : x.pair < y.pair;
+      });
+      chosen.resize(clusters - floor);
+    }
+    std::vector<uint32_t> selected(pairs, 0);
+    for (const Candidate& candidate : chosen) selected[candidate.slot] = 1;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairSelected].Upload(std::span<const uint32_t>(selected)));
+    level.merged = static_cast<uint32_t>(chosen.size());
+    use_flags = 1;
+  }
+  gl.UseProgram(programs_.merge);
+  gl.ProgramUniform1ui(programs_.merge, 0, pairs);
+  gl.ProgramUniform1ui(programs_.merge, 1, use_flags);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  return CheckGlError(*context_, kCollapsePass);
+}
+
+absl::Status PmlLevelsGpu::Compact(uint32_t kind, uint32_t count, uint32_t slot) {
+  const detail::GlFunctions& gl = context_->gl();
+  if (count == 0) {
+    const uint32_t zero = 0;
+    return buffers_[kCounters].Upload(slot * 4, &zero, 4);
+  }
+  const uint32_t program = programs_.compact;
+  const uint64_t chunks = Chunks(count), groups = Groups(count);
+  gl.UseProgram(program);
+  gl.ProgramUniform1ui(program, 2, kind);
+  gl.ProgramUniform1ui(program, 3, slot);
+  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
+      std::pair<uint32_t, uint64_t>{kCount, chunks},
+      {kScanGroups, groups},
+      {kScanTop, 1},
+      {kWrite, chunks}};
+  for (const auto& [phase, invocations] : steps) {
+    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : count;
+    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
+    gl.ProgramUniform1ui(program, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  gl.UseProgram(0);
+  return absl::OkStatus();
+}
+
+absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
+  MLCLUST_RETURN_IF_ERROR(Compact(kFaces, num_faces_, kTripletSlot));
+  MLCLUST_RETURN_IF_ERROR(Compact(kEdges, num_edges_, kEdgeSlot));
+  std::array<uint32_t, kCounterSlots> counters{};
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(std::span<uint32_t>(counters)));
+  const uint32_t moved = counters[kTripletSlot];
+  std::swap(buffers_[kEdgesIn], buffers_[kEdgesOut]);
+  num_edges_ = counters[kEdgeSlot];
+  std::vector<uint32_t> triplets(size_t{3} * moved);
+  if (moved > 0)
+    MLCLUST_RETURN_IF_ERROR(buffers_[kTriplets].Download(std::span<uint32_t>(triplets)));
+  std::vector<double> values(size_t{3} * pairs);
+  MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kTripletsPass));
+  level.element.resize(moved);
+  level.to_cluster.resize(moved);
+  level.from_cluster.resize(moved);
+  for (uint32_t i = 0; i < moved; ++i) {
+    level.element[i] = triplets[3 * i];
+    level.to_cluster[i] = triplets[3 * i + 1];
+    level.from_cluster[i] = triplets[3 * i + 2];
+  }
+  ::mlclust::detail::CompensatedSum change;
+  change.Reset(0);
+  for (uint32_t i = 0; i < pairs; ++i) {
+    change.Add(values[3 * i + 1]);
+    change.Add(values[3 * i + 2]);
+  }
+  level.energy_change = change.value();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                         PmlLevelGpu& level) {
+  level = PmlLevelGpu();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
+  absl::StatusOr<uint32_t> pairs = FindPairs();
+  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
+  level.mutual_pairs = *pairs;
+  if (*pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
+  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
+  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
+  absl::Status extracted = Extract(*pairs, level);
+  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return true;
+}
+
+absl::StatusOr<std::vector<uint32_t>> PmlLevelsGpu::Labels() {
+  std::vector<uint32_t> labels(num_faces_);
+  if (num_faces_ > 0) {
+    MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Download(std::span<uint32_t>(labels)));
+  }
+  return labels;
+}
+
+}  // namespace mlclust::gpu

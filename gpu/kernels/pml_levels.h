@@ -1,0 +1,133 @@
+// PML (Alg. 5.3) on the GPU for meshes with the CVD energy: the levels of merges, with
+// every cluster's data kept on the GPU across levels; only the level's triplets and a few
+// scalars per level come back (and, where the pair rule or the lowest level needs them,
+// the level's pairs and their costs).
+//
+// One level (PmlLevelsGpu::Level), passes named for errors and MLCLUST_GPU_FAIL_PASS:
+//   "pml odes"     every cluster's optimal dual edge (ODE, Def. 4.2) over the directed
+//                  cluster edges: the minimum merge cost (eq. 4.3), equal costs to the
+//                  larger id (CheaperDualEdge of core/cluster/detail/ode_heap.h), exact in
+//                  fp64 through three 32-bit atomic passes (pml_ode.glsl); then the mutual
+//                  pairs (pml_pairs.glsl, Alg. 5.8)
+//   "pml collapse" the selected pairs merge (pml_merge.glsl): sums added, the larger
+//                  cluster keeps its id (the CPU engine's KeepAndGone), the energy change
+//   "pml triplets" stream compaction in face order (pml_compact.glsl): the faces whose
+//                  cluster merged away become triplets (face, new, old) and are
+//                  relabelled; the directed cluster edges are relabelled and those inside
+//                  one cluster dropped
+// The merge costs and energies are computed in the CPU's operation order with `precise`
+// (no fused multiply-add), so on IEEE fp64 hardware the levels are the CPU engine's
+// (core/cluster/multilevel.cc, optimizer none, parallel) exactly; the energy is the sum of
+// the same per-cluster changes (in another order, compensated).
+//
+// Cluster adjacency: the directed face edges (f, g) across an edge of the mesh,
+// relabelled to (cluster of f, cluster of g) each level and kept where the clusters
+// differ — not deduplicated: a cluster pair appears once per face edge on their common
+// boundary, so a level's ODE passes cost O(boundary face edges). At most 3 per face.
+//
+// Memory (PmlLevelsMemoryBound): per face 40 (sums) + 12 (size, label, remap) + 12 (ODE
+// key and partner) + 12 (triplets) + 4 * 8 * 3 (two edge lists and the edge keys, three
+// directed edges per face) + 20 (pairs: ids, values, flags, at most one per two faces);
+// about 190 bytes per face, 190 MB for 10^6 faces. Each buffer must fit one storage buffer.
+#ifndef MLCLUST_GPU_KERNELS_PML_LEVELS_H_
+#define MLCLUST_GPU_KERNELS_PML_LEVELS_H_
+
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "core/cluster/detail/pml_pairs.h"
+#include "core/energy/energies.h"
+#include "core/mesh/mesh.h"
+#include "gpu/context/compute.h"
+#include "gpu/context/gl_context.h"
+
+namespace mlclust::gpu {
+
+// Elements per invocation and invocations per scan group of pml_compact.glsl.
+inline constexpr uint32_t kPmlChunk = 32;
+inline constexpr uint32_t kPmlGroup = 256;
+
+// One level's result.
+struct PmlLevelGpu {
+  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
+  uint32_t merged = 0;        // collapsed
+  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
+  // The triplets, in face order.
+  std::vector<uint32_t> element, to_cluster, from_cluster;
+};
+
+// The bytes PmlLevelsGpu allocates for `num_faces` faces and `num_edges` directed face
+// edges (at most 3 * num_faces).
+uint64_t PmlLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges);
+
+class PmlLevelsGpu {
+ public:
+  // Uploads one cluster per face (face_sums[f], CvdEnergy::face_sums) and the directed
+  // face edges of `adjacency`. INVALID_ARGUMENT for a size mismatch, a neighbour out of
+  // range or more than kMaxMeshElements / 6 faces; RESOURCE_EXHAUSTED if a buffer exceeds
+  // context.max_storage_buffer_bytes() or GPU memory runs out; INTERNAL on GL errors.
+  static absl::StatusOr<PmlLevelsGpu> Create(GlContext& context, std::span<const CvdSums> face_sums,
+                                             const FaceAdjacency& adjacency);
+
+  // One PML level at `clusters` clusters: the mutual pairs, of them those `rule` keeps
+  // (SelectPmlPairs), and of those at most clusters - lowest (the cheapest, ties by pair,
+  // as the CPU engine), collapsed; false (and nothing changed) where there is no mutual
+  // pair. Errors name the pass.
+  absl::StatusOr<bool> Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                             PmlLevelGpu& level);
+
+  // The current labels (downloaded; for tests).
+  absl::StatusOr<std::vector<uint32_t>> Labels();
+
+ private:
+  enum Binding : uint32_t {
+    kSums,
+    kSizes,
+    kLabels,
+    kRemap,
+    kEdgesIn,
+    kEdgesOut,
+    kEdgeKeys,
+    kOdes,
+    kPairIds,
+    kPairValues,
+    kPairSelected,
+    kChunkCount,
+    kGroupTotal,
+    kCounters,
+    kTriplets,
+    kBindings
+  };
+  struct Programs {
+    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0;
+  };
+
+  PmlLevelsGpu(GlContext& context, uint32_t num_faces, uint32_t num_edges, Programs programs,
+               std::vector<StorageBuffer> buffers)
+      : context_(&context),
+        num_faces_(num_faces),
+        num_edges_(num_edges),
+        programs_(programs),
+        buffers_(std::move(buffers)) {}
+
+  void BindAll();
+  absl::StatusOr<uint32_t> FindPairs();
+  absl::Status Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest, uint32_t pairs,
+                        PmlLevelGpu& level);
+  absl::Status Compact(uint32_t kind, uint32_t count, uint32_t slot);
+  absl::Status Extract(uint32_t pairs, PmlLevelGpu& level);
+
+  GlContext* context_;
+  uint32_t num_faces_;
+  uint32_t num_edges_;  // directed cluster edges in kEdgesIn
+  Programs programs_;
+  std::vector<StorageBuffer> buffers_;
+};
+
+}  // namespace mlclust::gpu
+
+#endif  // MLCLUST_GPU_KERNELS_PML_LEVELS_H_

@@ -1,0 +1,153 @@
+// PML's parallel options (ours): parallel_optimisation with independent_moves, and the
+// registry's "parallel-optimisation" option that sets them.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <span>
+#include <vector>
+
+#include "core/cluster/multilevel.h"
+#include "core/cluster/registry.h"
+#include "core/io/mesh_io.h"
+#include "tests/fixtures/recording_sink.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust {
+namespace {
+
+using Loaded = testing::LoadedMesh;
+
+const Loaded& File(const std::string& name) { return testing::LoadDataFile(name); }
+
+std::map<uint32_t, double> EnergyByCount(const HierarchyLog& log) {
+  std::map<uint32_t, double> energy;
+  for (size_t l = 0; l < log.num_levels(); ++l) energy[log.cluster_count(l)] = log.energy(l);
+  return energy;
+}
+
+MultilevelOptions IndependentMoves() {
+  MultilevelOptions options;
+  options.parallel = true;
+  options.pml_until = 2000;
+  options.parallel_optimisation = true;
+  options.independent_moves = true;
+  return options;
+}
+
+TEST(MultilevelParallelTest, RegistryOptionSetsTheRoundsAndIndependentMoves) {
+  JobRequest request;
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
+  ASSERT_NE(request.algorithm, nullptr);
+  absl::StatusOr<JobPlan> plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_FALSE(plan->multilevel.parallel_optimisation);  // off by default
+  EXPECT_FALSE(plan->multilevel.independent_moves);
+  request.options = {{"parallel-optimisation", "rounds"}};
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_TRUE(plan->multilevel.parallel_optimisation);
+  EXPECT_FALSE(plan->multilevel.independent_moves);
+  request.options = {{"parallel-optimisation", "independent"}};
+  plan = PlanJob(request);
+  ASSERT_TRUE(plan.ok()) << plan.status();
+  EXPECT_TRUE(plan->multilevel.parallel_optimisation);
+  EXPECT_TRUE(plan->multilevel.independent_moves);
+  request.options = {{"parallel-optimisation", "sometimes"}};
+  EXPECT_FALSE(PlanJob(request).ok());
+  // ML has no PML levels: not its option.
+  request.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
+  request.options = {{"parallel-optimisation", "rounds"}};
+  EXPECT_FALSE(PlanJob(request).ok());
+}
+
+// Independent moves: the levels rebuild the engine's labels, their energies are those of
+// the labels, PML then ML stays within 5% of ML at k = 1000 and 200, and the optimiser
+// moved faces (so the rounds ran).
+TEST(MultilevelParallelTest, IndependentMovesGiveValidLevelsCloseToMl) {
+  for (const char* name : {"fandisk.off", "elephant.off"}) {
+    SCOPED_TRACE(name);
+    const Loaded& l = File(name);
+    const MeshProblem problem = l.problem();
+    HierarchyLog ml, pml;
+    ASSERT_TRUE(RunMultilevel(problem, {}, ml).ok());
+    MultilevelOptions options = IndependentMoves();
+    std::map<size_t, std::vector<ClusterId>> engine_labels;
+    options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
+      if (level % 5 != 2) return;
+      std::vector<ClusterId>& copy = engine_labels[level];
+      for (uint32_t c : labels) copy.push_back(ClusterId(c));
+    };
+    absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, pml);
+    ASSERT_TRUE(summary.ok()) << summary.status();
+    EXPECT_GT(summary->optimisation_moves, 0u);
+    std::vector<ClusterId> labels(pml.start_labels().begin(), pml.start_labels().end());
+    size_t at = 0;
+    for (const auto& [level, expected] : engine_labels) {
+      ASSERT_TRUE(pml.StepLabels(labels, at, level).ok());
+      at = level;
+      ASSERT_EQ(labels, expected) << level;
+      const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
+      EXPECT_NEAR(pml.energy(level), energy, 1e-7 * energy + 1e-12) << level;
+    }
+    const auto ml_energy = EnergyByCount(ml), pml_energy = EnergyByCount(pml);
+    for (uint32_t k : {1000u, 200u}) {
+      ASSERT_TRUE(pml_energy.count(k));
+      EXPECT_LT(pml_energy.at(k), 1.05 * ml_energy.at(k)) << k;
+    }
+  }
+}
+
+// The winners of a round apply together: still the same levels on 1, 2 and 3 threads, and
+// not the levels of the face-order rounds (another rule, so a test that could fail).
+TEST(MultilevelParallelTest, IndependentMovesDoNotDependOnTheThreadCount) {
+  const Loaded& l = File("fandisk.off");
+  MultilevelOptions options = IndependentMoves();
+  options.pml_until = 500;
+  testing::RecordingSink runs[3];
+  for (int t = 0; t < 3; ++t) {
+    options.threads = t + 1;
+    ASSERT_TRUE(RunMultilevel(l.problem(), options, runs[t]).ok());
+  }
+  EXPECT_GT(runs[0].counts.size(), 10u);
+  for (int t = 1; t < 3; ++t) {
+    EXPECT_EQ(runs[0].counts, runs[t].counts);
+    EXPECT_EQ(runs[0].energies, runs[t].energies);
+    EXPECT_EQ(runs[0].moves, runs[t].moves);
+  }
+  options.independent_moves = false;
+  testing::RecordingSink face_order;
+  ASSERT_TRUE(RunMultilevel(l.problem(), options, face_order).ok());
+  EXPECT_NE(face_order.moves, runs[0].moves);
+}
+
+// With the guard off the winners read only their edge neighbours' clusters: still valid
+// labels and energies.
+TEST(MultilevelParallelTest, IndependentMovesWithoutGuardKeepEnergiesOfTheLabels) {
+  const Loaded& l = File("fandisk.off");
+  const MeshProblem problem = l.problem();
+  MultilevelOptions options = IndependentMoves();
+  options.connectivity_guard = false;
+  options.guard = ConnectivityGuardKind::kOff;
+  HierarchyLog pml;
+  std::map<size_t, std::vector<ClusterId>> engine_labels;
+  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
+    if (level % 9 != 4) return;
+    std::vector<ClusterId>& copy = engine_labels[level];
+    for (uint32_t c : labels) copy.push_back(ClusterId(c));
+  };
+  absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, pml);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_GT(summary->optimisation_moves, 0u);
+  std::vector<ClusterId> labels(pml.start_labels().begin(), pml.start_labels().end());
+  size_t at = 0;
+  for (const auto& [level, expected] : engine_labels) {
+    ASSERT_TRUE(pml.StepLabels(labels, at, level).ok());
+    at = level;
+    ASSERT_EQ(labels, expected) << level;
+    const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
+    EXPECT_NEAR(pml.energy(level), energy, 1e-7 * energy + 1e-12) << level;
+  }
+}
+
+}  // namespace
+}  // namespace mlclust
