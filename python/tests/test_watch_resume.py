@@ -4,13 +4,8 @@ hierarchy equals one watched directly, and a stream that cannot be resumed raise
 
 Run with the other tests (see test_client.py for the environment)."""
 
-import os
-import re
 import socket
-import subprocess
-import tempfile
 import threading
-import time
 import unittest
 
 import grpc
@@ -18,7 +13,8 @@ import numpy as np
 
 import mlclust
 
-from test_client import BIN, grid
+from served import ServedTestCase
+from test_client import grid
 
 
 class CuttingProxy:
@@ -77,41 +73,20 @@ class CuttingProxy:
             s.close()
 
 
-class WatchResumeTest(unittest.TestCase):
+class WatchResumeTest(ServedTestCase):
     @classmethod
-    def setUpClass(cls):
-        cls.dir = tempfile.TemporaryDirectory()
-        cls.log = open(os.path.join(cls.dir.name, "server.log"), "w+")
-        cls.server = subprocess.Popen([BIN, "serve", "--listen", "127.0.0.1:0"],
-                                      stdout=cls.log, stderr=cls.log)
-        deadline = time.time() + 60
-        cls.port = None
-        while cls.port is None and time.time() < deadline:
-            cls.log.seek(0)
-            match = re.search(r"listening on port (\d+)", cls.log.read())
-            if match:
-                cls.port = int(match.group(1))
-            elif cls.server.poll() is not None:
-                break
-            else:
-                time.sleep(0.05)
-        if cls.port is None:
-            cls.tearDownClass()
-            raise RuntimeError("the server did not start")
-        cls.client = mlclust.Client(f"127.0.0.1:{cls.port}")
-        # 45,000 faces: HC's 45,000 levels take several messages of up to 3 MiB.
+    def connect(cls):
+        cls.port = int(cls.address.rsplit(":", 1)[1])
+        cls.client = mlclust.Client(cls.address)
+        # 45,000 faces: HC's 45,000 levels (323,032 triplets) take several level batches.
         vertices, faces = grid(150)
         cls.job = cls.client.cluster_mesh(vertices, faces, algo="hc", detach=True)
         cls.direct = cls.client.watch(cls.job)
 
     @classmethod
-    def tearDownClass(cls):
+    def disconnect(cls):
         if hasattr(cls, "client"):
             cls.client.close()
-        cls.server.terminate()
-        cls.server.wait(timeout=30)
-        cls.log.close()
-        cls.dir.cleanup()
 
     def assert_same(self, a, b):
         self.assertEqual(len(a.levels), len(b.levels))
