@@ -102,7 +102,7 @@ struct WatchOptions {
   std::function<void(const absl::Status&)> on_resume;
 };
 
-// Reads a detached job's levels (Watch): level `from_level` and every level after it
+// Reads a job's levels (Watch; detached or not): level `from_level` and every level after it
 // (level 0 of the returned hierarchy is `from_level` of the job), to the job's end. On
 // failure the server's status (NOT_FOUND once its results were dropped, with a message
 // saying when and why).
