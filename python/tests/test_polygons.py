@@ -14,6 +14,7 @@ import numpy as np
 
 import mlclust
 import test_client
+from served import ServedTestCase
 
 DATA = test_client.DATA
 
@@ -46,9 +47,15 @@ def off_polygon_counts(path):
     return counts
 
 
-class PolygonTest(unittest.TestCase):
-    setUpClass = classmethod(test_client.ServerTest.setUpClass.__func__)
-    tearDownClass = classmethod(test_client.ServerTest.tearDownClass.__func__)
+class PolygonTest(ServedTestCase):
+    @classmethod
+    def connect(cls):
+        cls.client = mlclust.Client(cls.address)
+
+    @classmethod
+    def disconnect(cls):
+        if hasattr(cls, "client"):
+            cls.client.close()
 
     def check(self, faces, counts, labels, k, what):
         first = np.concatenate(([0], np.cumsum(counts)[:-1]))
