@@ -1,7 +1,7 @@
 // Meshlet-sized patches: ours (core/cluster/patches.h) against meshoptimizer's
 // meshopt_buildMeshlets and METIS k-way on the face dual graph, at K = faces / 124.
 //
-//   meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--growth free|flood]
+//   meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] [--growth free|flood]
 //                  [--threads T] [--peers meshoptimizer,metis|none] [--ml] [--emlo]
 //                  [--header]
 //
@@ -16,7 +16,9 @@
 //                   call alone (output buffers allocated before).
 //   metis           METIS_PartGraphKway on the face dual graph (edge neighbours), K parts,
 //                   METIS_OPTION_CONTIG. Timed: the call alone (the CSR graph built before).
-//   ours-sS         BuildPatches with S BB sweeps at most (S = 0: spread seeds grown).
+//   ours-sS         BuildPatches with S BB sweeps at most (S = 0: spread seeds grown) and L
+//                   Lloyd steps on the seeds (--reseeds, default 1; --sweeps default 6: the
+//                   defaults of PatchOptions and of BB's preset patches).
 //                   Timed: the call (spread seeds, growth, sweeps), on a prepared mesh.
 //   emlo            InitialClusters (l-neighbourhood seeds, flood) + OptimizeEmlo, the
 //                   dissertation's single-level route (--emlo).
@@ -185,9 +187,8 @@ bool RunMeshoptimizer(const PreparedMesh& prepared, int repeats, Row& row) {
       [&] {
         count = meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(),
                                       meshlet_triangles.data(), mesh.indices.data(), index_count,
-                                      mesh.positions.data(), mesh.num_vertices(),
-                                      3 * sizeof(float), kVerticesPerMeshlet,
-                                      kTrianglesPerMeshlet, 0.0f);
+                                      mesh.positions.data(), mesh.num_vertices(), 3 * sizeof(float),
+                                      kVerticesPerMeshlet, kTrianglesPerMeshlet, 0.0f);
         return count > 0;
       },
       row);
@@ -239,40 +240,40 @@ bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
   std::vector<idx_t> part(n, 0);
   row.method = "metis";
   row.k = k;
-  return Time(repeats, [&] {
-    idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
-    idx_t cut = 0;
-    idx_t options[METIS_NOPTIONS];
-    METIS_SetDefaultOptions(options);
-    options[METIS_OPTION_CONTIG] = 1;
-    const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
-                                           nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
-                                           options, &cut, part.data());
-    if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
-    if (status != METIS_OK) return false;
-    row.labels.resize(n);
-    for (size_t f = 0; f < n; ++f) row.labels[f] = ClusterId(static_cast<uint32_t>(part[f]));
-    return true;
-  }, row);
+  return Time(
+      repeats,
+      [&] {
+        idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
+        idx_t cut = 0;
+        idx_t options[METIS_NOPTIONS];
+        METIS_SetDefaultOptions(options);
+        options[METIS_OPTION_CONTIG] = 1;
+        const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
+                                               nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
+                                               options, &cut, part.data());
+        if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
+        if (status != METIS_OK) return false;
+        row.labels.resize(n);
+        for (size_t f = 0; f < n; ++f) row.labels[f] = ClusterId(static_cast<uint32_t>(part[f]));
+        return true;
+      },
+      row);
 }
 #endif
 
-}  // namespace
-}  // namespace mlclust
-
-int main(int argc, char** argv) {
-  using namespace mlclust;
+int Run(int argc, char** argv) {
   bench::Args args(argc, argv,
-                   "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] "
-                   "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] [--emlo] [--header]");
+                   "usage: meshlets_bench MESH... [--repeats R] [--sweeps S[,S...]] [--reseeds L] "
+                   "[--growth free|flood] [--threads T] [--peers meshoptimizer,metis] [--ml] "
+                   "[--emlo] [--header]");
   const bool header = args.Flag("header");
   const bool with_ml = args.Flag("ml");
   const bool with_emlo = args.Flag("emlo");
   const int repeats = args.Get<int>("repeats", 5);
-  const std::string sweeps_text = args.Get<std::string>("sweeps", "4");
+  const std::string sweeps_text = args.Get<std::string>("sweeps", "6");
   const std::string growth = args.Get<std::string>("growth", "free");
   const int threads = args.Get<int>("threads", 0);
-  const uint32_t reseeds = args.Get<uint32_t>("reseeds", 0);
+  const uint32_t reseeds = args.Get<uint32_t>("reseeds", 1);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
   auto with_peer = [&](absl::string_view name) {
@@ -373,16 +374,15 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;
       }
-      std::printf("%s,%u,ml,%u,%.4f,%.4f,%.10g,1,,,,\n", bench::BaseName(path).c_str(), faces,
-                  k, watch.Seconds(), ProcessCpuSeconds() - cpu, ml.At(k));
+      std::printf("%s,%u,ml,%u,%.4f,%.4f,%.10g,1,,,,\n", bench::BaseName(path).c_str(), faces, k,
+                  watch.Seconds(), ProcessCpuSeconds() - cpu, ml.At(k));
     }
     for (const Row& row : rows) {
       const double energy = MeshEnergyOfLabels(problem.energy, prepared.mesh, row.labels);
       const double reference = ml.At(row.k);
       const Shape shape = MeasureShape(prepared, row.labels);
-      std::printf("%s,%u,%s,%u,%.4f,%.4f,%.10g,%s,%u,%u,%u,%u\n",
-                  bench::BaseName(path).c_str(), faces, row.method.c_str(), row.k, row.seconds,
-                  row.cpu_seconds, energy,
+      std::printf("%s,%u,%s,%u,%.4f,%.4f,%.10g,%s,%u,%u,%u,%u\n", bench::BaseName(path).c_str(),
+                  faces, row.method.c_str(), row.k, row.seconds, row.cpu_seconds, energy,
                   reference > 0 ? absl::StrCat(energy / reference).c_str() : "", shape.patches,
                   shape.disconnected, shape.max_faces, shape.max_vertices);
       std::fflush(stdout);
@@ -390,3 +390,8 @@ int main(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace
+}  // namespace mlclust
+
+int main(int argc, char** argv) { return mlclust::Run(argc, argv); }

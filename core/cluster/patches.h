@@ -12,9 +12,13 @@
 //                      face count)
 //   2. growth          energy-free (l. 671, 1219) or the energy-ordered flood (Alg. 2.2),
 //                      as GrowClustersFromSeeds does: every cluster connected
-//   3. BB sweeps       a bounded number of boundary-based sweeps (Alg. 5.1, the stages of
-//                      core/cluster/boundary_based.h, in parallel) with the connectivity
-//                      guard: no patch splits, the energy never rises
+//   3. BB sweeps       a bounded number of boundary-based sweeps (Alg. 5.1: proxies fixed
+//                      per sweep, every boundary face decides alone, in parallel, by
+//                      boundary_based::DecideBoundaryMove) with the ring test of the
+//                      connectivity guard; the moves apply in face order, each valid against
+//                      the labels as they are by then (so neighbouring faces may move in one
+//                      sweep, where BB's conflict rule defers one of them): no patch splits,
+//                      and for the CVD energies no sweep raises the energy
 //
 // with, by default, one Lloyd step on the seeds between 2 and 3 (each seed moves to its
 // cluster's face nearest the cluster's centroid, and all grow again). The defaults (6 sweeps,

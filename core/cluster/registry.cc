@@ -231,6 +231,29 @@ OptionInfo PointOptimizerOption() {
                 });
 }
 
+// BB's preset "patches", ours: meshlet-sized patches fast (core/cluster/patches.h).
+std::vector<OptionInfo> PatchPresetOptions() {
+  return {
+      Choice("preset", {"none", "patches"}, "none",
+             "ours: patches = many small connected patches fast (e.g. K = faces / 124, GPU "
+             "meshlets): Morton-order seeds, energy-free growth, Lloyd steps on the seeds "
+             "(patch-reseeds), then at most patch-sweeps BB sweeps applied in face order (on "
+             "the CPU); init, level, growth, seed-reduction, add-seeds and max-iterations do "
+             "not apply",
+             [](const OptionValue& v, JobPlan& plan) { plan.bb_patches = v.text == "patches"; }),
+      Integer("patch-sweeps", 0, 1000000, "6", "preset patches: BB sweeps at most",
+              [](const OptionValue& v, JobPlan& plan) {
+                plan.patches.sweeps = static_cast<uint32_t>(v.integer);
+              }),
+      Integer("patch-reseeds", 0, 1000, "1",
+              "preset patches: Lloyd steps on the seeds (each to its cluster's face nearest "
+              "the centroid, all grown again) before the sweeps",
+              [](const OptionValue& v, JobPlan& plan) {
+                plan.patches.reseeds = static_cast<uint32_t>(v.integer);
+              }),
+  };
+}
+
 constexpr char kHierarchyGridHelp[] =
     "voxels per dimension of the start (section 6.2); 0 = aiming at about eight points per "
     "occupied cell";
@@ -730,27 +753,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  Integer("max-iterations", 1, 1000000, "200", "BB sweeps at most",
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.boundary_based.max_iterations = static_cast<uint32_t>(v.integer);
-                         }),
-                 // Ours: meshlet-sized patches fast (core/cluster/patches.h).
-                 Choice("preset", {"none", "patches"}, "none",
-                        "ours: patches = many small connected patches fast (e.g. K = faces / "
-                        "124, GPU meshlets): Morton-order seeds, energy-free growth, Lloyd steps "
-                        "on the seeds (patch-reseeds), then at most patch-sweeps BB sweeps "
-                        "applied in face order (on the CPU); init, level, growth, "
-                        "seed-reduction, add-seeds and max-iterations do not apply",
-                        [](const OptionValue& v, JobPlan& plan) {
-                          plan.bb_patches = v.text == "patches";
-                        }),
-                 Integer("patch-sweeps", 0, 1000000, "6", "preset patches: BB sweeps at most",
-                         [](const OptionValue& v, JobPlan& plan) {
-                           plan.patches.sweeps = static_cast<uint32_t>(v.integer);
-                         }),
-                 Integer("patch-reseeds", 0, 1000, "1",
-                         "preset patches: Lloyd steps on the seeds (each to its cluster's face "
-                         "nearest the centroid, all grown again) before the sweeps",
-                         [](const OptionValue& v, JobPlan& plan) {
-                           plan.patches.reseeds = static_cast<uint32_t>(v.integer);
                          })};
+    for (OptionInfo& option : PatchPresetOptions()) a.options.push_back(std::move(option));
     // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
     // the list of gpu::HasGpuBoundaryDecide (gpu/stages/boundary_based_gpu.h).
     a.stages = {seed_stage,

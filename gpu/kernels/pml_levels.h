@@ -25,10 +25,11 @@
 // differ — not deduplicated: a cluster pair appears once per face edge on their common
 // boundary, so a level's ODE passes cost O(boundary face edges). At most 3 per face.
 //
-// Memory (PmlLevelsMemoryBound): per face 40 (sums) + 12 (size, label, remap) + 12 (ODE
-// key and partner) + 12 (triplets) + 4 * 8 * 3 (two edge lists and the edge keys, three
-// directed edges per face) + 20 (pairs: ids, values, flags, at most one per two faces);
-// about 190 bytes per face, 190 MB for 10^6 faces. Each buffer must fit one storage buffer.
+// Memory (PmlLevelsMemoryBound), bytes per face: 40 (sums) + 12 (size, label, remap) + 12
+// (ODE key and partner) + 12 (triplets) + 72 (two edge lists and the edge keys, 8 bytes
+// each per directed edge, at most 3 per face) + 18 (pairs: ids, values and flag, 36 bytes,
+// at most one per two faces) + the compaction's counts (1/8): about 166 bytes per face,
+// 166 MB for 10^6 faces. Each buffer must fit one storage buffer (RESOURCE_EXHAUSTED).
 #ifndef MLCLUST_GPU_KERNELS_PML_LEVELS_H_
 #define MLCLUST_GPU_KERNELS_PML_LEVELS_H_
 

@@ -13,8 +13,8 @@ import grpc
 import numpy as np
 
 import mlclust
+import served
 import test_client
-from served import ServedTestCase
 
 DATA = test_client.DATA
 
@@ -47,7 +47,7 @@ def off_polygon_counts(path):
     return counts
 
 
-class PolygonTest(ServedTestCase):
+class PolygonTest(served.ServedTestCase):
     @classmethod
     def connect(cls):
         cls.client = mlclust.Client(cls.address)

@@ -8,6 +8,7 @@
 
 #include "core/cluster/registry.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/mesh/connectivity_guard.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -107,8 +108,8 @@ TEST(SpreadSeedsTest, SeedsAreSpreadOverTheSurface) {
   // The seeds are at least two squares apart from each other.
   for (size_t a = 0; a < seeds->size(); ++a) {
     for (size_t b = a + 1; b < seeds->size(); ++b) {
-      const Vec3 d = l.measures.centroid[(*seeds)[a].value()] -
-                     l.measures.centroid[(*seeds)[b].value()];
+      const Vec3 d =
+          l.measures.centroid[(*seeds)[a].value()] - l.measures.centroid[(*seeds)[b].value()];
       EXPECT_GT(d.x * d.x + d.y * d.y + d.z * d.z, (2.0 / 16) * (2.0 / 16)) << a << " " << b;
     }
   }
@@ -203,12 +204,10 @@ TEST(BuildPatchesTest, RefusesAndCancels) {
   const testing::LoadedMesh& l = testing::LoadDataFile("fandisk.off");
   PatchOptions options;
   options.clusters = 0;
-  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kInvalidArgument);
   options.clusters = 10;
   options.threads = -1;
-  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kInvalidArgument);
   options.threads = 0;
   std::atomic<bool> cancel{true};
   options.cancel = &cancel;
@@ -226,6 +225,38 @@ TEST(BuildPatchesTest, GuardKeepsEveryPatchConnectedOverManySweeps) {
   ASSERT_TRUE(result.ok());
   const std::vector<uint32_t> pieces = PiecesPerCluster(l.adjacency, result->labels, 150);
   for (uint32_t c = 0; c < 150; ++c) EXPECT_EQ(pieces[c], 1u) << "patch " << c;
+}
+
+// The rings built on demand (BuildFaceRing, RingTestAllows: what the sweeps ask) answer
+// as ConnectivityGuard's stored rings do, on a mesh with holes (rings broken by the
+// boundary) and patches of every shape the growth makes.
+TEST(BuildPatchesTest, OnDemandRingTestIsTheGuards) {
+  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
+  PatchOptions options;
+  options.clusters = 300;
+  options.sweeps = 0;
+  absl::StatusOr<PatchResult> grown = BuildPatches(l.problem(), options);
+  ASSERT_TRUE(grown.ok());
+  std::vector<uint32_t> labels, sizes(300, 0);
+  for (ClusterId c : grown->initial_labels) {
+    labels.push_back(c.value());
+    ++sizes[c.value()];
+  }
+  const ConnectivityGuard guard(l.mesh, l.adjacency);
+  std::vector<uint32_t> ring;
+  int allowed = 0, refused = 0;
+  for (uint32_t f = 0; f < labels.size(); ++f) {
+    for (FaceId g : l.adjacency.neighbours[f]) {
+      if (!g.valid() || labels[g.value()] == labels[f]) continue;
+      const uint32_t to = labels[g.value()];
+      BuildFaceRing(l.mesh, l.adjacency, f, ring);
+      const bool on_demand = sizes[labels[f]] > 1 && RingTestAllows(ring, labels[f], to, labels);
+      ASSERT_EQ(on_demand, guard.CanMove(f, to, labels, sizes)) << "face " << f;
+      (on_demand ? allowed : refused) += 1;
+    }
+  }
+  EXPECT_GT(allowed, 100);
+  EXPECT_GT(refused, 100);
 }
 
 // BB's preset "patches" through the registry: the two levels are the grown seeds and the

@@ -257,6 +257,28 @@ TEST(PmlGpu, CancelledBetweenLevels) {
   EXPECT_EQ(sink.counts.size(), 4u);  // level 0 and levels 1-3
 }
 
+// Several components (two grids apart and a lone triangle): the levels stop at one
+// cluster per component, as the CPU's do.
+TEST(PmlGpu, StopsAtOneClusterPerComponent) {
+  TriangleMesh mesh = meshes::MakeJitteredGrid(8, 12, 0.2f, 5);
+  const TriangleMesh second = meshes::MakeJitteredGrid(6, 6, 0.2f, 7);
+  const uint32_t offset = static_cast<uint32_t>(mesh.positions.size() / 3);
+  for (size_t i = 0; i < second.positions.size(); ++i) {
+    mesh.positions.push_back(second.positions[i] + (i % 3 == 0 ? 100.0f : 0.0f));
+  }
+  for (uint32_t v : second.indices) mesh.indices.push_back(v + offset);
+  const uint32_t lone = static_cast<uint32_t>(mesh.positions.size() / 3);
+  mesh.positions.insert(mesh.positions.end(), {-50, 0, 0, -49, 0, 0, -50, 1, 0});
+  mesh.indices.insert(mesh.indices.end(), {lone, lone + 1, lone + 2});
+  const fixtures::LoadedMesh loaded = fixtures::Load(std::move(mesh));
+  ExpectSameLevels(Context(), loaded.problem(), PmlOptions(PmlPairRule::kAll, 1));
+  LevelsSink sink;
+  absl::StatusOr<MultilevelSummary> gpu =
+      RunParallelMultilevelGpu(Context(), loaded.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_EQ(gpu->final_clusters, 3u);
+}
+
 // The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only and the
 // CVD energies, with device gpu even on llvmpipe, with auto only on hardware.
 TEST(PmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
