@@ -2,9 +2,13 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <bit>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <fstream>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <sstream>
@@ -76,7 +80,47 @@ class HierarchyAssembler {
 
   bool done() const { return done_; }
 
+  // RunOptions::labels_for_clusters: follow the labels level by level and keep those of
+  // the level ChooseLevel picks (the last with exactly `k` clusters, else the first with
+  // fewer). Call before the first event.
+  void TrackLabelsFor(uint32_t k) { track_k_ = k; }
+
+  // At the end of the stream: the tracked level and labels into the result.
+  void FinishTracking() {
+    if (track_k_ == 0 || !started_) return;
+    if (last_was_k_) {
+      exact_level_ = result_.hierarchy.num_levels() - 1;
+      exact_labels_ = std::move(current_);
+    }
+    if (exact_level_.has_value()) {
+      result_.chosen_level = exact_level_;
+      result_.chosen_labels = std::move(exact_labels_);
+    } else if (fewer_level_.has_value()) {
+      result_.chosen_level = fewer_level_;
+      result_.chosen_labels = std::move(fewer_labels_);
+    }
+  }
+
  private:
+  // After the hierarchy took level `hierarchy.num_levels() - 1` (`count` clusters, these
+  // moves): the labels followed to it, and a copy kept where ChooseLevel could pick it.
+  void Track(uint32_t count, std::span<const uint32_t> element, std::span<const uint32_t> to) {
+    if (track_k_ == 0) return;
+    const size_t level = result_.hierarchy.num_levels() - 1;
+    const bool exact_seen = exact_level_.has_value() || last_was_k_;
+    if (last_was_k_ && count != track_k_) {
+      // A run of levels with exactly k clusters ended: its last level's labels.
+      exact_level_ = level - 1;
+      exact_labels_ = current_;
+    }
+    for (size_t i = 0; i < element.size(); ++i) current_[element[i]] = ClusterId(to[i]);
+    last_was_k_ = count == track_k_;
+    if (count < track_k_ && !exact_seen && !fewer_level_.has_value()) {
+      fewer_level_ = level;
+      fewer_labels_ = current_;
+    }
+  }
+
   absl::Status AddSnapshot(const v1::LevelSnapshot& snapshot) {
     if (started_) return absl::DataLossError("a snapshot after the hierarchy had started");
     if (snapshot.first_element() != labels_.size()) {
@@ -93,6 +137,14 @@ class HierarchyAssembler {
       if (absolute_levels_) result_.first_level = snapshot.level();
       absl::Status status =
           result_.hierarchy.OnStart(labels_, snapshot.cluster_count(), snapshot.energy());
+      if (status.ok() && track_k_ != 0) {
+        current_ = std::move(labels_);
+        last_was_k_ = snapshot.cluster_count() == track_k_;
+        if (snapshot.cluster_count() < track_k_) {
+          fewer_level_ = 0;
+          fewer_labels_ = current_;
+        }
+      }
       std::vector<ClusterId>().swap(labels_);
       return status;
     }
@@ -198,6 +250,7 @@ class HierarchyAssembler {
     if (absl::Status s = result_.hierarchy.OnLevel(level); !s.ok()) {
       return absl::DataLossError(s.message());
     }
+    Track(cluster_count, element, to);
     return absl::OkStatus();
   }
 
@@ -212,6 +265,62 @@ class HierarchyAssembler {
   std::vector<uint32_t> unpacked_element_, unpacked_to_, unpacked_from_;  // packed batches
   bool started_ = false;
   bool done_ = false;
+  // TrackLabelsFor: the labels at the last level taken, the last level of a run with
+  // exactly k clusters, and the first with fewer.
+  uint32_t track_k_ = 0;
+  std::vector<ClusterId> current_;
+  bool last_was_k_ = false;
+  std::optional<size_t> exact_level_, fewer_level_;
+  std::vector<ClusterId> exact_labels_, fewer_labels_;
+};
+
+// The events of a call, read (and parsed) by a reader thread while the caller's thread
+// rebuilds the levels: at most `capacity` wait in between, so a slow rebuild holds the
+// stream back (gRPC's flow control) instead of memory growing.
+class ReadAhead {
+ public:
+  explicit ReadAhead(size_t capacity) : capacity_(std::max<size_t>(1, capacity)) {}
+
+  // The reader's side: false once the consumer stopped (Stop).
+  bool Push(v1::JobEvent event) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    room_.wait(lock, [&] { return stopped_ || events_.size() < capacity_; });
+    if (stopped_) return false;
+    events_.push_back(std::move(event));
+    ready_.notify_one();
+    return true;
+  }
+  // The stream ended (Read returned false).
+  void End() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ended_ = true;
+    ready_.notify_one();
+  }
+  // The consumer's side: false once the stream ended and every event was taken.
+  bool Pop(v1::JobEvent& event) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    ready_.wait(lock, [&] { return ended_ || !events_.empty(); });
+    if (events_.empty()) return false;
+    event = std::move(events_.front());
+    events_.pop_front();
+    room_.notify_one();
+    return true;
+  }
+  // The consumer stops taking events (an inconsistent stream): the reader drops the rest.
+  void Stop() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopped_ = true;
+    events_.clear();
+    room_.notify_one();
+  }
+
+ private:
+  const size_t capacity_;
+  std::mutex mutex_;
+  std::condition_variable ready_, room_;
+  std::deque<v1::JobEvent> events_;
+  bool ended_ = false;
+  bool stopped_ = false;
 };
 
 }  // namespace
@@ -334,17 +443,46 @@ absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, 
 
   JobResult result;
   HierarchyAssembler assembler(result);
+  assembler.TrackLabelsFor(options.labels_for_clusters);
   absl::Status stream_status;
-  v1::JobEvent event;
-  while (stream->Read(&event)) {
+  auto take = [&](const v1::JobEvent& event) {
     if (options.on_event) options.on_event(event);
     if (stream_status.ok()) stream_status = assembler.Add(event);
-    if (!stream_status.ok()) context.TryCancel();
+    return stream_status.ok();
+  };
+  if (options.read_ahead_events == 0) {
+    v1::JobEvent event;
+    while (stream->Read(&event)) {
+      if (!take(event)) context.TryCancel();
+    }
+  } else {
+    // Receiving overlaps the rebuild: a reader thread reads and parses the next events
+    // while this thread applies the levels (and calls on_event).
+    ReadAhead queue(options.read_ahead_events);
+    std::thread reader([&] {
+      v1::JobEvent event;
+      while (stream->Read(&event)) {
+        if (!queue.Push(std::move(event))) {
+          context.TryCancel();  // the rest is drained and dropped
+        }
+      }
+      queue.End();
+    });
+    v1::JobEvent event;
+    while (queue.Pop(event)) {
+      if (!take(event)) {
+        queue.Stop();
+        context.TryCancel();
+        break;
+      }
+    }
+    reader.join();
   }
   const grpc::Status status = stream->Finish();
   if (!stream_status.ok()) return stream_status;
   if (!status.ok()) return FromGrpc(status);
   if (!assembler.done()) return absl::DataLossError("the job ended without a done event");
+  assembler.FinishTracking();
   return result;
 }
 

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -49,6 +50,13 @@ struct RunOptions {
   // Asks for raw uint32 triplets (JobSpec.packed_triplets, issue 13): no varint coding on
   // either side. The levels received are the same either way.
   bool packed_triplets = true;
+  // Rebuild the labels of the level `--clusters K` writes while the stream arrives
+  // (JobResult::chosen_labels): the last level with exactly this many clusters, else the
+  // first with fewer (0: none). Saves replaying the hierarchy after the stream ends.
+  uint32_t labels_for_clusters = 0;
+  // Events are read (and parsed) on a reader thread into a queue of at most this many,
+  // while the calling thread rebuilds the levels (issue 13); 0: one thread.
+  size_t read_ahead_events = 16;
 };
 
 struct JobResult {
@@ -60,6 +68,11 @@ struct JobResult {
   v1::Preview preview;
   // The job's level number of `hierarchy`'s level 0 (WatchJob's from_level; 0 for RunJob).
   uint32_t first_level = 0;
+  // RunOptions::labels_for_clusters: the level chosen and its labels, rebuilt as the levels
+  // arrived (equal to hierarchy.LabelsAt(*chosen_level)); nullopt when none was asked or
+  // no level has that many clusters or fewer.
+  std::optional<size_t> chosen_level;
+  std::vector<ClusterId> chosen_labels;
 };
 
 // Runs one job to the end: sends `spec` (its input_bytes is set here) and `input`, then
@@ -89,7 +102,7 @@ struct WatchOptions {
   std::function<void(const absl::Status&)> on_resume;
 };
 
-// Reads a detached job's levels (Watch): level `from_level` and every level after it
+// Reads a job's levels (Watch; detached or not): level `from_level` and every level after it
 // (level 0 of the returned hierarchy is `from_level` of the job), to the job's end. On
 // failure the server's status (NOT_FOUND once its results were dropped, with a message
 // saying when and why).

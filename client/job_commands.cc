@@ -29,7 +29,8 @@ constexpr char kJobCommandsUsage[] = R"(
 
   mlclust watch JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]
                     [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]
-      Streams a detached job's levels, while it runs or after it ended, from any client:
+      Streams a job's levels (detached or not: every job's are kept; `jobs` lists the
+      ids), while it runs or after it ended, from any client of its tenant:
       a snapshot of level N (default 0, the job's first), then every level after it. A
       stream that breaks is resumed where it stopped. The outputs are those of `mesh`:
       --clusters K picks the level written by --labels (one cluster per element) and --ply

@@ -541,9 +541,12 @@ int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& pa
 
 // Runs `spec` on the server --server names, or on one started inside this process, with a
 // progress line on a terminal.
+// `labels_for_clusters`: the K of --clusters, whose level's labels the client rebuilds
+// while the stream arrives (RunOptions::labels_for_clusters; LabelsOfLevel).
 absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::JobSpec& spec,
                                               const std::string& payload, double* seconds,
-                                              v1::Accepted* accepted = nullptr) {
+                                              v1::Accepted* accepted = nullptr,
+                                              uint32_t labels_for_clusters = 0) {
   std::unique_ptr<server::Server> embedded;
   std::shared_ptr<grpc::Channel> channel;
   MLCLUST_ASSIGN_OR_RETURN(const ServerFlags flags, FlagsOf(args));
@@ -567,6 +570,7 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     progress.Update(event);
   };
   run_options.deadline = flags.deadline;
+  run_options.labels_for_clusters = labels_for_clusters;
   const absl::Time started_at = absl::Now();
   if (args.has("server") && client::NamesReplicas(args.get("server"))) {
     // Several replicas: the least loaded first, the next where one did not accept the job.
@@ -608,6 +612,14 @@ absl::StatusOr<size_t> ChooseLevel(const HierarchyLog& log, uint32_t k) {
                                             log.cluster_count(log.num_levels() - 1), ")"));
   }
   return *level;
+}
+
+// The labels at `level`: those the client rebuilt as the stream arrived where it chose the
+// same level (RunOptions::labels_for_clusters, taken from `result`), else replayed from
+// level 0. The same labels either way.
+absl::StatusOr<std::vector<ClusterId>> LabelsOfLevel(client::JobResult& result, size_t level) {
+  if (result.chosen_level == level) return std::move(result.chosen_labels);
+  return result.hierarchy.LabelsAt(level);
 }
 
 std::string ElbowNote(const v1::Done& done) {
@@ -969,7 +981,9 @@ int Mesh(const Arguments& args) {
 
   double seconds = 0;
   v1::Accepted accepted;
-  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, *payload, &seconds, &accepted);
+  absl::StatusOr<client::JobResult> result =
+      RunOnServer(args, spec, *payload, &seconds, &accepted,
+                  auto_k.empty() ? static_cast<uint32_t>(*clusters) : 0);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != mesh->num_faces()) {
@@ -1011,7 +1025,7 @@ int Mesh(const Arguments& args) {
   if (*clusters > 0) {
     absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
     if (!level.ok()) return Fail(level.status());
-    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
+    absl::StatusOr<std::vector<ClusterId>> labels = LabelsOfLevel(*result, *level);
     if (!labels.ok()) return Fail(labels.status());
     std::vector<uint32_t> compact = client::CompactLabels(*labels);
     std::string merge_note;
@@ -1232,7 +1246,9 @@ int Points(const Arguments& args) {
                             points->values.size() * sizeof(float));
   if (args.has("detach")) return Detach(args, spec, payload);
   double seconds = 0;
-  absl::StatusOr<client::JobResult> result = RunOnServer(args, spec, payload, &seconds);
+  absl::StatusOr<client::JobResult> result = RunOnServer(
+      args, spec, payload, &seconds, nullptr,
+      auto_k.empty() && !grid_start && !chooses_k ? static_cast<uint32_t>(*clusters) : 0);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
   if (log.num_elements() != points->num_points()) {
@@ -1281,7 +1297,7 @@ int Points(const Arguments& args) {
   }
   std::string level_note;
   if (level.has_value()) {
-    absl::StatusOr<std::vector<ClusterId>> labels = log.LabelsAt(*level);
+    absl::StatusOr<std::vector<ClusterId>> labels = LabelsOfLevel(*result, *level);
     if (!labels.ok()) return Fail(labels.status());
     if (args.has("labels")) {
       if (absl::Status s = WriteLabels(args.get("labels"), client::CompactLabels(*labels));

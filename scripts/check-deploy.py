@@ -3,7 +3,8 @@
 
   /usr/bin/python3 scripts/check-deploy.py [--mlclust build-image/client/mlclust]
 
-Needs python3-yaml (scripts/install-deps.sh --deploy); kubectl is used where present.
+Needs python3-yaml (scripts/install-deps.sh); kubectl is used where present. CI (.ci/run)
+runs it with --mlclust build/client/mlclust; it takes about a second.
 
 What it checks (no kubeconform or API server here, so no full schema validation):
 - every file parses as YAML (python3-yaml); `kubectl kustomize` renders docker/k8s/base
@@ -29,7 +30,7 @@ import signal
 import subprocess
 import sys
 import tempfile
-import time
+import threading
 
 import yaml
 
@@ -258,9 +259,17 @@ def main():
         p = subprocess.Popen([mlclust, "serve", "--listen", "127.0.0.1:0", "--drain-seconds",
                               "25", "--metrics=127.0.0.1:0"] + args,
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        time.sleep(3)
+        # Up as soon as it says it serves (no fixed wait), then drained by SIGTERM.
+        started = []
+        killer = threading.Timer(60, p.kill)  # a server that never says it serves
+        killer.start()
+        for line in p.stdout:
+            started.append(line)
+            if "serving mlclust.v1.Clustering" in line:
+                break
+        killer.cancel()
         p.send_signal(signal.SIGTERM)
-        out = p.communicate(timeout=30)[0]
+        out = "".join(started) + p.communicate(timeout=30)[0]
         check(p.returncode == 0 and "queue capacity 32; CPU workers 2" in out,
               "mlclust serve starts with the Deployment's args and exits 0 on SIGTERM")
 

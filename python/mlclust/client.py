@@ -3,6 +3,7 @@
 import random
 import socket
 import sys
+import time
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, NamedTuple, Optional
@@ -99,6 +100,15 @@ def split_job_id(job_id):
         except ValueError:
             pass
     return None, job_id
+
+
+def _is_broken_stream(error):
+    """A stream that broke on the way (the connection dropped, a proxy reset it) rather
+    than a job or request that failed (the C++ client's IsBrokenStream)."""
+    details = error.details or ""
+    return (error.code == grpc.StatusCode.UNAVAILABLE
+            or (error.code == grpc.StatusCode.INTERNAL and "RST_STREAM" in details)
+            or (error.code == grpc.StatusCode.UNKNOWN and "Stream removed" in details))
 
 
 class Progress(NamedTuple):
@@ -265,6 +275,36 @@ class _Assembler:
         if n:
             self._continuing = bool(last_level_continues)
 
+    @property
+    def started(self):
+        """The snapshot is complete (levels may follow)."""
+        return self._started
+
+    def last_complete_level(self):
+        """The job's number of the last complete level held (a level split across
+        batches counts once its last piece arrived)."""
+        return self._offset + self._num_levels - 1 - (1 if self._continuing else 0)
+
+    def drop_partial_level(self):
+        """A stream broke: a level split across batches and not yet complete is dropped
+        (the resumed stream sends it again whole)."""
+        if not self._continuing:
+            return
+        keep = self._num_levels - 1
+        ends = np.concatenate(self._ends)
+        cut = int(ends[keep - 1])
+        for name in ("_element", "_to", "_from"):
+            arrays = getattr(self, name)
+            joined = np.concatenate(arrays) if arrays else np.empty(0, dtype=np.uint32)
+            setattr(self, name, [joined[:cut]])
+        for name in ("_counts", "_energies", "_sources"):
+            setattr(self, name, [np.concatenate(getattr(self, name))[:keep]])
+        self._ends = [ends[:keep]]
+        self._triplets = cut
+        self._num_levels = keep
+        self._last_count = int(self._counts[0][-1])
+        self._continuing = False
+
     def finish(self):
         if self.done is None:
             raise Error(grpc.StatusCode.DATA_LOSS, "the job ended without a done event")
@@ -418,31 +458,70 @@ class Client:
 
     def watch(self, job_id: str, from_level: int = 0, *,
               progress: Optional[Callable[[Progress], None]] = None,
-              timeout: Optional[float] = None) -> Hierarchy:
-        """The levels of a detached job (submitted with detach=True), while it runs or
+              timeout: Optional[float] = None, max_resumes: int = 5,
+              resume_delay: float = 0.5,
+              on_resume: Optional[Callable[["Error"], None]] = None) -> Hierarchy:
+        """The levels of a job (detached or not) of this client's tenant, while it runs or
         after it ended: level `from_level` of the job (as a snapshot, the returned
-        hierarchy's first level) and every level after it. Raises Error: NOT_FOUND once
-        the server dropped the job's results (the details say when and why),
-        PERMISSION_DENIED for another tenant's job. The job runs on if this ends."""
+        hierarchy's first level) and every level after it. A stream that breaks on the way
+        (UNAVAILABLE, a reset connection) is resumed after the last complete level received
+        (WatchRequest.resume), as the C++ client does: at most `max_resumes` times in a row
+        without progress, `resume_delay` seconds apart, calling `on_resume(error)` before
+        each. `timeout` bounds the whole watch. Raises Error: NOT_FOUND once the server
+        dropped the job's results (the details say when and why), PERMISSION_DENIED for
+        another tenant's job. The job runs on if this ends."""
         client, job, replica = self._route(job_id)
         if client is not self:
             try:
-                hierarchy = client.watch(job, from_level, progress=progress, timeout=timeout)
+                hierarchy = client.watch(job, from_level, progress=progress, timeout=timeout,
+                                         max_resumes=max_resumes, resume_delay=resume_delay,
+                                         on_resume=on_resume)
             except Error as e:
                 raise self._explain(e, replica, job) from None
             hierarchy.job_id = job_id
             return hierarchy
-        call = self._watch_raw(pb.WatchRequest(job_id=job_id, from_level=int(from_level)),
-                               timeout=timeout)
+        deadline = None if timeout is None else time.monotonic() + timeout
         assembler = _Assembler(progress, absolute_levels=True)
-        try:
-            for event in call:
-                assembler.add_bytes(event)
-        except grpc.RpcError as e:
-            raise Error(e.code(), e.details()) from None
-        except BaseException:
-            call.cancel()
-            raise
+        resumes = 0
+        while True:
+            if assembler.started:
+                # Resume where the stream stopped: no snapshot, the levels after the last
+                # complete one.
+                request = pb.WatchRequest(job_id=job_id, resume=True,
+                                          from_level=assembler.last_complete_level())
+            else:
+                request = pb.WatchRequest(job_id=job_id, from_level=int(from_level))
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            call = self._watch_raw(request, timeout=left)
+            progressed = False
+            try:
+                for event in call:
+                    progressed = True
+                    assembler.add_bytes(event)
+            except grpc.RpcError as e:
+                error = Error(e.code(), e.details())
+                final = assembler.done is not None or assembler.failed is not None
+                if (final or not _is_broken_stream(error)
+                        or (deadline is not None
+                            and time.monotonic() + resume_delay >= deadline)):
+                    raise error from None
+                if progressed:
+                    resumes = 0
+                resumes += 1
+                if resumes > max_resumes:
+                    raise error from None
+                if on_resume is not None:
+                    on_resume(error)
+                assembler.drop_partial_level()
+                if not assembler.started:
+                    # The snapshot was cut short: start again from it.
+                    assembler = _Assembler(progress, absolute_levels=True)
+                time.sleep(resume_delay)
+                continue
+            except BaseException:
+                call.cancel()
+                raise
+            break
         if assembler.failed is not None:
             raise Error(assembler.failed.code, assembler.failed.message)
         assembler.job_id = job_id
