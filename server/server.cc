@@ -1264,7 +1264,6 @@ class ServerImpl {
 
   // A worker's loop: runs the jobs of `lanes` until the queue stops.
   void RunJobs(unsigned lanes, const JobRunnerContext& context) {
-    const ServerOptions& options = service_.options();
     Counters& counters = service_.counters();
     while (std::shared_ptr<Job> job = service_.queue().Pop(lanes)) {
       service_.LeftQueue(*job);
