@@ -912,6 +912,35 @@ class MeshSpace {
   absl::flat_hash_map<uint32_t, Proxy> proxy_cache_;
 };
 
+// The engine over a mesh space (faces or polygons as elements), on options.threads cores.
+template <typename Space>
+absl::StatusOr<MultilevelSummary> RunMeshSpace(Space& space, const MultilevelOptions& options,
+                                               LevelSink& sink) {
+  detail::MultilevelEngineOptions engine_options;
+  engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
+  engine_options.p_percent = options.p_percent;
+  engine_options.p_percent_sweep =
+      options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
+  engine_options.parallel = options.parallel;
+  engine_options.pml_until = options.pml_until;
+  engine_options.pml_pairs = options.pml_pairs;
+  engine_options.min_clusters = options.min_clusters;
+  engine_options.cancel = options.cancel;
+  tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+  return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
+    detail::MultilevelEngine<Space> engine(space, engine_options, sink);
+    MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
+    MultilevelSummary summary;
+    summary.levels = run.levels;
+    summary.final_clusters = run.final_clusters;
+    summary.moves = run.moves;
+    summary.final_energy = run.final_energy;
+    summary.optimisation_moves = space.optimisation_moves();
+    summary.evaluations = space.evaluations();
+    return summary;
+  });
+}
+
 // RunMultilevel with problem.polygons (ours, issue 13): the engine over the polygons
 // (detail::PolygonEnergy, their dual graph, their ring test), the levels passed to `sink`
 // over faces (detail::PolygonLevelSink). options.inspect_level and the summary's moves
@@ -932,37 +961,14 @@ absl::StatusOr<MultilevelSummary> RunMultilevelOnPolygons(const MeshProblem& pro
         "ring test (or none)");
   }
   detail::PolygonLevelSink face_sink(polygons, sink);
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& triangles) -> absl::StatusOr<MultilevelSummary> {
-        using Energy = detail::PolygonEnergy<std::decay_t<decltype(triangles)>>;
-        const Energy energy(triangles, polygons);
-        using Space = MeshSpace<Energy, PolygonAdjacency>;
-        Space space(problem, energy, options, polygons.adjacency);
-        detail::MultilevelEngineOptions engine_options;
-        engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
-        engine_options.p_percent = options.p_percent;
-        engine_options.p_percent_sweep =
-            options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
-        engine_options.parallel = options.parallel;
-        engine_options.pml_until = options.pml_until;
-        engine_options.pml_pairs = options.pml_pairs;
-        engine_options.min_clusters = options.min_clusters;
-        engine_options.cancel = options.cancel;
-        tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
-        return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
-          detail::MultilevelEngine<Space> engine(space, engine_options, face_sink);
-          MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
-          MultilevelSummary summary;
-          summary.levels = run.levels;
-          summary.final_clusters = run.final_clusters;
-          summary.moves = run.moves;
-          summary.final_energy = run.final_energy;
-          summary.optimisation_moves = space.optimisation_moves();
-          summary.evaluations = space.evaluations();
-          return summary;
-        });
-      });
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                        [&](const auto& triangles) -> absl::StatusOr<MultilevelSummary> {
+                          using Energy = detail::PolygonEnergy<std::decay_t<decltype(triangles)>>;
+                          const Energy energy(triangles, polygons);
+                          using Space = MeshSpace<Energy, PolygonAdjacency>;
+                          Space space(problem, energy, options, polygons.adjacency);
+                          return RunMeshSpace(space, options, face_sink);
+                        });
 }
 
 }  // namespace
@@ -985,35 +991,12 @@ absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
   if (problem.polygons != nullptr) return RunMultilevelOnPolygons(problem, options, sink);
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
-        using Energy = std::decay_t<decltype(energy)>;
-        MeshSpace<Energy> space(problem, energy, options, *problem.adjacency);
-        detail::MultilevelEngineOptions engine_options;
-        engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
-        engine_options.p_percent = options.p_percent;
-        engine_options.p_percent_sweep =
-            options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
-        engine_options.parallel = options.parallel;
-        engine_options.pml_until = options.pml_until;
-        engine_options.pml_pairs = options.pml_pairs;
-        engine_options.min_clusters = options.min_clusters;
-        engine_options.cancel = options.cancel;
-        tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
-        return arena.execute([&]() -> absl::StatusOr<MultilevelSummary> {
-          detail::MultilevelEngine<MeshSpace<Energy>> engine(space, engine_options, sink);
-          MLCLUST_ASSIGN_OR_RETURN(detail::MultilevelEngineSummary run, engine.Run());
-          MultilevelSummary summary;
-          summary.levels = run.levels;
-          summary.final_clusters = run.final_clusters;
-          summary.moves = run.moves;
-          summary.final_energy = run.final_energy;
-          summary.optimisation_moves = space.optimisation_moves();
-          summary.evaluations = space.evaluations();
-          return summary;
-        });
-      });
+  return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
+                        [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
+                          using Energy = std::decay_t<decltype(energy)>;
+                          MeshSpace<Energy> space(problem, energy, options, *problem.adjacency);
+                          return RunMeshSpace(space, options, sink);
+                        });
 }
 
 }  // namespace mlclust

@@ -13,3 +13,16 @@ cleanup() {
 }
 trap cleanup EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
+# start_server LOG ARGS...: `mlclust serve ARGS...` in the background, its stderr in LOG and
+# its pid in server_pid (stopped on exit); waits up to 10 s for "serving", else fails.
+start_server() {
+  local log=$1
+  shift
+  "$mlclust" serve "$@" 2> "$log" &
+  server_pid=$!
+  for _ in $(seq 100); do
+    grep -q "serving" "$log" 2>/dev/null && return 0
+    sleep 0.1
+  done
+  fail "server did not start: $(cat "$log")"
+}

@@ -22,13 +22,7 @@ head -c 3 "$work/embedded.ply" | grep -q ply || fail "ply header"
 
 # A separate server on a free port.
 port=$((20000 + RANDOM % 20000))
-"$mlclust" serve --listen "127.0.0.1:$port" 2> "$work/server.log" &
-server_pid=$!
-for _ in $(seq 100); do
-  grep -q "serving" "$work/server.log" 2>/dev/null && break
-  sleep 0.1
-done
-grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
+start_server "$work/server.log" --listen "127.0.0.1:$port"
 grep -q "GL" "$work/server.log" || fail "server did not log its GL renderer"
 
 "$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo hc --clusters 100 \

@@ -7,13 +7,7 @@
 source "$(dirname "$0")/cli_lib.sh" "$@"
 
 port=$((20000 + RANDOM % 20000))
-"$mlclust" serve --listen "127.0.0.1:$port" --retention-seconds 3 --gpu off 2> "$work/server.log" &
-server_pid=$!
-for _ in $(seq 100); do
-  grep -q "serving" "$work/server.log" 2>/dev/null && break
-  sleep 0.1
-done
-grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
+start_server "$work/server.log" --listen "127.0.0.1:$port" --retention-seconds 3 --gpu off
 server="127.0.0.1:$port"
 # A mesh big enough that ML runs for seconds: a 300 x 300 grid (180,000 faces), slightly wavy.
 awk 'BEGIN { n = 300; print "OFF"; print (n + 1) * (n + 1), 2 * n * n, 0;

@@ -12,13 +12,7 @@ command -v node > /dev/null || fail "node is not installed (scripts/install-deps
 bash "$root/scripts/node-deps.sh" || fail "scripts/node-deps.sh could not install examples/node's packages"
 
 port=$((20000 + RANDOM % 20000))
-"$mlclust" serve --listen "127.0.0.1:$port" 2> "$work/server.log" &
-server_pid=$!
-for _ in $(seq 100); do
-  grep -q "serving" "$work/server.log" 2>/dev/null && break
-  sleep 0.1
-done
-grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
+start_server "$work/server.log" --listen "127.0.0.1:$port"
 
 # The C++ CLI's labels for the job the Node client repeats (ml, cvd, seed 1; level 50).
 "$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo ml --clusters 50 \

@@ -27,13 +27,7 @@ grep -q "preview 400x300 of 40 clusters" "$work/embedded.out" || fail "summary: 
 
 # A separate server; the default size.
 port=$((20000 + RANDOM % 20000))
-"$mlclust" serve --listen "127.0.0.1:$port" 2> "$work/server.log" &
-server_pid=$!
-for _ in $(seq 100); do
-  grep -q "serving" "$work/server.log" 2>/dev/null && break
-  sleep 0.1
-done
-grep -q "serving" "$work/server.log" || fail "server did not start: $(cat "$work/server.log")"
+start_server "$work/server.log" --listen "127.0.0.1:$port"
 "$mlclust" mesh "$data/fandisk.off" --server "127.0.0.1:$port" --algo pml --clusters 25 \
   --preview "$work/remote.png" --quiet > "$work/remote.out" || fail "remote --preview failed"
 [ "$(png_size "$work/remote.png")" = "1024 768" ] || fail "remote preview: $(png_size "$work/remote.png")"
