@@ -12,6 +12,7 @@
 #include "gpu/context/gl_context.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide.h"
+#include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -19,14 +20,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-GlContext& Context() {
-  static GlContext* context = [] {
-    absl::StatusOr<std::unique_ptr<GlContext>> made = GlContext::Create();
-    EXPECT_TRUE(made.ok()) << made.status();
-    return made.ok() ? made->release() : nullptr;
-  }();
-  return *context;
-}
+GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
 
 std::vector<ClusterId> Seeds(const MeshProblem& problem, uint32_t k) {
   SeedOptions seeds;

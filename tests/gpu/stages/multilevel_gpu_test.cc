@@ -17,6 +17,7 @@
 #include "gpu/context/pass.h"
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -26,14 +27,7 @@ using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 
-GlContext& Context() {
-  static GlContext* context = [] {
-    absl::StatusOr<std::unique_ptr<GlContext>> made = GlContext::Create();
-    EXPECT_TRUE(made.ok()) << made.status();
-    return made.ok() ? made->release() : nullptr;
-  }();
-  return *context;
-}
+GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
 
 // Every level: its count, energy and triplets (sorted: the CPU reports them in merge
 // order, the GPU in face order).

@@ -14,20 +14,14 @@
 #include "gpu/context/gl_context.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/ln_kmeans.h"
+#include "tests/fixtures/gl_test_context.h"
 
 namespace mlclust::gpu {
 namespace {
 
 using ::testing::HasSubstr;
 
-GlContext& Context() {
-  static GlContext* context = [] {
-    absl::StatusOr<std::unique_ptr<GlContext>> made = GlContext::Create();
-    EXPECT_TRUE(made.ok()) << made.status();
-    return made.ok() ? made->release() : nullptr;
-  }();
-  return *context;
-}
+GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
 
 // m points in d dimensions around `blobs` random centres (unit spread in a box of 40).
 PointSet Blobs(uint32_t m, uint32_t d, uint32_t blobs, uint32_t seed) {
