@@ -23,6 +23,23 @@
 
 namespace mlclust {
 
+// The energies whose BB decide stage has a GPU cost (gpu/kernels/bb_decide.h): the
+// proxy-point energies (cvd, cvd-adaptive, mwcvd-*) and planar. The plan (registry.cc) and
+// the GPU driver (gpu/stages/boundary_based_gpu.h) both read this one list.
+inline bool HasGpuBoundaryDecide(MeshEnergyKind energy) {
+  switch (energy) {
+    case MeshEnergyKind::kCvd:
+    case MeshEnergyKind::kCvdAdaptive:
+    case MeshEnergyKind::kMwcvdArea:
+    case MeshEnergyKind::kMwcvdVariance:
+    case MeshEnergyKind::kMwcvdMax:
+    case MeshEnergyKind::kPlanar:
+      return true;
+    default:
+      return false;
+  }
+}
+
 class DeviceStages {
  public:
   virtual ~DeviceStages() = default;

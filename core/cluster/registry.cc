@@ -756,22 +756,12 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          })};
     for (OptionInfo& option : PatchPresetOptions()) a.options.push_back(std::move(option));
     // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
-    // the list of gpu::HasGpuBoundaryDecide (gpu/stages/boundary_based_gpu.h).
+    // HasGpuBoundaryDecide (core/cluster/device_stages.h).
     a.stages = {seed_stage,
                 {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
                  /*has_gpu=*/true, [](const JobPlan& plan) {
                    if (plan.bb_patches) return false;  // preset patches: its own sweeps, CPU
-                   switch (plan.mesh_energy.kind) {
-                     case MeshEnergyKind::kCvd:
-                     case MeshEnergyKind::kCvdAdaptive:
-                     case MeshEnergyKind::kMwcvdArea:
-                     case MeshEnergyKind::kMwcvdVariance:
-                     case MeshEnergyKind::kMwcvdMax:
-                     case MeshEnergyKind::kPlanar:
-                       return true;
-                     default:
-                       return false;
-                   }
+                   return HasGpuBoundaryDecide(plan.mesh_energy.kind);
                  }}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);

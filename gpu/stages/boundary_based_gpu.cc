@@ -4,23 +4,10 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/cluster/boundary_based.h"
+#include "core/cluster/device_stages.h"
 #include "gpu/kernels/bb_decide.h"
 
 namespace mlclust::gpu {
-
-bool HasGpuBoundaryDecide(MeshEnergyKind energy) {
-  switch (energy) {
-    case MeshEnergyKind::kCvd:
-    case MeshEnergyKind::kCvdAdaptive:
-    case MeshEnergyKind::kMwcvdArea:
-    case MeshEnergyKind::kMwcvdVariance:
-    case MeshEnergyKind::kMwcvdMax:
-    case MeshEnergyKind::kPlanar:
-      return true;
-    default:
-      return false;
-  }
-}
 
 // OptimizeBoundaryBased's driver (boundary_based::OptimizeBoundaryBasedWith) with the GPU
 // decider as its decide stage.

@@ -15,15 +15,11 @@
 
 namespace mlclust::gpu {
 
-// Whether the GPU decide stage exists for `energy` (CVD, adaptive CVD, MWCVD, planar); the
-// registry's plan (core/cluster/registry.cc, BB's cluster stage) keeps the same list.
-bool HasGpuBoundaryDecide(MeshEnergyKind energy);
-
 // OptimizeBoundaryBased (core/cluster/mesh_clustering.h) with the decide stage on
 // `context`; the same contract, plus: FAILED_PRECONDITION for an energy without a GPU
-// decide (HasGpuBoundaryDecide) and the GPU's errors, named by pass ("GPU pass 'bb
-// decide': ..."): RESOURCE_EXHAUSTED where the buffers do not fit, INTERNAL on GL errors.
-// On an error `labels` are unchanged. Runs on the context's thread.
+// decide (HasGpuBoundaryDecide, core/cluster/device_stages.h) and the GPU's errors, named by pass
+// ("GPU pass 'bb decide': ..."): RESOURCE_EXHAUSTED where the buffers do not fit, INTERNAL on GL
+// errors. On an error `labels` are unchanged. Runs on the context's thread.
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedGpu(GlContext& context,
                                                         const MeshProblem& problem,
                                                         std::vector<ClusterId>& labels,
