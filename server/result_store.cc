@@ -189,26 +189,7 @@ void ResultStore::Finish(v1::JobEvent final_event, const grpc::Status& status) {
   Pump(lock);
 }
 
-void ResultStore::Abort(const grpc::Status& status) {
-  std::unique_lock<std::mutex> lock(mutex_);
-  if (finished_) return;
-  cancelled_ = true;
-  DropHeld();
-  if (!finish_requested_) {
-    v1::JobEvent failed;
-    failed.mutable_failed()->set_code(status.error_code());
-    failed.mutable_failed()->set_message(status.error_message());
-    failed.set_final(true);
-    held_.push_back({std::move(failed), 0});
-    finish_requested_ = true;
-    finish_status_ = status;
-  }
-  Pump(lock);
-}
-
-void ResultStore::CutOff(const grpc::Status& status, std::unique_lock<std::mutex>& lock) {
-  cancelled_ = true;
-  DropHeld();
+void ResultStore::HoldFailed(const grpc::Status& status) {
   v1::JobEvent failed;
   failed.mutable_failed()->set_code(status.error_code());
   failed.mutable_failed()->set_message(status.error_message());
@@ -216,6 +197,23 @@ void ResultStore::CutOff(const grpc::Status& status, std::unique_lock<std::mutex
   held_.push_back({std::move(failed), 0});
   finish_requested_ = true;
   finish_status_ = status;
+}
+
+void ResultStore::Abort(const grpc::Status& status) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (finished_) return;
+  cancelled_ = true;
+  DropHeld();
+  if (!finish_requested_) {
+    HoldFailed(status);
+  }
+  Pump(lock);
+}
+
+void ResultStore::CutOff(const grpc::Status& status, std::unique_lock<std::mutex>& lock) {
+  cancelled_ = true;
+  DropHeld();
+  HoldFailed(status);
   // The write in flight (the one the client stopped reading) ends when the client reads
   // again or goes away; then the Failed event and the status follow.
   std::function<void(const grpc::Status&)> on_cut_off = options_.on_cut_off;

@@ -81,6 +81,8 @@ class ResultStore : public EventChannel {
   void Push(v1::JobEvent event, std::unique_lock<std::mutex>& lock);
   void CutOff(const grpc::Status& status, std::unique_lock<std::mutex>& lock);
   void DropHeld();
+  // Holds a final Failed event with `status` and asks for the end with it (mutex held).
+  void HoldFailed(const grpc::Status& status);
   // Starts the next write, or ends the call when nothing is left and an end was asked
   // for. Called with `lock` held; releases it before calling the writer, so a reaction
   // that runs inline cannot deadlock on mutex_.
