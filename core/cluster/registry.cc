@@ -157,7 +157,8 @@ OptionInfo ParallelOptimisationOption() {
       "one queue, every boundary face finding its best move at once; rounds: the moves then "
       "checked again and applied in face order with the guard; independent: only moves on "
       "clusters no earlier move of the round reads, guard-checked in parallel, the rest next "
-      "round. Other levels than EMLO's, the same on any thread count",
+      "round (experimental: on 832k faces it did not finish in 600 s; cancel works). Other "
+      "levels than EMLO's, the same on any thread count",
       [](const OptionValue& v, JobPlan& plan) {
         plan.multilevel.parallel_optimisation = v.text != "off";
         plan.multilevel.independent_moves = v.text == "independent";
