@@ -54,6 +54,19 @@ class Args {
   }
   size_t num_positional() const { return positional_.size(); }
 
+  // An optional positional argument: the i-th one parsed as T (integers, double,
+  // std::string), or `fallback` if there is none; Done() fails if it does not parse.
+  template <typename T>
+  T Positional(size_t i, T fallback) {
+    if (i >= positional_.size()) return fallback;
+    T value = fallback;
+    if (!Parse(positional_[i], value)) {
+      errors_ += "positional argument " + std::to_string(i + 1) + ": cannot parse '" +
+                 positional_[i] + "'\n";
+    }
+    return value;
+  }
+
   // The value of --name, parsed as T (integers, double, std::string), or `fallback`.
   template <typename T>
   T Get(std::string_view name, T fallback) {

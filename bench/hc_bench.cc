@@ -1,9 +1,9 @@
 // Times the stages of an HC run on a mesh file: read, validate, adjacency, measures, HC.
 //   hc_bench MESH [REPEATS]
 #include <cstdio>
+#include <string>
 
-#include "absl/strings/numbers.h"
-#include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/cluster/multilevel.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
@@ -25,22 +25,20 @@ class CountingSink : public mlclust::LevelSink {
 
 template <typename F>
 double Seconds(F&& f) {
-  const absl::Time start = absl::Now();
+  const mlclust::bench::Stopwatch watch;
   f();
-  return absl::ToDoubleSeconds(absl::Now() - start);
+  return watch.Seconds();
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: hc_bench MESH [REPEATS]\n");
-    return 2;
-  }
-  int repeats = 3;
-  if (argc > 2 && !absl::SimpleAtoi(argv[2], &repeats)) return 2;
+  mlclust::bench::Args args(argc, argv, "usage: hc_bench MESH [REPEATS]");
+  const std::string path = args.Positional(0);
+  const int repeats = args.Positional<int>(1, 3);
+  if (!args.Done()) return 2;
   absl::StatusOr<mlclust::TriangleMesh> mesh;
-  const double read = Seconds([&] { mesh = mlclust::ReadMeshFile(argv[1]); });
+  const double read = Seconds([&] { mesh = mlclust::ReadMeshFile(path); });
   if (!mesh.ok()) {
     std::fprintf(stderr, "%s\n", mesh.status().ToString().c_str());
     return 1;
@@ -55,7 +53,8 @@ int main(int argc, char** argv) {
   const double adjacency_s = Seconds([&] { adjacency = mlclust::BuildFaceAdjacency(*mesh); });
   mlclust::FaceMeasures measures;
   const double measures_s = Seconds([&] { measures = mlclust::ComputeFaceMeasures(*mesh); });
-  std::printf("%s: %zu faces, %zu vertices\n", argv[1], mesh->num_faces(), mesh->num_vertices());
+  std::printf("%s: %zu faces, %zu vertices\n", path.c_str(), mesh->num_faces(),
+              mesh->num_vertices());
   std::printf("read %.3f s, validate %.3f s, adjacency %.3f s, measures %.3f s\n", read, validate,
               adjacency_s, measures_s);
   const mlclust::MeshProblem problem{&*mesh, &*adjacency, &measures, {}};

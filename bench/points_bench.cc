@@ -23,8 +23,7 @@
 #include <cstring>
 #include <string>
 
-#include "absl/strings/numbers.h"
-#include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
 #include "core/base/random.h"
@@ -101,52 +100,27 @@ mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string algo = "ml", input, init = "kmeans++", curve;
-  uint64_t m = 100000, seed = 1;
-  uint32_t d = 3, blobs = 100, k = 1000, grid = 0, dims = 0, until = 1, rounds = 8;
-  int threads = 0, fingerprint = 0;
-  double cancel_after = -1;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string arg = argv[i], value = argv[i + 1];
-    bool ok = true;
-    if (arg == "--algo")
-      algo = value;
-    else if (arg == "--m")
-      ok = absl::SimpleAtoi(value, &m);
-    else if (arg == "--d")
-      ok = absl::SimpleAtoi(value, &d);
-    else if (arg == "--blobs")
-      ok = absl::SimpleAtoi(value, &blobs);
-    else if (arg == "--k")
-      ok = absl::SimpleAtoi(value, &k);
-    else if (arg == "--init")
-      init = value;
-    else if (arg == "--grid")
-      ok = absl::SimpleAtoi(value, &grid);
-    else if (arg == "--threads")
-      ok = absl::SimpleAtoi(value, &threads);
-    else if (arg == "--seed")
-      ok = absl::SimpleAtoi(value, &seed);
-    else if (arg == "--input")
-      input = value;
-    else if (arg == "--dims")
-      ok = absl::SimpleAtoi(value, &dims);
-    else if (arg == "--until")
-      ok = absl::SimpleAtoi(value, &until);
-    else if (arg == "--cancel-after")
-      ok = absl::SimpleAtod(value, &cancel_after);
-    else if (arg == "--curve")
-      curve = value;
-    else if (arg == "--rounds")
-      ok = absl::SimpleAtoi(value, &rounds);
-    else if (arg == "--fingerprint")
-      ok = absl::SimpleAtoi(value, &fingerprint);
-    else
-      ok = false;
-    if (!ok || (init != "kmeans++" && init != "random")) {
-      std::fprintf(stderr, "bad option %s %s\n", arg.c_str(), value.c_str());
-      return 2;
-    }
+  mlclust::bench::Args args(
+      argc, argv,
+      "usage: points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K] "
+      "[--init kmeans++|random] [--grid A] [--threads T] [--seed S] [--input FILE [--dims D]] "
+      "[--until K] [--curve CSV] [--fingerprint 1] [--rounds R] [--cancel-after S]");
+  const std::string algo = args.Get<std::string>("algo", "ml");
+  uint64_t m = args.Get<uint64_t>("m", 100000);
+  const uint64_t seed = args.Get<uint64_t>("seed", 1);
+  uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 100);
+  const uint32_t k = args.Get<uint32_t>("k", 1000), grid = args.Get<uint32_t>("grid", 0);
+  const uint32_t dims = args.Get<uint32_t>("dims", 0), until = args.Get<uint32_t>("until", 1);
+  const uint32_t rounds = args.Get<uint32_t>("rounds", 8);
+  const int threads = args.Get<int>("threads", 0), fingerprint = args.Get<int>("fingerprint", 0);
+  const double cancel_after = args.Get<double>("cancel-after", -1);
+  const std::string input = args.Get<std::string>("input", "");
+  const std::string init = args.Get<std::string>("init", "kmeans++");
+  const std::string curve = args.Get<std::string>("curve", "");
+  if (!args.Done()) return 2;
+  if (init != "kmeans++" && init != "random") {
+    std::fprintf(stderr, "bad option --init %s\n", init.c_str());
+    return 2;
   }
   mlclust::PointSet points;
   if (!input.empty()) {
@@ -164,7 +138,7 @@ int main(int argc, char** argv) {
   } else {
     points = Blobs(m, d, blobs, seed);
   }
-  const absl::Time start = absl::Now();
+  const mlclust::bench::Stopwatch watch;
   uint64_t steps = 0;
   double energy = 0, init_seconds = 0;
   uint32_t used_grid = grid, start_clusters = 0;
@@ -175,7 +149,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "%s\n", centres.status().ToString().c_str());
       return 1;
     }
-    init_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+    init_seconds = watch.Seconds();
     mlclust::KmeansOptions lloyd;
     lloyd.clusters = k;
     lloyd.threads = threads;
@@ -194,12 +168,12 @@ int main(int argc, char** argv) {
       options.threads = threads;
       // Per-iteration times (the on_iteration callback's own energy sum excluded).
       std::vector<double> iteration_seconds;
-      absl::Time last = absl::Now();
+      mlclust::bench::Stopwatch since_last;
       options.on_iteration = [&](uint32_t, uint64_t, double) {
-        iteration_seconds.push_back(absl::ToDoubleSeconds(absl::Now() - last));
-        last = absl::Now();
+        iteration_seconds.push_back(since_last.Seconds());
+        since_last.Restart();
       };
-      const absl::Time iterations_start = absl::Now();
+      const mlclust::bench::Stopwatch iterations;
       mlclust::bench::CancelTimer cancel(cancel_after);
       options.cancel = cancel.flag();
       auto result = mlclust::RunLnKmeans(points, assigned->labels, options);
@@ -208,7 +182,7 @@ int main(int argc, char** argv) {
         return 0;
       }
       if (!result.ok()) return 1;
-      const double iterate = absl::ToDoubleSeconds(absl::Now() - iterations_start);
+      const double iterate = iterations.Seconds();
       if (!iteration_seconds.empty()) {
         std::fprintf(stderr,
                      "lnkmeans: %zu iterations in %.3f s (first %.4f s, mean %.4f s, "
@@ -263,7 +237,7 @@ int main(int argc, char** argv) {
       }
     }
   }
-  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  const double seconds = watch.Seconds();
   std::printf("%s,%llu,%u,%u,%u,%u,%d,%.3f,%.3f,%llu,%.10g,%u\n", algo.c_str(),
               static_cast<unsigned long long>(m), d, blobs, k, used_grid, threads, seconds,
               init_seconds, static_cast<unsigned long long>(steps), energy, start_clusters);

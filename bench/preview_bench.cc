@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "absl/strings/numbers.h"
-#include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
@@ -18,8 +18,6 @@
 #include "gpu/render/png_codec.h"
 
 namespace {
-
-double Seconds(absl::Time since) { return absl::ToDoubleSeconds(absl::Now() - since); }
 
 int Fail(const std::string& what) {
   std::fprintf(stderr, "preview_bench: %s\n", what.c_str());
@@ -30,54 +28,55 @@ int Fail(const std::string& what) {
 
 int main(int argc, char** argv) {
   using namespace mlclust;  // NOLINT(google-build-using-namespace): a benchmark's main
-  if (argc < 3) return Fail("usage: preview_bench MESH LABELS [WIDTHxHEIGHT] [REPEATS]");
+  bench::Args args(argc, argv, "usage: preview_bench MESH LABELS [WIDTHxHEIGHT] [REPEATS]");
+  const std::string mesh_path = args.Positional(0);
+  const std::string labels_path = args.Positional(1);
+  const std::string size = args.Positional(2, std::string());
+  const int repeats = args.Positional<int>(3, 5);
+  if (!args.Done()) return 1;
   gpu::ClusterPreviewOptions options;
-  if (argc > 3) {
-    const std::string size = argv[3];
+  if (!size.empty()) {
     const size_t x = size.find('x');
     if (x == std::string::npos || !absl::SimpleAtoi(size.substr(0, x), &options.width) ||
         !absl::SimpleAtoi(size.substr(x + 1), &options.height)) {
       return Fail("size: give WIDTHxHEIGHT");
     }
   }
-  int repeats = 5;
-  if (argc > 4 && (!absl::SimpleAtoi(argv[4], &repeats) || repeats < 1)) {
-    return Fail("repeats: give a positive integer");
-  }
-  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(argv[1]);
+  if (repeats < 1) return Fail("repeats: give a positive integer");
+  absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(mesh_path);
   if (!mesh.ok()) return Fail(std::string(mesh.status().message()));
   absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(*mesh);
   if (!adjacency.ok()) return Fail(std::string(adjacency.status().message()));
   std::vector<ClusterId> labels;
-  std::ifstream in(argv[2]);
+  std::ifstream in(labels_path);
   for (uint32_t label; in >> label;) labels.push_back(ClusterId(label));
 
-  absl::Time start = absl::Now();
+  bench::Stopwatch watch;
   absl::StatusOr<std::unique_ptr<gpu::GlContext>> context = gpu::GlContext::Create();
   if (!context.ok()) return Fail(std::string(context.status().message()));
-  const double context_seconds = Seconds(start);
+  const double context_seconds = watch.Seconds();
 
-  start = absl::Now();
+  watch.Restart();
   absl::StatusOr<gpu::ClusterPreviewColours> colours = gpu::ColourClusters(*adjacency, labels);
   if (!colours.ok()) return Fail(std::string(colours.status().message()));
-  const double colour_seconds = Seconds(start);
+  const double colour_seconds = watch.Seconds();
 
-  start = absl::Now();
+  watch.Restart();
   absl::StatusOr<gpu::RgbaImage> image =
       gpu::RenderClusterPreview(**context, *mesh, *adjacency, labels, options);
   if (!image.ok()) return Fail(std::string(image.status().message()));
-  const double first_seconds = Seconds(start);
+  const double first_seconds = watch.Seconds();
   std::vector<double> render, encode;
   size_t png_bytes = 0;
   for (int r = 0; r < repeats; ++r) {
-    start = absl::Now();
+    watch.Restart();
     image = gpu::RenderClusterPreview(**context, *mesh, *adjacency, labels, options);
     if (!image.ok()) return Fail(std::string(image.status().message()));
-    render.push_back(Seconds(start));
-    start = absl::Now();
+    render.push_back(watch.Seconds());
+    watch.Restart();
     absl::StatusOr<std::string> png = gpu::EncodePng(*image);
     if (!png.ok()) return Fail(std::string(png.status().message()));
-    encode.push_back(Seconds(start));
+    encode.push_back(watch.Seconds());
     png_bytes = png->size();
   }
   std::sort(render.begin(), render.end());
@@ -86,7 +85,7 @@ int main(int argc, char** argv) {
       "%s: %zu faces, %u clusters, %ux%u on %s\n"
       "  context %.3f s; colours %.4f s; first render (with shader compile) %.3f s\n"
       "  render + read-back median %.3f s (min %.3f); PNG encode median %.3f s (%zu bytes)\n",
-      argv[1], mesh->num_faces(), colours->cluster_count, options.width, options.height,
+      mesh_path.c_str(), mesh->num_faces(), colours->cluster_count, options.width, options.height,
       (*context)->renderer().c_str(), context_seconds, colour_seconds, first_seconds,
       render[render.size() / 2], render.front(), encode[encode.size() / 2], png_bytes);
   return 0;

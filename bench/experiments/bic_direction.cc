@@ -10,29 +10,19 @@
 #include <cstdio>
 #include <string>
 
-#include "absl/strings/numbers.h"
+#include "bench/bench_util.h"
 #include "core/cluster/point_clustering.h"
 #include "core/hierarchy/model_selection.h"
 #include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: bic_direction FILE [--grid A]\n");
-    return 2;
-  }
+  mlclust::bench::Args args(argc, argv, "usage: bic_direction FILE [--grid A] [--curve CURVE.csv]");
   mlclust::PointMultilevelOptions options;
-  std::string curve_path;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    const std::string flag = argv[i];
-    if (flag == "--grid" && absl::SimpleAtoi(argv[i + 1], &options.grid)) continue;
-    if (flag == "--curve") {
-      curve_path = argv[i + 1];
-      continue;
-    }
-    std::fprintf(stderr, "bad option %s\n", argv[i]);
-    return 2;
-  }
-  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(argv[1]);
+  const std::string path = args.Positional(0);
+  options.grid = args.Get("grid", options.grid);
+  const std::string curve_path = args.Get<std::string>("curve", "");
+  if (!args.Done()) return 2;
+  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(path);
   if (!points.ok()) {
     std::fprintf(stderr, "%s\n", points.status().ToString().c_str());
     return 1;

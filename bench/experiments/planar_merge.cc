@@ -8,40 +8,31 @@
 #include <string>
 #include <vector>
 
-#include "absl/strings/numbers.h"
-#include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/cluster/planar_merging.h"
 #include "core/io/mesh_io.h"
 
 int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::fprintf(stderr, "usage: planar_merge MESH LABELS [--angle DEGREES] [--out FILE]\n");
-    return 2;
-  }
+  mlclust::bench::Args args(argc, argv,
+                            "usage: planar_merge MESH LABELS [--angle DEGREES] [--out FILE]");
   mlclust::PlanarMergingOptions options;
-  std::string out;
-  for (int i = 3; i + 1 < argc; i += 2) {
-    const std::string arg = argv[i];
-    if (arg == "--angle" && absl::SimpleAtod(argv[i + 1], &options.max_angle_degrees)) continue;
-    if (arg == "--out") {
-      out = argv[i + 1];
-      continue;
-    }
-    std::fprintf(stderr, "bad argument %s\n", arg.c_str());
-    return 2;
-  }
-  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(argv[1]);
+  const std::string mesh_path = args.Positional(0);
+  const std::string labels_path = args.Positional(1);
+  options.max_angle_degrees = args.Get("angle", options.max_angle_degrees);
+  const std::string out = args.Get<std::string>("out", "");
+  if (!args.Done()) return 2;
+  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(mesh_path);
   if (!mesh.ok()) {
     std::fprintf(stderr, "%s\n", mesh.status().ToString().c_str());
     return 1;
   }
   std::vector<mlclust::ClusterId> labels;
-  std::ifstream in(argv[2]);
+  std::ifstream in(labels_path);
   for (uint32_t label; in >> label;) labels.push_back(mlclust::ClusterId(label));
-  const absl::Time start = absl::Now();
+  const mlclust::bench::Stopwatch watch;
   absl::StatusOr<mlclust::PlanarMergingResult> result =
       mlclust::MergePlanarClusters(*mesh, labels, options);
-  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  const double seconds = watch.Seconds();
   if (!result.ok()) {
     std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
     return 1;

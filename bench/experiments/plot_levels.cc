@@ -9,15 +9,18 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench/bench_util.h"
 #include "client/plot.h"
 #include "core/hierarchy/elbow.h"
 
 int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::fprintf(stderr, "usage: plot_levels LEVELS.csv OUT.png [TITLE]\n");
-    return 2;
-  }
-  std::ifstream in(argv[1]);
+  mlclust::bench::Args args(argc, argv, "usage: plot_levels LEVELS.csv OUT.png [TITLE]");
+  mlclust::client::EnergyPlotOptions options;
+  const std::string levels_path = args.Positional(0);
+  const std::string png_path = args.Positional(1);
+  options.title = args.Positional(2, options.title);
+  if (!args.Done()) return 2;
+  std::ifstream in(levels_path);
   std::string line;
   std::vector<uint32_t> counts;
   std::vector<double> energies;
@@ -34,10 +37,8 @@ int main(int argc, char** argv) {
     energies.push_back(e);
     curve.push_back({k, e});
   }
-  mlclust::client::EnergyPlotOptions options;
-  if (argc > 3) options.title = argv[3];
   options.elbows = mlclust::FindElbows(counts, energies);
-  const absl::Status status = mlclust::client::WriteEnergyPlotPng(curve, options, argv[2]);
+  const absl::Status status = mlclust::client::WriteEnergyPlotPng(curve, options, png_path);
   if (!status.ok()) {
     std::fprintf(stderr, "%s\n", status.ToString().c_str());
     return 1;

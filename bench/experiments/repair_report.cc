@@ -4,31 +4,24 @@
 #include <cstdio>
 #include <string>
 
-#include "absl/strings/numbers.h"
-#include "absl/time/clock.h"
+#include "bench/bench_util.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/repair.h"
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: repair_report FILE [--max-listed N]\n");
-    return 2;
-  }
-  size_t max_listed = 5;
-  if (argc == 4 && std::string(argv[2]) == "--max-listed" &&
-      !absl::SimpleAtoi(argv[3], &max_listed)) {
-    std::fprintf(stderr, "bad --max-listed\n");
-    return 2;
-  }
-  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(argv[1]);
+  mlclust::bench::Args args(argc, argv, "usage: repair_report FILE [--max-listed N]");
+  const std::string path = args.Positional(0);
+  const size_t max_listed = args.Get<size_t>("max-listed", 5);
+  if (!args.Done()) return 2;
+  absl::StatusOr<mlclust::TriangleMesh> mesh = mlclust::ReadMeshFile(path);
   if (!mesh.ok()) {
     std::fprintf(stderr, "%s\n", mesh.status().ToString().c_str());
     return 1;
   }
   const absl::Status before = mlclust::ValidateMesh(*mesh);
-  const absl::Time start = absl::Now();
+  const mlclust::bench::Stopwatch watch;
   absl::StatusOr<mlclust::MeshRepairResult> result = mlclust::RepairNonManifold(*mesh);
-  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  const double seconds = watch.Seconds();
   if (!result.ok()) {
     std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
     return 1;
