@@ -22,8 +22,8 @@ packages=(
   libpng-dev
   # the upload's CRC-32 (JobSpec.input_crc32; server and client)
   zlib1g-dev
-  # tests
-  libgtest-dev libgmock-dev
+  # tests; draco's draco_encoder makes the foreign payloads of tests/e2e/draco_encoder_test.sh
+  libgtest-dev libgmock-dev draco
   # TLS tests make their certificates at test time (tests/e2e/tls_test.cc)
   openssl
   # the server's Prometheus endpoint (serve --metrics; server/metrics.h)
