@@ -24,6 +24,7 @@
 #include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/polygons.h"
+#include "tests/fixtures/quad_grid.h"
 
 namespace mlclust::bench {
 namespace {
@@ -35,21 +36,7 @@ struct Input {
 };
 
 Input WavyQuadGrid(int n) {
-  TriangleMesh mesh;
-  for (int j = 0; j <= n; ++j) {
-    for (int i = 0; i <= n; ++i) {
-      mesh.positions.insert(mesh.positions.end(), {static_cast<float>(i), static_cast<float>(j),
-                                                   static_cast<float>(0.15 * std::sin(0.7 * i) +
-                                                                      0.1 * std::cos(0.9 * j))});
-    }
-  }
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
-      mesh.indices.insert(mesh.indices.end(), {a, b, c, a, c, d});
-    }
-  }
-  absl::StatusOr<PreparedMesh> prepared = PrepareMesh(std::move(mesh));
+  absl::StatusOr<PreparedMesh> prepared = PrepareMesh(::mlclust::testing::WavyQuadGrid(n));
   if (!prepared.ok()) std::exit(1);
   return {"quad-grid-" + std::to_string(n), *std::move(prepared),
           std::vector<uint32_t>(static_cast<size_t>(n) * n, 2)};

@@ -17,6 +17,7 @@
 #include "core/mesh/polygons.h"
 #include "core/mesh/prepared_mesh.h"
 #include "gtest/gtest.h"
+#include "tests/fixtures/quad_grid.h"
 
 namespace mlclust {
 namespace {
@@ -32,24 +33,9 @@ PolygonMesh Prepare(TriangleMesh mesh, std::vector<uint32_t> counts) {
   return {*std::move(prepared), std::move(counts)};
 }
 
-// n x n quads with a wavy height (the grid of tests/client/wiring_cli_test.sh), each quad
-// split as the readers split a polygon: a fan from its first corner.
+// testing::WavyQuadGrid with its quads as the polygons.
 PolygonMesh WavyQuadGrid(int n) {
-  TriangleMesh mesh;
-  for (int j = 0; j <= n; ++j) {
-    for (int i = 0; i <= n; ++i) {
-      mesh.positions.insert(mesh.positions.end(), {static_cast<float>(i), static_cast<float>(j),
-                                                   static_cast<float>(0.15 * std::sin(0.7 * i) +
-                                                                      0.1 * std::cos(0.9 * j))});
-    }
-  }
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
-      mesh.indices.insert(mesh.indices.end(), {a, b, c, a, c, d});
-    }
-  }
-  return Prepare(std::move(mesh), std::vector<uint32_t>(n * n, 2));
+  return Prepare(::mlclust::testing::WavyQuadGrid(n), std::vector<uint32_t>(n * n, 2));
 }
 
 // CGAL's double-torus-example.off (202 quads, 12 pentagons, 4 hexagons, 2 heptagons, a
