@@ -25,6 +25,9 @@ class GlDeviceStages : public DeviceStages {
   absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
                                                   const MultilevelOptions& options,
                                                   LevelSink& sink) override;
+  absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink) override;
 
  private:
   GlContext& context_;
