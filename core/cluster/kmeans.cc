@@ -6,12 +6,14 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <span>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/lloyd.h"
 #include "tbb/blocked_range.h"
 #include "tbb/parallel_for.h"
 #include "tbb/parallel_reduce.h"
@@ -297,12 +299,14 @@ bool HasAvx2() {
   static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return has && !force_baseline.load(std::memory_order_relaxed);
 }
-NearestFunction Nearest() { return HasAvx2() ? NearestAvx2 : NearestBaseline; }
-CandidatesFunction Candidates() { return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline; }
+NearestFunction NearestKernel() { return HasAvx2() ? NearestAvx2 : NearestBaseline; }
+CandidatesFunction CandidatesKernel() {
+  return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline;
+}
 #else
 std::atomic<bool> force_baseline{false};
-NearestFunction Nearest() { return NearestBaseline; }
-CandidatesFunction Candidates() { return CandidatesBaseline; }
+NearestFunction NearestKernel() { return NearestBaseline; }
+CandidatesFunction CandidatesKernel() { return CandidatesBaseline; }
 #endif
 
 // Lays out k centres (k x d, row-major) as groups of kLanes (see kLanes).
@@ -316,6 +320,33 @@ void FillGroups(const T* centres, uint32_t k, uint32_t d, std::vector<float>& gr
       group[j * kLanes] = static_cast<float>(centres[size_t{c} * d + j]);
   }
 }
+
+// Lloyd's assignment step on the CPU: the float kernel above, block by block.
+class CpuLloydAssign final : public detail::LloydAssignStage {
+ public:
+  explicit CpuLloydAssign(const PointSet& points) : points_(points), kernel_(NearestKernel()) {}
+
+  absl::Status SetCentres(std::span<const double> centres) override {
+    const uint32_t d = points_.dims;
+    const auto k = static_cast<uint32_t>(centres.size() / d);
+    num_groups_ = (k + kLanes - 1) / kLanes;
+    FillGroups(centres.data(), k, d, groups_);
+    return absl::OkStatus();
+  }
+
+  const uint32_t* Nearest(size_t begin, size_t end, uint32_t* scratch) const override {
+    const uint32_t d = points_.dims;
+    kernel_(points_.values.data() + begin * d, end - begin, d, groups_.data(), num_groups_,
+            scratch);
+    return scratch;
+  }
+
+ private:
+  const PointSet& points_;
+  const NearestFunction kernel_;
+  std::vector<float> groups_;
+  uint32_t num_groups_ = 0;
+};
 
 double SquaredDistance(const float* x, const double* c, uint32_t d) {
   double sum = 0;
@@ -453,7 +484,7 @@ absl::StatusOr<std::vector<float>> PlusPlus(const PointSet& points, uint32_t k, 
       }
     });
   });
-  const CandidatesFunction candidates_kernel = Candidates();
+  const CandidatesFunction candidates_kernel = CandidatesKernel();
   const float* pending = nullptr;
   // One pass over the points: block_sums[b * count + t] = sum over block b of
   // min(closest, distance to candidate t), with `pending` folded in first.
@@ -546,14 +577,13 @@ absl::StatusOr<std::vector<float>> PlusPlus(const PointSet& points, uint32_t k, 
 // its work (and its chunk's sums), and after each assignment.
 absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> centres,
                                    const KmeansOptions& options, double mean_variance,
-                                   tbb::task_arena& arena) {
+                                   tbb::task_arena& arena, detail::LloydAssignStage& assign) {
   const auto start = std::chrono::steady_clock::now();
   const size_t m = points.num_points();
   const uint32_t d = points.dims;
   const uint32_t k = static_cast<uint32_t>(centres.size() / d);
   const float* values = points.values.data();
   const size_t num_blocks = NumBlocks(m);
-  const uint32_t num_groups = (k + kLanes - 1) / kLanes;
   const size_t row = size_t{d} + 1;  // per-cluster sums: d coordinates and the count
   // Per-cluster sums are kept per chunk of consecutive blocks and added in chunk order. Up to
   // 64 chunks (parallel accumulation), within a budget of 32 MiB of sums where k d is large;
@@ -562,11 +592,9 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
   const size_t max_chunks = std::clamp<size_t>(budget / (row * k), 1, 64);
   const size_t blocks_per_chunk = (num_blocks + max_chunks - 1) / max_chunks;
   const size_t num_chunks = (num_blocks + blocks_per_chunk - 1) / blocks_per_chunk;
-  const NearestFunction nearest_kernel = Nearest();
   const double tolerance = options.tolerance * mean_variance;
 
   std::vector<uint32_t> labels(m, 0);
-  std::vector<float> groups;
   std::vector<double> chunk_sums(num_chunks * k * row);
   std::vector<double> sums(size_t{k} * row);
   std::vector<double> block_energy(num_blocks);
@@ -577,7 +605,8 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
 
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
     const bool first = iteration == 1;
-    FillGroups(centres.data(), k, d, groups);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "Lloyd iteration"));
+    MLCLUST_RETURN_IF_ERROR(assign.SetCentres(centres));
     // Assignment (parallel over blocks), then the chunk's sums.
     arena.execute([&] {
       tbb::parallel_for(size_t{0}, num_chunks, [&](size_t chunk) {
@@ -589,10 +618,10 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
             skipped.store(true, std::memory_order_relaxed);
             return;
           }
-          uint32_t proposed[kBlock];
+          uint32_t scratch[kBlock];
           const size_t begin = BlockBegin(b);
           const size_t end = BlockEnd(b, m);
-          nearest_kernel(values + begin * d, end - begin, d, groups.data(), num_groups, proposed);
+          const uint32_t* proposed = assign.Nearest(begin, end, scratch);
           double energy = 0;
           uint64_t moves = 0;
           for (size_t i = begin; i < end; ++i) {
@@ -800,14 +829,24 @@ absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptio
     }
   }
   const double seconds_init = Seconds(start);
-  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result,
-                           Lloyd(points, std::move(centres), options, stats.mean_variance, arena));
+  CpuLloydAssign assign(points);
+  MLCLUST_ASSIGN_OR_RETURN(
+      KmeansResult result,
+      Lloyd(points, std::move(centres), options, stats.mean_variance, arena, assign));
   result.seconds_init = seconds_init;
   return result;
 }
 
 absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
                                       const KmeansOptions& options) {
+  CpuLloydAssign assign(points);
+  return detail::RunLloydWithAssign(points, std::move(centres), options, assign);
+}
+
+absl::StatusOr<KmeansResult> detail::RunLloydWithAssign(const PointSet& points,
+                                                        std::vector<float> centres,
+                                                        const KmeansOptions& options,
+                                                        LloydAssignStage& assign) {
   MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
   const uint32_t d = points.dims;
   if (centres.empty() || centres.size() % d != 0) {
@@ -836,7 +875,7 @@ absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float>
   }
   MLCLUST_RETURN_IF_ERROR(CheckExtent(stats.low, stats.high));
   return Lloyd(points, std::vector<double>(centres.begin(), centres.end()), options,
-               stats.mean_variance, arena);
+               stats.mean_variance, arena, assign);
 }
 
 }  // namespace mlclust

@@ -490,8 +490,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   // Lloyd from k-means++ (or random) centres. Level 0 is the seeding: every point at its
-  // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment;
-  // the GPU's Lloyd does not keep it, so there it is one more assignment).
+  // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment,
+  // on either device: the GPU's Lloyd is the CPU's loop with another assignment step).
   const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
   const bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
   if (on_gpu && context.devices == nullptr) {
@@ -507,27 +507,15 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
                 : RandomPointCentres(points, plan.clusters, plan.seed));
-  KmeansResult start;
-  if (on_gpu) {
-    KmeansOptions assign;
-    assign.clusters = plan.clusters;
-    assign.max_iterations = 1;
-    assign.threads = plan.kmeans.threads;
-    MLCLUST_ASSIGN_OR_RETURN(start, lloyd(centres, assign));
-  }
   KmeansOptions options = plan.kmeans;
   options.clusters = plan.clusters;
-  options.keep_first_assignment = !on_gpu;
+  options.keep_first_assignment = true;
   options.on_iteration = [&](uint32_t iteration, double inertia) {
     Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
-  if (!on_gpu) {
-    start.labels = std::move(result.first_labels);
-    start.inertia = result.first_inertia;
-  }
-  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.inertia, result.labels,
-                                          result.inertia, plan.clusters, sink));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.first_labels, result.first_inertia,
+                                          result.labels, result.inertia, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
 }
 

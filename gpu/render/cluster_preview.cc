@@ -114,29 +114,13 @@ std::array<uint8_t, 3> PaletteColour(uint32_t i) {
   const double p = value * (1 - saturation);
   const double q = value * (1 - saturation * fraction);
   const double t = value * (1 - saturation * (1 - fraction));
-  double r = value, g = t, b = p;
-  switch (sector) {
-    case 0:
-      r = value, g = t, b = p;
-      break;
-    case 1:
-      r = q, g = value, b = p;
-      break;
-    case 2:
-      r = p, g = value, b = t;
-      break;
-    case 3:
-      r = p, g = q, b = value;
-      break;
-    case 4:
-      r = t, g = p, b = value;
-      break;
-    default:
-      r = value, g = p, b = q;
-      break;
-  }
+  // HSV to RGB: per sector, (r, g, b) as indices into {value, p, q, t}.
+  static constexpr int kSectorChannels[6][3] = {{0, 3, 1}, {2, 0, 1}, {1, 0, 3},
+                                                {1, 2, 0}, {3, 1, 0}, {0, 1, 2}};
+  const double channel[4] = {value, p, q, t};
+  const int* rgb = kSectorChannels[sector];
   const auto byte = [](double x) { return static_cast<uint8_t>(std::lround(x * 255.0)); };
-  return {byte(r), byte(g), byte(b)};
+  return {byte(channel[rgb[0]]), byte(channel[rgb[1]]), byte(channel[rgb[2]])};
 }
 
 double SquaredColourDistance(const std::array<uint8_t, 3>& a, const std::array<uint8_t, 3>& b) {

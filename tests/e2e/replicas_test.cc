@@ -19,46 +19,23 @@
 #include "core/io/draco_codec.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
 
+using testing::AddressOf;
+using testing::ExpectSameHierarchy;
+
 std::unique_ptr<server::Server> StartServer() {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.gpu = server::GpuMode::kOff;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-  EXPECT_TRUE(started.ok()) << started.status();
-  return started.ok() ? *std::move(started) : nullptr;
+  return testing::StartServer(options);
 }
 
-std::string AddressOf(const server::Server& server) {
-  return absl::StrCat("127.0.0.1:", server.port());
-}
-
-v1::JobSpec MeshSpec() {
-  v1::JobSpec spec;
-  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-  spec.set_algorithm(v1::ALGORITHM_ML);
-  spec.set_energy(v1::ENERGY_CVD);
-  spec.set_label("replicas_test");
-  return spec;
-}
-
-void ExpectSameLevels(const HierarchyLog& a, const HierarchyLog& b) {
-  ASSERT_EQ(a.num_elements(), b.num_elements());
-  ASSERT_EQ(a.num_levels(), b.num_levels());
-  for (size_t level = 0; level < b.num_levels(); ++level) {
-    ASSERT_EQ(a.cluster_count(level), b.cluster_count(level)) << "level " << level;
-    ASSERT_EQ(a.energy(level), b.energy(level)) << "level " << level;
-  }
-  for (size_t level : {size_t{0}, b.num_levels() / 2, b.num_levels() - 1}) {
-    EXPECT_EQ(*a.LabelsAt(level), *b.LabelsAt(level)) << "level " << level;
-  }
-}
+v1::JobSpec MeshSpec() { return testing::MeshSpec(v1::ALGORITHM_ML, 0, "replicas_test"); }
 
 // A port that accepts TCP connections and closes them at once (a replica dying as each
 // call arrives, before any job is accepted).
@@ -163,7 +140,7 @@ TEST(ReplicasTest, EveryJobFinishesWithASoloRunsLevelsWhenReplicasAreGone) {
   EXPECT_EQ(used, AddressOf(*a));
   EXPECT_EQ(retried, (std::vector<std::string>{replicas[0], replicas[1]}));
   EXPECT_GT(closing.accepted(), 0);
-  ExpectSameLevels(result->hierarchy, solo->hierarchy);
+  ExpectSameHierarchy(result->hierarchy, solo->hierarchy);
 
   // A batch at once, the least loaded first: every job finishes, on the live replicas.
   constexpr int kJobs = 6;
@@ -179,7 +156,7 @@ TEST(ReplicasTest, EveryJobFinishesWithASoloRunsLevelsWhenReplicasAreGone) {
   for (int i = 0; i < kJobs; ++i) {
     ASSERT_TRUE(results[i].ok()) << results[i].status();
     EXPECT_TRUE(where[i] == AddressOf(*a) || where[i] == AddressOf(*c)) << where[i];
-    ExpectSameLevels(results[i]->hierarchy, solo->hierarchy);
+    ExpectSameHierarchy(results[i]->hierarchy, solo->hierarchy);
   }
 
   // No replica left: UNAVAILABLE naming each.

@@ -233,11 +233,9 @@ TEST(CoarseningTest, CubeWithOneClusterPerSideGivesAnOctahedron) {
   }
 }
 
-TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
-  // Eight clusters, one per cube corner (its three quarter-sides): the coarse mesh is a cube
-  // (12 triangles, two per side's four-cluster corner at the side's centre).
-  const SubdividedCube cube = MakeCube(2);
-  const Prepared p = Prepare(cube.mesh);
+// Eight clusters on MakeCube(2), one per cube corner (its three quarter-sides): corner
+// (x, y, z), each 0 or 1, is cluster 4x + 2y + z.
+std::vector<ClusterId> CornerClusters(const SubdividedCube& cube) {
   std::vector<ClusterId> labels;
   for (size_t f = 0; f < cube.side.size(); ++f) {
     const int side = cube.side[f], a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;
@@ -247,6 +245,15 @@ TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
     corner[w] = cube.square[f][1];
     labels.push_back(ClusterId(corner[0] * 4 + corner[1] * 2 + corner[2]));
   }
+  return labels;
+}
+
+TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
+  // Eight clusters, one per cube corner (its three quarter-sides): the coarse mesh is a cube
+  // (12 triangles, two per side's four-cluster corner at the side's centre).
+  const SubdividedCube cube = MakeCube(2);
+  const Prepared p = Prepare(cube.mesh);
+  const std::vector<ClusterId> labels = CornerClusters(cube);
   const std::vector<ClusterId> clusters = CoarseVertexClusters(labels);
   ASSERT_EQ(clusters.size(), 8u);
 
@@ -314,15 +321,7 @@ TEST(CoarseningTest, QuadricVertexOfAnEdgeClusterLiesOnTheEdge) {
   // + 0.25 (z + 0.5)^2, least at (0.5, 0.5, 0) on the edge.
   const SubdividedCube cube = MakeCube(2);
   const Prepared p = Prepare(cube.mesh);
-  std::vector<ClusterId> labels;
-  for (size_t f = 0; f < cube.side.size(); ++f) {
-    const int side = cube.side[f], a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;
-    std::array<int, 3> corner;
-    corner[a] = side < 3 ? 1 : 0;
-    corner[u] = cube.square[f][0];
-    corner[w] = cube.square[f][1];
-    labels.push_back(ClusterId(corner[0] * 4 + corner[1] * 2 + corner[2]));
-  }
+  std::vector<ClusterId> labels = CornerClusters(cube);
   for (ClusterId& label : labels) {
     if (label == ClusterId(7)) label = ClusterId(6);
   }

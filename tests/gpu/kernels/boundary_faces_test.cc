@@ -9,21 +9,17 @@
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {
 
 std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
+  return ::mlclust::testing::MakeGlContext(options);
 }
 
-FaceAdjacency AdjacencyOf(const TriangleMesh& mesh) {
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-  EXPECT_TRUE(adjacency.ok()) << adjacency.status();
-  return adjacency.ok() ? *std::move(adjacency) : FaceAdjacency{};
-}
+using ::mlclust::testing::AdjacencyOf;
 
 std::vector<ClusterId> Labels(std::initializer_list<uint32_t> values) {
   std::vector<ClusterId> labels;

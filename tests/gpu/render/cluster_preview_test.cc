@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <set>
 #include <vector>
 
@@ -11,6 +12,7 @@
 #include "gpu/render/png_codec.h"
 #include "tests/fixtures/image_hues.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -24,16 +26,10 @@ using ::mlclust::testing::ToHsv;
 using ::testing::HasSubstr;
 
 std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
+  return ::mlclust::testing::MakeGlContext(options);
 }
 
-FaceAdjacency AdjacencyOf(const TriangleMesh& mesh) {
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-  EXPECT_TRUE(adjacency.ok()) << adjacency.status();
-  return adjacency.ok() ? *std::move(adjacency) : FaceAdjacency{};
-}
+using ::mlclust::testing::AdjacencyOf;
 
 // Grid(n) (z = 0, two triangles per square, square (x, y) has faces 2 (y n + x) and
 // 2 (y n + x) + 1) cut into quadrants: cluster 0 bottom left, 1 bottom right, 2 top left,
@@ -182,54 +178,68 @@ TEST(ClusterPreviewTest, OneClusterHasOneHueAndNoBorder) {
   EXPECT_EQ(CountPixels(*image, kPreviewBorder), 0u);
 }
 
-TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
-  std::unique_ptr<GlContext> context = MakeContext();
-  ASSERT_NE(context, nullptr);
-  // Six planar clusters, one per side (+x, +y, +z, -x, -y, -z); the three-quarter view
-  // from the +x, +y, +z octant sees the first three, and the depth test hides the rest.
-  const mlclust::testing::SubdividedCube cube = MakeCube(4);
+// MakeCube(4) with six planar clusters, one per side (+x, +y, +z, -x, -y, -z).
+struct CubeBySide {
+  CubeBySide() : cube(MakeCube(4)), adjacency(AdjacencyOf(cube.mesh)) {
+    for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
+  }
+  const TriangleMesh& mesh() const { return cube.mesh; }
+  mlclust::testing::SubdividedCube cube;
+  FaceAdjacency adjacency;
   std::vector<ClusterId> labels;
-  for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
-  const FaceAdjacency adjacency = AdjacencyOf(cube.mesh);
+};
+
+// 256 x 256 from the default camera.
+ClusterPreviewOptions CubeView() {
   ClusterPreviewOptions options;
   options.width = 256;
   options.height = 256;
-  absl::StatusOr<RgbaImage> image =
-      RenderClusterPreview(*context, cube.mesh, adjacency, labels, options);
-  ASSERT_TRUE(image.ok()) << image.status();
-  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(adjacency, labels);
+  return options;
+}
+
+// Renders `cube` with `options`: the image (kept in `image`) must show exactly the hues of
+// the three clusters `sides` (of six).
+void ExpectSidesShown(GlContext& context, const CubeBySide& cube,
+                      const ClusterPreviewOptions& options, std::array<uint32_t, 3> sides,
+                      RgbaImage& image) {
+  absl::StatusOr<RgbaImage> rendered =
+      RenderClusterPreview(context, cube.mesh(), cube.adjacency, cube.labels, options);
+  ASSERT_TRUE(rendered.ok()) << rendered.status();
+  image = *std::move(rendered);
+  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(cube.adjacency, cube.labels);
   ASSERT_TRUE(colours.ok());
   ASSERT_EQ(colours->cluster_count, 6u);
-  ExpectHues(DistinctHues(*image),
-             {HueOf(colours->cluster_colour[0]), HueOf(colours->cluster_colour[1]),
-              HueOf(colours->cluster_colour[2])});
+  ExpectHues(DistinctHues(image), {HueOf(colours->cluster_colour[sides[0]]),
+                                   HueOf(colours->cluster_colour[sides[1]]),
+                                   HueOf(colours->cluster_colour[sides[2]])});
+}
+
+TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
+  std::unique_ptr<GlContext> context = MakeContext();
+  ASSERT_NE(context, nullptr);
+  // The three-quarter view from the +x, +y, +z octant sees the first three sides, and the
+  // depth test hides the rest.
+  const CubeBySide cube;
+  RgbaImage image;
+  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, CubeView(), {0, 1, 2}, image));
   // Lambert shading: the three visible sides face the light differently, so they differ
   // in brightness as well.
-  EXPECT_GT(CountPixels(*image, kPreviewBorder), 0u);
+  EXPECT_GT(CountPixels(image, kPreviewBorder), 0u);
 }
 
 TEST(ClusterPreviewTest, CameraFromTheOtherOctantShowsTheOtherThreeSides) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
-  const mlclust::testing::SubdividedCube cube = MakeCube(4);
-  std::vector<ClusterId> labels;
-  for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
-  const FaceAdjacency adjacency = AdjacencyOf(cube.mesh);
-  ClusterPreviewOptions options;
-  options.width = 256;
-  options.height = 256;
+  const CubeBySide cube;
+  ClusterPreviewOptions options = CubeView();
   options.azimuth_degrees = 215;    // from -x, -z
   options.elevation_degrees = -25;  // and below: -y
-  absl::StatusOr<RgbaImage> image =
-      RenderClusterPreview(*context, cube.mesh, adjacency, labels, options);
-  ASSERT_TRUE(image.ok()) << image.status();
-  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(adjacency, labels);
-  ASSERT_TRUE(colours.ok());
-  ExpectHues(DistinctHues(*image),
-             {HueOf(colours->cluster_colour[3]), HueOf(colours->cluster_colour[4]),
-              HueOf(colours->cluster_colour[5])});
+  RgbaImage image;
+  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, options, {3, 4, 5}, image));
   options.elevation_degrees = 90;  // straight down: no up direction
-  EXPECT_EQ(RenderClusterPreview(*context, cube.mesh, adjacency, labels, options).status().code(),
+  EXPECT_EQ(RenderClusterPreview(*context, cube.mesh(), cube.adjacency, cube.labels, options)
+                .status()
+                .code(),
             absl::StatusCode::kInvalidArgument);
 }
 
