@@ -68,6 +68,27 @@ struct Vec<8> {
   typedef float Unaligned __attribute__((vector_size(32), aligned(4)));
 };
 
+// Sets every lane of `low` (W lanes of floats or ints) to the least of its lanes, by
+// log2(W) rounds of swapping halves (passed by reference: a vector returned by value would
+// change the ABI between the baseline and the AVX2 target).
+template <int W, typename V>
+MLCLUST_INLINE void MinAcrossLanes(V& low) {
+  V other;
+  if constexpr (W == 8) {
+    other = __builtin_shufflevector(low, low, 4, 5, 6, 7, 0, 1, 2, 3);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 2, 3, 0, 1, 6, 7, 4, 5);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 1, 0, 3, 2, 5, 4, 7, 6);
+    low = other < low ? other : low;
+  } else {
+    other = __builtin_shufflevector(low, low, 2, 3, 0, 1);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 1, 0, 3, 2);
+    low = other < low ? other : low;
+  }
+}
+
 // Nearest centre of the P points at `x` (dims D, or `dims` where D == 0) among the centre
 // groups; ties go to the smaller centre id. The P points share each load of a centre group
 // and give P independent chains of compare-and-select, which hides their latency.
@@ -138,35 +159,9 @@ MLCLUST_INLINE void NearestOfGroup(const float* x, uint32_t dims, const float* g
       index = take ? best_id[p][part] : index;
     }
     F low = value;
-    F other;
-    if constexpr (W == 8) {
-      other = __builtin_shufflevector(low, low, 4, 5, 6, 7, 0, 1, 2, 3);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 2, 3, 0, 1, 6, 7, 4, 5);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 1, 0, 3, 2, 5, 4, 7, 6);
-      low = other < low ? other : low;
-    } else {
-      other = __builtin_shufflevector(low, low, 2, 3, 0, 1);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 1, 0, 3, 2);
-      low = other < low ? other : low;
-    }
+    MinAcrossLanes<W>(low);
     I id_low = value == low ? index : I{} + std::numeric_limits<int32_t>::max();
-    I id_other;
-    if constexpr (W == 8) {
-      id_other = __builtin_shufflevector(id_low, id_low, 4, 5, 6, 7, 0, 1, 2, 3);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 2, 3, 0, 1, 6, 7, 4, 5);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 1, 0, 3, 2, 5, 4, 7, 6);
-      id_low = id_other < id_low ? id_other : id_low;
-    } else {
-      id_other = __builtin_shufflevector(id_low, id_low, 2, 3, 0, 1);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 1, 0, 3, 2);
-      id_low = id_other < id_low ? id_other : id_low;
-    }
+    MinAcrossLanes<W>(id_low);
     nearest[p] = static_cast<uint32_t>(id_low[0]);
   }
 }
@@ -180,6 +175,22 @@ MLCLUST_INLINE void NearestOfRange(const float* x, size_t count, uint32_t dims, 
   }
   for (; i < count; ++i)
     NearestOfGroup<W, D, 1>(x + i * dims, dims, groups, num_groups, nearest + i);
+}
+
+// sum = the squared distances of the W points in vector v of a transposed run (see
+// CandidatePotentials) to `centre` (d floats).
+// (The vector types come from Vec<W>: deduced from an argument, Unaligned would lose its
+// alignment attribute.)
+template <int W, int kVectors>
+MLCLUST_INLINE void RunDistances(const typename Vec<W>::Unaligned* coordinates, int v, uint32_t d,
+                                 const float* centre, typename Vec<W>::F& sum) {
+  using F = typename Vec<W>::F;
+  const F t0 = coordinates[v] - centre[0];
+  sum = t0 * t0;
+  for (uint32_t j = 1; j < d; ++j) {
+    const F t = coordinates[j * kVectors + v] - centre[j];
+    sum = t * t + sum;
+  }
 }
 
 // For each of the `num_candidates` candidates (rows of d floats) and each point i of
@@ -208,12 +219,8 @@ MLCLUST_INLINE void CandidatePotentials(const float* runs, size_t num_runs, uint
     for (int v = 0; v < kVectors; ++v) near[v] = run_closest[v];
     if (pending != nullptr) {
       for (int v = 0; v < kVectors; ++v) {
-        const F t0 = coordinates[v] - pending[0];
-        F sum = t0 * t0;
-        for (uint32_t j = 1; j < d; ++j) {
-          const F t = coordinates[j * kVectors + v] - pending[j];
-          sum = t * t + sum;
-        }
+        F sum;
+        RunDistances<W, kVectors>(coordinates, v, d, pending, sum);
         near[v] = sum < near[v] ? sum : near[v];
         run_closest[v] = near[v];
       }
@@ -222,12 +229,8 @@ MLCLUST_INLINE void CandidatePotentials(const float* runs, size_t num_runs, uint
       const float* candidate = candidates + size_t{c} * d;
       F total = F{};
       for (int v = 0; v < kVectors; ++v) {
-        const F t0 = coordinates[v] - candidate[0];
-        F sum = t0 * t0;
-        for (uint32_t j = 1; j < d; ++j) {
-          const F t = coordinates[j * kVectors + v] - candidate[j];
-          sum = t * t + sum;
-        }
+        F sum;
+        RunDistances<W, kVectors>(coordinates, v, d, candidate, sum);
         total += sum < near[v] ? sum : near[v];
       }
       if constexpr (W == 8) {

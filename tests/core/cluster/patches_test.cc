@@ -14,26 +14,18 @@
 namespace mlclust {
 namespace {
 
-// The number of edge-connected pieces of each cluster.
+// The number of edge-connected pieces of each cluster (LabelFaceComponents by cluster).
 std::vector<uint32_t> PiecesPerCluster(const FaceAdjacency& adjacency,
                                        std::span<const ClusterId> labels, uint32_t clusters) {
+  std::vector<uint32_t> region, component;
+  for (ClusterId c : labels) region.push_back(c.value());
+  const uint32_t count = LabelFaceComponents(adjacency, component, region);
   std::vector<uint32_t> pieces(clusters, 0);
-  std::vector<uint8_t> seen(labels.size(), 0);
-  for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (seen[f]) continue;
-    ++pieces[labels[f].value()];
-    std::vector<uint32_t> stack = {f};
-    seen[f] = 1;
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[g]) {
-          seen[h.value()] = 1;
-          stack.push_back(h.value());
-        }
-      }
-    }
+  std::vector<uint8_t> counted(count, 0);
+  for (size_t f = 0; f < region.size(); ++f) {
+    if (counted[component[f]]) continue;
+    counted[component[f]] = 1;
+    ++pieces[region[f]];
   }
   return pieces;
 }

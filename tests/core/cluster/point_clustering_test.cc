@@ -12,6 +12,7 @@
 #include "core/hierarchy/model_selection.h"
 #include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
+#include "tests/fixtures/test_points.h"
 
 namespace mlclust {
 namespace {
@@ -50,16 +51,7 @@ std::pair<PointSet, std::vector<ClusterId>> Blobs(uint32_t k, uint32_t per, uint
   return {points, truth};
 }
 
-// Same partition up to renaming.
-bool SamePartition(const std::vector<ClusterId>& a, const std::vector<ClusterId>& b) {
-  std::map<uint32_t, uint32_t> ab, ba;
-  for (size_t i = 0; i < a.size(); ++i) {
-    auto [x, ix] = ab.emplace(a[i].value(), b[i].value());
-    auto [y, iy] = ba.emplace(b[i].value(), a[i].value());
-    if (x->second != b[i].value() || y->second != a[i].value()) return false;
-  }
-  return true;
-}
+using testing::SamePartition;
 
 TEST(SubspaceIndexTest, HandMadeCasesIn2DAnd3D) {
   const std::vector<double> o2 = {0, 0};
