@@ -303,9 +303,7 @@ bool HasAvx2() {
   return has && !force_baseline.load(std::memory_order_relaxed);
 }
 NearestFunction NearestKernel() { return HasAvx2() ? NearestAvx2 : NearestBaseline; }
-CandidatesFunction CandidatesKernel() {
-  return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline;
-}
+CandidatesFunction CandidatesKernel() { return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline; }
 #else
 std::atomic<bool> force_baseline{false};
 NearestFunction NearestKernel() { return NearestBaseline; }
@@ -833,9 +831,8 @@ absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptio
   }
   const double seconds_init = Seconds(start);
   CpuLloydAssign assign(points);
-  MLCLUST_ASSIGN_OR_RETURN(
-      KmeansResult result,
-      Lloyd(points, std::move(centres), options, stats.mean_variance, arena, assign));
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, Lloyd(points, std::move(centres), options,
+                                                      stats.mean_variance, arena, assign));
   result.seconds_init = seconds_init;
   return result;
 }

@@ -514,8 +514,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
     Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
-  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.first_labels, result.first_inertia,
-                                          result.labels, result.inertia, plan.clusters, sink));
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.first_labels, result.first_inertia, result.labels,
+                                          result.inertia, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
 }
 

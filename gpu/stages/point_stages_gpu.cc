@@ -98,8 +98,7 @@ absl::StatusOr<LnKmeansResult> RunLnKmeansGpu(GlContext& context, const PointSet
 }
 
 absl::StatusOr<KmeansResult> RunLloydGpu(GlContext& context, const PointSet& points,
-                                         std::vector<float> centres,
-                                         const KmeansOptions& options) {
+                                         std::vector<float> centres, const KmeansOptions& options) {
   GpuLloydAssign assign(context, points);
   return mlclust::detail::RunLloydWithAssign(points, std::move(centres), options, assign);
 }

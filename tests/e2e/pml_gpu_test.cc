@@ -74,7 +74,8 @@ TEST_F(PmlGpuTest, WithAnOptimiserTheLevelsStayOnTheCpu) {
 }
 
 TEST_F(PmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
-  for (const char* pass : {"pml odes", "pml triplets"}) ExpectFailsInPass(PmlSpec("gpu", "none"), pass);
+  for (const char* pass : {"pml odes", "pml triplets"})
+    ExpectFailsInPass(PmlSpec("gpu", "none"), pass);
   ExpectRunsWithTheHookCleared(PmlSpec("gpu", "none"));
 }
 

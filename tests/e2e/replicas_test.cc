@@ -37,20 +37,25 @@ std::unique_ptr<server::Server> StartServer() {
 
 v1::JobSpec MeshSpec() { return testing::MeshSpec(v1::ALGORITHM_ML, 0, "replicas_test"); }
 
+// A TCP socket `fd` listening on 127.0.0.1 at a free `port`, with `backlog`.
+void ListenOnLoopback(int backlog, int& fd, int& port) {
+  fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+  ASSERT_EQ(listen(fd, backlog), 0);
+  socklen_t length = sizeof(address);
+  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+  port = ntohs(address.sin_port);
+}
+
 // A port that accepts TCP connections and closes them at once (a replica dying as each
 // call arrives, before any job is accepted).
 class ClosingListener {
  public:
   ClosingListener() {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-    EXPECT_EQ(listen(fd_, 64), 0);
-    socklen_t length = sizeof(address);
-    getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &length);
-    port_ = ntohs(address.sin_port);
+    ListenOnLoopback(64, fd_, port_);
     thread_ = std::thread([this] {
       while (!stop_) {
         const int connection = accept(fd_, nullptr, nullptr);
@@ -171,15 +176,10 @@ TEST(ReplicasTest, ADeadlineHitOnOneReplicaEndsTheJobThere) {
   std::unique_ptr<server::Server> a = StartServer();
   ASSERT_TRUE(a);
   // A replica that never answers: the kernel completes the TCP handshake, nobody speaks.
-  const int silent = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(bind(silent, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-  ASSERT_EQ(listen(silent, 8), 0);
-  socklen_t length = sizeof(address);
-  getsockname(silent, reinterpret_cast<sockaddr*>(&address), &length);
-  const std::string silent_address = absl::StrCat("127.0.0.1:", ntohs(address.sin_port));
+  int silent = -1;
+  int silent_port = 0;
+  ASSERT_NO_FATAL_FAILURE(ListenOnLoopback(8, silent, silent_port));
+  const std::string silent_address = absl::StrCat("127.0.0.1:", silent_port);
 
   client::ReplicaOptions in_order;
   in_order.in_order = true;

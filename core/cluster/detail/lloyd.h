@@ -36,8 +36,7 @@ class LloydAssignStage {
 
 // RunLloyd with `assign` as its assignment step: the same checks, errors and contract, plus
 // the stage's errors. RunLloyd is this with the CPU's vectorised float kernel.
-absl::StatusOr<KmeansResult> RunLloydWithAssign(const PointSet& points,
-                                                std::vector<float> centres,
+absl::StatusOr<KmeansResult> RunLloydWithAssign(const PointSet& points, std::vector<float> centres,
                                                 const KmeansOptions& options,
                                                 LloydAssignStage& assign);
 

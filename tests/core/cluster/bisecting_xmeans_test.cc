@@ -14,8 +14,8 @@
 #include "core/cluster/xmeans.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/hierarchy/model_selection.h"
-#include "tests/fixtures/test_points.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_points.h"
 
 namespace mlclust {
 namespace {

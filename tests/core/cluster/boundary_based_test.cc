@@ -7,8 +7,8 @@
 #include <atomic>
 #include <set>
 
-#include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {

@@ -39,7 +39,7 @@ using testing::SamePartition;
 
 // Both seedings, for the tests that hold for either.
 constexpr KmeansOptions::Init kBothInits[] = {KmeansOptions::Init::kRandom,
-                                             KmeansOptions::Init::kKmeansPlusPlus};
+                                              KmeansOptions::Init::kKmeansPlusPlus};
 
 KmeansOptions Options(uint32_t clusters, KmeansOptions::Init init) {
   KmeansOptions options;

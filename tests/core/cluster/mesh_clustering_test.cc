@@ -10,8 +10,8 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/connectivity_guard.h"
-#include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {

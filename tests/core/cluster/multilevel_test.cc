@@ -280,7 +280,6 @@ TEST(MultilevelTest, PmlThenMlIsCloseToMlAndPPercentRuns) {
             absl::StatusCode::kInvalidArgument);
 }
 
-
 // PML's parallel steps (ODEs, mutual pairs, the ODE update per level, the optimisation
 // rounds of parallel_optimisation) give the same levels on one thread as on two; the
 // mesh is large enough for every step to take its parallel path in the first levels.

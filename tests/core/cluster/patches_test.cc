@@ -206,14 +206,22 @@ TEST(BuildPatchesTest, RefusesAndCancels) {
   EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kCancelled);
 }
 
+const testing::LoadedMesh& ElephantWithHoles() {
+  return testing::LoadDataFile("elephant-with-holes.off");
+}
+
+PatchOptions Patches(uint32_t clusters, uint32_t sweeps) {
+  PatchOptions options;
+  options.clusters = clusters;
+  options.sweeps = sweeps;
+  return options;
+}
+
 // The face-order apply keeps patches connected where BB's guard would: on a mesh with
 // holes, many patches, many sweeps.
 TEST(BuildPatchesTest, GuardKeepsEveryPatchConnectedOverManySweeps) {
-  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
-  PatchOptions options;
-  options.clusters = 150;
-  options.sweeps = 50;
-  absl::StatusOr<PatchResult> result = BuildPatches(l.problem(), options);
+  const testing::LoadedMesh& l = ElephantWithHoles();
+  absl::StatusOr<PatchResult> result = BuildPatches(l.problem(), Patches(150, 50));
   ASSERT_TRUE(result.ok());
   const std::vector<uint32_t> pieces = PiecesPerCluster(l.adjacency, result->labels, 150);
   for (uint32_t c = 0; c < 150; ++c) EXPECT_EQ(pieces[c], 1u) << "patch " << c;
@@ -223,11 +231,8 @@ TEST(BuildPatchesTest, GuardKeepsEveryPatchConnectedOverManySweeps) {
 // as ConnectivityGuard's stored rings do, on a mesh with holes (rings broken by the
 // boundary) and patches of every shape the growth makes.
 TEST(BuildPatchesTest, OnDemandRingTestIsTheGuards) {
-  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
-  PatchOptions options;
-  options.clusters = 300;
-  options.sweeps = 0;
-  absl::StatusOr<PatchResult> grown = BuildPatches(l.problem(), options);
+  const testing::LoadedMesh& l = ElephantWithHoles();
+  absl::StatusOr<PatchResult> grown = BuildPatches(l.problem(), Patches(300, 0));
   ASSERT_TRUE(grown.ok());
   std::vector<uint32_t> labels, sizes(300, 0);
   for (ClusterId c : grown->initial_labels) {

@@ -10,8 +10,8 @@
 #include <set>
 #include <vector>
 
-#include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {

@@ -262,27 +262,28 @@ TEST_P(PolygonClusteringTest, EnergyAgainstThePostPass) {
   const PolygonMesh m = Mesh();
   absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(m.counts, m.prepared.adjacency);
   ASSERT_TRUE(polygons.ok()) << polygons.status();
-  MlWithAndWithoutPolygons(m, *polygons, [&](MeshEnergyKind energy, const MeshProblem& triangles,
-                                               const MeshProblem& whole,
-                                               const HierarchyLog& on_triangles,
-                                               const HierarchyLog& on_polygons) {
-    (void)whole;
-    for (uint32_t k : {5u, 10u, 20u, 40u}) {
-      const std::vector<ClusterId> post = MajorityPerPolygon(
-          m, *polygons, *on_triangles.LabelsAt(*on_triangles.FirstLevelWithAtMost(k)));
-      const double post_energy = MeshEnergyOfLabels(triangles.energy, m.prepared.mesh, post);
-      const size_t level = *on_polygons.FirstLevelWithAtMost(k);
-      std::vector<uint32_t> compact, component;
-      const uint32_t post_clusters = CompactClusterIds(post, compact);
-      const uint32_t post_pieces = LabelFaceComponents(m.prepared.adjacency, component, compact);
-      std::printf(
-          "%s %s k=%u: in the algorithms %.6g (%u clusters); post-pass %.6g (%u "
-          "clusters, %u pieces)\n",
-          GetParam() == 0 ? "quad-grid" : "double-torus", MeshEnergyName(energy), k,
-          on_polygons.energy(level), on_polygons.cluster_count(level), post_energy, post_clusters,
-          post_pieces);
-    }
-  });
+  MlWithAndWithoutPolygons(
+      m, *polygons,
+      [&](MeshEnergyKind energy, const MeshProblem& triangles, const MeshProblem& whole,
+          const HierarchyLog& on_triangles, const HierarchyLog& on_polygons) {
+        (void)whole;
+        for (uint32_t k : {5u, 10u, 20u, 40u}) {
+          const std::vector<ClusterId> post = MajorityPerPolygon(
+              m, *polygons, *on_triangles.LabelsAt(*on_triangles.FirstLevelWithAtMost(k)));
+          const double post_energy = MeshEnergyOfLabels(triangles.energy, m.prepared.mesh, post);
+          const size_t level = *on_polygons.FirstLevelWithAtMost(k);
+          std::vector<uint32_t> compact, component;
+          const uint32_t post_clusters = CompactClusterIds(post, compact);
+          const uint32_t post_pieces =
+              LabelFaceComponents(m.prepared.adjacency, component, compact);
+          std::printf(
+              "%s %s k=%u: in the algorithms %.6g (%u clusters); post-pass %.6g (%u "
+              "clusters, %u pieces)\n",
+              GetParam() == 0 ? "quad-grid" : "double-torus", MeshEnergyName(energy), k,
+              on_polygons.energy(level), on_polygons.cluster_count(level), post_energy,
+              post_clusters, post_pieces);
+        }
+      });
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshes, PolygonClusteringTest, ::testing::Values(0, 1),
@@ -297,19 +298,19 @@ TEST_P(OneTrianglePolygonsTest, OnFandisk) {
   const PolygonMesh m = Mesh();
   absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(m.counts, m.prepared.adjacency);
   ASSERT_TRUE(polygons.ok()) << polygons.status();
-  MlWithAndWithoutPolygons(m, *polygons, [&](MeshEnergyKind energy, const MeshProblem& triangles,
-                                               const MeshProblem& singles,
-                                               const HierarchyLog& expected,
-                                               const HierarchyLog& got) {
-    (void)energy;
-    ASSERT_EQ(got.num_levels(), expected.num_levels());
-    ASSERT_EQ(got.num_moves(), expected.num_moves());
-    for (size_t level :
-         {size_t{1}, got.num_levels() / 2, got.num_levels() - 1000, got.num_levels() - 1}) {
-      EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
-    }
-    ExpectSameSeedsEmloAndBb(triangles, singles, 200);
-  });
+  MlWithAndWithoutPolygons(
+      m, *polygons,
+      [&](MeshEnergyKind energy, const MeshProblem& triangles, const MeshProblem& singles,
+          const HierarchyLog& expected, const HierarchyLog& got) {
+        (void)energy;
+        ASSERT_EQ(got.num_levels(), expected.num_levels());
+        ASSERT_EQ(got.num_moves(), expected.num_moves());
+        for (size_t level :
+             {size_t{1}, got.num_levels() / 2, got.num_levels() - 1000, got.num_levels() - 1}) {
+          EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
+        }
+        ExpectSameSeedsEmloAndBb(triangles, singles, 200);
+      });
 }
 INSTANTIATE_TEST_SUITE_P(Fandisk, OneTrianglePolygonsTest, ::testing::Values(2));
 

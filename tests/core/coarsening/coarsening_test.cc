@@ -20,8 +20,8 @@
 #include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
-#include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {

@@ -1,8 +1,9 @@
 #include "core/hierarchy/hierarchy.h"
-#include "tests/fixtures/labels.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "tests/fixtures/labels.h"
 
 namespace mlclust {
 namespace {

@@ -10,8 +10,8 @@
 #include "gpu/context/gl_context.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
-#include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {

@@ -10,9 +10,9 @@
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/render/png_codec.h"
+#include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/image_hues.h"
 #include "tests/fixtures/test_meshes.h"
-#include "tests/fixtures/gl_test_context.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -30,6 +30,14 @@ std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
 }
 
 using ::mlclust::testing::AdjacencyOf;
+
+// Default options at width x height pixels.
+ClusterPreviewOptions Sized(uint32_t width, uint32_t height) {
+  ClusterPreviewOptions options;
+  options.width = width;
+  options.height = height;
+  return options;
+}
 
 // Grid(n) (z = 0, two triangles per square, square (x, y) has faces 2 (y n + x) and
 // 2 (y n + x) + 1) cut into quadrants: cluster 0 bottom left, 1 bottom right, 2 top left,
@@ -140,9 +148,7 @@ TEST(ClusterPreviewTest, QuadrantsShowFourHuesBordersAndBackground) {
   const TriangleMesh mesh = Grid(8);
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
   const std::vector<ClusterId> labels = Quadrants(8);
-  ClusterPreviewOptions options;
-  options.width = 320;
-  options.height = 240;
+  ClusterPreviewOptions options = Sized(320, 240);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, adjacency, labels, options);
   ASSERT_TRUE(image.ok()) << image.status();
@@ -168,9 +174,7 @@ TEST(ClusterPreviewTest, OneClusterHasOneHueAndNoBorder) {
   ASSERT_NE(context, nullptr);
   const TriangleMesh mesh = Grid(8);
   const std::vector<ClusterId> labels(mesh.num_faces(), ClusterId(3));
-  ClusterPreviewOptions options;
-  options.width = 200;
-  options.height = 200;
+  ClusterPreviewOptions options = Sized(200, 200);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), labels, options);
   ASSERT_TRUE(image.ok()) << image.status();
@@ -189,14 +193,6 @@ struct CubeBySide {
   std::vector<ClusterId> labels;
 };
 
-// 256 x 256 from the default camera.
-ClusterPreviewOptions CubeView() {
-  ClusterPreviewOptions options;
-  options.width = 256;
-  options.height = 256;
-  return options;
-}
-
 // Renders `cube` with `options`: the image (kept in `image`) must show exactly the hues of
 // the three clusters `sides` (of six).
 void ExpectSidesShown(GlContext& context, const CubeBySide& cube,
@@ -209,9 +205,9 @@ void ExpectSidesShown(GlContext& context, const CubeBySide& cube,
   absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(cube.adjacency, cube.labels);
   ASSERT_TRUE(colours.ok());
   ASSERT_EQ(colours->cluster_count, 6u);
-  ExpectHues(DistinctHues(image), {HueOf(colours->cluster_colour[sides[0]]),
-                                   HueOf(colours->cluster_colour[sides[1]]),
-                                   HueOf(colours->cluster_colour[sides[2]])});
+  ExpectHues(DistinctHues(image),
+             {HueOf(colours->cluster_colour[sides[0]]), HueOf(colours->cluster_colour[sides[1]]),
+              HueOf(colours->cluster_colour[sides[2]])});
 }
 
 TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
@@ -221,7 +217,7 @@ TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
   // depth test hides the rest.
   const CubeBySide cube;
   RgbaImage image;
-  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, CubeView(), {0, 1, 2}, image));
+  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, Sized(256, 256), {0, 1, 2}, image));
   // Lambert shading: the three visible sides face the light differently, so they differ
   // in brightness as well.
   EXPECT_GT(CountPixels(image, kPreviewBorder), 0u);
@@ -231,7 +227,7 @@ TEST(ClusterPreviewTest, CameraFromTheOtherOctantShowsTheOtherThreeSides) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
   const CubeBySide cube;
-  ClusterPreviewOptions options = CubeView();
+  ClusterPreviewOptions options = Sized(256, 256);
   options.azimuth_degrees = 215;    // from -x, -z
   options.elevation_degrees = -25;  // and below: -y
   RgbaImage image;
@@ -251,9 +247,7 @@ TEST(ClusterPreviewTest, ChunkedDrawIsTheSamePicture) {
   ASSERT_NE(chunked, nullptr);
   const TriangleMesh mesh = Grid(8);
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
-  ClusterPreviewOptions options;
-  options.width = 160;
-  options.height = 120;
+  ClusterPreviewOptions options = Sized(160, 120);
   absl::StatusOr<RgbaImage> in_chunks =
       RenderClusterPreview(*chunked, mesh, adjacency, Quadrants(8), options);
   ASSERT_TRUE(in_chunks.ok()) << in_chunks.status();
@@ -276,9 +270,7 @@ TEST(ClusterPreviewTest, RefusesSizesOutOfRange) {
   const std::vector<ClusterId> labels(mesh.num_faces(), ClusterId(0));
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
   for (auto [width, height] : {std::pair<uint32_t, uint32_t>{0, 100}, {100, 0}, {1u << 20, 64}}) {
-    ClusterPreviewOptions options;
-    options.width = width;
-    options.height = height;
+    ClusterPreviewOptions options = Sized(width, height);
     absl::StatusOr<RgbaImage> image =
         RenderClusterPreview(*context, mesh, adjacency, labels, options);
     EXPECT_EQ(image.status().code(), absl::StatusCode::kInvalidArgument) << width << "x" << height;
@@ -291,9 +283,7 @@ TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
   ASSERT_NE(context, nullptr);
   // Zero-area faces (ValidateMesh accepts them): nothing to fit, no crash, a full picture.
   const TriangleMesh mesh = mlclust::testing::MakeMesh({2, 2, 2, 2, 2, 2, 2, 2, 2}, {0, 1, 2});
-  ClusterPreviewOptions options;
-  options.width = 64;
-  options.height = 48;
+  ClusterPreviewOptions options = Sized(64, 48);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), std::vector{ClusterId(0)}, options);
   ASSERT_TRUE(image.ok()) << image.status();
