@@ -209,28 +209,11 @@ Camera FitCamera(const TriangleMesh& mesh, const ClusterPreviewOptions& options)
   return camera;
 }
 
-std::string ShaderLog(const detail::GlFunctions& gl, GLuint shader) {
-  GLint length = 0;
-  gl.GetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
-  std::string log(std::max(length, 1), '\0');
-  gl.GetShaderInfoLog(shader, length, nullptr, log.data());
-  log.resize(std::max(length, 1) - 1);
-  return log;
-}
-
 absl::StatusOr<GLuint> CompileStage(const detail::GlFunctions& gl, GLenum stage, const char* source,
                                     const char* what) {
   const GLuint shader = gl.CreateShader(stage);
   if (shader == 0) return absl::InternalError(absl::StrCat("preview: glCreateShader(", what, ")"));
-  gl.ShaderSource(shader, 1, &source, nullptr);
-  gl.CompileShader(shader);
-  GLint compiled = GL_FALSE;
-  gl.GetShaderiv(shader, GL_COMPILE_STATUS, &compiled);
-  if (compiled != GL_TRUE) {
-    std::string log = ShaderLog(gl, shader);
-    gl.DeleteShader(shader);
-    return absl::InternalError(absl::StrCat("preview: ", what, " shader does not compile: ", log));
-  }
+  MLCLUST_RETURN_IF_ERROR(CompileShaderSource(gl, shader, source, absl::StrCat("preview: ", what)));
   return shader;
 }
 
@@ -255,16 +238,7 @@ absl::StatusOr<GLuint> PreviewProgram(GlContext& context) {
   gl.DetachShader(program, *fragment);
   gl.DeleteShader(vertex);
   gl.DeleteShader(*fragment);
-  GLint linked = GL_FALSE;
-  gl.GetProgramiv(program, GL_LINK_STATUS, &linked);
-  if (linked != GL_TRUE) {
-    GLint length = 0;
-    gl.GetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
-    std::string log(std::max(length, 1), '\0');
-    gl.GetProgramInfoLog(program, length, nullptr, log.data());
-    gl.DeleteProgram(program);
-    return absl::InternalError(absl::StrCat("preview: the program does not link: ", log));
-  }
+  MLCLUST_RETURN_IF_ERROR(CheckProgramLinked(gl, program, "preview: the program"));
   cache.emplace(kProgramName, program);
   return program;
 }
