@@ -1048,64 +1048,68 @@ absl::StatusOr<OptionValue> ParseOptionValue(const OptionInfo& option, absl::str
   return absl::InternalError("unknown option type");
 }
 
+namespace {
+
+// The first entry of `table` for which `match` holds; nullptr if none.
+template <typename Info, typename Match>
+const Info* FindIn(std::span<const Info> table, Match&& match) {
+  for (const Info& info : table) {
+    if (match(info)) return &info;
+  }
+  return nullptr;
+}
+
+// The names of `table`'s entries for `input`, comma-separated, in table order.
+template <typename Info>
+std::string NamesFor(std::span<const Info> table, InputKind input) {
+  std::vector<std::string> names;
+  for (const Info& info : table) {
+    if (info.input == input) names.push_back(info.name);
+  }
+  return absl::StrJoin(names, ", ");
+}
+
+}  // namespace
+
 std::span<const EnergyInfo> Energies() { return EnergyTable(); }
 std::span<const OptionInfo> EnergyOptions() { return EnergyOptionTable(); }
 
 const EnergyInfo* FindEnergy(InputKind input, absl::string_view name) {
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input && energy.name == name) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(),
+                [&](const EnergyInfo& e) { return e.input == input && e.name == name; });
 }
 
 const EnergyInfo* FindEnergyByWire(InputKind input, int wire) {
   if (wire == 0) return nullptr;
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input && energy.wire == wire) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(),
+                [&](const EnergyInfo& e) { return e.input == input && e.wire == wire; });
 }
 
 const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind) {
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == InputKind::kMesh && energy.mesh_kind == kind) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(), [&](const EnergyInfo& e) {
+    return e.input == InputKind::kMesh && e.mesh_kind == kind;
+  });
 }
 
 std::span<const AlgorithmInfo> Algorithms() { return AlgorithmTable(); }
 
 const AlgorithmInfo* FindAlgorithm(InputKind input, absl::string_view name) {
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input && algorithm.name == name) return &algorithm;
-  }
-  return nullptr;
+  return FindIn(Algorithms(),
+                [&](const AlgorithmInfo& a) { return a.input == input && a.name == name; });
 }
 
 const AlgorithmInfo* FindAlgorithmByWire(InputKind input, int wire) {
   if (wire == 0) return nullptr;
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input && algorithm.wire == wire) return &algorithm;
-  }
-  return nullptr;
+  return FindIn(Algorithms(),
+                [&](const AlgorithmInfo& a) { return a.input == input && a.wire == wire; });
 }
 
 const AlgorithmInfo& DefaultAlgorithm(InputKind input) { return *FindAlgorithm(input, "ml"); }
 
-std::string AlgorithmNames(InputKind input) {
-  std::vector<std::string> names;
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input) names.push_back(algorithm.name);
-  }
-  return absl::StrJoin(names, ", ");
-}
+std::string AlgorithmNames(InputKind input) { return NamesFor(Algorithms(), input); }
 
-std::string EnergyNames(InputKind input) {
-  std::vector<std::string> names;
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input) names.push_back(energy.name);
-  }
-  return absl::StrJoin(names, ", ");
+std::string EnergyNames(InputKind input) { return NamesFor(Energies(), input); }
+return absl::StrJoin(names, ", ");
 }
 
 std::vector<const OptionInfo*> AlgorithmOptions(const AlgorithmInfo& algorithm) {
