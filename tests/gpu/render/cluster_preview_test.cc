@@ -31,6 +31,13 @@ std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
 
 using ::mlclust::testing::AdjacencyOf;
 
+// A GL context whose storage buffers hold at most `bytes`.
+std::unique_ptr<GlContext> ContextWithBuffersOf(int64_t bytes) {
+  GlContextOptions options;
+  options.max_storage_buffer_bytes = bytes;
+  return MakeContext(options);
+}
+
 // Default options at width x height pixels.
 ClusterPreviewOptions Sized(uint32_t width, uint32_t height) {
   ClusterPreviewOptions options;
@@ -241,9 +248,7 @@ TEST(ClusterPreviewTest, CameraFromTheOtherOctantShowsTheOtherThreeSides) {
 
 TEST(ClusterPreviewTest, ChunkedDrawIsTheSamePicture) {
   // Buffers capped at 1 KiB: the grid's 128 faces go in two chunks of 85 and 43.
-  GlContextOptions small;
-  small.max_storage_buffer_bytes = 1024;
-  std::unique_ptr<GlContext> chunked = MakeContext(small);
+  std::unique_ptr<GlContext> chunked = ContextWithBuffersOf(1024);
   ASSERT_NE(chunked, nullptr);
   const TriangleMesh mesh = Grid(8);
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
@@ -294,9 +299,7 @@ TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
 TEST(ClusterPreviewTest, VerticesOverOneBufferAreRefusedClearly) {
   // A context whose storage buffers hold 64 bytes: Grid(8)'s 81 vertices (972 bytes) do
   // not fit, and the error says so instead of drawing part of the mesh.
-  GlContextOptions tiny;
-  tiny.max_storage_buffer_bytes = 64;
-  std::unique_ptr<GlContext> context = MakeContext(tiny);
+  std::unique_ptr<GlContext> context = ContextWithBuffersOf(64);
   ASSERT_NE(context, nullptr);
   const TriangleMesh mesh = Grid(8);
   absl::StatusOr<RgbaImage> image =
