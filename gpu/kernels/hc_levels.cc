@@ -22,12 +22,17 @@ constexpr char kCollapsePass[] = "hc collapse";
 constexpr char kTripletsPass[] = "hc triplets";
 
 constexpr uint32_t kNone = 0xFFFFFFFFu;
+// The loop iterations (summed over the group's invocations) after which a batch ends on a
+// software renderer: llvmpipe stops an invocation's loops after 65,535 in all
+// (hc_steps.glsl), and the next step must still fit.
+constexpr uint32_t kSoftwareLoopBudget = 24000;
 // pml_ode.glsl's phases (gpu/kernels/pml_levels.cc).
-constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
+constexpr uint32_t kPhaseCost = 0, kPhaseLow = 1, kPhasePartner = 2, kPhaseReset = 3;
 // hc_init.glsl's phases.
 constexpr uint32_t kInitOdes = 0, kInitTree = 1;
 // hc_steps.glsl's control words.
-constexpr uint32_t kLeft = 0, kBatchSteps = 1, kFacesUsed = 2, kAllSteps = 3, kControlWords = 4;
+constexpr uint32_t kLeft = 0, kBatchSteps = 1, kFacesUsed = 2, kAllSteps = 3, kLoopLimit = 4,
+                   kControlWords = 5;
 
 static_assert(sizeof(CvdSums) == 5 * sizeof(double));
 
@@ -133,7 +138,7 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
       buffers.push_back(std::move(buffer));
     }
     const uint32_t n32 = static_cast<uint32_t>(n);
-    const std::array<uint32_t, kControlWords> control = {n32, 0, 0, 0};
+    const std::array<uint32_t, kControlWords> control = {n32, 0, 0, 0, 0};
     MLCLUST_RETURN_IF_ERROR(buffers[kControl].Upload(std::span<const uint32_t>(control)));
     if (n > 0) {
       std::vector<uint32_t> identity(n), none(n, kNone);
@@ -161,9 +166,9 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
     if (n > 0) {
       gl.UseProgram(ode);
       gl.ProgramUniform1ui(ode, 0, n32);
-      gl.ProgramUniform1ui(ode, 1, kOdeReset);
+      gl.ProgramUniform1ui(ode, 1, kPhaseReset);
       MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, n));
-      for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
+      for (const uint32_t phase : {kPhaseCost, kPhaseLow, kPhasePartner}) {
         gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
         gl.ProgramUniform1ui(ode, 0, static_cast<uint32_t>(m));
         gl.ProgramUniform1ui(ode, 1, phase);
@@ -214,6 +219,8 @@ absl::Status HcLevelsGpu::Steps(uint32_t lowest, uint32_t max_steps, HcBatchGpu&
     gl.ProgramUniform1ui(steps_program_, 2, max_steps);
     gl.ProgramUniform1ui(steps_program_, 3, lowest);
     gl.ProgramUniform1ui(steps_program_, 4, num_faces_);
+    gl.ProgramUniform1ui(steps_program_, 5, context_->is_software() ? kSoftwareLoopBudget : kNone);
+    gl.ProgramUniform1ui(steps_program_, 6, 2);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, 1));
     gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     gl.UseProgram(0);
@@ -221,9 +228,11 @@ absl::Status HcLevelsGpu::Steps(uint32_t lowest, uint32_t max_steps, HcBatchGpu&
   }();
   if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
+  bool loop_limit = false;
   absl::Status read = [&]() -> absl::Status {
     std::array<uint32_t, kControlWords> control{};
     MLCLUST_RETURN_IF_ERROR(buffers_[kControl].Download(std::span<uint32_t>(control)));
+    loop_limit = control[kLoopLimit] != 0;
     batch.steps.resize(control[kBatchSteps]);
     batch.faces.resize(control[kFacesUsed]);
     if (!batch.steps.empty()) {
@@ -236,6 +245,12 @@ absl::Status HcLevelsGpu::Steps(uint32_t lowest, uint32_t max_steps, HcBatchGpu&
     return CheckGlError(*context_, kTripletsPass);
   }();
   if (!read.ok()) return PassError(kTripletsPass, read);
+  if (loop_limit) {
+    return PassError(kCollapsePass,
+                     absl::InternalError(absl::StrCat(
+                         "a step ran into the driver's limit of loop iterations per invocation (",
+                         context_->renderer(), "): its clusters are too large for this driver")));
+  }
   return absl::OkStatus();
 }
 

@@ -13,8 +13,17 @@
 //                  costs to the larger id) — the CPU engine's UpdateOdes gives the same
 //   all            the tree nodes above the touched clusters, level by level (each node
 //                  once per step through its mark)
-// A step is not taken (and the batch ends) at u_lowest clusters, without an ODE left, or
-// where gone's faces would overflow the log (u_log_capacity faces).
+// A step is not taken (and the batch ends) at u_lowest clusters, without an ODE left, where
+// gone's faces would overflow the log (u_log_capacity faces), or, after the batch's first
+// step, once the loop iterations spent exceed u_loop_budget.
+//
+// Loop budget: llvmpipe ends every loop of an invocation once 65,535 loop iterations in all
+// have run in it (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop of the
+// shader), silently. So each invocation counts its loop iterations, the group's sum (an
+// upper bound of any SIMD batch's count) ends a batch at u_loop_budget (the host sets it
+// on software renderers), the member walk is unrolled by 8, and after every step a canary
+// loop of u_two iterations checks that the limit was not reached: if it was, control[4]
+// is set and the host fails the pass (a step too large for the driver: INTERNAL).
 layout(std430, binding = 3) buffer Labels { uint labels[]; };
 layout(std430, binding = 4) readonly buffer Edges { uint edges[]; };  // (face, neighbour)
 layout(std430, binding = 5) buffer EdgeNext { uint edge_next[]; };
@@ -30,12 +39,19 @@ struct Step {
 };
 layout(std430, binding = 11) writeonly buffer Steps { Step steps[]; };
 layout(std430, binding = 12) writeonly buffer LogFaces { uint log_faces[]; };
-// clusters left, steps of this batch, log faces used, steps in all (the marks)
+// clusters left, steps of this batch, log faces used, steps in all (the marks), the loop
+// limit reached (0 or 1)
 layout(std430, binding = 13) buffer Control { uint control[]; };
 layout(location = 2) uniform uint u_max_steps;
 layout(location = 3) uniform uint u_lowest;
 layout(location = 4) uniform uint u_log_capacity;
+layout(location = 5) uniform uint u_loop_budget;
+layout(location = 6) uniform uint u_two;  // 2, not a constant: the canary loop stays a loop
 
+const uint kMaxLevels = 8u;
+shared uint s_size[kMaxLevels];    // LevelSize(l)
+shared uint s_offset[kMaxLevels];  // LevelOffset(l), l >= 1
+shared uint s_spent;
 shared uint s_go;
 shared uint s_keep;
 shared uint s_gone;
@@ -51,12 +67,14 @@ bool CheaperDualEdge(double cost, uint candidate, double best_cost, uint best_pa
          (best_partner == kNone && cost <= best_cost);
 }
 
-void Collapse() {
+// Invocation 0: the step's collapse, or s_go = 0. Returns the loop iterations spent.
+uint Collapse(uint step, uint top) {
   s_go = 0u;
   uint left = control[0];
-  if (left <= u_lowest) return;
-  uint a = tree[2u * LevelOffset(TopLevel())];
-  if (!HasOde(a)) return;
+  if (left <= u_lowest) return 0u;
+  if (step > 0u && s_spent > u_loop_budget) return 0u;
+  uint a = tree[2u * s_offset[top]];
+  if (!HasOde(a)) return 0u;
   uint b = clusters[a].partner;
   uint size_a = clusters[a].size;
   uint size_b = clusters[b].size;
@@ -65,7 +83,7 @@ void Collapse() {
   uint gone = a_keeps ? b : a;
   uint gone_size = a_keeps ? size_b : size_a;
   uint used = control[2];
-  if (used + gone_size > u_log_capacity) return;
+  if (used + gone_size > u_log_capacity) return 0u;
   precise double keep_before = CvdEnergy(keep);
   precise double gone_before = CvdEnergy(gone);
   for (uint j = 0u; j < 5u; ++j) {
@@ -85,11 +103,18 @@ void Collapse() {
   steps[record].count = gone_size;
   steps[record].keep_change = keep_after - keep_before;
   steps[record].gone_change = 0.0LF - gone_before;
+  uint spent = 0u;
   uint at = used;
-  for (uint f = clusters[gone].mhead; f != kNone; f = member_next[f]) {
-    labels[f] = keep;
-    log_faces[at] = f;
-    ++at;
+  uint f = clusters[gone].mhead;
+  while (f != kNone) {  // unrolled by 8 where the compiler unrolls the inner loop
+    ++spent;
+    for (uint k = 0u; k < 8u && f != kNone; ++k) {
+      ++spent;  // counted as if it did not
+      labels[f] = keep;
+      log_faces[at] = f;
+      ++at;
+      f = member_next[f];
+    }
   }
   control[2] = at;
   member_next[clusters[keep].mtail] = clusters[gone].mhead;
@@ -120,6 +145,7 @@ void Collapse() {
   uint prev = kNone;
   uint e = clusters[keep].ehead;
   while (e != kNone) {
+    ++spent;
     uint next = edge_next[e];
     uint d = labels[edges[2u * e + 1u]];
     if (d == keep) {  // inside keep now: unlinked
@@ -152,14 +178,18 @@ void Collapse() {
   s_count = count;
   s_mark = mark;
   s_go = 1u;
+  return spent + 8u;
 }
 
-void UpdateNeighbour(uint d, uint keep, uint gone) {
+// Returns the loop iterations spent.
+uint UpdateNeighbour(uint d, uint keep, uint gone) {
   uint partner = clusters[d].partner;
+  uint spent = 1u;
   if (partner == keep || partner == gone) {
     double best = Infinity();
     uint best_d = kNone;
     for (uint e = clusters[d].ehead; e != kNone; e = edge_next[e]) {
+      ++spent;
       uint x = labels[edges[2u * e + 1u]];
       if (x == d) continue;
       double cost = CvdMergeCost(d, x);
@@ -170,21 +200,51 @@ void UpdateNeighbour(uint d, uint keep, uint gone) {
     }
     clusters[d].partner = best_d;
     ode_cost[d] = best;
-    return;
+    return spent;
   }
   double cost = CvdMergeCost(d, keep);
   if (CheaperDualEdge(cost, keep, ode_cost[d], partner)) {
     clusters[d].partner = keep;
     ode_cost[d] = cost;
   }
+  return spent;
+}
+
+// hc_common.glsl's RecomputeNode with the levels' sizes and offsets from shared memory and
+// the children's loop unrolled by 4. Returns the loop iterations spent.
+uint RecomputeNodeInStep(uint level, uint node) {
+  uint best = kNone;
+  uint first = node * kFanout;
+  uint end = min(first + kFanout, s_size[level - 1u]);
+  uint child_offset = s_offset[level - 1u];
+  uint spent = 0u;
+  for (uint i = first; i < end; i += 4u) {
+    ++spent;
+    for (uint k = i; k < min(i + 4u, end); ++k) {
+      uint c = level == 1u ? k : tree[2u * (child_offset + k)];
+      if (Before(c, best)) best = c;
+    }
+  }
+  tree[2u * (s_offset[level] + node)] = best;
+  return spent;
 }
 
 void main() {
   uint t = gl_LocalInvocationID.x;
   uint group = gl_WorkGroupSize.x;
   uint top = TopLevel();
+  if (t == 0u) {
+    for (uint level = 0u; level < kMaxLevels; ++level) {
+      s_size[level] = LevelSize(level);
+      s_offset[level] = level >= 1u ? LevelOffset(level) : 0u;
+    }
+    s_spent = 0u;
+  }
+  memoryBarrierShared();
+  barrier();
   for (uint step = 0u; step < u_max_steps; ++step) {
-    if (t == 0u) Collapse();
+    uint spent = 0u;
+    if (t == 0u) spent += Collapse(step, top);
     memoryBarrier();
     barrier();
     if (s_go == 0u) break;
@@ -192,19 +252,27 @@ void main() {
     uint gone = s_gone;
     uint count = s_count;
     uint mark = s_mark;
-    for (uint i = 2u + t; i < count; i += group) UpdateNeighbour(touched[i], keep, gone);
+    for (uint i = 2u + t; i < count; i += group) spent += UpdateNeighbour(touched[i], keep, gone);
     memoryBarrier();
     barrier();
     for (uint level = 1u; level <= top; ++level) {
-      uint offset = LevelOffset(level);
+      uint offset = s_offset[level];
       for (uint i = t; i < count; i += group) {
+        ++spent;
         uint node = touched[i] >> (5u * level);
         if (atomicExchange(tree[2u * (offset + node) + 1u], mark) != mark) {
-          RecomputeNode(level, node);
+          spent += RecomputeNodeInStep(level, node);
         }
       }
       memoryBarrier();
       barrier();
     }
+    // The canary: a loop of two iterations runs one where the driver's limit was reached.
+    uint canary = 0u;
+    for (uint k = 0u; k < u_two; ++k) ++canary;
+    if (canary != 2u) atomicOr(control[4], 1u);
+    atomicAdd(s_spent, spent + top + 4u);
+    memoryBarrierShared();
+    barrier();
   }
 }

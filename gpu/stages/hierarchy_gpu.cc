@@ -1,5 +1,6 @@
 #include "gpu/stages/hierarchy_gpu.h"
 
+#include <span>
 #include <type_traits>
 #include <vector>
 
@@ -64,6 +65,7 @@ absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const Mesh
           uint32_t clusters = n;
           HcBatchGpu batch;
           LevelMoves moves;
+          std::vector<uint32_t> to, from;
           // Small batches first: the first levels reach the sink early.
           uint32_t batch_steps = 64;
           while (clusters > options.min_clusters) {
@@ -79,10 +81,12 @@ absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const Mesh
               moves.level = summary.levels;
               moves.cluster_count = clusters;
               moves.energy = energy_sum.value();
-              moves.element.assign(batch.faces.begin() + step.first,
-                                   batch.faces.begin() + step.first + step.count);
-              moves.to_cluster.assign(step.count, step.keep);
-              moves.from_cluster.assign(step.count, step.gone);
+              to.assign(step.count, step.keep);
+              from.assign(step.count, step.gone);
+              moves.element =
+                  std::span<const uint32_t>(batch.faces).subspan(step.first, step.count);
+              moves.to_cluster = to;
+              moves.from_cluster = from;
               MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
               summary.moves += step.count;
               ++summary.levels;
