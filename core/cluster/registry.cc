@@ -328,10 +328,13 @@ bool PmlLevelsOnGpu(const JobPlan& plan) {
 }
 
 // Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
-// the same): merges only, one per level, for cvd and cvd-adaptive.
+// the same): merges only, one per level, for cvd and cvd-adaptive; with device gpu only
+// (one collapse per step is latency-bound on a GPU: auto keeps the CPU's heap until the
+// NVIDIA figures show otherwise, BENCHMARKS.md).
 bool HcLevelsOnGpu(const JobPlan& plan) {
   const MeshEnergyKind kind = plan.mesh_energy.kind;
-  return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+  return plan.device == DeviceChoice::kGpu &&
+         (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
          plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
          !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
 }

@@ -312,8 +312,8 @@ TEST(HcGpu, StopsAtOneClusterPerComponent) {
   EXPECT_EQ(gpu->final_clusters, 3u);
 }
 
-// The plan (core/cluster/registry.cc): HC's steps go to the GPU for the CVD energies,
-// with device gpu even on llvmpipe, with auto only on hardware.
+// The plan (core/cluster/registry.cc): HC's steps go to the GPU for the CVD energies with
+// device gpu (even on llvmpipe); auto keeps them on the CPU, on hardware too.
 TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
@@ -332,7 +332,8 @@ TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "cvd"), "cpu");
-  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "cvd"), "NVIDIA H100");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "cvd"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "cvd"), "NVIDIA H100");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "cvd"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "planar"), "cpu");
 }
