@@ -64,8 +64,8 @@ uint64_t LevelSize(uint64_t clusters, uint32_t level) {
 }
 
 // The steps' source: its own work group size instead of the prelude's.
-std::string StepsSource() {
-  return absl::StrCat("#version 450 core\nlayout(local_size_x = ", kHcStepGroup,
+std::string StepsSource(uint32_t group) {
+  return absl::StrCat("#version 450 core\nlayout(local_size_x = ", group,
                       ", local_size_y = 1, local_size_z = 1) in;\n", kPmlCvdGlsl, kHcCommonGlsl,
                       kHcStepsGlsl);
 }
@@ -81,7 +81,7 @@ uint64_t HcLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges) {
 absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
                                                 std::span<const CvdSums> face_sums,
                                                 const FaceAdjacency& adjacency,
-                                                bool ties_to_fewest_faces) {
+                                                bool ties_to_fewest_faces, uint32_t step_group) {
   const size_t n = adjacency.num_faces();
   if (face_sums.size() != n) {
     return absl::InvalidArgumentError(
@@ -160,8 +160,12 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t init,
         GetComputeProgram(context, "hc_init", absl::StrCat(cvd, kHcCommonGlsl, kHcInitGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t steps,
-                             GetComputeProgram(context, "hc_steps", StepsSource()));
+    const uint32_t group = step_group != 0         ? step_group
+                           : context.is_software() ? kHcSoftwareStepGroup
+                                                   : kHcStepGroup;
+    MLCLUST_ASSIGN_OR_RETURN(
+        const uint32_t steps,
+        GetComputeProgram(context, absl::StrCat("hc_steps_", group), StepsSource(group)));
     for (uint32_t b = 0; b < kBindings; ++b) buffers[b].Bind(b);
     if (n > 0) {
       gl.UseProgram(ode);

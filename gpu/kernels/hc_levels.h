@@ -50,8 +50,10 @@ namespace mlclust::gpu {
 
 // Children per node of the tree of minima (hc_common.glsl's kFanout).
 inline constexpr uint32_t kHcTreeFanout = 32;
-// Invocations of the steps' work group (hc_steps.glsl).
+// Invocations of the steps' work group (hc_steps.glsl), and on software renderers, where
+// a group is one SIMD batch of a CPU thread and every barrier switches between batches.
 inline constexpr uint32_t kHcStepGroup = 64;
+inline constexpr uint32_t kHcSoftwareStepGroup = 8;
 // Steps per batch (one dispatch) at most, unless HcLevelsGpu::Steps is told fewer.
 inline constexpr uint32_t kHcMaxBatch = 4096;
 
@@ -81,9 +83,11 @@ class HcLevelsGpu {
   // (MultilevelOptions), then to the smaller id. INVALID_ARGUMENT for a size mismatch, a
   // neighbour out of range or 2^30 faces or more; RESOURCE_EXHAUSTED if a buffer exceeds
   // context.max_storage_buffer_bytes() or GPU memory runs out; INTERNAL on GL errors.
+  // `step_group`: the steps' work group size, 0 for the renderer's (kHcStepGroup, or
+  // kHcSoftwareStepGroup on software; tests run the hardware's on llvmpipe too).
   static absl::StatusOr<HcLevelsGpu> Create(GlContext& context, std::span<const CvdSums> face_sums,
                                             const FaceAdjacency& adjacency,
-                                            bool ties_to_fewest_faces);
+                                            bool ties_to_fewest_faces, uint32_t step_group = 0);
 
   // Up to `max_steps` (at most kHcMaxBatch) merges while more than `lowest` clusters are
   // left, into `batch` (replaced); fewer where no ODE is left (one cluster per component)

@@ -9,6 +9,7 @@
 #include <array>
 #include <atomic>
 #include <cstdlib>
+#include <utility>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
@@ -253,8 +254,9 @@ TEST(HcGpu, CancelledBetweenBatches) {
   EXPECT_LE(sink.counts.size(), 65u);
 }
 
-// The merges do not depend on how the steps are split into batches (one dispatch each):
-// one step per batch and the largest batches give the CPU's pairs in the CPU's order.
+// The merges do not depend on how the steps are split into batches (one dispatch each)
+// nor on the steps' work group size: one step per batch and the largest batches, with the
+// renderer's group size and with the hardware's (64), give the CPU's pairs in its order.
 TEST(HcGpu, BatchSizesGiveTheSamePairs) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(24, 30, 0.3f));
   class PairSink : public LevelSink {
@@ -274,8 +276,10 @@ TEST(HcGpu, BatchSizesGiveTheSamePairs) {
   const size_t n = mesh.mesh.num_faces();
   std::vector<CvdSums> sums(n);
   for (uint32_t f = 0; f < n; ++f) sums[f] = energy.face_sums(f);
-  for (const uint32_t size : {1u, kHcMaxBatch}) {
-    absl::StatusOr<HcLevelsGpu> levels = HcLevelsGpu::Create(Context(), sums, mesh.adjacency, true);
+  for (const auto& [size, group] :
+       {std::pair<uint32_t, uint32_t>{1, 0}, {kHcMaxBatch, 0}, {kHcMaxBatch, kHcStepGroup}}) {
+    absl::StatusOr<HcLevelsGpu> levels =
+        HcLevelsGpu::Create(Context(), sums, mesh.adjacency, true, group);
     ASSERT_TRUE(levels.ok()) << levels.status();
     std::vector<std::pair<uint32_t, uint32_t>> pairs;
     HcBatchGpu batch;
@@ -286,7 +290,7 @@ TEST(HcGpu, BatchSizesGiveTheSamePairs) {
       for (const HcStepGpu& step : batch.steps) pairs.push_back({step.keep, step.gone});
     }
     EXPECT_EQ(pairs.size(), n - 1);
-    EXPECT_EQ(pairs, cpu.pairs) << "batches of " << size;
+    EXPECT_EQ(pairs, cpu.pairs) << "batches of " << size << ", group " << group;
   }
 }
 
