@@ -349,7 +349,7 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
     // PML's levels (PmlLevelsOnGpu) or HC's steps (HcLevelsOnGpu) on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
-          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+          "the plan puts the cluster stage on the GPU but this run has no GPU stages");
     }
     ran = options.parallel ? context.devices->RunMultilevel(problem, options, sink)
                            : context.devices->RunHierarchy(problem, options, sink);
