@@ -72,6 +72,18 @@ class DeviceStages {
     (void)sink;
     return absl::UnimplementedError("PML levels on this device");
   }
+
+  // RunMultilevel (multilevel.h) for HC (optimizer none, one merge per level) with its
+  // steps on the device (gpu/stages/hierarchy_gpu.h); same contract, plus the device's
+  // errors. UNIMPLEMENTED where the device has none (the default).
+  virtual absl::StatusOr<MultilevelSummary> RunHierarchy(const MeshProblem& problem,
+                                                         const MultilevelOptions& options,
+                                                         LevelSink& sink) {
+    (void)problem;
+    (void)options;
+    (void)sink;
+    return absl::UnimplementedError("HC levels on this device");
+  }
 };
 
 }  // namespace mlclust

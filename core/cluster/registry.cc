@@ -327,6 +327,18 @@ bool PmlLevelsOnGpu(const JobPlan& plan) {
          plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
 }
 
+// Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
+// the same): merges only, one per level, for cvd and cvd-adaptive; with device gpu only
+// (one collapse per step is latency-bound on a GPU: auto keeps the CPU's heap until the
+// NVIDIA figures show otherwise, BENCHMARKS.md).
+bool HcLevelsOnGpu(const JobPlan& plan) {
+  const MeshEnergyKind kind = plan.mesh_energy.kind;
+  return plan.device == DeviceChoice::kGpu &&
+         (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+         plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
+         !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
+}
+
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
   Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
@@ -334,12 +346,13 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   options.cancel = context.cancel;
   absl::StatusOr<MultilevelSummary> ran;
   if (Stage(plan, "cluster").device == StageDevice::kGpu) {
-    // PML's levels on the GPU (the plan took it only where PmlLevelsOnGpu covers it).
+    // PML's levels (PmlLevelsOnGpu) or HC's steps (HcLevelsOnGpu) on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
-          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+          "the plan puts the cluster stage on the GPU but this run has no GPU stages");
     }
-    ran = context.devices->RunMultilevel(problem, options, sink);
+    ran = options.parallel ? context.devices->RunMultilevel(problem, options, sink)
+                           : context.devices->RunHierarchy(problem, options, sink);
   } else {
     ran = RunMultilevel(problem, options, sink);
   }
@@ -672,7 +685,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical face clustering (Alg. 2.3)";
     a.help = "merges only: every level from one cluster per face down to --clusters";
     a.energies = mesh_energies;
-    a.stages = {merge_stage};
+    // HC's steps on the GPU (gpu/stages/hierarchy_gpu.h): CVD energies.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, HcLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
