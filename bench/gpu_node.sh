@@ -22,8 +22,9 @@
 #     bunny00, armadillo and armadillo_1m: the GPU's levels (gpu/stages/multilevel_gpu.h)
 #     against the CPU engine's PML on $THREADS cores, same levels checked per level
 #     (bench/pml_gpu_bench)                                         -> issue: 1M faces < 1 s
-# Not taken yet, because the GPU stages do not exist yet: PML with local optimisation and
-# ML/HC hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+#   the same with BB sweeps after each level (Alg. 5.7, --optimizer bb) against the CPU
+#     engine's PML with its local BB
+# Not taken yet, because the GPU stages do not exist yet: PML with EMLO and ML/HC hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
 # other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -84,6 +85,16 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
     for pairs in all cheaper-half; do
       "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --threads "$THREADS" --repeats 3 $header |
         tee -a "$out"
+      header=
+    done
+  done
+  # Alg. 5.7: PML with BB sweeps after each level (--optimizer bb), GPU vs the CPU engine's
+  # PML with its local BB on $THREADS cores (the levels differ: the GPU sweeps every face).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    for pairs in all cheaper-half; do
+      "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --optimizer bb --threads "$THREADS" \
+        --repeats 3 $header | tee -a "$out"
       header=
     done
   done
