@@ -6,12 +6,14 @@
 // one-by-one sweeps, the GPU's Alg. 5.4 sweeps over every face, so the levels differ).
 //
 //   pml_gpu_bench MESH [--pairs all|cheaper-half] [--optimizer none|bb] [--threads T]
-//                 [--repeats R] [--header]
+//                 [--repeats R] [--at K] [--header]
 //
 // Prints one CSV row per device (best time of R runs; cpu_seconds: the process's CPU time
 // of that run, every thread, llvmpipe's included):
 // mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels,
-// optimizer,cpu_seconds
+// optimizer,cpu_seconds,at_clusters,at_energy
+// (at_clusters, at_energy: the first level with at most --at K clusters, default 1000: where
+// the optimisers' levels differ, their energies compare there.)
 #include <sys/resource.h>
 
 #include <cstdio>
@@ -28,15 +30,21 @@
 
 namespace {
 
-// Per level an order-independent fingerprint of its triplets and its cluster count.
+// Per level an order-independent fingerprint of its triplets and its cluster count; the
+// first level with at most `at` clusters.
 class FingerprintSink : public mlclust::LevelSink {
  public:
+  explicit FingerprintSink(uint32_t at) : at_(at) {}
   absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
                        double /*energy*/) override {
     prints.push_back(count);
     return absl::OkStatus();
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    if (at_count == 0 && level.cluster_count <= at_) {
+      at_count = level.cluster_count;
+      at_energy = level.energy;
+    }
     uint64_t print = level.cluster_count;
     for (size_t i = 0; i < level.element.size(); ++i) {
       uint64_t x = (uint64_t{level.element[i]} << 32) ^
@@ -50,6 +58,11 @@ class FingerprintSink : public mlclust::LevelSink {
     return absl::OkStatus();
   }
   std::vector<uint64_t> prints;
+  uint32_t at_count = 0;
+  double at_energy = 0;
+
+ private:
+  uint32_t at_;
 };
 
 // The process's CPU seconds so far (user + system, all threads).
@@ -65,12 +78,14 @@ double ProcessCpuSeconds() {
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
                             "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] "
-                            "[--optimizer none|bb] [--threads T] [--repeats R] [--header]");
+                            "[--optimizer none|bb] [--threads T] [--repeats R] [--at K] "
+                            "[--header]");
   const bool header = args.Flag("header");
   const std::string pairs = args.Get<std::string>("pairs", "all");
   const std::string optimizer = args.Get<std::string>("optimizer", "none");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const uint32_t at = args.Get<uint32_t>("at", 1000);
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
   if (optimizer != "none" && optimizer != "bb") {
@@ -99,13 +114,15 @@ int main(int argc, char** argv) {
     double cpu_seconds = 0;
     mlclust::MultilevelSummary summary;
     std::vector<uint64_t> prints;
+    uint32_t at_count = 0;
+    double at_energy = 0;
   };
   Row rows[2];
   rows[0].device = "cpu";
   rows[1].device = (*context)->renderer();
   for (int d = 0; d < 2; ++d) {
     for (uint32_t r = 0; r < repeats; ++r) {
-      FingerprintSink sink;
+      FingerprintSink sink(at);
       const absl::Time start = absl::Now();
       const double cpu_start = ProcessCpuSeconds();
       absl::StatusOr<mlclust::MultilevelSummary> summary =
@@ -123,6 +140,8 @@ int main(int argc, char** argv) {
       }
       rows[d].summary = *summary;
       rows[d].prints = std::move(sink.prints);
+      rows[d].at_count = sink.at_count;
+      rows[d].at_energy = sink.at_energy;
     }
   }
   size_t same = 0;
@@ -132,14 +151,14 @@ int main(int argc, char** argv) {
   if (header) {
     std::printf(
         "mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,"
-        "same_levels,optimizer,cpu_seconds\n");
+        "same_levels,optimizer,cpu_seconds,at_clusters,at_energy\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
   for (const Row& row : rows) {
-    std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f\n", name.c_str(),
+    std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f,%u,%.10g\n", name.c_str(),
                 prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
                 row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same,
-                optimizer.c_str(), row.cpu_seconds);
+                optimizer.c_str(), row.cpu_seconds, row.at_count, row.at_energy);
   }
   return 0;
 }

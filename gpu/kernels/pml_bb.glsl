@@ -5,7 +5,8 @@
 //                               the CPU's order) and weight 1, for bb_decide.glsl
 //   u_phase 1 (per change)      write the moved faces' labels: labels[x] = y for (x, y)
 //   u_phase 2 (per change)      write the changed clusters' sizes and sums (the host's
-//                               Partition after its moves, so both hold the same bits)
+//                               Partition after its moves, so both hold the same bits),
+//                               and fit their proxies again as phase 0 does
 // After the prelude of gpu/context/compute.h and pml_cvd.glsl (Sums at binding 0).
 layout(std430, binding = 1) buffer Sizes { uint sizes[]; };
 layout(std430, binding = 2) buffer Labels { uint labels[]; };
@@ -16,25 +17,30 @@ layout(std430, binding = 6) readonly buffer ClusterSums { double cluster_sums[];
 layout(location = 0) uniform uint u_count;
 layout(location = 1) uniform uint u_phase;
 
+void FitProxy(uint c) {
+  precise double m = sums[5u * c];
+  if (sizes[c] == 0u || m <= 0.0LF) {
+    proxies[c] = dvec4(0.0LF, 0.0LF, 0.0LF, 1.0LF);
+    return;
+  }
+  precise double inverse = 1.0LF / m;
+  precise double x = sums[5u * c + 1u] * inverse;
+  precise double y = sums[5u * c + 2u] * inverse;
+  precise double z = sums[5u * c + 3u] * inverse;
+  proxies[c] = dvec4(x, y, z, 1.0LF);
+}
+
 void main() {
   uint i = LinearInvocationIndex();
   if (i >= u_count) return;
   if (u_phase == 0u) {
-    precise double m = sums[5u * i];
-    if (sizes[i] == 0u || m <= 0.0LF) {
-      proxies[i] = dvec4(0.0LF, 0.0LF, 0.0LF, 1.0LF);
-      return;
-    }
-    precise double inverse = 1.0LF / m;
-    precise double x = sums[5u * i + 1u] * inverse;
-    precise double y = sums[5u * i + 2u] * inverse;
-    precise double z = sums[5u * i + 3u] * inverse;
-    proxies[i] = dvec4(x, y, z, 1.0LF);
+    FitProxy(i);
   } else if (u_phase == 1u) {
     labels[label_changes[i].x] = label_changes[i].y;
   } else {
     uint c = cluster_changes[i].x;
     sizes[c] = cluster_changes[i].y;
     for (uint j = 0u; j < 5u; ++j) sums[5u * c + j] = cluster_sums[5u * i + j];
+    FitProxy(c);
   }
 }

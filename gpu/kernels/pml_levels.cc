@@ -286,6 +286,7 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
 absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                          PmlLevelGpu& level) {
   level = PmlLevelGpu();
+  proxies_current_ = false;  // the merges change sums
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   absl::StatusOr<uint32_t> pairs = FindPairs();
   if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
@@ -368,16 +369,18 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     const detail::GlFunctions& gl = context_->gl();
     const uint32_t zero = 0;
     MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
-    // The proxies of every cluster id (pml_bb.glsl's bindings).
-    buffers_[kSums].Bind(0);
-    buffers_[kSizes].Bind(1);
-    buffers_[kLabels].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    gl.UseProgram(bb_program_);
-    gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
-    gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    if (!proxies_current_) {
+      // The proxies of every cluster id (pml_bb.glsl's bindings); ApplyMoves keeps them.
+      buffers_[kSums].Bind(0);
+      buffers_[kSizes].Bind(1);
+      buffers_[kLabels].Bind(2);
+      bb_buffers_[kProxies].Bind(3);
+      gl.UseProgram(bb_program_);
+      gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
+      gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
+      MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
     // bb_decide.glsl's bindings: neighbours, labels, faces, proxies, proposals, count.
     bb_buffers_[kNeighbours].Bind(0);
     buffers_[kLabels].Bind(1);
@@ -400,6 +403,7 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
       MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposals].Download(std::span<PmlFaceMove>(proposals)));
     }
     MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    proxies_current_ = true;
     for (const auto& [face, cluster] : proposals) {
       if (face >= num_faces_ || cluster >= num_faces_) {
         return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
@@ -408,7 +412,10 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     }
     return absl::OkStatus();
   }();
-  if (!status.ok()) proposals.clear();
+  if (!status.ok()) {
+    proposals.clear();
+    proxies_current_ = false;
+  }
   return PassError(kBbDecidePass, status);
 }
 
@@ -435,6 +442,7 @@ absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
     buffers_[kSums].Bind(0);
     buffers_[kSizes].Bind(1);
     buffers_[kLabels].Bind(2);
+    bb_buffers_[kProxies].Bind(3);
     bb_buffers_[kLabelChanges].Bind(4);
     bb_buffers_[kClusterChanges].Bind(5);
     bb_buffers_[kClusterSums].Bind(6);
@@ -473,6 +481,7 @@ absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
     gl.UseProgram(0);
     return CheckGlError(*context_, kBbApplyPass);
   }();
+  if (!status.ok()) proxies_current_ = false;
   return PassError(kBbApplyPass, status);
 }
 

@@ -35,12 +35,14 @@
 // work, gpu/stages/multilevel_gpu.h drives it): EnableBoundaryOptimisation adds what BB
 // sweeps (Alg. 5.4/5.5) need on the GPU, and three more passes:
 //   "pml bb decide" every cluster's proxy from its sums (pml_bb.glsl, CvdEnergy::FitProxy
-//                   in the CPU's order), then bb_decide.glsl (gpu/kernels/bb_decide.h,
-//                   DecideBoundaryMove's rule) over every face against them, on the PML's
-//                   own labels; only the proposals come back (8 bytes each)
+//                   in the CPU's order; only after a level's merges, since "pml bb apply"
+//                   fits the changed clusters' again), then bb_decide.glsl
+//                   (gpu/kernels/bb_decide.h, DecideBoundaryMove's rule) over every face against
+//                   them, on the PML's own labels; only the proposals come back (8 bytes each)
 //   "pml bb apply"  the moves the host accepted (the CPU's ResolveConflicts and
 //                   ApplyMoves): the moved faces' labels and the changed clusters' sizes
-//                   and sums written into the PML's buffers (scatter, pml_bb.glsl)
+//                   and sums written into the PML's buffers (scatter, pml_bb.glsl), and
+//                   those clusters' proxies fitted again
 //   "pml bb edges"  after a level with moves: the directed cluster edges rebuilt from
 //                   every directed face edge and the labels (pml_compact.glsl, kind 2),
 //                   since a move can turn an inner face edge into a boundary one
@@ -205,6 +207,9 @@ class PmlLevelsGpu {
   std::vector<StorageBuffer> bb_buffers_;
   uint32_t num_face_edges_ = 0;
   uint32_t bb_program_ = 0, decide_program_ = 0;
+  // Whether the proxies on the GPU are those of the current sums (Level's merges change
+  // sums; ApplyMoves fits the changed clusters' proxies again).
+  bool proxies_current_ = false;
   std::vector<uint32_t> change_words_;
   std::vector<double> change_sums_;
 };
