@@ -12,10 +12,13 @@
 // of that run, every thread, llvmpipe's included):
 // mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels,
 // optimizer,cpu_seconds,at_clusters,at_energy
-// (at_clusters, at_energy: the first level with at most --at K clusters, default 1000: where
-// the optimisers' levels differ, their energies compare there.)
+// (at_clusters, at_energy: the energy at --at K clusters, default 1000, a power law between
+// the two levels around K (log energy linear in log count), or the first level with at most
+// K clusters where there is no level before it with more: where the optimisers' levels
+// differ, their energies compare there.)
 #include <sys/resource.h>
 
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -37,6 +40,7 @@ class FingerprintSink : public mlclust::LevelSink {
   explicit FingerprintSink(uint32_t at) : at_(at) {}
   absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
                        double /*energy*/) override {
+    previous_count_ = count;
     prints.push_back(count);
     return absl::OkStatus();
   }
@@ -44,7 +48,17 @@ class FingerprintSink : public mlclust::LevelSink {
     if (at_count == 0 && level.cluster_count <= at_) {
       at_count = level.cluster_count;
       at_energy = level.energy;
+      // At exactly `at` clusters: a power law through this level and the one before.
+      if (level.cluster_count < at_ && previous_count_ > at_ && previous_energy_ > 0 &&
+          level.energy > 0) {
+        const double t = std::log(double(previous_count_) / at_) /
+                         std::log(double(previous_count_) / level.cluster_count);
+        at_count = at_;
+        at_energy = previous_energy_ * std::pow(level.energy / previous_energy_, t);
+      }
     }
+    previous_count_ = level.cluster_count;
+    previous_energy_ = level.energy;
     uint64_t print = level.cluster_count;
     for (size_t i = 0; i < level.element.size(); ++i) {
       uint64_t x = (uint64_t{level.element[i]} << 32) ^
@@ -63,6 +77,8 @@ class FingerprintSink : public mlclust::LevelSink {
 
  private:
   uint32_t at_;
+  uint32_t previous_count_ = 0;
+  double previous_energy_ = 0;
 };
 
 // The process's CPU seconds so far (user + system, all threads).
