@@ -24,8 +24,10 @@
 #     (bench/pml_gpu_bench)                                         -> issue: 1M faces < 1 s
 #   HC full hierarchy for meshes, merges only, CVD, on bunny00, armadillo and armadillo_1m:
 #     the GPU's steps against the CPU engine's HC, same levels checked (bench/hc_gpu_bench)
-# Not taken yet, because the GPU stages do not exist yet: PML with local optimisation and
-# ML hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+#   PML with BB sweeps after each level (Alg. 5.7, --optimizer bb) against the CPU
+#     engine's PML with its local BB
+# Not taken yet, because the GPU stages do not exist yet: PML with EMLO and ML with
+# optimisation on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
 # other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -86,6 +88,16 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
     for pairs in all cheaper-half; do
       "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --threads "$THREADS" --repeats 3 $header |
         tee -a "$out"
+      header=
+    done
+  done
+  # Alg. 5.7: PML with BB sweeps after each level (--optimizer bb), GPU vs the CPU engine's
+  # PML with its local BB on $THREADS cores (the levels differ: the GPU sweeps every face).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    for pairs in all cheaper-half; do
+      "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --optimizer bb --threads "$THREADS" \
+        --repeats 3 $header | tee -a "$out"
       header=
     done
   done

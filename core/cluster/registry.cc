@@ -318,13 +318,18 @@ std::string EnergyNote(const JobPlan& plan) {
 }
 
 // Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
-// says the same): merges only (optimizer none), without p% or the switch to ML, for the
-// energies whose merge cost the GPU has (cvd, cvd-adaptive).
+// says the same): merges only (optimizer none) or with BB sweeps (optimizer bb, Alg. 5.7;
+// ring test or no guard), without p% or the switch to ML, for the energies whose merge
+// cost the GPU has (cvd, cvd-adaptive).
 bool PmlLevelsOnGpu(const JobPlan& plan) {
   const MeshEnergyKind kind = plan.mesh_energy.kind;
+  const MultilevelOptions& ml = plan.multilevel;
+  const bool bb =
+      ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased &&
+      !(ml.connectivity_guard && ml.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount);
   return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
-         plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
-         plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
+         (ml.optimizer == MultilevelOptions::Optimizer::kNone || bb) && ml.p_percent == 0 &&
+         ml.pml_until == 0;
 }
 
 // Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
@@ -720,7 +725,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
                  ParallelOptimisationOption()};
-    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
+    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only or with BB, CVD.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
