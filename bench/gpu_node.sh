@@ -150,3 +150,32 @@ if [ -x "$BIN/meshlets_bench" ]; then
     --sweeps 4,6,8 --ml --header | tee -a "$meshlets_out"
   echo "wrote $meshlets_out"
 fi
+
+# ---------------------------------------------------------------------------------------
+# PML for points on the GPU (helper "gpupoints"; BENCHMARKS.md "PML for points on the
+# GPU"): the whole hierarchy of 1,000 Gaussian blobs in 3-D (voxel start and every level on
+# the GPU, merges only, gpu/stages/points_multilevel_gpu.h) against the CPU engine's PML
+# with the same options on $THREADS cores, 10^5 to 10^6 points (issue 10's "1M 3-D points
+# under 1 s on the GPU"; the GPU does PML, not ML: see BENCHMARKS.md). For context, the
+# CPU's ML (LN k-means after each merge, as jobs run it) at 10^6 points.
+if [ -x "$BIN/points_gpu_bench" ]; then
+  points_out="bench/results/points_gpu_$(hostname -s).csv"
+  [ "$quick" = 1 ] && points_out="bench/results/points_gpu_quick.csv"
+  point_sizes=(100000 300000 1000000)
+  [ "$quick" = 1 ] && point_sizes=(100000)
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc) threads=$THREADS" \
+    | tee -a "$points_out"
+  header=--header
+  for m in "${point_sizes[@]}"; do
+    for pairs in cheaper-half all; do
+      "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs "$pairs" \
+        --threads "$THREADS" --repeats 3 $header | tee -a "$points_out"
+      header=
+    done
+  done
+  if [ "$quick" = 0 ] && [ -x "$BIN/points_bench" ]; then
+    "$BIN/points_bench" --algo ml --m 1000000 --d 3 --blobs 1000 --threads "$THREADS" \
+      2>&1 | tee -a "$points_out"
+  fi
+  echo "wrote $points_out"
+fi

@@ -344,6 +344,14 @@ bool HcLevelsOnGpu(const JobPlan& plan) {
          !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
 }
 
+// Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
+// PointsPmlGpuUnsupported says the same): merges only (optimizer none), without the
+// switch to ML.
+bool PointPmlLevelsOnGpu(const JobPlan& plan) {
+  return plan.point_multilevel.optimizer == PointMultilevelOptions::Optimizer::kNone &&
+         plan.point_multilevel.pml_until == 0;
+}
+
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
   Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
@@ -458,8 +466,19 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
                       " dimensions: ", plan.algorithm->name));
   PointMultilevelOptions options = plan.point_multilevel;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary,
-                           RunPointMultilevel(points, options, sink));
+  absl::StatusOr<PointMultilevelSummary> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    // PML's levels for points on the GPU (the plan took it only where
+    // PointPmlLevelsOnGpu covers it).
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "PML: the plan puts the point levels on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunPointMultilevel(points, options, sink);
+  } else {
+    ran = RunPointMultilevel(points, options, sink);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary, std::move(ran));
   return RunSummary{summary.start_clusters, summary.final_clusters};
 }
 
@@ -855,7 +874,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
                  PmlUntilOption(true), PmlPairsOption()};
-    a.stages = {merge_stage};
+    // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
+    // merges only, without the switch to ML.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
