@@ -22,8 +22,12 @@
 #     bunny00, armadillo and armadillo_1m: the GPU's levels (gpu/stages/multilevel_gpu.h)
 #     against the CPU engine's PML on $THREADS cores, same levels checked per level
 #     (bench/pml_gpu_bench)                                         -> issue: 1M faces < 1 s
-# Not taken yet, because the GPU stages do not exist yet: PML with local optimisation and
-# ML/HC hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+#   HC full hierarchy for meshes, merges only, CVD, on bunny00, armadillo and armadillo_1m:
+#     the GPU's steps against the CPU engine's HC, same levels checked (bench/hc_gpu_bench)
+#   PML with BB sweeps after each level (Alg. 5.7, --optimizer bb) against the CPU
+#     engine's PML with its local BB
+# Not taken yet, because the GPU stages do not exist yet: PML with EMLO and ML with
+# optimisation on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
 # other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -87,6 +91,16 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
       header=
     done
   done
+  # Alg. 5.7: PML with BB sweeps after each level (--optimizer bb), GPU vs the CPU engine's
+  # PML with its local BB on $THREADS cores (the levels differ: the GPU sweeps every face).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    for pairs in all cheaper-half; do
+      "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --optimizer bb --threads "$THREADS" \
+        --repeats 3 $header | tee -a "$out"
+      header=
+    done
+  done
   # For context: the CPU's PML as jobs run it by default (EMLO after each level), which the
   # GPU does not do yet (merges only).
   header=--header
@@ -97,6 +111,24 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
   done
 else
   echo "# $BIN/pml_gpu_bench missing: the PML rows were not taken" | tee -a "$out"
+fi
+# HC full hierarchy for meshes (merges only, CVD, one collapse per step, Alg. 5.6 without
+# optimisation): the GPU's steps (gpu/stages/hierarchy_gpu.h) against the CPU engine's HC,
+# same levels and energies checked per level (bench/hc_gpu_bench; the CPU engine's HC is
+# sequential, so $THREADS does not apply).
+if [ -x "$BIN/hc_gpu_bench" ]; then
+  if [ "$quick" = 1 ]; then
+    hc_meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  else
+    hc_meshes=(data/bench/bunny00.off data/bench/armadillo.off data/bench/armadillo_1m.off)
+  fi
+  header=--header
+  for mesh in "${hc_meshes[@]}"; do
+    "$BIN/hc_gpu_bench" "$mesh" --repeats 3 $header | tee -a "$out"
+    header=
+  done
+else
+  echo "# $BIN/hc_gpu_bench missing: the HC rows were not taken" | tee -a "$out"
 fi
 echo "wrote $out"
 
