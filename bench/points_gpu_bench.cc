@@ -6,7 +6,7 @@
 // energy at the lowest level, at 4x and 16x its clusters and at the number of blobs.
 //
 //   points_gpu_bench [--m M] [--d D] [--blobs B] [--pairs all|cheaper-half] [--until K]
-//                    [--threads T] [--repeats R] [--seed S] [--header]
+//                    [--threads T] [--repeats R] [--seed S] [--curve] [--header]
 //
 // Prints one CSV row per device (best wall time of R runs):
 // points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
@@ -86,8 +86,9 @@ int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
                             "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
                             "[--pairs all|cheaper-half] [--until K] [--threads T] [--repeats R] "
-                            "[--seed S] [--header]");
+                            "[--seed S] [--curve] [--header]");
   const bool header = args.Flag("header");
+  const bool curve = args.Flag("curve");  // every level's count and energy to stderr
   const uint64_t m = args.Get<uint64_t>("m", 100000);
   const uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 1000);
   const std::string pairs = args.Get<std::string>("pairs", "cheaper-half");
@@ -153,6 +154,10 @@ int main(int argc, char** argv) {
         "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs\n");
   }
   for (const Row& row : rows) {
+    for (size_t l = 0; curve && l < row.curve.counts.size(); ++l) {
+      std::fprintf(stderr, "%s,%zu,%u,%.8g\n", row.device.c_str(), l, row.curve.counts[l],
+                   row.curve.energies[l]);
+    }
     const uint32_t low = row.summary.final_clusters;
     std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g\n",
                 static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
