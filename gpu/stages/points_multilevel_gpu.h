@@ -19,8 +19,8 @@
 //     bound the energies at equal cluster counts).
 // Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none, pml-until
 // 0, both pair rules, min_clusters, grid; at most kVoxelStartMaxDims dimensions.
-// PointMultilevelOptions::threads is used by the host's start only; inspect_level is
-// called with each level's labels (downloaded; slow, for tests).
+// PointMultilevelOptions::threads is not used (the host's part of the start runs on one
+// thread); inspect_level is called with each level's labels (downloaded; slow, for tests).
 #ifndef MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_
 #define MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_
 
