@@ -324,6 +324,22 @@ TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
   EXPECT_EQ(again->final_clusters, 1u);
 }
 
+// A buffer over the context's storage-buffer limit (the points alone are 12 bytes a
+// point) is RESOURCE_EXHAUSTED, named by pass, before anything reaches the sink.
+TEST(PointsPmlGpu, BuffersOverTheLimitAreResourceExhausted) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(6, 100, 6.0, 14).points;
+  GlContextOptions options;
+  options.max_storage_buffer_bytes = 8 * static_cast<int64_t>(points.num_points());
+  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
+  ASSERT_TRUE(small.ok()) << small.status();
+  LevelsSink sink;
+  absl::StatusOr<PointMultilevelSummary> result =
+      RunPointParallelMultilevelGpu(**small, points, PmlOptions(PmlPairRule::kAll, 1), sink);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'voxel start'"));
+  EXPECT_TRUE(sink.counts.empty());
+}
+
 TEST(PointsPmlGpu, CancelledBetweenLevels) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 13).points;
   std::atomic<bool> cancel{false};
