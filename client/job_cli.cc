@@ -95,6 +95,18 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
 
 }  // namespace
 
+server::ServerOptions EmbeddedServerOptions(const Arguments& args) {
+  server::ServerOptions options;
+  options.log = false;
+  // It ends with this command, so no other client can watch its jobs: it keeps no copy of
+  // their levels (the copy cost ~3% of an ML run's CPU on bunny00; BENCHMARKS.md).
+  options.kept_results_bytes = 0;
+  // A job that runs every stage on the CPU and draws no preview needs no GL context (its
+  // creation, which loads Mesa, cost ~3%).
+  if (args.get("device") == "cpu" && !args.has("preview")) options.gpu = server::GpuMode::kOff;
+  return options;
+}
+
 // --server ADDR: HOST:PORT (a name, IPv4 or [IPv6]) with a port in 1..65535,
 // or a gRPC URI (unix:PATH, dns:///HOST:PORT, ...) passed as it is.
 absl::Status CheckServerAddress(const std::string& address) {
@@ -213,9 +225,8 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
       MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
     }
   } else {
-    server::ServerOptions options;
-    options.log = false;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    absl::StatusOr<std::unique_ptr<server::Server>> started =
+        server::Server::Start(EmbeddedServerOptions(args));
     if (!started.ok()) return started.status();
     embedded = *std::move(started);
     channel = embedded->InProcessChannel();
