@@ -19,6 +19,9 @@
 namespace mlclust::cli {
 namespace {
 
+// --quiet of cancel and jobs: accepted as by every command that talks to a server.
+const Flag kNoProgressRow("quiet", "", "accepted as by watch; these print no progress line", 'q');
+
 constexpr char kJobServerHelp[] =
     "the server that accepted the job (not needed for an id HOST:PORT/JOBID)";
 
@@ -216,7 +219,12 @@ int Cancel(const Arguments& flags) {
     state = client::ExplainReplicaFailure(state.status(), routed->replica, routed->job_id);
   }
   if (!state.ok()) return Fail(ExplainDeadline(state.status(), server, "the cancel"));
-  std::printf("%s: %s\n", flags.positional()[0].c_str(), state->c_str());
+  if (flags.has("json")) {
+    std::printf("{\"job_id\": %s, \"state\": %s}\n", JsonString(flags.positional()[0]).c_str(),
+                JsonString(*state).c_str());
+  } else {
+    std::printf("%s: %s\n", flags.positional()[0].c_str(), state->c_str());
+  }
   return 0;
 }
 
@@ -404,10 +412,10 @@ Command WatchCommand() {
 }
 
 Command CancelCommand() {
-  return {
-      ServerCommandLine("cancel", "JOB --server ADDR",
-                        "Cancels a queued or running job; prints its state.", kJobServerHelp, {}),
-      Cancel};
+  return {ServerCommandLine("cancel", "JOB --server ADDR",
+                            "Cancels a queued or running job; prints its state.", kJobServerHelp,
+                            {{"json", "", "print the job id and state as JSON"}, kNoProgressRow}),
+          Cancel};
 }
 
 Command JobsCommand() {
@@ -416,7 +424,7 @@ Command JobsCommand() {
                             "those ended within the retention time, with their state, levels and "
                             "times.",
                             "the server, or several (their jobs' ids name the replica)",
-                            {{"json", "", "print the list as JSON"}}),
+                            {{"json", "", "print the list as JSON"}, kNoProgressRow}),
           Jobs};
 }
 
