@@ -112,7 +112,8 @@ TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
     ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
     absl::StatusOr<client::JobResult> failed = Run(PmlSpec("gpu", "bb"));
     EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+    EXPECT_THAT(failed.status().message(),
+                ::testing::HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
   }
   ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
   absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"));
