@@ -200,6 +200,15 @@ FlagGroup ConnectionFlags() {
           /*shared=*/true};
 }
 
+CommandLine ServerCommandLine(std::string name, std::string synopsis, std::string description,
+                              std::string server_help, std::vector<Flag> rows) {
+  rows.insert(rows.begin(), Flag("server", "ADDR", std::move(server_help)));
+  return {std::move(name),
+          std::move(synopsis),
+          std::move(description),
+          {FlagGroup("", std::move(rows)), ConnectionFlags()}};
+}
+
 Flag AlgorithmFlag(InputKind input) {
   Flag flag{"algo", "ALGO", absl::StrCat("(default ", DefaultAlgorithm(input).name, ")")};
   for (const AlgorithmInfo& algorithm : Algorithms()) {
