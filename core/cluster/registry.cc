@@ -1109,8 +1109,6 @@ const AlgorithmInfo& DefaultAlgorithm(InputKind input) { return *FindAlgorithm(i
 std::string AlgorithmNames(InputKind input) { return NamesFor(Algorithms(), input); }
 
 std::string EnergyNames(InputKind input) { return NamesFor(Energies(), input); }
-return absl::StrJoin(names, ", ");
-}
 
 std::vector<const OptionInfo*> AlgorithmOptions(const AlgorithmInfo& algorithm) {
   std::vector<const OptionInfo*> options;
