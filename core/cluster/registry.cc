@@ -318,13 +318,38 @@ std::string EnergyNote(const JobPlan& plan) {
 }
 
 // Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
-// says the same): merges only (optimizer none), without p% or the switch to ML, for the
-// energies whose merge cost the GPU has (cvd, cvd-adaptive).
+// says the same): merges only (optimizer none) or with BB sweeps (optimizer bb, Alg. 5.7;
+// ring test or no guard), without p% or the switch to ML, for the energies whose merge
+// cost the GPU has (cvd, cvd-adaptive).
 bool PmlLevelsOnGpu(const JobPlan& plan) {
   const MeshEnergyKind kind = plan.mesh_energy.kind;
+  const MultilevelOptions& ml = plan.multilevel;
+  const bool bb =
+      ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased &&
+      !(ml.connectivity_guard && ml.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount);
   return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+         (ml.optimizer == MultilevelOptions::Optimizer::kNone || bb) && ml.p_percent == 0 &&
+         ml.pml_until == 0;
+}
+
+// Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
+// the same): merges only, one per level, for cvd and cvd-adaptive; with device gpu only
+// (one collapse per step is latency-bound on a GPU: auto keeps the CPU's heap until the
+// NVIDIA figures show otherwise, BENCHMARKS.md).
+bool HcLevelsOnGpu(const JobPlan& plan) {
+  const MeshEnergyKind kind = plan.mesh_energy.kind;
+  return plan.device == DeviceChoice::kGpu &&
+         (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
          plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
-         plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
+         !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
+}
+
+// Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
+// PointsPmlGpuUnsupported says the same): merges only (optimizer none), without the
+// switch to ML.
+bool PointPmlLevelsOnGpu(const JobPlan& plan) {
+  return plan.point_multilevel.optimizer == PointMultilevelOptions::Optimizer::kNone &&
+         plan.point_multilevel.pml_until == 0;
 }
 
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
@@ -334,12 +359,13 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   options.cancel = context.cancel;
   absl::StatusOr<MultilevelSummary> ran;
   if (Stage(plan, "cluster").device == StageDevice::kGpu) {
-    // PML's levels on the GPU (the plan took it only where PmlLevelsOnGpu covers it).
+    // PML's levels (PmlLevelsOnGpu) or HC's steps (HcLevelsOnGpu) on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
-          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+          "the plan puts the cluster stage on the GPU but this run has no GPU stages");
     }
-    ran = context.devices->RunMultilevel(problem, options, sink);
+    ran = options.parallel ? context.devices->RunMultilevel(problem, options, sink)
+                           : context.devices->RunHierarchy(problem, options, sink);
   } else {
     ran = RunMultilevel(problem, options, sink);
   }
@@ -440,8 +466,19 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
                       " dimensions: ", plan.algorithm->name));
   PointMultilevelOptions options = plan.point_multilevel;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary,
-                           RunPointMultilevel(points, options, sink));
+  absl::StatusOr<PointMultilevelSummary> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    // PML's levels for points on the GPU (the plan took it only where
+    // PointPmlLevelsOnGpu covers it).
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "PML: the plan puts the point levels on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunPointMultilevel(points, options, sink);
+  } else {
+    ran = RunPointMultilevel(points, options, sink);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary, std::move(ran));
   return RunSummary{summary.start_clusters, summary.final_clusters};
 }
 
@@ -672,7 +709,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical face clustering (Alg. 2.3)";
     a.help = "merges only: every level from one cluster per face down to --clusters";
     a.energies = mesh_energies;
-    a.stages = {merge_stage};
+    // HC's steps on the GPU (gpu/stages/hierarchy_gpu.h): CVD energies.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, HcLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -706,7 +744,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
                  ParallelOptimisationOption()};
-    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
+    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only or with BB, CVD.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
@@ -836,7 +874,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
                  PmlUntilOption(true), PmlPairsOption()};
-    a.stages = {merge_stage};
+    // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
+    // merges only, without the switch to ML.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
