@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -21,25 +20,11 @@
 namespace mlclust {
 namespace {
 
-// 6,000 points around 20 centres, as float32 bytes (the wire's layout).
-std::string BlobBytes() {
-  std::mt19937 random(17);
-  std::uniform_real_distribution<float> box(-30, 30);
-  std::normal_distribution<float> spread(0, 1);
-  std::vector<float> centres(60);
-  for (float& c : centres) c = box(random);
-  std::vector<float> values;
-  for (uint32_t i = 0; i < 6000; ++i) {
-    for (int j = 0; j < 3; ++j) values.push_back(centres[(i % 20) * 3 + j] + spread(random));
-  }
-  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
-}
-
 class PointsPmlGpuTest : public testing::GpuServerTest {
  protected:
   void SetUp() override {
     ASSERT_NO_FATAL_FAILURE(GpuServerTest::SetUp());
-    input_ = BlobBytes();
+    input_ = testing::BlobBytes(6000, 17);  // 6,000 points around 20 centres
   }
 
   static v1::JobSpec Spec(const std::string& device, const std::string& optimizer) {
