@@ -18,6 +18,7 @@
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -306,11 +307,7 @@ TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
     request.energy = FindEnergy(InputKind::kMesh, energy);
     request.clusters = 10;
     request.device = choice;
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return std::string("error");
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? std::string("none") : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive"), "llvmpipe");

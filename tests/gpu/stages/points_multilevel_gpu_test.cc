@@ -25,6 +25,7 @@
 #include "gpu/context/pass.h"
 #include "gpu/kernels/voxel_start.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_points.h"
 
@@ -333,12 +334,7 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
     request.clusters = 10;
     request.device = choice;
     request.options = {{"optimizer", optimizer}};
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok()) return "error";
-    if (!PlanDevices(caps, *plan).ok()) return "refused";
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? "none" : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "pml", "none"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
