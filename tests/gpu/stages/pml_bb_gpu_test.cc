@@ -22,6 +22,7 @@
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -361,11 +362,7 @@ TEST(PmlBbGpuPlan, TheClusterStageGoesToTheGpuWithBb) {
     request.clusters = 10;
     request.device = choice;
     request.options = {{"optimizer", "bb"}, {"guard", guard}};
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return std::string("error");
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? std::string("none") : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "on"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "off"), "llvmpipe");
