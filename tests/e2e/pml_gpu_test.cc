@@ -18,64 +18,21 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
-
-class PmlGpuTest : public ::testing::Test {
+class PmlGpuTest : public testing::GpuServerTest {
  protected:
-  void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    options.gpu = server::GpuMode::kOn;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
-    ASSERT_TRUE(mesh.ok()) << mesh.status();
-    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(*mesh);
-    ASSERT_TRUE(bytes.ok()) << bytes.status();
-    fandisk_ = *std::move(bytes);
-  }
-  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
-
   static v1::JobSpec PmlSpec(const std::string& device, const std::string& optimizer) {
-    v1::JobSpec spec;
-    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-    spec.set_algorithm(v1::ALGORITHM_PML);
-    spec.set_energy(v1::ENERGY_CVD);
-    spec.set_clusters(20);
+    v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_PML, 20);
     spec.set_device(device);
     (*spec.mutable_options())["optimizer"] = optimizer;
     (*spec.mutable_options())["pml-pairs"] = "all";
     return spec;
   }
-
-  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
-                                        std::vector<v1::Progress>* progress = nullptr) {
-    client::RunOptions options;
-    options.on_event = [progress](const v1::JobEvent& event) {
-      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
-    };
-    return client::RunJob(channel_, spec, fandisk_, options);
-  }
-
-  std::unique_ptr<server::Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::string fandisk_;
 };
-
-std::string ClusterDevice(const std::vector<v1::Progress>& progress) {
-  std::string device = "none";
-  for (const v1::Progress& p : progress) {
-    if (p.stage() == "cluster") device = p.device();
-  }
-  return device;
-}
 
 TEST_F(PmlGpuTest, DeviceGpuRunsThePmlLevelsOnTheGlContext) {
   const std::string renderer = server_->gl_renderer();
@@ -118,15 +75,9 @@ TEST_F(PmlGpuTest, WithAnOptimiserTheLevelsStayOnTheCpu) {
 }
 
 TEST_F(PmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
-  for (const char* pass : {"pml odes", "pml triplets"}) {
-    ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
-    absl::StatusOr<client::JobResult> failed = Run(PmlSpec("gpu", "none"));
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
-  }
-  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "none"));
-  EXPECT_TRUE(gpu.ok()) << gpu.status();
+  for (const char* pass : {"pml odes", "pml triplets"})
+    ExpectFailsInPass(PmlSpec("gpu", "none"), pass);
+  ExpectRunsWithTheHookCleared(PmlSpec("gpu", "none"));
 }
 
 // Alg. 5.7: with optimizer bb the levels and their BB sweeps run on the GL context (named
