@@ -108,7 +108,7 @@ TEST_F(PmlGpuTest, OptimizerBbRunsOnTheGlContext) {
 }
 
 TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
-  for (const char* pass : {"pml bb decide", "pml bb apply"}) {
+  for (const char* pass : {"pml bb decide", "pml bb apply", "pml bb edges"}) {
     ExpectFailsInPass(PmlSpec("gpu", "bb"), pass);
   }
   ExpectRunsWithTheHookCleared(PmlSpec("gpu", "bb"));

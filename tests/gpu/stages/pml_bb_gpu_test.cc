@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -315,6 +316,31 @@ TEST(PmlBbGpu, AgainstTheCpuEngine) {
     }
     EXPECT_GT(compared, 20u);
   }
+}
+
+// The proposals come back in no particular order (an atomic counter), but the host's
+// resolve reads them per face: the levels do not depend on the order or on the dispatch
+// grid. With at most 16 work groups per grid dimension the passes run as 2-D grids and
+// give the same levels, triplets and energies bit for bit.
+TEST(PmlBbGpu, TwoDimensionalGridsGiveTheSameLevels) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  GlContextOptions capped_options;
+  capped_options.max_groups_per_dimension = 16;
+  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(capped_options);
+  ASSERT_TRUE(capped.ok()) << capped.status();
+  const MultilevelOptions options = PmlBbOptions(PmlPairRule::kCheaperHalf, 100);
+  ReplaySink linear, grid;
+  absl::StatusOr<MultilevelSummary> on_linear =
+      RunParallelMultilevelGpu(Context(), mesh.problem(), options, linear);
+  absl::StatusOr<MultilevelSummary> on_grid =
+      RunParallelMultilevelGpu(**capped, mesh.problem(), options, grid);
+  ASSERT_TRUE(on_linear.ok()) << on_linear.status();
+  ASSERT_TRUE(on_grid.ok()) << on_grid.status();
+  EXPECT_GT(on_linear->optimisation_moves, 0u);
+  EXPECT_EQ(on_grid->optimisation_moves, on_linear->optimisation_moves);
+  EXPECT_EQ(grid.counts, linear.counts);
+  EXPECT_EQ(grid.energies, linear.energies);
+  EXPECT_EQ(grid.replayed, linear.replayed);
 }
 
 TEST(PmlBbGpu, RefusesTheVertexCountGuard) {
