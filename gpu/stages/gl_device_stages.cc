@@ -6,6 +6,7 @@
 #include "gpu/stages/hierarchy_gpu.h"
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
+#include "gpu/stages/points_multilevel_gpu.h"
 
 namespace mlclust::gpu {
 
@@ -37,6 +38,11 @@ absl::StatusOr<MultilevelSummary> GlDeviceStages::RunHierarchy(const MeshProblem
                                                                const MultilevelOptions& options,
                                                                LevelSink& sink) {
   return RunHierarchyGpu(context_, problem, options, sink);
+}
+
+absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
+    const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
+  return RunPointParallelMultilevelGpu(context_, points, options, sink);
 }
 
 }  // namespace mlclust::gpu

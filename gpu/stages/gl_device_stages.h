@@ -29,6 +29,10 @@ class GlDeviceStages : public DeviceStages {
                                                  const MultilevelOptions& options,
                                                  LevelSink& sink) override;
 
+  absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink) override;
+
  private:
   GlContext& context_;
 };
