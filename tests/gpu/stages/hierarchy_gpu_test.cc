@@ -165,6 +165,14 @@ TEST(HcGpu, RefusesWhatItDoesNotCover) {
                 .status()
                 .code(),
             absl::StatusCode::kUnimplemented);
+  // Per-polygon clustering (problem.polygons) stays on the CPU.
+  const std::vector<uint32_t> one_each(mesh.mesh.num_faces(), 1);
+  absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(one_each, mesh.adjacency);
+  ASSERT_TRUE(polygons.ok()) << polygons.status();
+  MeshProblem per_polygon = mesh.problem();
+  per_polygon.polygons = &*polygons;
+  EXPECT_EQ(RunHierarchyGpu(Context(), per_polygon, HcOptions(10), sink).status().code(),
+            absl::StatusCode::kUnimplemented);
   EXPECT_TRUE(sink.counts.empty());  // nothing reported
   EXPECT_FALSE(HcGpuUnsupported(emlo, MeshEnergyKind::kCvd).empty());
   EXPECT_TRUE(HcGpuUnsupported(HcOptions(10), MeshEnergyKind::kCvd).empty());
