@@ -3,14 +3,14 @@
 // (core/cluster/point_clustering.h, RunPointMultilevel) on T threads, on Gaussian blobs:
 // the whole hierarchy (for the GPU: upload, start, every level, every triplet read back),
 // wall seconds and the process's CPU seconds (llvmpipe's threads included), levels, the
-// energy at the lowest level and at 4x and 16x its clusters.
+// energy at the lowest level, at 4x and 16x its clusters and at the number of blobs.
 //
 //   points_gpu_bench [--m M] [--d D] [--blobs B] [--pairs all|cheaper-half] [--until K]
 //                    [--threads T] [--repeats R] [--seed S] [--header]
 //
 // Prints one CSV row per device (best wall time of R runs):
 // points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
-// final_clusters,energy_final,energy_4x,energy_16x
+// final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -150,15 +150,15 @@ int main(int argc, char** argv) {
   if (header) {
     std::printf(
         "points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,"
-        "final_clusters,energy_final,energy_4x,energy_16x\n");
+        "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs\n");
   }
   for (const Row& row : rows) {
     const uint32_t low = row.summary.final_clusters;
-    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g\n",
+    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g\n",
                 static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
                 threads, row.seconds, row.cpu_seconds, row.summary.levels,
                 row.summary.start_clusters, low, row.curve.energies.back(), row.curve.At(4 * low),
-                row.curve.At(16 * low));
+                row.curve.At(16 * low), row.curve.At(blobs));
   }
   return 0;
 }

@@ -246,7 +246,8 @@ absl::StatusOr<VoxelStartGpuResult> VoxelGridStartGpu(GlContext& context, const 
                           absl::StrCat(kComputeShaderPrelude, kVoxelStartGlsl)));
     VoxelGrid voxels(context, static_cast<uint32_t>(m), d, program, std::move(buffers));
     MLCLUST_ASSIGN_OR_RETURN(auto box, voxels.Bounds());
-    const auto& [lo, hi] = box;
+    const std::vector<float>& lo = box.first;
+    const std::vector<float>& hi = box.second;
     MLCLUST_ASSIGN_OR_RETURN(
         std::vector<uint32_t> cells,
         StartCells(m, d, lo, hi, grid, cancel,
