@@ -207,16 +207,38 @@ class MeshSpace {
       gone_of_[keep] = gone;
     }
     auto kept = [&](uint32_t c) { return kept_of_[c] == detail::kNoCluster ? c : kept_of_[c]; };
-    rebuild_.clear();
-    for (const auto& [keep, gone] : keep_gone) {
-      for (const auto& [c, count] : neighbours_[gone]) {
-        const uint32_t x = kept(c);
-        MarkDirty(x);  // its ODE may have been `gone` or `c`
-        if (!rebuild_mark_[x]) {
-          rebuild_mark_[x] = 1;
-          rebuild_.push_back(x);
+    // The lists to rebuild and the dirty clusters, found in parallel blocks of pairs (the
+    // marks taken atomically) and joined in block order; the order of either list changes
+    // no result in a PML level (each entry is its own cluster's, see UpdateOdesInParallel).
+    constexpr size_t kPairBlock = 256;
+    const size_t blocks = (keep_gone.size() + kPairBlock - 1) / kPairBlock;
+    block_rebuild_.resize(blocks);
+    block_dirty_.resize(blocks);
+    tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+      std::vector<uint32_t>& rebuild = block_rebuild_[b];
+      std::vector<uint32_t>& dirty = block_dirty_[b];
+      rebuild.clear();
+      dirty.clear();
+      for (size_t i = b * kPairBlock, end = std::min(keep_gone.size(), (b + 1) * kPairBlock);
+           i < end; ++i) {
+        for (const auto& [c, count] : neighbours_[keep_gone[i].second]) {
+          const uint32_t x = kept(c);
+          // Its ODE may have been `gone` or `c`.
+          if (std::atomic_ref<uint8_t>(dirty_mark_[x]).exchange(1, std::memory_order_relaxed) ==
+              0) {
+            dirty.push_back(x);
+          }
+          if (std::atomic_ref<uint8_t>(rebuild_mark_[x]).exchange(1, std::memory_order_relaxed) ==
+              0) {
+            rebuild.push_back(x);
+          }
         }
       }
+    });
+    rebuild_.clear();
+    for (size_t b = 0; b < blocks; ++b) {
+      rebuild_.insert(rebuild_.end(), block_rebuild_[b].begin(), block_rebuild_[b].end());
+      dirty_.insert(dirty_.end(), block_dirty_[b].begin(), block_dirty_[b].end());
     }
     // Each task writes only its own cluster's list and reads it and its gone cluster's
     // (no gone cluster is rebuilt).
@@ -244,11 +266,17 @@ class MeshSpace {
                           neighbours_[x].assign(merged.begin(), merged.end());
                         }
                       });
-    for (const auto& [keep, gone] : keep_gone) {
-      std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
-      kept_of_[gone] = detail::kNoCluster;
-      gone_of_[keep] = detail::kNoCluster;
-    }
+    // The gone lists' memory back in parallel (freeing them one by one was ~2% of a PML
+    // run's work on one core).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, keep_gone.size(), 256),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          const auto [keep, gone] = keep_gone[i];
+                          std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+                          kept_of_[gone] = detail::kNoCluster;
+                          gone_of_[keep] = detail::kNoCluster;
+                        }
+                      });
     for (uint32_t x : rebuild_) rebuild_mark_[x] = 0;
   }
 
@@ -599,13 +627,20 @@ class MeshSpace {
     tbb::parallel_sort(list.begin(), list.end());  // integers: the same order on any thread count
     list.erase(std::unique(list.begin(), list.end()), list.end());
     std::vector<uint32_t> target, next;
+    std::vector<uint8_t> allowed;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
       target.resize(list.size());
+      allowed.resize(list.size());
+      // Each face's move and the guard's answer for it, from the round's state.
       tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
                         [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t i = range.begin(); i != range.end(); ++i) {
                             target[i] = BestOwnMove(list[i]).first;
+                            allowed[i] = target[i] != detail::kNoCluster &&
+                                         (guard == nullptr ||
+                                          guard->CanMove(list[i], target[i], partition_.labels(),
+                                                         partition_.sizes()));
                           }
                         });
       evaluations_ += list.size();
@@ -620,9 +655,14 @@ class MeshSpace {
         for (FaceId g : adjacency_.neighbours[f]) {
           stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
         }
+        // Where the decision stands, so does the guard's answer: a face around f that moved
+        // changed the ring's runs of f's cluster or of the target only by touching one of
+        // them, which makes f stale; and f's cluster kept its size.
         const uint32_t to = stale ? BestOwnMove(f).first : target[i];
         if (to == detail::kNoCluster) continue;
-        if (guard != nullptr && !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
+        if (!stale && !allowed[i]) continue;
+        if (stale && guard != nullptr &&
+            !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
           continue;
         }
         const uint32_t from = partition_.label(f);
@@ -994,6 +1034,7 @@ class MeshSpace {
   // it in this level (kNoCluster otherwise), and the lists to rebuild.
   std::vector<uint32_t> kept_of_, gone_of_, rebuild_;
   std::vector<uint8_t> rebuild_mark_;
+  std::vector<std::vector<uint32_t>> block_rebuild_, block_dirty_;
   std::vector<uint32_t> dirty_;
   // UpdateOdesInParallel's marks (all 0 between levels) and list.
   std::vector<uint8_t> affected_mark_, check_mark_;

@@ -330,7 +330,7 @@ class MultilevelEngine {
     };
     if (options_.pairs_in_cost_order) std::sort(pairs_.begin(), pairs_.end(), cheaper);
     SelectPmlPairs(
-        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_);
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_, pair_costs_);
     // Do not merge past min_clusters: the cheapest pairs first.
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (clusters_ - pairs_.size() < floor) {
@@ -453,6 +453,7 @@ class MultilevelEngine {
   uint32_t clusters_ = 0, levels_ = 0, optimise_below_ = 0;
   std::vector<uint32_t> alive_, merged_;
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
+  std::vector<double> pair_costs_;  // SelectPmlPairs' scratch
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> block_pairs_;
 };
 
