@@ -1075,6 +1075,7 @@ absl::StatusOr<MultilevelSummary> RunMeshSpace(Space& space, const MultilevelOpt
   detail::MultilevelEngineOptions engine_options;
   engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
   engine_options.p_percent = options.p_percent;
+  engine_options.optimise_below_at_least = options.optimise_below_at_least;
   engine_options.p_percent_sweep =
       options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
   engine_options.parallel = options.parallel;

@@ -73,6 +73,10 @@ struct MultilevelEngineOptions {
   // (p_percent_sweep) or one merge per level, cheapest first (hc-first).
   double p_percent = 0;
   bool p_percent_sweep = true;
+  // Ours: with p%, the merges are optimised at least below this many clusters (0: p%
+  // alone decides), so that a p% chosen for large inputs does not leave small ones
+  // unoptimised.
+  uint32_t optimise_below_at_least = 0;
   // PML (Alg. 5.3) while more than pml_until clusters are left, then ML.
   bool parallel = false;
   uint32_t pml_until = 0;
@@ -153,7 +157,8 @@ class MultilevelEngine {
     const uint32_t start = clusters_;
     // Alg. 4.2: below this count the merges are optimised.
     const double unoptimised = std::clamp(options_.p_percent, 0.0, 100.0) / 100.0;
-    optimise_below_ = static_cast<uint32_t>(std::floor(start * (1.0 - unoptimised)));
+    optimise_below_ = std::max(static_cast<uint32_t>(std::floor(start * (1.0 - unoptimised))),
+                               options_.optimise_below_at_least);
     if (options_.p_percent > 0 && options_.p_percent_sweep) {
       MLCLUST_RETURN_IF_ERROR(SweepMerges(start - optimise_below_));
       optimise_below_ = start + 1;  // the rest is ML
