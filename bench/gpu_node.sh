@@ -22,8 +22,12 @@
 #     bunny00, armadillo and armadillo_1m: the GPU's levels (gpu/stages/multilevel_gpu.h)
 #     against the CPU engine's PML on $THREADS cores, same levels checked per level
 #     (bench/pml_gpu_bench)                                         -> issue: 1M faces < 1 s
-# Not taken yet, because the GPU stages do not exist yet: PML with local optimisation and
-# ML/HC hierarchies on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+#   HC full hierarchy for meshes, merges only, CVD, on bunny00, armadillo and armadillo_1m:
+#     the GPU's steps against the CPU engine's HC, same levels checked (bench/hc_gpu_bench)
+#   PML with BB sweeps after each level (Alg. 5.7, --optimizer bb) against the CPU
+#     engine's PML with its local BB
+# Not taken yet, because the GPU stages do not exist yet: PML with EMLO and ML with
+# optimisation on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
 # other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -87,6 +91,16 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
       header=
     done
   done
+  # Alg. 5.7: PML with BB sweeps after each level (--optimizer bb), GPU vs the CPU engine's
+  # PML with its local BB on $THREADS cores (the levels differ: the GPU sweeps every face).
+  header=--header
+  for mesh in "${pml_meshes[@]}"; do
+    for pairs in all cheaper-half; do
+      "$BIN/pml_gpu_bench" "$mesh" --pairs "$pairs" --optimizer bb --threads "$THREADS" \
+        --repeats 3 $header | tee -a "$out"
+      header=
+    done
+  done
   # For context: the CPU's PML as jobs run it by default (EMLO after each level), which the
   # GPU does not do yet (merges only).
   header=--header
@@ -97,6 +111,24 @@ if [ -x "$BIN/pml_gpu_bench" ]; then
   done
 else
   echo "# $BIN/pml_gpu_bench missing: the PML rows were not taken" | tee -a "$out"
+fi
+# HC full hierarchy for meshes (merges only, CVD, one collapse per step, Alg. 5.6 without
+# optimisation): the GPU's steps (gpu/stages/hierarchy_gpu.h) against the CPU engine's HC,
+# same levels and energies checked per level (bench/hc_gpu_bench; the CPU engine's HC is
+# sequential, so $THREADS does not apply).
+if [ -x "$BIN/hc_gpu_bench" ]; then
+  if [ "$quick" = 1 ]; then
+    hc_meshes=(data/bench/fandisk.off data/bench/bunny00.off)
+  else
+    hc_meshes=(data/bench/bunny00.off data/bench/armadillo.off data/bench/armadillo_1m.off)
+  fi
+  header=--header
+  for mesh in "${hc_meshes[@]}"; do
+    "$BIN/hc_gpu_bench" "$mesh" --repeats 3 $header | tee -a "$out"
+    header=
+  done
+else
+  echo "# $BIN/hc_gpu_bench missing: the HC rows were not taken" | tee -a "$out"
 fi
 echo "wrote $out"
 
@@ -117,4 +149,33 @@ if [ -x "$BIN/meshlets_bench" ]; then
   "$BIN/meshlets_bench" "${meshlets_meshes[@]}" --repeats 5 --threads "$THREADS" \
     --sweeps 4,6,8 --ml --header | tee -a "$meshlets_out"
   echo "wrote $meshlets_out"
+fi
+
+# ---------------------------------------------------------------------------------------
+# PML for points on the GPU (helper "gpupoints"; BENCHMARKS.md "PML for points on the
+# GPU"): the whole hierarchy of 1,000 Gaussian blobs in 3-D (voxel start and every level on
+# the GPU, merges only, gpu/stages/points_multilevel_gpu.h) against the CPU engine's PML
+# with the same options on $THREADS cores, 10^5 to 10^6 points (issue 10's "1M 3-D points
+# under 1 s on the GPU"; the GPU does PML, not ML: see BENCHMARKS.md). For context, the
+# CPU's ML (LN k-means after each merge, as jobs run it) at 10^6 points.
+if [ -x "$BIN/points_gpu_bench" ]; then
+  points_out="bench/results/points_gpu_$(hostname -s).csv"
+  [ "$quick" = 1 ] && points_out="bench/results/points_gpu_quick.csv"
+  point_sizes=(100000 300000 1000000)
+  [ "$quick" = 1 ] && point_sizes=(100000)
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc) threads=$THREADS" \
+    | tee -a "$points_out"
+  header=--header
+  for m in "${point_sizes[@]}"; do
+    for pairs in cheaper-half all; do
+      "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs "$pairs" \
+        --threads "$THREADS" --repeats 3 $header | tee -a "$points_out"
+      header=
+    done
+  done
+  if [ "$quick" = 0 ] && [ -x "$BIN/points_bench" ]; then
+    "$BIN/points_bench" --algo ml --m 1000000 --d 3 --blobs 1000 --threads "$THREADS" \
+      2>&1 | tee -a "$points_out"
+  fi
+  echo "wrote $points_out"
 fi

@@ -1,13 +1,24 @@
-// PML for meshes (merges only, CVD) on the GPU (gpu/stages/multilevel_gpu.h) against the
-// CPU engine's PML with the same options on T threads: wall time of the whole hierarchy
-// (for the GPU: upload, every level, every triplet read back), levels, final energy, and
-// how many levels have the same triplets on both (an order-independent fingerprint per
-// level).
+// PML for meshes (CVD) on the GPU (gpu/stages/multilevel_gpu.h) against the CPU engine's
+// PML with the same options on T threads: wall time of the whole hierarchy (for the GPU:
+// upload, every level, every triplet read back), levels, final energy, and how many levels
+// have the same triplets on both (an order-independent fingerprint per level). With
+// --optimizer bb, Alg. 5.7: BB sweeps after each level (the CPU engine's are local
+// one-by-one sweeps, the GPU's Alg. 5.4 sweeps over every face, so the levels differ).
 //
-//   pml_gpu_bench MESH [--pairs all|cheaper-half] [--threads T] [--repeats R] [--header]
+//   pml_gpu_bench MESH [--pairs all|cheaper-half] [--optimizer none|bb] [--threads T]
+//                 [--repeats R] [--at K] [--header]
 //
-// Prints one CSV row per device (best time of R runs):
-// mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels
+// Prints one CSV row per device (best time of R runs; cpu_seconds: the process's CPU time
+// of that run, every thread, llvmpipe's included):
+// mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels,
+// optimizer,cpu_seconds,at_clusters,at_energy
+// (at_clusters, at_energy: the energy at --at K clusters, default 1000, a power law between
+// the two levels around K (log energy linear in log count), or the first level with at most
+// K clusters where there is no level before it with more: where the optimisers' levels
+// differ, their energies compare there.)
+#include <sys/resource.h>
+
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -22,15 +33,32 @@
 
 namespace {
 
-// Per level an order-independent fingerprint of its triplets and its cluster count.
+// Per level an order-independent fingerprint of its triplets and its cluster count; the
+// first level with at most `at` clusters.
 class FingerprintSink : public mlclust::LevelSink {
  public:
+  explicit FingerprintSink(uint32_t at) : at_(at) {}
   absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
                        double /*energy*/) override {
+    previous_count_ = count;
     prints.push_back(count);
     return absl::OkStatus();
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    if (at_count == 0 && level.cluster_count <= at_) {
+      at_count = level.cluster_count;
+      at_energy = level.energy;
+      // At exactly `at` clusters: a power law through this level and the one before.
+      if (level.cluster_count < at_ && previous_count_ > at_ && previous_energy_ > 0 &&
+          level.energy > 0) {
+        const double t = std::log(double(previous_count_) / at_) /
+                         std::log(double(previous_count_) / level.cluster_count);
+        at_count = at_;
+        at_energy = previous_energy_ * std::pow(level.energy / previous_energy_, t);
+      }
+    }
+    previous_count_ = level.cluster_count;
+    previous_energy_ = level.energy;
     uint64_t print = level.cluster_count;
     for (size_t i = 0; i < level.element.size(); ++i) {
       uint64_t x = (uint64_t{level.element[i]} << 32) ^
@@ -44,26 +72,49 @@ class FingerprintSink : public mlclust::LevelSink {
     return absl::OkStatus();
   }
   std::vector<uint64_t> prints;
+  uint32_t at_count = 0;
+  double at_energy = 0;
+
+ private:
+  uint32_t at_;
+  uint32_t previous_count_ = 0;
+  double previous_energy_ = 0;
 };
+
+// The process's CPU seconds so far (user + system, all threads).
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
-                            "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] [--threads T] "
-                            "[--repeats R] [--header]");
+                            "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] "
+                            "[--optimizer none|bb] [--threads T] [--repeats R] [--at K] "
+                            "[--header]");
   const bool header = args.Flag("header");
   const std::string pairs = args.Get<std::string>("pairs", "all");
+  const std::string optimizer = args.Get<std::string>("optimizer", "none");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const uint32_t at = args.Get<uint32_t>("at", 1000);
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
+  if (optimizer != "none" && optimizer != "bb") {
+    std::fprintf(stderr, "--optimizer: '%s' is not none or bb\n", optimizer.c_str());
+    return 2;
+  }
 
   const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
   const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, {});
   mlclust::MultilevelOptions options;
   options.parallel = true;
-  options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
+  options.optimizer = optimizer == "bb" ? mlclust::MultilevelOptions::Optimizer::kBoundaryBased
+                                        : mlclust::MultilevelOptions::Optimizer::kNone;
   options.pml_pairs =
       pairs == "cheaper-half" ? mlclust::PmlPairRule::kCheaperHalf : mlclust::PmlPairRule::kAll;
   options.threads = threads;
@@ -76,27 +127,37 @@ int main(int argc, char** argv) {
   struct Row {
     std::string device;
     double seconds = std::numeric_limits<double>::infinity();
+    double cpu_seconds = 0;
     mlclust::MultilevelSummary summary;
     std::vector<uint64_t> prints;
+    uint32_t at_count = 0;
+    double at_energy = 0;
   };
   Row rows[2];
   rows[0].device = "cpu";
   rows[1].device = (*context)->renderer();
   for (int d = 0; d < 2; ++d) {
     for (uint32_t r = 0; r < repeats; ++r) {
-      FingerprintSink sink;
+      FingerprintSink sink(at);
       const absl::Time start = absl::Now();
+      const double cpu_start = ProcessCpuSeconds();
       absl::StatusOr<mlclust::MultilevelSummary> summary =
           d == 0 ? mlclust::RunMultilevel(problem, options, sink)
                  : mlclust::gpu::RunParallelMultilevelGpu(**context, problem, options, sink);
       const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+      const double cpu_seconds = ProcessCpuSeconds() - cpu_start;
       if (!summary.ok()) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;
       }
-      if (seconds < rows[d].seconds) rows[d].seconds = seconds;
+      if (seconds < rows[d].seconds) {
+        rows[d].seconds = seconds;
+        rows[d].cpu_seconds = cpu_seconds;
+      }
       rows[d].summary = *summary;
       rows[d].prints = std::move(sink.prints);
+      rows[d].at_count = sink.at_count;
+      rows[d].at_energy = sink.at_energy;
     }
   }
   size_t same = 0;
@@ -106,13 +167,14 @@ int main(int argc, char** argv) {
   if (header) {
     std::printf(
         "mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,"
-        "same_levels\n");
+        "same_levels,optimizer,cpu_seconds,at_clusters,at_energy\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
   for (const Row& row : rows) {
-    std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu\n", name.c_str(),
+    std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f,%u,%.10g\n", name.c_str(),
                 prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
-                row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same);
+                row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same,
+                optimizer.c_str(), row.cpu_seconds, row.at_count, row.at_energy);
   }
   return 0;
 }

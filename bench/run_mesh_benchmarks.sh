@@ -136,6 +136,12 @@ mesh_bench() { run "$1" "$MB_HEADER" "$2" "$bench_bin/mesh_bench" "${@:3}" --rep
 vsa_bench() { run "$1" "$VSA_HEADER" "$2" "$bench_bin/vsa_bench" "${@:3}" --repeats 1; }
 ml_bench() { run "$1" "$ML_HEADER" "$2" "$bench_bin/ml_bench" "${@:3}" --repeats 1; }
 cgal_vsa() { run "$1" "$CGAL_HEADER" "$2" "$peer" "${@:3}" --repeats 1; }
+# cgal_vsa_bunny CSV REP: CGAL VSA on bunny00 at k = 1000, random then hierarchical seeding.
+cgal_vsa_bunny() {
+  for seeding in random hierarchical; do
+    cgal_vsa "$1" "$2" "$meshes_dir/bunny00.off" --k 1000 --seeding "$seeding"
+  done
+}
 
 # thin_curve IN OUT: keeps every level with k <= 100 and the first level (largest k) of
 # each 1/60 decade above, as clusters,energy.
@@ -158,10 +164,7 @@ if want a; then
       mesh_bench "$results/emlo_vs_cgal_mesh_bench.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
         --energy cvd --init "$init" --algo emlo
     done
-    for seeding in random hierarchical; do
-      cgal_vsa "$results/emlo_vs_cgal_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
-        --seeding "$seeding"
-    done
+    cgal_vsa_bunny "$results/emlo_vs_cgal_cgal_vsa.csv" "$rep"
   done
 fi
 
@@ -252,10 +255,7 @@ if want f; then
   for rep in $(seq 1 "$repeats"); do
     ml_bench "$results/ml_hierarchy_vs_cgal_ml_bench.csv" "$rep" "$meshes_dir/bunny00.off" --algo ml \
       --energy cvd --optimizer emlo --at 1000
-    for seeding in random hierarchical; do
-      cgal_vsa "$results/ml_hierarchy_vs_cgal_cgal_vsa.csv" "$rep" "$meshes_dir/bunny00.off" --k 1000 \
-        --seeding "$seeding"
-    done
+    cgal_vsa_bunny "$results/ml_hierarchy_vs_cgal_cgal_vsa.csv" "$rep"
   done
 fi
 

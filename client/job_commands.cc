@@ -5,136 +5,22 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
-#include <set>
 
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/job_cli.h"
 #include "client/replicas.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
-#include "google/protobuf/util/json_util.h"
 
 namespace mlclust::cli {
 namespace {
 
-constexpr char kJobCommandsUsage[] = R"(
-  mlclust mesh|points INPUT --server ADDR --detach [job options]
-      Submits the job and returns as soon as the server has queued it; the job id is the
-      last line of stdout. The server keeps the job's levels for its retention time
-      (serve --retention-seconds) within its memory for results.
-
-  mlclust watch JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]
-                    [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]
-      Streams a job's levels (detached or not: every job's are kept; `jobs` lists the
-      ids), while it runs or after it ended, from any client of its tenant:
-      a snapshot of level N (default 0, the job's first), then every level after it. A
-      stream that breaks is resumed where it stopped. The outputs are those of `mesh`:
-      --clusters K picks the level written by --labels (one cluster per element) and --ply
-      (the mesh INPUT coloured by cluster); --levels-csv writes "clusters,energy" per level
-      received. NOT_FOUND once the server has dropped the job's results (the message says
-      when and why).
-
-  mlclust cancel JOB --server ADDR
-      Cancels a queued or running job; prints its state.
-
-  mlclust jobs --server ADDR [--json]
-      The jobs of this client's tenant on the server: queued, running, and those ended
-      within the retention time, with their state, levels and times.
-)";
-
-constexpr char kConnectionFlagsUsage[] = R"(
-  connection flags (mesh, points, stats, info, watch, cancel, jobs, with --server):
-      --deadline SECONDS    the call's deadline: a job still running then is cancelled
-                            (watch: the watch stops, the job runs on)
-      --tls-ca FILE         TLS: the CA certificate (PEM) that signed the server's
-      --tls-cert FILE, --tls-key FILE
-                            a client certificate, for servers that check them
-      --auth-token-file F   send the bearer token in F (its first word; needs TLS)
-
-  several servers: --server A:PORT,B:PORT,... or --server dns:///NAME:PORT (every address
-  the name resolves to) spreads jobs over the replicas, the least loaded first (GetStats:
-  queue depth plus running jobs; ties at random), or in the order given with
-      --spread in-order     (default least-loaded)
-  A replica that is unreachable, draining or full BEFORE it accepted the job is skipped
-  and the job tried on the next; a job a replica accepted is never submitted again. A
-  detached job's id names its replica (HOST:PORT/JOBID): watch and cancel go there.
-)";
-
-// --name value / --name=value; --json, --quiet and --help take no value.
-class Flags {
- public:
-  static absl::StatusOr<Flags> Parse(int argc, char** argv, const std::set<std::string>& known) {
-    static const std::set<std::string> kNoValue = {"json", "quiet", "help"};
-    Flags flags;
-    for (int i = 0; i < argc; ++i) {
-      std::string arg = argv[i];
-      if (arg == "-h") arg = "--help";
-      if (arg == "-q") arg = "--quiet";
-      if (arg == "-k") arg = "--clusters";
-      if (arg == "-o") arg = "--labels";
-      if (!absl::StartsWith(arg, "--")) {
-        flags.positional_.push_back(arg);
-        continue;
-      }
-      std::string name = arg.substr(2), value;
-      const size_t eq = name.find('=');
-      if (eq != std::string::npos) {
-        value = name.substr(eq + 1);
-        name = name.substr(0, eq);
-      } else if (!kNoValue.contains(name)) {
-        if (i + 1 >= argc) return absl::InvalidArgumentError(absl::StrCat(arg, " needs a value"));
-        value = argv[++i];
-      }
-      if (!known.contains(name) && !kNoValue.contains(name)) {
-        return absl::InvalidArgumentError(absl::StrCat("unknown option --", name));
-      }
-      flags.values_[name] = value;
-    }
-    return flags;
-  }
-
-  bool has(const std::string& name) const { return values_.contains(name); }
-  std::optional<std::string> get(const std::string& name) const {
-    auto it = values_.find(name);
-    if (it == values_.end()) return std::nullopt;
-    return it->second;
-  }
-  absl::StatusOr<uint32_t> GetUint32(const std::string& name, uint32_t fallback) const {
-    const std::optional<std::string> text = get(name);
-    if (!text.has_value()) return fallback;
-    uint32_t value;
-    if (!absl::SimpleAtoi(*text, &value)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--", name, ": '", *text, "' is not an integer in [0, 4294967295]"));
-    }
-    return value;
-  }
-  const std::vector<std::string>& positional() const { return positional_; }
-
- private:
-  std::map<std::string, std::string> values_;
-  std::vector<std::string> positional_;
-};
-
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlclust: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
-}
-
-std::set<std::string> Known(std::initializer_list<const char*> names) {
-  std::set<std::string> known(names.begin(), names.end());
-  known.insert("server");
-  for (const std::string& name : ConnectionFlagNames()) known.insert(name);
-  return known;
-}
-
-absl::StatusOr<ServerFlags> RequireServer(const Flags& flags, const std::string& command) {
-  absl::StatusOr<ServerFlags> server =
-      ServerFlagsFrom([&](const std::string& name) { return flags.get(name); });
+absl::StatusOr<ServerFlags> RequireServer(const Arguments& flags, const std::string& command) {
+  absl::StatusOr<ServerFlags> server = ServerFlagsFrom(flags);
   if (!server.ok()) return server.status();
   if (server->server.empty()) {
     return absl::InvalidArgumentError(
@@ -145,7 +31,7 @@ absl::StatusOr<ServerFlags> RequireServer(const Flags& flags, const std::string&
   return server;
 }
 
-absl::StatusOr<std::string> OneJobId(const Flags& flags, const std::string& command) {
+absl::StatusOr<std::string> OneJobId(const Arguments& flags, const std::string& command) {
   if (flags.positional().size() != 1) {
     return absl::InvalidArgumentError(absl::StrCat(command, ": give exactly one JOB id"));
   }
@@ -159,13 +45,12 @@ struct RoutedJob {
   std::string job_id;   // the server's id
   std::string replica;  // empty: the id named none
 };
-absl::StatusOr<RoutedJob> RouteJob(const Flags& flags, const std::string& command) {
+absl::StatusOr<RoutedJob> RouteJob(const Arguments& flags, const std::string& command) {
   absl::StatusOr<std::string> id = OneJobId(flags, command);
   if (!id.ok()) return id.status();
   RoutedJob routed;
   if (std::optional<client::SplitJobId> split = client::SplitReplicaJobId(*id)) {
-    absl::StatusOr<ServerFlags> server =
-        ServerFlagsFrom([&](const std::string& name) { return flags.get(name); });
+    absl::StatusOr<ServerFlags> server = ServerFlagsFrom(flags);
     if (!server.ok()) return server.status();
     routed.server = *std::move(server);
     routed.server.server = split->replica;
@@ -186,16 +71,6 @@ absl::StatusOr<RoutedJob> RouteJob(const Flags& flags, const std::string& comman
   return routed;
 }
 
-std::string MessageJson(const google::protobuf::Message& message) {
-  std::string json;
-  google::protobuf::util::JsonPrintOptions options;
-  options.add_whitespace = true;
-  options.always_print_primitive_fields = true;
-  options.preserve_proto_field_names = true;
-  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
-  return json;
-}
-
 std::string AlgorithmName(const v1::JobSummary& job) {
   const InputKind input =
       job.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
@@ -204,24 +79,14 @@ std::string AlgorithmName(const v1::JobSummary& job) {
   return algorithm != nullptr ? algorithm->name : absl::StrCat(job.algorithm());
 }
 
-absl::Status WriteText(const std::string& path, const std::string& text) {
-  std::FILE* out = std::fopen(path.c_str(), "w");
-  if (out == nullptr) return absl::UnavailableError(absl::StrCat("cannot write ", path));
-  const bool written = std::fwrite(text.data(), 1, text.size(), out) == text.size();
-  if (std::fclose(out) != 0 || !written) {
-    return absl::UnavailableError(absl::StrCat("cannot write ", path));
-  }
-  return absl::OkStatus();
-}
-
-int Watch(const Flags& flags) {
+int Watch(const Arguments& flags) {
   absl::StatusOr<RoutedJob> routed = RouteJob(flags, "watch");
   if (!routed.ok()) return Fail(routed.status());
   const std::string& full_id = flags.positional()[0];  // with its replica, if any
   const std::string& id = routed->job_id;
   const ServerFlags* server = &routed->server;
-  absl::StatusOr<uint32_t> from_level = flags.GetUint32("from-level", 0);
-  absl::StatusOr<uint32_t> clusters = flags.GetUint32("clusters", 0);
+  absl::StatusOr<uint64_t> from_level = flags.GetUint("from-level", 0, UINT32_MAX);
+  absl::StatusOr<uint64_t> clusters = flags.GetUint("clusters", 0, UINT32_MAX);
   for (const auto* value : {&from_level, &clusters}) {
     if (!value->ok()) return Fail(value->status());
   }
@@ -235,7 +100,7 @@ int Watch(const Flags& flags) {
   // The mesh first: a wrong path fails before the watch starts.
   std::optional<TriangleMesh> mesh;
   if (flags.has("mesh")) {
-    absl::StatusOr<TriangleMesh> read = ReadMeshFile(*flags.get("mesh"));
+    absl::StatusOr<TriangleMesh> read = ReadMeshFile(*flags.value("mesh"));
     if (!read.ok()) return Fail(read.status());
     mesh = *std::move(read);
   }
@@ -274,16 +139,12 @@ int Watch(const Flags& flags) {
   if (!result.ok()) return Fail(ExplainDeadline(result.status(), *server, "the watch"));
   const HierarchyLog& log = result->hierarchy;
   if (mesh.has_value() && mesh->num_faces() != log.num_elements()) {
-    return Fail(absl::InvalidArgumentError(absl::StrCat("--mesh: ", *flags.get("mesh"), " has ",
+    return Fail(absl::InvalidArgumentError(absl::StrCat("--mesh: ", *flags.value("mesh"), " has ",
                                                         mesh->num_faces(), " faces; job ", id,
                                                         " has ", log.num_elements(), " elements")));
   }
   if (flags.has("levels-csv")) {
-    std::string csv = "clusters,energy\n";
-    for (size_t l = 0; l < log.num_levels(); ++l) {
-      absl::StrAppendFormat(&csv, "%u,%.17g\n", log.cluster_count(l), log.energy(l));
-    }
-    if (absl::Status s = WriteText(*flags.get("levels-csv"), csv); !s.ok()) return Fail(s);
+    if (absl::Status s = WriteLevelsCsv(flags.get("levels-csv"), log); !s.ok()) return Fail(s);
   }
   std::optional<size_t> level;
   if (*clusters > 0) {
@@ -298,15 +159,12 @@ int Watch(const Flags& flags) {
     if (!labels.ok()) return Fail(labels.status());
     const std::vector<uint32_t> compact = client::CompactLabels(*labels);
     if (flags.has("labels")) {
-      std::string text;
-      text.reserve(compact.size() * 4);
-      for (uint32_t label : compact) absl::StrAppend(&text, label, "\n");
-      if (absl::Status s = WriteText(*flags.get("labels"), text); !s.ok()) return Fail(s);
+      if (absl::Status s = WriteLabels(flags.get("labels"), compact); !s.ok()) return Fail(s);
     }
     if (mesh.has_value()) {
       std::vector<ClusterId> ids(compact.size());
       for (size_t i = 0; i < compact.size(); ++i) ids[i] = ClusterId(compact[i]);
-      if (absl::Status s = WriteClusteredPly(*flags.get("ply"), *mesh, ids); !s.ok()) {
+      if (absl::Status s = WriteClusteredPly(*flags.value("ply"), *mesh, ids); !s.ok()) {
         return Fail(s);
       }
     }
@@ -342,7 +200,7 @@ int Watch(const Flags& flags) {
   return 0;
 }
 
-int Cancel(const Flags& flags) {
+int Cancel(const Arguments& flags) {
   absl::StatusOr<RoutedJob> routed = RouteJob(flags, "cancel");
   if (!routed.ok()) return Fail(routed.status());
   const ServerFlags& server = routed->server;
@@ -359,7 +217,7 @@ int Cancel(const Flags& flags) {
   return 0;
 }
 
-int Jobs(const Flags& flags) {
+int Jobs(const Arguments& flags) {
   if (!flags.positional().empty()) {
     return Fail(absl::InvalidArgumentError("jobs: takes no positional arguments"));
   }
@@ -423,12 +281,8 @@ int Jobs(const Flags& flags) {
 
 }  // namespace
 
-std::vector<std::string> ConnectionFlagNames() {
-  return {"deadline", "tls-ca", "tls-cert", "tls-key", "auth-token-file", "spread"};
-}
-
-absl::StatusOr<ServerFlags> ServerFlagsFrom(
-    const std::function<std::optional<std::string>(const std::string&)>& get) {
+absl::StatusOr<ServerFlags> ServerFlagsFrom(const Arguments& args) {
+  auto get = [&](const std::string& name) { return args.value(name); };
   ServerFlags flags;
   flags.server = get("server").value_or("");
   flags.connect.tls_ca_file = get("tls-ca").value_or("");
@@ -522,30 +376,53 @@ int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
   return 0;
 }
 
-const char* JobCommandsUsage() { return kJobCommandsUsage; }
-const char* ConnectionFlagsUsage() { return kConnectionFlagsUsage; }
-
-bool IsJobCommand(const std::string& name) {
-  return name == "watch" || name == "cancel" || name == "jobs";
+// The rows of watch, cancel and jobs; --server and the connection flags follow.
+Command WatchCommand() {
+  return {
+      {"watch",
+       "JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]\n"
+       "                    [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]",
+       "Streams a job's levels (detached or not: every job's are kept; `jobs` lists the "
+       "ids), while it runs or after it ended, from any client of its tenant: a snapshot of "
+       "level N, then every level after it. A stream that breaks is resumed where it "
+       "stopped. NOT_FOUND once the server has dropped the job's results (the message says "
+       "when and why).",
+       {{"",
+         {{"server", "ADDR",
+           "the server that accepted the job (not needed for an id HOST:PORT/JOBID)"},
+          {"from-level", "N", "the first level sent, as a snapshot (default 0, the job's first)"},
+          {"clusters", "K", "the level written by --labels and --ply", 'k'},
+          {"labels", "FILE", "one line per element: its cluster (0..K-1) at that level", 'o'},
+          {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
+          {"ply", "FILE", "the mesh INPUT with one colour per cluster at that level"},
+          {"mesh", "INPUT", "the mesh file the job was submitted from (for --ply)"},
+          {"quiet", "", "no progress line on stderr", 'q'},
+          {"json", "", "print the summary as one JSON object"}}},
+        ConnectionFlags()}},
+      Watch};
 }
 
-int RunJobCommand(const std::string& name, int argc, char** argv) {
-  std::set<std::string> known;
-  if (name == "watch") {
-    known = Known({"from-level", "clusters", "labels", "levels-csv", "ply", "mesh"});
-  } else {
-    known = Known({});
-  }
-  absl::StatusOr<Flags> flags = Flags::Parse(argc, argv, known);
-  if (!flags.ok()) return Fail(flags.status());
-  if (flags->has("help")) {
-    std::fputs(kJobCommandsUsage, stdout);
-    std::fputs(kConnectionFlagsUsage, stdout);
-    return 0;
-  }
-  if (name == "watch") return Watch(*flags);
-  if (name == "cancel") return Cancel(*flags);
-  return Jobs(*flags);
+Command CancelCommand() {
+  return {{"cancel",
+           "JOB --server ADDR",
+           "Cancels a queued or running job; prints its state.",
+           {{"",
+             {{"server", "ADDR",
+               "the server that accepted the job (not needed for an id HOST:PORT/JOBID)"}}},
+            ConnectionFlags()}},
+          Cancel};
+}
+
+Command JobsCommand() {
+  return {{"jobs",
+           "--server ADDR [--json]",
+           "The jobs of this client's tenant on the server: queued, running, and those ended "
+           "within the retention time, with their state, levels and times.",
+           {{"",
+             {{"server", "ADDR", "the server, or several (their jobs' ids name the replica)"},
+              {"json", "", "print the list as JSON"}}},
+            ConnectionFlags()}},
+          Jobs};
 }
 
 }  // namespace mlclust::cli

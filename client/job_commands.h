@@ -12,6 +12,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
+#include "client/cli.h"
 #include "client/client.h"
 #include "grpcpp/channel.h"
 #include "mlclust/v1/mlclust.pb.h"
@@ -29,14 +30,9 @@ struct ServerFlags {
   bool spread_in_order = false;
 };
 
-// The names of the connection flags, for a command's list of known options: deadline,
-// tls-ca, tls-cert, tls-key, auth-token-file, spread.
-std::vector<std::string> ConnectionFlagNames();
-
-// Reads the flags through `get` (the value of --NAME, or nullopt). INVALID_ARGUMENT for a
-// bad --deadline.
-absl::StatusOr<ServerFlags> ServerFlagsFrom(
-    const std::function<std::optional<std::string>(const std::string&)>& get);
+// Reads --server and the connection flags (cli.h's ConnectionFlags). INVALID_ARGUMENT for a
+// bad --deadline or --spread.
+absl::StatusOr<ServerFlags> ServerFlagsFrom(const Arguments& args);
 
 // A channel to flags.server with TLS and the token as the flags say.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> ConnectTo(const ServerFlags& flags);
@@ -51,14 +47,11 @@ absl::Status ExplainDeadline(const absl::Status& status, const ServerFlags& flag
 int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
                           const std::string& payload, bool quiet);
 
-// Usage of watch, cancel and jobs, and of the connection flags.
-const char* JobCommandsUsage();
-const char* ConnectionFlagsUsage();
-
-bool IsJobCommand(const std::string& name);  // watch, cancel, jobs
-// Runs `mlclust watch|cancel|jobs` with the arguments after the command name. Returns the
-// exit code: 0, 2 for bad arguments, 1 when the server refuses or fails.
-int RunJobCommand(const std::string& name, int argc, char** argv);
+// `mlclust watch`, `mlclust cancel`, `mlclust jobs`: exit code 0, 2 for bad arguments, 1
+// when the server refuses or fails.
+Command WatchCommand();
+Command CancelCommand();
+Command JobsCommand();
 
 }  // namespace mlclust::cli
 

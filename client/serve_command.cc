@@ -11,8 +11,6 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "absl/strings/match.h"
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
 #include "server/auth.h"
@@ -21,138 +19,23 @@
 namespace mlclust::cli {
 namespace {
 
-constexpr char kServeUsage[] =
-    R"(  mlclust serve [--listen ADDR] [--workers N] [--queue N] [--max-input-mb N]
-                [--max-queued-mb N] [--gpu auto|on|off] [--drain-seconds S] [limits]
-      Runs the gRPC server until SIGINT or SIGTERM (then drains: health NOT_SERVING and
-      new jobs refused at once, queued jobs end with UNAVAILABLE, running ones may finish
-      within --drain-seconds, default 30, then are cancelled).
-      --listen ADDR        default 127.0.0.1:50051 (loopback). Any other address is
-                           plaintext without authentication: a warning is printed. A port
-                           already in use is refused.
-      --workers N          CPU workers beside the worker that owns the GL context
-                           (default 0: that one worker runs every job in order)
-      --queue N            jobs that may wait (default 16); more are refused at once
-      --max-input-mb N     largest input of one job (default 1024)
-      --max-queued-mb N    the inputs of all waiting jobs together (default 4096)
-    limits (each refusal is RESOURCE_EXHAUSTED with a message, logged and counted):
-      --max-upload-mb N    bytes of uploads in progress, all calls together (default 1024)
-      --max-calls N        calls in progress (default 256); --max-calls-per-connection N
-                           (default 32); --max-calls-per-peer N, per client address (64)
-      --result-job-mb N    events a job's client may leave unread (memory; default 256)
-                           before it is cut off with RESOURCE_EXHAUSTED and the job
-                           cancelled: producing levels never waits on a reader
-      --result-total-mb N  the same over all jobs (default 1024)
-    kept results (every job's levels, for watch; cancel, jobs):
-      --retention-seconds S  an ended job's results are kept this long (default 3600)
-      --kept-results-mb N  memory for kept levels, all jobs together (default 1024); the
-                           oldest ended jobs' results are dropped first to make room
-      --max-jobs-per-tenant N  jobs one tenant may have queued or running (default 0: no
-                           limit; without tokens every client is one tenant)
-    security (plaintext is meant for loopback only):
-      --tls-cert FILE --tls-key FILE   TLS with this certificate chain and key (PEM)
-      --tls-client-ca FILE  require client certificates signed by this CA (PEM)
-      --auth-token-file F   bearer tokens, one "TOKEN TENANT" per line (needs TLS): every
-                           call needs a known token (UNAUTHENTICATED otherwise) and sees only
-                           its tenant's jobs (PERMISSION_DENIED for another's); health checks
-                           need none. Tokens are never logged.
-    operations:
-      --metrics ADDR       Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by
-                           state and algorithm, queue depth, job durations (histograms),
-                           bytes in and out, the device
-      --log-format text|json  json: one JSON object per line (job id, tenant, algorithm,
-                           sizes, durations, outcome)
-)";
-
-// --name value / --name=value; every name must be one `serve` knows.
-absl::StatusOr<std::map<std::string, std::string>> ParseFlags(int argc, char** argv) {
-  static const char* const kKnown[] = {"listen",
-                                       "queue",
-                                       "max-input-mb",
-                                       "gpu",
-                                       "result-job-mb",
-                                       "result-total-mb",
-                                       "workers",
-                                       "max-queued-mb",
-                                       "max-upload-mb",
-                                       "max-calls",
-                                       "max-calls-per-connection",
-                                       "max-calls-per-peer",
-                                       "drain-seconds",
-                                       "retention-seconds",
-                                       "kept-results-mb",
-                                       "max-jobs-per-tenant",
-                                       "tls-cert",
-                                       "tls-key",
-                                       "tls-client-ca",
-                                       "auth-token-file",
-                                       "metrics",
-                                       "log-format"};
-  std::map<std::string, std::string> flags;
-  for (int i = 0; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (!absl::StartsWith(arg, "--")) {
-      return absl::InvalidArgumentError(absl::StrCat("serve: unexpected argument '", arg, "'"));
-    }
-    std::string name = arg.substr(2), value;
-    if (const size_t eq = name.find('='); eq != std::string::npos) {
-      value = name.substr(eq + 1);
-      name = name.substr(0, eq);
-    } else {
-      if (i + 1 >= argc) return absl::InvalidArgumentError(absl::StrCat(arg, " needs a value"));
-      value = argv[++i];
-    }
-    bool known = false;
-    for (const char* k : kKnown) known = known || name == k;
-    if (!known) return absl::InvalidArgumentError(absl::StrCat("unknown option --", name));
-    flags[name] = value;
-  }
-  return flags;
-}
-
-absl::StatusOr<uint64_t> GetUint(const std::map<std::string, std::string>& flags,
-                                 const std::string& name, uint64_t fallback) {
-  auto it = flags.find(name);
-  if (it == flags.end()) return fallback;
-  uint64_t value;
-  if (!absl::SimpleAtoi(it->second, &value)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--", name, ": '", it->second, "' is not a non-negative integer"));
-  }
-  return value;
-}
-
-absl::StatusOr<std::string> ReadFlagFile(const std::map<std::string, std::string>& flags,
-                                         const std::string& name) {
-  auto it = flags.find(name);
-  if (it == flags.end()) return std::string();
-  std::ifstream in(it->second, std::ios::binary);
-  if (!in)
-    return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", it->second));
+absl::StatusOr<std::string> ReadFlagFile(const Arguments& flags, const std::string& name) {
+  if (!flags.has(name)) return std::string();
+  const std::string path = flags.get(name);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::InvalidArgumentError(absl::StrCat("--", name, ": cannot read ", path));
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
 }
 
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlclust: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
-}
-
-}  // namespace
-
-const char* ServeUsage() { return kServeUsage; }
-
-int RunServeCommand(int argc, char** argv) {
-  if (argc == 1 && (std::string(argv[0]) == "--help" || std::string(argv[0]) == "help")) {
-    std::fputs(kServeUsage, stdout);
-    return 0;
+int RunServe(const Arguments& flags) {
+  if (!flags.positional().empty()) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("serve: unexpected argument '", flags.positional()[0], "'")));
   }
-  absl::StatusOr<std::map<std::string, std::string>> flags = ParseFlags(argc, argv);
-  if (!flags.ok()) return Fail(flags.status());
   server::ServerOptions options;
-  auto listen = flags->find("listen");
-  options.listen_address = listen == flags->end() ? "127.0.0.1:50051" : listen->second;
+  options.listen_address = flags.get("listen", "127.0.0.1:50051");
   // Each numeric flag: its name, where it goes, the unit it is given in (bytes per unit).
   struct Number {
     const char* name;
@@ -183,7 +66,7 @@ int RunServeCommand(int argc, char** argv) {
     const uint64_t current = number.bytes   ? *number.bytes / number.unit
                              : number.count ? *number.count
                                             : *number.size;
-    absl::StatusOr<uint64_t> value = GetUint(*flags, number.name, current);
+    absl::StatusOr<uint64_t> value = flags.GetUint(number.name, current);
     if (!value.ok()) return Fail(value.status());
     const uint64_t limit = number.count != nullptr ? 0xffffffffu : (uint64_t{1} << 44);
     if (*value > limit) {
@@ -200,34 +83,32 @@ int RunServeCommand(int argc, char** argv) {
   }
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
-  if (auto metrics = flags->find("metrics"); metrics != flags->end()) {
-    options.metrics_address = metrics->second;
-  }
-  if (auto format = flags->find("log-format"); format != flags->end()) {
-    if (format->second != "text" && format->second != "json") {
+  options.metrics_address = flags.get("metrics", options.metrics_address);
+  if (flags.has("log-format")) {
+    const std::string format = flags.get("log-format");
+    if (format != "text" && format != "json") {
       return Fail(absl::InvalidArgumentError("--log-format must be text or json"));
     }
-    options.log_json = format->second == "json";
+    options.log_json = format == "json";
   }
   for (auto [name, pem] :
        {std::pair{"tls-cert", &options.tls_cert_pem}, std::pair{"tls-key", &options.tls_key_pem},
         std::pair{"tls-client-ca", &options.tls_client_ca_pem}}) {
-    absl::StatusOr<std::string> text = ReadFlagFile(*flags, name);
+    absl::StatusOr<std::string> text = ReadFlagFile(flags, name);
     if (!text.ok()) return Fail(text.status());
     *pem = *std::move(text);
   }
-  if (flags->contains("auth-token-file")) {
-    absl::StatusOr<std::string> text = ReadFlagFile(*flags, "auth-token-file");
+  if (flags.has("auth-token-file")) {
+    absl::StatusOr<std::string> text = ReadFlagFile(flags, "auth-token-file");
     if (!text.ok()) return Fail(text.status());
     absl::StatusOr<std::map<std::string, std::string>> tokens = server::ParseTokenFile(*text);
     if (!tokens.ok()) {
       return Fail(absl::InvalidArgumentError(absl::StrCat(
-          "--auth-token-file ", flags->at("auth-token-file"), ": ", tokens.status().message())));
+          "--auth-token-file ", flags.get("auth-token-file"), ": ", tokens.status().message())));
     }
     options.auth_tokens = *std::move(tokens);
   }
-  auto gpu_flag = flags->find("gpu");
-  const std::string gpu = gpu_flag == flags->end() ? "auto" : gpu_flag->second;
+  const std::string gpu = flags.get("gpu", "auto");
   if (gpu == "auto")
     options.gpu = server::GpuMode::kAuto;
   else if (gpu == "on")
@@ -261,6 +142,64 @@ int RunServeCommand(int argc, char** argv) {
     std::fprintf(stderr, "mlclust: stopped\n");
   }
   return 0;
+}
+
+}  // namespace
+
+Command ServeCommand() {
+  return {
+      {"serve",
+       "[--listen ADDR] [--workers N] [--queue N] [--max-input-mb N]\n"
+       "                [--max-queued-mb N] [--gpu auto|on|off] [--drain-seconds S] [limits]",
+       "Runs the gRPC server until SIGINT or SIGTERM (then drains: health NOT_SERVING and new "
+       "jobs refused at once, queued jobs end with UNAVAILABLE, running ones may finish within "
+       "--drain-seconds, default 30, then are cancelled).",
+       {{"",
+         {{"listen", "ADDR",
+           "default 127.0.0.1:50051 (loopback). Any other address is plaintext without "
+           "authentication: a warning is printed. A port already in use is refused."},
+          {"workers", "N",
+           "CPU workers beside the worker that owns the GL context (default 0: that one worker "
+           "runs every job in order)"},
+          {"queue", "N", "jobs that may wait (default 16); more are refused at once"},
+          {"max-input-mb", "N", "largest input of one job (default 1024)"},
+          {"max-queued-mb", "N", "the inputs of all waiting jobs together (default 4096)"},
+          {"gpu", "auto|on|off", "the GL context: where there is one (default), required, or none"},
+          {"drain-seconds", "S", "how long running jobs may finish after SIGTERM (default 30)"}}},
+        {"limits (each refusal is RESOURCE_EXHAUSTED with a message, logged and counted):",
+         {{"max-upload-mb", "N", "bytes of uploads in progress, all calls together (default 1024)"},
+          {"max-calls", "N", "calls in progress (default 256)"},
+          {"max-calls-per-connection", "N", "calls in progress on one connection (default 32)"},
+          {"max-calls-per-peer", "N", "calls in progress per client address (default 64)"},
+          {"result-job-mb", "N",
+           "events a job's client may leave unread (memory; default 256) before it is cut off "
+           "with RESOURCE_EXHAUSTED and the job cancelled: producing levels never waits on a "
+           "reader"},
+          {"result-total-mb", "N", "the same over all jobs (default 1024)"}}},
+        {"kept results (every job's levels, for watch; cancel, jobs):",
+         {{"retention-seconds", "S", "an ended job's results are kept this long (default 3600)"},
+          {"kept-results-mb", "N",
+           "memory for kept levels, all jobs together (default 1024); the oldest ended jobs' "
+           "results are dropped first to make room"},
+          {"max-jobs-per-tenant", "N",
+           "jobs one tenant may have queued or running (default 0: no limit; without tokens "
+           "every client is one tenant)"}}},
+        {"security (plaintext is meant for loopback only):",
+         {{"tls-cert", "FILE", "TLS with this certificate chain (PEM; with --tls-key)"},
+          {"tls-key", "FILE", "the key of --tls-cert (PEM)"},
+          {"tls-client-ca", "FILE", "require client certificates signed by this CA (PEM)"},
+          {"auth-token-file", "F",
+           "bearer tokens, one \"TOKEN TENANT\" per line (needs TLS): every call needs a known "
+           "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (PERMISSION_DENIED "
+           "for another's); health checks need none. Tokens are never logged."}}},
+        {"operations:",
+         {{"metrics", "ADDR",
+           "Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by state and "
+           "algorithm, queue depth, job durations (histograms), bytes in and out, the device"},
+          {"log-format", "text|json",
+           "json: one JSON object per line (job id, tenant, algorithm, sizes, durations, "
+           "outcome)"}}}}},
+      RunServe};
 }
 
 }  // namespace mlclust::cli

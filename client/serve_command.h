@@ -1,17 +1,15 @@
-// `mlclust serve`: runs the gRPC server until SIGINT or SIGTERM. Owns its flags and usage
-// text; client/main.cc only dispatches to it.
+// `mlclust serve`: runs the gRPC server until SIGINT or SIGTERM. Owns its flags (the rows
+// of its command line) and what runs them; client/main.cc only dispatches to it.
 #ifndef MLCLUST_CLIENT_SERVE_COMMAND_H_
 #define MLCLUST_CLIENT_SERVE_COMMAND_H_
 
+#include "client/cli.h"
+
 namespace mlclust::cli {
 
-// The usage lines of `serve` (part of `mlclust help`, and `mlclust serve --help`).
-const char* ServeUsage();
-
-// Runs `mlclust serve` with the arguments after "serve" (argv[0] is the first flag).
-// Returns the process exit code: 0 after a clean shutdown, 2 for a bad flag, 1 when the
-// server cannot start.
-int RunServeCommand(int argc, char** argv);
+// `mlclust serve`: exit code 0 after a clean shutdown, 2 for a bad flag, 1 when the server
+// cannot start.
+Command ServeCommand();
 
 }  // namespace mlclust::cli
 

@@ -36,20 +36,7 @@ while [ $# -gt 0 ]; do
 done
 
 # --- 1. CGAL ---------------------------------------------------------------------------
-if ! dpkg-query -W -f='${Status}' "$PACKAGE" 2>/dev/null | grep -q "install ok installed"; then
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then
-    command -v sudo >/dev/null || { echo "bench-peers: run as root to install $PACKAGE" >&2; exit 1; }
-    sudo="sudo"
-  fi
-  export DEBIAN_FRONTEND=noninteractive
-  if ! apt-cache show "$PACKAGE" >/dev/null 2>&1; then
-    echo "bench-peers: apt-get update"
-    $sudo apt-get update -qq
-  fi
-  echo "bench-peers: installing $PACKAGE"
-  $sudo apt-get install -y -qq --no-install-recommends "$PACKAGE" cmake ninja-build g++
-fi
+bash "$repo_root/scripts/apt-ensure.sh" bench-peers "$PACKAGE" cmake ninja-build g++
 
 # --- 2. The meshes (the peers do not use the million-face armadillo) -------------------
 bash "$repo_root/scripts/fetch-bench-meshes.sh" --no-1m

@@ -27,21 +27,7 @@ for argument in "$@"; do
 done
 
 # --- 1. The package -------------------------------------------------------------------
-if ! dpkg-query -W -f='${Status}' "$PACKAGE" 2>/dev/null | grep -q "install ok installed"; then
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then
-    command -v sudo >/dev/null || { echo "fetch-bench-meshes: run as root to install $PACKAGE" >&2; exit 1; }
-    sudo="sudo"
-  fi
-  export DEBIAN_FRONTEND=noninteractive
-  # Refresh the package lists only when apt does not know the package (a fresh image).
-  if ! apt-cache show "$PACKAGE" >/dev/null 2>&1; then
-    echo "fetch-bench-meshes: apt-get update"
-    $sudo apt-get update -qq
-  fi
-  echo "fetch-bench-meshes: installing $PACKAGE"
-  $sudo apt-get install -y -qq --no-install-recommends "$PACKAGE"
-fi
+bash "$repo_root/scripts/apt-ensure.sh" fetch-bench-meshes "$PACKAGE"
 [ -f "$ARCHIVE" ] || { echo "fetch-bench-meshes: $ARCHIVE is missing although $PACKAGE is installed" >&2; exit 1; }
 
 # --- 2. The five meshes ----------------------------------------------------------------

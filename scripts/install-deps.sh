@@ -34,6 +34,8 @@ packages=(
   clang-format clang-tidy
   # CI checks the compose file and Kubernetes manifests (scripts/check-deploy.py)
   python3-yaml
+  # the CLI's option parser (client/cli.cc; header only)
+  libcli11-dev
 )
 
 if [ "${1:-}" = "--deploy" ]; then

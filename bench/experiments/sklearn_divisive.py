@@ -11,20 +11,15 @@ here from the labels the same way for every run).
 """
 import argparse
 import json
+import os
+import sys
 import time
 
 import numpy as np
 
-
-def energy_of(points, labels):
-    x = points.astype(np.float64)
-    _, compact = np.unique(labels, return_inverse=True)
-    k = compact.max() + 1
-    counts = np.bincount(compact, minlength=k).astype(np.float64)
-    sums = np.zeros((k, x.shape[1]))
-    np.add.at(sums, compact, x)
-    means = sums / counts[:, None]
-    return float(((x - means[compact]) ** 2).sum())
+# The energy as the point peers compute it (bench/peers/points_peers.py).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "peers"))
+from points_peers import energy_of  # noqa: E402
 
 
 def main():

@@ -61,9 +61,10 @@ class DeviceStages {
   virtual absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
                                                 const KmeansOptions& options) = 0;
 
-  // RunMultilevel (multilevel.h) for PML with its levels on the device (merges only, the
-  // energies the device has: gpu/stages/multilevel_gpu.h); same contract, plus the
-  // device's errors. UNIMPLEMENTED where the device has none (the default).
+  // RunMultilevel (multilevel.h) for PML with its levels on the device (merges only, or
+  // with BB sweeps after each level as Alg. 5.7; the energies the device has:
+  // gpu/stages/multilevel_gpu.h); same contract, plus the device's errors. UNIMPLEMENTED
+  // where the device has none (the default).
   virtual absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
                                                           const MultilevelOptions& options,
                                                           LevelSink& sink) {
@@ -71,6 +72,29 @@ class DeviceStages {
     (void)options;
     (void)sink;
     return absl::UnimplementedError("PML levels on this device");
+  }
+
+  // RunMultilevel (multilevel.h) for HC (optimizer none, one merge per level) with its
+  // steps on the device (gpu/stages/hierarchy_gpu.h); same contract, plus the device's
+  // errors. UNIMPLEMENTED where the device has none (the default).
+  virtual absl::StatusOr<MultilevelSummary> RunHierarchy(const MeshProblem& problem,
+                                                         const MultilevelOptions& options,
+                                                         LevelSink& sink) {
+    (void)problem;
+    (void)options;
+    (void)sink;
+    return absl::UnimplementedError("HC levels on this device");
+  }
+
+  // RunPointMultilevel (point_clustering.h) for PML with the voxel start and the levels
+  // on the device (merges only: gpu/stages/points_multilevel_gpu.h); same contract, plus
+  // the device's errors. UNIMPLEMENTED where the device has none (the default).
+  virtual absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(
+      const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
+    (void)points;
+    (void)options;
+    (void)sink;
+    return absl::UnimplementedError("PML levels for points on this device");
   }
 };
 

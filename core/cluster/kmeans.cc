@@ -6,12 +6,14 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <span>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/lloyd.h"
 #include "tbb/blocked_range.h"
 #include "tbb/parallel_for.h"
 #include "tbb/parallel_reduce.h"
@@ -65,6 +67,27 @@ struct Vec<8> {
   typedef int32_t I __attribute__((vector_size(32)));
   typedef float Unaligned __attribute__((vector_size(32), aligned(4)));
 };
+
+// Sets every lane of `low` (W lanes of floats or ints) to the least of its lanes, by
+// log2(W) rounds of swapping halves (passed by reference: a vector returned by value would
+// change the ABI between the baseline and the AVX2 target).
+template <int W, typename V>
+MLCLUST_INLINE void MinAcrossLanes(V& low) {
+  V other;
+  if constexpr (W == 8) {
+    other = __builtin_shufflevector(low, low, 4, 5, 6, 7, 0, 1, 2, 3);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 2, 3, 0, 1, 6, 7, 4, 5);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 1, 0, 3, 2, 5, 4, 7, 6);
+    low = other < low ? other : low;
+  } else {
+    other = __builtin_shufflevector(low, low, 2, 3, 0, 1);
+    low = other < low ? other : low;
+    other = __builtin_shufflevector(low, low, 1, 0, 3, 2);
+    low = other < low ? other : low;
+  }
+}
 
 // Nearest centre of the P points at `x` (dims D, or `dims` where D == 0) among the centre
 // groups; ties go to the smaller centre id. The P points share each load of a centre group
@@ -136,35 +159,9 @@ MLCLUST_INLINE void NearestOfGroup(const float* x, uint32_t dims, const float* g
       index = take ? best_id[p][part] : index;
     }
     F low = value;
-    F other;
-    if constexpr (W == 8) {
-      other = __builtin_shufflevector(low, low, 4, 5, 6, 7, 0, 1, 2, 3);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 2, 3, 0, 1, 6, 7, 4, 5);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 1, 0, 3, 2, 5, 4, 7, 6);
-      low = other < low ? other : low;
-    } else {
-      other = __builtin_shufflevector(low, low, 2, 3, 0, 1);
-      low = other < low ? other : low;
-      other = __builtin_shufflevector(low, low, 1, 0, 3, 2);
-      low = other < low ? other : low;
-    }
+    MinAcrossLanes<W>(low);
     I id_low = value == low ? index : I{} + std::numeric_limits<int32_t>::max();
-    I id_other;
-    if constexpr (W == 8) {
-      id_other = __builtin_shufflevector(id_low, id_low, 4, 5, 6, 7, 0, 1, 2, 3);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 2, 3, 0, 1, 6, 7, 4, 5);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 1, 0, 3, 2, 5, 4, 7, 6);
-      id_low = id_other < id_low ? id_other : id_low;
-    } else {
-      id_other = __builtin_shufflevector(id_low, id_low, 2, 3, 0, 1);
-      id_low = id_other < id_low ? id_other : id_low;
-      id_other = __builtin_shufflevector(id_low, id_low, 1, 0, 3, 2);
-      id_low = id_other < id_low ? id_other : id_low;
-    }
+    MinAcrossLanes<W>(id_low);
     nearest[p] = static_cast<uint32_t>(id_low[0]);
   }
 }
@@ -178,6 +175,22 @@ MLCLUST_INLINE void NearestOfRange(const float* x, size_t count, uint32_t dims, 
   }
   for (; i < count; ++i)
     NearestOfGroup<W, D, 1>(x + i * dims, dims, groups, num_groups, nearest + i);
+}
+
+// sum = the squared distances of the W points in vector v of a transposed run (see
+// CandidatePotentials) to `centre` (d floats).
+// (The vector types come from Vec<W>: deduced from an argument, Unaligned would lose its
+// alignment attribute.)
+template <int W, int kVectors>
+MLCLUST_INLINE void RunDistances(const typename Vec<W>::Unaligned* coordinates, int v, uint32_t d,
+                                 const float* centre, typename Vec<W>::F& sum) {
+  using F = typename Vec<W>::F;
+  const F t0 = coordinates[v] - centre[0];
+  sum = t0 * t0;
+  for (uint32_t j = 1; j < d; ++j) {
+    const F t = coordinates[j * kVectors + v] - centre[j];
+    sum = t * t + sum;
+  }
 }
 
 // For each of the `num_candidates` candidates (rows of d floats) and each point i of
@@ -206,12 +219,8 @@ MLCLUST_INLINE void CandidatePotentials(const float* runs, size_t num_runs, uint
     for (int v = 0; v < kVectors; ++v) near[v] = run_closest[v];
     if (pending != nullptr) {
       for (int v = 0; v < kVectors; ++v) {
-        const F t0 = coordinates[v] - pending[0];
-        F sum = t0 * t0;
-        for (uint32_t j = 1; j < d; ++j) {
-          const F t = coordinates[j * kVectors + v] - pending[j];
-          sum = t * t + sum;
-        }
+        F sum;
+        RunDistances<W, kVectors>(coordinates, v, d, pending, sum);
         near[v] = sum < near[v] ? sum : near[v];
         run_closest[v] = near[v];
       }
@@ -220,12 +229,8 @@ MLCLUST_INLINE void CandidatePotentials(const float* runs, size_t num_runs, uint
       const float* candidate = candidates + size_t{c} * d;
       F total = F{};
       for (int v = 0; v < kVectors; ++v) {
-        const F t0 = coordinates[v] - candidate[0];
-        F sum = t0 * t0;
-        for (uint32_t j = 1; j < d; ++j) {
-          const F t = coordinates[j * kVectors + v] - candidate[j];
-          sum = t * t + sum;
-        }
+        F sum;
+        RunDistances<W, kVectors>(coordinates, v, d, candidate, sum);
         total += sum < near[v] ? sum : near[v];
       }
       if constexpr (W == 8) {
@@ -297,12 +302,12 @@ bool HasAvx2() {
   static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
   return has && !force_baseline.load(std::memory_order_relaxed);
 }
-NearestFunction Nearest() { return HasAvx2() ? NearestAvx2 : NearestBaseline; }
-CandidatesFunction Candidates() { return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline; }
+NearestFunction NearestKernel() { return HasAvx2() ? NearestAvx2 : NearestBaseline; }
+CandidatesFunction CandidatesKernel() { return HasAvx2() ? CandidatesAvx2 : CandidatesBaseline; }
 #else
 std::atomic<bool> force_baseline{false};
-NearestFunction Nearest() { return NearestBaseline; }
-CandidatesFunction Candidates() { return CandidatesBaseline; }
+NearestFunction NearestKernel() { return NearestBaseline; }
+CandidatesFunction CandidatesKernel() { return CandidatesBaseline; }
 #endif
 
 // Lays out k centres (k x d, row-major) as groups of kLanes (see kLanes).
@@ -316,6 +321,33 @@ void FillGroups(const T* centres, uint32_t k, uint32_t d, std::vector<float>& gr
       group[j * kLanes] = static_cast<float>(centres[size_t{c} * d + j]);
   }
 }
+
+// Lloyd's assignment step on the CPU: the float kernel above, block by block.
+class CpuLloydAssign final : public detail::LloydAssignStage {
+ public:
+  explicit CpuLloydAssign(const PointSet& points) : points_(points), kernel_(NearestKernel()) {}
+
+  absl::Status SetCentres(std::span<const double> centres) override {
+    const uint32_t d = points_.dims;
+    const auto k = static_cast<uint32_t>(centres.size() / d);
+    num_groups_ = (k + kLanes - 1) / kLanes;
+    FillGroups(centres.data(), k, d, groups_);
+    return absl::OkStatus();
+  }
+
+  const uint32_t* Nearest(size_t begin, size_t end, uint32_t* scratch) const override {
+    const uint32_t d = points_.dims;
+    kernel_(points_.values.data() + begin * d, end - begin, d, groups_.data(), num_groups_,
+            scratch);
+    return scratch;
+  }
+
+ private:
+  const PointSet& points_;
+  const NearestFunction kernel_;
+  std::vector<float> groups_;
+  uint32_t num_groups_ = 0;
+};
 
 double SquaredDistance(const float* x, const double* c, uint32_t d) {
   double sum = 0;
@@ -453,7 +485,7 @@ absl::StatusOr<std::vector<float>> PlusPlus(const PointSet& points, uint32_t k, 
       }
     });
   });
-  const CandidatesFunction candidates_kernel = Candidates();
+  const CandidatesFunction candidates_kernel = CandidatesKernel();
   const float* pending = nullptr;
   // One pass over the points: block_sums[b * count + t] = sum over block b of
   // min(closest, distance to candidate t), with `pending` folded in first.
@@ -546,14 +578,13 @@ absl::StatusOr<std::vector<float>> PlusPlus(const PointSet& points, uint32_t k, 
 // its work (and its chunk's sums), and after each assignment.
 absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> centres,
                                    const KmeansOptions& options, double mean_variance,
-                                   tbb::task_arena& arena) {
+                                   tbb::task_arena& arena, detail::LloydAssignStage& assign) {
   const auto start = std::chrono::steady_clock::now();
   const size_t m = points.num_points();
   const uint32_t d = points.dims;
   const uint32_t k = static_cast<uint32_t>(centres.size() / d);
   const float* values = points.values.data();
   const size_t num_blocks = NumBlocks(m);
-  const uint32_t num_groups = (k + kLanes - 1) / kLanes;
   const size_t row = size_t{d} + 1;  // per-cluster sums: d coordinates and the count
   // Per-cluster sums are kept per chunk of consecutive blocks and added in chunk order. Up to
   // 64 chunks (parallel accumulation), within a budget of 32 MiB of sums where k d is large;
@@ -562,11 +593,9 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
   const size_t max_chunks = std::clamp<size_t>(budget / (row * k), 1, 64);
   const size_t blocks_per_chunk = (num_blocks + max_chunks - 1) / max_chunks;
   const size_t num_chunks = (num_blocks + blocks_per_chunk - 1) / blocks_per_chunk;
-  const NearestFunction nearest_kernel = Nearest();
   const double tolerance = options.tolerance * mean_variance;
 
   std::vector<uint32_t> labels(m, 0);
-  std::vector<float> groups;
   std::vector<double> chunk_sums(num_chunks * k * row);
   std::vector<double> sums(size_t{k} * row);
   std::vector<double> block_energy(num_blocks);
@@ -577,7 +606,8 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
 
   for (uint32_t iteration = 1; iteration <= options.max_iterations; ++iteration) {
     const bool first = iteration == 1;
-    FillGroups(centres.data(), k, d, groups);
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "Lloyd iteration"));
+    MLCLUST_RETURN_IF_ERROR(assign.SetCentres(centres));
     // Assignment (parallel over blocks), then the chunk's sums.
     arena.execute([&] {
       tbb::parallel_for(size_t{0}, num_chunks, [&](size_t chunk) {
@@ -589,10 +619,10 @@ absl::StatusOr<KmeansResult> Lloyd(const PointSet& points, std::vector<double> c
             skipped.store(true, std::memory_order_relaxed);
             return;
           }
-          uint32_t proposed[kBlock];
+          uint32_t scratch[kBlock];
           const size_t begin = BlockBegin(b);
           const size_t end = BlockEnd(b, m);
-          nearest_kernel(values + begin * d, end - begin, d, groups.data(), num_groups, proposed);
+          const uint32_t* proposed = assign.Nearest(begin, end, scratch);
           double energy = 0;
           uint64_t moves = 0;
           for (size_t i = begin; i < end; ++i) {
@@ -800,14 +830,23 @@ absl::StatusOr<KmeansResult> RunKmeans(const PointSet& points, const KmeansOptio
     }
   }
   const double seconds_init = Seconds(start);
-  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result,
-                           Lloyd(points, std::move(centres), options, stats.mean_variance, arena));
+  CpuLloydAssign assign(points);
+  MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, Lloyd(points, std::move(centres), options,
+                                                      stats.mean_variance, arena, assign));
   result.seconds_init = seconds_init;
   return result;
 }
 
 absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float> centres,
                                       const KmeansOptions& options) {
+  CpuLloydAssign assign(points);
+  return detail::RunLloydWithAssign(points, std::move(centres), options, assign);
+}
+
+absl::StatusOr<KmeansResult> detail::RunLloydWithAssign(const PointSet& points,
+                                                        std::vector<float> centres,
+                                                        const KmeansOptions& options,
+                                                        LloydAssignStage& assign) {
   MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
   const uint32_t d = points.dims;
   if (centres.empty() || centres.size() % d != 0) {
@@ -836,7 +875,7 @@ absl::StatusOr<KmeansResult> RunLloyd(const PointSet& points, std::vector<float>
   }
   MLCLUST_RETURN_IF_ERROR(CheckExtent(stats.low, stats.high));
   return Lloyd(points, std::vector<double>(centres.begin(), centres.end()), options,
-               stats.mean_variance, arena);
+               stats.mean_variance, arena, assign);
 }
 
 }  // namespace mlclust

@@ -330,13 +330,38 @@ std::string EnergyNote(const JobPlan& plan) {
 }
 
 // Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
-// says the same): merges only (optimizer none), without p% or the switch to ML, for the
-// energies whose merge cost the GPU has (cvd, cvd-adaptive).
+// says the same): merges only (optimizer none) or with BB sweeps (optimizer bb, Alg. 5.7;
+// ring test or no guard), without p% or the switch to ML, for the energies whose merge
+// cost the GPU has (cvd, cvd-adaptive).
 bool PmlLevelsOnGpu(const JobPlan& plan) {
   const MeshEnergyKind kind = plan.mesh_energy.kind;
+  const MultilevelOptions& ml = plan.multilevel;
+  const bool bb =
+      ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased &&
+      !(ml.connectivity_guard && ml.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount);
   return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
+         (ml.optimizer == MultilevelOptions::Optimizer::kNone || bb) && ml.p_percent == 0 &&
+         ml.pml_until == 0;
+}
+
+// Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
+// the same): merges only, one per level, for cvd and cvd-adaptive; with device gpu only
+// (one collapse per step is latency-bound on a GPU: auto keeps the CPU's heap until the
+// NVIDIA figures show otherwise, BENCHMARKS.md).
+bool HcLevelsOnGpu(const JobPlan& plan) {
+  const MeshEnergyKind kind = plan.mesh_energy.kind;
+  return plan.device == DeviceChoice::kGpu &&
+         (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
          plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
-         plan.multilevel.p_percent == 0 && plan.multilevel.pml_until == 0;
+         !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
+}
+
+// Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
+// PointsPmlGpuUnsupported says the same): merges only (optimizer none), without the
+// switch to ML.
+bool PointPmlLevelsOnGpu(const JobPlan& plan) {
+  return plan.point_multilevel.optimizer == PointMultilevelOptions::Optimizer::kNone &&
+         plan.point_multilevel.pml_until == 0;
 }
 
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
@@ -346,12 +371,13 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   options.cancel = context.cancel;
   absl::StatusOr<MultilevelSummary> ran;
   if (Stage(plan, "cluster").device == StageDevice::kGpu) {
-    // PML's levels on the GPU (the plan took it only where PmlLevelsOnGpu covers it).
+    // PML's levels (PmlLevelsOnGpu) or HC's steps (HcLevelsOnGpu) on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
-          "PML: the plan puts the levels on the GPU but this run has no GPU stages");
+          "the plan puts the cluster stage on the GPU but this run has no GPU stages");
     }
-    ran = context.devices->RunMultilevel(problem, options, sink);
+    ran = options.parallel ? context.devices->RunMultilevel(problem, options, sink)
+                           : context.devices->RunHierarchy(problem, options, sink);
   } else {
     ran = RunMultilevel(problem, options, sink);
   }
@@ -452,8 +478,19 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
                       " dimensions: ", plan.algorithm->name));
   PointMultilevelOptions options = plan.point_multilevel;
   options.cancel = context.cancel;
-  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary,
-                           RunPointMultilevel(points, options, sink));
+  absl::StatusOr<PointMultilevelSummary> ran;
+  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    // PML's levels for points on the GPU (the plan took it only where
+    // PointPmlLevelsOnGpu covers it).
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "PML: the plan puts the point levels on the GPU but this run has no GPU stages");
+    }
+    ran = context.devices->RunPointMultilevel(points, options, sink);
+  } else {
+    ran = RunPointMultilevel(points, options, sink);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(PointMultilevelSummary summary, std::move(ran));
   return RunSummary{summary.start_clusters, summary.final_clusters};
 }
 
@@ -502,8 +539,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   // Lloyd from k-means++ (or random) centres. Level 0 is the seeding: every point at its
-  // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment;
-  // the GPU's Lloyd does not keep it, so there it is one more assignment).
+  // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment,
+  // on either device: the GPU's Lloyd is the CPU's loop with another assignment step).
   const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
   const bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
   if (on_gpu && context.devices == nullptr) {
@@ -519,26 +556,14 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
                 : RandomPointCentres(points, plan.clusters, plan.seed));
-  KmeansResult start;
-  if (on_gpu) {
-    KmeansOptions assign;
-    assign.clusters = plan.clusters;
-    assign.max_iterations = 1;
-    assign.threads = plan.kmeans.threads;
-    MLCLUST_ASSIGN_OR_RETURN(start, lloyd(centres, assign));
-  }
   KmeansOptions options = plan.kmeans;
   options.clusters = plan.clusters;
-  options.keep_first_assignment = !on_gpu;
+  options.keep_first_assignment = true;
   options.on_iteration = [&](uint32_t iteration, double inertia) {
     Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
-  if (!on_gpu) {
-    start.labels = std::move(result.first_labels);
-    start.inertia = result.first_inertia;
-  }
-  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, start.inertia, result.labels,
+  MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.first_labels, result.first_inertia, result.labels,
                                           result.inertia, plan.clusters, sink));
   return RunSummary{plan.clusters, plan.clusters};
 }
@@ -696,7 +721,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical face clustering (Alg. 2.3)";
     a.help = "merges only: every level from one cluster per face down to --clusters";
     a.energies = mesh_energies;
-    a.stages = {merge_stage};
+    // HC's steps on the GPU (gpu/stages/hierarchy_gpu.h): CVD energies.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, HcLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -730,7 +756,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
                  ParallelOptimisationOption()};
-    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only, CVD energies.
+    // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only or with BB, CVD.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
@@ -862,7 +888,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
                  PmlUntilOption(true), PmlPairsOption()};
     a.options.push_back(BoundedDriftOption());
-    a.stages = {merge_stage};
+    // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
+    // merges only, without the switch to ML.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -1074,65 +1102,67 @@ absl::StatusOr<OptionValue> ParseOptionValue(const OptionInfo& option, absl::str
   return absl::InternalError("unknown option type");
 }
 
+namespace {
+
+// The first entry of `table` for which `match` holds; nullptr if none.
+template <typename Info, typename Match>
+const Info* FindIn(std::span<const Info> table, Match&& match) {
+  for (const Info& info : table) {
+    if (match(info)) return &info;
+  }
+  return nullptr;
+}
+
+// The names of `table`'s entries for `input`, comma-separated, in table order.
+template <typename Info>
+std::string NamesFor(std::span<const Info> table, InputKind input) {
+  std::vector<std::string> names;
+  for (const Info& info : table) {
+    if (info.input == input) names.push_back(info.name);
+  }
+  return absl::StrJoin(names, ", ");
+}
+
+}  // namespace
+
 std::span<const EnergyInfo> Energies() { return EnergyTable(); }
 std::span<const OptionInfo> EnergyOptions() { return EnergyOptionTable(); }
 
 const EnergyInfo* FindEnergy(InputKind input, absl::string_view name) {
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input && energy.name == name) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(),
+                [&](const EnergyInfo& e) { return e.input == input && e.name == name; });
 }
 
 const EnergyInfo* FindEnergyByWire(InputKind input, int wire) {
   if (wire == 0) return nullptr;
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input && energy.wire == wire) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(),
+                [&](const EnergyInfo& e) { return e.input == input && e.wire == wire; });
 }
 
 const EnergyInfo* FindEnergyByKind(MeshEnergyKind kind) {
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == InputKind::kMesh && energy.mesh_kind == kind) return &energy;
-  }
-  return nullptr;
+  return FindIn(Energies(), [&](const EnergyInfo& e) {
+    return e.input == InputKind::kMesh && e.mesh_kind == kind;
+  });
 }
 
 std::span<const AlgorithmInfo> Algorithms() { return AlgorithmTable(); }
 
 const AlgorithmInfo* FindAlgorithm(InputKind input, absl::string_view name) {
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input && algorithm.name == name) return &algorithm;
-  }
-  return nullptr;
+  return FindIn(Algorithms(),
+                [&](const AlgorithmInfo& a) { return a.input == input && a.name == name; });
 }
 
 const AlgorithmInfo* FindAlgorithmByWire(InputKind input, int wire) {
   if (wire == 0) return nullptr;
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input && algorithm.wire == wire) return &algorithm;
-  }
-  return nullptr;
+  return FindIn(Algorithms(),
+                [&](const AlgorithmInfo& a) { return a.input == input && a.wire == wire; });
 }
 
 const AlgorithmInfo& DefaultAlgorithm(InputKind input) { return *FindAlgorithm(input, "ml"); }
 
-std::string AlgorithmNames(InputKind input) {
-  std::vector<std::string> names;
-  for (const AlgorithmInfo& algorithm : AlgorithmTable()) {
-    if (algorithm.input == input) names.push_back(algorithm.name);
-  }
-  return absl::StrJoin(names, ", ");
-}
+std::string AlgorithmNames(InputKind input) { return NamesFor(Algorithms(), input); }
 
-std::string EnergyNames(InputKind input) {
-  std::vector<std::string> names;
-  for (const EnergyInfo& energy : EnergyTable()) {
-    if (energy.input == input) names.push_back(energy.name);
-  }
-  return absl::StrJoin(names, ", ");
-}
+std::string EnergyNames(InputKind input) { return NamesFor(Energies(), input); }
 
 std::vector<const OptionInfo*> AlgorithmOptions(const AlgorithmInfo& algorithm) {
   std::vector<const OptionInfo*> options;

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 
 namespace mlclust::gpu {
@@ -56,30 +57,38 @@ absl::StatusOr<uint32_t> CompileComputeProgram(GlContext& context, absl::string_
   const detail::GlFunctions& gl = context.gl();
   const GLuint shader = gl.CreateShader(GL_COMPUTE_SHADER);
   if (shader == 0) return CheckGlError(context, "glCreateShader(GL_COMPUTE_SHADER)");
+  MLCLUST_RETURN_IF_ERROR(CompileShaderSource(gl, shader, source, "compute"));
+  const GLuint program = gl.CreateProgram();
+  gl.AttachShader(program, shader);
+  gl.LinkProgram(program);
+  gl.DetachShader(program, shader);
+  gl.DeleteShader(shader);
+  MLCLUST_RETURN_IF_ERROR(CheckProgramLinked(gl, program, "compute program"));
+  return program;
+}
+
+absl::Status CompileShaderSource(const detail::GlFunctions& gl, uint32_t shader,
+                                 absl::string_view source, absl::string_view what) {
   const GLchar* text = source.data();
   const GLint length = static_cast<GLint>(source.size());
   gl.ShaderSource(shader, 1, &text, &length);
   gl.CompileShader(shader);
   GLint compiled = GL_FALSE;
   gl.GetShaderiv(shader, GL_COMPILE_STATUS, &compiled);
-  if (compiled != GL_TRUE) {
-    std::string log = ShaderLog(gl, shader);
-    gl.DeleteShader(shader);
-    return absl::InternalError(absl::StrCat("compute shader does not compile: ", log));
-  }
-  const GLuint program = gl.CreateProgram();
-  gl.AttachShader(program, shader);
-  gl.LinkProgram(program);
-  gl.DetachShader(program, shader);
+  if (compiled == GL_TRUE) return absl::OkStatus();
+  std::string log = ShaderLog(gl, shader);
   gl.DeleteShader(shader);
+  return absl::InternalError(absl::StrCat(what, " shader does not compile: ", log));
+}
+
+absl::Status CheckProgramLinked(const detail::GlFunctions& gl, uint32_t program,
+                                absl::string_view what) {
   GLint linked = GL_FALSE;
   gl.GetProgramiv(program, GL_LINK_STATUS, &linked);
-  if (linked != GL_TRUE) {
-    std::string log = ProgramLog(gl, program);
-    gl.DeleteProgram(program);
-    return absl::InternalError(absl::StrCat("compute program does not link: ", log));
-  }
-  return program;
+  if (linked == GL_TRUE) return absl::OkStatus();
+  std::string log = ProgramLog(gl, program);
+  gl.DeleteProgram(program);
+  return absl::InternalError(absl::StrCat(what, " does not link: ", log));
 }
 
 absl::StatusOr<uint32_t> GetComputeProgram(GlContext& context, absl::string_view name,

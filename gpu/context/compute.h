@@ -43,6 +43,17 @@ uint LinearInvocationIndex() {
 }
 )glsl";
 
+// Sets `shader`'s (made by glCreateShader) source and compiles it: OK, or INTERNAL "<what>
+// shader does not compile: <the GLSL log>" with the shader deleted. Shared by the compute
+// programs and the preview's drawing program.
+absl::Status CompileShaderSource(const detail::GlFunctions& gl, uint32_t shader,
+                                 absl::string_view source, absl::string_view what);
+
+// After glLinkProgram: OK, or INTERNAL "<what> does not link: <the log>" with the program
+// deleted.
+absl::Status CheckProgramLinked(const detail::GlFunctions& gl, uint32_t program,
+                                absl::string_view what);
+
 // Compiles and links a compute program from `source`. The caller owns the returned program
 // name (glDeleteProgram). INTERNAL with the GLSL compile or link log on failure.
 absl::StatusOr<uint32_t> CompileComputeProgram(GlContext& context, absl::string_view source);

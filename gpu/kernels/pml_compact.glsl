@@ -10,11 +10,14 @@
 // u_kind 0, the faces: a face is kept where its cluster merged away (remap[label] !=
 // label); it is written as the triplet (face, new, old) and relabelled. u_kind 1, the
 // directed cluster edges (src, dst): an edge is kept where remap[src] != remap[dst] and
-// written relabelled to edges_out. After the prelude of gpu/context/compute.h.
+// written relabelled to edges_out. u_kind 2, the directed face edges (f, g) after BB moves
+// (face_edges, every one of the mesh): an edge is kept where labels[f] != labels[g] and
+// written as (labels[f], labels[g]) to edges_out. After the prelude of gpu/context/compute.h.
 layout(std430, binding = 2) buffer Labels { uint labels[]; };
 layout(std430, binding = 3) readonly buffer Remap { uint remap[]; };
 layout(std430, binding = 4) readonly buffer EdgesIn { uint edges_in[]; };
 layout(std430, binding = 5) writeonly buffer EdgesOut { uint edges_out[]; };
+layout(std430, binding = 6) readonly buffer FaceEdges { uint face_edges[]; };  // kind 2 only
 layout(std430, binding = 11) buffer ChunkCount { uint chunk_count[]; };
 layout(std430, binding = 12) buffer GroupTotal { uint group_total[]; };
 layout(std430, binding = 13) buffer Counters { uint counters[]; };
@@ -28,6 +31,7 @@ const uint kGroup = 256u;  // kPmlGroup
 
 bool Kept(uint e) {
   if (u_kind == 0u) return remap[labels[e]] != labels[e];
+  if (u_kind == 2u) return labels[face_edges[2u * e]] != labels[face_edges[2u * e + 1u]];
   return remap[edges_in[2u * e]] != remap[edges_in[2u * e + 1u]];
 }
 
@@ -76,6 +80,9 @@ void main() {
       triplets[3u * at + 1u] = new_label;
       triplets[3u * at + 2u] = old_label;
       labels[e] = new_label;
+    } else if (u_kind == 2u) {
+      edges_out[2u * at] = labels[face_edges[2u * e]];
+      edges_out[2u * at + 1u] = labels[face_edges[2u * e + 1u]];
     } else {
       edges_out[2u * at] = remap[edges_in[2u * e]];
       edges_out[2u * at + 1u] = remap[edges_in[2u * e + 1u]];

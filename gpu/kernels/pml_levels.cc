@@ -8,6 +8,8 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
+#include "gpu/kernels/bb_decide_glsl.h"    // kBbDecideGlsl, generated
+#include "gpu/kernels/pml_bb_glsl.h"       // kPmlBbGlsl, generated
 #include "gpu/kernels/pml_compact_glsl.h"  // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"      // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"    // kPmlMergeGlsl, generated
@@ -20,12 +22,17 @@ namespace {
 constexpr char kOdesPass[] = "pml odes";
 constexpr char kCollapsePass[] = "pml collapse";
 constexpr char kTripletsPass[] = "pml triplets";
+constexpr char kBbDecidePass[] = "pml bb decide";
+constexpr char kBbApplyPass[] = "pml bb apply";
+constexpr char kBbEdgesPass[] = "pml bb edges";
 
 // pml_ode.glsl's phases.
 constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
 // pml_compact.glsl's phases, kinds and counter slots.
 constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
-constexpr uint32_t kFaces = 0, kEdges = 1;
+constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
+// pml_bb.glsl's phases.
+constexpr uint32_t kFitProxies = 0, kWriteLabels = 1, kWriteClusters = 2;
 constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kEdgeSlot = 2, kCounterSlots = 4;
 
 static_assert(sizeof(CvdSums) == 5 * sizeof(double));
@@ -33,8 +40,35 @@ static_assert(sizeof(CvdSums) == 5 * sizeof(double));
 uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
 uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
 uint64_t MaxPairs(uint64_t num_faces) { return num_faces / 2 + 1; }
+uint64_t ChangeSlots(uint64_t num_faces) {
+  return std::min<uint64_t>(std::max<uint64_t>(num_faces, 1), kPmlBbChangeChunk);
+}
+
+// The directed face edges (f, g) of `adjacency`, f's edges in f's order, faces in order.
+absl::StatusOr<std::vector<uint32_t>> DirectedFaceEdges(const FaceAdjacency& adjacency) {
+  const size_t n = adjacency.num_faces();
+  std::vector<uint32_t> edges;
+  edges.reserve(6 * n);
+  for (size_t f = 0; f < n; ++f) {
+    for (const FaceId g : adjacency.neighbours[f]) {
+      if (!g.valid() || g.value() == f) continue;
+      if (g.value() >= n) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("pml: face ", f, " has neighbour ", g.value(), " of ", n, " faces"));
+      }
+      edges.push_back(static_cast<uint32_t>(f));
+      edges.push_back(g.value());
+    }
+  }
+  return edges;
+}
 
 }  // namespace
+
+uint64_t PmlBoundaryMemoryBound(uint64_t num_faces, uint64_t num_edges) {
+  const uint64_t n = std::max<uint64_t>(num_faces, 1), m = std::max<uint64_t>(num_edges, 1);
+  return m * 8 + n * (12 + 32 + 32 + 8) + 4 + ChangeSlots(n) * (8 + 8 + 40);
+}
 
 uint64_t PmlLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges) {
   const uint64_t n = std::max<uint64_t>(num_faces, 1), m = std::max<uint64_t>(num_edges, 1);
@@ -56,19 +90,7 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     return absl::InvalidArgumentError(
         absl::StrCat("pml: ", n, " faces exceed the limit of ", kMaxMeshElements / 6));
   }
-  std::vector<uint32_t> edges;
-  edges.reserve(6 * n);
-  for (size_t f = 0; f < n; ++f) {
-    for (const FaceId g : adjacency.neighbours[f]) {
-      if (!g.valid() || g.value() == f) continue;
-      if (g.value() >= n) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("pml: face ", f, " has neighbour ", g.value(), " of ", n, " faces"));
-      }
-      edges.push_back(static_cast<uint32_t>(f));
-      edges.push_back(g.value());
-    }
-  }
+  MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> edges, DirectedFaceEdges(adjacency));
   const uint64_t m = edges.size() / 2;
   MLCLUST_RETURN_IF_ERROR(BeginPass(context, kOdesPass));
   absl::StatusOr<PmlLevelsGpu> made = [&]() -> absl::StatusOr<PmlLevelsGpu> {
@@ -264,6 +286,7 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
 absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                          PmlLevelGpu& level) {
   level = PmlLevelGpu();
+  proxies_current_ = false;  // the merges change sums
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   absl::StatusOr<uint32_t> pairs = FindPairs();
   if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
@@ -284,6 +307,205 @@ absl::StatusOr<std::vector<uint32_t>> PmlLevelsGpu::Labels() {
     MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Download(std::span<uint32_t>(labels)));
   }
   return labels;
+}
+
+absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjacency,
+                                                      std::span<const PointAndWeight> faces) {
+  const size_t n = adjacency.num_faces();
+  if (n != num_faces_ || faces.size() != n) {
+    return absl::InvalidArgumentError(absl::StrCat("pml bb: ", n, " faces of adjacency and ",
+                                                   faces.size(), " face points for ", num_faces_,
+                                                   " faces"));
+  }
+  MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> edges, DirectedFaceEdges(adjacency));
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbDecidePass));
+  const absl::Status status = [&]() -> absl::Status {
+    const uint64_t faces_or_one = std::max<uint64_t>(n, 1);
+    const uint64_t slots = ChangeSlots(n);
+    const std::array<uint64_t, kBoundaryBuffers> bytes = {std::max<uint64_t>(edges.size(), 2) * 4,
+                                                          faces_or_one * 12,
+                                                          faces_or_one * 32,
+                                                          faces_or_one * 32,
+                                                          faces_or_one * 8,
+                                                          4,
+                                                          slots * 8,
+                                                          slots * 8,
+                                                          slots * 40};
+    std::vector<StorageBuffer> buffers;
+    for (const uint64_t size : bytes) {
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
+      buffers.push_back(std::move(buffer));
+    }
+    if (!edges.empty()) {
+      MLCLUST_RETURN_IF_ERROR(buffers[kFaceEdges].Upload(std::span<const uint32_t>(edges)));
+    }
+    if (n > 0) {
+      MLCLUST_RETURN_IF_ERROR(buffers[kNeighbours].Upload(
+          std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
+      MLCLUST_RETURN_IF_ERROR(buffers[kFacePoints].Upload(faces));
+    }
+    MLCLUST_ASSIGN_OR_RETURN(bb_program_, GetComputeProgram(*context_, "pml_bb",
+                                                            absl::StrCat(kComputeShaderPrelude,
+                                                                         kPmlCvdGlsl, kPmlBbGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(decide_program_,
+                             GetComputeProgram(*context_, "bb_decide",
+                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    bb_buffers_ = std::move(buffers);
+    num_face_edges_ = static_cast<uint32_t>(edges.size() / 2);
+    return absl::OkStatus();
+  }();
+  return PassError(kBbDecidePass, status);
+}
+
+absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
+  proposals.clear();
+  if (bb_buffers_.empty()) {
+    return absl::FailedPreconditionError("pml bb: decide before EnableBoundaryOptimisation");
+  }
+  if (num_faces_ == 0) return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbDecidePass));
+  const absl::Status status = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    const uint32_t zero = 0;
+    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
+    if (!proxies_current_) {
+      // The proxies of every cluster id (pml_bb.glsl's bindings); ApplyMoves keeps them.
+      buffers_[kSums].Bind(0);
+      buffers_[kSizes].Bind(1);
+      buffers_[kLabels].Bind(2);
+      bb_buffers_[kProxies].Bind(3);
+      gl.UseProgram(bb_program_);
+      gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
+      gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
+      MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+    // bb_decide.glsl's bindings: neighbours, labels, faces, proxies, proposals, count.
+    bb_buffers_[kNeighbours].Bind(0);
+    buffers_[kLabels].Bind(1);
+    bb_buffers_[kFacePoints].Bind(2);
+    bb_buffers_[kProxies].Bind(3);
+    bb_buffers_[kProposals].Bind(4);
+    bb_buffers_[kProposalCount].Bind(5);
+    gl.UseProgram(decide_program_);
+    gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
+    gl.UseProgram(0);
+    uint32_t count = 0;
+    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Download(0, &count, sizeof(count)));
+    if (count > num_faces_) {
+      return absl::InternalError(
+          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
+    }
+    proposals.resize(count);
+    if (count > 0) {
+      MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposals].Download(std::span<PmlFaceMove>(proposals)));
+    }
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    proxies_current_ = true;
+    for (const auto& [face, cluster] : proposals) {
+      if (face >= num_faces_ || cluster >= num_faces_) {
+        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
+                                                cluster, " of ", num_faces_, " faces"));
+      }
+    }
+    return absl::OkStatus();
+  }();
+  if (!status.ok()) {
+    proposals.clear();
+    proxies_current_ = false;
+  }
+  return PassError(kBbDecidePass, status);
+}
+
+absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
+                                      std::span<const PmlClusterChange> clusters) {
+  if (bb_buffers_.empty()) {
+    return absl::FailedPreconditionError("pml bb: moves before EnableBoundaryOptimisation");
+  }
+  for (const auto& [face, cluster] : moves) {
+    if (face >= num_faces_ || cluster >= num_faces_) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("pml bb: move of face ", face, " to ", cluster, " of ", num_faces_));
+    }
+  }
+  for (const PmlClusterChange& change : clusters) {
+    if (change.cluster >= num_faces_ || change.size > num_faces_) {
+      return absl::InvalidArgumentError(absl::StrCat("pml bb: cluster ", change.cluster,
+                                                     " of size ", change.size, " of ", num_faces_));
+    }
+  }
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbApplyPass));
+  const absl::Status status = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    buffers_[kSums].Bind(0);
+    buffers_[kSizes].Bind(1);
+    buffers_[kLabels].Bind(2);
+    bb_buffers_[kProxies].Bind(3);
+    bb_buffers_[kLabelChanges].Bind(4);
+    bb_buffers_[kClusterChanges].Bind(5);
+    bb_buffers_[kClusterSums].Bind(6);
+    gl.UseProgram(bb_program_);
+    for (size_t begin = 0; begin < moves.size(); begin += kPmlBbChangeChunk) {
+      const size_t count = std::min<size_t>(kPmlBbChangeChunk, moves.size() - begin);
+      MLCLUST_RETURN_IF_ERROR(bb_buffers_[kLabelChanges].Upload(moves.subspan(begin, count)));
+      gl.ProgramUniform1ui(bb_program_, 0, static_cast<uint32_t>(count));
+      gl.ProgramUniform1ui(bb_program_, 1, kWriteLabels);
+      MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, count));
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    }
+    for (size_t begin = 0; begin < clusters.size(); begin += kPmlBbChangeChunk) {
+      const size_t count = std::min<size_t>(kPmlBbChangeChunk, clusters.size() - begin);
+      change_words_.resize(2 * count);
+      change_sums_.resize(5 * count);
+      for (size_t i = 0; i < count; ++i) {
+        const PmlClusterChange& change = clusters[begin + i];
+        change_words_[2 * i] = change.cluster;
+        change_words_[2 * i + 1] = change.size;
+        change_sums_[5 * i] = change.sums.area;
+        change_sums_[5 * i + 1] = change.sums.weighted_centroid.x;
+        change_sums_[5 * i + 2] = change.sums.weighted_centroid.y;
+        change_sums_[5 * i + 3] = change.sums.weighted_centroid.z;
+        change_sums_[5 * i + 4] = change.sums.weighted_squared_norm;
+      }
+      MLCLUST_RETURN_IF_ERROR(
+          bb_buffers_[kClusterChanges].Upload(std::span<const uint32_t>(change_words_)));
+      MLCLUST_RETURN_IF_ERROR(
+          bb_buffers_[kClusterSums].Upload(std::span<const double>(change_sums_)));
+      gl.ProgramUniform1ui(bb_program_, 0, static_cast<uint32_t>(count));
+      gl.ProgramUniform1ui(bb_program_, 1, kWriteClusters);
+      MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, count));
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    }
+    gl.UseProgram(0);
+    return CheckGlError(*context_, kBbApplyPass);
+  }();
+  if (!status.ok()) proxies_current_ = false;
+  return PassError(kBbApplyPass, status);
+}
+
+absl::Status PmlLevelsGpu::RebuildEdges() {
+  if (bb_buffers_.empty()) {
+    return absl::FailedPreconditionError("pml bb: edges before EnableBoundaryOptimisation");
+  }
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbEdgesPass));
+  const absl::Status status = [&]() -> absl::Status {
+    BindAll();
+    bb_buffers_[kFaceEdges].Bind(6);  // pml_compact.glsl's FaceEdges (kind 2)
+    MLCLUST_RETURN_IF_ERROR(Compact(kFaceEdgeList, num_face_edges_, kEdgeSlot));
+    uint32_t edges = 0;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(kEdgeSlot * 4, &edges, 4));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbEdgesPass));
+    if (edges > num_face_edges_) {
+      return absl::InternalError(absl::StrCat("the GPU reports ", edges, " cluster edges of ",
+                                              num_face_edges_, " face edges"));
+    }
+    std::swap(buffers_[kEdgesIn], buffers_[kEdgesOut]);
+    num_edges_ = edges;
+    return absl::OkStatus();
+  }();
+  return PassError(kBbEdgesPass, status);
 }
 
 }  // namespace mlclust::gpu

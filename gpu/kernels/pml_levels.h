@@ -30,9 +30,30 @@
 // each per directed edge, at most 3 per face) + 18 (pairs: ids, values and flag, 36 bytes,
 // at most one per two faces) + the compaction's counts (1/8): about 166 bytes per face,
 // 166 MB for 10^6 faces. Each buffer must fit one storage buffer (RESOURCE_EXHAUSTED).
+//
+// Alg. 5.7 (PML with minimizeEnergy() after each collapse step; ours in how it splits the
+// work, gpu/stages/multilevel_gpu.h drives it): EnableBoundaryOptimisation adds what BB
+// sweeps (Alg. 5.4/5.5) need on the GPU, and three more passes:
+//   "pml bb decide" every cluster's proxy from its sums (pml_bb.glsl, CvdEnergy::FitProxy
+//                   in the CPU's order; only after a level's merges, since "pml bb apply"
+//                   fits the changed clusters' again), then bb_decide.glsl
+//                   (gpu/kernels/bb_decide.h, DecideBoundaryMove's rule) over every face against
+//                   them, on the PML's own labels; only the proposals come back (8 bytes each)
+//   "pml bb apply"  the moves the host accepted (the CPU's ResolveConflicts and
+//                   ApplyMoves): the moved faces' labels and the changed clusters' sizes
+//                   and sums written into the PML's buffers (scatter, pml_bb.glsl), and
+//                   those clusters' proxies fitted again
+//   "pml bb edges"  after a level with moves: the directed cluster edges rebuilt from
+//                   every directed face edge and the labels (pml_compact.glsl, kind 2),
+//                   since a move can turn an inner face edge into a boundary one
+// Memory for BB (PmlBoundaryMemoryBound), bytes per face: 24 (the face edges, kept) + 12
+// (neighbours) + 32 (point and mass) + 32 (proxies) + 8 (proposals) = 108, plus 56 per
+// change slot (kPmlBbChangeChunk at most: label change 8, cluster id and size 8, sums
+// 40): about 108 MB for 10^6 faces, with PmlLevelsMemoryBound's 166 about 274.
 #ifndef MLCLUST_GPU_KERNELS_PML_LEVELS_H_
 #define MLCLUST_GPU_KERNELS_PML_LEVELS_H_
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <utility>
@@ -45,6 +66,7 @@
 #include "core/mesh/mesh.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
+#include "gpu/kernels/bb_decide.h"
 
 namespace mlclust::gpu {
 
@@ -65,6 +87,23 @@ struct PmlLevelGpu {
 // edges (at most 3 * num_faces).
 uint64_t PmlLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges);
 
+// Changes (moved faces, changed clusters) one "pml bb apply" dispatch writes at most; more
+// go in several.
+inline constexpr uint32_t kPmlBbChangeChunk = 65536;
+
+// The bytes EnableBoundaryOptimisation adds, for `num_faces` faces and `num_edges`
+// directed face edges.
+uint64_t PmlBoundaryMemoryBound(uint64_t num_faces, uint64_t num_edges);
+
+// A face to move: (face, cluster).
+using PmlFaceMove = std::array<uint32_t, 2>;
+// A cluster's new size and sums after moves.
+struct PmlClusterChange {
+  uint32_t cluster = 0;
+  uint32_t size = 0;
+  CvdSums sums;
+};
+
 class PmlLevelsGpu {
  public:
   // Uploads one cluster per face (face_sums[f], CvdEnergy::face_sums) and the directed
@@ -83,6 +122,30 @@ class PmlLevelsGpu {
 
   // The current labels (downloaded; for tests).
   absl::StatusOr<std::vector<uint32_t>> Labels();
+
+  // ---- Alg. 5.7: BB sweeps between the levels (see the top of this file) ---------------
+
+  // Uploads what the BB passes need: `adjacency` must be Create's, `faces` one point and
+  // mass per face (ProxyPointForm<CvdEnergy>::Face). Errors as Create, named "pml bb
+  // decide".
+  absl::Status EnableBoundaryOptimisation(const FaceAdjacency& adjacency,
+                                          std::span<const PointAndWeight> faces);
+
+  // One decide over every face against proxies fitted to the clusters' current sums:
+  // `proposals` becomes the faces that want to move and where (each face at most once, in
+  // no particular order). FAILED_PRECONDITION before EnableBoundaryOptimisation; errors
+  // name "pml bb decide".
+  absl::Status Decide(std::vector<PmlFaceMove>& proposals);
+
+  // Writes moves made on the host into the GPU's state: labels[face] = cluster for each
+  // move, and each changed cluster's size and sums (which the host computed). Errors name
+  // "pml bb apply".
+  absl::Status ApplyMoves(std::span<const PmlFaceMove> moves,
+                          std::span<const PmlClusterChange> clusters);
+
+  // After moves: the directed cluster edges again from every directed face edge and the
+  // labels. Errors name "pml bb edges".
+  absl::Status RebuildEdges();
 
  private:
   enum Binding : uint32_t {
@@ -106,6 +169,19 @@ class PmlLevelsGpu {
   struct Programs {
     uint32_t ode = 0, pairs = 0, merge = 0, compact = 0;
   };
+  // EnableBoundaryOptimisation's buffers (bindings are set per pass).
+  enum BoundaryBuffer : uint32_t {
+    kFaceEdges,
+    kNeighbours,
+    kFacePoints,
+    kProxies,
+    kProposals,
+    kProposalCount,
+    kLabelChanges,
+    kClusterChanges,
+    kClusterSums,
+    kBoundaryBuffers
+  };
 
   PmlLevelsGpu(GlContext& context, uint32_t num_faces, uint32_t num_edges, Programs programs,
                std::vector<StorageBuffer> buffers)
@@ -127,6 +203,15 @@ class PmlLevelsGpu {
   uint32_t num_edges_;  // directed cluster edges in kEdgesIn
   Programs programs_;
   std::vector<StorageBuffer> buffers_;
+  // BB (EnableBoundaryOptimisation): its buffers, the directed face edges and programs.
+  std::vector<StorageBuffer> bb_buffers_;
+  uint32_t num_face_edges_ = 0;
+  uint32_t bb_program_ = 0, decide_program_ = 0;
+  // Whether the proxies on the GPU are those of the current sums (Level's merges change
+  // sums; ApplyMoves fits the changed clusters' proxies again).
+  bool proxies_current_ = false;
+  std::vector<uint32_t> change_words_;
+  std::vector<double> change_sums_;
 };
 
 }  // namespace mlclust::gpu

@@ -114,29 +114,13 @@ std::array<uint8_t, 3> PaletteColour(uint32_t i) {
   const double p = value * (1 - saturation);
   const double q = value * (1 - saturation * fraction);
   const double t = value * (1 - saturation * (1 - fraction));
-  double r = value, g = t, b = p;
-  switch (sector) {
-    case 0:
-      r = value, g = t, b = p;
-      break;
-    case 1:
-      r = q, g = value, b = p;
-      break;
-    case 2:
-      r = p, g = value, b = t;
-      break;
-    case 3:
-      r = p, g = q, b = value;
-      break;
-    case 4:
-      r = t, g = p, b = value;
-      break;
-    default:
-      r = value, g = p, b = q;
-      break;
-  }
+  // HSV to RGB: per sector, (r, g, b) as indices into {value, p, q, t}.
+  static constexpr int kSectorChannels[6][3] = {{0, 3, 1}, {2, 0, 1}, {1, 0, 3},
+                                                {1, 2, 0}, {3, 1, 0}, {0, 1, 2}};
+  const double channel[4] = {value, p, q, t};
+  const int* rgb = kSectorChannels[sector];
   const auto byte = [](double x) { return static_cast<uint8_t>(std::lround(x * 255.0)); };
-  return {byte(r), byte(g), byte(b)};
+  return {byte(channel[rgb[0]]), byte(channel[rgb[1]]), byte(channel[rgb[2]])};
 }
 
 double SquaredColourDistance(const std::array<uint8_t, 3>& a, const std::array<uint8_t, 3>& b) {
@@ -225,28 +209,11 @@ Camera FitCamera(const TriangleMesh& mesh, const ClusterPreviewOptions& options)
   return camera;
 }
 
-std::string ShaderLog(const detail::GlFunctions& gl, GLuint shader) {
-  GLint length = 0;
-  gl.GetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
-  std::string log(std::max(length, 1), '\0');
-  gl.GetShaderInfoLog(shader, length, nullptr, log.data());
-  log.resize(std::max(length, 1) - 1);
-  return log;
-}
-
 absl::StatusOr<GLuint> CompileStage(const detail::GlFunctions& gl, GLenum stage, const char* source,
                                     const char* what) {
   const GLuint shader = gl.CreateShader(stage);
   if (shader == 0) return absl::InternalError(absl::StrCat("preview: glCreateShader(", what, ")"));
-  gl.ShaderSource(shader, 1, &source, nullptr);
-  gl.CompileShader(shader);
-  GLint compiled = GL_FALSE;
-  gl.GetShaderiv(shader, GL_COMPILE_STATUS, &compiled);
-  if (compiled != GL_TRUE) {
-    std::string log = ShaderLog(gl, shader);
-    gl.DeleteShader(shader);
-    return absl::InternalError(absl::StrCat("preview: ", what, " shader does not compile: ", log));
-  }
+  MLCLUST_RETURN_IF_ERROR(CompileShaderSource(gl, shader, source, absl::StrCat("preview: ", what)));
   return shader;
 }
 
@@ -271,16 +238,7 @@ absl::StatusOr<GLuint> PreviewProgram(GlContext& context) {
   gl.DetachShader(program, *fragment);
   gl.DeleteShader(vertex);
   gl.DeleteShader(*fragment);
-  GLint linked = GL_FALSE;
-  gl.GetProgramiv(program, GL_LINK_STATUS, &linked);
-  if (linked != GL_TRUE) {
-    GLint length = 0;
-    gl.GetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
-    std::string log(std::max(length, 1), '\0');
-    gl.GetProgramInfoLog(program, length, nullptr, log.data());
-    gl.DeleteProgram(program);
-    return absl::InternalError(absl::StrCat("preview: the program does not link: ", log));
-  }
+  MLCLUST_RETURN_IF_ERROR(CheckProgramLinked(gl, program, "preview: the program"));
   cache.emplace(kProgramName, program);
   return program;
 }

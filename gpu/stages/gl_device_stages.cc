@@ -3,8 +3,10 @@
 #include <utility>
 
 #include "gpu/stages/boundary_based_gpu.h"
+#include "gpu/stages/hierarchy_gpu.h"
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
+#include "gpu/stages/points_multilevel_gpu.h"
 
 namespace mlclust::gpu {
 
@@ -30,6 +32,17 @@ absl::StatusOr<MultilevelSummary> GlDeviceStages::RunMultilevel(const MeshProble
                                                                 const MultilevelOptions& options,
                                                                 LevelSink& sink) {
   return RunParallelMultilevelGpu(context_, problem, options, sink);
+}
+
+absl::StatusOr<MultilevelSummary> GlDeviceStages::RunHierarchy(const MeshProblem& problem,
+                                                               const MultilevelOptions& options,
+                                                               LevelSink& sink) {
+  return RunHierarchyGpu(context_, problem, options, sink);
+}
+
+absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
+    const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
+  return RunPointParallelMultilevelGpu(context_, points, options, sink);
 }
 
 }  // namespace mlclust::gpu

@@ -25,6 +25,13 @@ class GlDeviceStages : public DeviceStages {
   absl::StatusOr<MultilevelSummary> RunMultilevel(const MeshProblem& problem,
                                                   const MultilevelOptions& options,
                                                   LevelSink& sink) override;
+  absl::StatusOr<MultilevelSummary> RunHierarchy(const MeshProblem& problem,
+                                                 const MultilevelOptions& options,
+                                                 LevelSink& sink) override;
+
+  absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink) override;
 
  private:
   GlContext& context_;

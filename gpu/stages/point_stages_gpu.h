@@ -24,17 +24,12 @@ absl::StatusOr<LnKmeansResult> RunLnKmeansGpu(GlContext& context, const PointSet
                                               std::vector<ClusterId> labels,
                                               const LnKmeansOptions& options = {});
 
-// Lloyd's iterations from `centres` (k x d) as RunLloyd (core/cluster/kmeans.h) with the
-// assignment on the GPU (pass "kmeans assign": nearest centre in fp32). The rest on the
-// CPU in fp64, with RunLloyd's rules: a point leaves its cluster only where that lowers
-// its distance in double (the energy never rises), an empty cluster takes the point
-// farthest from its centre among clusters of more than one point (ties to the smaller
-// id), stop after options.max_iterations, an iteration that moved no point, or a centre
-// shift <= options.tolerance x the mean variance. Not bit-identical with RunLloyd, whose
-// float kernel may break near-ties otherwise; inertia agrees within 0.5% (tested).
-// The host's O(m d) work runs on options.threads threads (0: all), in blocks whose sums
-// are added in order (the result does not depend on the thread count). Errors as RunLloyd, plus the
-// GPU's, named by pass.
+// Lloyd's iterations from `centres` (k x d): RunLloyd (core/cluster/kmeans.h) with the
+// assignment on the GPU (pass "kmeans assign": nearest centre in fp32). Everything after the
+// assignment is RunLloyd's own loop (core/cluster/detail/lloyd.h), so its rules hold and
+// where the GPU proposes the same nearest centres as the CPU's float kernel the result is
+// RunLloyd's bit for bit; the two kernels may break near-ties otherwise (inertia agrees
+// within 0.5%, tested). Errors as RunLloyd, plus the GPU's, named by pass.
 absl::StatusOr<KmeansResult> RunLloydGpu(GlContext& context, const PointSet& points,
                                          std::vector<float> centres, const KmeansOptions& options);
 

@@ -64,13 +64,17 @@ class ProgressTest(ServedTestCase):
         self.assertEqual(cluster[-1], 1.0)
         return progress
 
+    def run_mesh_job(self, spec, method):
+        """Runs `spec` on the mesh encoded with Draco's `method`, checks its progress
+        events; returns them and the job's Accepted."""
+        events = self.run_job(spec, self.mesh_payload(method))
+        return self.check_progress(events), events[0].accepted
+
     def test_mesh_hierarchy_fraction_and_decoded_order(self):
         spec = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_HC)
-        events = self.run_job(spec, self.mesh_payload("sequential"))
-        progress = self.check_progress(events)
+        progress, accepted = self.run_mesh_job(spec, "sequential")
         measures = [p for p in progress if p.stage == "measures"]
         self.assertEqual(measures[-1].fraction, 1.0)
-        accepted = events[0].accepted
         self.assertFalse(accepted.face_ids)
         self.assertEqual(accepted.draco_method, "sequential")
         self.assertIn("decoded face order", accepted.face_order)
@@ -78,9 +82,7 @@ class ProgressTest(ServedTestCase):
     def test_mesh_single_level_with_face_ids(self):
         spec = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_EMLO,
                           clusters=20)
-        events = self.run_job(spec, self.mesh_payload("edgebreaker"))
-        self.check_progress(events)
-        accepted = events[0].accepted
+        _, accepted = self.run_mesh_job(spec, "edgebreaker")
         self.assertTrue(accepted.face_ids)
         self.assertEqual(accepted.draco_method, "edgebreaker")
         self.assertIn("mlclust_face_id", accepted.face_order)

@@ -64,6 +64,57 @@ done
 if "$mlclust" mesh "$data/fandisk.off" --bogus 1 2> "$work/opt.err"; then fail "--bogus accepted"; fi
 grep -q "unknown option --bogus" "$work/opt.err" || fail "no message for --bogus"
 if "$mlclust" mesh "$work/missing.off" --quiet 2> /dev/null; then fail "missing file accepted"; fi
+# The parser (CLI11): a bad flag is named, with exit 2.
+expect_bad_flag() {  # expect_bad_flag TEXT ARGS...: exit 2 and TEXT on stderr
+  local text=$1 code=0
+  shift
+  "$mlclust" "$@" > /dev/null 2> "$work/flag.err" || code=$?
+  [ "$code" -eq 2 ] || fail "$*: exit $code, not 2: $(cat "$work/flag.err")"
+  grep -q -- "$text" "$work/flag.err" || fail "$*: no '$text' in: $(cat "$work/flag.err")"
+}
+expect_bad_flag "unknown option --bogus" mesh "$data/fandisk.off" --bogus 1
+expect_bad_flag "unknown option --bogus" mesh "$data/fandisk.off" --bogus=1
+expect_bad_flag "unknown option -x" points "$work/missing.csv" -x
+expect_bad_flag "unknown option --kmax" mesh "$data/fandisk.off" --kmax 3   # a points option
+expect_bad_flag "unknown option --listen" stats --server 127.0.0.1:1 --listen 1
+expect_bad_flag "deadline needs a value" jobs --server 127.0.0.1:1 --deadline
+expect_bad_flag "clusters needs a value" mesh "$data/fandisk.off" -k
+expect_bad_flag "quiet" mesh "$data/fandisk.off" --quiet=yes
+expect_bad_flag "unknown option --bogus" serve --bogus 1
+expect_bad_flag "serve: unexpected argument 'extra'" serve extra
+expect_bad_flag "no command 'bogus'" help bogus
+# A flag given twice: the last one counts (-k 5 then --clusters 30).
+"$mlclust" mesh "$data/fandisk.off" --algo hc -k 5 --clusters 30 -o "$work/twice.labels" -q \
+  > /dev/null || fail "a flag given twice"
+[ "$(sort -un "$work/twice.labels" | wc -l)" -eq 30 ] || fail "-k 5 --clusters 30: not 30 clusters"
+# --help of every command; what a command's help lists is what it parses, and every option
+# of the registry (`info --json`) is listed and parsed by mesh or points, so the three
+# cannot drift.
+"$mlclust" info --json > "$work/registry.json"
+for command in serve mesh points energy stats info watch cancel jobs; do
+  "$mlclust" "$command" --help > "$work/$command.help" || fail "$command --help failed"
+  "$mlclust" "$command" -h | cmp -s - "$work/$command.help" || fail "$command -h differs from --help"
+  "$mlclust" help "$command" | cmp -s - "$work/$command.help" || fail "help $command differs"
+  sed -n 's/^ *\(-[a-z], \)\{0,1\}--\([a-z0-9-]*\).*/\2/p' "$work/$command.help" | sort -u \
+    > "$work/$command.flags"
+  [ "$(wc -l < "$work/$command.flags")" -ge 2 ] || fail "$command --help: no flags listed"
+  while read -r flag; do
+    [ "$flag" = help ] && continue
+    # A flag no command has follows, so nothing runs: the parser names the first it does not
+    # know, which must be that one.
+    expect_bad_flag "unknown option --zz-none" "$command" "--$flag" x --zz-none
+  done < "$work/$command.flags"
+done
+/usr/bin/python3 -c '
+import json, sys
+info = json.load(open(sys.argv[1]))
+for kind, command in (("INPUT_KIND_DRACO_MESH", "mesh"), ("INPUT_KIND_POINTS_F32", "points")):
+    listed = set(open(sys.argv[2] + "/" + command + ".flags").read().split())
+    for algorithm in info["algorithms"]:
+        if algorithm["input_kind"] != kind: continue
+        for option in algorithm["options"]:
+            assert option["name"] in listed, (command, algorithm["name"], option["name"])
+' "$work/registry.json" "$work" || fail "a registry option is missing from mesh or points --help"
 
 # A CLI that behaves: help per command, --version, short flags, JSON, plain connection errors.
 "$mlclust" mesh --help > "$work/help.txt" || fail "mesh --help failed"

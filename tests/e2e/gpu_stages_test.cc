@@ -15,54 +15,18 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
-
-class GpuStagesTest : public ::testing::Test {
+class GpuStagesTest : public testing::GpuServerTest {
  protected:
-  void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    options.gpu = server::GpuMode::kOn;  // llvmpipe at least: the build has MLCLUST_WITH_GPU
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
-    ASSERT_TRUE(mesh.ok()) << mesh.status();
-    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(*mesh);
-    ASSERT_TRUE(bytes.ok()) << bytes.status();
-    fandisk_ = *std::move(bytes);
-  }
-  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
-
   static v1::JobSpec BbSpec(const std::string& device) {
-    v1::JobSpec spec;
-    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-    spec.set_algorithm(v1::ALGORITHM_BB);
-    spec.set_energy(v1::ENERGY_CVD);
-    spec.set_clusters(100);
+    v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_BB, 100);
     spec.set_device(device);
     return spec;
   }
-
-  // Runs a job and keeps its progress events.
-  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
-                                        std::vector<v1::Progress>* progress = nullptr) {
-    client::RunOptions options;
-    options.on_event = [progress](const v1::JobEvent& event) {
-      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
-    };
-    return client::RunJob(channel_, spec, fandisk_, options);
-  }
-
-  std::unique_ptr<server::Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::string fandisk_;
 };
 
 TEST_F(GpuStagesTest, BbWithDeviceGpuRunsTheDecideStageOnTheGlContext) {
@@ -95,16 +59,11 @@ TEST_F(GpuStagesTest, BbWithDeviceGpuRunsTheDecideStageOnTheGlContext) {
 }
 
 TEST_F(GpuStagesTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
-  ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", "bb decide", 1), 0);
-  absl::StatusOr<client::JobResult> failed = Run(BbSpec("gpu"));
-  EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal);
-  EXPECT_THAT(failed.status().message(), HasSubstr("GPU pass 'bb decide'"));
+  ExpectFailsInPass(BbSpec("gpu"), "bb decide");
   // A CPU job is untouched by the hook; after it is cleared the GPU serves again.
   absl::StatusOr<client::JobResult> cpu = Run(BbSpec("cpu"));
   EXPECT_TRUE(cpu.ok()) << cpu.status();
-  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(BbSpec("gpu"));
-  EXPECT_TRUE(gpu.ok()) << gpu.status();
+  ExpectRunsWithTheHookCleared(BbSpec("gpu"));
 }
 
 // Points around 20 centres, as float32 bytes (the wire's layout).

@@ -19,46 +19,23 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
 
-std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
-  options.gpu = server::GpuMode::kOff;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-  EXPECT_TRUE(started.ok()) << started.status();
-  return started.ok() ? *std::move(started) : nullptr;
-}
+using testing::ChannelTo;
+using testing::ExpectSameHierarchy;
 
-std::shared_ptr<grpc::Channel> ChannelTo(const server::Server& server) {
-  return client::Connect(absl::StrCat("127.0.0.1:", server.port()));
+std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
+  options.gpu = server::GpuMode::kOff;
+  return testing::StartServer(std::move(options));
 }
 
 v1::JobSpec MeshSpec(v1::Algorithm algorithm, uint32_t clusters = 0) {
-  v1::JobSpec spec;
-  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-  spec.set_algorithm(algorithm);
-  spec.set_energy(v1::ENERGY_CVD);
-  spec.set_clusters(clusters);
-  spec.set_label("jobs_test");
-  return spec;
-}
-
-// Levels [from, from + b.num_levels()) of `a` equal the levels of `b`.
-void ExpectSameLevels(const HierarchyLog& a, const HierarchyLog& b, size_t from = 0) {
-  ASSERT_EQ(a.num_elements(), b.num_elements());
-  ASSERT_EQ(a.num_levels(), from + b.num_levels());
-  for (size_t level = 0; level < b.num_levels(); ++level) {
-    ASSERT_EQ(a.cluster_count(from + level), b.cluster_count(level)) << "level " << level;
-    ASSERT_EQ(a.energy(from + level), b.energy(level)) << "level " << level;
-  }
-  for (size_t level : {size_t{0}, b.num_levels() / 2, b.num_levels() - 1}) {
-    EXPECT_EQ(*a.LabelsAt(from + level), *b.LabelsAt(level)) << "level " << level;
-  }
+  return testing::MeshSpec(algorithm, clusters, "jobs_test");
 }
 
 v1::JobList List(const std::shared_ptr<grpc::Channel>& channel) {
@@ -113,10 +90,10 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   second.join();
   ASSERT_TRUE(whole.ok()) << whole.status();
   ASSERT_TRUE(middle.ok()) << middle.status();
-  ExpectSameLevels(attached->hierarchy, whole->hierarchy);
+  ExpectSameHierarchy(attached->hierarchy, whole->hierarchy);
   EXPECT_EQ(whole->first_level, 0u);
   EXPECT_EQ(middle->first_level, 3000u);
-  ExpectSameLevels(attached->hierarchy, middle->hierarchy, 3000);
+  ExpectSameHierarchy(attached->hierarchy, middle->hierarchy, 3000);
   EXPECT_EQ(whole->done.levels(), attached->done.levels());
   EXPECT_EQ(whole->done.triplets(), attached->done.triplets());
 
@@ -129,7 +106,7 @@ TEST(DetachTest, WatchersFromAnyLevelSeeTheLevelsOfAnAttachedRun) {
   };
   absl::StatusOr<client::JobResult> again = client::WatchJob(channel, accepted->job_id(), capture);
   ASSERT_TRUE(again.ok()) << again.status();
-  ExpectSameLevels(attached->hierarchy, again->hierarchy);
+  ExpectSameHierarchy(attached->hierarchy, again->hierarchy);
   EXPECT_EQ(header.job_id(), accepted->job_id());
   EXPECT_TRUE(header.detached());
   EXPECT_FALSE(accepted->draco_method().empty());
@@ -191,7 +168,7 @@ TEST(DetachTest, AWatchStartedWhileTheJobIsQueuedFollowsItToTheEnd) {
   };
   absl::StatusOr<client::JobResult> result = client::WatchJob(channel, watched->job_id(), options);
   ASSERT_TRUE(result.ok()) << result.status();
-  ExpectSameLevels(solo->hierarchy, result->hierarchy);
+  ExpectSameHierarchy(solo->hierarchy, result->hierarchy);
   EXPECT_FALSE(stages.empty());  // it saw the job's progress while waiting for levels
 }
 
@@ -414,12 +391,12 @@ TEST(DetachTest, AnAttachedJobCanBeWatchedWhileItRunsAndAfter) {
   EXPECT_EQ(header.job_id(), id);
   EXPECT_FALSE(header.detached());
   EXPECT_EQ(during->first_level, 70000u);
-  ExpectSameLevels(attached->hierarchy, during->hierarchy, 70000);
+  ExpectSameHierarchy(attached->hierarchy, during->hierarchy, 70000);
   EXPECT_EQ(during->done.levels(), attached->done.levels());
   // After it ended, from the start: every level again.
   absl::StatusOr<client::JobResult> after = client::WatchJob(channel, id);
   ASSERT_TRUE(after.ok()) << after.status();
-  ExpectSameLevels(attached->hierarchy, after->hierarchy);
+  ExpectSameHierarchy(attached->hierarchy, after->hierarchy);
   const v1::JobList list = List(channel);
   const v1::JobSummary* summary = FindJob(list, id);
   ASSERT_NE(summary, nullptr);
@@ -500,7 +477,7 @@ TEST(DetachTest, ManyWatchersOfARunningJobAllSeeTheSameLevels) {
       continue;
     }
     ASSERT_TRUE(results[i].ok()) << i << ": " << results[i].status();
-    ExpectSameLevels(solo->hierarchy, results[i]->hierarchy, results[i]->first_level);
+    ExpectSameHierarchy(solo->hierarchy, results[i]->hierarchy, results[i]->first_level);
     ++complete;
   }
   EXPECT_GE(complete, 9);
@@ -654,7 +631,7 @@ TEST(DetachTest, WatchJobResumesAfterTheConnectionBreaks) {
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(resumes, 1);
   EXPECT_EQ(proxy.connections(), 2);
-  ExpectSameLevels(solo->hierarchy, result->hierarchy);
+  ExpectSameHierarchy(solo->hierarchy, result->hierarchy);
   EXPECT_EQ(result->hierarchy.num_moves(), solo->hierarchy.num_moves());
 }
 

@@ -62,11 +62,17 @@ v1::JobSpec MeshSpec(v1::Algorithm algorithm) {
   return spec;
 }
 
-TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
+// A server on free loopback ports for gRPC and the metrics, with `gpu`.
+server::ServerOptions WithMetrics(server::GpuMode gpu) {
   server::ServerOptions options;
   options.listen_address = "127.0.0.1:0";
   options.metrics_address = "127.0.0.1:0";
-  options.gpu = server::GpuMode::kOff;
+  options.gpu = gpu;
+  return options;
+}
+
+TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
+  server::ServerOptions options = WithMetrics(server::GpuMode::kOff);
   options.log_json = true;
   ::testing::internal::CaptureStderr();
   absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
@@ -142,10 +148,7 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
 // and after a job with a GPU stage, in the metrics and in Stats; the device's total and free
 // memory only where the driver exposes them (not on llvmpipe: those lines are absent).
 TEST(MetricsTest, GpuMemoryOfTheGlContextAndTheDeviceWhereExposed) {
-  server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.metrics_address = "127.0.0.1:0";
-  options.gpu = server::GpuMode::kAuto;
+  server::ServerOptions options = WithMetrics(server::GpuMode::kAuto);
   options.log = false;
   absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
   ASSERT_TRUE(started.ok()) << started.status();

@@ -1,9 +1,10 @@
 // End-to-end: PML's levels on the GPU through the server (llvmpipe where there is no GPU).
 // --device gpu --algo pml with optimizer none runs the levels on the GL context
 // (gpu/stages/multilevel_gpu.h), names the renderer in the cluster stage's events and in
-// Done, and streams the CPU's levels; with an optimiser (not on the GPU) the cluster stage
-// stays on the CPU and says so; a GL failure injected into a PML pass is a clean job
-// error and the server keeps serving.
+// Done, and streams the CPU's levels; with optimizer bb (Alg. 5.7) the levels and their BB
+// sweeps run there too; with EMLO (not on the GPU) the cluster stage stays on the CPU and
+// says so; a GL failure injected into a PML pass is a clean job error and the server keeps
+// serving.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -17,64 +18,21 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
-
-class PmlGpuTest : public ::testing::Test {
+class PmlGpuTest : public testing::GpuServerTest {
  protected:
-  void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    options.gpu = server::GpuMode::kOn;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
-    ASSERT_TRUE(mesh.ok()) << mesh.status();
-    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(*mesh);
-    ASSERT_TRUE(bytes.ok()) << bytes.status();
-    fandisk_ = *std::move(bytes);
-  }
-  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
-
   static v1::JobSpec PmlSpec(const std::string& device, const std::string& optimizer) {
-    v1::JobSpec spec;
-    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-    spec.set_algorithm(v1::ALGORITHM_PML);
-    spec.set_energy(v1::ENERGY_CVD);
-    spec.set_clusters(20);
+    v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_PML, 20);
     spec.set_device(device);
     (*spec.mutable_options())["optimizer"] = optimizer;
     (*spec.mutable_options())["pml-pairs"] = "all";
     return spec;
   }
-
-  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
-                                        std::vector<v1::Progress>* progress = nullptr) {
-    client::RunOptions options;
-    options.on_event = [progress](const v1::JobEvent& event) {
-      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
-    };
-    return client::RunJob(channel_, spec, fandisk_, options);
-  }
-
-  std::unique_ptr<server::Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::string fandisk_;
 };
-
-std::string ClusterDevice(const std::vector<v1::Progress>& progress) {
-  std::string device = "none";
-  for (const v1::Progress& p : progress) {
-    if (p.stage() == "cluster") device = p.device();
-  }
-  return device;
-}
 
 TEST_F(PmlGpuTest, DeviceGpuRunsThePmlLevelsOnTheGlContext) {
   const std::string renderer = server_->gl_renderer();
@@ -107,8 +65,8 @@ TEST_F(PmlGpuTest, DeviceGpuRunsThePmlLevelsOnTheGlContext) {
   EXPECT_EQ(gpu->hierarchy.cluster_count(gpu->hierarchy.num_levels() - 1), 20u);
 }
 
-// The GPU has no local optimisation for PML: with EMLO the levels stay on the CPU (chosen
-// at plan time and named in the events), even with device gpu.
+// The GPU has no EMLO for PML: with EMLO the levels stay on the CPU (chosen at plan time
+// and named in the events), even with device gpu.
 TEST_F(PmlGpuTest, WithAnOptimiserTheLevelsStayOnTheCpu) {
   std::vector<v1::Progress> progress;
   absl::StatusOr<client::JobResult> result = Run(PmlSpec("gpu", "emlo"), &progress);
@@ -117,14 +75,48 @@ TEST_F(PmlGpuTest, WithAnOptimiserTheLevelsStayOnTheCpu) {
 }
 
 TEST_F(PmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
-  for (const char* pass : {"pml odes", "pml triplets"}) {
+  for (const char* pass : {"pml odes", "pml triplets"})
+    ExpectFailsInPass(PmlSpec("gpu", "none"), pass);
+  ExpectRunsWithTheHookCleared(PmlSpec("gpu", "none"));
+}
+
+// Alg. 5.7: with optimizer bb the levels and their BB sweeps run on the GL context (named
+// in the events and Done); every level replays from the triplets, ends at the asked count,
+// and the last level's energy is near the CPU engine's PML with BB (whose sweeps differ).
+TEST_F(PmlGpuTest, OptimizerBbRunsOnTheGlContext) {
+  const std::string renderer = server_->gl_renderer();
+  std::vector<v1::Progress> progress;
+  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"), &progress);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_EQ(ClusterDevice(progress), renderer);
+  EXPECT_EQ(gpu->done.device(), renderer);
+  absl::StatusOr<client::JobResult> cpu = Run(PmlSpec("cpu", "bb"));
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  const size_t levels = gpu->hierarchy.num_levels();
+  ASSERT_GT(levels, 10u);
+  std::vector<ClusterId> labels(gpu->hierarchy.start_labels().begin(),
+                                gpu->hierarchy.start_labels().end());
+  for (size_t l = 1; l < levels; ++l) {
+    ASSERT_TRUE(gpu->hierarchy.StepLabels(labels, l - 1, l).ok()) << "level " << l;
+    EXPECT_LT(gpu->hierarchy.cluster_count(l), gpu->hierarchy.cluster_count(l - 1));
+  }
+  EXPECT_EQ(gpu->hierarchy.cluster_count(levels - 1), 20u);
+  const size_t cpu_last = cpu->hierarchy.num_levels() - 1;
+  EXPECT_EQ(cpu->hierarchy.cluster_count(cpu_last), 20u);
+  EXPECT_NEAR(gpu->hierarchy.energy(levels - 1), cpu->hierarchy.energy(cpu_last),
+              0.05 * cpu->hierarchy.energy(cpu_last));
+}
+
+TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
+  for (const char* pass : {"pml bb decide", "pml bb apply"}) {
     ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
-    absl::StatusOr<client::JobResult> failed = Run(PmlSpec("gpu", "none"));
+    absl::StatusOr<client::JobResult> failed = Run(PmlSpec("gpu", "bb"));
     EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+    EXPECT_THAT(failed.status().message(),
+                ::testing::HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
   }
   ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "none"));
+  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"));
   EXPECT_TRUE(gpu.ok()) << gpu.status();
 }
 

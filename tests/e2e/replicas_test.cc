@@ -19,45 +19,35 @@
 #include "core/io/draco_codec.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
 
+using testing::AddressOf;
+using testing::ExpectSameHierarchy;
+
 std::unique_ptr<server::Server> StartServer() {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.gpu = server::GpuMode::kOff;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-  EXPECT_TRUE(started.ok()) << started.status();
-  return started.ok() ? *std::move(started) : nullptr;
+  return testing::StartServer(options);
 }
 
-std::string AddressOf(const server::Server& server) {
-  return absl::StrCat("127.0.0.1:", server.port());
-}
+v1::JobSpec MeshSpec() { return testing::MeshSpec(v1::ALGORITHM_ML, 0, "replicas_test"); }
 
-v1::JobSpec MeshSpec() {
-  v1::JobSpec spec;
-  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-  spec.set_algorithm(v1::ALGORITHM_ML);
-  spec.set_energy(v1::ENERGY_CVD);
-  spec.set_label("replicas_test");
-  return spec;
-}
-
-void ExpectSameLevels(const HierarchyLog& a, const HierarchyLog& b) {
-  ASSERT_EQ(a.num_elements(), b.num_elements());
-  ASSERT_EQ(a.num_levels(), b.num_levels());
-  for (size_t level = 0; level < b.num_levels(); ++level) {
-    ASSERT_EQ(a.cluster_count(level), b.cluster_count(level)) << "level " << level;
-    ASSERT_EQ(a.energy(level), b.energy(level)) << "level " << level;
-  }
-  for (size_t level : {size_t{0}, b.num_levels() / 2, b.num_levels() - 1}) {
-    EXPECT_EQ(*a.LabelsAt(level), *b.LabelsAt(level)) << "level " << level;
-  }
+// A TCP socket `fd` listening on 127.0.0.1 at a free `port`, with `backlog`.
+void ListenOnLoopback(int backlog, int& fd, int& port) {
+  fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
+  ASSERT_EQ(listen(fd, backlog), 0);
+  socklen_t length = sizeof(address);
+  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+  port = ntohs(address.sin_port);
 }
 
 // A port that accepts TCP connections and closes them at once (a replica dying as each
@@ -65,15 +55,7 @@ void ExpectSameLevels(const HierarchyLog& a, const HierarchyLog& b) {
 class ClosingListener {
  public:
   ClosingListener() {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-    EXPECT_EQ(listen(fd_, 64), 0);
-    socklen_t length = sizeof(address);
-    getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &length);
-    port_ = ntohs(address.sin_port);
+    ListenOnLoopback(64, fd_, port_);
     thread_ = std::thread([this] {
       while (!stop_) {
         const int connection = accept(fd_, nullptr, nullptr);
@@ -163,7 +145,7 @@ TEST(ReplicasTest, EveryJobFinishesWithASoloRunsLevelsWhenReplicasAreGone) {
   EXPECT_EQ(used, AddressOf(*a));
   EXPECT_EQ(retried, (std::vector<std::string>{replicas[0], replicas[1]}));
   EXPECT_GT(closing.accepted(), 0);
-  ExpectSameLevels(result->hierarchy, solo->hierarchy);
+  ExpectSameHierarchy(result->hierarchy, solo->hierarchy);
 
   // A batch at once, the least loaded first: every job finishes, on the live replicas.
   constexpr int kJobs = 6;
@@ -179,7 +161,7 @@ TEST(ReplicasTest, EveryJobFinishesWithASoloRunsLevelsWhenReplicasAreGone) {
   for (int i = 0; i < kJobs; ++i) {
     ASSERT_TRUE(results[i].ok()) << results[i].status();
     EXPECT_TRUE(where[i] == AddressOf(*a) || where[i] == AddressOf(*c)) << where[i];
-    ExpectSameLevels(results[i]->hierarchy, solo->hierarchy);
+    ExpectSameHierarchy(results[i]->hierarchy, solo->hierarchy);
   }
 
   // No replica left: UNAVAILABLE naming each.
@@ -194,15 +176,10 @@ TEST(ReplicasTest, ADeadlineHitOnOneReplicaEndsTheJobThere) {
   std::unique_ptr<server::Server> a = StartServer();
   ASSERT_TRUE(a);
   // A replica that never answers: the kernel completes the TCP handshake, nobody speaks.
-  const int silent = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(bind(silent, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-  ASSERT_EQ(listen(silent, 8), 0);
-  socklen_t length = sizeof(address);
-  getsockname(silent, reinterpret_cast<sockaddr*>(&address), &length);
-  const std::string silent_address = absl::StrCat("127.0.0.1:", ntohs(address.sin_port));
+  int silent = -1;
+  int silent_port = 0;
+  ASSERT_NO_FATAL_FAILURE(ListenOnLoopback(8, silent, silent_port));
+  const std::string silent_address = absl::StrCat("127.0.0.1:", silent_port);
 
   client::ReplicaOptions in_order;
   in_order.in_order = true;

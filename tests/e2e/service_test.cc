@@ -12,19 +12,16 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
 
-std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-  EXPECT_TRUE(started.ok()) << started.status();
-  return started.ok() ? *std::move(started) : nullptr;
-}
+using testing::ExpectSameHierarchy;
+using testing::MeshSpec;
+using testing::StartServer;
 
 std::shared_ptr<grpc::Channel> LimitedChannel(int port, int max_receive_bytes) {
   grpc::ChannelArguments arguments;
@@ -33,33 +30,12 @@ std::shared_ptr<grpc::Channel> LimitedChannel(int port, int max_receive_bytes) {
                                    grpc::InsecureChannelCredentials(), arguments);
 }
 
-v1::JobSpec MeshSpec(v1::Algorithm algorithm, uint32_t clusters = 0) {
-  v1::JobSpec spec;
-  spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-  spec.set_algorithm(algorithm);
-  spec.set_energy(v1::ENERGY_CVD);
-  spec.set_clusters(clusters);
-  return spec;
-}
-
 v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
   auto stub = v1::Clustering::NewStub(channel);
   grpc::ClientContext context;
   v1::Stats stats;
   EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
   return stats;
-}
-
-void ExpectSameHierarchy(const HierarchyLog& a, const HierarchyLog& b) {
-  ASSERT_EQ(a.num_levels(), b.num_levels());
-  ASSERT_EQ(a.num_moves(), b.num_moves());
-  for (size_t level = 0; level < a.num_levels(); ++level) {
-    ASSERT_EQ(a.cluster_count(level), b.cluster_count(level)) << "level " << level;
-    ASSERT_EQ(a.energy(level), b.energy(level)) << "level " << level;
-  }
-  for (size_t level : {size_t{0}, a.num_levels() / 2, a.num_levels() - 1}) {
-    EXPECT_EQ(*a.LabelsAt(level), *b.LabelsAt(level)) << "level " << level;
-  }
 }
 
 // Messages are split under the server's max_event_bytes (3 MiB by default, under gRPC's

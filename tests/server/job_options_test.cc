@@ -13,6 +13,7 @@
 #include "core/io/draco_codec.h"
 #include "server/job_runner.h"
 #include "server/wire_registry.h"
+#include "tests/fixtures/job_runs.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_points.h"
 
@@ -117,42 +118,9 @@ TEST(PlanWireJobTest, DefaultsAndOptions) {
   EXPECT_THAT(std::string(PlanWireJob(points).status().message()), HasSubstr("device"));
 }
 
-// Keeps the events of one job.
-class KeepingChannel : public EventChannel {
- public:
-  bool Emit(v1::JobEvent event) override {
-    events.push_back(std::move(event));
-    return true;
-  }
-  void Finish(v1::JobEvent, const grpc::Status&) override {}
-  bool cancelled() const override { return false; }
-  const std::atomic<bool>* cancel_flag() const override { return &never_cancelled_; }
-  std::vector<v1::JobEvent> events;
-
- private:
-  std::atomic<bool> never_cancelled_{false};
-};
-
-struct Outcome {
-  absl::StatusOr<JobOutcome> result;
-  std::vector<v1::JobEvent> events;
-};
-
-Outcome RunOne(const v1::JobSpec& spec, std::string input) {
-  auto channel = std::make_shared<KeepingChannel>();
-  Job job;
-  job.spec = spec;
-  job.input = std::move(input);
-  job.events = channel;
-  Outcome outcome{RunJob(job, JobRunnerContext{}), {}};
-  outcome.events = channel->events;
-  return outcome;
-}
-
-std::string CubeDraco() {
-  static const std::string* bytes = new std::string(*EncodeMeshToDraco(testing::MakeCube(4).mesh));
-  return *bytes;
-}
+using Outcome = testing::JobRun;
+using testing::CubeDraco;
+using testing::RunOne;
 
 std::string BlobBytes(const PointSet& points) {
   return std::string(reinterpret_cast<const char*>(points.values.data()),

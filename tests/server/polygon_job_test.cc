@@ -12,33 +12,14 @@
 #include "core/io/draco_codec.h"
 #include "server/job_options.h"
 #include "server/job_runner.h"
-#include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/job_runs.h"
 
 namespace mlclust::server {
 namespace {
 
 using ::testing::HasSubstr;
 
-class KeepingChannel : public EventChannel {
- public:
-  bool Emit(v1::JobEvent event) override {
-    events.push_back(std::move(event));
-    return true;
-  }
-  void Finish(v1::JobEvent, const grpc::Status&) override {}
-  bool cancelled() const override { return false; }
-  const std::atomic<bool>* cancel_flag() const override { return &never_cancelled_; }
-  std::vector<v1::JobEvent> events;
-
- private:
-  std::atomic<bool> never_cancelled_{false};
-};
-
-// The cube of 6 x 4 x 4 squares, two triangles each in square order: 96 polygons.
-const TriangleMesh& Cube() {
-  static const TriangleMesh* mesh = new TriangleMesh(testing::MakeCube(4).mesh);
-  return *mesh;
-}
+using testing::JobRun;
 
 v1::JobSpec PolygonSpec(v1::Algorithm algorithm, uint32_t clusters,
                         const std::vector<uint32_t>& counts) {
@@ -50,21 +31,8 @@ v1::JobSpec PolygonSpec(v1::Algorithm algorithm, uint32_t clusters,
   return spec;
 }
 
-struct JobRun {
-  absl::StatusOr<JobOutcome> result;
-  std::vector<v1::JobEvent> events;
-};
-
-JobRun RunOne(const v1::JobSpec& spec) {
-  auto channel = std::make_shared<KeepingChannel>();
-  Job job;
-  job.spec = spec;
-  job.input = *EncodeMeshToDraco(Cube());
-  job.events = channel;
-  JobRun run{RunJob(job, JobRunnerContext{}), {}};
-  run.events = channel->events;
-  return run;
-}
+// A job on the cube of 6 x 4 x 4 squares, two triangles each in square order: 96 polygons.
+JobRun RunOne(const v1::JobSpec& spec) { return testing::RunOne(spec, testing::CubeDraco()); }
 
 TEST(PolygonJobTest, PlanTakesPolygonsForTheCpuDriversOnly) {
   const std::vector<uint32_t> squares(96, 2);

@@ -42,27 +42,25 @@ std::vector<uint32_t> Values(std::span<const ClusterId> labels) {
 // 4 -> 3 -> 2 -> 2 clusters: element 1 joins 0, then 3 joins 2, then 2 moves to 0.
 const std::vector<Move> kMerges = {{3, 1, 0, 1}, {2, 3, 2, 3}, {2, 2, 0, 2}};
 
-TEST(PreviewLevelSinkTest, ExactCountIsKept) {
-  const PreviewLevelSink sink = Follow(3, kMerges);
-  EXPECT_EQ(sink.cluster_count(), 3u);
-  EXPECT_EQ(sink.level(), 1u);
-  EXPECT_EQ(Values(sink.labels()), (std::vector<uint32_t>{0, 0, 2, 3}));
+// The sink holds level `level`, of `count` clusters, with these labels.
+void ExpectHeld(const PreviewLevelSink& sink, uint32_t count, uint32_t level,
+                const std::vector<uint32_t>& labels) {
+  EXPECT_EQ(sink.cluster_count(), count);
+  EXPECT_EQ(sink.level(), level);
+  EXPECT_EQ(Values(sink.labels()), labels);
 }
+
+TEST(PreviewLevelSinkTest, ExactCountIsKept) { ExpectHeld(Follow(3, kMerges), 3, 1, {0, 0, 2, 3}); }
 
 TEST(PreviewLevelSinkTest, LastLevelWithTheExactCountWins) {
   // Two levels with 2 clusters: the second is drawn (a single-level algorithm's result
   // follows its seeding at the same K).
-  const PreviewLevelSink sink = Follow(2, kMerges);
-  EXPECT_EQ(sink.level(), 3u);
-  EXPECT_EQ(Values(sink.labels()), (std::vector<uint32_t>{0, 0, 0, 2}));
+  ExpectHeld(Follow(2, kMerges), 2, 3, {0, 0, 0, 2});
 }
 
 TEST(PreviewLevelSinkTest, SkippedCountTakesTheFirstWithFewer) {
   // 4 -> 2 -> 1 (PML may skip 3).
-  const PreviewLevelSink sink = Follow(3, {{2, 1, 0, 1}, {1, 2, 0, 2}});
-  EXPECT_EQ(sink.cluster_count(), 2u);
-  EXPECT_EQ(sink.level(), 1u);
-  EXPECT_EQ(Values(sink.labels()), (std::vector<uint32_t>{0, 0, 2, 3}));
+  ExpectHeld(Follow(3, {{2, 1, 0, 1}, {1, 2, 0, 2}}), 2, 1, {0, 0, 2, 3});
 }
 
 TEST(PreviewLevelSinkTest, ZeroMeansTheLastLevelAndTheStartMayBeBelow) {

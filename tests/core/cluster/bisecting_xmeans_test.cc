@@ -14,6 +14,7 @@
 #include "core/cluster/xmeans.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/hierarchy/model_selection.h"
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_points.h"
 
 namespace mlclust {
@@ -25,22 +26,9 @@ Blobs ShuffledBlobs(uint32_t clusters, uint32_t per_cluster, double separation, 
   return testing::GaussianBlobs(clusters, per_cluster, separation, seed, /*shuffle=*/true);
 }
 
-// True where `labels` equals `truth` up to a renaming of the clusters.
-bool SamePartition(const std::vector<ClusterId>& labels, const std::vector<uint32_t>& truth) {
-  std::map<uint32_t, uint32_t> forward, backward;
-  for (size_t i = 0; i < labels.size(); ++i) {
-    const auto [f, f_new] = forward.emplace(labels[i].value(), truth[i]);
-    const auto [b, b_new] = backward.emplace(truth[i], labels[i].value());
-    if (f->second != truth[i] || b->second != labels[i].value()) return false;
-  }
-  return true;
-}
+using testing::SamePartition;
 
-std::vector<ClusterId> AsLabels(const std::vector<uint32_t>& truth) {
-  std::vector<ClusterId> labels;
-  for (uint32_t t : truth) labels.push_back(ClusterId(t));
-  return labels;
-}
+using testing::AsLabels;
 
 // Every label in [0, k), every cluster non-empty.
 void ExpectDenseLabels(const std::vector<ClusterId>& labels, uint32_t k) {

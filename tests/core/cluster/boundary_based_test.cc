@@ -7,6 +7,7 @@
 #include <atomic>
 #include <set>
 
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -14,12 +15,7 @@ namespace {
 
 using boundary_based::kNoMove;
 
-// Labels 0..k-1 as uint32_t.
-std::vector<uint32_t> Raw(const std::vector<ClusterId>& labels) {
-  std::vector<uint32_t> out;
-  for (ClusterId c : labels) out.push_back(c.value());
-  return out;
-}
+using testing::RawLabels;
 
 std::set<uint32_t> VerticesOf(const TriangleMesh& mesh, uint32_t face) {
   return {mesh.indices[3 * face], mesh.indices[3 * face + 1], mesh.indices[3 * face + 2]};
@@ -67,12 +63,19 @@ TEST(ResolveConflictsTest, OfFacesSharingAVertexTheSmallerIdWins) {
   EXPECT_EQ(accepted_one, accepted);
 }
 
+// A 1 x 3 strip of squares, two triangles each: faces 0..5 form a chain (face i shares an
+// edge with i + 1).
+const testing::LoadedMesh& Strip() {
+  static const testing::LoadedMesh* strip = new testing::LoadedMesh(testing::Load(
+      testing::MakeMesh({0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0, 0, 1, 0, 1, 1, 0, 2, 1, 0, 3, 1, 0},
+                        {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7})));
+  return *strip;
+}
+
 TEST(ResolveConflictsTest, TheGuardVetoesAMoveThatWouldSplitACluster) {
   // A 1 x 3 strip of squares, two triangles each: faces 0..5 form a chain (face i shares
   // an edge with i + 1). Cluster 0 = faces 0..2, cluster 1 = faces 3..5.
-  const testing::LoadedMesh l = testing::Load(
-      testing::MakeMesh({0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0, 0, 1, 0, 1, 1, 0, 2, 1, 0, 3, 1, 0},
-                        {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7}));
+  const testing::LoadedMesh& l = Strip();
   const ConnectivityGuard guard(l.mesh, l.adjacency);
   const std::vector<uint32_t> labels = {0, 0, 0, 1, 1, 1}, sizes = {3, 3};
   std::vector<uint32_t> target(6, kNoMove);
@@ -94,9 +97,7 @@ TEST(ResolveConflictsTest, AProposalTheGuardRefusesDoesNotBlockItsNeighbours) {
   // The strip of the test above. Face 1 proposes to leave cluster 0 (refused: it would cut
   // face 0 off); face 2, which shares a vertex with it, proposes too and is allowed. Face 1
   // must not block face 2: it would block it again every sweep.
-  const testing::LoadedMesh l = testing::Load(
-      testing::MakeMesh({0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0, 0, 1, 0, 1, 1, 0, 2, 1, 0, 3, 1, 0},
-                        {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7}));
+  const testing::LoadedMesh& l = Strip();
   const ConnectivityGuard guard(l.mesh, l.adjacency);
   const std::vector<uint32_t> labels = {0, 0, 0, 1, 1, 1}, sizes = {3, 3};
   std::vector<uint32_t> target(6, kNoMove);
@@ -138,7 +139,7 @@ std::vector<uint32_t> StartLabels() {
   absl::StatusOr<std::vector<ClusterId>> labels =
       InitialClusters(l.problem(), {SeedOptions::Method::kRandom, 40, 0, 5});
   EXPECT_TRUE(labels.ok());
-  return Raw(*labels);
+  return RawLabels(*labels);
 }
 
 TEST(RunBoundaryBasedTest, ADecideStagePluggedInGivesWhatOptimizeBoundaryBasedGives) {
@@ -166,7 +167,7 @@ TEST(RunBoundaryBasedTest, ADecideStagePluggedInGivesWhatOptimizeBoundaryBasedGi
   EXPECT_EQ(calls, static_cast<int>(result->iterations));
   EXPECT_EQ(result->moves, expected->moves);
   EXPECT_DOUBLE_EQ(result->energy, expected->energy);  // cluster order differs in the sum
-  EXPECT_EQ(labels, Raw(reference));
+  EXPECT_EQ(labels, RawLabels(reference));
 }
 
 TEST(RunBoundaryBasedTest, ADecideStagesErrorIsReturnedAndNothingMoves) {

@@ -35,15 +35,17 @@ PointSet UniformPoints(size_t m, uint32_t d, uint64_t seed) {
   return points;
 }
 
-// True where `labels` equals `truth` up to a renaming of the clusters.
-bool SamePartition(const std::vector<ClusterId>& labels, const std::vector<uint32_t>& truth) {
-  std::map<uint32_t, uint32_t> forward, backward;
-  for (size_t i = 0; i < labels.size(); ++i) {
-    const auto [f, f_new] = forward.emplace(labels[i].value(), truth[i]);
-    const auto [b, b_new] = backward.emplace(truth[i], labels[i].value());
-    if (f->second != truth[i] || b->second != labels[i].value()) return false;
-  }
-  return true;
+using testing::SamePartition;
+
+// Both seedings, for the tests that hold for either.
+constexpr KmeansOptions::Init kBothInits[] = {KmeansOptions::Init::kRandom,
+                                              KmeansOptions::Init::kKmeansPlusPlus};
+
+KmeansOptions Options(uint32_t clusters, KmeansOptions::Init init) {
+  KmeansOptions options;
+  options.clusters = clusters;
+  options.init = init;
+  return options;
 }
 
 // The energy of `labels` against their double-precision means, computed directly.
@@ -115,11 +117,8 @@ TEST(KmeansTest, RecoversWellSeparatedGaussians) {
 
 TEST(KmeansTest, InertiaNeverIncreases) {
   const PointSet points = UniformPoints(20000, 3, 7);
-  for (KmeansOptions::Init init :
-       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
-    KmeansOptions options;
-    options.clusters = 40;
-    options.init = init;
+  for (KmeansOptions::Init init : kBothInits) {
+    KmeansOptions options = Options(40, init);
     options.tolerance = 0;
     std::vector<double> inertia;
     options.on_iteration = [&](uint32_t iteration, double value) {
@@ -178,11 +177,8 @@ TEST(KmeansTest, ThreadCountDoesNotChangeTheResult) {
 
 TEST(KmeansTest, SameSeedSameResultOtherSeedOtherSeeds) {
   const PointSet points = UniformPoints(5000, 2, 11);
-  for (KmeansOptions::Init init :
-       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
-    KmeansOptions options;
-    options.clusters = 12;
-    options.init = init;
+  for (KmeansOptions::Init init : kBothInits) {
+    KmeansOptions options = Options(12, init);
     options.max_iterations = 3;
     const KmeansResult a = *RunKmeans(points, options);
     const KmeansResult b = *RunKmeans(points, options);
@@ -253,11 +249,8 @@ TEST(KmeansTest, LloydFromGivenCentresExact) {
 // refill; the run itself is not changed by it.
 TEST(KmeansTest, FirstAssignmentKeptEqualsAOneIterationRun) {
   const Blobs blobs = GaussianBlobs(8, 400, 6, 21);
-  for (KmeansOptions::Init init :
-       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
-    KmeansOptions options;
-    options.clusters = 11;
-    options.init = init;
+  for (KmeansOptions::Init init : kBothInits) {
+    KmeansOptions options = Options(11, init);
     absl::StatusOr<KmeansResult> plain = RunKmeans(blobs.points, options);
     ASSERT_TRUE(plain.ok()) << plain.status();
     EXPECT_TRUE(plain->first_labels.empty());
@@ -303,11 +296,8 @@ TEST(KmeansTest, EmptyClusterTakesTheFarthestPoint) {
 TEST(KmeansTest, DuplicatePointsKeepEveryClusterNonEmpty) {
   PointSet points{2, {}};
   for (int i = 0; i < 300; ++i) points.values.insert(points.values.end(), {1.5f, -2.0f});
-  for (KmeansOptions::Init init :
-       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
-    KmeansOptions options;
-    options.clusters = 7;
-    options.init = init;
+  for (KmeansOptions::Init init : kBothInits) {
+    KmeansOptions options = Options(7, init);
     absl::StatusOr<KmeansResult> result = RunKmeans(points, options);
     ASSERT_TRUE(result.ok()) << result.status();
     ExpectValidResult(points, *result, 7);
@@ -427,11 +417,8 @@ TEST(KmeansTest, RejectsBadArguments) {
 TEST(KmeansTest, ACancelFlagReturnsCancelled) {
   const PointSet points = UniformPoints(5000, 3, 11);
   std::atomic<bool> cancel{true};
-  for (KmeansOptions::Init init :
-       {KmeansOptions::Init::kRandom, KmeansOptions::Init::kKmeansPlusPlus}) {
-    KmeansOptions options;
-    options.clusters = 20;
-    options.init = init;
+  for (KmeansOptions::Init init : kBothInits) {
+    KmeansOptions options = Options(20, init);
     options.cancel = &cancel;
     EXPECT_EQ(RunKmeans(points, options).status().code(), absl::StatusCode::kCancelled);
   }

@@ -10,6 +10,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/connectivity_guard.h"
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -131,11 +132,7 @@ Loaded Strip() {
                         {0, 1, 4, 4, 1, 5, 1, 2, 5, 5, 2, 6, 2, 3, 6, 6, 3, 7}));
 }
 
-std::vector<uint32_t> RawLabels(const std::vector<ClusterId>& labels) {
-  std::vector<uint32_t> out;
-  for (ClusterId c : labels) out.push_back(c.value());
-  return out;
-}
+using testing::RawLabels;
 
 TEST(GrowClustersFromSeedsTest, EnergyFreeGrowthTakesTurnsInSeedOrder) {
   const Loaded l = Strip();
@@ -359,36 +356,7 @@ TEST(OptimizerTest, VertexBoundaryEdgeCountGuardNeverSplitsAClusterInEmloOrBb) {
 // side becomes one cluster and the energy is 0.
 TEST(OptimizerTest, CubeGivesSixPlanarClustersOfEnergyZero) {
   // A cube with each side a 3 x 3 grid of squares (108 faces), so seeds can land anywhere.
-  TriangleMesh cube;
-  auto vertex = [&](float x, float y, float z) {
-    for (size_t v = 0; v < cube.num_vertices(); ++v) {
-      if (cube.positions[3 * v] == x && cube.positions[3 * v + 1] == y &&
-          cube.positions[3 * v + 2] == z) {
-        return static_cast<uint32_t>(v);
-      }
-    }
-    cube.positions.insert(cube.positions.end(), {x, y, z});
-    return static_cast<uint32_t>(cube.num_vertices() - 1);
-  };
-  const int n = 3;
-  for (int axis = 0; axis < 3; ++axis) {
-    for (int side = 0; side < 2; ++side) {
-      for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < n; ++j) {
-          auto point = [&](int a, int b) {
-            float p[3];
-            p[axis] = static_cast<float>(side * n);
-            p[(axis + 1) % 3] = static_cast<float>(a);
-            p[(axis + 2) % 3] = static_cast<float>(b);
-            return vertex(p[0], p[1], p[2]);
-          };
-          uint32_t q[4] = {point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1)};
-          if (side == 0) std::swap(q[1], q[3]);
-          cube.indices.insert(cube.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
-        }
-      }
-    }
-  }
+  const TriangleMesh cube = testing::IntegerCube(3);
   const Loaded l = Load(cube);
   ASSERT_EQ(l.mesh.num_faces(), 108u);
   const MeshProblem problem = l.problem(MeshEnergyKind::kPlanar);

@@ -2,13 +2,13 @@
 // registry's "parallel-optimisation" option that sets them.
 #include <gtest/gtest.h>
 
-#include <map>
 #include <span>
 #include <vector>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -18,12 +18,6 @@ namespace {
 using Loaded = testing::LoadedMesh;
 
 const Loaded& File(const std::string& name) { return testing::LoadDataFile(name); }
-
-std::map<uint32_t, double> EnergyByCount(const HierarchyLog& log) {
-  std::map<uint32_t, double> energy;
-  for (size_t l = 0; l < log.num_levels(); ++l) energy[log.cluster_count(l)] = log.energy(l);
-  return energy;
-}
 
 MultilevelOptions IndependentMoves() {
   MultilevelOptions options;
@@ -64,37 +58,8 @@ TEST(MultilevelParallelTest, RegistryOptionSetsTheRoundsAndIndependentMoves) {
 // the labels, PML then ML stays within 5% of ML at k = 1000 and 200, and the optimiser
 // moved faces (so the rounds ran).
 TEST(MultilevelParallelTest, IndependentMovesGiveValidLevelsCloseToMl) {
-  for (const char* name : {"fandisk.off", "elephant.off"}) {
-    SCOPED_TRACE(name);
-    const Loaded& l = File(name);
-    const MeshProblem problem = l.problem();
-    HierarchyLog ml, pml;
-    ASSERT_TRUE(RunMultilevel(problem, {}, ml).ok());
-    MultilevelOptions options = IndependentMoves();
-    std::map<size_t, std::vector<ClusterId>> engine_labels;
-    options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-      if (level % 5 != 2) return;
-      std::vector<ClusterId>& copy = engine_labels[level];
-      for (uint32_t c : labels) copy.push_back(ClusterId(c));
-    };
-    absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, pml);
-    ASSERT_TRUE(summary.ok()) << summary.status();
-    EXPECT_GT(summary->optimisation_moves, 0u);
-    std::vector<ClusterId> labels(pml.start_labels().begin(), pml.start_labels().end());
-    size_t at = 0;
-    for (const auto& [level, expected] : engine_labels) {
-      ASSERT_TRUE(pml.StepLabels(labels, at, level).ok());
-      at = level;
-      ASSERT_EQ(labels, expected) << level;
-      const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
-      EXPECT_NEAR(pml.energy(level), energy, 1e-7 * energy + 1e-12) << level;
-    }
-    const auto ml_energy = EnergyByCount(ml), pml_energy = EnergyByCount(pml);
-    for (uint32_t k : {1000u, 200u}) {
-      ASSERT_TRUE(pml_energy.count(k));
-      EXPECT_LT(pml_energy.at(k), 1.05 * ml_energy.at(k)) << k;
-    }
-  }
+  testing::ExpectValidLevelsCloseToMl(IndependentMoves(),
+                                      [](size_t level) { return level % 5 == 2; });
 }
 
 // The winners of a round apply together: still the same levels on 1, 2 and 3 threads, and
@@ -129,24 +94,8 @@ TEST(MultilevelParallelTest, IndependentMovesWithoutGuardKeepEnergiesOfTheLabels
   options.connectivity_guard = false;
   options.guard = ConnectivityGuardKind::kOff;
   HierarchyLog pml;
-  std::map<size_t, std::vector<ClusterId>> engine_labels;
-  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-    if (level % 9 != 4) return;
-    std::vector<ClusterId>& copy = engine_labels[level];
-    for (uint32_t c : labels) copy.push_back(ClusterId(c));
-  };
-  absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, pml);
-  ASSERT_TRUE(summary.ok()) << summary.status();
-  EXPECT_GT(summary->optimisation_moves, 0u);
-  std::vector<ClusterId> labels(pml.start_labels().begin(), pml.start_labels().end());
-  size_t at = 0;
-  for (const auto& [level, expected] : engine_labels) {
-    ASSERT_TRUE(pml.StepLabels(labels, at, level).ok());
-    at = level;
-    ASSERT_EQ(labels, expected) << level;
-    const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
-    EXPECT_NEAR(pml.energy(level), energy, 1e-7 * energy + 1e-12) << level;
-  }
+  testing::ExpectMultilevelRebuildsEngineLabels(
+      l, problem, options, [](size_t level) { return level % 9 == 4; }, pml);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/hierarchy/elbow.h"
 #include "core/io/mesh_io.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -30,12 +31,7 @@ MultilevelOptions Hc() {
   return options;
 }
 
-// Energy per cluster count of a run.
-std::map<uint32_t, double> EnergyByCount(const HierarchyLog& log) {
-  std::map<uint32_t, double> energy;
-  for (size_t l = 0; l < log.num_levels(); ++l) energy[log.cluster_count(l)] = log.energy(l);
-  return energy;
-}
+using testing::EnergyByCount;
 
 TEST(MultilevelTest, TwoTrianglesMergeOnceWithExactCost) {
   const Loaded l = Load(testing::TwoTriangles());
@@ -74,31 +70,27 @@ TEST(MultilevelTest, ReconstructionReturnsTheEnginesLabelsAtEveryLevel) {
   for (MeshEnergyKind kind : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
     const Loaded& l = File("elephant.off");
     const MeshProblem problem = l.problem(kind);
-    std::map<size_t, std::vector<ClusterId>> engine_labels;
+    SCOPED_TRACE(MeshEnergyName(kind));
     const size_t n = l.mesh.num_faces();
     const std::set<size_t> sampled = {1, 2, n / 2, n - 500, n - 60, n - 11, n - 2, n - 1};
+    testing::EngineLabels engine([&](size_t level) { return sampled.count(level) > 0; });
     MultilevelOptions options;
-    options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-      if (!sampled.count(level)) return;
-      std::vector<ClusterId>& copy = engine_labels[level];
-      for (uint32_t c : labels) copy.push_back(ClusterId(c));
-    };
+    options.inspect_level = engine.Inspector();
     HierarchyLog log;
     auto summary = RunMultilevel(problem, options, log);
     ASSERT_TRUE(summary.ok());
     ASSERT_EQ(log.num_levels(), n);
     EXPECT_GT(summary->optimisation_moves, 0u);
-    ASSERT_EQ(engine_labels.size(), sampled.size());
-    std::vector<ClusterId> labels(log.start_labels().begin(), log.start_labels().end());
+    ASSERT_EQ(engine.levels.size(), sampled.size());
+    std::vector<ClusterId> labels;
     size_t at = 0;
-    for (const auto& [level, expected] : engine_labels) {  // forwards
-      ASSERT_TRUE(log.StepLabels(labels, at, level).ok());
-      at = level;
-      ASSERT_EQ(labels, expected) << MeshEnergyName(kind) << " level " << level;
-      const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
-      EXPECT_NEAR(log.energy(level), energy, 1e-7 * energy + 1e-12) << level;
-    }
-    for (auto it = engine_labels.rbegin(); it != engine_labels.rend(); ++it) {  // backwards
+    ASSERT_NO_FATAL_FAILURE(testing::ExpectLogRebuildsEngineLabels(  // forwards
+        log, engine,
+        [&](std::span<const ClusterId> step) {
+          return MeshEnergyOfLabels(problem.energy, l.mesh, step);
+        },
+        labels, at));
+    for (auto it = engine.levels.rbegin(); it != engine.levels.rend(); ++it) {  // backwards
       ASSERT_TRUE(log.StepLabels(labels, at, it->first).ok());
       at = it->first;
       ASSERT_EQ(labels, it->second) << "backwards to level " << it->first;
@@ -274,11 +266,8 @@ TEST(MultilevelTest, PmlThenMlIsCloseToMlAndPPercentRuns) {
   options.parallel = true;
   options.pml_until = 2000;
   ASSERT_TRUE(RunMultilevel(l.problem(), options, pml).ok());
-  const auto ml_energy = EnergyByCount(ml), pml_energy = EnergyByCount(pml);
-  for (uint32_t k : {1000u, 200u}) {
-    ASSERT_TRUE(pml_energy.count(k));  // below pml_until every count appears
-    EXPECT_LT(pml_energy.at(k), 1.05 * ml_energy.at(k)) << k;
-  }
+  // Below pml_until every count appears.
+  ASSERT_NO_FATAL_FAILURE(testing::ExpectEnergyBelow(pml, ml, 1.05, {1000u, 200u}));
   MultilevelOptions half;
   half.p_percent = 50;
   half.p_percent_rule = MultilevelOptions::PPercentRule::kHcFirst;
@@ -290,8 +279,6 @@ TEST(MultilevelTest, PmlThenMlIsCloseToMlAndPPercentRuns) {
   EXPECT_EQ(RunMultilevel(l.problem(), bad, unused).status().code(),
             absl::StatusCode::kInvalidArgument);
 }
-
-using testing::RecordingSink;
 
 // PML's parallel steps (ODEs, mutual pairs, the ODE update per level, the optimisation
 // rounds of parallel_optimisation) give the same levels on one thread as on two; the
@@ -305,15 +292,12 @@ TEST(MultilevelTest, PmlLevelsDoNotDependOnTheThreadCount) {
     options.pml_until = variant == 0 ? 0 : 500;
     options.parallel_optimisation = variant == 2;
     options.pml_pairs = variant == 1 ? PmlPairRule::kAll : PmlPairRule::kCheaperHalf;
-    RecordingSink one, two;
-    options.threads = 1;
-    ASSERT_TRUE(RunMultilevel(l.problem(), options, one).ok());
-    options.threads = 2;
-    ASSERT_TRUE(RunMultilevel(l.problem(), options, two).ok());
-    EXPECT_GT(one.counts.size(), 10u);
-    EXPECT_EQ(one.counts, two.counts);
-    EXPECT_EQ(one.energies, two.energies);
-    EXPECT_EQ(one.moves, two.moves);
+    testing::ExpectSameLevelsOnOneAndTwoThreads(
+        options,
+        [&](const MultilevelOptions& o, LevelSink& sink) {
+          return RunMultilevel(l.problem(), o, sink);
+        },
+        10);
   }
 }
 
@@ -321,40 +305,11 @@ TEST(MultilevelTest, PmlLevelsDoNotDependOnTheThreadCount) {
 // are those of the labels, and PML then ML with it stays within 5% of ML at k = 1000
 // and 200 (measured: within 1.5% on fandisk and elephant).
 TEST(MultilevelTest, ParallelOptimisationGivesValidLevelsCloseToMl) {
-  for (const char* name : {"fandisk.off", "elephant.off"}) {
-    SCOPED_TRACE(name);
-    const Loaded& l = File(name);
-    const MeshProblem problem = l.problem();
-    HierarchyLog ml, pml;
-    ASSERT_TRUE(RunMultilevel(problem, {}, ml).ok());
-    MultilevelOptions options;
-    options.parallel = true;
-    options.pml_until = 2000;
-    options.parallel_optimisation = true;
-    std::map<size_t, std::vector<ClusterId>> engine_labels;
-    options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-      if (level % 7 != 3) return;
-      std::vector<ClusterId>& copy = engine_labels[level];
-      for (uint32_t c : labels) copy.push_back(ClusterId(c));
-    };
-    absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, pml);
-    ASSERT_TRUE(summary.ok()) << summary.status();
-    EXPECT_GT(summary->optimisation_moves, 0u);
-    std::vector<ClusterId> labels(pml.start_labels().begin(), pml.start_labels().end());
-    size_t at = 0;
-    for (const auto& [level, expected] : engine_labels) {
-      ASSERT_TRUE(pml.StepLabels(labels, at, level).ok());
-      at = level;
-      ASSERT_EQ(labels, expected) << level;
-      const double energy = MeshEnergyOfLabels(problem.energy, l.mesh, labels);
-      EXPECT_NEAR(pml.energy(level), energy, 1e-7 * energy + 1e-12) << level;
-    }
-    const auto ml_energy = EnergyByCount(ml), pml_energy = EnergyByCount(pml);
-    for (uint32_t k : {1000u, 200u}) {
-      ASSERT_TRUE(pml_energy.count(k));
-      EXPECT_LT(pml_energy.at(k), 1.05 * ml_energy.at(k)) << k;
-    }
-  }
+  MultilevelOptions options;
+  options.parallel = true;
+  options.pml_until = 2000;
+  options.parallel_optimisation = true;
+  testing::ExpectValidLevelsCloseToMl(options, [](size_t level) { return level % 7 == 3; });
 }
 
 // Alg. 4.2: the first p% of the merges in one level, by sweeps in which a cluster takes
@@ -431,19 +386,7 @@ TEST(FindElbowsTest, FindsTheJumpAndIgnoresNoise) {
   EXPECT_TRUE(FindElbows(counts, std::vector<double>(8, 0.0)).empty());
 }
 
-// A sink that sets `cancel` once it has seen `after` levels after the start.
-class CancelAfter : public HierarchyLog {
- public:
-  CancelAfter(std::atomic<bool>& cancel, uint32_t after) : cancel_(cancel), after_(after) {}
-  absl::Status OnLevel(const LevelMoves& level) override {
-    if (++seen_ == after_) cancel_ = true;
-    return HierarchyLog::OnLevel(level);
-  }
-
- private:
-  std::atomic<bool>& cancel_;
-  uint32_t after_, seen_ = 0;
-};
+using testing::CancelAfter;
 
 TEST(MultilevelCancelTest, ASetFlagReturnsCancelledBeforeTheStart) {
   std::atomic<bool> cancel{true};

@@ -14,26 +14,18 @@
 namespace mlclust {
 namespace {
 
-// The number of edge-connected pieces of each cluster.
+// The number of edge-connected pieces of each cluster (LabelFaceComponents by cluster).
 std::vector<uint32_t> PiecesPerCluster(const FaceAdjacency& adjacency,
                                        std::span<const ClusterId> labels, uint32_t clusters) {
+  std::vector<uint32_t> region, component;
+  for (ClusterId c : labels) region.push_back(c.value());
+  const uint32_t count = LabelFaceComponents(adjacency, component, region);
   std::vector<uint32_t> pieces(clusters, 0);
-  std::vector<uint8_t> seen(labels.size(), 0);
-  for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (seen[f]) continue;
-    ++pieces[labels[f].value()];
-    std::vector<uint32_t> stack = {f};
-    seen[f] = 1;
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[g]) {
-          seen[h.value()] = 1;
-          stack.push_back(h.value());
-        }
-      }
-    }
+  std::vector<uint8_t> counted(count, 0);
+  for (size_t f = 0; f < region.size(); ++f) {
+    if (counted[component[f]]) continue;
+    counted[component[f]] = 1;
+    ++pieces[region[f]];
   }
   return pieces;
 }
@@ -214,14 +206,22 @@ TEST(BuildPatchesTest, RefusesAndCancels) {
   EXPECT_EQ(BuildPatches(l.problem(), options).status().code(), absl::StatusCode::kCancelled);
 }
 
+const testing::LoadedMesh& ElephantWithHoles() {
+  return testing::LoadDataFile("elephant-with-holes.off");
+}
+
+PatchOptions Patches(uint32_t clusters, uint32_t sweeps) {
+  PatchOptions options;
+  options.clusters = clusters;
+  options.sweeps = sweeps;
+  return options;
+}
+
 // The face-order apply keeps patches connected where BB's guard would: on a mesh with
 // holes, many patches, many sweeps.
 TEST(BuildPatchesTest, GuardKeepsEveryPatchConnectedOverManySweeps) {
-  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
-  PatchOptions options;
-  options.clusters = 150;
-  options.sweeps = 50;
-  absl::StatusOr<PatchResult> result = BuildPatches(l.problem(), options);
+  const testing::LoadedMesh& l = ElephantWithHoles();
+  absl::StatusOr<PatchResult> result = BuildPatches(l.problem(), Patches(150, 50));
   ASSERT_TRUE(result.ok());
   const std::vector<uint32_t> pieces = PiecesPerCluster(l.adjacency, result->labels, 150);
   for (uint32_t c = 0; c < 150; ++c) EXPECT_EQ(pieces[c], 1u) << "patch " << c;
@@ -231,11 +231,8 @@ TEST(BuildPatchesTest, GuardKeepsEveryPatchConnectedOverManySweeps) {
 // as ConnectivityGuard's stored rings do, on a mesh with holes (rings broken by the
 // boundary) and patches of every shape the growth makes.
 TEST(BuildPatchesTest, OnDemandRingTestIsTheGuards) {
-  const testing::LoadedMesh& l = testing::LoadDataFile("elephant-with-holes.off");
-  PatchOptions options;
-  options.clusters = 300;
-  options.sweeps = 0;
-  absl::StatusOr<PatchResult> grown = BuildPatches(l.problem(), options);
+  const testing::LoadedMesh& l = ElephantWithHoles();
+  absl::StatusOr<PatchResult> grown = BuildPatches(l.problem(), Patches(300, 0));
   ASSERT_TRUE(grown.ok());
   std::vector<uint32_t> labels, sizes(300, 0);
   for (ClusterId c : grown->initial_labels) {

@@ -10,6 +10,7 @@
 #include <set>
 #include <vector>
 
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -18,11 +19,7 @@ namespace {
 using testing::MakeCube;
 using testing::SubdividedCube;
 
-std::set<uint32_t> Distinct(const std::vector<ClusterId>& labels) {
-  std::set<uint32_t> out;
-  for (ClusterId l : labels) out.insert(l.value());
-  return out;
-}
+using testing::DistinctLabels;
 
 // A 6 x 6 cube: on sides 0-2 every square is a cluster, on sides 3-5 every triangle (labels
 // spread out so that they are not face ids), 324 clusters in all.
@@ -40,7 +37,7 @@ TEST(PlanarMergingTest, CubeInManyPlanarPiecesMergesBackToItsSixSides) {
   const int n = 6;
   const SubdividedCube cube = MakeCube(n);
   const std::vector<ClusterId> labels = ManyPlanarPieces(cube, n);
-  ASSERT_EQ(Distinct(labels).size(), 3u * 36 + 3u * 72);
+  ASSERT_EQ(DistinctLabels(labels).size(), 3u * 36 + 3u * 72);
   PlanarMergingOptions options;
   options.max_angle_degrees = 1.0;
   absl::StatusOr<PlanarMergingResult> result = MergePlanarClusters(cube.mesh, labels, options);

@@ -11,7 +11,9 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/base/random.h"
 #include "core/hierarchy/model_selection.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
+#include "tests/fixtures/test_points.h"
 
 namespace mlclust {
 namespace {
@@ -50,16 +52,7 @@ std::pair<PointSet, std::vector<ClusterId>> Blobs(uint32_t k, uint32_t per, uint
   return {points, truth};
 }
 
-// Same partition up to renaming.
-bool SamePartition(const std::vector<ClusterId>& a, const std::vector<ClusterId>& b) {
-  std::map<uint32_t, uint32_t> ab, ba;
-  for (size_t i = 0; i < a.size(); ++i) {
-    auto [x, ix] = ab.emplace(a[i].value(), b[i].value());
-    auto [y, iy] = ba.emplace(b[i].value(), a[i].value());
-    if (x->second != b[i].value() || y->second != a[i].value()) return false;
-  }
-  return true;
-}
+using testing::SamePartition;
 
 TEST(SubspaceIndexTest, HandMadeCasesIn2DAnd3D) {
   const std::vector<double> o2 = {0, 0};
@@ -204,29 +197,21 @@ TEST(LnKmeansTest, BadInputIsRefused) {
             absl::StatusCode::kInvalidArgument);
 }
 
-std::map<uint32_t, double> EnergyByCount(const HierarchyLog& log) {
-  std::map<uint32_t, double> energy;
-  for (size_t l = 0; l < log.num_levels(); ++l) energy[log.cluster_count(l)] = log.energy(l);
-  return energy;
-}
+using testing::EnergyByCount;
 
 TEST(PointMultilevelTest, RebuildsTheEnginesLabelsAndReportsTheirEnergy) {
   auto [points, truth] = Blobs(8, 300, 3, 11);
-  std::map<size_t, std::vector<ClusterId>> engine;
+  testing::EngineLabels engine([](size_t level) { return level % 97 == 3; });
   PointMultilevelOptions options;
   options.grid = 12;
-  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-    if (level % 97 != 3) return;
-    std::vector<ClusterId>& copy = engine[level];
-    for (uint32_t c : labels) copy.push_back(ClusterId(c));
-  };
+  options.inspect_level = engine.Inspector();
   HierarchyLog log;
   absl::StatusOr<PointMultilevelSummary> summary = RunPointMultilevel(points, options, log);
   ASSERT_TRUE(summary.ok()) << summary.status();
   EXPECT_EQ(summary->final_clusters, 1u);
   EXPECT_EQ(log.cluster_count(0), summary->start_clusters);
-  ASSERT_FALSE(engine.empty());
-  for (const auto& [level, labels] : engine) {
+  ASSERT_FALSE(engine.levels.empty());
+  for (const auto& [level, labels] : engine.levels) {
     ASSERT_EQ(*log.LabelsAt(level), labels) << level;
     const double direct = PointEnergy(points, labels);
     EXPECT_NEAR(log.energy(level), direct, 1e-6 * direct + 1e-9) << level;
@@ -287,6 +272,13 @@ TEST(PointMultilevelTest, PmlStaysCloseToMlAtEveryLevel) {
 
 using testing::RecordingSink;
 
+// RunPointMultilevel on `points`, as ExpectSameLevelsOnOneAndTwoThreads calls it.
+auto RunPoints(const PointSet& points) {
+  return [&points](const PointMultilevelOptions& options, LevelSink& sink) {
+    return RunPointMultilevel(points, options, sink);
+  };
+}
+
 // The engine's parallel steps (ODEs, mutual pairs, the ODE refresh of a level, LN
 // k-means' assignment) give the same levels on one thread as on two: PML, PML then ML,
 // and ML.
@@ -297,16 +289,8 @@ TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
     PointMultilevelOptions options;
     options.parallel = variant < 2;
     options.pml_until = variant == 1 ? 200 : 0;
-    RecordingSink one, two;
-    options.threads = 1;
-    ASSERT_TRUE(RunPointMultilevel(points, options, one).ok());
-    options.threads = 2;
-    ASSERT_TRUE(RunPointMultilevel(points, options, two).ok());
-    EXPECT_GT(one.counts.size(), 5u);
-    EXPECT_EQ(one.counts, two.counts);
-    EXPECT_EQ(one.energies, two.energies);
-    EXPECT_EQ(one.start, two.start);
-    EXPECT_EQ(one.moves, two.moves);
+    testing::ExpectSameLevelsOnOneAndTwoThreads(options, RunPoints(points), 5,
+                                                /*with_start=*/true);
   }
 }
 
@@ -315,16 +299,7 @@ TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
 // on two.
 TEST(PointMultilevelTest, ParallelRoundScansDoNotDependOnTheThreadCount) {
   auto [points, truth] = Blobs(40, 1000, 3, 29, 4);
-  PointMultilevelOptions options;
-  RecordingSink one, two;
-  options.threads = 1;
-  ASSERT_TRUE(RunPointMultilevel(points, options, one).ok());
-  options.threads = 2;
-  ASSERT_TRUE(RunPointMultilevel(points, options, two).ok());
-  EXPECT_GT(one.counts.size(), 100u);
-  EXPECT_EQ(one.counts, two.counts);
-  EXPECT_EQ(one.energies, two.energies);
-  EXPECT_EQ(one.moves, two.moves);
+  testing::ExpectSameLevelsOnOneAndTwoThreads(PointMultilevelOptions(), RunPoints(points), 100);
 }
 
 // optimise_rounds (ours): 8 is the default's hierarchy exactly; fewer rounds still make one
@@ -481,19 +456,7 @@ TEST(PointMultilevelTest, BicOfTheMlHierarchyRecoversTheNumberOfBlobs) {
   }
 }
 
-// A sink that sets `cancel` once it has seen `after` levels after the start.
-class CancelAfter : public HierarchyLog {
- public:
-  CancelAfter(std::atomic<bool>& cancel, uint32_t after) : cancel_(cancel), after_(after) {}
-  absl::Status OnLevel(const LevelMoves& level) override {
-    if (++seen_ == after_) cancel_ = true;
-    return HierarchyLog::OnLevel(level);
-  }
-
- private:
-  std::atomic<bool>& cancel_;
-  uint32_t after_, seen_ = 0;
-};
+using testing::CancelAfter;
 
 TEST(PointCancelTest, ASetFlagStopsEveryCallWithCancelled) {
   const auto [points, truth] = Blobs(6, 200, 3, 11);

@@ -200,6 +200,25 @@ TEST_P(PolygonClusteringTest, EmloAndBbMoveWholePolygons) {
   }
 }
 
+// Seeds of `clusters`, and EMLO and BB from them, give the same labels on `triangles` and
+// on `singles` (the same mesh with polygons of one triangle each).
+void ExpectSameSeedsEmloAndBb(const MeshProblem& triangles, const MeshProblem& singles,
+                              uint32_t clusters) {
+  SeedOptions seeds;
+  seeds.clusters = clusters;
+  absl::StatusOr<std::vector<ClusterId>> a = InitialClusters(triangles, seeds);
+  absl::StatusOr<std::vector<ClusterId>> b = InitialClusters(singles, seeds);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(*a, *b);
+  std::vector<ClusterId> emlo_a = *a, emlo_b = *b, bb_a = *a, bb_b = *b;
+  ASSERT_TRUE(OptimizeEmlo(triangles, emlo_a).ok());
+  ASSERT_TRUE(OptimizeEmlo(singles, emlo_b).ok());
+  EXPECT_EQ(emlo_a, emlo_b);
+  ASSERT_TRUE(OptimizeBoundaryBased(triangles, bb_a).ok());
+  ASSERT_TRUE(OptimizeBoundaryBased(singles, bb_b).ok());
+  EXPECT_EQ(bb_a, bb_b);
+}
+
 // Polygons of one triangle each are the triangles: the same levels, seeds and results as
 // without polygons (the polygon path's sums, dual graph and ring test are the faces').
 TEST_P(PolygonClusteringTest, OneTrianglePolygonsAreTheTriangleRun) {
@@ -218,19 +237,23 @@ TEST_P(PolygonClusteringTest, OneTrianglePolygonsAreTheTriangleRun) {
     EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
     EXPECT_NEAR(got.energy(level), expected.energy(level), 1e-9) << "level " << level;
   }
-  SeedOptions seeds;
-  seeds.clusters = 12;
-  absl::StatusOr<std::vector<ClusterId>> a = InitialClusters(triangles, seeds);
-  absl::StatusOr<std::vector<ClusterId>> b = InitialClusters(singles, seeds);
-  ASSERT_TRUE(a.ok() && b.ok());
-  EXPECT_EQ(*a, *b);
-  std::vector<ClusterId> emlo_a = *a, emlo_b = *b, bb_a = *a, bb_b = *b;
-  ASSERT_TRUE(OptimizeEmlo(triangles, emlo_a).ok());
-  ASSERT_TRUE(OptimizeEmlo(singles, emlo_b).ok());
-  EXPECT_EQ(emlo_a, emlo_b);
-  ASSERT_TRUE(OptimizeBoundaryBased(triangles, bb_a).ok());
-  ASSERT_TRUE(OptimizeBoundaryBased(singles, bb_b).ok());
-  EXPECT_EQ(bb_a, bb_b);
+  ExpectSameSeedsEmloAndBb(triangles, singles, 12);
+}
+
+// For the CVD and planar energies: ML on `m`'s triangles and on its `polygons`, handed to
+// check(energy, triangles problem, polygons problem, triangles' levels, polygons' levels).
+template <typename Check>
+void MlWithAndWithoutPolygons(const PolygonMesh& m, const MeshPolygons& polygons, Check&& check) {
+  for (MeshEnergyKind energy : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
+    SCOPED_TRACE(MeshEnergyName(energy));
+    const MeshProblem triangles = MakeMeshProblem(m.prepared, {.kind = energy});
+    MeshProblem whole = triangles;
+    whole.polygons = &polygons;
+    HierarchyLog on_triangles, on_polygons;
+    ASSERT_TRUE(RunMultilevel(triangles, {}, on_triangles).ok());
+    ASSERT_TRUE(RunMultilevel(whole, {}, on_polygons).ok());
+    check(energy, triangles, whole, on_triangles, on_polygons);
+  }
 }
 
 // ML on the polygons against the post-pass on the triangles' ML at the same K: printed for
@@ -239,29 +262,28 @@ TEST_P(PolygonClusteringTest, EnergyAgainstThePostPass) {
   const PolygonMesh m = Mesh();
   absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(m.counts, m.prepared.adjacency);
   ASSERT_TRUE(polygons.ok()) << polygons.status();
-  for (MeshEnergyKind energy : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
-    const MeshProblem triangles = MakeMeshProblem(m.prepared, {.kind = energy});
-    MeshProblem whole = triangles;
-    whole.polygons = &*polygons;
-    HierarchyLog on_triangles, on_polygons;
-    ASSERT_TRUE(RunMultilevel(triangles, {}, on_triangles).ok());
-    ASSERT_TRUE(RunMultilevel(whole, {}, on_polygons).ok());
-    for (uint32_t k : {5u, 10u, 20u, 40u}) {
-      const std::vector<ClusterId> post = MajorityPerPolygon(
-          m, *polygons, *on_triangles.LabelsAt(*on_triangles.FirstLevelWithAtMost(k)));
-      const double post_energy = MeshEnergyOfLabels(triangles.energy, m.prepared.mesh, post);
-      const size_t level = *on_polygons.FirstLevelWithAtMost(k);
-      std::vector<uint32_t> compact, component;
-      const uint32_t post_clusters = CompactClusterIds(post, compact);
-      const uint32_t post_pieces = LabelFaceComponents(m.prepared.adjacency, component, compact);
-      std::printf(
-          "%s %s k=%u: in the algorithms %.6g (%u clusters); post-pass %.6g (%u "
-          "clusters, %u pieces)\n",
-          GetParam() == 0 ? "quad-grid" : "double-torus", MeshEnergyName(energy), k,
-          on_polygons.energy(level), on_polygons.cluster_count(level), post_energy, post_clusters,
-          post_pieces);
-    }
-  }
+  MlWithAndWithoutPolygons(
+      m, *polygons,
+      [&](MeshEnergyKind energy, const MeshProblem& triangles, const MeshProblem& whole,
+          const HierarchyLog& on_triangles, const HierarchyLog& on_polygons) {
+        (void)whole;
+        for (uint32_t k : {5u, 10u, 20u, 40u}) {
+          const std::vector<ClusterId> post = MajorityPerPolygon(
+              m, *polygons, *on_triangles.LabelsAt(*on_triangles.FirstLevelWithAtMost(k)));
+          const double post_energy = MeshEnergyOfLabels(triangles.energy, m.prepared.mesh, post);
+          const size_t level = *on_polygons.FirstLevelWithAtMost(k);
+          std::vector<uint32_t> compact, component;
+          const uint32_t post_clusters = CompactClusterIds(post, compact);
+          const uint32_t post_pieces =
+              LabelFaceComponents(m.prepared.adjacency, component, compact);
+          std::printf(
+              "%s %s k=%u: in the algorithms %.6g (%u clusters); post-pass %.6g (%u "
+              "clusters, %u pieces)\n",
+              GetParam() == 0 ? "quad-grid" : "double-torus", MeshEnergyName(energy), k,
+              on_polygons.energy(level), on_polygons.cluster_count(level), post_energy,
+              post_clusters, post_pieces);
+        }
+      });
 }
 
 INSTANTIATE_TEST_SUITE_P(Meshes, PolygonClusteringTest, ::testing::Values(0, 1),
@@ -276,33 +298,19 @@ TEST_P(OneTrianglePolygonsTest, OnFandisk) {
   const PolygonMesh m = Mesh();
   absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(m.counts, m.prepared.adjacency);
   ASSERT_TRUE(polygons.ok()) << polygons.status();
-  for (MeshEnergyKind energy : {MeshEnergyKind::kCvd, MeshEnergyKind::kPlanar}) {
-    const MeshProblem triangles = MakeMeshProblem(m.prepared, {.kind = energy});
-    MeshProblem singles = triangles;
-    singles.polygons = &*polygons;
-    HierarchyLog expected, got;
-    ASSERT_TRUE(RunMultilevel(triangles, {}, expected).ok());
-    ASSERT_TRUE(RunMultilevel(singles, {}, got).ok());
-    ASSERT_EQ(got.num_levels(), expected.num_levels());
-    ASSERT_EQ(got.num_moves(), expected.num_moves());
-    for (size_t level :
-         {size_t{1}, got.num_levels() / 2, got.num_levels() - 1000, got.num_levels() - 1}) {
-      EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
-    }
-    SeedOptions seeds;
-    seeds.clusters = 200;
-    absl::StatusOr<std::vector<ClusterId>> a = InitialClusters(triangles, seeds);
-    absl::StatusOr<std::vector<ClusterId>> b = InitialClusters(singles, seeds);
-    ASSERT_TRUE(a.ok() && b.ok());
-    EXPECT_EQ(*a, *b);
-    std::vector<ClusterId> emlo_a = *a, emlo_b = *b, bb_a = *a, bb_b = *b;
-    ASSERT_TRUE(OptimizeEmlo(triangles, emlo_a).ok());
-    ASSERT_TRUE(OptimizeEmlo(singles, emlo_b).ok());
-    EXPECT_EQ(emlo_a, emlo_b);
-    ASSERT_TRUE(OptimizeBoundaryBased(triangles, bb_a).ok());
-    ASSERT_TRUE(OptimizeBoundaryBased(singles, bb_b).ok());
-    EXPECT_EQ(bb_a, bb_b);
-  }
+  MlWithAndWithoutPolygons(
+      m, *polygons,
+      [&](MeshEnergyKind energy, const MeshProblem& triangles, const MeshProblem& singles,
+          const HierarchyLog& expected, const HierarchyLog& got) {
+        (void)energy;
+        ASSERT_EQ(got.num_levels(), expected.num_levels());
+        ASSERT_EQ(got.num_moves(), expected.num_moves());
+        for (size_t level :
+             {size_t{1}, got.num_levels() / 2, got.num_levels() - 1000, got.num_levels() - 1}) {
+          EXPECT_EQ(*got.LabelsAt(level), *expected.LabelsAt(level)) << "level " << level;
+        }
+        ExpectSameSeedsEmloAndBb(triangles, singles, 200);
+      });
 }
 INSTANTIATE_TEST_SUITE_P(Fandisk, OneTrianglePolygonsTest, ::testing::Values(2));
 

@@ -9,6 +9,7 @@
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_points.h"
 
@@ -253,15 +254,7 @@ TEST(RegistryTest, DevicesFollowThePlan) {
 }
 
 // A sink that checks the stream as a client would and keeps the last labels.
-class CheckingSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
-                       double energy) override {
-    return log.OnStart(labels, cluster_count, energy);
-  }
-  absl::Status OnLevel(const LevelMoves& level) override { return log.OnLevel(level); }
-  HierarchyLog log;
-};
+using CheckingSink = testing::LogSink;
 
 // Every registered (algorithm, energy) pair runs through its run function, and the last
 // level's energy is the energy of the last level's labels computed from scratch.

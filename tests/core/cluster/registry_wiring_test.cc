@@ -9,6 +9,7 @@
 #include "core/hierarchy/hierarchy.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_points.h"
 
 namespace mlclust {
@@ -16,15 +17,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-class LogSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t cluster_count,
-                       double energy) override {
-    return log.OnStart(labels, cluster_count, energy);
-  }
-  absl::Status OnLevel(const LevelMoves& level) override { return log.OnLevel(level); }
-  HierarchyLog log;
-};
+using testing::LogSink;
 
 absl::StatusOr<JobPlan> Plan(const char* algorithm, uint32_t clusters,
                              std::vector<std::pair<std::string, std::string>> options = {}) {
@@ -38,13 +31,20 @@ absl::StatusOr<JobPlan> Plan(const char* algorithm, uint32_t clusters,
   return plan;
 }
 
+// Plan(algorithm, clusters, options) run on `points` into `sink` through the registry.
+absl::StatusOr<RunSummary> PlanAndRun(const PointSet& points, const char* algorithm,
+                                      uint32_t clusters,
+                                      std::vector<std::pair<std::string, std::string>> options,
+                                      LogSink& sink) {
+  MLCLUST_ASSIGN_OR_RETURN(const JobPlan plan, Plan(algorithm, clusters, std::move(options)));
+  return plan.algorithm->run_points(points, plan, sink, RunContext{});
+}
+
 TEST(RegistryWiringTest, XmeansLevelsAreItsFirstKmeansThenItsResult) {
   const testing::Blobs blobs = testing::GaussianBlobs(4, 50, 12, 3);
-  absl::StatusOr<JobPlan> plan = Plan("xmeans", 1, {{"kmax", "10"}});
-  ASSERT_TRUE(plan.ok()) << plan.status();
   LogSink sink;
   absl::StatusOr<RunSummary> summary =
-      plan->algorithm->run_points(blobs.points, *plan, sink, RunContext{});
+      PlanAndRun(blobs.points, "xmeans", 1, {{"kmax", "10"}}, sink);
   ASSERT_TRUE(summary.ok()) << summary.status();
   XmeansOptions direct;
   direct.min_clusters = 1;
@@ -64,10 +64,8 @@ TEST(RegistryWiringTest, XmeansLevelsAreItsFirstKmeansThenItsResult) {
 
 TEST(RegistryWiringTest, XmeansStoppedAtKminMovesNothing) {
   const testing::Blobs blobs = testing::GaussianBlobs(4, 50, 12, 3);
-  absl::StatusOr<JobPlan> plan = Plan("xmeans", 3, {{"kmax", "3"}});
-  ASSERT_TRUE(plan.ok()) << plan.status();
   LogSink sink;
-  ASSERT_TRUE(plan->algorithm->run_points(blobs.points, *plan, sink, RunContext{}).ok());
+  ASSERT_TRUE(PlanAndRun(blobs.points, "xmeans", 3, {{"kmax", "3"}}, sink).ok());
   ASSERT_EQ(sink.log.num_levels(), 2u);
   EXPECT_EQ(sink.log.num_moves(), 0u);  // level 0 is exactly the round X-means kept
   EXPECT_EQ(sink.log.energy(0), sink.log.energy(1));
@@ -75,11 +73,9 @@ TEST(RegistryWiringTest, XmeansStoppedAtKminMovesNothing) {
 
 TEST(RegistryWiringTest, BisectingLevelsAreTheSplitsUndone) {
   const testing::Blobs blobs = testing::GaussianBlobs(5, 40, 10, 4);
-  absl::StatusOr<JobPlan> plan = Plan("bisecting", 8, {{"split", "energy"}, {"trials", "3"}});
-  ASSERT_TRUE(plan.ok()) << plan.status();
   LogSink sink;
   absl::StatusOr<RunSummary> summary =
-      plan->algorithm->run_points(blobs.points, *plan, sink, RunContext{});
+      PlanAndRun(blobs.points, "bisecting", 8, {{"split", "energy"}, {"trials", "3"}}, sink);
   ASSERT_TRUE(summary.ok()) << summary.status();
   BisectingKmeansOptions direct;
   direct.clusters = 8;

@@ -10,6 +10,7 @@
 #include "core/energy/energies.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -30,41 +31,7 @@ const Loaded& Elephant() {
   return *elephant;
 }
 
-// A cube of side n with each side an n x n grid of squares, two triangles each (12 n^2
-// faces), outward counter-clockwise; faces listed side by side, `offset` added to every
-// coordinate.
-TriangleMesh Cube(int n = 3, float offset = 0) {
-  TriangleMesh cube;
-  auto vertex = [&](float x, float y, float z) {
-    for (size_t v = 0; v < cube.num_vertices(); ++v) {
-      if (cube.positions[3 * v] == x && cube.positions[3 * v + 1] == y &&
-          cube.positions[3 * v + 2] == z) {
-        return static_cast<uint32_t>(v);
-      }
-    }
-    cube.positions.insert(cube.positions.end(), {x, y, z});
-    return static_cast<uint32_t>(cube.num_vertices() - 1);
-  };
-  for (int axis = 0; axis < 3; ++axis) {
-    for (int side = 0; side < 2; ++side) {
-      for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < n; ++j) {
-          auto point = [&](int a, int b) {
-            float p[3];
-            p[axis] = static_cast<float>(side * n);
-            p[(axis + 1) % 3] = static_cast<float>(a);
-            p[(axis + 2) % 3] = static_cast<float>(b);
-            return vertex(p[0] + offset, p[1] + offset, p[2] + offset);
-          };
-          uint32_t q[4] = {point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1)};
-          if (side == 0) std::swap(q[1], q[3]);
-          cube.indices.insert(cube.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
-        }
-      }
-    }
-  }
-  return cube;
-}
+TriangleMesh Cube(int n = 3, float offset = 0) { return testing::IntegerCube(n, offset); }
 
 // Two cubes side by side, not touching: a mesh of two connected components.
 TriangleMesh TwoCubes() {
@@ -75,11 +42,7 @@ TriangleMesh TwoCubes() {
   return a;
 }
 
-std::set<uint32_t> Regions(const std::vector<ClusterId>& labels) {
-  std::set<uint32_t> ids;
-  for (ClusterId c : labels) ids.insert(c.value());
-  return ids;
-}
+using testing::DistinctLabels;
 
 // The number of edge-connected pieces of each region.
 std::map<uint32_t, int> Pieces(const Loaded& l, const std::vector<ClusterId>& labels) {
@@ -101,7 +64,7 @@ std::map<uint32_t, int> Pieces(const Loaded& l, const std::vector<ClusterId>& la
 // energy of the labels.
 void ExpectValidPartition(const Loaded& l, const VsaResult& result, uint32_t k) {
   ASSERT_EQ(result.labels.size(), l.mesh.num_faces());
-  const std::set<uint32_t> regions = Regions(result.labels);
+  const std::set<uint32_t> regions = DistinctLabels(result.labels);
   ASSERT_EQ(regions.size(), k);
   EXPECT_EQ(*regions.rbegin(), k - 1);
   for (const auto& [region, pieces] : Pieces(l, result.labels)) {

@@ -20,6 +20,7 @@
 #include "core/hierarchy/hierarchy.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
+#include "tests/fixtures/labels.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -40,11 +41,7 @@ Prepared Prepare(TriangleMesh mesh) {
   return p;
 }
 
-std::vector<ClusterId> Labels(std::initializer_list<uint32_t> values) {
-  std::vector<ClusterId> labels;
-  for (uint32_t v : values) labels.push_back(ClusterId(v));
-  return labels;
-}
+using testing::AsLabels;
 
 using testing::MakeCube;
 using testing::SubdividedCube;
@@ -175,7 +172,7 @@ double PlaneDistance(const Vec3& point, const Vec3& normal, const Vec3& on_plane
 
 TEST(CoarseningTest, TetrahedronWithOneClusterPerFaceGivesItsDual) {
   const Prepared p = Prepare(testing::Tetrahedron());
-  const std::vector<ClusterId> labels = Labels({7, 5, 9, 3});
+  const std::vector<ClusterId> labels = AsLabels({7, 5, 9, 3});
   absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(p.mesh, p.adjacency, labels);
   ASSERT_TRUE(coarse.ok()) << coarse.status();
   ExpectValidCoarseMesh(*coarse, 4, /*closed=*/true);
@@ -193,7 +190,7 @@ TEST(CoarseningTest, TetrahedronWithOneClusterPerFaceGivesItsDual) {
 
 TEST(CoarseningTest, ThreeClustersOnASphereGiveATwoTrianglePillow) {
   const Prepared p = Prepare(testing::Tetrahedron());
-  absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(p.mesh, p.adjacency, Labels({0, 1, 2, 2}));
+  absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(p.mesh, p.adjacency, AsLabels({0, 1, 2, 2}));
   ASSERT_TRUE(coarse.ok()) << coarse.status();
   ExpectValidCoarseMesh(*coarse, 3, /*closed=*/true);
   ASSERT_EQ(coarse->num_faces(), 2u);  // (0, 1, 2) and (0, 2, 1): the same clusters, both ways
@@ -233,11 +230,9 @@ TEST(CoarseningTest, CubeWithOneClusterPerSideGivesAnOctahedron) {
   }
 }
 
-TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
-  // Eight clusters, one per cube corner (its three quarter-sides): the coarse mesh is a cube
-  // (12 triangles, two per side's four-cluster corner at the side's centre).
-  const SubdividedCube cube = MakeCube(2);
-  const Prepared p = Prepare(cube.mesh);
+// Eight clusters on MakeCube(2), one per cube corner (its three quarter-sides): corner
+// (x, y, z), each 0 or 1, is cluster 4x + 2y + z.
+std::vector<ClusterId> CornerClusters(const SubdividedCube& cube) {
   std::vector<ClusterId> labels;
   for (size_t f = 0; f < cube.side.size(); ++f) {
     const int side = cube.side[f], a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;
@@ -247,6 +242,15 @@ TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
     corner[w] = cube.square[f][1];
     labels.push_back(ClusterId(corner[0] * 4 + corner[1] * 2 + corner[2]));
   }
+  return labels;
+}
+
+TEST(CoarseningTest, QuadricPutsACornerClusterOnTheCornerAndTheCentroidInside) {
+  // Eight clusters, one per cube corner (its three quarter-sides): the coarse mesh is a cube
+  // (12 triangles, two per side's four-cluster corner at the side's centre).
+  const SubdividedCube cube = MakeCube(2);
+  const Prepared p = Prepare(cube.mesh);
+  const std::vector<ClusterId> labels = CornerClusters(cube);
   const std::vector<ClusterId> clusters = CoarseVertexClusters(labels);
   ASSERT_EQ(clusters.size(), 8u);
 
@@ -314,15 +318,7 @@ TEST(CoarseningTest, QuadricVertexOfAnEdgeClusterLiesOnTheEdge) {
   // + 0.25 (z + 0.5)^2, least at (0.5, 0.5, 0) on the edge.
   const SubdividedCube cube = MakeCube(2);
   const Prepared p = Prepare(cube.mesh);
-  std::vector<ClusterId> labels;
-  for (size_t f = 0; f < cube.side.size(); ++f) {
-    const int side = cube.side[f], a = side % 3, u = (a + 1) % 3, w = (a + 2) % 3;
-    std::array<int, 3> corner;
-    corner[a] = side < 3 ? 1 : 0;
-    corner[u] = cube.square[f][0];
-    corner[w] = cube.square[f][1];
-    labels.push_back(ClusterId(corner[0] * 4 + corner[1] * 2 + corner[2]));
-  }
+  std::vector<ClusterId> labels = CornerClusters(cube);
   for (ClusterId& label : labels) {
     if (label == ClusterId(7)) label = ClusterId(6);
   }
@@ -394,29 +390,29 @@ TEST(CoarseningTest, BoundaryVertexOfThreeClustersGivesABoundaryTriangle) {
 
 TEST(CoarseningTest, RejectsBadInput) {
   const Prepared p = Prepare(testing::Tetrahedron());
-  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, Labels({0, 1, 2})).status().code(),
+  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, AsLabels({0, 1, 2})).status().code(),
             absl::StatusCode::kInvalidArgument);
-  std::vector<ClusterId> with_invalid = Labels({0, 1, 2, 3});
+  std::vector<ClusterId> with_invalid = AsLabels({0, 1, 2, 3});
   with_invalid[2] = ClusterId::Invalid();
   absl::Status invalid = CoarsenMesh(p.mesh, p.adjacency, with_invalid).status();
   EXPECT_EQ(invalid.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(invalid.message(), HasSubstr("face 2"));
   FaceAdjacency short_adjacency = p.adjacency;
   short_adjacency.neighbours.pop_back();
-  EXPECT_EQ(CoarsenMesh(p.mesh, short_adjacency, Labels({0, 1, 2, 3})).status().code(),
+  EXPECT_EQ(CoarsenMesh(p.mesh, short_adjacency, AsLabels({0, 1, 2, 3})).status().code(),
             absl::StatusCode::kInvalidArgument);
   FaceAdjacency wrong_adjacency = p.adjacency;
   wrong_adjacency.neighbours[0][0] = FaceId(17);
-  EXPECT_EQ(CoarsenMesh(p.mesh, wrong_adjacency, Labels({0, 1, 2, 3})).status().code(),
+  EXPECT_EQ(CoarsenMesh(p.mesh, wrong_adjacency, AsLabels({0, 1, 2, 3})).status().code(),
             absl::StatusCode::kInvalidArgument);
   wrong_adjacency.neighbours[0][0] = FaceId(0);  // in range, but not across that edge
-  EXPECT_EQ(CoarsenMesh(p.mesh, wrong_adjacency, Labels({0, 1, 2, 3})).status().code(),
+  EXPECT_EQ(CoarsenMesh(p.mesh, wrong_adjacency, AsLabels({0, 1, 2, 3})).status().code(),
             absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, Labels({0, 1, 2, 3}), {.max_repair_rounds = -1})
+  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, AsLabels({0, 1, 2, 3}), {.max_repair_rounds = -1})
                 .status()
                 .code(),
             absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, Labels({0, 1, 2, 3}),
+  EXPECT_EQ(CoarsenMesh(p.mesh, p.adjacency, AsLabels({0, 1, 2, 3}),
                         {.quadric_relative_eigenvalue = std::nan("")})
                 .status()
                 .code(),
@@ -427,7 +423,7 @@ TEST(CoarseningTest, RejectsAnInconsistentlyOrientedMesh) {
   TriangleMesh mesh = testing::Tetrahedron();
   std::swap(mesh.indices[1], mesh.indices[2]);  // flip face 0
   const Prepared p = Prepare(mesh);
-  absl::Status status = CoarsenMesh(p.mesh, p.adjacency, Labels({0, 1, 2, 3})).status();
+  absl::Status status = CoarsenMesh(p.mesh, p.adjacency, AsLabels({0, 1, 2, 3})).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(status.message(), HasSubstr("oriented inconsistently"));
 }
@@ -849,7 +845,7 @@ TEST(CoarseVertexPlacementTest, ClosestVertexIsTheClustersMeshVertexNearestItsCe
 
 TEST(CoarseVertexPlacementTest, RejectsADensityOfTheWrongSizeOrSign) {
   const Prepared p = Prepare(testing::Tetrahedron());
-  const std::vector<ClusterId> labels = Labels({0, 1, 2, 3});
+  const std::vector<ClusterId> labels = AsLabels({0, 1, 2, 3});
   const std::vector<double> short_density = {1, 1};
   const std::vector<double> negative = {1, 1, -1, 1};
   CoarseningOptions options;

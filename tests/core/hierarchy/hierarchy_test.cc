@@ -3,17 +3,15 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "tests/fixtures/labels.h"
+
 namespace mlclust {
 namespace {
 
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 
-std::vector<uint32_t> Values(const std::vector<ClusterId>& labels) {
-  std::vector<uint32_t> v;
-  for (ClusterId c : labels) v.push_back(c.value());
-  return v;
-}
+using testing::RawLabels;
 
 absl::Status AddLevel(HierarchyLog& log, uint32_t count, double energy,
                       std::vector<uint32_t> element, std::vector<uint32_t> to,
@@ -34,14 +32,14 @@ TEST(HierarchyLogTest, NonNestedMovesRebuildForwardsAndBackwards) {
   ASSERT_EQ(log.num_levels(), 4u);
   EXPECT_EQ(log.num_moves(), 4u);
 
-  EXPECT_THAT(Values(*log.LabelsAt(3)), ElementsAre(0, 2, 0, 2));
+  EXPECT_THAT(RawLabels(*log.LabelsAt(3)), ElementsAre(0, 2, 0, 2));
   std::vector<ClusterId> labels = *log.LabelsAt(3);
   ASSERT_TRUE(log.StepLabels(labels, 3, 1).ok());
-  EXPECT_THAT(Values(labels), ElementsAre(0, 0, 2, 3));
+  EXPECT_THAT(RawLabels(labels), ElementsAre(0, 0, 2, 3));
   ASSERT_TRUE(log.StepLabels(labels, 1, 2).ok());
-  EXPECT_THAT(Values(labels), ElementsAre(0, 0, 2, 2));
+  EXPECT_THAT(RawLabels(labels), ElementsAre(0, 0, 2, 2));
   ASSERT_TRUE(log.StepLabels(labels, 2, 0).ok());
-  EXPECT_THAT(Values(labels), ElementsAre(0, 1, 2, 3));
+  EXPECT_THAT(RawLabels(labels), ElementsAre(0, 1, 2, 3));
   EXPECT_EQ(log.cluster_count(2), 2u);
   EXPECT_DOUBLE_EQ(log.energy(3), 1.5);
   EXPECT_EQ(log.FirstLevelWithAtMost(3), 1u);

@@ -9,25 +9,12 @@
 #include <vector>
 
 #include "core/hierarchy/level_recorder.h"
+#include "tests/fixtures/recording_sink.h"
 
 namespace mlclust {
 namespace {
 
-class Collect : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId>, uint32_t, double) override {
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    energies.push_back(level.energy);
-    element.emplace_back(level.element.begin(), level.element.end());
-    to.emplace_back(level.to_cluster.begin(), level.to_cluster.end());
-    from.emplace_back(level.from_cluster.begin(), level.from_cluster.end());
-    return absl::OkStatus();
-  }
-  std::vector<double> energies;
-  std::vector<std::vector<uint32_t>> element, to, from;
-};
+using Collect = testing::LevelListSink;
 
 // Runs the blocks on two threads, the later half first: the result must not depend on it.
 struct TwoThreads {

@@ -4,30 +4,12 @@
 
 #include <vector>
 
+#include "tests/fixtures/recording_sink.h"
+
 namespace mlclust {
 namespace {
 
-// Keeps what the recorder reports.
-class Collect : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId>, uint32_t, double) override {
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    levels.push_back(level.level);
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    triplets.emplace_back();
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      triplets.back().push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
-    }
-    return status;
-  }
-  std::vector<uint32_t> levels, counts;
-  std::vector<double> energies;
-  std::vector<std::vector<std::vector<uint32_t>>> triplets;
-  absl::Status status;
-};
+using Collect = testing::LevelListSink;
 
 // Four elements in clusters {0, 0, 1, 2}; a cluster's "energy" is its element count.
 TEST(LevelRecorderTest, SquashesMovesKeepsTheFirstOriginAndAddsEnergyChanges) {
@@ -59,8 +41,8 @@ TEST(LevelRecorderTest, SquashesMovesKeepsTheFirstOriginAndAddsEnergyChanges) {
   EXPECT_EQ(recorder.affected().size(), 3u);  // still listed until Emit
   ASSERT_TRUE(recorder.Emit(sink, 1, 3).ok());
   EXPECT_TRUE(recorder.affected().empty());
-  ASSERT_EQ(sink.triplets.size(), 1u);
-  EXPECT_EQ(sink.triplets[0], (std::vector<std::vector<uint32_t>>{{12, 0, 1}, {11, 1, 0}}));
+  ASSERT_EQ(sink.element.size(), 1u);
+  EXPECT_EQ(sink.triplets(0), (std::vector<std::vector<uint32_t>>{{12, 0, 1}, {11, 1, 0}}));
   EXPECT_EQ(sink.levels[0], 1u);
   EXPECT_EQ(sink.counts[0], 3u);
   EXPECT_EQ(sink.energies[0], 100.0);  // the cluster sizes end as they started
@@ -71,7 +53,7 @@ TEST(LevelRecorderTest, SquashesMovesKeepsTheFirstOriginAndAddsEnergyChanges) {
   recorder.Squash(energy_of, label_of, id_of);
   sink.status = absl::CancelledError("stop");
   EXPECT_EQ(recorder.Emit(sink, 2, 3).code(), absl::StatusCode::kCancelled);
-  EXPECT_EQ(sink.triplets[1], (std::vector<std::vector<uint32_t>>{{12, 2, 0}}));
+  EXPECT_EQ(sink.triplets(1), (std::vector<std::vector<uint32_t>>{{12, 2, 0}}));
   EXPECT_EQ(sink.energies[1], 100.0);
   EXPECT_EQ(recorder.moves(), 3u);
 }

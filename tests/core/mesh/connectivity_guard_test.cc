@@ -88,12 +88,23 @@ std::vector<int64_t> EulerCharacteristics(const TriangleMesh& mesh, const FaceAd
   return chi;
 }
 
+// Grid(n) labelled by square (cluster_of, k clusters) with a vertex-count guard reset to
+// the labels.
+struct GuardedGrid : Clustered {
+  template <typename F>
+  GuardedGrid(int n, F cluster_of, uint32_t k)
+      : Clustered(testing::Grid(n)), guard(mesh, adjacency) {
+    Label(BySquare(n, cluster_of), k);
+    guard.Reset(labels);
+  }
+  VertexBoundaryEdgeCountGuard guard;
+};
+
 TEST(VertexBoundaryEdgeCountTest, CountsAreTheBoundaryEdgesAtEachVertex) {
   const int n = 4;
-  Clustered s(testing::Grid(n));
-  s.Label(BySquare(n, [](int x, int) { return x < 2 ? 0u : 1u; }), 2);
-  VertexBoundaryEdgeCountGuard guard(s.mesh, s.adjacency);
-  guard.Reset(s.labels);
+  GuardedGrid s(
+      n, [](int x, int) { return x < 2 ? 0u : 1u; }, 2);
+  VertexBoundaryEdgeCountGuard& guard = s.guard;
   // Interior vertex on the vertical border x = 2: the two border edges above and below it.
   EXPECT_EQ(guard.count(VertexAt(n, 2, 2)), 2u);
   // Interior vertex inside a cluster: none.
@@ -108,10 +119,9 @@ TEST(VertexBoundaryEdgeCountTest, CountsAreTheBoundaryEdgesAtEachVertex) {
 // count(V2) = 2 and V1, V3 keep their counts, as the text's update says.
 TEST(VertexBoundaryEdgeCountTest, CaseZeroIsAllowedAndUpdatesV2ToTwo) {
   const int n = 6;
-  Clustered s(testing::Grid(n));
-  s.Label(BySquare(n, [](int x, int) { return x < 3 ? 0u : 1u; }), 2);
-  VertexBoundaryEdgeCountGuard guard(s.mesh, s.adjacency);
-  guard.Reset(s.labels);
+  GuardedGrid s(
+      n, [](int x, int) { return x < 3 ? 0u : 1u; }, 2);
+  VertexBoundaryEdgeCountGuard& guard = s.guard;
   const ConnectivityGuard ring(s.mesh, s.adjacency);
   // The lower face of square (3, 2) crosses the border x = 3 with its edge (3,3) -> (3,2):
   // V1 = (3, 3), V3 = (3, 2), V2 = (4, 2).
@@ -131,10 +141,11 @@ TEST(VertexBoundaryEdgeCountTest, CaseZeroIsAllowedAndUpdatesV2ToTwo) {
 // Fig. 3.9 (b): taking a face out of a one-face-wide strip would split the strip.
 TEST(VertexBoundaryEdgeCountTest, RejectsSplittingAStrip) {
   const int n = 6;
-  Clustered s(testing::Grid(n));
-  s.Label(BySquare(n, [](int, int y) { return y < 2 ? 0u : y == 2 ? 1u : 2u; }), 3);
-  VertexBoundaryEdgeCountGuard guard(s.mesh, s.adjacency);
-  guard.Reset(s.labels);
+  GuardedGrid s(
+      n, [](int, int y) { return y < 2    ? 0u
+                                 : y == 2 ? 1u
+                                          : 2u; }, 3);
+  VertexBoundaryEdgeCountGuard& guard = s.guard;
   const ConnectivityGuard ring(s.mesh, s.adjacency);
   const uint32_t face = Lower(n, 3, 2);  // in the strip, its bottom edge on cluster 0
   EXPECT_FALSE(guard.CanMove(face, 0, s.labels, s.sizes));

@@ -15,6 +15,7 @@
 #include "server/server.h"
 #include "tests/fixtures/image_hues.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
@@ -23,17 +24,8 @@ using ::mlclust::testing::DistinctHues;
 using ::mlclust::testing::MakeCube;
 using ::testing::HasSubstr;
 
-std::unique_ptr<server::Server> StartServer(server::ServerOptions options = {}) {
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-  EXPECT_TRUE(started.ok()) << started.status();
-  return started.ok() ? *std::move(started) : nullptr;
-}
-
-std::shared_ptr<grpc::Channel> ChannelTo(const server::Server& server) {
-  return client::Connect(absl::StrCat("127.0.0.1:", server.port()));
-}
+using ::mlclust::testing::ChannelTo;
+using ::mlclust::testing::StartServer;
 
 // ML with the planar energy on a cube: the six sides are its level with 6 clusters (a
 // merge inside a side costs nothing, across an edge it does).

@@ -9,27 +9,20 @@
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/labels.h"
+#include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {
 
 std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
+  return ::mlclust::testing::MakeGlContext(options);
 }
 
-FaceAdjacency AdjacencyOf(const TriangleMesh& mesh) {
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-  EXPECT_TRUE(adjacency.ok()) << adjacency.status();
-  return adjacency.ok() ? *std::move(adjacency) : FaceAdjacency{};
-}
+using ::mlclust::testing::AdjacencyOf;
 
-std::vector<ClusterId> Labels(std::initializer_list<uint32_t> values) {
-  std::vector<ClusterId> labels;
-  for (uint32_t value : values) labels.push_back(ClusterId(value));
-  return labels;
-}
+using ::mlclust::testing::AsLabels;
 
 // Two triangles sharing the edge 0-2 of the unit square.
 TriangleMesh TwoTriangles() {
@@ -52,12 +45,12 @@ TEST(GpuBoundaryFacesTest, TwoTriangles) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
   const FaceAdjacency adjacency = AdjacencyOf(TwoTriangles());
-  EXPECT_EQ(Flags(*context, adjacency, Labels({5, 5})), (std::vector<uint8_t>{0, 0}));
-  EXPECT_EQ(Flags(*context, adjacency, Labels({5, 6})), (std::vector<uint8_t>{1, 1}));
+  EXPECT_EQ(Flags(*context, adjacency, AsLabels({5, 5})), (std::vector<uint8_t>{0, 0}));
+  EXPECT_EQ(Flags(*context, adjacency, AsLabels({5, 6})), (std::vector<uint8_t>{1, 1}));
   // Invalid() is a label like any other.
   EXPECT_EQ(Flags(*context, adjacency, {ClusterId::Invalid(), ClusterId(0)}),
             (std::vector<uint8_t>{1, 1}));
-  EXPECT_EQ(FlagBoundaryFacesCpu(adjacency, Labels({5, 6})), (std::vector<uint8_t>{1, 1}));
+  EXPECT_EQ(FlagBoundaryFacesCpu(adjacency, AsLabels({5, 6})), (std::vector<uint8_t>{1, 1}));
 }
 
 TEST(GpuBoundaryFacesTest, Tetrahedron) {
@@ -65,10 +58,10 @@ TEST(GpuBoundaryFacesTest, Tetrahedron) {
   ASSERT_NE(context, nullptr);
   const FaceAdjacency adjacency = AdjacencyOf(Tetrahedron());
   // One cluster: a closed surface with no boundary at all.
-  EXPECT_EQ(Flags(*context, adjacency, Labels({3, 3, 3, 3})), (std::vector<uint8_t>{0, 0, 0, 0}));
+  EXPECT_EQ(Flags(*context, adjacency, AsLabels({3, 3, 3, 3})), (std::vector<uint8_t>{0, 0, 0, 0}));
   // Every face touches every other, so one face apart makes all four boundary faces.
-  EXPECT_EQ(Flags(*context, adjacency, Labels({3, 3, 9, 3})), (std::vector<uint8_t>{1, 1, 1, 1}));
-  EXPECT_EQ(FlagBoundaryFacesCpu(adjacency, Labels({3, 3, 3, 3})),
+  EXPECT_EQ(Flags(*context, adjacency, AsLabels({3, 3, 9, 3})), (std::vector<uint8_t>{1, 1, 1, 1}));
+  EXPECT_EQ(FlagBoundaryFacesCpu(adjacency, AsLabels({3, 3, 3, 3})),
             (std::vector<uint8_t>{0, 0, 0, 0}));
 }
 
@@ -84,10 +77,10 @@ TEST(GpuBoundaryFacesTest, RejectsInconsistentInput) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
   FaceAdjacency adjacency = AdjacencyOf(TwoTriangles());
-  EXPECT_EQ(FlagBoundaryFaces(*context, adjacency, Labels({1})).status().code(),
+  EXPECT_EQ(FlagBoundaryFaces(*context, adjacency, AsLabels({1})).status().code(),
             absl::StatusCode::kInvalidArgument);
   adjacency.neighbours[1][2] = FaceId(2);  // only faces 0 and 1 exist
-  const absl::Status status = FlagBoundaryFaces(*context, adjacency, Labels({1, 1})).status();
+  const absl::Status status = FlagBoundaryFaces(*context, adjacency, AsLabels({1, 1})).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(status.message().find("face 1 edge 2"), absl::string_view::npos) << status;
 }
@@ -98,7 +91,7 @@ TEST(GpuBoundaryFacesTest, UseFromAnotherThreadIsAFailedPrecondition) {
   const FaceAdjacency adjacency = AdjacencyOf(TwoTriangles());
   absl::Status status;
   std::thread([&] {
-    status = FlagBoundaryFaces(*context, adjacency, Labels({1, 2})).status();
+    status = FlagBoundaryFaces(*context, adjacency, AsLabels({1, 2})).status();
   }).join();
   EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition) << status;
 }

@@ -11,15 +11,12 @@
 #include "core/mesh/face_measures.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
 
 namespace mlclust::gpu {
 namespace {
 
-std::unique_ptr<GlContext> MakeContext() {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create();
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
-}
+std::unique_ptr<GlContext> MakeContext() { return ::mlclust::testing::MakeGlContext(); }
 
 TEST(ClusterSums, SmallIntegersAreExact) {
   std::unique_ptr<GlContext> context = MakeContext();

@@ -10,6 +10,7 @@
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -19,9 +20,7 @@ namespace {
 constexpr double kRelativeTolerance = 1e-12;
 
 std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
+  return ::mlclust::testing::MakeGlContext(options);
 }
 
 double RelativeDifference(double gpu, double cpu) {

@@ -3,12 +3,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <set>
 #include <vector>
 
 #include "core/mesh/mesh.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/render/png_codec.h"
+#include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/image_hues.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -24,15 +26,24 @@ using ::mlclust::testing::ToHsv;
 using ::testing::HasSubstr;
 
 std::unique_ptr<GlContext> MakeContext(const GlContextOptions& options = {}) {
-  absl::StatusOr<std::unique_ptr<GlContext>> context = GlContext::Create(options);
-  EXPECT_TRUE(context.ok()) << context.status();
-  return context.ok() ? *std::move(context) : nullptr;
+  return ::mlclust::testing::MakeGlContext(options);
 }
 
-FaceAdjacency AdjacencyOf(const TriangleMesh& mesh) {
-  absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(mesh);
-  EXPECT_TRUE(adjacency.ok()) << adjacency.status();
-  return adjacency.ok() ? *std::move(adjacency) : FaceAdjacency{};
+using ::mlclust::testing::AdjacencyOf;
+
+// A GL context whose storage buffers hold at most `bytes`.
+std::unique_ptr<GlContext> ContextWithBuffersOf(int64_t bytes) {
+  GlContextOptions options;
+  options.max_storage_buffer_bytes = bytes;
+  return MakeContext(options);
+}
+
+// Default options at width x height pixels.
+ClusterPreviewOptions Sized(uint32_t width, uint32_t height) {
+  ClusterPreviewOptions options;
+  options.width = width;
+  options.height = height;
+  return options;
 }
 
 // Grid(n) (z = 0, two triangles per square, square (x, y) has faces 2 (y n + x) and
@@ -144,9 +155,7 @@ TEST(ClusterPreviewTest, QuadrantsShowFourHuesBordersAndBackground) {
   const TriangleMesh mesh = Grid(8);
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
   const std::vector<ClusterId> labels = Quadrants(8);
-  ClusterPreviewOptions options;
-  options.width = 320;
-  options.height = 240;
+  ClusterPreviewOptions options = Sized(320, 240);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, adjacency, labels, options);
   ASSERT_TRUE(image.ok()) << image.status();
@@ -172,9 +181,7 @@ TEST(ClusterPreviewTest, OneClusterHasOneHueAndNoBorder) {
   ASSERT_NE(context, nullptr);
   const TriangleMesh mesh = Grid(8);
   const std::vector<ClusterId> labels(mesh.num_faces(), ClusterId(3));
-  ClusterPreviewOptions options;
-  options.width = 200;
-  options.height = 200;
+  ClusterPreviewOptions options = Sized(200, 200);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), labels, options);
   ASSERT_TRUE(image.ok()) << image.status();
@@ -182,68 +189,70 @@ TEST(ClusterPreviewTest, OneClusterHasOneHueAndNoBorder) {
   EXPECT_EQ(CountPixels(*image, kPreviewBorder), 0u);
 }
 
+// MakeCube(4) with six planar clusters, one per side (+x, +y, +z, -x, -y, -z).
+struct CubeBySide {
+  CubeBySide() : cube(MakeCube(4)), adjacency(AdjacencyOf(cube.mesh)) {
+    for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
+  }
+  const TriangleMesh& mesh() const { return cube.mesh; }
+  mlclust::testing::SubdividedCube cube;
+  FaceAdjacency adjacency;
+  std::vector<ClusterId> labels;
+};
+
+// Renders `cube` with `options`: the image (kept in `image`) must show exactly the hues of
+// the three clusters `sides` (of six).
+void ExpectSidesShown(GlContext& context, const CubeBySide& cube,
+                      const ClusterPreviewOptions& options, std::array<uint32_t, 3> sides,
+                      RgbaImage& image) {
+  absl::StatusOr<RgbaImage> rendered =
+      RenderClusterPreview(context, cube.mesh(), cube.adjacency, cube.labels, options);
+  ASSERT_TRUE(rendered.ok()) << rendered.status();
+  image = *std::move(rendered);
+  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(cube.adjacency, cube.labels);
+  ASSERT_TRUE(colours.ok());
+  ASSERT_EQ(colours->cluster_count, 6u);
+  ExpectHues(DistinctHues(image),
+             {HueOf(colours->cluster_colour[sides[0]]), HueOf(colours->cluster_colour[sides[1]]),
+              HueOf(colours->cluster_colour[sides[2]])});
+}
+
 TEST(ClusterPreviewTest, CubeBySideShowsTheThreeSidesFacingTheCamera) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
-  // Six planar clusters, one per side (+x, +y, +z, -x, -y, -z); the three-quarter view
-  // from the +x, +y, +z octant sees the first three, and the depth test hides the rest.
-  const mlclust::testing::SubdividedCube cube = MakeCube(4);
-  std::vector<ClusterId> labels;
-  for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
-  const FaceAdjacency adjacency = AdjacencyOf(cube.mesh);
-  ClusterPreviewOptions options;
-  options.width = 256;
-  options.height = 256;
-  absl::StatusOr<RgbaImage> image =
-      RenderClusterPreview(*context, cube.mesh, adjacency, labels, options);
-  ASSERT_TRUE(image.ok()) << image.status();
-  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(adjacency, labels);
-  ASSERT_TRUE(colours.ok());
-  ASSERT_EQ(colours->cluster_count, 6u);
-  ExpectHues(DistinctHues(*image),
-             {HueOf(colours->cluster_colour[0]), HueOf(colours->cluster_colour[1]),
-              HueOf(colours->cluster_colour[2])});
+  // The three-quarter view from the +x, +y, +z octant sees the first three sides, and the
+  // depth test hides the rest.
+  const CubeBySide cube;
+  RgbaImage image;
+  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, Sized(256, 256), {0, 1, 2}, image));
   // Lambert shading: the three visible sides face the light differently, so they differ
   // in brightness as well.
-  EXPECT_GT(CountPixels(*image, kPreviewBorder), 0u);
+  EXPECT_GT(CountPixels(image, kPreviewBorder), 0u);
 }
 
 TEST(ClusterPreviewTest, CameraFromTheOtherOctantShowsTheOtherThreeSides) {
   std::unique_ptr<GlContext> context = MakeContext();
   ASSERT_NE(context, nullptr);
-  const mlclust::testing::SubdividedCube cube = MakeCube(4);
-  std::vector<ClusterId> labels;
-  for (int side : cube.side) labels.push_back(ClusterId(static_cast<uint32_t>(side)));
-  const FaceAdjacency adjacency = AdjacencyOf(cube.mesh);
-  ClusterPreviewOptions options;
-  options.width = 256;
-  options.height = 256;
+  const CubeBySide cube;
+  ClusterPreviewOptions options = Sized(256, 256);
   options.azimuth_degrees = 215;    // from -x, -z
   options.elevation_degrees = -25;  // and below: -y
-  absl::StatusOr<RgbaImage> image =
-      RenderClusterPreview(*context, cube.mesh, adjacency, labels, options);
-  ASSERT_TRUE(image.ok()) << image.status();
-  absl::StatusOr<ClusterPreviewColours> colours = ColourClusters(adjacency, labels);
-  ASSERT_TRUE(colours.ok());
-  ExpectHues(DistinctHues(*image),
-             {HueOf(colours->cluster_colour[3]), HueOf(colours->cluster_colour[4]),
-              HueOf(colours->cluster_colour[5])});
+  RgbaImage image;
+  ASSERT_NO_FATAL_FAILURE(ExpectSidesShown(*context, cube, options, {3, 4, 5}, image));
   options.elevation_degrees = 90;  // straight down: no up direction
-  EXPECT_EQ(RenderClusterPreview(*context, cube.mesh, adjacency, labels, options).status().code(),
+  EXPECT_EQ(RenderClusterPreview(*context, cube.mesh(), cube.adjacency, cube.labels, options)
+                .status()
+                .code(),
             absl::StatusCode::kInvalidArgument);
 }
 
 TEST(ClusterPreviewTest, ChunkedDrawIsTheSamePicture) {
   // Buffers capped at 1 KiB: the grid's 128 faces go in two chunks of 85 and 43.
-  GlContextOptions small;
-  small.max_storage_buffer_bytes = 1024;
-  std::unique_ptr<GlContext> chunked = MakeContext(small);
+  std::unique_ptr<GlContext> chunked = ContextWithBuffersOf(1024);
   ASSERT_NE(chunked, nullptr);
   const TriangleMesh mesh = Grid(8);
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
-  ClusterPreviewOptions options;
-  options.width = 160;
-  options.height = 120;
+  ClusterPreviewOptions options = Sized(160, 120);
   absl::StatusOr<RgbaImage> in_chunks =
       RenderClusterPreview(*chunked, mesh, adjacency, Quadrants(8), options);
   ASSERT_TRUE(in_chunks.ok()) << in_chunks.status();
@@ -266,9 +275,7 @@ TEST(ClusterPreviewTest, RefusesSizesOutOfRange) {
   const std::vector<ClusterId> labels(mesh.num_faces(), ClusterId(0));
   const FaceAdjacency adjacency = AdjacencyOf(mesh);
   for (auto [width, height] : {std::pair<uint32_t, uint32_t>{0, 100}, {100, 0}, {1u << 20, 64}}) {
-    ClusterPreviewOptions options;
-    options.width = width;
-    options.height = height;
+    ClusterPreviewOptions options = Sized(width, height);
     absl::StatusOr<RgbaImage> image =
         RenderClusterPreview(*context, mesh, adjacency, labels, options);
     EXPECT_EQ(image.status().code(), absl::StatusCode::kInvalidArgument) << width << "x" << height;
@@ -281,9 +288,7 @@ TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
   ASSERT_NE(context, nullptr);
   // Zero-area faces (ValidateMesh accepts them): nothing to fit, no crash, a full picture.
   const TriangleMesh mesh = mlclust::testing::MakeMesh({2, 2, 2, 2, 2, 2, 2, 2, 2}, {0, 1, 2});
-  ClusterPreviewOptions options;
-  options.width = 64;
-  options.height = 48;
+  ClusterPreviewOptions options = Sized(64, 48);
   absl::StatusOr<RgbaImage> image =
       RenderClusterPreview(*context, mesh, AdjacencyOf(mesh), std::vector{ClusterId(0)}, options);
   ASSERT_TRUE(image.ok()) << image.status();
@@ -294,9 +299,7 @@ TEST(ClusterPreviewTest, MeshAtOnePointStillGivesAPicture) {
 TEST(ClusterPreviewTest, VerticesOverOneBufferAreRefusedClearly) {
   // A context whose storage buffers hold 64 bytes: Grid(8)'s 81 vertices (972 bytes) do
   // not fit, and the error says so instead of drawing part of the mesh.
-  GlContextOptions tiny;
-  tiny.max_storage_buffer_bytes = 64;
-  std::unique_ptr<GlContext> context = MakeContext(tiny);
+  std::unique_ptr<GlContext> context = ContextWithBuffersOf(64);
   ASSERT_NE(context, nullptr);
   const TriangleMesh mesh = Grid(8);
   absl::StatusOr<RgbaImage> image =

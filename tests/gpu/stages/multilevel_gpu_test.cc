@@ -273,8 +273,9 @@ TEST(PmlGpu, StopsAtOneClusterPerComponent) {
   EXPECT_EQ(gpu->final_clusters, 3u);
 }
 
-// The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only and the
-// CVD energies, with device gpu even on llvmpipe, with auto only on hardware.
+// The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only (and BB:
+// pml_bb_gpu_test.cc) and the CVD energies, with device gpu even on llvmpipe, with auto
+// only on hardware.
 TEST(PmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};

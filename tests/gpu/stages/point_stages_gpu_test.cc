@@ -128,6 +128,24 @@ TEST(RunLloydGpu, EmptyClustersTakeTheFarthestPoints) {
   for (int size : sizes) EXPECT_GT(size, 0);
 }
 
+// The GPU's Lloyd is RunLloyd's loop (core/cluster/detail/lloyd.h): keep_first_assignment
+// keeps the first iteration's partition, exactly what a run of one iteration returns.
+TEST(RunLloydGpu, KeepsTheFirstAssignmentAsOneIterationGivesIt) {
+  const PointSet points = Blobs(5000, 3, 12, 8);
+  absl::StatusOr<std::vector<float>> centres = KmeansPlusPlusCentres(points, 15, 3);
+  ASSERT_TRUE(centres.ok()) << centres.status();
+  KmeansOptions options;
+  options.keep_first_assignment = true;
+  absl::StatusOr<KmeansResult> full = RunLloydGpu(Context(), points, *centres, options);
+  ASSERT_TRUE(full.ok()) << full.status();
+  options.max_iterations = 1;
+  absl::StatusOr<KmeansResult> one = RunLloydGpu(Context(), points, *centres, options);
+  ASSERT_TRUE(one.ok()) << one.status();
+  EXPECT_GT(full->iterations, 1u);
+  EXPECT_EQ(full->first_labels, one->labels);
+  EXPECT_EQ(full->first_inertia, one->inertia);  // bit for bit
+}
+
 TEST(RunLnKmeansGpu, CancelledRunsReturnCancelled) {
   const PointSet points = Blobs(2000, 3, 10, 6);
   const std::vector<ClusterId> seeds = Seeds(points, 12);

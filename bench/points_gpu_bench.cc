@@ -1,0 +1,164 @@
+// PML for points (merges only) on the GPU (gpu/stages/points_multilevel_gpu.h: the voxel
+// start and every level on the GPU) against the CPU engine's PML with the same options
+// (core/cluster/point_clustering.h, RunPointMultilevel) on T threads, on Gaussian blobs:
+// the whole hierarchy (for the GPU: upload, start, every level, every triplet read back),
+// wall seconds and the process's CPU seconds (llvmpipe's threads included), levels, the
+// energy at the lowest level and at 4x and 16x its clusters.
+//
+//   points_gpu_bench [--m M] [--d D] [--blobs B] [--pairs all|cheaper-half] [--until K]
+//                    [--threads T] [--repeats R] [--seed S] [--header]
+//
+// Prints one CSV row per device (best wall time of R runs):
+// points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
+// final_clusters,energy_final,energy_4x,energy_16x
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bench/bench_util.h"
+#include "core/base/random.h"
+#include "core/cluster/point_clustering.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/stages/points_multilevel_gpu.h"
+
+namespace {
+
+// Blobs as points_bench's: centres uniform in [-25, 25]^d, sigma 1, each point from a
+// random centre.
+mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
+  mlclust::Random random(seed);
+  mlclust::PointSet points;
+  points.dims = d;
+  std::vector<double> centres(size_t{blobs} * d);
+  for (double& c : centres) c = -25 + 50 * random.Unit();
+  points.values.resize(m * d);
+  for (uint64_t i = 0; i < m; ++i) {
+    const uint64_t b = random.Below(blobs);
+    for (uint32_t j = 0; j < d; ++j) {
+      const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
+      points.values[i * d + j] = static_cast<float>(
+          centres[b * d + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
+    }
+  }
+  return points;
+}
+
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+// Per level its cluster count and energy.
+class CurveSink : public mlclust::LevelSink {
+ public:
+  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
+                       double energy) override {
+    counts.push_back(count);
+    energies.push_back(energy);
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
+    counts.push_back(level.cluster_count);
+    energies.push_back(level.energy);
+    return absl::OkStatus();
+  }
+  // The energy of the last level with at least `count` clusters.
+  double At(uint32_t count) const {
+    double energy = energies.front();
+    for (size_t l = 0; l < counts.size() && counts[l] >= count; ++l) energy = energies[l];
+    return energy;
+  }
+  std::vector<uint32_t> counts;
+  std::vector<double> energies;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  mlclust::bench::Args args(argc, argv,
+                            "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
+                            "[--pairs all|cheaper-half] [--until K] [--threads T] [--repeats R] "
+                            "[--seed S] [--header]");
+  const bool header = args.Flag("header");
+  const uint64_t m = args.Get<uint64_t>("m", 100000);
+  const uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 1000);
+  const std::string pairs = args.Get<std::string>("pairs", "cheaper-half");
+  const uint32_t until = args.Get<uint32_t>("until", 1);
+  const int threads = args.Get<int>("threads", 0);
+  const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
+  const uint64_t seed = args.Get<uint64_t>("seed", 1);
+  if (!args.Done()) return 2;
+  if (pairs != "all" && pairs != "cheaper-half") {
+    std::fprintf(stderr, "bad option --pairs %s\n", pairs.c_str());
+    return 2;
+  }
+  const mlclust::PointSet points = Blobs(m, d, blobs, seed);
+  mlclust::PointMultilevelOptions options;
+  options.parallel = true;
+  options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
+  options.pml_pairs =
+      pairs == "all" ? mlclust::PmlPairRule::kAll : mlclust::PmlPairRule::kCheaperHalf;
+  options.min_clusters = std::max(until, 1u);
+  options.threads = threads;
+  absl::StatusOr<std::unique_ptr<mlclust::gpu::GlContext>> context =
+      mlclust::gpu::GlContext::Create();
+  if (!context.ok()) {
+    std::fprintf(stderr, "%s\n", context.status().ToString().c_str());
+    return 1;
+  }
+  struct Row {
+    std::string device;
+    double seconds = std::numeric_limits<double>::infinity();
+    double cpu_seconds = 0;
+    mlclust::PointMultilevelSummary summary;
+    CurveSink curve;
+  };
+  Row rows[2];
+  rows[0].device = "cpu";
+  rows[1].device = (*context)->renderer();
+  for (int device = 0; device < 2; ++device) {
+    for (uint32_t r = 0; r < repeats; ++r) {
+      CurveSink sink;
+      const double cpu_before = ProcessCpuSeconds();
+      const mlclust::bench::Stopwatch watch;
+      absl::StatusOr<mlclust::PointMultilevelSummary> summary =
+          device == 0
+              ? mlclust::RunPointMultilevel(points, options, sink)
+              : mlclust::gpu::RunPointParallelMultilevelGpu(**context, points, options, sink);
+      const double seconds = watch.Seconds();
+      const double cpu_seconds = ProcessCpuSeconds() - cpu_before;
+      if (!summary.ok()) {
+        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
+        return 1;
+      }
+      if (seconds < rows[device].seconds) {
+        rows[device].seconds = seconds;
+        rows[device].cpu_seconds = cpu_seconds;
+      }
+      rows[device].summary = *summary;
+      rows[device].curve = std::move(sink);
+    }
+  }
+  if (header) {
+    std::printf(
+        "points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,"
+        "final_clusters,energy_final,energy_4x,energy_16x\n");
+  }
+  for (const Row& row : rows) {
+    const uint32_t low = row.summary.final_clusters;
+    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g\n",
+                static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
+                threads, row.seconds, row.cpu_seconds, row.summary.levels,
+                row.summary.start_clusters, low, row.curve.energies.back(), row.curve.At(4 * low),
+                row.curve.At(16 * low));
+  }
+  return 0;
+}

@@ -1,0 +1,307 @@
+#include "client/cli.h"
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <iostream>
+
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "google/protobuf/util/json_util.h"
+
+namespace mlclust::cli {
+namespace {
+
+constexpr size_t kWidth = 92;       // columns of the help text
+constexpr size_t kHelpColumn = 25;  // where a row's help starts
+
+// "a|b|c", "N in [0, 1024]", "X in [0, 100]".
+std::string OptionValueText(const OptionInfo& option) {
+  switch (option.type) {
+    case OptionInfo::Type::kChoice:
+      return absl::StrJoin(option.choices, "|");
+    case OptionInfo::Type::kInteger:
+      return absl::StrCat("N in [", static_cast<int64_t>(option.low), ", ",
+                          static_cast<int64_t>(option.high), "]");
+    case OptionInfo::Type::kNumber:
+      return absl::StrCat("X in [", option.low, ", ", option.high, "]");
+  }
+  return "";
+}
+
+Flag RegistryFlag(const OptionInfo& option) {
+  return {option.name, OptionValueText(option),
+          absl::StrCat(option.help, " (default ", option.default_text, ")")};
+}
+
+// `text` wrapped to kWidth, the first line starting with `first` (padded to `indent`), the
+// others with `indent` spaces.
+std::string WrapAfter(const std::string& first, const std::string& text, size_t indent) {
+  std::string out, line = first;
+  if (line.size() < indent) line.resize(indent, ' ');
+  bool empty = true;  // no word on `line` yet
+  for (absl::string_view word : absl::StrSplit(text, ' ', absl::SkipEmpty())) {
+    if (!empty && line.size() + 1 + word.size() > kWidth) {
+      absl::StrAppend(&out, line, "\n");
+      line.assign(indent, ' ');
+      empty = true;
+    }
+    absl::StrAppend(&line, empty || line.back() == ' ' ? "" : " ", word);
+    empty = false;
+  }
+  return absl::StrCat(out, line, "\n");
+}
+
+std::string FlagHead(const Flag& flag) {
+  return absl::StrCat(
+      flag.short_name != 0 ? absl::StrCat("-", std::string(1, flag.short_name), ", ") : "", "--",
+      flag.name, flag.value.empty() ? "" : " ", flag.value);
+}
+
+}  // namespace
+
+std::string Arguments::get(const std::string& name, const std::string& fallback) const {
+  auto it = values_.find(name);
+  return it == values_.end() ? fallback : it->second;
+}
+
+std::optional<std::string> Arguments::value(const std::string& name) const {
+  auto it = values_.find(name);
+  if (it == values_.end()) return std::nullopt;
+  return it->second;
+}
+
+absl::StatusOr<uint64_t> Arguments::GetUint(const std::string& name, uint64_t fallback,
+                                            uint64_t max) const {
+  if (!has(name)) return fallback;
+  uint64_t value;
+  if (!absl::SimpleAtoi(get(name), &value)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--", name, ": '", get(name), "' is not a non-negative integer"));
+  }
+  if (value > max) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--", name, ": ", value, " is over the largest accepted, ", max));
+  }
+  return value;
+}
+
+absl::StatusOr<Arguments> ParseCommandLine(const CommandLine& command,
+                                           const std::vector<std::string>& args) {
+  CLI::App app(command.name);
+  app.set_help_flag();  // ours (-h, --help) is a row like the others: the help is ours
+  app.allow_extras();   // named below as "unknown option"
+  std::map<std::string, CLI::Option*> options;
+  std::map<std::string, std::string> values;  // stable addresses for CLI11 to write to
+  auto add = [&](const Flag& flag) {
+    if (options.contains(flag.name)) return;  // a registry option several algorithms share
+    std::string names = absl::StrCat("--", flag.name);
+    if (flag.short_name != 0)
+      names = absl::StrCat("-", std::string(1, flag.short_name), ",", names);
+    options[flag.name] = flag.value.empty()
+                             ? app.add_flag(names)->disable_flag_override()
+                             : app.add_option(names, values[flag.name])
+                                   ->type_name(flag.value)
+                                   ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  };
+  add({"help", "", "", 'h'});
+  for (const FlagGroup& group : command.groups) {
+    for (const Flag& flag : group.flags) add(flag);
+  }
+  std::vector<std::string> positional;
+  app.add_option("arguments", positional);
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 pops from the back
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ArgumentMismatch& e) {
+    // "--deadline: 1 required SECONDS missing": the value was left out.
+    const std::string what = e.what();
+    const std::string name = what.substr(0, what.find(':'));
+    if (absl::StrContains(what, "missing")) {
+      return absl::InvalidArgumentError(absl::StrCat(name, " needs a value"));
+    }
+    if (absl::StrContains(what, "flag override")) {
+      // "quiet was given a disallowed flag override": --quiet=yes.
+      return absl::InvalidArgumentError(
+          absl::StrCat("--", what.substr(0, what.find(' ')), " takes no value"));
+    }
+    return absl::InvalidArgumentError(what);
+  } catch (const CLI::ParseError& e) {
+    return absl::InvalidArgumentError(e.what());
+  }
+  for (const std::string& extra : app.remaining()) {
+    const std::string name = extra.substr(0, extra.find('='));
+    return absl::InvalidArgumentError(
+        absl::StrCat("unknown option ", name, " (`mlclust ", command.name, " --help` lists them)"));
+  }
+  Arguments parsed;
+  for (const auto& [name, option] : options) {
+    if (option->count() > 0) parsed.Set(name, values[name]);
+  }
+  for (const std::string& word : positional) parsed.AddPositional(word);
+  return parsed;
+}
+
+std::string Wrap(const std::string& text, size_t indent) {
+  return WrapAfter(std::string(indent, ' '), text, indent);
+}
+
+std::string GroupUsage(const FlagGroup& group) {
+  std::string out = group.heading.empty() ? "" : Wrap(group.heading, 4);
+  for (const Flag& flag : group.flags) {
+    if (group.stacked) {
+      absl::StrAppend(&out, "        ", FlagHead(flag), "\n", Wrap(flag.help, 10));
+    } else {
+      std::string head = absl::StrCat("      ", FlagHead(flag));
+      if (head.size() + 2 > kHelpColumn) {
+        absl::StrAppend(&out, head, "\n");
+        head.clear();
+      }
+      absl::StrAppend(&out, WrapAfter(head, flag.help, kHelpColumn));
+    }
+    absl::StrAppend(&out, flag.details);
+  }
+  return out;
+}
+
+std::string CommandUsage(const CommandLine& command, bool with_shared) {
+  std::string out = absl::StrCat("\n  mlclust ", command.name, " ", command.synopsis, "\n");
+  for (absl::string_view paragraph : absl::StrSplit(command.description, '\n')) {
+    absl::StrAppend(&out, Wrap(std::string(paragraph), 6));
+  }
+  for (const FlagGroup& group : command.groups) {
+    if (group.shared && !with_shared) continue;
+    absl::StrAppend(&out, GroupUsage(group));
+  }
+  return out;
+}
+
+FlagGroup ConnectionFlags() {
+  return {"connection flags (with --server):",
+          {{"deadline", "SECONDS",
+            "the call's deadline: a job still running then is cancelled (watch: the watch "
+            "stops, the job runs on)"},
+           {"tls-ca", "FILE", "TLS: the CA certificate (PEM) that signed the server's"},
+           {"tls-cert", "FILE", "TLS: a client certificate, for servers that check them"},
+           {"tls-key", "FILE", "TLS: the client certificate's key (with --tls-cert)"},
+           {"auth-token-file", "F", "send the bearer token in F (its first word; needs TLS)"},
+           {"spread", "least-loaded|in-order",
+            "several servers: --server A:PORT,B:PORT,... or --server dns:///NAME:PORT (every "
+            "address the name resolves to) spreads jobs over the replicas, the least loaded "
+            "first (GetStats: queue depth plus running jobs; ties at random; the default), or "
+            "in the order given. A replica that is unreachable, draining or full BEFORE it "
+            "accepted the job is skipped and the job tried on the next; a job a replica "
+            "accepted is never submitted again. A detached job's id names its replica "
+            "(HOST:PORT/JOBID): watch and cancel go there."}},
+          /*stacked=*/false,
+          /*shared=*/true};
+}
+
+Flag AlgorithmFlag(InputKind input) {
+  Flag flag{"algo", "ALGO", absl::StrCat("(default ", DefaultAlgorithm(input).name, ")")};
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    if (algorithm.input != input) continue;
+    absl::StrAppend(&flag.details, "        ", algorithm.name, ": ", algorithm.title, "\n",
+                    Wrap(absl::StrCat(algorithm.help,
+                                      algorithm.divisive    ? " [hierarchy from K down to one]"
+                                      : algorithm.hierarchy ? " [hierarchy]"
+                                      : algorithm.chooses_k ? " [from K = k_min, finds its own K]"
+                                                            : " [one K]"),
+                         10));
+  }
+  return flag;
+}
+
+Flag EnergyFlag(InputKind input, const std::string& default_text, bool wire_only) {
+  Flag flag{"energy", "E", absl::StrCat("(default ", default_text, ")")};
+  for (const EnergyInfo& energy : Energies()) {
+    if (energy.input != input || (wire_only && energy.wire == 0)) continue;
+    absl::StrAppend(&flag.details, "        ", energy.name, ":\n", Wrap(energy.help, 10));
+  }
+  return flag;
+}
+
+std::vector<FlagGroup> RegistryOptionGroups(InputKind input) {
+  std::vector<FlagGroup> groups;
+  for (const AlgorithmInfo& algorithm : Algorithms()) {
+    if (algorithm.input != input) continue;
+    FlagGroup group{
+        absl::StrCat(algorithm.name, " (energies: ", absl::StrJoin(algorithm.energies, ", "), ")",
+                     algorithm.options.empty() ? ": no options of its own" : " options:"),
+        {},
+        /*stacked=*/true};
+    for (const OptionInfo& option : algorithm.options) group.flags.push_back(RegistryFlag(option));
+    groups.push_back(std::move(group));
+  }
+  if (input == InputKind::kMesh) groups.push_back(EnergyOptionGroup());
+  return groups;
+}
+
+FlagGroup EnergyOptionGroup() {
+  FlagGroup group{"energy options (every mesh algorithm):", {}, /*stacked=*/true};
+  for (const OptionInfo& option : EnergyOptions()) group.flags.push_back(RegistryFlag(option));
+  return group;
+}
+
+std::vector<std::string> RegistryOptionNames(InputKind input) {
+  std::vector<std::string> names;
+  for (const FlagGroup& group : RegistryOptionGroups(input)) {
+    for (const Flag& flag : group.flags) {
+      if (std::find(names.begin(), names.end(), flag.name) == names.end()) {
+        names.push_back(flag.name);
+      }
+    }
+  }
+  return names;
+}
+
+int Fail(const absl::Status& status) {
+  std::cerr << "mlclust: " << status.message() << "\n";
+  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+std::string JsonString(absl::string_view text) {
+  std::string out = "\"";
+  for (char c : text) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          out += absl::StrFormat("\\u%04x", static_cast<unsigned char>(c));
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string JsonNumber(double value) {
+  return std::isfinite(value) ? absl::StrFormat("%.17g", value) : "null";
+}
+
+std::string MessageJson(const google::protobuf::Message& message) {
+  std::string json;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  options.always_print_primitive_fields = true;
+  options.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
+  return json;
+}
+
+}  // namespace mlclust::cli

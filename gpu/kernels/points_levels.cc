@@ -1,0 +1,321 @@
+#include "gpu/kernels/points_levels.h"
+
+#include <algorithm>
+#include <array>
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
+#include "core/base/status_macros.h"
+#include "gpu/context/gl_functions.h"
+#include "gpu/context/pass.h"
+#include "gpu/kernels/pml_compact_glsl.h"     // kPmlCompactGlsl, generated
+#include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
+#include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
+#include "gpu/kernels/points_ode_glsl.h"      // kPointsOdeGlsl, generated
+#include "gpu/kernels/points_pairs_glsl.h"    // kPointsPairsGlsl, generated
+#include "gpu/kernels/points_refresh_glsl.h"  // kPointsRefreshGlsl, generated
+#include "gpu/kernels/voxel_start.h"
+
+namespace mlclust::gpu {
+namespace {
+
+constexpr char kOdesPass[] = "points odes";
+constexpr char kCollapsePass[] = "points collapse";
+constexpr char kTripletsPass[] = "points triplets";
+constexpr char kNeighboursPass[] = "points neighbours";
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+
+// points_ode.glsl's phases.
+constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
+// pml_compact.glsl's phases, kind and counter slots (shared with the meshes' PML).
+constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+constexpr uint32_t kElements = 0;
+constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kCounterSlots = 4;
+constexpr uint32_t kChunk = 32, kGroup = 256;  // kPmlChunk, kPmlGroup
+
+uint64_t Chunks(uint64_t count) { return (count + kChunk - 1) / kChunk; }
+uint64_t Groups(uint64_t count) { return (Chunks(count) + kGroup - 1) / kGroup; }
+uint64_t MaxPairs(uint64_t k) { return k / 2 + 1; }
+
+}  // namespace
+
+uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d) {
+  const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
+  return n * 16 + Chunks(n) * 4 + Groups(n) * 4 + kCounterSlots * 4 +
+         c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36;
+}
+
+absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
+                                                      const PointLevelsStart& start) {
+  const uint32_t d = start.dims;
+  const uint64_t m = start.labels.size(), k = start.counts.size();
+  if (d == 0 || d > kVoxelStartMaxDims) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("points levels: ", d, " dimensions (1 to ", kVoxelStartMaxDims, ")"));
+  }
+  if (start.sums.size() != k * (d + 1) || start.centroids.size() != k * d ||
+      start.neighbours.size() != k * 2 * d) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("points levels: sums, centroids or neighbours do not fit ", k, " clusters"));
+  }
+  if (m * 3 >= (uint64_t{1} << 32) || k * 2 * d * 2 >= (uint64_t{1} << 32)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("points levels: ", m, " points or ", k, " clusters are too many"));
+  }
+  for (const uint32_t label : start.labels) {
+    if (label >= k) return absl::InvalidArgumentError("points levels: a label out of range");
+  }
+  for (const uint32_t n : start.neighbours) {
+    if (n != kNone && n >= k) {
+      return absl::InvalidArgumentError("points levels: a neighbour out of range");
+    }
+  }
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, kOdesPass));
+  absl::StatusOr<PointLevelsGpu> made = [&]() -> absl::StatusOr<PointLevelsGpu> {
+    const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
+    const std::array<uint64_t, kBindings> bytes = {
+        c * 4,           c * d * 8,         n * 4,           c * 4,
+        c * 2 * d * 4,   c * 2 * d * 4,     c * (d + 1) * 8, c * 12,
+        MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, Chunks(n) * 4,
+        Groups(n) * 4,   kCounterSlots * 4, n * 12,          c * 8,
+        c * 2 * d * 8};
+    std::vector<StorageBuffer> buffers;
+    for (const uint64_t size : bytes) {
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
+      buffers.push_back(std::move(buffer));
+    }
+    std::vector<uint32_t> identity(k), partner(2 * k, kNone);
+    for (uint32_t i = 0; i < k; ++i) identity[i] = i;
+    if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kLabels].Upload(start.labels));
+    if (k > 0) {
+      MLCLUST_RETURN_IF_ERROR(buffers[kCounts].Upload(start.counts));
+      MLCLUST_RETURN_IF_ERROR(buffers[kCentroids].Upload(start.centroids));
+      MLCLUST_RETURN_IF_ERROR(buffers[kSums].Upload(start.sums));
+      MLCLUST_RETURN_IF_ERROR(buffers[kNeighboursIn].Upload(start.neighbours));
+      MLCLUST_RETURN_IF_ERROR(buffers[kRemap].Upload(std::span<const uint32_t>(identity)));
+      MLCLUST_RETURN_IF_ERROR(buffers[kPartner].Upload(std::span<const uint32_t>(partner)));
+    }
+    Programs programs;
+    const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPointsCommonGlsl);
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.ode,
+        GetComputeProgram(context, "points_ode", absl::StrCat(prelude, kPointsOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.pairs,
+        GetComputeProgram(context, "points_pairs", absl::StrCat(prelude, kPointsPairsGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.merge,
+        GetComputeProgram(context, "points_merge", absl::StrCat(prelude, kPointsMergeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.refresh,
+        GetComputeProgram(context, "points_refresh", absl::StrCat(prelude, kPointsRefreshGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.compact, GetComputeProgram(context, "pml_compact",
+                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
+    return PointLevelsGpu(context, static_cast<uint32_t>(m), static_cast<uint32_t>(k), d, programs,
+                          std::move(buffers));
+  }();
+  if (!made.ok()) return PassError(kOdesPass, made.status());
+  return made;
+}
+
+void PointLevelsGpu::BindAll() {
+  for (uint32_t b = 0; b < kBindings; ++b) buffers_[b].Bind(b);
+}
+
+absl::StatusOr<uint32_t> PointLevelsGpu::FindPairs() {
+  const detail::GlFunctions& gl = context_->gl();
+  BindAll();
+  const std::array<uint32_t, kCounterSlots> zeros{};
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Upload(std::span<const uint32_t>(zeros)));
+  const uint32_t slots = k_ * 2 * d_;
+  gl.UseProgram(programs_.ode);
+  gl.ProgramUniform1ui(programs_.ode, 2, d_);
+  gl.ProgramUniform1ui(programs_.ode, 0, k_);
+  gl.ProgramUniform1ui(programs_.ode, 1, kOdeReset);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, k_));
+  for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl.ProgramUniform1ui(programs_.ode, 0, slots);
+    gl.ProgramUniform1ui(programs_.ode, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, slots));
+  }
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(programs_.pairs);
+  gl.ProgramUniform1ui(programs_.pairs, 2, d_);
+  gl.ProgramUniform1ui(programs_.pairs, 0, k_);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, k_));
+  gl.UseProgram(0);
+  uint32_t pairs = 0;
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(kPairSlot * 4, &pairs, 4));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kOdesPass));
+  return pairs;
+}
+
+absl::Status PointLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                      uint32_t pairs, PointLevelGpu& level) {
+  const detail::GlFunctions& gl = context_->gl();
+  const uint32_t floor = std::max(lowest, 1u);
+  const bool past_floor = clusters < floor + uint64_t{pairs};
+  uint32_t use_flags = 0;
+  level.merged = pairs;
+  if (rule != PmlPairRule::kAll || past_floor) {
+    // The CPU engine's selection (ParallelMerges) on the pairs and their costs: the pair
+    // rule, then the cheapest (cost, then pair) down to the lowest level.
+    std::vector<uint32_t> ids(size_t{2} * pairs);
+    std::vector<double> values(size_t{3} * pairs);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(ids)));
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+    struct Candidate {
+      std::pair<uint32_t, uint32_t> pair;
+      double cost;
+      uint32_t slot;
+    };
+    std::vector<Candidate> chosen(pairs);
+    for (uint32_t i = 0; i < pairs; ++i) {
+      chosen[i] = {{ids[2 * i], ids[2 * i + 1]}, values[3 * i], i};
+    }
+    std::sort(chosen.begin(), chosen.end(),
+              [](const Candidate& x, const Candidate& y) { return x.pair < y.pair; });
+    if (rule == PmlPairRule::kCheaperHalf) {
+      // detail::SelectPmlPairs's rule: the pairs that cost at most the median.
+      std::vector<double> costs(pairs);
+      for (uint32_t i = 0; i < pairs; ++i) costs[i] = chosen[i].cost;
+      std::nth_element(costs.begin(), costs.begin() + costs.size() / 2, costs.end());
+      const double limit = costs[costs.size() / 2];
+      chosen.erase(std::remove_if(chosen.begin(), chosen.end(),
+                                  [&](const Candidate& c) { return !(c.cost <= limit); }),
+                   chosen.end());
+    }
+    if (clusters < floor + uint64_t{chosen.size()}) {
+      std::sort(chosen.begin(), chosen.end(), [](const Candidate& x, const Candidate& y) {
+        return x.cost != y.cost ? x.cost < y.cost : x.pair < y.pair;
+      });
+      chosen.resize(clusters - floor);
+    }
+    std::vector<uint32_t> selected(pairs, 0);
+    for (const Candidate& candidate : chosen) selected[candidate.slot] = 1;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairSelected].Upload(std::span<const uint32_t>(selected)));
+    level.merged = static_cast<uint32_t>(chosen.size());
+    use_flags = 1;
+  }
+  gl.UseProgram(programs_.merge);
+  gl.ProgramUniform1ui(programs_.merge, 0, pairs);
+  gl.ProgramUniform1ui(programs_.merge, 1, use_flags);
+  gl.ProgramUniform1ui(programs_.merge, 2, d_);
+  gl.ProgramUniform1ui(programs_.merge, 3, level_);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  return CheckGlError(*context_, kCollapsePass);
+}
+
+absl::Status PointLevelsGpu::Extract(uint32_t pairs, PointLevelGpu& level) {
+  const detail::GlFunctions& gl = context_->gl();
+  const uint32_t program = programs_.compact;
+  const uint64_t chunks = Chunks(m_), groups = Groups(m_);
+  gl.UseProgram(program);
+  gl.ProgramUniform1ui(program, 2, kElements);
+  gl.ProgramUniform1ui(program, 3, kTripletSlot);
+  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
+      std::pair<uint32_t, uint64_t>{kCount, chunks},
+      {kScanGroups, groups},
+      {kScanTop, 1},
+      {kWrite, chunks}};
+  for (const auto& [phase, invocations] : steps) {
+    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : m_;
+    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
+    gl.ProgramUniform1ui(program, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  gl.UseProgram(0);
+  std::array<uint32_t, kCounterSlots> counters{};
+  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(std::span<uint32_t>(counters)));
+  const uint32_t moved = counters[kTripletSlot];
+  std::vector<uint32_t> triplets(size_t{3} * moved);
+  if (moved > 0) {
+    MLCLUST_RETURN_IF_ERROR(buffers_[kTriplets].Download(std::span<uint32_t>(triplets)));
+  }
+  std::vector<double> values(size_t{3} * pairs);
+  MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kTripletsPass));
+  level.element.resize(moved);
+  level.to_cluster.resize(moved);
+  level.from_cluster.resize(moved);
+  for (uint32_t i = 0; i < moved; ++i) {
+    level.element[i] = triplets[3 * i];
+    level.to_cluster[i] = triplets[3 * i + 1];
+    level.from_cluster[i] = triplets[3 * i + 2];
+  }
+  ::mlclust::detail::CompensatedSum change;
+  change.Reset(0);
+  for (uint32_t i = 0; i < pairs; ++i) {
+    change.Add(values[3 * i + 1]);
+    change.Add(values[3 * i + 2]);
+  }
+  level.energy_change = change.value();
+  return absl::OkStatus();
+}
+
+absl::Status PointLevelsGpu::Refresh(bool link_all) {
+  const detail::GlFunctions& gl = context_->gl();
+  BindAll();
+  gl.UseProgram(programs_.refresh);
+  gl.ProgramUniform1ui(programs_.refresh, 0, k_);
+  gl.ProgramUniform1ui(programs_.refresh, 2, d_);
+  gl.ProgramUniform1ui(programs_.refresh, 3, level_);
+  gl.ProgramUniform1ui(programs_.refresh, 4, link_all ? 1 : 0);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, k_));
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  std::swap(buffers_[kNeighboursIn], buffers_[kNeighboursOut]);
+  return CheckGlError(*context_, kNeighboursPass);
+}
+
+absl::Status PointLevelsGpu::LinkAll() {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kNeighboursPass));
+  ++level_;  // no partner is this level's
+  absl::Status linked = Refresh(/*link_all=*/true);
+  if (!linked.ok()) return PassError(kNeighboursPass, linked);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                           PointLevelGpu& level) {
+  level = PointLevelGpu();
+  ++level_;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
+  absl::StatusOr<uint32_t> pairs = FindPairs();
+  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
+  level.mutual_pairs = *pairs;
+  if (*pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
+  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
+  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
+  absl::Status extracted = Extract(*pairs, level);
+  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kNeighboursPass));
+  absl::Status refreshed = Refresh(/*link_all=*/false);
+  if (!refreshed.ok()) return PassError(kNeighboursPass, refreshed);
+  return true;
+}
+
+absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Labels() {
+  std::vector<uint32_t> labels(m_);
+  if (m_ > 0) MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Download(std::span<uint32_t>(labels)));
+  return labels;
+}
+
+absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Neighbours() {
+  std::vector<uint32_t> table(size_t{k_} * 2 * d_);
+  if (k_ > 0) {
+    MLCLUST_RETURN_IF_ERROR(buffers_[kNeighboursIn].Download(std::span<uint32_t>(table)));
+  }
+  return table;
+}
+
+}  // namespace mlclust::gpu

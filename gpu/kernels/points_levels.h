@@ -1,0 +1,137 @@
+// PML (Alg. 5.3) for points on the GPU (section 6.4.3): the levels of merges over the
+// local neighbours (section 6.1), with every cluster's data kept on the GPU across levels;
+// only the level's triplets and a few scalars per level come back (and, where the pair
+// rule or the lowest level needs them, the level's pairs and their costs).
+//
+// One level (PointLevelsGpu::Level), passes named for errors and MLCLUST_GPU_FAIL_PASS:
+//   "points odes"       every cluster's optimal dual edge over its neighbours and the
+//                       clusters listing it (points_ode.glsl: exact fp64 minimum of the
+//                       Ward cost in three 32-bit atomic passes, equal costs to the
+//                       larger id), then the mutual pairs (points_pairs.glsl)
+//   "points collapse"   the selected pairs merge (points_merge.glsl): sums added, the
+//                       larger cluster keeps its id, the energy change
+//   "points triplets"   stream compaction in point order (pml_compact.glsl, shared with
+//                       the meshes' PML): the points whose cluster merged away become
+//                       triplets (point, new, old) and are relabelled
+//   "points neighbours" every live cluster's local neighbours (eq. 6.1) from the
+//                       second-order candidates through the merges (points_refresh.glsl)
+// Merge costs, sums, centroids and distances are computed in the CPU's operation order
+// with `precise`, so a level's ODEs, pairs and merges are the CPU engine's wherever the
+// neighbour tables agree (always at the first level; see points_multilevel_gpu.h).
+//
+// Memory (PointLevelsMemoryBound), bytes: per point 4 (label) + 12 (triplet) + 1/8
+// (compaction counts); per cluster of the start 4 (size) + 8d (centroid) + 8(d + 1)
+// (sums) + 4 (remap) + 16d (two neighbour tables) + 12 (ODE) + 16d (ODE keys) + 8
+// (partner) + 18 (pairs: 36 bytes, at most one per two clusters): for 10^6 3-D points
+// from 1.25 * 10^5 voxels, 16 MB + 18 MB.
+#ifndef MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
+#define MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
+
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "core/cluster/detail/pml_pairs.h"
+#include "gpu/context/compute.h"
+#include "gpu/context/gl_context.h"
+
+namespace mlclust::gpu {
+
+// One level's result.
+struct PointLevelGpu {
+  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
+  uint32_t merged = 0;        // collapsed
+  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
+  // The triplets, in point order.
+  std::vector<uint32_t> element, to_cluster, from_cluster;
+};
+
+// The clusters of the start, as the GPU levels take them.
+struct PointLevelsStart {
+  uint32_t dims = 0;
+  std::span<const uint32_t> labels;      // per point (any order the caller reports in)
+  std::span<const uint32_t> counts;      // per cluster (k)
+  std::span<const double> sums;          // k x (d + 1): coordinate sums, then square sum
+  std::span<const double> centroids;     // k x d
+  std::span<const uint32_t> neighbours;  // k x 2d, 0xFFFFFFFF where none
+};
+
+// The bytes PointLevelsGpu allocates for m points, k clusters, d dimensions.
+uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d);
+
+class PointLevelsGpu {
+ public:
+  // Uploads the start. INVALID_ARGUMENT for sizes that do not agree or a label or
+  // neighbour out of range; RESOURCE_EXHAUSTED if a buffer exceeds
+  // context.max_storage_buffer_bytes() or GPU memory runs out; INTERNAL on GL errors.
+  static absl::StatusOr<PointLevelsGpu> Create(GlContext& context, const PointLevelsStart& start);
+
+  // One PML level at `clusters` clusters: the mutual pairs, of them those `rule` keeps
+  // (SelectPmlPairs), and of those at most clusters - lowest (the cheapest, ties by pair,
+  // as the CPU engine), collapsed, and the neighbours refreshed; false (and nothing
+  // changed) where there is no mutual pair. Errors name the pass.
+  absl::StatusOr<bool> Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                             PointLevelGpu& level);
+
+  // Every live cluster's neighbours: the nearest live cluster in each subspace (the CPU's
+  // ConnectWhenStuck; O(k^2), for few clusters). Pass "points neighbours".
+  absl::Status LinkAll();
+
+  // The current labels and neighbour table (downloaded; for tests).
+  absl::StatusOr<std::vector<uint32_t>> Labels();
+  absl::StatusOr<std::vector<uint32_t>> Neighbours();
+
+ private:
+  enum Binding : uint32_t {
+    kCounts,
+    kCentroids,
+    kLabels,
+    kRemap,
+    kNeighboursIn,
+    kNeighboursOut,
+    kSums,
+    kOdes,
+    kPairIds,
+    kPairValues,
+    kPairSelected,
+    kChunkCount,
+    kGroupTotal,
+    kCounters,
+    kTriplets,
+    kPartner,
+    kEdgeKeys,
+    kBindings
+  };
+  struct Programs {
+    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0, refresh = 0;
+  };
+
+  PointLevelsGpu(GlContext& context, uint32_t m, uint32_t k, uint32_t d, Programs programs,
+                 std::vector<StorageBuffer> buffers)
+      : context_(&context),
+        m_(m),
+        k_(k),
+        d_(d),
+        programs_(programs),
+        buffers_(std::move(buffers)) {}
+
+  void BindAll();
+  absl::StatusOr<uint32_t> FindPairs();
+  absl::Status Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest, uint32_t pairs,
+                        PointLevelGpu& level);
+  absl::Status Extract(uint32_t pairs, PointLevelGpu& level);
+  absl::Status Refresh(bool link_all);
+
+  GlContext* context_;
+  uint32_t m_, k_, d_;
+  uint32_t level_ = 0;
+  Programs programs_;
+  std::vector<StorageBuffer> buffers_;
+};
+
+}  // namespace mlclust::gpu
+
+#endif  // MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_

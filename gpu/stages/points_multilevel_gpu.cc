@@ -1,0 +1,232 @@
+#include "gpu/stages/points_multilevel_gpu.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "core/base/cancel.h"
+#include "core/base/compensated_sum.h"
+#include "core/base/status_macros.h"
+#include "core/energy/variance_energy.h"
+#include "gpu/kernels/points_levels.h"
+#include "gpu/kernels/voxel_start.h"
+
+namespace mlclust::gpu {
+namespace {
+
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+// The CPU's ConnectWhenStuck links the survivors only up to this many.
+constexpr uint32_t kMaxLinked = 20000;
+
+// The clusters of the voxel start as the CPU's PointSpace builds them.
+struct Start {
+  std::vector<uint32_t> counts;
+  std::vector<double> sums;       // k x (d + 1)
+  std::vector<double> centroids;  // k x d
+  std::vector<uint32_t> neighbours;
+  double energy = 0;
+};
+
+// PointClusters::RefreshNeighbours(c, {}) on the flat tables: the nearest candidate per
+// subspace among c's neighbours and theirs, equal distances to the smaller id.
+void RefreshNeighbours(Start& start, uint32_t d, uint32_t c, std::vector<uint32_t>& candidates,
+                       std::vector<double>& best) {
+  const uint32_t slots = 2 * d;
+  uint32_t* out = &start.neighbours[size_t{c} * slots];
+  for (uint32_t s = 0; s < slots; ++s) {
+    const uint32_t n = out[s];
+    if (n == kNone) continue;
+    candidates.push_back(n);
+    for (uint32_t t = 0; t < slots; ++t) {
+      const uint32_t nn = start.neighbours[size_t{n} * slots + t];
+      if (nn != kNone) candidates.push_back(nn);
+    }
+  }
+  std::fill(out, out + slots, kNone);
+  best.assign(slots, std::numeric_limits<double>::infinity());
+  const std::span<const double> from(&start.centroids[size_t{c} * d], d);
+  for (const uint32_t n : candidates) {
+    if (n == c || start.counts[n] == 0) continue;
+    const std::span<const double> to(&start.centroids[size_t{n} * d], d);
+    const uint32_t s = SubspaceIndex(from, to);
+    double dist = 0;
+    for (uint32_t j = 0; j < d; ++j) {
+      const double diff = from[j] - to[j];
+      dist += diff * diff;
+    }
+    if (dist < best[s] || (dist == best[s] && n < out[s])) {
+      best[s] = dist;
+      out[s] = n;
+    }
+  }
+  candidates.clear();
+}
+
+// PointSpace's constructor: points ordered by starting cell (stable), the data's mean
+// and every cluster's sums in that order, the face-sharing neighbours refreshed one
+// cluster after the other, isolated cells linked to the nearest in each subspace.
+Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
+                 const std::atomic<bool>* cancel) {
+  const uint32_t d = points.dims, k = voxels.clusters;
+  const size_t m = points.num_points();
+  std::vector<uint32_t> first(size_t{k} + 1, 0), order(m);
+  for (const uint32_t c : voxels.labels) ++first[c + 1];
+  for (uint32_t c = 0; c < k; ++c) first[c + 1] += first[c];
+  for (size_t i = 0; i < m; ++i) order[first[voxels.labels[i]]++] = static_cast<uint32_t>(i);
+  std::vector<double> origin(d, 0.0);
+  for (size_t at = 0; at < m; ++at) {
+    for (uint32_t j = 0; j < d; ++j) origin[j] += points.values[size_t{order[at]} * d + j];
+  }
+  for (double& o : origin) o /= static_cast<double>(std::max<size_t>(m, 1));
+  Start start;
+  start.counts.assign(k, 0);
+  start.sums.assign(size_t{k} * (d + 1), 0.0);
+  start.centroids.assign(size_t{k} * d, 0.0);
+  for (size_t at = 0; at < m; ++at) {
+    const size_t i = order[at];
+    const uint32_t c = voxels.labels[i];
+    double* sum = &start.sums[size_t{c} * (d + 1)];
+    double s2 = 0;
+    for (uint32_t j = 0; j < d; ++j) {
+      const double v = points.values[i * d + j] - origin[j];
+      sum[j] += v;
+      s2 += v * v;
+    }
+    sum[d] += s2;
+    ++start.counts[c];
+  }
+  double total = 0;  // TotalEnergy's plain sum in cluster order
+  for (uint32_t c = 0; c < k; ++c) {
+    const double n = static_cast<double>(start.counts[c]);
+    for (uint32_t j = 0; j < d; ++j) {
+      start.centroids[size_t{c} * d + j] = n > 0 ? start.sums[size_t{c} * (d + 1) + j] / n : 0.0;
+    }
+    total +=
+        EnergyOfSums(n, {&start.sums[size_t{c} * (d + 1)], d}, start.sums[size_t{c} * (d + 1) + d]);
+  }
+  start.energy = total;
+  start.neighbours = voxels.neighbours;
+  std::vector<uint32_t> candidates;
+  std::vector<double> best;
+  for (uint32_t c = 0; c < k; ++c) {
+    if (c % 4096 == 0 && IsCancelled(cancel)) return start;
+    RefreshNeighbours(start, d, c, candidates, best);
+  }
+  std::vector<uint32_t> isolated;
+  for (uint32_t c = 0; c < k; ++c) {
+    const uint32_t* row = &start.neighbours[size_t{c} * 2 * d];
+    if (std::all_of(row, row + 2 * d, [](uint32_t n) { return n == kNone; })) {
+      isolated.push_back(c);
+    }
+  }
+  for (const uint32_t c : isolated) {
+    if (IsCancelled(cancel)) return start;
+    for (uint32_t n = 0; n < k; ++n) {
+      if (n != c) candidates.push_back(n);
+    }
+    RefreshNeighbours(start, d, c, candidates, best);
+  }
+  return start;
+}
+
+std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
+  std::vector<ClusterId> ids(labels.size());
+  for (size_t i = 0; i < labels.size(); ++i) ids[i] = ClusterId(labels[i]);
+  return ids;
+}
+
+}  // namespace
+
+std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
+  if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
+  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone) {
+    return "the GPU's point levels are merges only (optimizer none)";
+  }
+  if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
+  return "";
+}
+
+absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
+    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
+    LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  if (options.min_clusters < 1) {
+    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
+  }
+  if (options.threads < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
+  }
+  if (options.grid > (1u << 20)) {
+    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
+  }
+  const std::string unsupported = PointsPmlGpuUnsupported(options);
+  if (!unsupported.empty()) {
+    return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
+  }
+  const uint32_t d = points.dims;
+  MLCLUST_ASSIGN_OR_RETURN(VoxelStartGpuResult voxels,
+                           VoxelGridStartGpu(context, points, options.grid, options.cancel));
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
+  const Start start = BuildStart(points, voxels, options.cancel);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
+  const uint32_t k0 = voxels.clusters;
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start.energy));
+  if (options.inspect_level) options.inspect_level(0, voxels.labels);
+  PointLevelsStart upload;
+  upload.dims = d;
+  upload.labels = voxels.labels;
+  upload.counts = start.counts;
+  upload.sums = start.sums;
+  upload.centroids = start.centroids;
+  upload.neighbours = start.neighbours;
+  MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
+  std::vector<uint32_t>().swap(voxels.labels);
+  PointMultilevelSummary summary;
+  summary.levels = 1;
+  summary.start_clusters = k0;
+  summary.grid = voxels.cells_per_axis.empty() ? 0
+                                               : *std::max_element(voxels.cells_per_axis.begin(),
+                                                                   voxels.cells_per_axis.end());
+  ::mlclust::detail::CompensatedSum energy;
+  energy.Reset(start.energy);
+  uint32_t clusters = k0;
+  PointLevelGpu level;
+  bool linked = false;
+  while (clusters > options.min_clusters) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+    if (!merged) {
+      // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
+      if (linked || clusters <= 1 || clusters > kMaxLinked) break;
+      MLCLUST_RETURN_IF_ERROR(levels.LinkAll());
+      linked = true;
+      continue;
+    }
+    linked = false;
+    clusters -= level.merged;
+    energy.Add(level.energy_change);
+    LevelMoves moves;
+    moves.level = summary.levels;
+    moves.cluster_count = clusters;
+    moves.energy = energy.value();
+    moves.element = level.element;
+    moves.to_cluster = level.to_cluster;
+    moves.from_cluster = level.from_cluster;
+    MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
+    summary.moves += level.element.size();
+    if (options.inspect_level) {
+      MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
+      options.inspect_level(summary.levels, labels);
+    }
+    ++summary.levels;
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+  summary.final_clusters = clusters;
+  return summary;
+}
+
+}  // namespace mlclust::gpu

@@ -1,0 +1,49 @@
+// PML for points on the GPU (section 6.4.3, Alg. 5.3 over the local neighbours): the
+// levels of core/cluster/point_clustering.h's RunPointMultilevel with options.parallel
+// and optimizer none (merges only), the voxel start (gpu/kernels/voxel_start.h) and every
+// level's ODEs, mutual pairs, collapse, triplets and neighbour refresh on the GPU
+// (gpu/kernels/points_levels.h), the levels streamed to the same LevelSink.
+//
+// What is the CPU's and what is not:
+//   - the start is the CPU engine's exactly: the voxel labels (GPU), the clusters' sums
+//     in the CPU's order (host, one O(m d) pass over the points ordered by cell, as
+//     PointSpace does), the face-sharing neighbours (GPU), then the CPU's sequential
+//     refresh of them and its link of isolated cells (host, O(k d^2)); level 0 and its
+//     energy are identical;
+//   - the first level's ODEs, pairs and merges are identical (same Ward costs bit for
+//     bit, same ties rule, same kept ids);
+//   - after a level the GPU refreshes every live cluster's neighbours at once from the
+//     table before the level, through the merges (points_refresh.glsl); the CPU refreshes
+//     only the clusters the level touched, one after the other, each seeing the ones
+//     before it. So later levels differ: the hierarchies are alike, not equal (the tests
+//     bound the energies at equal cluster counts).
+// Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none, pml-until
+// 0, both pair rules, min_clusters, grid; at most kVoxelStartMaxDims dimensions.
+// PointMultilevelOptions::threads is used by the host's start only; inspect_level is
+// called with each level's labels (downloaded; slow, for tests).
+#ifndef MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_
+#define MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "core/cluster/point_clustering.h"
+#include "core/hierarchy/hierarchy.h"
+#include "core/points/points.h"
+#include "gpu/context/gl_context.h"
+
+namespace mlclust::gpu {
+
+// Empty where RunPointParallelMultilevelGpu covers these options; else why not.
+std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options);
+
+// RunPointMultilevel's contract (level 0 the voxel clusters; then every level), plus
+// UNIMPLEMENTED for options PointsPmlGpuUnsupported refuses and the GPU's errors, each
+// naming its pass ("GPU pass 'points odes': ..."); CANCELLED between levels.
+absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
+    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
+    LevelSink& sink);
+
+}  // namespace mlclust::gpu
+
+#endif  // MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_

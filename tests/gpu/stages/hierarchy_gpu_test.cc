@@ -1,0 +1,346 @@
+// HC for meshes on the GPU (gpu/stages/hierarchy_gpu.h, gpu/kernels/hc_levels.h) against
+// the CPU engine's HC (core/cluster/multilevel.h, optimizer none), on llvmpipe.
+#include "gpu/stages/hierarchy_gpu.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cstdlib>
+#include <utility>
+
+#include "core/cluster/multilevel.h"
+#include "core/cluster/registry.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/context/pass.h"
+#include "gpu/kernels/hc_levels.h"
+#include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/test_meshes.h"
+
+namespace mlclust::gpu {
+namespace {
+
+using ::testing::HasSubstr;
+namespace fixtures = ::mlclust::testing;
+namespace meshes = ::mlclust::gpu::testing;
+
+GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
+
+// Every level: its count, energy and triplets in the order reported (the GPU logs a
+// merged cluster's faces in the CPU's member order).
+class LevelsSink : public LevelSink {
+ public:
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
+    for (ClusterId c : labels) start.push_back(c.value());
+    counts.push_back(count);
+    energies.push_back(energy);
+    triplets.emplace_back();
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const LevelMoves& level) override {
+    EXPECT_EQ(level.level, counts.size());
+    counts.push_back(level.cluster_count);
+    energies.push_back(level.energy);
+    auto& moves = triplets.emplace_back();
+    for (size_t i = 0; i < level.element.size(); ++i) {
+      moves.push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
+    }
+    return absl::OkStatus();
+  }
+  std::vector<uint32_t> start, counts;
+  std::vector<double> energies;
+  std::vector<std::vector<std::array<uint32_t, 3>>> triplets;
+};
+
+MultilevelOptions HcOptions(uint32_t lowest) {
+  MultilevelOptions options;
+  options.optimizer = MultilevelOptions::Optimizer::kNone;
+  options.min_clusters = lowest;
+  return options;
+}
+
+// The GPU's levels against the CPU's: the same number, and level by level the same
+// cluster count, the same triplets in the same order and the same energy to the last
+// digit (the same merges in the same order, the same fp64 operations). Returns the
+// number of levels compared.
+size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
+                        const MultilevelOptions& options) {
+  LevelsSink cpu, gpu;
+  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
+  absl::StatusOr<MultilevelSummary> on_gpu = RunHierarchyGpu(context, problem, options, gpu);
+  EXPECT_TRUE(on_cpu.ok()) << on_cpu.status();
+  EXPECT_TRUE(on_gpu.ok()) << on_gpu.status();
+  if (!on_cpu.ok() || !on_gpu.ok()) return 0;
+  EXPECT_EQ(on_gpu->levels, on_cpu->levels);
+  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
+  EXPECT_EQ(on_gpu->moves, on_cpu->moves);
+  EXPECT_EQ(gpu.start, cpu.start);
+  EXPECT_GT(cpu.counts.size(), 3u);  // the comparison compares something
+  EXPECT_EQ(gpu.counts, cpu.counts);
+  const size_t levels = std::min(cpu.counts.size(), gpu.counts.size());
+  size_t same_triplets = 0, same_energy = 0;
+  for (size_t l = 0; l < levels; ++l) {
+    same_triplets += gpu.triplets[l] == cpu.triplets[l] ? 1 : 0;
+    same_energy += gpu.energies[l] == cpu.energies[l] ? 1 : 0;
+  }
+  EXPECT_EQ(same_triplets, levels) << "levels with the same triplets";
+  EXPECT_EQ(same_energy, levels) << "levels with the same energy";
+  EXPECT_EQ(on_gpu->final_energy, on_cpu->final_energy);
+  return levels;
+}
+
+TEST(HcGpu, SameLevelsAsTheCpuOnFandiskDownToOneCluster) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  EXPECT_EQ(ExpectSameLevels(Context(), mesh.problem(), HcOptions(1)), mesh.mesh.num_faces());
+}
+
+// cvd-adaptive is CvdEnergy with density-weighted sums; ties by id alone (the former
+// rule, ties_to_fewest_faces off).
+TEST(HcGpu, SameLevelsAsTheCpuWithAdaptiveCvdAndTiesById) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  ExpectSameLevels(Context(), mesh.problem(MeshEnergyKind::kCvdAdaptive), HcOptions(50));
+  MultilevelOptions by_id = HcOptions(50);
+  by_id.ties_to_fewest_faces = false;
+  ExpectSameLevels(Context(), mesh.problem(), by_id);
+}
+
+// A flat grid without jitter: every merge cost comes in many equal copies, so the order
+// of the merges follows the ties rules (the fewer faces, then the smaller id; the ODE to
+// the larger id) and the kept ids throughout.
+TEST(HcGpu, SameLevelsAsTheCpuOnARegularGridFullOfTies) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(24, 40, 0.0f));
+  ExpectSameLevels(Context(), mesh.problem(), HcOptions(1));
+  MultilevelOptions by_id = HcOptions(1);
+  by_id.ties_to_fewest_faces = false;
+  ExpectSameLevels(Context(), mesh.problem(), by_id);
+}
+
+// With at most 16 work groups per grid dimension the start's passes over faces, edges
+// and tree nodes run as 2-D grids (12,946 faces: 51 groups; 38,838 directed edges: 152)
+// and give the same levels.
+TEST(HcGpu, TwoDimensionalGridsGiveTheSameLevels) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  GlContextOptions options;
+  options.max_groups_per_dimension = 16;
+  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(options);
+  ASSERT_TRUE(capped.ok()) << capped.status();
+  ExpectSameLevels(**capped, mesh.problem(), HcOptions(100));
+}
+
+// The triplets of every step, applied to the previous labels, give the labels the GPU
+// holds after each batch, exactly; each triplet's old cluster is the face's previous one.
+TEST(HcGpu, TripletsRebuildTheGpuLabels) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  const CvdEnergy energy(mesh.measures);
+  const size_t n = mesh.mesh.num_faces();
+  std::vector<CvdSums> sums(n);
+  for (uint32_t f = 0; f < n; ++f) sums[f] = energy.face_sums(f);
+  absl::StatusOr<HcLevelsGpu> levels = HcLevelsGpu::Create(Context(), sums, mesh.adjacency, true);
+  ASSERT_TRUE(levels.ok()) << levels.status();
+  std::vector<uint32_t> labels(n);
+  for (uint32_t f = 0; f < n; ++f) labels[f] = f;
+  uint32_t clusters = static_cast<uint32_t>(n);
+  HcBatchGpu batch;
+  int batches = 0;
+  for (uint32_t size = 1;; size = std::min<uint32_t>(3 * size, 1000)) {
+    ASSERT_TRUE(levels->Steps(1, size, batch).ok());
+    if (batch.steps.empty()) break;
+    EXPECT_LE(batch.steps.size(), size);
+    for (const HcStepGpu& step : batch.steps) {
+      EXPECT_NE(step.keep, step.gone);
+      EXPECT_GT(step.count, 0u);
+      for (uint32_t i = step.first; i < step.first + step.count; ++i) {
+        ASSERT_EQ(labels[batch.faces[i]], step.gone);
+        labels[batch.faces[i]] = step.keep;
+      }
+      --clusters;
+    }
+    absl::StatusOr<std::vector<uint32_t>> on_gpu = levels->Labels();
+    ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+    ASSERT_EQ(*on_gpu, labels) << "batch " << batches;
+    std::vector<uint32_t> distinct = labels;
+    std::sort(distinct.begin(), distinct.end());
+    EXPECT_EQ(std::unique(distinct.begin(), distinct.end()) - distinct.begin(), clusters);
+    ++batches;
+  }
+  EXPECT_EQ(clusters, 1u);  // fandisk is one component
+  EXPECT_GT(batches, 10);
+}
+
+TEST(HcGpu, RefusesWhatItDoesNotCover) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  LevelsSink sink;
+  MultilevelOptions emlo = HcOptions(10);
+  emlo.optimizer = MultilevelOptions::Optimizer::kEmlo;
+  EXPECT_EQ(RunHierarchyGpu(Context(), mesh.problem(), emlo, sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+  MultilevelOptions pml = HcOptions(10);
+  pml.parallel = true;
+  EXPECT_EQ(RunHierarchyGpu(Context(), mesh.problem(), pml, sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+  EXPECT_EQ(RunHierarchyGpu(Context(), mesh.problem(MeshEnergyKind::kPlanar), HcOptions(10), sink)
+                .status()
+                .code(),
+            absl::StatusCode::kUnimplemented);
+  EXPECT_TRUE(sink.counts.empty());  // nothing reported
+  EXPECT_FALSE(HcGpuUnsupported(emlo, MeshEnergyKind::kCvd).empty());
+  EXPECT_TRUE(HcGpuUnsupported(HcOptions(10), MeshEnergyKind::kCvd).empty());
+}
+
+// A GL error injected into each pass (gpu/context/pass.h) is the run's error, named by
+// pass; the context works again afterwards.
+TEST(HcGpu, InjectedGlFailureIsACleanError) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(10, 10, 0.2f));
+  for (const char* pass : {"hc odes", "hc collapse", "hc triplets"}) {
+    LevelsSink sink;
+    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
+    absl::StatusOr<MultilevelSummary> failed =
+        RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
+    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
+    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
+    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+    EXPECT_THAT(failed.status().message(), HasSubstr("GL_INVALID_VALUE"));
+  }
+  LevelsSink sink;
+  absl::StatusOr<MultilevelSummary> again =
+      RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->final_clusters, 1u);
+}
+
+// Buffers are sized from the stated bound: capped below it, RESOURCE_EXHAUSTED by pass.
+TEST(HcGpu, BuffersOverTheLimitAreResourceExhausted) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(20, 20, 0.2f));
+  EXPECT_GT(HcLevelsMemoryBound(mesh.mesh.num_faces(), 3 * mesh.mesh.num_faces()),
+            100 * mesh.mesh.num_faces());
+  GlContextOptions options;
+  options.max_storage_buffer_bytes = 16 * static_cast<int64_t>(mesh.mesh.num_faces());
+  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
+  ASSERT_TRUE(small.ok()) << small.status();
+  LevelsSink sink;
+  absl::StatusOr<MultilevelSummary> result =
+      RunHierarchyGpu(**small, mesh.problem(), HcOptions(1), sink);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'hc odes'"));
+}
+
+// Cancellation is checked between batches of steps: a sink that sets the flag at level 3
+// stops the run at the end of that batch (the first batch has 64 steps) with CANCELLED.
+TEST(HcGpu, CancelledBetweenBatches) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  std::atomic<bool> cancel{false};
+  class CancellingSink : public LevelsSink {
+   public:
+    explicit CancellingSink(std::atomic<bool>& flag) : flag_(flag) {}
+    absl::Status OnLevel(const LevelMoves& level) override {
+      if (level.level == 3) flag_ = true;
+      return LevelsSink::OnLevel(level);
+    }
+
+   private:
+    std::atomic<bool>& flag_;
+  } sink(cancel);
+  MultilevelOptions options = HcOptions(1);
+  options.cancel = &cancel;
+  absl::StatusOr<MultilevelSummary> result =
+      RunHierarchyGpu(Context(), mesh.problem(), options, sink);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled);
+  // Level 0 and the first batch (at most 64 steps; fewer where the loop budget of a
+  // software renderer ends it).
+  EXPECT_GE(sink.counts.size(), 4u);
+  EXPECT_LE(sink.counts.size(), 65u);
+}
+
+// The merges do not depend on how the steps are split into batches (one dispatch each)
+// nor on the steps' work group size: one step per batch and the largest batches, with the
+// renderer's group size and with the hardware's (64), give the CPU's pairs in its order.
+TEST(HcGpu, BatchSizesGiveTheSamePairs) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(24, 30, 0.3f));
+  class PairSink : public LevelSink {
+   public:
+    absl::Status OnStart(std::span<const ClusterId> /*labels*/, uint32_t /*count*/,
+                         double /*energy*/) override {
+      return absl::OkStatus();
+    }
+    absl::Status OnLevel(const LevelMoves& level) override {
+      pairs.push_back({level.to_cluster[0], level.from_cluster[0]});
+      return absl::OkStatus();
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+  } cpu;
+  ASSERT_TRUE(RunMultilevel(mesh.problem(), HcOptions(1), cpu).ok());
+  const CvdEnergy energy(mesh.measures);
+  const size_t n = mesh.mesh.num_faces();
+  std::vector<CvdSums> sums(n);
+  for (uint32_t f = 0; f < n; ++f) sums[f] = energy.face_sums(f);
+  for (const auto& [size, group] :
+       {std::pair<uint32_t, uint32_t>{1, 0}, {kHcMaxBatch, 0}, {kHcMaxBatch, kHcStepGroup}}) {
+    absl::StatusOr<HcLevelsGpu> levels =
+        HcLevelsGpu::Create(Context(), sums, mesh.adjacency, true, group);
+    ASSERT_TRUE(levels.ok()) << levels.status();
+    std::vector<std::pair<uint32_t, uint32_t>> pairs;
+    HcBatchGpu batch;
+    for (;;) {
+      ASSERT_TRUE(levels->Steps(1, size, batch).ok());
+      if (batch.steps.empty()) break;
+      EXPECT_LE(batch.steps.size(), size);
+      for (const HcStepGpu& step : batch.steps) pairs.push_back({step.keep, step.gone});
+    }
+    EXPECT_EQ(pairs.size(), n - 1);
+    EXPECT_EQ(pairs, cpu.pairs) << "batches of " << size << ", group " << group;
+  }
+}
+
+// Several components (two grids apart and a lone triangle): the levels stop at one
+// cluster per component, as the CPU's do.
+TEST(HcGpu, StopsAtOneClusterPerComponent) {
+  TriangleMesh mesh = meshes::MakeJitteredGrid(8, 12, 0.2f, 5);
+  const TriangleMesh second = meshes::MakeJitteredGrid(6, 6, 0.2f, 7);
+  const uint32_t offset = static_cast<uint32_t>(mesh.positions.size() / 3);
+  for (size_t i = 0; i < second.positions.size(); ++i) {
+    mesh.positions.push_back(second.positions[i] + (i % 3 == 0 ? 100.0f : 0.0f));
+  }
+  for (uint32_t v : second.indices) mesh.indices.push_back(v + offset);
+  const uint32_t lone = static_cast<uint32_t>(mesh.positions.size() / 3);
+  mesh.positions.insert(mesh.positions.end(), {-50, 0, 0, -49, 0, 0, -50, 1, 0});
+  mesh.indices.insert(mesh.indices.end(), {lone, lone + 1, lone + 2});
+  const fixtures::LoadedMesh loaded = fixtures::Load(std::move(mesh));
+  ExpectSameLevels(Context(), loaded.problem(), HcOptions(1));
+  LevelsSink sink;
+  absl::StatusOr<MultilevelSummary> gpu =
+      RunHierarchyGpu(Context(), loaded.problem(), HcOptions(1), sink);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_EQ(gpu->final_clusters, 3u);
+}
+
+// The plan (core/cluster/registry.cc): HC's steps go to the GPU for the CVD energies with
+// device gpu (even on llvmpipe); auto keeps them on the CPU, on hardware too.
+TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
+  const DeviceCaps hardware{true, false, "NVIDIA H100"};
+  const DeviceCaps software{true, true, "llvmpipe"};
+  auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* energy) {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kMesh, "hc");
+    request.energy = FindEnergy(InputKind::kMesh, energy);
+    request.clusters = 10;
+    request.device = choice;
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    EXPECT_TRUE(plan.ok()) << plan.status();
+    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return std::string("error");
+    const StagePlan* stage = FindStage(*plan, "cluster");
+    return stage == nullptr ? std::string("none") : StageDeviceName(*stage, caps);
+  };
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd"), "llvmpipe");
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive"), "llvmpipe");
+  EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "cvd"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "cvd"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "cvd"), "NVIDIA H100");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "cvd"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "planar"), "cpu");
+}
+
+}  // namespace
+}  // namespace mlclust::gpu

@@ -1,0 +1,371 @@
+// The voxel start and PML for points on the GPU (gpu/kernels/voxel_start.h,
+// gpu/kernels/points_levels.h, gpu/stages/points_multilevel_gpu.h) against the CPU's
+// VoxelGridStart and RunPointMultilevel (merges only), on llvmpipe.
+#include "gpu/stages/points_multilevel_gpu.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "core/base/random.h"
+#include "core/cluster/point_clustering.h"
+#include "core/cluster/registry.h"
+#include "gpu/context/gl_context.h"
+#include "gpu/context/pass.h"
+#include "gpu/kernels/voxel_start.h"
+#include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/test_points.h"
+
+namespace mlclust::gpu {
+namespace {
+
+using ::testing::HasSubstr;
+constexpr uint32_t kNone = 0xFFFFFFFFu;
+
+GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
+
+// `blobs` Gaussian blobs (sigma 1) of `per_blob` points in d dimensions, centres uniform in
+// [-20, 20]^d, points listed in a random order; a few far outliers make isolated cells.
+PointSet Blobs(uint32_t d, uint32_t blobs, uint32_t per_blob, uint64_t seed) {
+  Random random(seed);
+  std::vector<double> centres(size_t{blobs} * d);
+  for (double& c : centres) c = -20 + 40 * random.Unit();
+  PointSet points;
+  points.dims = d;
+  const size_t m = size_t{blobs} * per_blob;
+  points.values.resize(m * d);
+  for (size_t i = 0; i < m; ++i) {
+    const size_t b = random.Below(blobs);
+    for (uint32_t j = 0; j < d; ++j) {
+      const double u1 = 1 - random.Unit(), u2 = random.Unit();
+      const double normal = std::sqrt(-2 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+      points.values[i * d + j] = static_cast<float>(centres[b * d + j] + normal);
+    }
+  }
+  for (uint32_t o = 0; o < 3; ++o) {
+    for (uint32_t j = 0; j < d; ++j) points.values[size_t{o} * 97 * d + j] = 60.0f + 15.0f * o;
+  }
+  return points;
+}
+
+// The face-sharing occupied cells of each cluster, on the host from the CPU's labels: a
+// point's cell by point_clustering.cc's arithmetic, a cluster's cell that of its points.
+std::vector<uint32_t> HostFaceNeighbours(const PointSet& points, std::span<const ClusterId> labels,
+                                         uint32_t clusters, std::span<const uint32_t> cells) {
+  const uint32_t d = points.dims;
+  const size_t m = points.num_points();
+  std::vector<float> lo(d, std::numeric_limits<float>::max()),
+      hi(d, -std::numeric_limits<float>::max());
+  for (size_t i = 0; i < m; ++i) {
+    for (uint32_t j = 0; j < d; ++j) {
+      lo[j] = std::min(lo[j], points.values[i * d + j]);
+      hi[j] = std::max(hi[j], points.values[i * d + j]);
+    }
+  }
+  std::map<std::vector<uint32_t>, uint32_t> index;
+  std::vector<std::vector<uint32_t>> cell_of(clusters);
+  for (size_t i = 0; i < m; ++i) {
+    std::vector<uint32_t> cell(d);
+    for (uint32_t j = 0; j < d; ++j) {
+      const double span = static_cast<double>(hi[j]) - lo[j];
+      const double t = span > 0 ? (points.values[i * d + j] - lo[j]) / span : 0.0;
+      cell[j] = static_cast<uint32_t>(std::min<double>(cells[j] - 1, t * cells[j]));
+    }
+    const uint32_t c = labels[i].value();
+    auto [it, inserted] = index.try_emplace(cell, c);
+    EXPECT_EQ(it->second, c) << "two clusters in one cell";
+    if (inserted) cell_of[c] = cell;
+  }
+  std::vector<uint32_t> table(size_t{clusters} * 2 * d, kNone);
+  for (uint32_t c = 0; c < clusters; ++c) {
+    for (uint32_t j = 0; j < d; ++j) {
+      for (uint32_t side = 0; side < 2; ++side) {
+        std::vector<uint32_t> probe = cell_of[c];
+        if (side == 1 && probe[j] == 0) continue;
+        probe[j] = side == 0 ? probe[j] + 1 : probe[j] - 1;
+        auto it = index.find(probe);
+        if (it != index.end()) table[size_t{c} * 2 * d + 2 * j + side] = it->second;
+      }
+    }
+  }
+  return table;
+}
+
+void ExpectSameStart(GlContext& context, const PointSet& points, uint32_t grid) {
+  absl::StatusOr<VoxelStart> cpu = VoxelGridStart(points, grid);
+  absl::StatusOr<VoxelStartGpuResult> gpu = VoxelGridStartGpu(context, points, grid);
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  ASSERT_EQ(gpu->clusters, cpu->clusters);
+  EXPECT_GT(cpu->clusters, 10u);
+  ASSERT_EQ(gpu->labels.size(), cpu->labels.size());
+  size_t same = 0;
+  for (size_t i = 0; i < gpu->labels.size(); ++i) same += gpu->labels[i] == cpu->labels[i].value();
+  EXPECT_EQ(same, gpu->labels.size()) << "points with the CPU's label";
+  const std::vector<uint32_t> host =
+      HostFaceNeighbours(points, cpu->labels, cpu->clusters, gpu->cells_per_axis);
+  EXPECT_EQ(gpu->neighbours, host);
+  EXPECT_GT(std::count_if(host.begin(), host.end(), [](uint32_t n) { return n != kNone; }),
+            cpu->clusters);  // the comparison compares something
+}
+
+TEST(VoxelStartGpu, SameLabelsAndNeighboursAsTheCpuIn2D3DAnd8D) {
+  ExpectSameStart(Context(), Blobs(2, 20, 300, 1), 0);
+  ExpectSameStart(Context(), Blobs(3, 30, 400, 2), 0);
+  ExpectSameStart(Context(), Blobs(3, 30, 400, 3), 17);
+  // 8-D at 4,000 points: fewer than 4 cells per axis, so the widest cells are halved
+  // until about m / 8 are occupied (the trial grids are counted on the GPU).
+  ExpectSameStart(Context(), Blobs(8, 10, 400, 4), 0);
+}
+
+TEST(VoxelStartGpu, RefusesTooManyDimensions) {
+  PointSet points;
+  points.dims = kVoxelStartMaxDims + 1;
+  points.values.assign(size_t{points.dims} * 4, 1.0f);
+  EXPECT_EQ(VoxelGridStartGpu(Context(), points, 0).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+// Every level: its count, energy and sorted triplets; the start's labels.
+class LevelsSink : public LevelSink {
+ public:
+  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
+    for (ClusterId c : labels) start.push_back(c.value());
+    counts.push_back(count);
+    energies.push_back(energy);
+    triplets.emplace_back();
+    return absl::OkStatus();
+  }
+  absl::Status OnLevel(const LevelMoves& level) override {
+    counts.push_back(level.cluster_count);
+    energies.push_back(level.energy);
+    auto& moves = triplets.emplace_back();
+    for (size_t i = 0; i < level.element.size(); ++i) {
+      moves.push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
+    }
+    std::sort(moves.begin(), moves.end());
+    return absl::OkStatus();
+  }
+  std::vector<uint32_t> start, counts;
+  std::vector<double> energies;
+  std::vector<std::vector<std::array<uint32_t, 3>>> triplets;
+};
+
+PointMultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
+  PointMultilevelOptions options;
+  options.parallel = true;
+  options.optimizer = PointMultilevelOptions::Optimizer::kNone;
+  options.pml_pairs = rule;
+  options.min_clusters = lowest;
+  return options;
+}
+
+// The energy of a level at `count` clusters, or the last level above it.
+double EnergyAt(const LevelsSink& sink, uint32_t count) {
+  double energy = sink.energies.front();
+  for (size_t l = 0; l < sink.counts.size() && sink.counts[l] >= count; ++l) {
+    energy = sink.energies[l];
+  }
+  return energy;
+}
+
+// The GPU's levels against the CPU's: level 0 and level 1 identical (labels, counts,
+// triplets, energies), the same lowest level, and at each of a few cluster counts the
+// energy within `tolerance` (relative) of the CPU's, or with `at_most` only not above it
+// by more than that (the GPU refreshes every cluster's neighbours after each level, the
+// CPU only the touched ones: with all pairs the CPU's stale neighbours merge whole blobs
+// that the GPU keeps apart).
+void ExpectLikeTheCpu(const PointSet& points, const PointMultilevelOptions& options,
+                      double tolerance, bool at_most = false) {
+  LevelsSink cpu, gpu;
+  absl::StatusOr<PointMultilevelSummary> on_cpu = RunPointMultilevel(points, options, cpu);
+  absl::StatusOr<PointMultilevelSummary> on_gpu =
+      RunPointParallelMultilevelGpu(Context(), points, options, gpu);
+  ASSERT_TRUE(on_cpu.ok()) << on_cpu.status();
+  ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+  EXPECT_EQ(on_gpu->start_clusters, on_cpu->start_clusters);
+  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
+  EXPECT_EQ(on_gpu->grid, on_cpu->grid);
+  EXPECT_EQ(gpu.start, cpu.start);
+  ASSERT_GT(cpu.counts.size(), 3u);
+  ASSERT_GT(gpu.counts.size(), 3u);
+  EXPECT_EQ(gpu.energies[0], cpu.energies[0]);
+  EXPECT_EQ(gpu.counts[1], cpu.counts[1]);
+  EXPECT_EQ(gpu.triplets[1], cpu.triplets[1]);
+  EXPECT_NEAR(gpu.energies[1], cpu.energies[1], 1e-9 * cpu.energies[1]);
+  for (uint32_t count : {on_cpu->start_clusters / 4, on_cpu->start_clusters / 16,
+                         options.min_clusters * 4, options.min_clusters}) {
+    const double at_cpu = EnergyAt(cpu, count), at_gpu = EnergyAt(gpu, count);
+    if (at_most) {
+      EXPECT_LE(at_gpu, (1 + tolerance) * at_cpu) << count << " clusters";
+    } else {
+      EXPECT_NEAR(at_gpu, at_cpu, tolerance * at_cpu) << count << " clusters";
+    }
+  }
+  std::cout << "levels: CPU " << cpu.counts.size() << ", GPU " << gpu.counts.size()
+            << "; final energy: CPU " << cpu.energies.back() << ", GPU " << gpu.energies.back()
+            << "\n";
+}
+
+TEST(PointsPmlGpu, LikeTheCpuOn3DBlobsCheaperHalf) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points;
+  ExpectLikeTheCpu(points, PmlOptions(PmlPairRule::kCheaperHalf, 40), 0.01);
+}
+
+// All pairs (Alg. 5.3): at 40 clusters the CPU is at 2.6x the GPU's energy on these 40
+// blobs (128,323 against 50,226; 40 x 400 points of sigma 1 in 3-D have about 48,000).
+TEST(PointsPmlGpu, NotAboveTheCpuOn3DBlobsAllPairs) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 6, true).points;
+  ExpectLikeTheCpu(points, PmlOptions(PmlPairRule::kAll, 40), 0.01, /*at_most=*/true);
+}
+
+TEST(PointsPmlGpu, LikeTheCpuIn2DAnd8D) {
+  ExpectLikeTheCpu(Blobs(2, 20, 400, 7), PmlOptions(PmlPairRule::kCheaperHalf, 20), 0.01);
+  ExpectLikeTheCpu(Blobs(8, 10, 500, 8), PmlOptions(PmlPairRule::kCheaperHalf, 10), 0.01);
+}
+
+// The triplets of every level, applied to the previous labels, give the labels the GPU
+// holds after the level, exactly; each triplet's old cluster is the point's previous one.
+TEST(PointsPmlGpu, TripletsRebuildTheGpuLabelsAtEveryLevel) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(20, 300, 6.0, 9, true).points;
+  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
+  std::vector<std::vector<uint32_t>> held;
+  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
+    EXPECT_EQ(level, held.size());
+    held.emplace_back(labels.begin(), labels.end());
+  };
+  LevelsSink sink;
+  absl::StatusOr<PointMultilevelSummary> ran =
+      RunPointParallelMultilevelGpu(Context(), points, options, sink);
+  ASSERT_TRUE(ran.ok()) << ran.status();
+  EXPECT_EQ(ran->final_clusters, 1u);
+  ASSERT_EQ(held.size(), sink.counts.size());
+  ASSERT_GT(held.size(), 5u);
+  std::vector<uint32_t> labels = sink.start;
+  EXPECT_EQ(labels, held[0]);
+  for (size_t l = 1; l < held.size(); ++l) {
+    for (const auto& [point, to, from] : sink.triplets[l]) {
+      EXPECT_EQ(labels[point], from);
+      labels[point] = to;
+    }
+    ASSERT_EQ(labels, held[l]) << "level " << l;
+    std::vector<uint32_t> distinct = labels;
+    std::sort(distinct.begin(), distinct.end());
+    EXPECT_EQ(std::unique(distinct.begin(), distinct.end()) - distinct.begin(), sink.counts[l]);
+  }
+}
+
+// With at most 16 work groups per grid dimension the passes over points, clusters and
+// neighbour slots run as 2-D grids (12,000 points: 47 groups; the slots of ~1,500
+// clusters: 36) and give the same levels.
+TEST(PointsPmlGpu, TwoDimensionalGridsGiveTheSameLevels) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(30, 400, 6.0, 10, true).points;
+  GlContextOptions capped_options;
+  capped_options.max_groups_per_dimension = 16;
+  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(capped_options);
+  ASSERT_TRUE(capped.ok()) << capped.status();
+  const PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 5);
+  LevelsSink wide, narrow;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, wide).ok());
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(**capped, points, options, narrow).ok());
+  EXPECT_GT(wide.counts.size(), 5u);
+  EXPECT_EQ(narrow.start, wide.start);
+  EXPECT_EQ(narrow.counts, wide.counts);
+  EXPECT_EQ(narrow.energies, wide.energies);
+  EXPECT_EQ(narrow.triplets, wide.triplets);
+}
+
+TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(4, 50, 6.0, 11).points;
+  LevelsSink sink;
+  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
+  options.optimizer = PointMultilevelOptions::Optimizer::kLnKmeans;
+  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+  options = PmlOptions(PmlPairRule::kAll, 1);
+  options.parallel = false;
+  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+  options = PmlOptions(PmlPairRule::kAll, 1);
+  options.pml_until = 10;
+  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+}
+
+// A GL error injected into each pass (gpu/context/pass.h) is the run's error, named by
+// pass; the context works again afterwards.
+TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(6, 100, 6.0, 12).points;
+  for (const char* pass :
+       {"voxel start", "points odes", "points collapse", "points triplets", "points neighbours"}) {
+    LevelsSink sink;
+    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
+    absl::StatusOr<PointMultilevelSummary> failed =
+        RunPointParallelMultilevelGpu(Context(), points, PmlOptions(PmlPairRule::kAll, 1), sink);
+    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
+    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
+    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+  }
+  LevelsSink sink;
+  absl::StatusOr<PointMultilevelSummary> again =
+      RunPointParallelMultilevelGpu(Context(), points, PmlOptions(PmlPairRule::kAll, 1), sink);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->final_clusters, 1u);
+}
+
+TEST(PointsPmlGpu, CancelledBetweenLevels) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 13).points;
+  std::atomic<bool> cancel{false};
+  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
+  options.cancel = &cancel;
+  options.inspect_level = [&](size_t level, std::span<const uint32_t>) {
+    if (level == 2) cancel = true;
+  };
+  LevelsSink sink;
+  absl::StatusOr<PointMultilevelSummary> ran =
+      RunPointParallelMultilevelGpu(Context(), points, options, sink);
+  EXPECT_EQ(ran.status().code(), absl::StatusCode::kCancelled);
+  EXPECT_EQ(sink.counts.size(), 3u);
+}
+
+// The plan (core/cluster/registry.cc): PML's point levels go to the GPU for merges only,
+// with device gpu even on llvmpipe, with auto only on hardware; ML and HC stay on the CPU.
+TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
+  const DeviceCaps hardware{true, false, "NVIDIA H100"};
+  const DeviceCaps software{true, true, "llvmpipe"};
+  auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* algorithm,
+                      const char* optimizer) -> std::string {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kPoints, algorithm);
+    request.energy = FindEnergy(InputKind::kPoints, "variance");
+    request.clusters = 10;
+    request.device = choice;
+    request.options = {{"optimizer", optimizer}};
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    EXPECT_TRUE(plan.ok()) << plan.status();
+    if (!plan.ok()) return "error";
+    if (!PlanDevices(caps, *plan).ok()) return "refused";
+    const StagePlan* stage = FindStage(*plan, "cluster");
+    return stage == nullptr ? "none" : StageDeviceName(*stage, caps);
+  };
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "pml", "none"), "llvmpipe");
+  EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "pml", "none"), "NVIDIA H100");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "pml", "none"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "pml", "lnkmeans"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "ml", "none"), "refused");
+}
+
+}  // namespace
+}  // namespace mlclust::gpu
