@@ -99,6 +99,7 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
 bool HardwareGpuDevicePresent() {
   std::error_code error;
   if (std::filesystem::exists("/dev/nvidiactl", error)) return true;
+  if (std::filesystem::exists("/dev/dxg", error)) return true;  // WSL2's GPU (Mesa d3d12)
   for (const std::filesystem::directory_entry& entry :
        std::filesystem::directory_iterator("/dev/dri", error)) {
     if (entry.path().filename().string().starts_with("renderD")) return true;
@@ -213,7 +214,7 @@ int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& pa
   absl::StatusOr<ServerFlags> flags = ServerFlagsFrom(args);
   if (!flags.ok()) return Fail(flags.status());
   for (const char* output :
-       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair"}) {
+       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair", "preview"}) {
     if (args.has(output)) {
       return Fail(absl::InvalidArgumentError(absl::StrCat(
           "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));

@@ -80,6 +80,7 @@ expect_bad_flag "unknown option --listen" stats --server 127.0.0.1:1 --listen 1
 expect_bad_flag "deadline needs a value" jobs --server 127.0.0.1:1 --deadline
 expect_bad_flag "clusters needs a value" mesh "$data/fandisk.off" -k
 expect_bad_flag "quiet" mesh "$data/fandisk.off" --quiet=yes
+expect_bad_flag "labels needs a value" mesh "$data/fandisk.off" -k 5 --labels= --ply "$work/x.ply"
 expect_bad_flag "unknown option --bogus" serve --bogus 1
 expect_bad_flag "serve: unexpected argument 'extra'" serve extra
 expect_bad_flag "no command 'bogus'" help bogus

@@ -29,6 +29,9 @@ grep -q "mlclust watch $id" "$work/detach.out" || fail "--detach: no hint: $(cat
 if "$mlclust" mesh "$data/fandisk.off" --server "$server" --detach --clusters 5 \
   --labels "$work/x" 2> "$work/detach.err"; then fail "--detach with --labels accepted"; fi
 grep -q "mlclust watch" "$work/detach.err" || fail "--detach --labels: $(cat "$work/detach.err")"
+if "$mlclust" mesh "$data/fandisk.off" --server "$server" --detach --clusters 5 \
+  --preview "$work/x.png" 2> "$work/detach.err"; then fail "--detach with --preview accepted"; fi
+grep -q -- "--preview goes to" "$work/detach.err" || fail "--detach --preview: $(cat "$work/detach.err")"
 if "$mlclust" mesh "$data/fandisk.off" --detach 2> "$work/detach.err"; then
   fail "--detach without --server accepted"
 fi
