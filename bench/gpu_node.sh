@@ -130,6 +130,22 @@ if [ -x "$BIN/hc_gpu_bench" ]; then
 else
   echo "# $BIN/hc_gpu_bench missing: the HC rows were not taken" | tee -a "$out"
 fi
+# CPU PML on this node's cores against ML (issue 10: "CPU PML->ML vs ML on 16 cores: at
+# most a quarter of ML's time at energy within 2% at k = 1000"): bench/pml_cpu_bench.sh,
+# every configuration (the pml preset many-cores included) on 1, 2, 4, 8 and all threads.
+if [ -x "$BIN/pml_cpu_bench" ]; then
+  cpu_out="bench/results/pml_cpu_$(hostname -s).csv"
+  [ "$quick" = 1 ] && cpu_out="bench/results/pml_cpu_quick.csv"
+  echo "# run $(date -u +%FT%TZ) host=$(hostname -s) cores=$(nproc)" | tee -a "$cpu_out"
+  if [ "$quick" = 1 ]; then
+    bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "bunny00" --rounds 1 --thread-list "1 $THREADS" \
+      --stop-at 1000 | tee -a "$cpu_out"
+  else
+    bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "bunny00 armadillo armadillo_1m" --rounds 3 \
+      --thread-list "1 2 4 8 $THREADS" --stop-at 1000 | tee -a "$cpu_out"
+  fi
+  echo "wrote $cpu_out"
+fi
 echo "wrote $out"
 
 # ---------------------------------------------------------------------------------------

@@ -5,11 +5,17 @@
 //                 [--optimizer emlo|bb|none] [--parallel-optimisation]
 //                 [--independent-moves] [--at 1000] [--stop-at K]
 //                 [--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]
+//                 [--preset many-cores]
+//
+// --preset many-cores: the registry's pml preset (core/cluster/registry.cc): PML, p95
+// hc-first (optimised at least below 2 pml-until clusters), pml-until max(stop-at, 1000),
+// parallel rounds; it overrides those flags.
 //
 // Prints one CSV row (best total time of R runs; the energy is the same in every run):
 // mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,threads,
 // seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k,cpu_seconds
 // (parallel_optimisation: 0 off, 1 rounds, 2 rounds with --independent-moves)
+#include <algorithm>
 #include <cstdio>
 #include <ctime>
 #include <limits>
@@ -58,7 +64,8 @@ int main(int argc, char** argv) {
       "usage: pml_cpu_bench MESH [--algo ml|pml] [--pml-until K] [--threads T] "
       "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] "
       "[--independent-moves] [--at K] [--stop-at K] "
-      "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]");
+      "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header] "
+      "[--preset many-cores]");
   const bool header = args.Flag("header");
   const bool parallel_optimisation = args.Flag("parallel-optimisation");
   const bool independent_moves = args.Flag("independent-moves");
@@ -73,6 +80,7 @@ int main(int argc, char** argv) {
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const double p_percent = args.Get<double>("p-percent", 0.0);
   const std::string p_rule = args.Get<std::string>("p-rule", "sweep");
+  const std::string preset = args.Get<std::string>("preset", "none");
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
 
@@ -95,6 +103,18 @@ int main(int argc, char** argv) {
   options.p_percent = p_percent;
   if (p_rule == "hc-first") {
     options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
+  }
+  if (preset == "many-cores") {
+    options.parallel = true;
+    options.p_percent = 95;
+    options.p_percent_rule = mlclust::MultilevelOptions::PPercentRule::kHcFirst;
+    options.pml_until = std::max<uint32_t>(stop_at, 1000);
+    options.optimise_below_at_least = 2 * options.pml_until;
+    options.parallel_optimisation = true;
+    options.independent_moves = false;
+  } else if (preset != "none") {
+    std::fprintf(stderr, "pml_cpu_bench: --preset %s is not none or many-cores\n", preset.c_str());
+    return 2;
   }
   if (optimizer == "bb") options.optimizer = mlclust::MultilevelOptions::Optimizer::kBoundaryBased;
   if (optimizer == "none") options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
@@ -129,9 +149,13 @@ int main(int argc, char** argv) {
         "threads,seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k,cpu_seconds\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
-  std::printf("%s,%zu,%s,%s,%s,%d,%g,%s,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g,%.3f\n", name.c_str(),
-              prepared.mesh.num_faces(), algo.c_str(), energy_name.c_str(), optimizer.c_str(),
-              parallel_optimisation ? (independent_moves ? 2 : 1) : 0, p_percent, p_rule.c_str(),
-              pml_until, threads, best, best_to_k, levels, k, clusters_at_k, energy_at_k, best_cpu);
+  std::printf(
+      "%s,%zu,%s,%s,%s,%d,%g,%s,%u,%d,%.3f,%.3f,%u,%u,%u,%.10g,%.3f\n", name.c_str(),
+      prepared.mesh.num_faces(), options.parallel ? "pml" : "ml", energy_name.c_str(),
+      optimizer.c_str(), options.parallel_optimisation ? (options.independent_moves ? 2 : 1) : 0,
+      options.p_percent,
+      options.p_percent_rule == mlclust::MultilevelOptions::PPercentRule::kHcFirst ? "hc-first"
+                                                                                   : "sweep",
+      options.pml_until, threads, best, best_to_k, levels, k, clusters_at_k, energy_at_k, best_cpu);
   return 0;
 }

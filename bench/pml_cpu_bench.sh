@@ -11,6 +11,8 @@
 #                          [--rounds 3] [--pml-until 2000] [--thread-list "1 16"]
 #                          [--stop-at 1000]
 #
+# Each round also runs --preset many-cores (pml's preset: p95, PML to max(stop-at, 1000),
+# parallel rounds) per thread count.
 # --stop-at K ends each run at K clusters (the whole hierarchy by default: 1); on a 16-core
 # node: bench/pml_cpu_bench.sh build --thread-list "1 2 4 8 16" --stop-at 1000
 set -euo pipefail
@@ -50,6 +52,8 @@ for mesh in $meshes; do
             --p-rule hc-first --stop-at "$stop_at" $mode
         done
       done
+      # The registry's pml preset many-cores (BENCHMARKS.md, "Multi-core PML: the preset").
+      "$bench" "$path" --preset many-cores --threads "$t" --stop-at "$stop_at"
     done
   done
 done

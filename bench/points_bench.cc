@@ -3,11 +3,12 @@
 //   points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K]
 //                [--init kmeans++|random] [--grid A] [--threads T] [--seed S]
 //                [--input FILE [--dims D]] [--until K] [--curve CSV] [--fingerprint 1]
-//                [--rounds R]
+//                [--rounds R] [--bounded F]
 // --until K stops the hierarchy at K clusters (for time per step at high d); --curve writes
 // every level's clusters,energy. --fingerprint 1 prints on stderr a 64-bit FNV-1a hash over
 // every level's cluster count, energy bits and triplets (as bench/engine_golden does), to
-// compare two builds on large sets. --rounds R: PointMultilevelOptions::optimise_rounds.
+// compare two builds on large sets. --rounds R: PointMultilevelOptions::optimise_rounds;
+// --bounded F: PointMultilevelOptions::bounded_drift (ours; 0, default: off).
 // --cancel-after S sets the options' cancel flag S seconds
 // into the clustering (after the set-up) and reports on stderr how long the call took to
 // return after it (then exits).
@@ -104,7 +105,8 @@ int main(int argc, char** argv) {
       argc, argv,
       "usage: points_bench --algo ml|pml|hc|lnkmeans|kmeans [--m M] [--d D] [--blobs K] [--k K] "
       "[--init kmeans++|random] [--grid A] [--threads T] [--seed S] [--input FILE [--dims D]] "
-      "[--until K] [--curve CSV] [--fingerprint 1] [--rounds R] [--cancel-after S]");
+      "[--until K] [--curve CSV] [--fingerprint 1] [--rounds R] [--bounded F] "
+      "[--cancel-after S]");
   const std::string algo = args.Get<std::string>("algo", "ml");
   uint64_t m = args.Get<uint64_t>("m", 100000);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
@@ -112,6 +114,7 @@ int main(int argc, char** argv) {
   const uint32_t k = args.Get<uint32_t>("k", 1000), grid = args.Get<uint32_t>("grid", 0);
   const uint32_t dims = args.Get<uint32_t>("dims", 0), until = args.Get<uint32_t>("until", 1);
   const uint32_t rounds = args.Get<uint32_t>("rounds", 8);
+  const double bounded = args.Get<double>("bounded", 0);
   const int threads = args.Get<int>("threads", 0), fingerprint = args.Get<int>("fingerprint", 0);
   const double cancel_after = args.Get<double>("cancel-after", -1);
   const std::string input = args.Get<std::string>("input", "");
@@ -200,6 +203,7 @@ int main(int argc, char** argv) {
     options.threads = threads;
     options.min_clusters = until;
     options.optimise_rounds = rounds;
+    options.bounded_drift = bounded;
     options.parallel = algo == "pml";
     if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
     CurveSink sink(fingerprint != 0);

@@ -113,6 +113,15 @@ absl::StatusOr<Arguments> ParseCommandLine(const CommandLine& command,
   }
   std::vector<std::string> positional;
   app.add_option("arguments", positional);
+  for (const std::string& arg : args) {
+    // CLI11 takes the next word as the value of `--name=` (empty after '='); we refuse it
+    // instead, so `--labels= --ply out.ply` does not write the labels to a file "--ply".
+    if (arg.size() > 3 && arg.starts_with("--") && arg.back() == '=' &&
+        arg.find('=') == arg.size() - 1) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(arg.substr(0, arg.size() - 1), " needs a value"));
+    }
+  }
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 pops from the back
   try {
     app.parse(reversed);
@@ -198,6 +207,15 @@ FlagGroup ConnectionFlags() {
             "(HOST:PORT/JOBID): watch and cancel go there."}},
           /*stacked=*/false,
           /*shared=*/true};
+}
+
+CommandLine ServerCommandLine(std::string name, std::string synopsis, std::string description,
+                              std::string server_help, std::vector<Flag> rows) {
+  rows.insert(rows.begin(), Flag("server", "ADDR", std::move(server_help)));
+  return {std::move(name),
+          std::move(synopsis),
+          std::move(description),
+          {FlagGroup("", std::move(rows)), ConnectionFlags()}};
 }
 
 Flag AlgorithmFlag(InputKind input) {

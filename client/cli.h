@@ -99,6 +99,11 @@ std::string Wrap(const std::string& text, size_t indent);
 // The flags every command that talks to a server shares (client/job_commands.h reads them).
 FlagGroup ConnectionFlags();
 
+// The command line of a command that talks to a server: --server ADDR (`server_help`),
+// the command's `rows`, then the connection flags.
+CommandLine ServerCommandLine(std::string name, std::string synopsis, std::string description,
+                              std::string server_help, std::vector<Flag> rows);
+
 // Rows from the registry: --algo with its algorithms and --energy with its energies
 // (`input`'s), each algorithm's options under a heading, and for meshes the energy options.
 Flag AlgorithmFlag(InputKind input);

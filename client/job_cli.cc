@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -95,6 +96,35 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
 
 }  // namespace
 
+bool HardwareGpuDevicePresent() {
+  std::error_code error;
+  if (std::filesystem::exists("/dev/nvidiactl", error)) return true;
+  if (std::filesystem::exists("/dev/dxg", error)) return true;  // WSL2's GPU (Mesa d3d12)
+  for (const std::filesystem::directory_entry& entry :
+       std::filesystem::directory_iterator("/dev/dri", error)) {
+    if (entry.path().filename().string().starts_with("renderD")) return true;
+  }
+  return false;
+}
+
+server::ServerOptions EmbeddedServerOptions(const Arguments& args) {
+  server::ServerOptions options;
+  options.log = false;
+  // It ends with this command, so no other client can watch its jobs: it keeps no copy of
+  // their levels.
+  options.kept_results_bytes = 0;
+  // A job whose stages all run on the CPU and that draws no preview needs no GL context,
+  // whose creation (EGL loading Mesa's driver and LLVM) cost 0.08-0.10 s of CPU, ~6% of an
+  // ML run on bunny00 (BENCHMARKS.md): --device cpu, and --device auto where no GPU device
+  // node exists (EGL could only give a software renderer, on which auto uses the CPU).
+  const std::string device = args.get("device", "auto");
+  if (!args.has("preview") &&
+      (device == "cpu" || (device == "auto" && !HardwareGpuDevicePresent()))) {
+    options.gpu = server::GpuMode::kOff;
+  }
+  return options;
+}
+
 // --server ADDR: HOST:PORT (a name, IPv4 or [IPv6]) with a port in 1..65535,
 // or a gRPC URI (unix:PATH, dns:///HOST:PORT, ...) passed as it is.
 absl::Status CheckServerAddress(const std::string& address) {
@@ -184,7 +214,7 @@ int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& pa
   absl::StatusOr<ServerFlags> flags = ServerFlagsFrom(args);
   if (!flags.ok()) return Fail(flags.status());
   for (const char* output :
-       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair"}) {
+       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair", "preview"}) {
     if (args.has(output)) {
       return Fail(absl::InvalidArgumentError(absl::StrCat(
           "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
@@ -213,9 +243,8 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
       MLCLUST_ASSIGN_OR_RETURN(channel, ConnectTo(flags));
     }
   } else {
-    server::ServerOptions options;
-    options.log = false;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+    absl::StatusOr<std::unique_ptr<server::Server>> started =
+        server::Server::Start(EmbeddedServerOptions(args));
     if (!started.ok()) return started.status();
     embedded = *std::move(started);
     channel = embedded->InProcessChannel();

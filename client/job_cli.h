@@ -19,6 +19,7 @@
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
 #include "mlclust/v1/mlclust.pb.h"
+#include "server/server.h"
 
 namespace mlclust::cli {
 
@@ -40,6 +41,15 @@ absl::Status WriteLabels(const std::string& path, std::span<const uint32_t> labe
 // command's `own` rows, --levels, --seed, --device, --detach, --quiet, --json; then the
 // registry's options of `input`, and the connection flags.
 std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& own);
+
+// Whether this machine has a device node a hardware GL driver opens: a DRM render node
+// (/dev/dri/renderD*) or NVIDIA's (/dev/nvidiactl).
+bool HardwareGpuDevicePresent();
+
+// The options of the server started inside this process where no --server is given: no
+// logs, no levels kept for watch (nothing outlives the command), and no GL context where
+// the job cannot use one (--device cpu, or auto without a GPU device; not with --preview).
+server::ServerOptions EmbeddedServerOptions(const Arguments& args);
 
 // --detach: the job is submitted and its id printed; watch it with `mlclust watch`.
 int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload);

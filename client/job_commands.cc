@@ -19,6 +19,12 @@
 namespace mlclust::cli {
 namespace {
 
+// --quiet of cancel and jobs: accepted as by every command that talks to a server.
+const Flag kNoProgressRow("quiet", "", "accepted as by watch; these print no progress line", 'q');
+
+constexpr char kJobServerHelp[] =
+    "the server that accepted the job (not needed for an id HOST:PORT/JOBID)";
+
 absl::StatusOr<ServerFlags> RequireServer(const Arguments& flags, const std::string& command) {
   absl::StatusOr<ServerFlags> server = ServerFlagsFrom(flags);
   if (!server.ok()) return server.status();
@@ -213,7 +219,12 @@ int Cancel(const Arguments& flags) {
     state = client::ExplainReplicaFailure(state.status(), routed->replica, routed->job_id);
   }
   if (!state.ok()) return Fail(ExplainDeadline(state.status(), server, "the cancel"));
-  std::printf("%s: %s\n", flags.positional()[0].c_str(), state->c_str());
+  if (flags.has("json")) {
+    std::printf("{\"job_id\": %s, \"state\": %s}\n", JsonString(flags.positional()[0]).c_str(),
+                JsonString(*state).c_str());
+  } else {
+    std::printf("%s: %s\n", flags.positional()[0].c_str(), state->c_str());
+  }
   return 0;
 }
 
@@ -379,49 +390,41 @@ int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
 // The rows of watch, cancel and jobs; --server and the connection flags follow.
 Command WatchCommand() {
   return {
-      {"watch",
-       "JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]\n"
-       "                    [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]",
-       "Streams a job's levels (detached or not: every job's are kept; `jobs` lists the "
-       "ids), while it runs or after it ended, from any client of its tenant: a snapshot of "
-       "level N, then every level after it. A stream that breaks is resumed where it "
-       "stopped. NOT_FOUND once the server has dropped the job's results (the message says "
-       "when and why).",
-       {{"",
-         {{"server", "ADDR",
-           "the server that accepted the job (not needed for an id HOST:PORT/JOBID)"},
-          {"from-level", "N", "the first level sent, as a snapshot (default 0, the job's first)"},
-          {"clusters", "K", "the level written by --labels and --ply", 'k'},
-          {"labels", "FILE", "one line per element: its cluster (0..K-1) at that level", 'o'},
-          {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
-          {"ply", "FILE", "the mesh INPUT with one colour per cluster at that level"},
-          {"mesh", "INPUT", "the mesh file the job was submitted from (for --ply)"},
-          {"quiet", "", "no progress line on stderr", 'q'},
-          {"json", "", "print the summary as one JSON object"}}},
-        ConnectionFlags()}},
+      ServerCommandLine(
+          "watch",
+          "JOB --server ADDR [--from-level N] [--clusters K] [--labels FILE]\n"
+          "                    [--levels-csv FILE] [--ply FILE --mesh INPUT] [--quiet] [--json]",
+          "Streams a job's levels (detached or not: every job's are kept; `jobs` lists the "
+          "ids), while it runs or after it ended, from any client of its tenant: a snapshot "
+          "of level N, then every level after it. A stream that breaks is resumed where it "
+          "stopped. NOT_FOUND once the server has dropped the job's results (the message "
+          "says when and why).",
+          kJobServerHelp,
+          {{"from-level", "N", "the first level sent, as a snapshot (default 0, the job's first)"},
+           {"clusters", "K", "the level written by --labels and --ply", 'k'},
+           {"labels", "FILE", "one line per element: its cluster (0..K-1) at that level", 'o'},
+           {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
+           {"ply", "FILE", "the mesh INPUT with one colour per cluster at that level"},
+           {"mesh", "INPUT", "the mesh file the job was submitted from (for --ply)"},
+           {"quiet", "", "no progress line on stderr", 'q'},
+           {"json", "", "print the summary as one JSON object"}}),
       Watch};
 }
 
 Command CancelCommand() {
-  return {{"cancel",
-           "JOB --server ADDR",
-           "Cancels a queued or running job; prints its state.",
-           {{"",
-             {{"server", "ADDR",
-               "the server that accepted the job (not needed for an id HOST:PORT/JOBID)"}}},
-            ConnectionFlags()}},
+  return {ServerCommandLine("cancel", "JOB --server ADDR",
+                            "Cancels a queued or running job; prints its state.", kJobServerHelp,
+                            {{"json", "", "print the job id and state as JSON"}, kNoProgressRow}),
           Cancel};
 }
 
 Command JobsCommand() {
-  return {{"jobs",
-           "--server ADDR [--json]",
-           "The jobs of this client's tenant on the server: queued, running, and those ended "
-           "within the retention time, with their state, levels and times.",
-           {{"",
-             {{"server", "ADDR", "the server, or several (their jobs' ids name the replica)"},
-              {"json", "", "print the list as JSON"}}},
-            ConnectionFlags()}},
+  return {ServerCommandLine("jobs", "--server ADDR [--json]",
+                            "The jobs of this client's tenant on the server: queued, running, and "
+                            "those ended within the retention time, with their state, levels and "
+                            "times.",
+                            "the server, or several (their jobs' ids name the replica)",
+                            {{"json", "", "print the list as JSON"}, kNoProgressRow}),
           Jobs};
 }
 

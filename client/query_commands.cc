@@ -236,26 +236,21 @@ Command EnergyCommand() {
 }
 
 Command StatsCommand() {
-  return {{"stats",
-           "--server ADDR [--json]",
-           "Prints the server's queue depth, job counts and GL device.",
-           {{"",
-             {{"server", "ADDR", "the server, or several (each one's stats)"},
-              {"json", "", "print the stats as JSON"}}},
-            ConnectionFlags()}},
+  return {ServerCommandLine("stats", "--server ADDR [--json]",
+                            "Prints the server's queue depth, job counts and GL device.",
+                            "the server, or several (each one's stats)",
+                            {{"json", "", "print the stats as JSON"}}),
           RunStats};
 }
 
 Command InfoCommand() {
-  return {{"info",
-           "[--server ADDR] [--json]",
-           "What the server is and runs (GetServerInfo): version, build, device and renderer, "
-           "every algorithm with its energies, options and stages, and its limits. Without "
-           "--server, the server this process would embed.",
-           {{"",
-             {{"server", "ADDR", "the server (several: the first that answers)"},
-              {"json", "", "print the answer as JSON"}}},
-            ConnectionFlags()}},
+  return {ServerCommandLine("info", "[--server ADDR] [--json]",
+                            "What the server is and runs (GetServerInfo): version, build, device "
+                            "and renderer, every algorithm with its energies, options and stages, "
+                            "and its limits. Without --server, the server this process would "
+                            "embed.",
+                            "the server (several: the first that answers)",
+                            {{"json", "", "print the answer as JSON"}}),
           RunInfo};
 }
 

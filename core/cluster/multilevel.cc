@@ -26,6 +26,45 @@
 namespace mlclust {
 namespace {
 
+// ConnectivityGuard::Build on the caller's TBB arena: every face's ring is BuildFaceRing's,
+// built in blocks of 16,384 faces in parallel and joined in face order at prefix offsets,
+// so the guard is the one Build gives (which builds them one by one, 4-12% of a PML run's
+// work on one core: BENCHMARKS.md, "Multi-core PML: the sequential rest"). Cancellation is
+// checked per block.
+absl::StatusOr<ConnectivityGuard> BuildConnectivityGuardInParallel(
+    const TriangleMesh& mesh, const FaceAdjacency& adjacency, const std::atomic<bool>* cancel) {
+  const size_t n = adjacency.num_faces();
+  constexpr size_t kBlock = 16384;
+  const size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::vector<uint32_t>> block_rings(blocks);
+  std::vector<uint64_t> offset(n + 1, 0);
+  tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+    if (IsCancelled(cancel)) return;
+    const size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
+    std::vector<uint32_t>& rings = block_rings[b];
+    rings.reserve(13 * (end - begin));
+    std::vector<uint32_t> ring;
+    for (size_t f = begin; f < end; ++f) {
+      BuildFaceRing(mesh, adjacency, static_cast<uint32_t>(f), ring);
+      rings.insert(rings.end(), ring.begin(), ring.end());
+      offset[f + 1] = rings.size();  // within the block; the block's base is added below
+    }
+  });
+  if (IsCancelled(cancel)) {
+    return absl::CancelledError("cancelled while building the connectivity guard");
+  }
+  std::vector<uint64_t> base(blocks + 1, 0);
+  for (size_t b = 0; b < blocks; ++b) base[b + 1] = base[b] + block_rings[b].size();
+  std::vector<uint32_t> elements(base[blocks]);
+  tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+    const size_t begin = b * kBlock, end = std::min(n, begin + kBlock);
+    for (size_t f = begin; f < end; ++f) offset[f + 1] += base[b];
+    std::copy(block_rings[b].begin(), block_rings[b].end(), elements.begin() + base[b]);
+    std::vector<uint32_t>().swap(block_rings[b]);
+  });
+  return ConnectivityGuard::FromRings(std::move(offset), std::move(elements));
+}
+
 // The mesh's space for the multilevel engine (detail/multilevel_engine.h): clusters of
 // faces, neighbours across face edges, EMLO or BB as the local optimisation. With
 // problem.polygons (Adjacency = PolygonAdjacency, Energy a detail::PolygonEnergy) the
@@ -83,8 +122,8 @@ class MeshSpace {
                options_.optimizer != MultilevelOptions::Optimizer::kNone) {
       // Only an optimiser needs the guard (HC never moves single faces); built here, between
       // cancellation checks, as it is the longest part of the set-up.
-      MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard,
-                               ConnectivityGuard::Build(mesh_, adjacency_, options_.cancel));
+      MLCLUST_ASSIGN_OR_RETURN(ConnectivityGuard guard, BuildConnectivityGuardInParallel(
+                                                            mesh_, adjacency_, options_.cancel));
       guard_.emplace(std::move(guard));
     }
     std::vector<ClusterId> start(n_);
@@ -168,16 +207,38 @@ class MeshSpace {
       gone_of_[keep] = gone;
     }
     auto kept = [&](uint32_t c) { return kept_of_[c] == detail::kNoCluster ? c : kept_of_[c]; };
-    rebuild_.clear();
-    for (const auto& [keep, gone] : keep_gone) {
-      for (const auto& [c, count] : neighbours_[gone]) {
-        const uint32_t x = kept(c);
-        MarkDirty(x);  // its ODE may have been `gone` or `c`
-        if (!rebuild_mark_[x]) {
-          rebuild_mark_[x] = 1;
-          rebuild_.push_back(x);
+    // The lists to rebuild and the dirty clusters, found in parallel blocks of pairs (the
+    // marks taken atomically) and joined in block order; the order of either list changes
+    // no result in a PML level (each entry is its own cluster's, see UpdateOdesInParallel).
+    constexpr size_t kPairBlock = 256;
+    const size_t blocks = (keep_gone.size() + kPairBlock - 1) / kPairBlock;
+    block_rebuild_.resize(blocks);
+    block_dirty_.resize(blocks);
+    tbb::parallel_for(size_t{0}, blocks, [&](size_t b) {
+      std::vector<uint32_t>& rebuild = block_rebuild_[b];
+      std::vector<uint32_t>& dirty = block_dirty_[b];
+      rebuild.clear();
+      dirty.clear();
+      for (size_t i = b * kPairBlock, end = std::min(keep_gone.size(), (b + 1) * kPairBlock);
+           i < end; ++i) {
+        for (const auto& [c, count] : neighbours_[keep_gone[i].second]) {
+          const uint32_t x = kept(c);
+          // Its ODE may have been `gone` or `c`.
+          if (std::atomic_ref<uint8_t>(dirty_mark_[x]).exchange(1, std::memory_order_relaxed) ==
+              0) {
+            dirty.push_back(x);
+          }
+          if (std::atomic_ref<uint8_t>(rebuild_mark_[x]).exchange(1, std::memory_order_relaxed) ==
+              0) {
+            rebuild.push_back(x);
+          }
         }
       }
+    });
+    rebuild_.clear();
+    for (size_t b = 0; b < blocks; ++b) {
+      rebuild_.insert(rebuild_.end(), block_rebuild_[b].begin(), block_rebuild_[b].end());
+      dirty_.insert(dirty_.end(), block_dirty_[b].begin(), block_dirty_[b].end());
     }
     // Each task writes only its own cluster's list and reads it and its gone cluster's
     // (no gone cluster is rebuilt).
@@ -205,11 +266,17 @@ class MeshSpace {
                           neighbours_[x].assign(merged.begin(), merged.end());
                         }
                       });
-    for (const auto& [keep, gone] : keep_gone) {
-      std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
-      kept_of_[gone] = detail::kNoCluster;
-      gone_of_[keep] = detail::kNoCluster;
-    }
+    // The gone lists' memory back in parallel (freeing them one by one was ~2% of a PML
+    // run's work on one core).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, keep_gone.size(), 256),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) {
+                          const auto [keep, gone] = keep_gone[i];
+                          std::vector<std::pair<uint32_t, uint32_t>>().swap(neighbours_[gone]);
+                          kept_of_[gone] = detail::kNoCluster;
+                          gone_of_[keep] = detail::kNoCluster;
+                        }
+                      });
     for (uint32_t x : rebuild_) rebuild_mark_[x] = 0;
   }
 
@@ -246,7 +313,9 @@ class MeshSpace {
     if constexpr (std::is_same_v<Guard, ConnectivityGuard>) {  // the ring guard, or none
       if (options_.optimizer == MultilevelOptions::Optimizer::kEmlo && parallel_level &&
           options_.parallel_optimisation && options_.independent_moves) {
-        OptimiseInIndependentRounds(guard, max_moves);
+        const uint64_t left = OptimiseInIndependentRounds(guard, max_moves);
+        // The rounds stopped paying (few winners): the rest in face order.
+        if (left > 0) OptimiseInRounds(guard, left, on_move);
         return;
       }
     }
@@ -558,13 +627,20 @@ class MeshSpace {
     tbb::parallel_sort(list.begin(), list.end());  // integers: the same order on any thread count
     list.erase(std::unique(list.begin(), list.end()), list.end());
     std::vector<uint32_t> target, next;
+    std::vector<uint8_t> allowed;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
       target.resize(list.size());
+      allowed.resize(list.size());
+      // Each face's move and the guard's answer for it, from the round's state.
       tbb::parallel_for(tbb::blocked_range<size_t>(0, list.size(), 256),
                         [&](const tbb::blocked_range<size_t>& range) {
                           for (size_t i = range.begin(); i != range.end(); ++i) {
                             target[i] = BestOwnMove(list[i]).first;
+                            allowed[i] = target[i] != detail::kNoCluster &&
+                                         (guard == nullptr ||
+                                          guard->CanMove(list[i], target[i], partition_.labels(),
+                                                         partition_.sizes()));
                           }
                         });
       evaluations_ += list.size();
@@ -579,9 +655,14 @@ class MeshSpace {
         for (FaceId g : adjacency_.neighbours[f]) {
           stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
         }
+        // Where the decision stands, so does the guard's answer: a face around f that moved
+        // changed the ring's runs of f's cluster or of the target only by touching one of
+        // them, which makes f stale; and f's cluster kept its size.
         const uint32_t to = stale ? BestOwnMove(f).first : target[i];
         if (to == detail::kNoCluster) continue;
-        if (guard != nullptr && !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
+        if (!stale && !allowed[i]) continue;
+        if (stale && guard != nullptr &&
+            !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
           continue;
         }
         const uint32_t from = partition_.label(f);
@@ -609,16 +690,116 @@ class MeshSpace {
     }
   }
 
+  // The winners of an independent round (apply[j] = 1; 0: the guard refused the move; 2:
+  // it waits for the next round), the first maximal set of candidates, in list order, that
+  // read pairwise disjoint clusters and that the guard allows: a candidate wins where no
+  // earlier winner reads a cluster it reads. Found in steps, in parallel: the candidates
+  // still open that are the first open one on every cluster they read win (their guard
+  // answers from the round's state), their clusters are taken, the open candidates that
+  // read a taken cluster wait, and the rest go to the next step. Each step's winners are
+  // those of the one-by-one scan in list order, so the set does not depend on the thread
+  // count. (The former rule let a candidate wait behind an earlier one that itself waited:
+  // with clusters of hundreds of faces about one candidate in 500 won per round.)
+  template <typename ForEachRead>
+  void SelectIndependentMoves(const ConnectivityGuard* guard, std::span<const uint32_t> list,
+                              std::span<const uint32_t> target,
+                              std::span<const uint32_t> candidates,
+                              const ForEachRead& for_each_read, std::vector<uint8_t>& apply) {
+    apply.assign(candidates.size(), 2);
+    open_.resize(candidates.size());
+    for (size_t j = 0; j < candidates.size(); ++j) open_[j] = static_cast<uint32_t>(j);
+    blocked_.assign(candidates.size(), 0);
+    while (!open_.empty()) {
+      const tbb::blocked_range<size_t> all(0, open_.size(), 256);
+      // Reserve: every cluster not taken keeps the first open candidate that reads it; a
+      // candidate that reads a taken cluster waits (and reserves nothing).
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const uint32_t j = open_[k], f = list[candidates[j]];
+          bool blocked = false;
+          for_each_read(f, [&](uint32_t c) {
+            blocked = blocked || reserve_[c].load(std::memory_order_relaxed) == kTaken;
+          });
+          blocked_[j] = blocked ? 1 : 0;
+          if (blocked) continue;
+          for_each_read(f, [&](uint32_t c) {
+            uint32_t seen = reserve_[c].load(std::memory_order_relaxed);
+            while (j < seen &&
+                   !reserve_[c].compare_exchange_weak(seen, j, std::memory_order_relaxed)) {
+            }
+          });
+        }
+      });
+      // The first everywhere win where the guard allows their move (their rings are
+      // disjoint from the other winners' moves, so the answer holds after those apply).
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const uint32_t j = open_[k];
+          if (blocked_[j]) continue;
+          const uint32_t i = candidates[j];
+          bool first_everywhere = true;
+          for_each_read(list[i], [&](uint32_t c) {
+            first_everywhere = first_everywhere && reserve_[c].load(std::memory_order_relaxed) == j;
+          });
+          if (!first_everywhere) continue;
+          apply[j] = guard == nullptr || guard->CanMove(list[i], target[i], partition_.labels(),
+                                                        partition_.sizes())
+                         ? 1
+                         : 0;
+        }
+      });
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const uint32_t j = open_[k];
+          if (blocked_[j]) continue;
+          for_each_read(list[candidates[j]], [&](uint32_t c) {
+            reserve_[c].store(kUnreserved, std::memory_order_relaxed);
+          });
+        }
+      });
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const uint32_t j = open_[k];
+          if (blocked_[j] || apply[j] != 1) continue;
+          for_each_read(list[candidates[j]],
+                        [&](uint32_t c) { reserve_[c].store(kTaken, std::memory_order_relaxed); });
+        }
+      });
+      // Still open: neither blocked nor decided.
+      detail::CompactIndices(
+          open_.size(), [&](size_t k) { return !blocked_[open_[k]] && apply[open_[k]] == 2; },
+          still_open_);
+      for (uint32_t& k : still_open_) k = open_[k];
+      open_.swap(still_open_);
+    }
+    // The taken clusters back to unreserved (the labels are still the round's).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 256),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t j = range.begin(); j != range.end(); ++j) {
+                          if (apply[j] != 1) continue;
+                          for_each_read(list[candidates[j]], [&](uint32_t c) {
+                            reserve_[c].store(kUnreserved, std::memory_order_relaxed);
+                          });
+                        }
+                      });
+  }
+
   // MultilevelOptions::independent_moves (ours): rounds of "every face of the list finds
-  // its best move in parallel; the moves that no earlier face of the list conflicts with
-  // are checked by the guard in parallel and applied; the others wait for the next round".
+  // its best move in parallel; a set of moves that read pairwise disjoint clusters is
+  // checked by the guard and applied in parallel; the others wait for the next round".
   // Face f reads the clusters of the faces around it (its ring, which holds its edge
   // neighbours): its own cluster and every target it compares, and every label the guard
-  // reads. A move wins where it is the first of the round's moves (in list order) to read
-  // each of those clusters, so the winners read and write pairwise disjoint clusters: each
-  // one's decision and guard answer from the round's state hold after the others apply, and
-  // each lowers the energy. Which moves win does not depend on the thread count.
-  void OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
+  // reads. The winners (SelectIndependentMoves) read and write pairwise disjoint clusters:
+  // each one's decision and guard answer from the round's state hold after the others
+  // apply, and each lowers the energy. A cluster takes part in one move per round, so a
+  // level whose moves crowd on few clusters would need a round per move: once a round of at
+  // least kFewWinnersFrom candidates has fewer than one winner in kFewWinnersRatio, nothing
+  // of it is applied and the rest of the level goes to the face-order rounds
+  // (OptimiseInRounds), with the moves left of max_moves as the return value (0: done
+  // here). Without that, the hand-over level of an 832k-face mesh took 4,043 rounds over
+  // 38.9M list entries (BENCHMARKS.md, "independent on a million faces"). Which moves win
+  // and when the rounds hand over do not depend on the thread count.
+  uint64_t OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
     std::vector<uint32_t>& list = worklist_;
     const size_t first = list.size();
     for (size_t i = 0; i < first; ++i) {
@@ -674,52 +855,18 @@ class MeshSpace {
       evaluations_ += list.size();
       detail::CompactIndices(
           list.size(), [&](size_t i) { return target[i] != detail::kNoCluster; }, candidates);
-      // Reserve: every cluster keeps the first candidate that reads it.
-      const tbb::blocked_range<size_t> all(0, candidates.size(), 256);
-      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t j = range.begin(); j != range.end(); ++j) {
-          const uint32_t i = candidates[j];
-          for_each_read(list[i], [&](uint32_t c) {
-            uint32_t seen = reserve_[c].load(std::memory_order_relaxed);
-            while (i < seen &&
-                   !reserve_[c].compare_exchange_weak(seen, i, std::memory_order_relaxed)) {
-            }
-          });
-        }
-      });
-      // Winners: first on every cluster they read; the guard answers for them in parallel
-      // (their rings are disjoint from the other winners' moves).
-      apply.assign(candidates.size(), 0);
-      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t j = range.begin(); j != range.end(); ++j) {
-          const uint32_t i = candidates[j];
-          bool first_everywhere = true;
-          for_each_read(list[i], [&](uint32_t c) {
-            first_everywhere = first_everywhere && reserve_[c].load(std::memory_order_relaxed) == i;
-          });
-          if (!first_everywhere) {
-            apply[j] = 2;  // waits for the next round
-            continue;
-          }
-          apply[j] = guard == nullptr || guard->CanMove(list[i], target[i], partition_.labels(),
-                                                        partition_.sizes())
-                         ? 1
-                         : 0;
-        }
-      });
-      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t j = range.begin(); j != range.end(); ++j) {
-          for_each_read(list[candidates[j]], [&](uint32_t c) {
-            reserve_[c].store(kUnreserved, std::memory_order_relaxed);
-          });
-        }
-      });
+      SelectIndependentMoves(guard, list, target, candidates, for_each_read, apply);
       // The winners apply in parallel (each writes only its own clusters and faces); what
       // goes to shared lists (the recorder's, the dirty clusters) is kept per move and
       // listed after, in candidate order: the same as applying them one by one in order.
       detail::CompactIndices(
           candidates.size(), [&](size_t j) { return apply[j] == 1; }, winners);
       if (winners.size() > max_moves - moves) winners.resize(max_moves - moves);
+      if (candidates.size() >= kFewWinnersFrom &&
+          winners.size() * kFewWinnersRatio < candidates.size()) {
+        for (uint32_t f : list) kept_target_[f] = kUndecided;
+        return max_moves - moves;
+      }
       moves += winners.size();
       applied.resize(winners.size());
       auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
@@ -816,6 +963,7 @@ class MeshSpace {
       list.swap(next);
     }
     for (uint32_t f : list) kept_target_[f] = kUndecided;  // stopped early: none kept
+    return 0;
   }
 
   // Local boundary-based optimisation: sweeps over the worklist with the touched
@@ -886,6 +1034,7 @@ class MeshSpace {
   // it in this level (kNoCluster otherwise), and the lists to rebuild.
   std::vector<uint32_t> kept_of_, gone_of_, rebuild_;
   std::vector<uint8_t> rebuild_mark_;
+  std::vector<std::vector<uint32_t>> block_rebuild_, block_dirty_;
   std::vector<uint32_t> dirty_;
   // UpdateOdesInParallel's marks (all 0 between levels) and list.
   std::vector<uint8_t> affected_mark_, check_mark_;
@@ -897,6 +1046,13 @@ class MeshSpace {
   // OptimiseInIndependentRounds: per cluster, the first candidate of the round that reads
   // it (kUnreserved between rounds).
   static constexpr uint32_t kUnreserved = 0xffffffffu;
+  // A cluster a winner of the round's earlier steps reads.
+  static constexpr uint32_t kTaken = 0xfffffffdu;
+  // OptimiseInIndependentRounds hands over to the face-order rounds at a round of at
+  // least this many candidates with fewer than one winner in kFewWinnersRatio.
+  static constexpr size_t kFewWinnersFrom = 256, kFewWinnersRatio = 8;
+  std::vector<uint32_t> open_, still_open_;
+  std::vector<uint8_t> blocked_;
   std::vector<std::atomic<uint32_t>> reserve_;
   // Per face, the move it keeps from the round before (kUndecided: none kept; all so
   // between levels).
@@ -919,6 +1075,7 @@ absl::StatusOr<MultilevelSummary> RunMeshSpace(Space& space, const MultilevelOpt
   detail::MultilevelEngineOptions engine_options;
   engine_options.optimise = options.optimizer != MultilevelOptions::Optimizer::kNone;
   engine_options.p_percent = options.p_percent;
+  engine_options.optimise_below_at_least = options.optimise_below_at_least;
   engine_options.p_percent_sweep =
       options.p_percent_rule == MultilevelOptions::PPercentRule::kSweep;
   engine_options.parallel = options.parallel;

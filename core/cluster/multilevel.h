@@ -43,6 +43,9 @@ struct MultilevelOptions {
   enum class PPercentRule { kSweep, kHcFirst };
   double p_percent = 0;
   PPercentRule p_percent_rule = PPercentRule::kSweep;
+  // Ours (the registry's pml preset many-cores): with p_percent, the merges are optimised
+  // at least below this many clusters (0: p_percent alone decides).
+  uint32_t optimise_below_at_least = 0;
   // PML (Alg. 5.3): collapse all mutual optimal dual edges at once per level (ties to the
   // larger id) while more than `pml_until` clusters are left, then continue as ML. 0: PML
   // to the end.

@@ -390,6 +390,7 @@ class PointSpace {
     threshold_.assign(points.num_points(), 0.0);
     drift_epoch_.assign(k0_, 0);
     drift_.assign(k0_, 0.0);
+    region_epoch_.assign(k0_, 0);
   }
 
   uint32_t capacity() const { return k0_; }
@@ -521,26 +522,47 @@ class PointSpace {
   // A later round's points to check, in region order: those not checked in this call, and
   // those whose centroid and neighbourhood moved by more than their threshold. Without
   // branches (which of the two is unpredictable), and in parallel over slices of the
-  // clusters where there are many points, joined in order: the same list either way.
+  // clusters where there are many points, joined in order: the same list either way. A
+  // cluster no round of this call has had in its region has no point checked yet: all of
+  // them, copied. With options_.bounded_drift (ours), a cluster whose own centroid moved
+  // in this call by less than that share of its RMS radius keeps its unchecked points
+  // unchecked (and, if none of its points is checked yet, is not scanned at all).
   void SelectForCheck(std::span<const uint32_t> region) {
     size_t total = 0;
     slices_.clear();
+    const double bounded = options_.bounded_drift;
     for (uint32_t c : region) {
       const double drift = Drift(c) + NeighbourhoodDrift(c);
+      const bool all = region_epoch_[c] != epoch_;
+      bool unchecked_too = true;
+      if (bounded > 0) {
+        const double n = static_cast<double>(clusters_->count(c));
+        const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
+        unchecked_too = Drift(c) >= bounded * radius;
+      }
+      if (unchecked_too) region_epoch_[c] = epoch_;
+      if (all && !unchecked_too) continue;
       const size_t size = members_[c].size();
       total += size;
       for (size_t begin = 0; begin < size; begin += kScanSlice) {
-        slices_.push_back({c, begin, std::min(size, begin + kScanSlice), drift});
+        slices_.push_back(
+            {c, begin, std::min(size, begin + kScanSlice), drift, all, unchecked_too});
       }
     }
     auto scan = [&](const Slice& slice, uint32_t* out) {
       const uint32_t* list = members_[slice.cluster].data();
+      if (slice.all) {
+        std::copy(list + slice.begin, list + slice.end, out);
+        return slice.end - slice.begin;
+      }
       size_t count = 0;
+      const auto unchecked_too = static_cast<size_t>(slice.unchecked_too);
       for (size_t at = slice.begin; at < slice.end; ++at) {
         const uint32_t i = list[at];
         out[count] = i;
-        count += static_cast<size_t>(stamp_[i] != epoch_) |
-                 static_cast<size_t>(slice.drift > threshold_[i]);
+        const auto unchecked = static_cast<size_t>(stamp_[i] != epoch_);
+        const auto over = static_cast<size_t>(slice.drift > threshold_[i]);
+        count += (unchecked & unchecked_too) | ((unchecked ^ 1) & over);
       }
       return count;
     };
@@ -604,6 +626,9 @@ class PointSpace {
         SelectForCheck(region);
       }
       const size_t full = points_to_check_.size();
+      if (round == 0) {
+        for (uint32_t c : region) region_epoch_[c] = epoch_;
+      }
       compare_with.clear();
       if (round == 0) {
         for (size_t g = 0; g < next_to.size();) {
@@ -837,7 +862,12 @@ class PointSpace {
     uint32_t cluster;
     size_t begin, end;
     double drift;
+    bool all;            // the cluster was in no round's region of this call yet
+    bool unchecked_too;  // its points not checked in this call are checked
   };
+  // Per cluster: the last call of Optimise (epoch_) that checked all its points (one of
+  // that call's rounds had it in its region and checked its unchecked points).
+  std::vector<uint32_t> region_epoch_;
   std::vector<Slice> slices_;
   std::vector<std::vector<uint32_t>> picked_;
 };
@@ -999,6 +1029,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
   if (options.optimise_rounds < 1 || options.optimise_rounds > 64) {
     return absl::InvalidArgumentError(
         absl::StrCat("optimise_rounds: ", options.optimise_rounds, " is not in 1..64"));
+  }
+  if (!(options.bounded_drift >= 0 && options.bounded_drift <= 1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("bounded_drift: ", options.bounded_drift, " is not in 0..1"));
   }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {

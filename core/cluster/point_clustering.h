@@ -114,6 +114,14 @@ struct PointMultilevelOptions {
   // rounds: +0.5% to +8% on average; BENCHMARKS.md "ML for points: per-point margins").
   // 1 to 64 (INVALID_ARGUMENT otherwise).
   uint32_t optimise_rounds = 8;
+  // Ours (0, default: off, the rounds as above): in the later rounds, a changed cluster whose
+  // centroid and neighbourhood moved in this level (the drift the thresholds are compared
+  // with) by less than this share of the cluster's RMS radius sqrt(E_c / n_c) keeps its
+  // points that are not checked yet in this level unchecked (those checked are compared
+  // with their thresholds as always). A large cluster that gains or loses a few points then
+  // costs nothing instead of a check of all its points; the energy cost is measured in
+  // BENCHMARKS.md ("ML for points: bounded_drift"). 0 to 1 (INVALID_ARGUMENT otherwise).
+  double bounded_drift = 0;
   // Voxels per dimension of the start. 0: aiming at eight points per cell: (m / 8)^(1/d)
   // per dimension where that is at least 4; in higher dimensions the widest cells are
   // halved, axis by axis, until about m / 8 cells are occupied (so a 64-D set still starts

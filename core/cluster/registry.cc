@@ -155,14 +155,35 @@ OptionInfo ParallelOptimisationOption() {
       "parallel-optimisation", {"off", "rounds", "independent"}, "off",
       "ours: a PML level's local optimisation (EMLO only) in parallel rounds instead of EMLO's "
       "one queue, every boundary face finding its best move at once; rounds: the moves then "
-      "checked again and applied in face order with the guard; independent: only moves on "
-      "clusters no earlier move of the round reads, guard-checked in parallel, the rest next "
-      "round (experimental: on 832k faces it did not finish in 600 s; cancel works). Other "
-      "levels than EMLO's, the same on any thread count",
+      "checked again and applied in face order with the guard; independent: a set of moves "
+      "on pairwise disjoint clusters, guard-checked and applied in parallel, the rest next "
+      "round, the level going on in face order once a round has few winners. Other levels "
+      "than EMLO's, the same on any thread count",
       [](const OptionValue& v, JobPlan& plan) {
         plan.multilevel.parallel_optimisation = v.text != "off";
         plan.multilevel.independent_moves = v.text == "independent";
       });
+}
+
+// PML's preset "many-cores" (ours, issue 10): the configuration measured best for many CPU
+// cores (BENCHMARKS.md, "Multi-core PML: the preset many-cores"). Listed last, so it sets
+// what it names over those options.
+OptionInfo PmlPresetOption() {
+  return Choice("preset", {"none", "many-cores"}, "none",
+                "ours: many-cores = PML for many CPU cores: the first 95% of the merges "
+                "unoptimised (p-percent 95, p-percent-rule hc-first; optimised at least below "
+                "2 pml-until clusters), PML down to max(clusters, 1000) then ML (pml-until), "
+                "the local optimisation in parallel rounds (parallel-optimisation rounds); "
+                "overrides those four options",
+                [](const OptionValue& v, JobPlan& plan) {
+                  if (v.text != "many-cores") return;
+                  plan.multilevel.p_percent = 95;
+                  plan.multilevel.p_percent_rule = MultilevelOptions::PPercentRule::kHcFirst;
+                  plan.multilevel.pml_until = std::max<uint32_t>(plan.clusters, 1000);
+                  plan.multilevel.optimise_below_at_least = 2 * plan.multilevel.pml_until;
+                  plan.multilevel.parallel_optimisation = true;
+                  plan.multilevel.independent_moves = false;
+                });
 }
 
 OptionInfo SeedInitOption() {
@@ -253,6 +274,18 @@ std::vector<OptionInfo> PatchPresetOptions() {
                 plan.patches.reseeds = static_cast<uint32_t>(v.integer);
               }),
   };
+}
+
+// PointMultilevelOptions::bounded_drift (ours), for ML/PML on points.
+OptionInfo BoundedDriftOption() {
+  return Number(
+      "bounded-drift", 0, 1, "0",
+      "ours: in LN k-means' later rounds after a merge, a changed cluster whose "
+      "centroid moved by less than this share of its RMS radius keeps its points not "
+      "yet checked in the level unchecked (0 = off: every one checked, as defined); "
+      "e.g. 0.03: far less time on large sets at a slightly higher energy "
+      "(BENCHMARKS.md, ML for points: bounded_drift)",
+      [](const OptionValue& v, JobPlan& plan) { plan.point_multilevel.bounded_drift = v.number; });
 }
 
 constexpr char kHierarchyGridHelp[] =
@@ -743,7 +776,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PmlUntilOption(false),
                  PmlPairsOption(),
                  ThreadsOption("PML", [](JobPlan& plan, int t) { plan.multilevel.threads = t; }),
-                 ParallelOptimisationOption()};
+                 ParallelOptimisationOption(),
+                 PmlPresetOption()};
     // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only or with BB, CVD.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
@@ -859,6 +893,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "merges with local neighbours as dual edges, LN k-means around each merge";
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
+    a.options.push_back(BoundedDriftOption());
     a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
@@ -874,6 +909,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
                  PmlUntilOption(true), PmlPairsOption()};
+    a.options.push_back(BoundedDriftOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
     // merges only, without the switch to ML.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};

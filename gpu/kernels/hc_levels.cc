@@ -74,7 +74,7 @@ std::string StepsSource(uint32_t group) {
 
 uint64_t HcLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges) {
   const uint64_t n = std::max<uint64_t>(num_faces, 1), m = std::max<uint64_t>(num_edges, 1);
-  return n * (40 + 32 + 8 + 4 + 4 + 4 + 4 + 12 + 8) + m * (8 + 4 + 8) + TreeNodes(n) * 8 +
+  return n * (40 + 32 + 8 + 4 + 4 + 4 + 4 + 12) + m * (8 + 4 + 8) + TreeNodes(n) * 8 + 2 * 4 +
          uint64_t{kHcMaxBatch} * sizeof(HcStepGpu) + kControlWords * 4;
 }
 

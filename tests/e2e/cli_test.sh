@@ -80,9 +80,24 @@ expect_bad_flag "unknown option --listen" stats --server 127.0.0.1:1 --listen 1
 expect_bad_flag "deadline needs a value" jobs --server 127.0.0.1:1 --deadline
 expect_bad_flag "clusters needs a value" mesh "$data/fandisk.off" -k
 expect_bad_flag "quiet" mesh "$data/fandisk.off" --quiet=yes
+expect_bad_flag "labels needs a value" mesh "$data/fandisk.off" -k 5 --labels= --ply "$work/x.ply"
 expect_bad_flag "unknown option --bogus" serve --bogus 1
 expect_bad_flag "serve: unexpected argument 'extra'" serve extra
 expect_bad_flag "no command 'bogus'" help bogus
+# The embedded server creates a GL context only where the job can use one (--device gpu,
+# --preview, or auto with a GPU device node): the same labels either way, and gpu still
+# reports the renderer.
+"$mlclust" mesh "$data/elephant.off" --algo hc -k 20 -o "$work/auto.labels" -q --json \
+  > "$work/auto.json" || fail "--device auto"
+"$mlclust" mesh "$data/elephant.off" --algo hc -k 20 -o "$work/cpu.labels" -q --device cpu \
+  > /dev/null || fail "--device cpu"
+cmp -s "$work/auto.labels" "$work/cpu.labels" || fail "--device auto and cpu differ"
+"$mlclust" mesh "$data/elephant.off" --algo hc -k 20 -q --device gpu --json > "$work/gpu.json" \
+  || fail "--device gpu"
+/usr/bin/python3 -c '
+import json, sys
+assert json.load(open(sys.argv[1]))["device"] != "cpu", "--device gpu ran without GL"' \
+  "$work/gpu.json" || fail "--device gpu: $(cat "$work/gpu.json")"
 # A flag given twice: the last one counts (-k 5 then --clusters 30).
 "$mlclust" mesh "$data/fandisk.off" --algo hc -k 5 --clusters 30 -o "$work/twice.labels" -q \
   > /dev/null || fail "a flag given twice"

@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -66,22 +65,8 @@ TEST_F(GpuStagesTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing)
   ExpectRunsWithTheHookCleared(BbSpec("gpu"));
 }
 
-// Points around 20 centres, as float32 bytes (the wire's layout).
-std::string BlobBytes(uint32_t m) {
-  std::mt19937 random(11);
-  std::uniform_real_distribution<float> box(-30, 30);
-  std::normal_distribution<float> spread(0, 1);
-  std::vector<float> centres(60);
-  for (float& c : centres) c = box(random);
-  std::vector<float> values;
-  for (uint32_t i = 0; i < m; ++i) {
-    for (int j = 0; j < 3; ++j) values.push_back(centres[(i % 20) * 3 + j] + spread(random));
-  }
-  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
-}
-
 TEST_F(GpuStagesTest, LnKmeansAndKmeansWithDeviceGpu) {
-  const std::string points = BlobBytes(6000);
+  const std::string points = testing::BlobBytes(6000, 11);
   for (v1::Algorithm algorithm : {v1::ALGORITHM_LN_KMEANS, v1::ALGORITHM_KMEANS}) {
     v1::JobSpec spec;
     spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);

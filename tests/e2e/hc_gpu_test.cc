@@ -17,62 +17,20 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
-
-class HcGpuTest : public ::testing::Test {
+class HcGpuTest : public testing::GpuServerTest {
  protected:
-  void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    options.gpu = server::GpuMode::kOn;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(testing::DataPath("fandisk.off"));
-    ASSERT_TRUE(mesh.ok()) << mesh.status();
-    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(*mesh);
-    ASSERT_TRUE(bytes.ok()) << bytes.status();
-    fandisk_ = *std::move(bytes);
-  }
-  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
-
   static v1::JobSpec HcSpec(const std::string& device, v1::Energy energy = v1::ENERGY_CVD) {
-    v1::JobSpec spec;
-    spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
-    spec.set_algorithm(v1::ALGORITHM_HC);
+    v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_HC, 20);
     spec.set_energy(energy);
-    spec.set_clusters(20);
     spec.set_device(device);
     return spec;
   }
-
-  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
-                                        std::vector<v1::Progress>* progress = nullptr) {
-    client::RunOptions options;
-    options.on_event = [progress](const v1::JobEvent& event) {
-      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
-    };
-    return client::RunJob(channel_, spec, fandisk_, options);
-  }
-
-  std::unique_ptr<server::Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::string fandisk_;
 };
-
-std::string ClusterDevice(const std::vector<v1::Progress>& progress) {
-  std::string device = "none";
-  for (const v1::Progress& p : progress) {
-    if (p.stage() == "cluster") device = p.device();
-  }
-  return device;
-}
 
 TEST_F(HcGpuTest, DeviceGpuRunsTheHcStepsOnTheGlContext) {
   const std::string renderer = server_->gl_renderer();
@@ -117,14 +75,9 @@ TEST_F(HcGpuTest, WithoutAGpuMergeCostTheStepsStayOnTheCpu) {
 
 TEST_F(HcGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
   for (const char* pass : {"hc odes", "hc collapse", "hc triplets"}) {
-    ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
-    absl::StatusOr<client::JobResult> failed = Run(HcSpec("gpu"));
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+    ExpectFailsInPass(HcSpec("gpu"), pass);
   }
-  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(HcSpec("gpu"));
-  EXPECT_TRUE(gpu.ok()) << gpu.status();
+  ExpectRunsWithTheHookCleared(HcSpec("gpu"));
 }
 
 }  // namespace

@@ -29,6 +29,9 @@ grep -q "mlclust watch $id" "$work/detach.out" || fail "--detach: no hint: $(cat
 if "$mlclust" mesh "$data/fandisk.off" --server "$server" --detach --clusters 5 \
   --labels "$work/x" 2> "$work/detach.err"; then fail "--detach with --labels accepted"; fi
 grep -q "mlclust watch" "$work/detach.err" || fail "--detach --labels: $(cat "$work/detach.err")"
+if "$mlclust" mesh "$data/fandisk.off" --server "$server" --detach --clusters 5 \
+  --preview "$work/x.png" 2> "$work/detach.err"; then fail "--detach with --preview accepted"; fi
+grep -q -- "--preview goes to" "$work/detach.err" || fail "--detach --preview: $(cat "$work/detach.err")"
 if "$mlclust" mesh "$data/fandisk.off" --detach 2> "$work/detach.err"; then
   fail "--detach without --server accepted"
 fi
@@ -71,6 +74,14 @@ long=$("$mlclust" mesh "$work/grid.off" --server "$server" --algo ml --detach --
 queued=$("$mlclust" mesh "$data/fandisk.off" --server "$server" --detach --quiet | tail -1)
 [ "$("$mlclust" cancel "$queued" --server "$server")" = "$queued: cancelled" ] \
   || fail "cancel of the queued job"
+# Again, as JSON (an ended job keeps its state; --quiet is accepted as by watch).
+"$mlclust" cancel "$queued" --server "$server" --json -q > "$work/cancel.json" \
+  || fail "cancel --json"
+/usr/bin/python3 -c '
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j == {"job_id": sys.argv[2], "state": "cancelled"}, j' "$work/cancel.json" "$queued" \
+  || fail "cancel --json: $(cat "$work/cancel.json")"
 if "$mlclust" watch "$queued" --server "$server" --quiet 2> "$work/cancelled.err"; then
   fail "watching a cancelled job succeeded"
 fi

@@ -108,15 +108,10 @@ TEST_F(PmlGpuTest, OptimizerBbRunsOnTheGlContext) {
 }
 
 TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
-  for (const char* pass : {"pml bb decide", "pml bb apply"}) {
-    ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
-    absl::StatusOr<client::JobResult> failed = Run(PmlSpec("gpu", "bb"));
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+  for (const char* pass : {"pml bb decide", "pml bb apply", "pml bb edges"}) {
+    ExpectFailsInPass(PmlSpec("gpu", "bb"), pass);
   }
-  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"));
-  EXPECT_TRUE(gpu.ok()) << gpu.status();
+  ExpectRunsWithTheHookCleared(PmlSpec("gpu", "bb"));
 }
 
 }  // namespace

@@ -9,47 +9,23 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "client/client.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
 
-using ::testing::HasSubstr;
-
-// 6,000 points around 20 centres, as float32 bytes (the wire's layout).
-std::string BlobBytes() {
-  std::mt19937 random(17);
-  std::uniform_real_distribution<float> box(-30, 30);
-  std::normal_distribution<float> spread(0, 1);
-  std::vector<float> centres(60);
-  for (float& c : centres) c = box(random);
-  std::vector<float> values;
-  for (uint32_t i = 0; i < 6000; ++i) {
-    for (int j = 0; j < 3; ++j) values.push_back(centres[(i % 20) * 3 + j] + spread(random));
-  }
-  return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
-}
-
-class PointsPmlGpuTest : public ::testing::Test {
+class PointsPmlGpuTest : public testing::GpuServerTest {
  protected:
   void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    options.gpu = server::GpuMode::kOn;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
-    points_ = BlobBytes();
+    ASSERT_NO_FATAL_FAILURE(GpuServerTest::SetUp());
+    input_ = testing::BlobBytes(6000, 17);  // 6,000 points around 20 centres
   }
-  void TearDown() override { unsetenv("MLCLUST_GPU_FAIL_PASS"); }
 
   static v1::JobSpec Spec(const std::string& device, const std::string& optimizer) {
     v1::JobSpec spec;
@@ -61,28 +37,7 @@ class PointsPmlGpuTest : public ::testing::Test {
     (*spec.mutable_options())["optimizer"] = optimizer;
     return spec;
   }
-
-  absl::StatusOr<client::JobResult> Run(const v1::JobSpec& spec,
-                                        std::vector<v1::Progress>* progress = nullptr) {
-    client::RunOptions options;
-    options.on_event = [progress](const v1::JobEvent& event) {
-      if (progress != nullptr && event.has_progress()) progress->push_back(event.progress());
-    };
-    return client::RunJob(channel_, spec, points_, options);
-  }
-
-  std::unique_ptr<server::Server> server_;
-  std::shared_ptr<grpc::Channel> channel_;
-  std::string points_;
 };
-
-std::string ClusterDevice(const std::vector<v1::Progress>& progress) {
-  std::string device = "none";
-  for (const v1::Progress& p : progress) {
-    if (p.stage() == "cluster") device = p.device();
-  }
-  return device;
-}
 
 TEST_F(PointsPmlGpuTest, DeviceGpuRunsTheVoxelStartAndTheLevelsOnTheGlContext) {
   const std::string renderer = server_->gl_renderer();
@@ -121,14 +76,9 @@ TEST_F(PointsPmlGpuTest, WithLnKmeansTheLevelsStayOnTheCpu) {
 
 TEST_F(PointsPmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
   for (const char* pass : {"voxel start", "points odes", "points neighbours"}) {
-    ASSERT_EQ(setenv("MLCLUST_GPU_FAIL_PASS", pass, 1), 0);
-    absl::StatusOr<client::JobResult> failed = Run(Spec("gpu", "none"));
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
+    ExpectFailsInPass(Spec("gpu", "none"), pass);
   }
-  ASSERT_EQ(unsetenv("MLCLUST_GPU_FAIL_PASS"), 0);
-  absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", "none"));
-  EXPECT_TRUE(gpu.ok()) << gpu.status();
+  ExpectRunsWithTheHookCleared(Spec("gpu", "none"));
 }
 
 }  // namespace

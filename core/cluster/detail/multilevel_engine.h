@@ -73,6 +73,10 @@ struct MultilevelEngineOptions {
   // (p_percent_sweep) or one merge per level, cheapest first (hc-first).
   double p_percent = 0;
   bool p_percent_sweep = true;
+  // Ours: with p%, the merges are optimised at least below this many clusters (0: p%
+  // alone decides), so that a p% chosen for large inputs does not leave small ones
+  // unoptimised.
+  uint32_t optimise_below_at_least = 0;
   // PML (Alg. 5.3) while more than pml_until clusters are left, then ML.
   bool parallel = false;
   uint32_t pml_until = 0;
@@ -153,7 +157,8 @@ class MultilevelEngine {
     const uint32_t start = clusters_;
     // Alg. 4.2: below this count the merges are optimised.
     const double unoptimised = std::clamp(options_.p_percent, 0.0, 100.0) / 100.0;
-    optimise_below_ = static_cast<uint32_t>(std::floor(start * (1.0 - unoptimised)));
+    optimise_below_ = std::max(static_cast<uint32_t>(std::floor(start * (1.0 - unoptimised))),
+                               options_.optimise_below_at_least);
     if (options_.p_percent > 0 && options_.p_percent_sweep) {
       MLCLUST_RETURN_IF_ERROR(SweepMerges(start - optimise_below_));
       optimise_below_ = start + 1;  // the rest is ML
@@ -330,7 +335,7 @@ class MultilevelEngine {
     };
     if (options_.pairs_in_cost_order) std::sort(pairs_.begin(), pairs_.end(), cheaper);
     SelectPmlPairs(
-        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_);
+        options_.pml_pairs, [&](uint32_t c) { return odes_.cost(c); }, pairs_, pair_costs_);
     // Do not merge past min_clusters: the cheapest pairs first.
     const uint32_t floor = std::max(options_.min_clusters, 1u);
     if (clusters_ - pairs_.size() < floor) {
@@ -453,6 +458,7 @@ class MultilevelEngine {
   uint32_t clusters_ = 0, levels_ = 0, optimise_below_ = 0;
   std::vector<uint32_t> alive_, merged_;
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
+  std::vector<double> pair_costs_;  // SelectPmlPairs' scratch
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> block_pairs_;
 };
 

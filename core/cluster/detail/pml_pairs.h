@@ -20,19 +20,25 @@ namespace detail {
 
 // Keeps, of `pairs` (each a mutual pair (a, b) with merge cost cost_of(a)), those `rule`
 // collapses, in their given order. kCheaperHalf keeps every pair that costs at most the
-// median (the pair at index size / 2 in cost order), so at least one.
+// median (the pair at index size / 2 in cost order), so at least one. `costs` is scratch
+// (a caller that selects every level keeps it, saving a large allocation per level).
 template <typename CostOf>
 void SelectPmlPairs(PmlPairRule rule, const CostOf& cost_of,
-                    std::vector<std::pair<uint32_t, uint32_t>>& pairs) {
+                    std::vector<std::pair<uint32_t, uint32_t>>& pairs, std::vector<double>& costs) {
   if (rule == PmlPairRule::kAll || pairs.empty()) return;
-  std::vector<double> costs;
-  costs.reserve(pairs.size());
+  costs.clear();
   for (const auto& pair : pairs) costs.push_back(cost_of(pair.first));
   std::nth_element(costs.begin(), costs.begin() + costs.size() / 2, costs.end());
   const double limit = costs[costs.size() / 2];
   pairs.erase(std::remove_if(pairs.begin(), pairs.end(),
                              [&](const auto& pair) { return !(cost_of(pair.first) <= limit); }),
               pairs.end());
+}
+template <typename CostOf>
+void SelectPmlPairs(PmlPairRule rule, const CostOf& cost_of,
+                    std::vector<std::pair<uint32_t, uint32_t>>& pairs) {
+  std::vector<double> costs;
+  SelectPmlPairs(rule, cost_of, pairs, costs);
 }
 
 }  // namespace detail

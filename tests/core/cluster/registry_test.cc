@@ -321,5 +321,22 @@ TEST_P(RegistryRunTest, RunsAndReportsTheEnergyOfItsLabels) {
 
 INSTANTIATE_TEST_SUITE_P(AllRegistered, RegistryRunTest, ::testing::ValuesIn(AllPairs()), PairName);
 
+// bounded-drift (ours) reaches ML and PML for points; off by default; 0..1 only.
+TEST(RegistryTest, BoundedDriftReachesThePointHierarchies) {
+  for (const char* name : {"ml", "pml"}) {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kPoints, name);
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    ASSERT_TRUE(plan.ok()) << plan.status();
+    EXPECT_EQ(plan->point_multilevel.bounded_drift, 0.0) << name;
+    request.options = {{"bounded-drift", "0.03"}};
+    plan = PlanJob(request);
+    ASSERT_TRUE(plan.ok()) << plan.status();
+    EXPECT_EQ(plan->point_multilevel.bounded_drift, 0.03) << name;
+    request.options = {{"bounded-drift", "1.5"}};
+    EXPECT_EQ(PlanJob(request).status().code(), absl::StatusCode::kInvalidArgument) << name;
+  }
+}
+
 }  // namespace
 }  // namespace mlclust

@@ -18,6 +18,8 @@
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -31,29 +33,7 @@ GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
 
 // Every level: its count, energy and triplets in the order reported (the GPU logs a
 // merged cluster's faces in the CPU's member order).
-class LevelsSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
-    for (ClusterId c : labels) start.push_back(c.value());
-    counts.push_back(count);
-    energies.push_back(energy);
-    triplets.emplace_back();
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    EXPECT_EQ(level.level, counts.size());
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    auto& moves = triplets.emplace_back();
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
-    }
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> start, counts;
-  std::vector<double> energies;
-  std::vector<std::vector<std::array<uint32_t, 3>>> triplets;
-};
+using LevelsSink = fixtures::TripletSink;
 
 MultilevelOptions HcOptions(uint32_t lowest) {
   MultilevelOptions options;
@@ -184,6 +164,14 @@ TEST(HcGpu, RefusesWhatItDoesNotCover) {
   EXPECT_EQ(RunHierarchyGpu(Context(), mesh.problem(MeshEnergyKind::kPlanar), HcOptions(10), sink)
                 .status()
                 .code(),
+            absl::StatusCode::kUnimplemented);
+  // Per-polygon clustering (problem.polygons) stays on the CPU.
+  const std::vector<uint32_t> one_each(mesh.mesh.num_faces(), 1);
+  absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(one_each, mesh.adjacency);
+  ASSERT_TRUE(polygons.ok()) << polygons.status();
+  MeshProblem per_polygon = mesh.problem();
+  per_polygon.polygons = &*polygons;
+  EXPECT_EQ(RunHierarchyGpu(Context(), per_polygon, HcOptions(10), sink).status().code(),
             absl::StatusCode::kUnimplemented);
   EXPECT_TRUE(sink.counts.empty());  // nothing reported
   EXPECT_FALSE(HcGpuUnsupported(emlo, MeshEnergyKind::kCvd).empty());
@@ -327,11 +315,7 @@ TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
     request.energy = FindEnergy(InputKind::kMesh, energy);
     request.clusters = 10;
     request.device = choice;
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return std::string("error");
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? std::string("none") : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive"), "llvmpipe");

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,7 @@
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -316,6 +318,31 @@ TEST(PmlBbGpu, AgainstTheCpuEngine) {
   }
 }
 
+// The proposals come back in no particular order (an atomic counter), but the host's
+// resolve reads them per face: the levels do not depend on the order or on the dispatch
+// grid. With at most 16 work groups per grid dimension the passes run as 2-D grids and
+// give the same levels, triplets and energies bit for bit.
+TEST(PmlBbGpu, TwoDimensionalGridsGiveTheSameLevels) {
+  const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
+  GlContextOptions capped_options;
+  capped_options.max_groups_per_dimension = 16;
+  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(capped_options);
+  ASSERT_TRUE(capped.ok()) << capped.status();
+  const MultilevelOptions options = PmlBbOptions(PmlPairRule::kCheaperHalf, 100);
+  ReplaySink linear, grid;
+  absl::StatusOr<MultilevelSummary> on_linear =
+      RunParallelMultilevelGpu(Context(), mesh.problem(), options, linear);
+  absl::StatusOr<MultilevelSummary> on_grid =
+      RunParallelMultilevelGpu(**capped, mesh.problem(), options, grid);
+  ASSERT_TRUE(on_linear.ok()) << on_linear.status();
+  ASSERT_TRUE(on_grid.ok()) << on_grid.status();
+  EXPECT_GT(on_linear->optimisation_moves, 0u);
+  EXPECT_EQ(on_grid->optimisation_moves, on_linear->optimisation_moves);
+  EXPECT_EQ(grid.counts, linear.counts);
+  EXPECT_EQ(grid.energies, linear.energies);
+  EXPECT_EQ(grid.replayed, linear.replayed);
+}
+
 TEST(PmlBbGpu, RefusesTheVertexCountGuard) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(6, 6, 0.2f));
   MultilevelOptions options = PmlBbOptions(PmlPairRule::kAll, 1);
@@ -361,11 +388,7 @@ TEST(PmlBbGpuPlan, TheClusterStageGoesToTheGpuWithBb) {
     request.clusters = 10;
     request.device = choice;
     request.options = {{"optimizer", "bb"}, {"guard", guard}};
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return std::string("error");
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? std::string("none") : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "on"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "off"), "llvmpipe");

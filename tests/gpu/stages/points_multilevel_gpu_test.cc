@@ -25,6 +25,8 @@
 #include "gpu/context/pass.h"
 #include "gpu/kernels/voxel_start.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/plan_checks.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_points.h"
 
 namespace mlclust::gpu {
@@ -138,28 +140,8 @@ TEST(VoxelStartGpu, RefusesTooManyDimensions) {
 }
 
 // Every level: its count, energy and sorted triplets; the start's labels.
-class LevelsSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
-    for (ClusterId c : labels) start.push_back(c.value());
-    counts.push_back(count);
-    energies.push_back(energy);
-    triplets.emplace_back();
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    auto& moves = triplets.emplace_back();
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
-    }
-    std::sort(moves.begin(), moves.end());
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> start, counts;
-  std::vector<double> energies;
-  std::vector<std::vector<std::array<uint32_t, 3>>> triplets;
+struct LevelsSink : ::mlclust::testing::TripletSink {
+  LevelsSink() : TripletSink(/*sorted=*/true) {}
 };
 
 PointMultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
@@ -368,12 +350,7 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
     request.clusters = 10;
     request.device = choice;
     request.options = {{"optimizer", optimizer}};
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok()) return "error";
-    if (!PlanDevices(caps, *plan).ok()) return "refused";
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? "none" : StageDeviceName(*stage, caps);
+    return ::mlclust::testing::ClusterStageDevice(caps, request);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "pml", "none"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
