@@ -29,7 +29,7 @@ namespace {
 // ConnectivityGuard::Build on the caller's TBB arena: every face's ring is BuildFaceRing's,
 // built in blocks of 16,384 faces in parallel and joined in face order at prefix offsets,
 // so the guard is the one Build gives (which builds them one by one, 4-12% of a PML run's
-// work on one core: BENCHMARKS.md, "Multi-core PML: the sequential rest"). Cancellation is
+// work on one core: BENCHMARKS.md, "Less sequential work per level"). Cancellation is
 // checked per block.
 absl::StatusOr<ConnectivityGuard> BuildConnectivityGuardInParallel(
     const TriangleMesh& mesh, const FaceAdjacency& adjacency, const std::atomic<bool>* cancel) {
@@ -800,8 +800,8 @@ class MeshSpace {
   // of it is applied and the rest of the level goes to the face-order rounds
   // (OptimiseInRounds), with the moves left of max_moves as the return value (0: done
   // here). Without that, the hand-over level of an 832k-face mesh took 4,043 rounds over
-  // 38.9M list entries (BENCHMARKS.md, "independent on a million faces"). Which moves win
-  // and when the rounds hand over do not depend on the thread count.
+  // 38.9M list entries (BENCHMARKS.md, "Why --parallel-optimisation independent did not finish").
+  // Which moves win and when the rounds hand over do not depend on the thread count.
   uint64_t OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
     std::vector<uint32_t>& list = worklist_;
     const size_t first = list.size();
