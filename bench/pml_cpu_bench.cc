@@ -31,7 +31,7 @@ namespace {
 class AtKSink : public mlclust::LevelSink {
  public:
   AtKSink(uint32_t k, absl::Time start) : k_(k), start_(start) {}
-  absl::Status OnStart(std::span<const mlclust::ClusterId>, uint32_t count,
+  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
                        double energy) override {
     Note(count, energy);
     return absl::OkStatus();

@@ -29,7 +29,7 @@ namespace {
 // ConnectivityGuard::Build on the caller's TBB arena: every face's ring is BuildFaceRing's,
 // built in blocks of 16,384 faces in parallel and joined in face order at prefix offsets,
 // so the guard is the one Build gives (which builds them one by one, 4-12% of a PML run's
-// work on one core: BENCHMARKS.md, "Multi-core PML: the sequential rest"). Cancellation is
+// work on one core: BENCHMARKS.md, "Less sequential work per level"). Cancellation is
 // checked per block.
 absl::StatusOr<ConnectivityGuard> BuildConnectivityGuardInParallel(
     const TriangleMesh& mesh, const FaceAdjacency& adjacency, const std::atomic<bool>* cancel) {
@@ -628,6 +628,8 @@ class MeshSpace {
     list.erase(std::unique(list.begin(), list.end()), list.end());
     std::vector<uint32_t> target, next;
     std::vector<uint8_t> allowed;
+    // The ring test's answers from the parallel pass are kept (see below).
+    constexpr bool kGuardAnswerKept = std::is_same_v<Guard, ConnectivityGuard>;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
       target.resize(list.size());
@@ -638,7 +640,7 @@ class MeshSpace {
                           for (size_t i = range.begin(); i != range.end(); ++i) {
                             target[i] = BestOwnMove(list[i]).first;
                             allowed[i] = target[i] != detail::kNoCluster &&
-                                         (guard == nullptr ||
+                                         (!kGuardAnswerKept || guard == nullptr ||
                                           guard->CanMove(list[i], target[i], partition_.labels(),
                                                          partition_.sizes()));
                           }
@@ -655,13 +657,14 @@ class MeshSpace {
         for (FaceId g : adjacency_.neighbours[f]) {
           stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
         }
-        // Where the decision stands, so does the guard's answer: a face around f that moved
-        // changed the ring's runs of f's cluster or of the target only by touching one of
-        // them, which makes f stale; and f's cluster kept its size.
+        // Where the decision stands, so does the ring test's answer: a face around f that
+        // moved changed the ring's runs of f's cluster or of the target only by touching one
+        // of them, which makes f stale; and f's cluster kept its size. (Alg. 3.2's counts
+        // also read boundaries between other clusters: asked here every time.)
         const uint32_t to = stale ? BestOwnMove(f).first : target[i];
         if (to == detail::kNoCluster) continue;
-        if (!stale && !allowed[i]) continue;
-        if (stale && guard != nullptr &&
+        if (kGuardAnswerKept && !stale && !allowed[i]) continue;
+        if ((stale || !kGuardAnswerKept) && guard != nullptr &&
             !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
           continue;
         }
@@ -797,8 +800,8 @@ class MeshSpace {
   // of it is applied and the rest of the level goes to the face-order rounds
   // (OptimiseInRounds), with the moves left of max_moves as the return value (0: done
   // here). Without that, the hand-over level of an 832k-face mesh took 4,043 rounds over
-  // 38.9M list entries (BENCHMARKS.md, "independent on a million faces"). Which moves win
-  // and when the rounds hand over do not depend on the thread count.
+  // 38.9M list entries (BENCHMARKS.md, "Why --parallel-optimisation independent did not finish").
+  // Which moves win and when the rounds hand over do not depend on the thread count.
   uint64_t OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
     std::vector<uint32_t>& list = worklist_;
     const size_t first = list.size();

@@ -86,13 +86,16 @@ struct MultilevelOptions {
   // moves) and does not depend on the thread count. EMLO optimiser only; ML levels keep
   // EMLO's queue.
   bool parallel_optimisation = false;
-  // Ours, with parallel_optimisation and the ring guard (or none): each round applies only
-  // the moves that no earlier face of the round's list conflicts with (a face reads the
-  // clusters of the faces around it; a move wins where it is the first to read each of
-  // them), checked by the guard and applied without the one-by-one re-check, all found in
-  // parallel; the other moves wait for the next round. Each move lowers the energy; the
-  // result differs from the rounds' face-order application and does not depend on the
-  // thread count. With the vertex-count guard the rounds apply in face order as before.
+  // Ours, with parallel_optimisation and the ring guard (or none): each round applies a
+  // set of moves on pairwise disjoint clusters (a face reads the clusters of the faces
+  // around it; the first maximal such set in face order), checked by the guard and applied
+  // without the one-by-one re-check, all found in parallel; the other moves wait for the
+  // next round. A round of at least 256 candidates with fewer than one winner in 8 hands
+  // the rest of the level to the face-order rounds above (a cluster takes one move per
+  // round, so a boundary moving by many faces would need a round per face). Each move
+  // lowers the energy; the result differs from the rounds' face-order application and does
+  // not depend on the thread count. With the vertex-count guard the rounds apply in face
+  // order as before.
   bool independent_moves = false;
   // Set from any thread to stop the run: checked every 16,384 faces while the clusters'
   // adjacency is built, while the connectivity guard is built, inside local EMLO (every

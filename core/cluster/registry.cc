@@ -166,7 +166,7 @@ OptionInfo ParallelOptimisationOption() {
 }
 
 // PML's preset "many-cores" (ours, issue 10): the configuration measured best for many CPU
-// cores (BENCHMARKS.md, "Multi-core PML: the preset many-cores"). Listed last, so it sets
+// cores (BENCHMARKS.md, "The preset many-cores and its 16-core bound"). Listed last, so it sets
 // what it names over those options.
 OptionInfo PmlPresetOption() {
   return Choice("preset", {"none", "many-cores"}, "none",
