@@ -14,7 +14,8 @@
 #include "gpu/kernels/pml_cvd_glsl.h"      // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"    // kPmlMergeGlsl, generated
 #include "gpu/kernels/pml_ode_glsl.h"      // kPmlOdeGlsl, generated
-#include "gpu/kernels/pml_pairs_glsl.h"    // kPmlPairsGlsl, generated
+#include "gpu/kernels/pml_pair_selection.h"
+#include "gpu/kernels/pml_pairs_glsl.h"  // kPmlPairsGlsl, generated
 
 namespace mlclust::gpu {
 namespace {
@@ -174,45 +175,15 @@ absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_
   uint32_t use_flags = 0;
   level.merged = pairs;
   if (rule != PmlPairRule::kAll || past_floor) {
-    // The CPU engine's selection (ParallelMerges) on the pairs and their costs: the pair
-    // rule, then the cheapest (cost, then pair) down to the lowest level.
+    // The CPU engine's selection on the pairs and their costs (pml_pair_selection.h).
     std::vector<uint32_t> ids(size_t{2} * pairs);
     std::vector<double> values(size_t{3} * pairs);
     MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(ids)));
     MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
-    struct Candidate {
-      std::pair<uint32_t, uint32_t> pair;
-      double cost;
-      uint32_t slot;
-    };
-    std::vector<Candidate> chosen(pairs);
-    for (uint32_t i = 0; i < pairs; ++i) {
-      chosen[i] = {{ids[2 * i], ids[2 * i + 1]}, values[3 * i], i};
-    }
-    // The CPU's order: by the smaller cluster.
-    std::sort(chosen.begin(), chosen.end(),
-              [](const Candidate& x, const Candidate& y) { return x.pair < y.pair; });
-    if (rule == PmlPairRule::kCheaperHalf) {
-      // detail::SelectPmlPairs's rule (core/cluster/detail/pml_pairs.h): the pairs that
-      // cost at most the median (the cost at index size / 2 in cost order).
-      std::vector<double> costs(pairs);
-      for (uint32_t i = 0; i < pairs; ++i) costs[i] = chosen[i].cost;
-      std::nth_element(costs.begin(), costs.begin() + costs.size() / 2, costs.end());
-      const double limit = costs[costs.size() / 2];
-      chosen.erase(std::remove_if(chosen.begin(), chosen.end(),
-                                  [&](const Candidate& c) { return !(c.cost <= limit); }),
-                   chosen.end());
-    }
-    if (clusters < floor + uint64_t{chosen.size()}) {
-      std::sort(chosen.begin(), chosen.end(), [](const Candidate& x, const Candidate& y) {
-        return x.cost != y.cost ? x.cost < y.cost : x.pair < y.pair;
-      });
-      chosen.resize(clusters - floor);
-    }
-    std::vector<uint32_t> selected(pairs, 0);
-    for (const Candidate& candidate : chosen) selected[candidate.slot] = 1;
+    std::vector<uint32_t> selected;
+    const uint32_t kept = SelectGpuPmlPairs(rule, clusters, floor, ids, values, selected);
     MLCLUST_RETURN_IF_ERROR(buffers_[kPairSelected].Upload(std::span<const uint32_t>(selected)));
-    level.merged = static_cast<uint32_t>(chosen.size());
+    level.merged = kept;
     use_flags = 1;
   }
   gl.UseProgram(programs_.merge);

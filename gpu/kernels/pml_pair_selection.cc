@@ -1,0 +1,47 @@
+#include "gpu/kernels/pml_pair_selection.h"
+
+#include <algorithm>
+#include <cstddef>
+#include <utility>
+
+namespace mlclust::gpu {
+
+uint32_t SelectGpuPmlPairs(PmlPairRule rule, uint32_t clusters, uint32_t floor,
+                           std::span<const uint32_t> ids, std::span<const double> values,
+                           std::vector<uint32_t>& selected) {
+  const auto pairs = static_cast<uint32_t>(ids.size() / 2);
+  struct Candidate {
+    std::pair<uint32_t, uint32_t> pair;
+    double cost;
+    uint32_t slot;
+  };
+  std::vector<Candidate> chosen(pairs);
+  for (uint32_t i = 0; i < pairs; ++i) {
+    chosen[i] = {{ids[2 * i], ids[2 * i + 1]}, values[3 * i], i};
+  }
+  // The CPU's order: by the smaller cluster.
+  std::sort(chosen.begin(), chosen.end(),
+            [](const Candidate& x, const Candidate& y) { return x.pair < y.pair; });
+  if (rule == PmlPairRule::kCheaperHalf) {
+    // detail::SelectPmlPairs's rule (core/cluster/detail/pml_pairs.h): the pairs that
+    // cost at most the median (the cost at index size / 2 in cost order).
+    std::vector<double> costs(pairs);
+    for (uint32_t i = 0; i < pairs; ++i) costs[i] = chosen[i].cost;
+    std::nth_element(costs.begin(), costs.begin() + costs.size() / 2, costs.end());
+    const double limit = costs[costs.size() / 2];
+    chosen.erase(std::remove_if(chosen.begin(), chosen.end(),
+                                [&](const Candidate& c) { return !(c.cost <= limit); }),
+                 chosen.end());
+  }
+  if (clusters < floor + uint64_t{chosen.size()}) {
+    std::sort(chosen.begin(), chosen.end(), [](const Candidate& x, const Candidate& y) {
+      return x.cost != y.cost ? x.cost < y.cost : x.pair < y.pair;
+    });
+    chosen.resize(clusters - floor);
+  }
+  selected.assign(pairs, 0);
+  for (const Candidate& candidate : chosen) selected[candidate.slot] = 1;
+  return static_cast<uint32_t>(chosen.size());
+}
+
+}  // namespace mlclust::gpu
