@@ -10,8 +10,6 @@
 // Prints one CSV row per device (best of R runs, wall and CPU taken from the same run):
 // mesh,faces,device,energy,seconds,cpu_seconds,levels,final_clusters,final_energy,
 // same_levels,same_energies
-#include <sys/resource.h>
-
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -19,18 +17,12 @@
 #include <vector>
 
 #include "bench/bench_util.h"
+#include "bench/gpu_bench_util.h"
 #include "core/cluster/multilevel.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/stages/hierarchy_gpu.h"
 
 namespace {
-
-double CpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
 
 // Per level an order-independent fingerprint of its triplets and its cluster count, and
 // its energy.
@@ -43,16 +35,7 @@ class FingerprintSink : public mlclust::LevelSink {
     return absl::OkStatus();
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
-    uint64_t print = level.cluster_count;
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      uint64_t x = (uint64_t{level.element[i]} << 32) ^
-                   (uint64_t{level.to_cluster[i]} * 0x9E3779B97F4A7C15ull) ^ level.from_cluster[i];
-      x ^= x >> 31;
-      x *= 0xBF58476D1CE4E5B9ull;
-      x ^= x >> 29;
-      print += x;
-    }
-    prints.push_back(print);
+    prints.push_back(mlclust::bench::LevelFingerprint(level));
     energies.push_back(level.energy);
     return absl::OkStatus();
   }
@@ -81,12 +64,8 @@ int main(int argc, char** argv) {
   mlclust::MultilevelOptions options;
   options.optimizer = mlclust::MultilevelOptions::Optimizer::kNone;
   options.min_clusters = lowest;
-  absl::StatusOr<std::unique_ptr<mlclust::gpu::GlContext>> context =
-      mlclust::gpu::GlContext::Create();
-  if (!context.ok()) {
-    std::fprintf(stderr, "%s\n", context.status().ToString().c_str());
-    return 1;
-  }
+  const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
+  if (context == nullptr) return 1;
   struct Row {
     std::string device;
     double seconds = std::numeric_limits<double>::infinity();
@@ -96,17 +75,17 @@ int main(int argc, char** argv) {
   };
   Row rows[2];
   rows[0].device = "cpu";
-  rows[1].device = (*context)->renderer();
+  rows[1].device = context->renderer();
   for (int d = 0; d < 2; ++d) {
     for (uint32_t r = 0; r < repeats; ++r) {
       FingerprintSink sink;
-      const double cpu = CpuSeconds();
+      const double cpu = mlclust::bench::ProcessCpuSeconds();
       const mlclust::bench::Stopwatch watch;
       absl::StatusOr<mlclust::MultilevelSummary> summary =
           d == 0 ? mlclust::RunMultilevel(problem, options, sink)
-                 : mlclust::gpu::RunHierarchyGpu(**context, problem, options, sink);
+                 : mlclust::gpu::RunHierarchyGpu(*context, problem, options, sink);
       const double seconds = watch.Seconds();
-      const double cpu_seconds = CpuSeconds() - cpu;
+      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu;
       if (!summary.ok()) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;

@@ -16,8 +16,6 @@
 // the two levels around K (log energy linear in log count), or the first level with at most
 // K clusters where there is no level before it with more: where the optimisers' levels
 // differ, their energies compare there.)
-#include <sys/resource.h>
-
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -27,6 +25,7 @@
 
 #include "absl/time/clock.h"
 #include "bench/bench_util.h"
+#include "bench/gpu_bench_util.h"
 #include "core/cluster/multilevel.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/stages/multilevel_gpu.h"
@@ -59,16 +58,7 @@ class FingerprintSink : public mlclust::LevelSink {
     }
     previous_count_ = level.cluster_count;
     previous_energy_ = level.energy;
-    uint64_t print = level.cluster_count;
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      uint64_t x = (uint64_t{level.element[i]} << 32) ^
-                   (uint64_t{level.to_cluster[i]} * 0x9E3779B97F4A7C15ull) ^ level.from_cluster[i];
-      x ^= x >> 31;
-      x *= 0xBF58476D1CE4E5B9ull;
-      x ^= x >> 29;
-      print += x;
-    }
-    prints.push_back(print);
+    prints.push_back(mlclust::bench::LevelFingerprint(level));
     return absl::OkStatus();
   }
   std::vector<uint64_t> prints;
@@ -80,14 +70,6 @@ class FingerprintSink : public mlclust::LevelSink {
   uint32_t previous_count_ = 0;
   double previous_energy_ = 0;
 };
-
-// The process's CPU seconds so far (user + system, all threads).
-double ProcessCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
 
 }  // namespace
 
@@ -118,12 +100,8 @@ int main(int argc, char** argv) {
   options.pml_pairs =
       pairs == "cheaper-half" ? mlclust::PmlPairRule::kCheaperHalf : mlclust::PmlPairRule::kAll;
   options.threads = threads;
-  absl::StatusOr<std::unique_ptr<mlclust::gpu::GlContext>> context =
-      mlclust::gpu::GlContext::Create();
-  if (!context.ok()) {
-    std::fprintf(stderr, "%s\n", context.status().ToString().c_str());
-    return 1;
-  }
+  const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
+  if (context == nullptr) return 1;
   struct Row {
     std::string device;
     double seconds = std::numeric_limits<double>::infinity();
@@ -135,17 +113,17 @@ int main(int argc, char** argv) {
   };
   Row rows[2];
   rows[0].device = "cpu";
-  rows[1].device = (*context)->renderer();
+  rows[1].device = context->renderer();
   for (int d = 0; d < 2; ++d) {
     for (uint32_t r = 0; r < repeats; ++r) {
       FingerprintSink sink(at);
       const absl::Time start = absl::Now();
-      const double cpu_start = ProcessCpuSeconds();
+      const double cpu_start = mlclust::bench::ProcessCpuSeconds();
       absl::StatusOr<mlclust::MultilevelSummary> summary =
           d == 0 ? mlclust::RunMultilevel(problem, options, sink)
-                 : mlclust::gpu::RunParallelMultilevelGpu(**context, problem, options, sink);
+                 : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
       const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-      const double cpu_seconds = ProcessCpuSeconds() - cpu_start;
+      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu_start;
       if (!summary.ok()) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;

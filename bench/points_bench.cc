@@ -25,9 +25,9 @@
 #include <string>
 
 #include "bench/bench_util.h"
+#include "bench/blobs.h"
 #include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
-#include "core/base/random.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/point_clustering.h"
 #include "core/io/points_io.h"
@@ -79,25 +79,6 @@ class CurveSink : public mlclust::bench::CurveSink {
   uint64_t state_ = 14695981039346656037ull;
 };
 
-// Blobs: centres uniform in [-25, 25]^d, sigma 1, each point from a random centre.
-mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
-  mlclust::Random random(seed);
-  mlclust::PointSet points;
-  points.dims = d;
-  std::vector<double> centres(size_t{blobs} * d);
-  for (double& c : centres) c = -25 + 50 * random.Unit();
-  points.values.resize(m * d);
-  for (uint64_t i = 0; i < m; ++i) {
-    const uint64_t b = random.Below(blobs);
-    for (uint32_t j = 0; j < d; ++j) {
-      const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
-      points.values[i * d + j] = static_cast<float>(
-          centres[b * d + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
-    }
-  }
-  return points;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -139,7 +120,7 @@ int main(int argc, char** argv) {
     d = points.dims;
     blobs = 0;
   } else {
-    points = Blobs(m, d, blobs, seed);
+    points = mlclust::bench::Blobs(m, d, blobs, seed);
   }
   const mlclust::bench::Stopwatch watch;
   uint64_t steps = 0;

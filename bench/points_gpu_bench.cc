@@ -11,8 +11,6 @@
 // Prints one CSV row per device (best wall time of R runs):
 // points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
 // final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,39 +20,13 @@
 #include <vector>
 
 #include "bench/bench_util.h"
-#include "core/base/random.h"
+#include "bench/blobs.h"
+#include "bench/gpu_bench_util.h"
 #include "core/cluster/point_clustering.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/stages/points_multilevel_gpu.h"
 
 namespace {
-
-// Blobs as points_bench's: centres uniform in [-25, 25]^d, sigma 1, each point from a
-// random centre.
-mlclust::PointSet Blobs(uint64_t m, uint32_t d, uint32_t blobs, uint64_t seed) {
-  mlclust::Random random(seed);
-  mlclust::PointSet points;
-  points.dims = d;
-  std::vector<double> centres(size_t{blobs} * d);
-  for (double& c : centres) c = -25 + 50 * random.Unit();
-  points.values.resize(m * d);
-  for (uint64_t i = 0; i < m; ++i) {
-    const uint64_t b = random.Below(blobs);
-    for (uint32_t j = 0; j < d; ++j) {
-      const double u = std::max(random.Unit(), 1e-300), v = random.Unit();
-      points.values[i * d + j] = static_cast<float>(
-          centres[b * d + j] + std::sqrt(-2 * std::log(u)) * std::cos(6.283185307179586 * v));
-    }
-  }
-  return points;
-}
-
-double ProcessCpuSeconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
 
 // Per level its cluster count and energy.
 class CurveSink : public mlclust::LevelSink {
@@ -101,7 +73,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bad option --pairs %s\n", pairs.c_str());
     return 2;
   }
-  const mlclust::PointSet points = Blobs(m, d, blobs, seed);
+  const mlclust::PointSet points = mlclust::bench::Blobs(m, d, blobs, seed);
   mlclust::PointMultilevelOptions options;
   options.parallel = true;
   options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
@@ -109,12 +81,8 @@ int main(int argc, char** argv) {
       pairs == "all" ? mlclust::PmlPairRule::kAll : mlclust::PmlPairRule::kCheaperHalf;
   options.min_clusters = std::max(until, 1u);
   options.threads = threads;
-  absl::StatusOr<std::unique_ptr<mlclust::gpu::GlContext>> context =
-      mlclust::gpu::GlContext::Create();
-  if (!context.ok()) {
-    std::fprintf(stderr, "%s\n", context.status().ToString().c_str());
-    return 1;
-  }
+  const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
+  if (context == nullptr) return 1;
   struct Row {
     std::string device;
     double seconds = std::numeric_limits<double>::infinity();
@@ -124,18 +92,18 @@ int main(int argc, char** argv) {
   };
   Row rows[2];
   rows[0].device = "cpu";
-  rows[1].device = (*context)->renderer();
+  rows[1].device = context->renderer();
   for (int device = 0; device < 2; ++device) {
     for (uint32_t r = 0; r < repeats; ++r) {
       CurveSink sink;
-      const double cpu_before = ProcessCpuSeconds();
+      const double cpu_before = mlclust::bench::ProcessCpuSeconds();
       const mlclust::bench::Stopwatch watch;
       absl::StatusOr<mlclust::PointMultilevelSummary> summary =
           device == 0
               ? mlclust::RunPointMultilevel(points, options, sink)
-              : mlclust::gpu::RunPointParallelMultilevelGpu(**context, points, options, sink);
+              : mlclust::gpu::RunPointParallelMultilevelGpu(*context, points, options, sink);
       const double seconds = watch.Seconds();
-      const double cpu_seconds = ProcessCpuSeconds() - cpu_before;
+      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu_before;
       if (!summary.ok()) {
         std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
         return 1;
