@@ -220,17 +220,7 @@ TEST(HcGpu, BuffersOverTheLimitAreResourceExhausted) {
 TEST(HcGpu, CancelledBetweenBatches) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
   std::atomic<bool> cancel{false};
-  class CancellingSink : public LevelsSink {
-   public:
-    explicit CancellingSink(std::atomic<bool>& flag) : flag_(flag) {}
-    absl::Status OnLevel(const LevelMoves& level) override {
-      if (level.level == 3) flag_ = true;
-      return LevelsSink::OnLevel(level);
-    }
-
-   private:
-    std::atomic<bool>& flag_;
-  } sink(cancel);
+  fixtures::CancelAtLevel<LevelsSink> sink(cancel, 3);
   MultilevelOptions options = HcOptions(1);
   options.cancel = &cancel;
   absl::StatusOr<MultilevelSummary> result =

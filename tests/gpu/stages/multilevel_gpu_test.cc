@@ -18,6 +18,7 @@
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -31,28 +32,8 @@ GlContext& Context() { return ::mlclust::testing::SharedGlContext(); }
 
 // Every level: its count, energy and triplets (sorted: the CPU reports them in merge
 // order, the GPU in face order).
-class LevelsSink : public LevelSink {
- public:
-  absl::Status OnStart(std::span<const ClusterId> labels, uint32_t count, double energy) override {
-    for (ClusterId c : labels) start.push_back(c.value());
-    counts.push_back(count);
-    energies.push_back(energy);
-    triplets.emplace_back();
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const LevelMoves& level) override {
-    counts.push_back(level.cluster_count);
-    energies.push_back(level.energy);
-    auto& moves = triplets.emplace_back();
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      moves.push_back({level.element[i], level.to_cluster[i], level.from_cluster[i]});
-    }
-    std::sort(moves.begin(), moves.end());
-    return absl::OkStatus();
-  }
-  std::vector<uint32_t> start, counts;
-  std::vector<double> energies;
-  std::vector<std::vector<std::array<uint32_t, 3>>> triplets;
+struct LevelsSink : fixtures::TripletSink {
+  LevelsSink() : TripletSink(/*sorted=*/true) {}
 };
 
 MultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
@@ -232,17 +213,7 @@ TEST(PmlGpu, BuffersOverTheLimitAreResourceExhausted) {
 TEST(PmlGpu, CancelledBetweenLevels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
   std::atomic<bool> cancel{false};
-  class CancellingSink : public LevelsSink {
-   public:
-    explicit CancellingSink(std::atomic<bool>& flag) : flag_(flag) {}
-    absl::Status OnLevel(const LevelMoves& level) override {
-      if (level.level == 3) flag_ = true;
-      return LevelsSink::OnLevel(level);
-    }
-
-   private:
-    std::atomic<bool>& flag_;
-  } sink(cancel);
+  fixtures::CancelAtLevel<LevelsSink> sink(cancel, 3);
   MultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
   options.cancel = &cancel;
   absl::StatusOr<MultilevelSummary> result =

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "core/cluster/boundary_based.h"
@@ -67,6 +68,18 @@ class ReplaySink : public LevelSink {
   std::vector<std::vector<uint32_t>> replayed;
 };
 
+// PmlLevelsGpu's input with BB: each face's CVD sums and proxy point.
+std::pair<std::vector<CvdSums>, std::vector<PointAndWeight>> FaceInputs(const CvdEnergy& energy,
+                                                                        uint32_t n) {
+  std::vector<CvdSums> sums(n);
+  std::vector<PointAndWeight> points(n);
+  for (uint32_t f = 0; f < n; ++f) {
+    sums[f] = energy.face_sums(f);
+    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
+  }
+  return {std::move(sums), std::move(points)};
+}
+
 MultilevelOptions PmlBbOptions(PmlPairRule rule, uint32_t lowest) {
   MultilevelOptions options;
   options.parallel = true;
@@ -115,12 +128,7 @@ TEST(PmlBbGpu, DecideIsTheCpuStagesRuleOnTheGpuLabels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
   const CvdEnergy energy(mesh.measures);
   const uint32_t n = static_cast<uint32_t>(mesh.mesh.num_faces());
-  std::vector<CvdSums> sums(n);
-  std::vector<PointAndWeight> points(n);
-  for (uint32_t f = 0; f < n; ++f) {
-    sums[f] = energy.face_sums(f);
-    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
-  }
+  const auto [sums, points] = FaceInputs(energy, n);
   absl::StatusOr<PmlLevelsGpu> levels = PmlLevelsGpu::Create(Context(), sums, mesh.adjacency);
   ASSERT_TRUE(levels.ok()) << levels.status();
   std::vector<PmlFaceMove> proposals;
@@ -159,12 +167,7 @@ TEST(PmlBbGpu, MovesAndRebuiltEdgesCarryIntoTheNextLevels) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(16, 16, 0.3f));
   const CvdEnergy energy(mesh.measures);
   const uint32_t n = static_cast<uint32_t>(mesh.mesh.num_faces());
-  std::vector<CvdSums> sums(n);
-  std::vector<PointAndWeight> points(n);
-  for (uint32_t f = 0; f < n; ++f) {
-    sums[f] = energy.face_sums(f);
-    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
-  }
+  const auto [sums, points] = FaceInputs(energy, n);
   absl::StatusOr<PmlLevelsGpu> levels = PmlLevelsGpu::Create(Context(), sums, mesh.adjacency);
   ASSERT_TRUE(levels.ok()) << levels.status();
   ASSERT_TRUE(levels->EnableBoundaryOptimisation(mesh.adjacency, points).ok());
