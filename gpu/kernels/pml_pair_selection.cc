@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <utility>
 
+#include "core/base/status_macros.h"
+
 namespace mlclust::gpu {
 
 uint32_t SelectGpuPmlPairs(PmlPairRule rule, uint32_t clusters, uint32_t floor,
@@ -42,6 +44,23 @@ uint32_t SelectGpuPmlPairs(PmlPairRule rule, uint32_t clusters, uint32_t floor,
   selected.assign(pairs, 0);
   for (const Candidate& candidate : chosen) selected[candidate.slot] = 1;
   return static_cast<uint32_t>(chosen.size());
+}
+
+absl::StatusOr<bool> SelectCollapsedPairs(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                          uint32_t pairs, StorageBuffer& ids, StorageBuffer& values,
+                                          StorageBuffer& selected, uint32_t& merged) {
+  const uint32_t floor = std::max(lowest, 1u);
+  const bool past_floor = clusters < floor + uint64_t{pairs};
+  merged = pairs;
+  if (rule == PmlPairRule::kAll && !past_floor) return false;
+  std::vector<uint32_t> pair_ids(size_t{2} * pairs);
+  std::vector<double> pair_values(size_t{3} * pairs);
+  MLCLUST_RETURN_IF_ERROR(ids.Download(std::span<uint32_t>(pair_ids)));
+  MLCLUST_RETURN_IF_ERROR(values.Download(std::span<double>(pair_values)));
+  std::vector<uint32_t> flags;
+  merged = SelectGpuPmlPairs(rule, clusters, floor, pair_ids, pair_values, flags);
+  MLCLUST_RETURN_IF_ERROR(selected.Upload(std::span<const uint32_t>(flags)));
+  return true;
 }
 
 }  // namespace mlclust::gpu

@@ -7,7 +7,9 @@
 #include <span>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "core/cluster/detail/pml_pairs.h"
+#include "gpu/context/compute.h"
 
 namespace mlclust::gpu {
 
@@ -18,6 +20,14 @@ namespace mlclust::gpu {
 uint32_t SelectGpuPmlPairs(PmlPairRule rule, uint32_t clusters, uint32_t floor,
                            std::span<const uint32_t> ids, std::span<const double> values,
                            std::vector<uint32_t>& selected);
+
+// The selection of one collapse of `pairs` mutual pairs at `clusters` clusters down to
+// `lowest`: where the rule is kAll and the level stays above the floor, every pair (false,
+// `merged` = pairs); otherwise (true) SelectGpuPmlPairs on the pairs read from `ids` and
+// `values`, its flags written into `selected` and `merged` their count.
+absl::StatusOr<bool> SelectCollapsedPairs(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                          uint32_t pairs, StorageBuffer& ids, StorageBuffer& values,
+                                          StorageBuffer& selected, uint32_t& merged);
 
 }  // namespace mlclust::gpu
 

@@ -158,25 +158,13 @@ absl::StatusOr<uint32_t> PointLevelsGpu::FindPairs() {
 absl::Status PointLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                       uint32_t pairs, PointLevelGpu& level) {
   const detail::GlFunctions& gl = context_->gl();
-  const uint32_t floor = std::max(lowest, 1u);
-  const bool past_floor = clusters < floor + uint64_t{pairs};
-  uint32_t use_flags = 0;
-  level.merged = pairs;
-  if (rule != PmlPairRule::kAll || past_floor) {
-    // The CPU engine's selection on the pairs and their costs (pml_pair_selection.h).
-    std::vector<uint32_t> ids(size_t{2} * pairs);
-    std::vector<double> values(size_t{3} * pairs);
-    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(ids)));
-    MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
-    std::vector<uint32_t> selected;
-    const uint32_t kept = SelectGpuPmlPairs(rule, clusters, floor, ids, values, selected);
-    MLCLUST_RETURN_IF_ERROR(buffers_[kPairSelected].Upload(std::span<const uint32_t>(selected)));
-    level.merged = kept;
-    use_flags = 1;
-  }
+  MLCLUST_ASSIGN_OR_RETURN(
+      const bool use_flags,
+      SelectCollapsedPairs(rule, clusters, lowest, pairs, buffers_[kPairIds], buffers_[kPairValues],
+                           buffers_[kPairSelected], level.merged));
   gl.UseProgram(programs_.merge);
   gl.ProgramUniform1ui(programs_.merge, 0, pairs);
-  gl.ProgramUniform1ui(programs_.merge, 1, use_flags);
+  gl.ProgramUniform1ui(programs_.merge, 1, use_flags ? 1u : 0u);
   gl.ProgramUniform1ui(programs_.merge, 2, d_);
   gl.ProgramUniform1ui(programs_.merge, 3, level_);
   MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
