@@ -300,12 +300,7 @@ TEST(HcGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
   auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* energy) {
-    JobRequest request;
-    request.algorithm = FindAlgorithm(InputKind::kMesh, "hc");
-    request.energy = FindEnergy(InputKind::kMesh, energy);
-    request.clusters = 10;
-    request.device = choice;
-    return ::mlclust::testing::ClusterStageDevice(caps, request);
+    return ::mlclust::testing::ClusterStageDeviceFor(caps, InputKind::kMesh, "hc", energy, choice);
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive"), "llvmpipe");

@@ -385,13 +385,8 @@ TEST(PmlBbGpuPlan, TheClusterStageGoesToTheGpuWithBb) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
   auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* guard) {
-    JobRequest request;
-    request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
-    request.energy = FindEnergy(InputKind::kMesh, "cvd");
-    request.clusters = 10;
-    request.device = choice;
-    request.options = {{"optimizer", "bb"}, {"guard", guard}};
-    return ::mlclust::testing::ClusterStageDevice(caps, request);
+    return ::mlclust::testing::ClusterStageDeviceFor(caps, InputKind::kMesh, "pml", "cvd", choice,
+                                                     {{"optimizer", "bb"}, {"guard", guard}});
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "on"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "off"), "llvmpipe");

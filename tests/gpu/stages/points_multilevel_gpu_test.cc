@@ -344,13 +344,8 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps software{true, true, "llvmpipe"};
   auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* algorithm,
                       const char* optimizer) -> std::string {
-    JobRequest request;
-    request.algorithm = FindAlgorithm(InputKind::kPoints, algorithm);
-    request.energy = FindEnergy(InputKind::kPoints, "variance");
-    request.clusters = 10;
-    request.device = choice;
-    request.options = {{"optimizer", optimizer}};
-    return ::mlclust::testing::ClusterStageDevice(caps, request);
+    return ::mlclust::testing::ClusterStageDeviceFor(
+        caps, InputKind::kPoints, algorithm, "variance", choice, {{"optimizer", optimizer}});
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "pml", "none"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
