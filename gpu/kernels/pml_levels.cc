@@ -8,12 +8,13 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/bb_decide_glsl.h"    // kBbDecideGlsl, generated
-#include "gpu/kernels/pml_bb_glsl.h"       // kPmlBbGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"  // kPmlCompactGlsl, generated
-#include "gpu/kernels/pml_cvd_glsl.h"      // kPmlCvdGlsl, generated
-#include "gpu/kernels/pml_merge_glsl.h"    // kPmlMergeGlsl, generated
-#include "gpu/kernels/pml_ode_glsl.h"      // kPmlOdeGlsl, generated
+#include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
+#include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
+#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
+#include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
+#include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
+#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/pml_pairs_glsl.h"  // kPmlPairsGlsl, generated
 
@@ -121,8 +122,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         programs.ode, GetComputeProgram(context, "pml_ode", absl::StrCat(prelude, kPmlOdeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.pairs,
-        GetComputeProgram(context, "pml_pairs", absl::StrCat(prelude, kPmlPairsGlsl)));
+        programs.pairs, GetComputeProgram(context, "pml_pairs",
+                                          absl::StrCat(prelude, kPmlPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.merge,
         GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));

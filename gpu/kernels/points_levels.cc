@@ -9,7 +9,8 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/pml_compact_glsl.h"  // kPmlCompactGlsl, generated
+#include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
 #include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
@@ -104,7 +105,8 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
         GetComputeProgram(context, "points_ode", absl::StrCat(prelude, kPointsOdeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs,
-        GetComputeProgram(context, "points_pairs", absl::StrCat(prelude, kPointsPairsGlsl)));
+        GetComputeProgram(context, "points_pairs",
+                          absl::StrCat(prelude, kPointsPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.merge,
         GetComputeProgram(context, "points_merge", absl::StrCat(prelude, kPointsMergeGlsl)));
