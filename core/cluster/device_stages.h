@@ -40,6 +40,10 @@ inline bool HasGpuBoundaryDecide(MeshEnergyKind energy) {
   }
 }
 
+// The most dimensions the GPU's point levels take (gpu/kernels/voxel_start.h's
+// kVoxelStartMaxDims); with --device auto a point set with more runs on the CPU.
+inline constexpr uint32_t kGpuPointMaxDims = 64;
+
 class DeviceStages {
  public:
   virtual ~DeviceStages() = default;

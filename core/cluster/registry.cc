@@ -500,7 +500,18 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
   PointMultilevelOptions options = plan.point_multilevel;
   options.cancel = context.cancel;
   absl::StatusOr<PointMultilevelSummary> ran;
-  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+  bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
+  if (on_gpu && plan.device == DeviceChoice::kAuto && points.dims > kGpuPointMaxDims) {
+    // The plan cannot see the dimensions: auto keeps such a point set on the CPU, as it
+    // would have before the GPU had point levels (--device gpu gets the GPU's refusal).
+    on_gpu = false;
+    if (context.on_stage) {
+      context.on_stage(StagePlan{"cluster", StageDevice::kCpu},
+                       absl::StrCat(points.dims, " dimensions: over the GPU's ", kGpuPointMaxDims,
+                                    ", on the CPU"));
+    }
+  }
+  if (on_gpu) {
     // PML's levels for points on the GPU (the plan took it only where
     // PointPmlLevelsOnGpu covers it).
     if (context.devices == nullptr) {

@@ -87,10 +87,12 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
     return absl::InvalidArgumentError(
         absl::StrCat("hc: ", face_sums.size(), " face sums for ", n, " faces"));
   }
-  // Shader indices are 32-bit (5 * cluster, 2 * edge) and the tree's shifts 5 * level.
-  if (n >= (size_t{1} << 30)) {
+  // Shader indices are 32-bit: 5 * cluster, and 2 * edge with up to 3 edges a face, so
+  // 6 * faces must fit (as the PML kernels' kMaxMeshElements / 6).
+  constexpr size_t kMaxFaces = size_t{0xFFFFFFFFu} / 6;
+  if (n > kMaxFaces) {
     return absl::InvalidArgumentError(
-        absl::StrCat("hc: ", n, " faces exceed the limit of ", (size_t{1} << 30) - 1));
+        absl::StrCat("hc: ", n, " faces exceed the limit of ", kMaxFaces));
   }
   // The directed face edges grouped by face: face f's are one run, its list at the start.
   std::vector<uint32_t> edges;

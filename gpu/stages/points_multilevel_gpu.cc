@@ -10,12 +10,15 @@
 #include "core/base/cancel.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/device_stages.h"
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
 
 namespace mlclust::gpu {
 namespace {
+
+static_assert(kVoxelStartMaxDims == kGpuPointMaxDims);
 
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 // The CPU's ConnectWhenStuck links the survivors only up to this many.
@@ -132,6 +135,27 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
   return start;
 }
 
+// Mesa's software renderers stop every loop of a shader invocation, without a word, once
+// 65,535 iterations have run in it (all loops together; gpu/kernels/hc_levels.cc). One
+// offer in points_refresh.glsl costs about 2d + 1 iterations; a cluster's refresh offers
+// its 2d neighbours and theirs, twice when it kept a partner, and a cluster left without
+// neighbours (or LinkAll) offers every one of the start's k0 clusters. Where that can pass
+// the limit the run is refused on a software renderer rather than given short tables.
+constexpr uint64_t kSoftwareLoopBudget = 60000;
+
+absl::Status CheckSoftwareLoopBudget(const GlContext& context, uint32_t d, uint32_t k0) {
+  if (!context.is_software()) return absl::OkStatus();
+  const uint64_t offer = 2 * uint64_t{d} + 1, slots = 2 * uint64_t{d};
+  const uint64_t around = 2 * slots * (slots + 1) * offer;
+  const uint64_t all = uint64_t{k0} * offer;
+  if (around <= kSoftwareLoopBudget && all <= kSoftwareLoopBudget) return absl::OkStatus();
+  return absl::FailedPreconditionError(absl::StrCat(
+      "PML for points on the GPU: ", d, " dimensions and ", k0, " start clusters need up to ",
+      std::max(around, all),
+      " loop iterations in one shader invocation, over what this software renderer runs (",
+      "it stops an invocation's loops after 65,535); use --device cpu, or a hardware GPU"));
+}
+
 std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
   std::vector<ClusterId> ids(labels.size());
   for (size_t i = 0; i < labels.size(); ++i) ids[i] = ClusterId(labels[i]);
@@ -170,6 +194,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   MLCLUST_ASSIGN_OR_RETURN(VoxelStartGpuResult voxels,
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
+  MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
   const Start start = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
   const uint32_t k0 = voxels.clusters;

@@ -285,6 +285,27 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
             absl::StatusCode::kUnimplemented);
 }
 
+// On a software renderer (llvmpipe stops an invocation's loops after 65,535 iterations) a
+// run whose neighbour refresh could pass that is refused, never given short tables: 16
+// dimensions (about 70,000 iterations for one cluster's refresh); 8 still runs.
+TEST(PointsPmlGpu, SoftwareRendererRefusesWhatItsLoopLimitWouldCut) {
+  LevelsSink sink;
+  const absl::Status sixteen = RunPointParallelMultilevelGpu(Context(), Blobs(16, 4, 50, 21),
+                                                             PmlOptions(PmlPairRule::kAll, 1), sink)
+                                   .status();
+  if (Context().is_software()) {
+    EXPECT_EQ(sixteen.code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_THAT(sixteen.message(), HasSubstr("16 dimensions"));
+    EXPECT_THAT(sixteen.message(), HasSubstr("--device cpu"));
+  } else {
+    EXPECT_TRUE(sixteen.ok()) << sixteen;  // hardware: no such limit
+  }
+  LevelsSink eight;
+  EXPECT_TRUE(RunPointParallelMultilevelGpu(Context(), Blobs(8, 4, 50, 22),
+                                            PmlOptions(PmlPairRule::kAll, 1), eight)
+                  .ok());
+}
+
 // A GL error injected into each pass (gpu/context/pass.h) is the run's error, named by
 // pass; the context works again afterwards.
 TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
