@@ -28,14 +28,14 @@ constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
 
-// pml_ode.glsl's phases.
-constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
 // pml_compact.glsl's phases, kinds and counter slots.
 constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
 constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
 // pml_bb.glsl's phases.
 constexpr uint32_t kFitProxies = 0, kWriteLabels = 1, kWriteClusters = 2;
 constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kEdgeSlot = 2, kCounterSlots = 4;
+// FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0.
+static_assert(kPairSlot == 0 && kCounterSlots == 4);
 
 static_assert(sizeof(CvdSums) == 5 * sizeof(double));
 
@@ -143,29 +143,10 @@ void PmlLevelsGpu::BindAll() {
 }
 
 absl::StatusOr<uint32_t> PmlLevelsGpu::FindPairs() {
-  const detail::GlFunctions& gl = context_->gl();
   BindAll();
-  const std::array<uint32_t, kCounterSlots> zeros{};
-  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Upload(std::span<const uint32_t>(zeros)));
-  gl.UseProgram(programs_.ode);
-  gl.ProgramUniform1ui(programs_.ode, 0, num_faces_);
-  gl.ProgramUniform1ui(programs_.ode, 1, kOdeReset);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-  for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    gl.ProgramUniform1ui(programs_.ode, 0, num_edges_);
-    gl.ProgramUniform1ui(programs_.ode, 1, phase);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_edges_));
-  }
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  gl.UseProgram(programs_.pairs);
-  gl.ProgramUniform1ui(programs_.pairs, 0, num_faces_);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-  gl.UseProgram(0);
-  uint32_t pairs = 0;
-  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(kPairSlot * 4, &pairs, 4));
-  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kOdesPass));
-  return pairs;
+  return FindMutualPairs(
+      *context_, buffers_[kCounters],
+      {programs_.ode, programs_.pairs, num_faces_, num_edges_, std::nullopt, kOdesPass});
 }
 
 absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,

@@ -1,10 +1,12 @@
 #include "gpu/kernels/pml_pair_selection.h"
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <utility>
 
 #include "core/base/status_macros.h"
+#include "gpu/context/gl_functions.h"
 
 namespace mlclust::gpu {
 
@@ -61,6 +63,36 @@ absl::StatusOr<bool> SelectCollapsedPairs(PmlPairRule rule, uint32_t clusters, u
   merged = SelectGpuPmlPairs(rule, clusters, floor, pair_ids, pair_values, flags);
   MLCLUST_RETURN_IF_ERROR(selected.Upload(std::span<const uint32_t>(flags)));
   return true;
+}
+
+absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
+                                         const MutualPairPasses& passes) {
+  // The ODE kernels' phases (pml_ode.glsl, points_ode.glsl).
+  constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
+  const detail::GlFunctions& gl = context.gl();
+  const std::array<uint32_t, 4> zeros{};
+  MLCLUST_RETURN_IF_ERROR(counters.Upload(std::span<const uint32_t>(zeros)));
+  gl.UseProgram(passes.ode_program);
+  if (passes.dims) gl.ProgramUniform1ui(passes.ode_program, 2, *passes.dims);
+  gl.ProgramUniform1ui(passes.ode_program, 0, passes.clusters);
+  gl.ProgramUniform1ui(passes.ode_program, 1, kOdeReset);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, passes.clusters));
+  for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl.ProgramUniform1ui(passes.ode_program, 0, passes.edges);
+    gl.ProgramUniform1ui(passes.ode_program, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, passes.edges));
+  }
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(passes.pairs_program);
+  if (passes.dims) gl.ProgramUniform1ui(passes.pairs_program, 2, *passes.dims);
+  gl.ProgramUniform1ui(passes.pairs_program, 0, passes.clusters);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, passes.clusters));
+  gl.UseProgram(0);
+  uint32_t pairs = 0;
+  MLCLUST_RETURN_IF_ERROR(counters.Download(0, &pairs, 4));
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(context, passes.pass));
+  return pairs;
 }
 
 }  // namespace mlclust::gpu

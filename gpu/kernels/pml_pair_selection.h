@@ -4,12 +4,14 @@
 #define MLCLUST_GPU_KERNELS_PML_PAIR_SELECTION_H_
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "core/cluster/detail/pml_pairs.h"
 #include "gpu/context/compute.h"
+#include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
@@ -28,6 +30,22 @@ uint32_t SelectGpuPmlPairs(PmlPairRule rule, uint32_t clusters, uint32_t floor,
 absl::StatusOr<bool> SelectCollapsedPairs(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                           uint32_t pairs, StorageBuffer& ids, StorageBuffer& values,
                                           StorageBuffer& selected, uint32_t& merged);
+
+// One level's mutual-pair passes, as the mesh and the point levels run them: the ODE
+// program (uniforms 0: count, 1: phase) reset per cluster, then its cost, low and partner
+// phases per edge (or neighbour slot), then the pairs program per cluster; with `dims`,
+// uniform 2 of both programs.
+struct MutualPairPasses {
+  uint32_t ode_program = 0, pairs_program = 0;
+  uint32_t clusters = 0, edges = 0;
+  std::optional<uint32_t> dims;
+  const char* pass = "";  // the GPU pass named in errors
+};
+
+// Zeroes the 4 counter slots of `counters`, runs `passes` and returns the pairs found
+// (counter slot 0). The buffers are bound by the caller.
+absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
+                                         const MutualPairPasses& passes);
 
 }  // namespace mlclust::gpu
 

@@ -28,12 +28,12 @@ constexpr char kTripletsPass[] = "points triplets";
 constexpr char kNeighboursPass[] = "points neighbours";
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
-// points_ode.glsl's phases.
-constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
 // pml_compact.glsl's phases, kind and counter slots (shared with the meshes' PML).
 constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
 constexpr uint32_t kElements = 0;
 constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kCounterSlots = 4;
+// FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0.
+static_assert(kPairSlot == 0 && kCounterSlots == 4);
 constexpr uint32_t kChunk = 32, kGroup = 256;  // kPmlChunk, kPmlGroup
 
 uint64_t Chunks(uint64_t count) { return (count + kChunk - 1) / kChunk; }
@@ -129,32 +129,9 @@ void PointLevelsGpu::BindAll() {
 }
 
 absl::StatusOr<uint32_t> PointLevelsGpu::FindPairs() {
-  const detail::GlFunctions& gl = context_->gl();
   BindAll();
-  const std::array<uint32_t, kCounterSlots> zeros{};
-  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Upload(std::span<const uint32_t>(zeros)));
-  const uint32_t slots = k_ * 2 * d_;
-  gl.UseProgram(programs_.ode);
-  gl.ProgramUniform1ui(programs_.ode, 2, d_);
-  gl.ProgramUniform1ui(programs_.ode, 0, k_);
-  gl.ProgramUniform1ui(programs_.ode, 1, kOdeReset);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, k_));
-  for (const uint32_t phase : {kOdeCost, kOdeLow, kOdePartner}) {
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    gl.ProgramUniform1ui(programs_.ode, 0, slots);
-    gl.ProgramUniform1ui(programs_.ode, 1, phase);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, slots));
-  }
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  gl.UseProgram(programs_.pairs);
-  gl.ProgramUniform1ui(programs_.pairs, 2, d_);
-  gl.ProgramUniform1ui(programs_.pairs, 0, k_);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, k_));
-  gl.UseProgram(0);
-  uint32_t pairs = 0;
-  MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(kPairSlot * 4, &pairs, 4));
-  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kOdesPass));
-  return pairs;
+  return FindMutualPairs(*context_, buffers_[kCounters],
+                         {programs_.ode, programs_.pairs, k_, k_ * 2 * d_, d_, kOdesPass});
 }
 
 absl::Status PointLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
