@@ -196,6 +196,7 @@ TEST(PmlBbGpu, MovesAndRebuiltEdgesCarryIntoTheNextLevels) {
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   std::vector<PmlClusterChange> changes;
+  changes.reserve(touched.size());
   for (uint32_t c : touched) changes.push_back({c, partition.size(c), partition.sums(c)});
   ASSERT_TRUE(levels->ApplyMoves(moved, changes).ok());
   ASSERT_TRUE(levels->RebuildEdges().ok());
