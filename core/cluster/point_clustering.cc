@@ -227,48 +227,16 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
   return cells;
 }
 
-// The cells per axis of the start. A given grid: that many on every axis. Otherwise, aiming
-// at eight points per cell: a = (m / 8)^(1/d) on every axis where that is at least 4 (low
-// d: the dissertation's uniform grid, whose empty cells cost nothing); in higher
-// dimensions, where a few cells per axis would already make far more cells than points (or,
-// at a = 2 or 3, cells too coarse to be a start), the widest cells are halved, a few axes at
-// a time, until about m / 8 cells are occupied (each pass counts them in one sweep).
-// Once `cancel` is set it stops early (the caller checks it).
+// The cells per axis of the start (VoxelStartCells), occupied cells counted in one sweep.
 std::vector<uint32_t> StartCells(const PointSet& points, const Bounds& bounds, uint32_t grid,
                                  const std::atomic<bool>* cancel) {
-  const uint32_t d = points.dims;
-  const size_t m = points.num_points();
-  if (grid != 0) return std::vector<uint32_t>(d, grid);
-  const double target = std::max(1.0, static_cast<double>(m) / 8.0);
-  const double a = std::pow(target, 1.0 / d);
-  if (a >= 4) {
-    return std::vector<uint32_t>(d, static_cast<uint32_t>(std::min(a, 4096.0)));
-  }
-  std::vector<uint32_t> counts(d, 1);
-  for (int pass = 0; pass < 64; ++pass) {
-    const double occupied =
-        static_cast<double>(OccupiedCells(points, bounds, counts, cancel).cell.size());
-    if (IsCancelled(cancel) || occupied >= target) break;
-    // Halve the widest cells on enough axes to multiply the cells by target / occupied.
-    const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / occupied))));
-    bool any = false;
-    for (int step = 0; step < axes; ++step) {
-      uint32_t widest = d;
-      double width = 0;
-      for (uint32_t j = 0; j < d; ++j) {
-        const double w = (static_cast<double>(bounds.hi[j]) - bounds.lo[j]) / counts[j];
-        if (w > width && counts[j] < 4096) {
-          width = w;
-          widest = j;
-        }
-      }
-      if (widest == d) break;
-      counts[widest] *= 2;
-      any = true;
-    }
-    if (!any) break;
-  }
-  return counts;
+  absl::StatusOr<std::vector<uint32_t>> cells = VoxelStartCells(
+      points.num_points(), bounds.lo, bounds.hi, grid, cancel,
+      [&](std::span<const uint32_t> counts) -> absl::StatusOr<uint32_t> {
+        const std::vector<uint32_t> trial(counts.begin(), counts.end());
+        return static_cast<uint32_t>(OccupiedCells(points, bounds, trial, cancel).cell.size());
+      });
+  return *std::move(cells);  // this count never fails
 }
 
 // First neighbours of a voxel start: the face-sharing occupied cells, then the refresh

@@ -3,12 +3,15 @@
 #ifndef MLCLUST_CORE_POINTS_POINTS_H_
 #define MLCLUST_CORE_POINTS_POINTS_H_
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "core/base/ids.h"
 
 namespace mlclust {
@@ -34,6 +37,17 @@ struct PointLimits {
 // whole number of points, m * d over the limit, a NaN or infinite value (which point and
 // which coordinate).
 absl::Status ValidatePoints(const PointSet& points, const PointLimits& limits = {});
+
+// The cells per axis of the voxel start for `m` points in the box [lo, hi]: `grid` on every
+// axis when it is not 0; otherwise aiming at eight points per cell, (m / 8)^(1/d) on every
+// axis where that is at least 4, else the widest cells halved a few axes at a time until
+// about m / 8 cells are occupied, `occupied` counting the occupied cells of each trial
+// (the CPU counts them in one sweep, the GPU's voxel start on the device; its error is
+// returned). Once `cancel` is set it stops early (the caller checks it).
+absl::StatusOr<std::vector<uint32_t>> VoxelStartCells(
+    size_t m, std::span<const float> lo, std::span<const float> hi, uint32_t grid,
+    const std::atomic<bool>* cancel,
+    const std::function<absl::StatusOr<uint32_t>(std::span<const uint32_t>)>& occupied);
 
 }  // namespace mlclust
 

@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
+#include "core/points/points.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
@@ -162,46 +163,6 @@ class VoxelGrid {
   std::vector<StorageBuffer> buffers_;
 };
 
-// point_clustering.cc's StartCells (the cells per axis of the start), with the occupied
-// cells of a trial grid counted by `occupied`. Keep in step with it.
-template <typename Occupied>
-absl::StatusOr<std::vector<uint32_t>> StartCells(size_t m, uint32_t d, const std::vector<float>& lo,
-                                                 const std::vector<float>& hi, uint32_t grid,
-                                                 const std::atomic<bool>* cancel,
-                                                 const Occupied& occupied) {
-  if (grid != 0) return std::vector<uint32_t>(d, grid);
-  const double target = std::max(1.0, static_cast<double>(m) / 8.0);
-  const double a = std::pow(target, 1.0 / d);
-  if (a >= 4) {
-    return std::vector<uint32_t>(d, static_cast<uint32_t>(std::min(a, 4096.0)));
-  }
-  std::vector<uint32_t> counts(d, 1);
-  for (int pass = 0; pass < 64; ++pass) {
-    if (IsCancelled(cancel)) break;
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t found, occupied(counts));
-    const double cells = static_cast<double>(found);
-    if (cells >= target) break;
-    const int axes = std::max(1, static_cast<int>(std::ceil(std::log2(target / cells))));
-    bool any = false;
-    for (int step = 0; step < axes; ++step) {
-      uint32_t widest = d;
-      double width = 0;
-      for (uint32_t j = 0; j < d; ++j) {
-        const double w = (static_cast<double>(hi[j]) - lo[j]) / counts[j];
-        if (w > width && counts[j] < 4096) {
-          width = w;
-          widest = j;
-        }
-      }
-      if (widest == d) break;
-      counts[widest] *= 2;
-      any = true;
-    }
-    if (!any) break;
-  }
-  return counts;
-}
-
 }  // namespace
 
 uint64_t VoxelStartMemoryBound(uint64_t m, uint32_t d) {
@@ -250,8 +211,9 @@ absl::StatusOr<VoxelStartGpuResult> VoxelGridStartGpu(GlContext& context, const 
     const std::vector<float>& hi = box.second;
     MLCLUST_ASSIGN_OR_RETURN(
         std::vector<uint32_t> cells,
-        StartCells(m, d, lo, hi, grid, cancel,
-                   [&](std::span<const uint32_t> trial) { return voxels.Insert(lo, hi, trial); }));
+        VoxelStartCells(m, lo, hi, grid, cancel, [&](std::span<const uint32_t> trial) {
+          return voxels.Insert(lo, hi, trial);
+        }));
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "the voxel start"));
     MLCLUST_RETURN_IF_ERROR(voxels.Insert(lo, hi, cells).status());
     VoxelStartGpuResult result;
