@@ -91,10 +91,39 @@ absl::Status LnKmeansKernel::SetClusters(std::span<const double> centroids,
 
 absl::Status LnKmeansKernel::Assign(std::span<const uint32_t> labels,
                                     std::span<const uint32_t> check, std::span<uint32_t> target) {
-  if (labels.size() != num_points_ || check.size() != target.size() || check.size() > num_points_) {
+  if (labels.size() != num_points_) {
+    return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", labels.size(),
+                                                   " labels for ", num_points_, " points"));
+  }
+  if (check.empty()) return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
+  MLCLUST_RETURN_IF_ERROR(PassError(kAssignPass, buffers_[kLabels].Upload(labels)));
+  return DispatchAssign(
+      {&buffers_[kLabels], &buffers_[kCentroids], &buffers_[kNeighbours], &buffers_[kCounts]},
+      check, target);
+}
+
+absl::Status LnKmeansKernel::AssignResident(const LnKmeansResidentClusters& clusters,
+                                            std::span<const uint32_t> check,
+                                            std::span<uint32_t> target) {
+  if (clusters.labels == nullptr || clusters.centroids == nullptr ||
+      clusters.neighbours == nullptr || clusters.counts == nullptr ||
+      clusters.labels->bytes() < uint64_t{num_points_} * 4) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "ln-kmeans on the GPU: ", labels.size(), " labels, ", check.size(), " points to check and ",
-        target.size(), " targets for ", num_points_, " points"));
+        "ln-kmeans on the GPU: resident clusters without labels for ", num_points_, " points"));
+  }
+  if (check.empty()) return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
+  return DispatchAssign(clusters, check, target);
+}
+
+absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clusters,
+                                            std::span<const uint32_t> check,
+                                            std::span<uint32_t> target) {
+  if (check.size() != target.size() || check.size() > num_points_) {
+    return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", check.size(),
+                                                   " points to check and ", target.size(),
+                                                   " targets for ", num_points_, " points"));
   }
   for (uint32_t i : check) {
     if (i >= num_points_) {
@@ -102,18 +131,19 @@ absl::Status LnKmeansKernel::Assign(std::span<const uint32_t> labels,
           absl::StrCat("ln-kmeans on the GPU: point ", i, " of ", num_points_));
     }
   }
-  if (check.empty()) return absl::OkStatus();
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
   absl::Status status = [&]() -> absl::Status {
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t program,
         GetComputeProgram(*context_, "ln_kmeans_assign",
                           absl::StrCat(kComputeShaderPrelude, kLnKmeansAssignGlsl)));
-    MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Upload(labels));
     MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(check));
     const detail::GlFunctions& gl = context_->gl();
     gl.UseProgram(program);
     for (uint32_t b = 0; b < kBindings; ++b) buffers_[b].Bind(b);
+    clusters.labels->Bind(kLabels);
+    clusters.centroids->Bind(kCentroids);
+    clusters.neighbours->Bind(kNeighbours);
+    clusters.counts->Bind(kCounts);
     gl.ProgramUniform1ui(program, 0, static_cast<GLuint>(check.size()));
     gl.ProgramUniform1ui(program, 1, dims_);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, check.size()));

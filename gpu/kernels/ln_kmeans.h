@@ -34,6 +34,17 @@ inline constexpr uint32_t kLnKmeansMaxDims = 64;
 
 uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters);
 
+// The clusters of another kernel, resident on the GPU, for LnKmeansKernel::AssignResident
+// (the point levels' own buffers, gpu/kernels/points_levels.h): the labels (one uint per
+// point), the centroids (k x d doubles, relative to the kernel's origin), the neighbours
+// (k x 2d uints, 0xFFFFFFFF where none) and the counts (k uints).
+struct LnKmeansResidentClusters {
+  const StorageBuffer* labels = nullptr;
+  const StorageBuffer* centroids = nullptr;
+  const StorageBuffer* neighbours = nullptr;
+  const StorageBuffer* counts = nullptr;
+};
+
 class LnKmeansKernel {
  public:
   // Uploads the points and the data's mean `origin` (d values) for k clusters. Returns
@@ -55,6 +66,13 @@ class LnKmeansKernel {
   absl::Status Assign(std::span<const uint32_t> labels, std::span<const uint32_t> check,
                       std::span<uint32_t> target);
 
+  // The assign stage with the labels and the clusters already on the GPU: only `check`
+  // goes up and the targets come back (same pass, same rule as Assign). The buffers must
+  // hold a label for every point of this kernel and the clusters those labels and their
+  // neighbours name (not checked on the GPU); every check[r] < the number of points.
+  absl::Status AssignResident(const LnKmeansResidentClusters& clusters,
+                              std::span<const uint32_t> check, std::span<uint32_t> target);
+
   // The local neighbours of every cluster (k x 2d) from the last SetClusters' centroids and
   // counts, by brute force (pass "ln-kmeans neighbours").
   absl::Status InitialNeighbours(std::span<uint32_t> neighbours);
@@ -67,6 +85,11 @@ class LnKmeansKernel {
         dims_(dims),
         num_clusters_(num_clusters),
         buffers_(std::move(buffers)) {}
+
+  // Assign's and AssignResident's checks and dispatch, with the clusters bound to the
+  // assign shader's bindings 2 to 5.
+  absl::Status DispatchAssign(const LnKmeansResidentClusters& clusters,
+                              std::span<const uint32_t> check, std::span<uint32_t> target);
 
   GlContext* context_;
   uint32_t num_points_;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -14,6 +15,7 @@
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
+#include "gpu/stages/points_optimise_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -30,6 +32,7 @@ struct Start {
   std::vector<double> sums;       // k x (d + 1)
   std::vector<double> centroids;  // k x d
   std::vector<uint32_t> neighbours;
+  std::vector<double> origin;  // d: the data's mean the sums are relative to
   double energy = 0;
 };
 
@@ -111,6 +114,7 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
         EnergyOfSums(n, {&start.sums[size_t{c} * (d + 1)], d}, start.sums[size_t{c} * (d + 1) + d]);
   }
   start.energy = total;
+  start.origin = origin;
   start.neighbours = voxels.neighbours;
   std::vector<uint32_t> candidates;
   std::vector<double> best;
@@ -156,6 +160,22 @@ absl::Status CheckSoftwareLoopBudget(const GlContext& context, uint32_t d, uint3
       "it stops an invocation's loops after 65,535); use --device cpu, or a hardware GPU"));
 }
 
+// A merges-only level: its triplets and the running energy to the sink.
+absl::Status ReportMerges(const PointLevelGpu& level, PointMultilevelSummary& summary,
+                          uint32_t clusters, ::mlclust::detail::CompensatedSum& energy,
+                          LevelSink& sink) {
+  energy.Add(level.energy_change);
+  LevelMoves moves;
+  moves.level = summary.levels;
+  moves.cluster_count = clusters;
+  moves.energy = energy.value();
+  moves.element = level.element;
+  moves.to_cluster = level.to_cluster;
+  moves.from_cluster = level.from_cluster;
+  summary.moves += level.element.size();
+  return sink.OnLevel(moves);
+}
+
 std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
   std::vector<ClusterId> ids(labels.size());
   for (size_t i = 0; i < labels.size(); ++i) ids[i] = ClusterId(labels[i]);
@@ -166,8 +186,8 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone) {
-    return "the GPU's point levels are merges only (optimizer none)";
+  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone && options.bounded_drift > 0) {
+    return "bounded-drift (ours) is the CPU's LN k-means'";
   }
   if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
   return "";
@@ -195,7 +215,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
   MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
-  const Start start = BuildStart(points, voxels, options.cancel);
+  Start start = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
   const uint32_t k0 = voxels.clusters;
   MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start.energy));
@@ -208,6 +228,18 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   upload.centroids = start.centroids;
   upload.neighbours = start.neighbours;
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
+  // LN k-means inside the levels (points_optimise_gpu.h): the host's mirror starts from the
+  // values just uploaded.
+  std::optional<PointLevelsOptimiser> optimiser;
+  if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
+    PointOptimiserStart mirror{std::move(start.origin),    std::move(voxels.labels),
+                               std::move(start.counts),    std::move(start.sums),
+                               std::move(start.centroids), start.energy};
+    MLCLUST_ASSIGN_OR_RETURN(PointLevelsOptimiser made,
+                             PointLevelsOptimiser::Create(context, points, std::move(mirror),
+                                                          options.optimise_rounds, options.cancel));
+    optimiser.emplace(std::move(made));
+  }
   std::vector<uint32_t>().swap(voxels.labels);
   PointMultilevelSummary summary;
   summary.levels = 1;
@@ -223,7 +255,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
     MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+        const bool merged,
+        optimiser.has_value()
+            ? levels.MergeLevel(options.pml_pairs, clusters, options.min_clusters, level)
+            : levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
     if (!merged) {
       // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
       if (linked || clusters <= 1 || clusters > kMaxLinked) break;
@@ -233,16 +268,14 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     }
     linked = false;
     clusters -= level.merged;
-    energy.Add(level.energy_change);
-    LevelMoves moves;
-    moves.level = summary.levels;
-    moves.cluster_count = clusters;
-    moves.energy = energy.value();
-    moves.element = level.element;
-    moves.to_cluster = level.to_cluster;
-    moves.from_cluster = level.from_cluster;
-    MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
-    summary.moves += level.element.size();
+    if (optimiser.has_value()) {
+      // The level's LN k-means rounds and its report, then the neighbour refresh.
+      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      MLCLUST_RETURN_IF_ERROR(levels.RefreshNeighbours());
+      summary.moves = optimiser->moves();
+    } else {
+      MLCLUST_RETURN_IF_ERROR(ReportMerges(level, summary, clusters, energy, sink));
+    }
     if (options.inspect_level) {
       MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
       options.inspect_level(summary.levels, labels);

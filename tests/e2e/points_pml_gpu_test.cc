@@ -1,9 +1,10 @@
 // End-to-end: PML for points on the GPU through the server (llvmpipe where there is no
 // GPU). --device gpu --algo pml --optimizer none runs the voxel start and the levels on
 // the GL context (gpu/stages/points_multilevel_gpu.h) and names the renderer in the
-// cluster stage's events and in Done; the start is the CPU's; with LN k-means (not on the
-// GPU) the levels stay on the CPU and say so; a GL failure injected into a pass is a
-// clean job error and the server keeps serving.
+// cluster stage's events and in Done; the start is the CPU's; with LN k-means
+// (gpu/stages/points_optimise_gpu.h) device gpu runs the levels on the GPU too and auto
+// on llvmpipe keeps them on the CPU; a GL failure injected into a pass is a clean job
+// error and the server keeps serving.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -65,11 +66,31 @@ TEST_F(PointsPmlGpuTest, DeviceGpuRunsTheVoxelStartAndTheLevelsOnTheGlContext) {
               0.01 * c.energy(c.num_levels() - 1));
 }
 
-// The GPU has no LN k-means inside PML: with it the levels stay on the CPU (chosen at
-// plan time and named in the events), even with device gpu.
-TEST_F(PointsPmlGpuTest, WithLnKmeansTheLevelsStayOnTheCpu) {
+// With LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) and device gpu the
+// levels run on the GL context too, named in the events; the start is the CPU's and the
+// lowest level's energy within 1% of the CPU's.
+TEST_F(PointsPmlGpuTest, WithLnKmeansDeviceGpuRunsTheLevelsOnTheGlContext) {
+  const std::string renderer = server_->gl_renderer();
   std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> result = Run(Spec("gpu", "lnkmeans"), &progress);
+  absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", "lnkmeans"), &progress);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_EQ(ClusterDevice(progress), renderer);
+  EXPECT_EQ(gpu->done.device(), renderer);
+  absl::StatusOr<client::JobResult> cpu = Run(Spec("cpu", "lnkmeans"));
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  const auto& g = gpu->hierarchy;
+  const auto& c = cpu->hierarchy;
+  ASSERT_GT(g.num_levels(), 3u);
+  EXPECT_EQ(g.energy(0), c.energy(0));
+  EXPECT_EQ(g.cluster_count(g.num_levels() - 1), 20u);
+  EXPECT_NEAR(g.energy(g.num_levels() - 1), c.energy(c.num_levels() - 1),
+              0.01 * c.energy(c.num_levels() - 1));
+}
+
+// With auto on llvmpipe the LN k-means levels stay on the CPU and say so.
+TEST_F(PointsPmlGpuTest, WithLnKmeansAutoKeepsTheLevelsOnTheCpu) {
+  std::vector<v1::Progress> progress;
+  absl::StatusOr<client::JobResult> result = Run(Spec("auto", "lnkmeans"), &progress);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(ClusterDevice(progress), "cpu");
 }
@@ -78,7 +99,11 @@ TEST_F(PointsPmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServi
   for (const char* pass : {"voxel start", "points odes", "points neighbours"}) {
     ExpectFailsInPass(Spec("gpu", "none"), pass);
   }
+  for (const char* pass : {"ln-kmeans assign", "points update"}) {
+    ExpectFailsInPass(Spec("gpu", "lnkmeans"), pass);
+  }
   ExpectRunsWithTheHookCleared(Spec("gpu", "none"));
+  ExpectRunsWithTheHookCleared(Spec("gpu", "lnkmeans"));
 }
 
 }  // namespace

@@ -272,10 +272,6 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(4, 50, 6.0, 11).points;
   LevelsSink sink;
   PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
-  options.optimizer = PointMultilevelOptions::Optimizer::kLnKmeans;
-  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
-            absl::StatusCode::kUnimplemented);
-  options = PmlOptions(PmlPairRule::kAll, 1);
   options.parallel = false;
   EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
             absl::StatusCode::kUnimplemented);
@@ -358,8 +354,9 @@ TEST(PointsPmlGpu, CancelledBetweenLevels) {
   EXPECT_EQ(sink.counts.size(), 3u);
 }
 
-// The plan (core/cluster/registry.cc): PML's point levels go to the GPU for merges only,
-// with device gpu even on llvmpipe, with auto only on hardware; ML and HC stay on the CPU.
+// The plan (core/cluster/registry.cc): PML's point levels go to the GPU, merges only with
+// device gpu even on llvmpipe and with auto only on hardware, with LN k-means for device
+// gpu only (points_optimise_gpu_test); ML stays on the CPU.
 TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
@@ -372,7 +369,7 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "pml", "none"), "NVIDIA H100");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "pml", "none"), "cpu");
-  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "pml", "lnkmeans"), "cpu");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "pml", "lnkmeans"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "ml", "none"), "refused");
 }
 
