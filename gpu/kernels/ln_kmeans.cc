@@ -23,13 +23,14 @@ enum Binding : uint32_t {
   kCounts,
   kCheck,
   kTargets,
+  kMargins,
   kBindings
 };
 
 }  // namespace
 
 uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters) {
-  return num_points * (4 * uint64_t{dims} + 12) + 8 * uint64_t{dims} +
+  return num_points * (4 * uint64_t{dims} + 20) + 8 * uint64_t{dims} +
          uint64_t{num_clusters} * (16 * uint64_t{dims} + 4);
 }
 
@@ -54,7 +55,8 @@ absl::StatusOr<LnKmeansKernel> LnKmeansKernel::Create(GlContext& context, const 
     const uint64_t k = std::max<uint32_t>(num_clusters, 1);
     const uint64_t bytes[kBindings] = {
         points_or_one * d * 4, uint64_t{d} * 8, points_or_one * 4, k * d * 8,
-        k * 2 * d * 4,         k * 4,           points_or_one * 4, points_or_one * 4};
+        k * 2 * d * 4,         k * 4,           points_or_one * 4, points_or_one * 4,
+        points_or_one * 8};
     std::vector<StorageBuffer> buffers;
     for (uint64_t size : bytes) {
       MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
@@ -100,12 +102,12 @@ absl::Status LnKmeansKernel::Assign(std::span<const uint32_t> labels,
   MLCLUST_RETURN_IF_ERROR(PassError(kAssignPass, buffers_[kLabels].Upload(labels)));
   return DispatchAssign(
       {&buffers_[kLabels], &buffers_[kCentroids], &buffers_[kNeighbours], &buffers_[kCounts]},
-      check, target);
+      check, target, {});
 }
 
 absl::Status LnKmeansKernel::AssignResident(const LnKmeansResidentClusters& clusters,
                                             std::span<const uint32_t> check,
-                                            std::span<uint32_t> target) {
+                                            std::span<uint32_t> target, std::span<double> margin) {
   if (clusters.labels == nullptr || clusters.centroids == nullptr ||
       clusters.neighbours == nullptr || clusters.counts == nullptr ||
       clusters.labels->bytes() < uint64_t{num_points_} * 4) {
@@ -114,13 +116,14 @@ absl::Status LnKmeansKernel::AssignResident(const LnKmeansResidentClusters& clus
   }
   if (check.empty()) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
-  return DispatchAssign(clusters, check, target);
+  return DispatchAssign(clusters, check, target, margin);
 }
 
 absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clusters,
                                             std::span<const uint32_t> check,
-                                            std::span<uint32_t> target) {
-  if (check.size() != target.size() || check.size() > num_points_) {
+                                            std::span<uint32_t> target, std::span<double> margin) {
+  if (check.size() != target.size() || check.size() > num_points_ ||
+      (!margin.empty() && margin.size() != check.size())) {
     return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", check.size(),
                                                    " points to check and ", target.size(),
                                                    " targets for ", num_points_, " points"));
@@ -146,9 +149,13 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
     clusters.counts->Bind(kCounts);
     gl.ProgramUniform1ui(program, 0, static_cast<GLuint>(check.size()));
     gl.ProgramUniform1ui(program, 1, dims_);
+    gl.ProgramUniform1ui(program, 2, margin.empty() ? 0u : 1u);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, check.size()));
     gl.UseProgram(0);
     MLCLUST_RETURN_IF_ERROR(buffers_[kTargets].Download(0, target.data(), target.size_bytes()));
+    if (!margin.empty()) {
+      MLCLUST_RETURN_IF_ERROR(buffers_[kMargins].Download(0, margin.data(), margin.size_bytes()));
+    }
     return CheckGlError(*context_, kAssignPass);
   }();
   return PassError(kAssignPass, status);

@@ -9,7 +9,7 @@
 // IEEE fp64 (llvmpipe) the targets equal ChooseTargets'.
 //
 // Memory: the points stay on the GPU (4 d bytes per point), with labels, the points to
-// check and their targets (12 bytes per point), and per cluster its centroid, neighbours
+// check, their targets and margins (20 bytes per point), and per cluster its centroid, neighbours
 // and count (8 d + 8 d + 4 bytes); LnKmeansMemoryBound. Each array must fit one storage
 // buffer (RESOURCE_EXHAUSTED otherwise); d <= kLnKmeansMaxDims.
 #ifndef MLCLUST_GPU_KERNELS_LN_KMEANS_H_
@@ -70,8 +70,11 @@ class LnKmeansKernel {
   // goes up and the targets come back (same pass, same rule as Assign). The buffers must
   // hold a label for every point of this kernel and the clusters those labels and their
   // neighbours name (not checked on the GPU); every check[r] < the number of points.
+  // With `margin` (check.size() values) also ChooseTargets' margins
+  // (core/cluster/detail/ln_kmeans_stages.h).
   absl::Status AssignResident(const LnKmeansResidentClusters& clusters,
-                              std::span<const uint32_t> check, std::span<uint32_t> target);
+                              std::span<const uint32_t> check, std::span<uint32_t> target,
+                              std::span<double> margin = {});
 
   // The local neighbours of every cluster (k x 2d) from the last SetClusters' centroids and
   // counts, by brute force (pass "ln-kmeans neighbours").
@@ -89,13 +92,15 @@ class LnKmeansKernel {
   // Assign's and AssignResident's checks and dispatch, with the clusters bound to the
   // assign shader's bindings 2 to 5.
   absl::Status DispatchAssign(const LnKmeansResidentClusters& clusters,
-                              std::span<const uint32_t> check, std::span<uint32_t> target);
+                              std::span<const uint32_t> check, std::span<uint32_t> target,
+                              std::span<double> margin);
 
   GlContext* context_;
   uint32_t num_points_;
   uint32_t dims_;
   uint32_t num_clusters_;
-  // points, origin, labels, centroids, neighbours, counts, check, targets: the bindings.
+  // points, origin, labels, centroids, neighbours, counts, check, targets, margins: the
+  // bindings.
   std::vector<StorageBuffer> buffers_;
 };
 

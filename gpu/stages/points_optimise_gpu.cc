@@ -1,6 +1,7 @@
 #include "gpu/stages/points_optimise_gpu.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -56,6 +57,11 @@ PointLevelsOptimiser::PointLevelsOptimiser(const PointSet& points, PointOptimise
     list.push_back(static_cast<uint32_t>(i));
   }
   mark_.assign(k, 0);
+  stamp_.assign(m, 0);
+  threshold_.assign(m, 0.0);
+  drift_epoch_.assign(k, 0);
+  region_epoch_.assign(k, 0);
+  drift_.assign(k, 0.0);
   recorder_.Reset(state_.energy);
 }
 
@@ -129,6 +135,7 @@ absl::Status PointLevelsOptimiser::ApplyMerges(const PointLevelGpu& merged) {
 void PointLevelsOptimiser::ApplyMoves() {
   changed_.clear();
   moved_.clear();
+  old_centroids_.clear();
   const auto energy_of = [&](uint32_t c) { return Energy(c); };
   for (size_t r = 0; r < check_.size(); ++r) {
     const uint32_t to = target_[r];
@@ -140,11 +147,18 @@ void PointLevelsOptimiser::ApplyMoves() {
       if (!mark_[c]) {
         mark_[c] = 1;
         changed_.push_back(c);
+        const double* centroid = &state_.centroids[size_t{c} * d_];
+        old_centroids_.insert(old_centroids_.end(), centroid, centroid + d_);
+        if (drift_epoch_[c] != epoch_) {
+          drift_epoch_[c] = epoch_;
+          drift_[c] = 0;
+        }
       }
     }
     recorder_.Touch(from, energy_of);
     recorder_.Touch(to, energy_of);
     recorder_.RecordMove(i, from);
+    stamp_[i] = 0;  // its candidates are another cluster's now: check it again
     Add(from, i, -1);
     state_.labels[i] = to;
     Add(to, i, +1);
@@ -157,9 +171,43 @@ void PointLevelsOptimiser::ApplyMoves() {
     members_[to].push_back(i);
     moved_.push_back(i);
   }
-  for (const uint32_t c : changed_) {
+  for (size_t n = 0; n < changed_.size(); ++n) {
+    const uint32_t c = changed_[n];
     mark_[c] = 0;
     UpdateCentroid(c);
+    double squared = 0;
+    for (uint32_t j = 0; j < d_; ++j) {
+      const double diff = state_.centroids[size_t{c} * d_ + j] - old_centroids_[n * d_ + j];
+      squared += diff * diff;
+    }
+    drift_[c] += std::sqrt(squared) * (1 + 1e-12);
+  }
+}
+
+double PointLevelsOptimiser::NeighbourhoodDrift(uint32_t c) const {
+  double largest = 0;
+  const size_t slots = 2 * size_t{d_};
+  for (size_t s = 0; s < slots; ++s) {
+    const uint32_t n = table_[c * slots + s];
+    if (n == kNone) continue;
+    largest = std::max(largest, Drift(n));
+    for (size_t t = 0; t < slots; ++t) {
+      const uint32_t nn = table_[n * slots + t];
+      if (nn != kNone && nn != c) largest = std::max(largest, Drift(nn));
+    }
+  }
+  return largest;
+}
+
+void PointLevelsOptimiser::SelectForCheck(std::span<const uint32_t> region) {
+  check_.clear();
+  for (const uint32_t c : region) {
+    const double drift = Drift(c) + NeighbourhoodDrift(c);
+    const bool all = region_epoch_[c] != epoch_;
+    region_epoch_[c] = epoch_;
+    for (const uint32_t i : members_[c]) {
+      if (all || stamp_[i] != epoch_ || drift > threshold_[i]) check_.push_back(i);
+    }
   }
 }
 
@@ -191,9 +239,9 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
   }
   const size_t merged_count = region.size();
   if (rounds_ > 0 && !region.empty()) {
-    MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> table, levels.Neighbours());
+    MLCLUST_ASSIGN_OR_RETURN(table_, levels.Neighbours());
     for (size_t r = 0; r < merged_count; ++r) {
-      const uint32_t* row = &table[size_t{region[r]} * 2 * d_];
+      const uint32_t* row = &table_[size_t{region[r]} * 2 * d_];
       for (uint32_t s = 0; s < 2 * d_; ++s) {
         const uint32_t n = row[s];
         if (n != kNone && !mark_[n] && state_.counts[n] > 0) {
@@ -204,14 +252,27 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
     }
   }
   for (const uint32_t c : region) mark_[c] = 0;
+  ++epoch_;
   for (uint32_t round = 0; round < rounds_ && !region.empty(); ++round) {
     MLCLUST_RETURN_IF_ERROR(
         CheckCancelled(cancel_, absl::StrCat("LN k-means round ", round, " of level ", index)));
-    check_.clear();
-    for (const uint32_t c : region)
-      check_.insert(check_.end(), members_[c].begin(), members_[c].end());
+    if (round == 0) {
+      check_.clear();
+      for (const uint32_t c : region) {
+        region_epoch_[c] = epoch_;
+        check_.insert(check_.end(), members_[c].begin(), members_[c].end());
+      }
+    } else {
+      SelectForCheck(region);
+    }
     target_.resize(check_.size());
-    MLCLUST_RETURN_IF_ERROR(kernel_.AssignResident(levels.Resident(), check_, target_));
+    margin_.resize(check_.size());
+    MLCLUST_RETURN_IF_ERROR(kernel_.AssignResident(levels.Resident(), check_, target_, margin_));
+    for (size_t r = 0; r < check_.size(); ++r) {
+      const uint32_t i = check_[r];
+      stamp_[i] = epoch_;
+      threshold_[i] = margin_[r] + Drift(state_.labels[i]);
+    }
     ApplyMoves();
     if (changed_.empty()) break;
     MLCLUST_RETURN_IF_ERROR(WriteBack(levels));

@@ -17,18 +17,20 @@
 //
 // The rounds, as the CPU's: round 0 checks the points of the level's merged clusters and
 // of the clusters next to them (the pre-refresh neighbours of a merged one); each later
-// round the points of the clusters the previous round changed, until none changes or
-// options.optimise_rounds have run. Two differences, both leaving the moves LN k-means
-// moves: round 0 gives the points next to a merged cluster the full candidate set (the CPU
-// compares them with the merged clusters that list their cluster only), and later rounds
-// check every point of a changed cluster (the CPU skips those whose Hamerly margin still
-// holds, which would stay anyway). Energies are within 1% of the CPU's at every cluster
-// count on the tests' blobs (not identical: the neighbour tables differ after level 1,
-// points_multilevel_gpu.h).
+// round the points of the clusters the previous round changed that are not checked yet in
+// this level or whose margin their centroids' drift may have used up (the CPU's Hamerly
+// bound: the GPU's assign returns each point's margin, the host keeps the thresholds and
+// drifts as PointSpace does), until none changes or options.optimise_rounds have run. One
+// difference: round 0 gives the points next to a merged cluster the full candidate set
+// (the CPU compares them with the merged clusters that list their cluster only), so their
+// moves are LN k-means moves too and their margins count. Energies are within 1% of the
+// CPU's at every cluster count on the tests' blobs (not identical: the neighbour tables
+// differ after level 1, points_multilevel_gpu.h).
 //
-// Memory: on the GPU, the points (4d bytes each) and per point a check entry and a target
-// (8 bytes) besides PointLevelsGpu's; on the host, per point a label, a position and a
-// member entry (12 bytes), per cluster its sums and centroid (8(2d + 1) bytes).
+// Memory: on the GPU, the points (4d bytes each) and per point a check entry, a target and
+// a margin (16 bytes) besides PointLevelsGpu's; on the host, per point a label, a
+// position, a member entry, a stamp and a threshold (24 bytes), per cluster its sums,
+// centroid and drift (8(2d + 2) bytes) and the level's neighbour table (8d bytes).
 #ifndef MLCLUST_GPU_STAGES_POINTS_OPTIMISE_GPU_H_
 #define MLCLUST_GPU_STAGES_POINTS_OPTIMISE_GPU_H_
 
@@ -87,8 +89,15 @@ class PointLevelsOptimiser {
   // PointClusters::Add: point i's coordinates less the origin into (+1) or out of (-1) c.
   void Add(uint32_t c, uint32_t i, int sign);
   absl::Status ApplyMerges(const PointLevelGpu& merged);
-  // One round's moves, applied in `check` order; fills changed_ and moved_.
+  // One round's moves, applied in `check` order; fills changed_ and moved_ and adds the
+  // changed clusters' centroid moves to their drift.
   void ApplyMoves();
+  // How far cluster c's centroid has moved in this level (a sum of steps), and the largest
+  // such drift among its neighbours and theirs (PointSpace's NeighbourhoodDrift).
+  double Drift(uint32_t c) const { return drift_epoch_[c] == epoch_ ? drift_[c] : 0.0; }
+  double NeighbourhoodDrift(uint32_t c) const;
+  // A later round's points to check, in region order (PointSpace::SelectForCheck).
+  void SelectForCheck(std::span<const uint32_t> region);
   absl::Status WriteBack(PointLevelsGpu& levels);
 
   const PointSet* points_;
@@ -102,6 +111,13 @@ class PointLevelsOptimiser {
   std::vector<uint8_t> mark_;
   LevelRecorder recorder_;
   std::vector<uint32_t> merged_, check_, target_, changed_, moved_;
+  // The level's neighbour table (before its refresh) and the Hamerly bounds: per point the
+  // level of its last check and the drift it can absorb, per cluster its drift in this
+  // level and the level that last had it in a round's region.
+  std::vector<uint32_t> table_;
+  uint32_t epoch_ = 0;
+  std::vector<uint32_t> stamp_, drift_epoch_, region_epoch_;
+  std::vector<double> threshold_, drift_, margin_, old_centroids_;
 };
 
 }  // namespace mlclust::gpu
