@@ -38,53 +38,42 @@ class PointsPmlGpuTest : public testing::GpuServerTest {
     (*spec.mutable_options())["optimizer"] = optimizer;
     return spec;
   }
+
+  // `optimizer` with device gpu against device cpu: the cluster stage's events and Done
+  // name the renderer; the same start (labels and energy), the same lowest level (20
+  // clusters), and there the energy within 1%.
+  void ExpectGpuLikeTheCpu(const std::string& optimizer) {
+    const std::string renderer = server_->gl_renderer();
+    ASSERT_FALSE(renderer.empty());
+    std::vector<v1::Progress> progress;
+    absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", optimizer), &progress);
+    ASSERT_TRUE(gpu.ok()) << gpu.status();
+    EXPECT_EQ(ClusterDevice(progress), renderer);
+    EXPECT_EQ(gpu->done.device(), renderer);
+    absl::StatusOr<client::JobResult> cpu = Run(Spec("cpu", optimizer));
+    ASSERT_TRUE(cpu.ok()) << cpu.status();
+    EXPECT_EQ(cpu->done.device(), "cpu");
+    const auto& g = gpu->hierarchy;
+    const auto& c = cpu->hierarchy;
+    ASSERT_GT(g.num_levels(), 3u);
+    EXPECT_TRUE(std::equal(g.start_labels().begin(), g.start_labels().end(),
+                           c.start_labels().begin(), c.start_labels().end()));
+    EXPECT_EQ(g.cluster_count(0), c.cluster_count(0));
+    EXPECT_EQ(g.energy(0), c.energy(0));
+    EXPECT_EQ(g.cluster_count(g.num_levels() - 1), 20u);
+    EXPECT_EQ(c.cluster_count(c.num_levels() - 1), 20u);
+    EXPECT_NEAR(g.energy(g.num_levels() - 1), c.energy(c.num_levels() - 1),
+                0.01 * c.energy(c.num_levels() - 1));
+  }
 };
 
 TEST_F(PointsPmlGpuTest, DeviceGpuRunsTheVoxelStartAndTheLevelsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", "none"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(Spec("cpu", "none"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
-  // The same start (labels and energy), the same lowest level (20 clusters), and there
-  // the energy within 1%.
-  const auto& g = gpu->hierarchy;
-  const auto& c = cpu->hierarchy;
-  ASSERT_GT(g.num_levels(), 3u);
-  EXPECT_TRUE(std::equal(g.start_labels().begin(), g.start_labels().end(), c.start_labels().begin(),
-                         c.start_labels().end()));
-  EXPECT_EQ(g.cluster_count(0), c.cluster_count(0));
-  EXPECT_EQ(g.energy(0), c.energy(0));
-  EXPECT_EQ(g.cluster_count(g.num_levels() - 1), 20u);
-  EXPECT_EQ(c.cluster_count(c.num_levels() - 1), 20u);
-  EXPECT_NEAR(g.energy(g.num_levels() - 1), c.energy(c.num_levels() - 1),
-              0.01 * c.energy(c.num_levels() - 1));
+  ExpectGpuLikeTheCpu("none");
 }
 
-// With LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) and device gpu the
-// levels run on the GL context too, named in the events; the start is the CPU's and the
-// lowest level's energy within 1% of the CPU's.
+// With LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) too.
 TEST_F(PointsPmlGpuTest, WithLnKmeansDeviceGpuRunsTheLevelsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", "lnkmeans"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(Spec("cpu", "lnkmeans"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  const auto& g = gpu->hierarchy;
-  const auto& c = cpu->hierarchy;
-  ASSERT_GT(g.num_levels(), 3u);
-  EXPECT_EQ(g.energy(0), c.energy(0));
-  EXPECT_EQ(g.cluster_count(g.num_levels() - 1), 20u);
-  EXPECT_NEAR(g.energy(g.num_levels() - 1), c.energy(c.num_levels() - 1),
-              0.01 * c.energy(c.num_levels() - 1));
+  ExpectGpuLikeTheCpu("lnkmeans");
 }
 
 // With auto on llvmpipe the LN k-means levels stay on the CPU and say so.
