@@ -102,12 +102,13 @@ absl::Status LnKmeansKernel::Assign(std::span<const uint32_t> labels,
   MLCLUST_RETURN_IF_ERROR(PassError(kAssignPass, buffers_[kLabels].Upload(labels)));
   return DispatchAssign(
       {&buffers_[kLabels], &buffers_[kCentroids], &buffers_[kNeighbours], &buffers_[kCounts]},
-      check, target, {});
+      check, target, {}, {});
 }
 
 absl::Status LnKmeansKernel::AssignResident(const LnKmeansResidentClusters& clusters,
                                             std::span<const uint32_t> check,
-                                            std::span<uint32_t> target, std::span<double> margin) {
+                                            std::span<uint32_t> target, std::span<double> margin,
+                                            const LnKmeansOwnCandidates& own) {
   if (clusters.labels == nullptr || clusters.centroids == nullptr ||
       clusters.neighbours == nullptr || clusters.counts == nullptr ||
       clusters.labels->bytes() < uint64_t{num_points_} * 4) {
@@ -116,14 +117,17 @@ absl::Status LnKmeansKernel::AssignResident(const LnKmeansResidentClusters& clus
   }
   if (check.empty()) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
-  return DispatchAssign(clusters, check, target, margin);
+  return DispatchAssign(clusters, check, target, margin, own);
 }
 
 absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clusters,
                                             std::span<const uint32_t> check,
-                                            std::span<uint32_t> target, std::span<double> margin) {
+                                            std::span<uint32_t> target, std::span<double> margin,
+                                            const LnKmeansOwnCandidates& own) {
+  const size_t full = own.ranges.empty() ? check.size() : own.full;
   if (check.size() != target.size() || check.size() > num_points_ ||
-      (!margin.empty() && margin.size() != check.size())) {
+      (!margin.empty() && margin.size() != check.size()) || full > check.size() ||
+      own.ranges.size() != 2 * (check.size() - full)) {
     return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", check.size(),
                                                    " points to check and ", target.size(),
                                                    " targets for ", num_points_, " points"));
@@ -134,12 +138,36 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
           absl::StrCat("ln-kmeans on the GPU: point ", i, " of ", num_points_));
     }
   }
+  for (size_t e = 0; e < own.ranges.size(); e += 2) {
+    if (own.ranges[e] > own.ranges[e + 1] || own.ranges[e + 1] > own.candidates.size()) {
+      return absl::InvalidArgumentError("ln-kmeans on the GPU: a candidate range out of range");
+    }
+  }
+  for (uint32_t c : own.candidates) {
+    if (c >= clusters.counts->bytes() / 4) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("ln-kmeans on the GPU: candidate cluster ", c, " out of range"));
+    }
+  }
   absl::Status status = [&]() -> absl::Status {
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t program,
         GetComputeProgram(*context_, "ln_kmeans_assign",
                           absl::StrCat(kComputeShaderPrelude, kLnKmeansAssignGlsl)));
+    const uint64_t entries = check.size() + own.ranges.size() + own.candidates.size();
+    if (entries * 4 > buffers_[kCheck].bytes()) {
+      MLCLUST_ASSIGN_OR_RETURN(
+          buffers_[kCheck],
+          StorageBuffer::Create(*context_, std::max(entries * 4, 2 * buffers_[kCheck].bytes())));
+    }
     MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(check));
+    if (!own.ranges.empty()) {
+      MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(own.ranges, check.size_bytes()));
+      if (!own.candidates.empty()) {
+        MLCLUST_RETURN_IF_ERROR(
+            buffers_[kCheck].Upload(own.candidates, check.size_bytes() + own.ranges.size_bytes()));
+      }
+    }
     const detail::GlFunctions& gl = context_->gl();
     gl.UseProgram(program);
     for (uint32_t b = 0; b < kBindings; ++b) buffers_[b].Bind(b);
@@ -150,6 +178,7 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
     gl.ProgramUniform1ui(program, 0, static_cast<GLuint>(check.size()));
     gl.ProgramUniform1ui(program, 1, dims_);
     gl.ProgramUniform1ui(program, 2, margin.empty() ? 0u : 1u);
+    gl.ProgramUniform1ui(program, 3, static_cast<GLuint>(full));
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, check.size()));
     gl.UseProgram(0);
     MLCLUST_RETURN_IF_ERROR(buffers_[kTargets].Download(0, target.data(), target.size_bytes()));

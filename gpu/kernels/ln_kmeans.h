@@ -45,6 +45,16 @@ struct LnKmeansResidentClusters {
   const StorageBuffer* counts = nullptr;
 };
 
+// Entries of AssignResident's check list compared with their own candidates only (the
+// CPU's round 0 for the points next to a merged cluster, PointSpace::Optimise): entries
+// from `full` on; entry full + e takes candidates[ranges[2e] .. ranges[2e + 1]) and moves to
+// the nearest that is strictly nearer than its own centroid. Empty ranges: none.
+struct LnKmeansOwnCandidates {
+  size_t full = 0;
+  std::span<const uint32_t> ranges;
+  std::span<const uint32_t> candidates;
+};
+
 class LnKmeansKernel {
  public:
   // Uploads the points and the data's mean `origin` (d values) for k clusters. Returns
@@ -71,10 +81,13 @@ class LnKmeansKernel {
   // hold a label for every point of this kernel and the clusters those labels and their
   // neighbours name (not checked on the GPU); every check[r] < the number of points.
   // With `margin` (check.size() values) also ChooseTargets' margins
-  // (core/cluster/detail/ln_kmeans_stages.h).
+  // (core/cluster/detail/ln_kmeans_stages.h; 0 for the entries of `own`). With `own`
+  // (ranges for every entry from own.full on, each inside own.candidates), those entries
+  // are compared with their own candidates only. The check buffer grows to hold the
+  // ranges and candidates (4 bytes each).
   absl::Status AssignResident(const LnKmeansResidentClusters& clusters,
                               std::span<const uint32_t> check, std::span<uint32_t> target,
-                              std::span<double> margin = {});
+                              std::span<double> margin = {}, const LnKmeansOwnCandidates& own = {});
 
   // The local neighbours of every cluster (k x 2d) from the last SetClusters' centroids and
   // counts, by brute force (pass "ln-kmeans neighbours").
@@ -93,7 +106,7 @@ class LnKmeansKernel {
   // assign shader's bindings 2 to 5.
   absl::Status DispatchAssign(const LnKmeansResidentClusters& clusters,
                               std::span<const uint32_t> check, std::span<uint32_t> target,
-                              std::span<double> margin);
+                              std::span<double> margin, const LnKmeansOwnCandidates& own);
 
   GlContext* context_;
   uint32_t num_points_;

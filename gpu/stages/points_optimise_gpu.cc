@@ -228,8 +228,10 @@ absl::Status PointLevelsOptimiser::WriteBack(PointLevelsGpu& levels) {
 absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLevelGpu& merged,
                                          LevelSink& sink, uint32_t index, uint32_t clusters) {
   MLCLUST_RETURN_IF_ERROR(ApplyMerges(merged));
-  // Round 0's region: the merged clusters, then the clusters next to them (the neighbour
-  // table before the level's refresh, as the CPU's Optimise reads it).
+  // Round 0 (PointSpace::Optimise): every point of the merged clusters gets the full check;
+  // a point of a cluster next to a merged one (the neighbour table before the level's
+  // refresh) can only gain by moving to a merged cluster, so it is compared with the merged
+  // clusters that list its cluster, and with nothing else.
   std::vector<uint32_t> region;
   for (const uint32_t c : merged_) {
     if (!mark_[c] && state_.counts[c] > 0) {
@@ -237,38 +239,55 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
       region.push_back(c);
     }
   }
-  const size_t merged_count = region.size();
+  std::vector<std::pair<uint32_t, uint32_t>> next_to;  // (cluster, merged cluster)
   if (rounds_ > 0 && !region.empty()) {
     MLCLUST_ASSIGN_OR_RETURN(table_, levels.Neighbours());
-    for (size_t r = 0; r < merged_count; ++r) {
-      const uint32_t* row = &table_[size_t{region[r]} * 2 * d_];
+    for (const uint32_t c : region) {
+      const uint32_t* row = &table_[size_t{c} * 2 * d_];
       for (uint32_t s = 0; s < 2 * d_; ++s) {
         const uint32_t n = row[s];
-        if (n != kNone && !mark_[n] && state_.counts[n] > 0) {
-          mark_[n] = 1;
-          region.push_back(n);
-        }
+        if (n != kNone && !mark_[n] && state_.counts[n] > 0) next_to.emplace_back(n, c);
       }
     }
   }
   for (const uint32_t c : region) mark_[c] = 0;
+  std::sort(next_to.begin(), next_to.end());
+  next_to.erase(std::unique(next_to.begin(), next_to.end()), next_to.end());
   ++epoch_;
   for (uint32_t round = 0; round < rounds_ && !region.empty(); ++round) {
     MLCLUST_RETURN_IF_ERROR(
         CheckCancelled(cancel_, absl::StrCat("LN k-means round ", round, " of level ", index)));
+    LnKmeansOwnCandidates own;
+    std::vector<uint32_t> ranges, candidates;
     if (round == 0) {
       check_.clear();
       for (const uint32_t c : region) {
         region_epoch_[c] = epoch_;
         check_.insert(check_.end(), members_[c].begin(), members_[c].end());
       }
+      own.full = check_.size();
+      for (const auto& [n, c] : next_to) candidates.push_back(c);
+      for (size_t g = 0; g < next_to.size();) {
+        size_t end = g;
+        while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
+        for (const uint32_t i : members_[next_to[g].first]) {
+          check_.push_back(i);
+          ranges.push_back(static_cast<uint32_t>(g));
+          ranges.push_back(static_cast<uint32_t>(end));
+        }
+        g = end;
+      }
+      own.ranges = ranges;
+      own.candidates = candidates;
     } else {
       SelectForCheck(region);
+      own.full = check_.size();
     }
     target_.resize(check_.size());
     margin_.resize(check_.size());
-    MLCLUST_RETURN_IF_ERROR(kernel_.AssignResident(levels.Resident(), check_, target_, margin_));
-    for (size_t r = 0; r < check_.size(); ++r) {
+    MLCLUST_RETURN_IF_ERROR(
+        kernel_.AssignResident(levels.Resident(), check_, target_, margin_, own));
+    for (size_t r = 0; r < own.full; ++r) {
       const uint32_t i = check_[r];
       stamp_[i] = epoch_;
       threshold_[i] = margin_[r] + Drift(state_.labels[i]);
