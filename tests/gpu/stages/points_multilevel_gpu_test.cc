@@ -433,17 +433,19 @@ TEST(PointsPmlGpu, BuffersOverTheLimitAreResourceExhausted) {
 
 TEST(PointsPmlGpu, CancelledBetweenLevels) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 13).points;
-  std::atomic<bool> cancel{false};
-  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
-  options.cancel = &cancel;
-  options.inspect_level = [&](size_t level, std::span<const uint32_t>) {
-    if (level == 2) cancel = true;
-  };
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> ran =
-      RunPointParallelMultilevelGpu(Context(), points, options, sink);
-  EXPECT_EQ(ran.status().code(), absl::StatusCode::kCancelled);
-  EXPECT_EQ(sink.counts.size(), 3u);
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    std::atomic<bool> cancel{false};
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, optimizer);
+    options.cancel = &cancel;
+    options.inspect_level = [&](size_t level, std::span<const uint32_t>) {
+      if (level == 2) cancel = true;
+    };
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> ran =
+        RunPointParallelMultilevelGpu(Context(), points, options, sink);
+    EXPECT_EQ(ran.status().code(), absl::StatusCode::kCancelled);
+    EXPECT_EQ(sink.counts.size(), 3u);
+  }
 }
 
 // The plan (core/cluster/registry.cc): PML's point levels go to the GPU, merges only with
