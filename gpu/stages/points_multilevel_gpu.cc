@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <span>
 #include <vector>
 
@@ -10,6 +9,7 @@
 #include "core/base/cancel.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/local_neighbours.h"
 #include "core/cluster/device_stages.h"
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
@@ -33,39 +33,12 @@ struct Start {
   double energy = 0;
 };
 
-// PointClusters::RefreshNeighbours(c, {}) on the flat tables: the nearest candidate per
-// subspace among c's neighbours and theirs, equal distances to the smaller id.
+// PointClusters::RefreshNeighbours on the flat tables (detail::RefreshLocalNeighbours, the
+// CPU's own).
 void RefreshNeighbours(Start& start, uint32_t d, uint32_t c, std::vector<uint32_t>& candidates,
-                       std::vector<double>& best) {
-  const uint32_t slots = 2 * d;
-  uint32_t* out = &start.neighbours[size_t{c} * slots];
-  for (uint32_t s = 0; s < slots; ++s) {
-    const uint32_t n = out[s];
-    if (n == kNone) continue;
-    candidates.push_back(n);
-    for (uint32_t t = 0; t < slots; ++t) {
-      const uint32_t nn = start.neighbours[size_t{n} * slots + t];
-      if (nn != kNone) candidates.push_back(nn);
-    }
-  }
-  std::fill(out, out + slots, kNone);
-  best.assign(slots, std::numeric_limits<double>::infinity());
-  const std::span<const double> from(&start.centroids[size_t{c} * d], d);
-  for (const uint32_t n : candidates) {
-    if (n == c || start.counts[n] == 0) continue;
-    const std::span<const double> to(&start.centroids[size_t{n} * d], d);
-    const uint32_t s = SubspaceIndex(from, to);
-    double dist = 0;
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff = from[j] - to[j];
-      dist += diff * diff;
-    }
-    if (dist < best[s] || (dist == best[s] && n < out[s])) {
-      best[s] = dist;
-      out[s] = n;
-    }
-  }
-  candidates.clear();
+                       ::mlclust::detail::LocalNeighbourScratch& scratch) {
+  ::mlclust::detail::RefreshLocalNeighbours<uint32_t>(c, d, start.centroids, start.counts,
+                                                      start.neighbours, candidates, scratch);
 }
 
 // PointSpace's constructor: points ordered by starting cell (stable), the data's mean
@@ -113,10 +86,10 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
   start.energy = total;
   start.neighbours = voxels.neighbours;
   std::vector<uint32_t> candidates;
-  std::vector<double> best;
+  ::mlclust::detail::LocalNeighbourScratch scratch(k);
   for (uint32_t c = 0; c < k; ++c) {
     if (c % 4096 == 0 && IsCancelled(cancel)) return start;
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   std::vector<uint32_t> isolated;
   for (uint32_t c = 0; c < k; ++c) {
@@ -130,7 +103,7 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
     for (uint32_t n = 0; n < k; ++n) {
       if (n != c) candidates.push_back(n);
     }
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   return start;
 }
