@@ -10,6 +10,7 @@
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/local_neighbours.h"
+#include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/device_stages.h"
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
@@ -149,16 +150,7 @@ std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
 absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
     LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
-  }
-  if (options.grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
-  }
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
   const std::string unsupported = PointsPmlGpuUnsupported(options);
   if (!unsupported.empty()) {
     return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
