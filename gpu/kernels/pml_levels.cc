@@ -10,7 +10,6 @@
 #include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
 #include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
@@ -125,9 +124,7 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         programs.merge,
         GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.compact, GetComputeProgram(context, "pml_compact",
-                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PmlLevelsGpu(context, static_cast<uint32_t>(n), static_cast<uint32_t>(m), programs,
                         std::move(buffers));

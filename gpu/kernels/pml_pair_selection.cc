@@ -5,9 +5,12 @@
 #include <cstddef>
 #include <utility>
 
+#include "absl/strings/str_cat.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
+#include "gpu/kernels/compact_scan_glsl.h"  // kCompactScanGlsl, generated
+#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 
 namespace mlclust::gpu {
 
@@ -111,6 +114,11 @@ absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlP
   gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   gl.UseProgram(0);
   return absl::OkStatus();
+}
+
+absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context) {
+  return GetComputeProgram(context, "pml_compact",
+                           absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl, kCompactScanGlsl));
 }
 
 absl::Status CompactInOrder(GlContext& context, uint32_t program, uint32_t kind, uint32_t count,

@@ -70,6 +70,9 @@ absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlP
                                 StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
                                 uint32_t& merged);
 
+// The program of pml_compact.glsl (with compact_scan.glsl), "pml_compact".
+absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context);
+
 // The stream compaction of pml_compact.glsl (`program`) over `count` elements of `kind`
 // in its four phases, the kept count to counter `slot` of `counters` (written 0 where
 // `count` is 0). The buffers are bound by the caller.

@@ -9,7 +9,6 @@
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
 #include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
@@ -110,9 +109,7 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         programs.refresh,
         GetComputeProgram(context, "points_refresh", absl::StrCat(prelude, kPointsRefreshGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.compact, GetComputeProgram(context, "pml_compact",
-                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PointLevelsGpu(context, static_cast<uint32_t>(m), static_cast<uint32_t>(k), d, programs,
                           std::move(buffers));
