@@ -9,6 +9,7 @@
 #include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
@@ -122,8 +123,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
         programs.pairs, GetComputeProgram(context, "pml_pairs",
                                           absl::StrCat(prelude, kPmlPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.merge,
-        GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));
+        programs.merge, GetComputeProgram(context, "pml_merge",
+                                          absl::StrCat(prelude, kPmlMergeGlsl, kPairMergeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PmlLevelsGpu(context, static_cast<uint32_t>(n), static_cast<uint32_t>(m), programs,

@@ -9,6 +9,7 @@
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
 #include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
@@ -104,8 +105,8 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
         GetComputeProgram(context, "points_pairs",
                           absl::StrCat(prelude, kPointsPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.merge,
-        GetComputeProgram(context, "points_merge", absl::StrCat(prelude, kPointsMergeGlsl)));
+        programs.merge, GetComputeProgram(context, "points_merge",
+                                          absl::StrCat(prelude, kPointsMergeGlsl, kPairMergeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.refresh,
         GetComputeProgram(context, "points_refresh", absl::StrCat(prelude, kPointsRefreshGlsl)));
