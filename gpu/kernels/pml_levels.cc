@@ -13,7 +13,6 @@
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
-#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/pml_pairs_glsl.h"  // kPmlPairsGlsl, generated
 
@@ -117,8 +116,7 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kEdgesIn].Upload(std::span<const uint32_t>(edges)));
     Programs programs;
     const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl);
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.ode, GetComputeProgram(context, "pml_ode", absl::StrCat(prelude, kPmlOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.ode, GetPmlOdeProgram(context));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs, GetComputeProgram(context, "pml_pairs",
                                           absl::StrCat(prelude, kPmlPairsGlsl, kMutualPairsGlsl)));

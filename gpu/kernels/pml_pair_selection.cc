@@ -10,7 +10,10 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/kernels/compact_scan_glsl.h"  // kCompactScanGlsl, generated
+#include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
 #include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
+#include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
+#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 
 namespace mlclust::gpu {
 
@@ -114,6 +117,12 @@ absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlP
   gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   gl.UseProgram(0);
   return absl::OkStatus();
+}
+
+absl::StatusOr<uint32_t> GetPmlOdeProgram(GlContext& context) {
+  return GetComputeProgram(
+      context, "pml_ode",
+      absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl, kPmlOdeGlsl, kOdeMinGlsl));
 }
 
 absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context) {

@@ -70,6 +70,10 @@ absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlP
                                 StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
                                 uint32_t& merged);
 
+// The ODE program of the mesh levels (pml_cvd.glsl, pml_ode.glsl, ode_min.glsl),
+// "pml_ode"; PML's and HC's (hc_levels.h).
+absl::StatusOr<uint32_t> GetPmlOdeProgram(GlContext& context);
+
 // The program of pml_compact.glsl (with compact_scan.glsl), "pml_compact".
 absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context);
 

@@ -9,6 +9,7 @@
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
 #include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
@@ -97,9 +98,9 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
     }
     Programs programs;
     const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPointsCommonGlsl);
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.ode,
-        GetComputeProgram(context, "points_ode", absl::StrCat(prelude, kPointsOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.ode,
+                             GetComputeProgram(context, "points_ode",
+                                               absl::StrCat(prelude, kPointsOdeGlsl, kOdeMinGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs,
         GetComputeProgram(context, "points_pairs",
