@@ -15,6 +15,7 @@
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
+#include "gpu/stages/gpu_level_sink.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -199,14 +200,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     linked = false;
     clusters -= level.merged;
     energy.Add(level.energy_change);
-    LevelMoves moves;
-    moves.level = summary.levels;
-    moves.cluster_count = clusters;
-    moves.energy = energy.value();
-    moves.element = level.element;
-    moves.to_cluster = level.to_cluster;
-    moves.from_cluster = level.from_cluster;
-    MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
+    MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
     summary.moves += level.element.size();
     if (options.inspect_level) {
       MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
