@@ -9,6 +9,7 @@
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
+#include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
 #include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
@@ -27,6 +28,8 @@ constexpr char kTripletsPass[] = "pml triplets";
 constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
+constexpr char kMinOdePass[] = "ml min ode";
+constexpr uint32_t kNoCluster = 0xFFFFFFFFu;
 
 // pml_compact.glsl's phases, kinds and counter slots.
 constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
@@ -151,11 +154,15 @@ absl::StatusOr<uint32_t> PmlLevelsGpu::FindPairs() {
 
 absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                     uint32_t pairs, PmlLevelGpu& level) {
-  const detail::GlFunctions& gl = context_->gl();
   MLCLUST_ASSIGN_OR_RETURN(
       const bool use_flags,
       SelectCollapsedPairs(rule, clusters, lowest, pairs, buffers_[kPairIds], buffers_[kPairValues],
                            buffers_[kPairSelected], level.merged));
+  return Merge(pairs, use_flags);
+}
+
+absl::Status PmlLevelsGpu::Merge(uint32_t pairs, bool use_flags) {
+  const detail::GlFunctions& gl = context_->gl();
   gl.UseProgram(programs_.merge);
   gl.ProgramUniform1ui(programs_.merge, 0, pairs);
   gl.ProgramUniform1ui(programs_.merge, 1, use_flags ? 1u : 0u);
@@ -238,6 +245,48 @@ absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, ui
   if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
   absl::Status extracted = Extract(*pairs, level);
+  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return true;
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& level) {
+  level = PmlLevelGpu();
+  proxies_current_ = false;  // the merge changes sums
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
+  absl::StatusOr<uint32_t> pairs = FindPairs();
+  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
+  level.mutual_pairs = *pairs;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
+  std::array<uint32_t, 2> pair{};
+  const absl::Status chosen = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    if (programs_.min_ode == 0) {
+      MLCLUST_ASSIGN_OR_RETURN(
+          programs_.min_ode, GetComputeProgram(*context_, "ml_min_ode",
+                                               absl::StrCat(kComputeShaderPrelude, kMlMinOdeGlsl)));
+    }
+    gl.UseProgram(programs_.min_ode);
+    gl.ProgramUniform1ui(programs_.min_ode, 0, num_faces_);
+    gl.ProgramUniform1ui(programs_.min_ode, 1, ties_to_fewest_faces ? 1u : 0u);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, 1));  // one work group
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    gl.UseProgram(0);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(pair)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kMinOdePass));
+    if (pair[0] != kNoCluster && (pair[0] >= num_faces_ || pair[1] >= num_faces_)) {
+      return absl::InternalError(absl::StrCat("the GPU's cheapest ODE joins clusters ", pair[0],
+                                              " and ", pair[1], " of ", num_faces_));
+    }
+    return absl::OkStatus();
+  }();
+  if (!chosen.ok()) return PassError(kMinOdePass, chosen);
+  if (pair[0] == kNoCluster) return false;  // one cluster per component
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
+  absl::Status collapsed = Merge(1, /*use_flags=*/false);
+  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
+  level.merged = 1;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
+  absl::Status extracted = Extract(1, level);
   if (!extracted.ok()) return PassError(kTripletsPass, extracted);
   return true;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 #include <span>
 #include <type_traits>
 #include <utility>
@@ -17,6 +18,7 @@
 #include "core/mesh/connectivity_guard.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
+#include "gpu/stages/hierarchy_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -35,16 +37,20 @@ absl::Status InspectGpuLabels(const MultilevelOptions& options, PmlLevelsGpu& le
   return absl::OkStatus();
 }
 
-// Alg. 5.7: PML levels on the GPU, each followed by BB sweeps (Alg. 5.4) whose decide
-// runs on the GPU and whose conflict rule and moves are the CPU stage's own
-// (boundary_based::ResolveConflicts, ApplyMoves, UndoMoves) on a host Partition that
-// mirrors the GPU's labels, sizes and sums; the level's moves go through the CPU engine's
-// LevelRecorder, so the triplets and the energy are kept as the CPU engine keeps them.
-absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
-                                                          const MeshProblem& problem,
-                                                          const MultilevelOptions& options,
-                                                          const CvdEnergy& energy,
-                                                          LevelSink& sink) {
+// One level's merges on the GPU (PML's mutual pairs, or ML's one cheapest pair) at
+// `clusters` clusters: false where none is left.
+using MergeLevel = std::function<absl::StatusOr<bool>(PmlLevelsGpu& levels, uint32_t clusters,
+                                                      PmlLevelGpu& level)>;
+
+// Alg. 5.7 and 5.6: levels of merges on the GPU (PML's, or ML's one collapse), each
+// followed by BB sweeps (Alg. 5.4) whose decide runs on the GPU and whose conflict rule and
+// moves are the CPU stage's own (boundary_based::ResolveConflicts, ApplyMoves, UndoMoves)
+// on a host Partition that mirrors the GPU's labels, sizes and sums; the level's moves go
+// through the CPU engine's LevelRecorder, so the triplets and the energy are kept as the
+// CPU engine keeps them.
+absl::StatusOr<MultilevelSummary> RunLevelsWithBoundaryBased(
+    GlContext& context, const MeshProblem& problem, const MultilevelOptions& options,
+    const CvdEnergy& energy, const MergeLevel& merge_level, LevelSink& sink) {
   const FaceAdjacency& adjacency = *problem.adjacency;
   const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
   std::vector<CvdSums> face_sums(n);
@@ -90,8 +96,7 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
   boundary_based::ConflictScratch scratch;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+    MLCLUST_ASSIGN_OR_RETURN(const bool merged, merge_level(levels, clusters, level));
     if (!merged) break;  // one cluster per component
     clusters -= level.merged;
     // The level's merges on the host, recorded as the CPU engine records them: the faces
@@ -112,9 +117,9 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
       recorder.Touch(keep, energy_of);
       recorder.Touch(gone, energy_of);
       if (members.size() != partition.size(gone) || partition.size(keep) == 0) {
-        return absl::InternalError(absl::StrCat(
-            "PML on the GPU: level ", summary.levels, " merges ", members.size(),
-            " faces of cluster ", gone, " (", partition.size(gone), " on the host) into ", keep));
+        return absl::InternalError(absl::StrCat("the GPU's level ", summary.levels, " merges ",
+                                                members.size(), " faces of cluster ", gone, " (",
+                                                partition.size(gone), " on the host) into ", keep));
       }
       partition.MergeUncounted(keep, gone, members);
       ++pairs;
@@ -228,7 +233,11 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
         if constexpr (!std::is_same_v<Energy, CvdEnergy>) {
           return absl::UnimplementedError("PML on the GPU: not a CVD energy");
         } else if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased) {
-          return RunPmlWithBoundaryBased(context, problem, options, energy, sink);
+          const MergeLevel pml_level = [&](PmlLevelsGpu& levels, uint32_t clusters,
+                                           PmlLevelGpu& level) {
+            return levels.Level(options.pml_pairs, clusters, options.min_clusters, level);
+          };
+          return RunLevelsWithBoundaryBased(context, problem, options, energy, pml_level, sink);
         } else {
           const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
           std::vector<CvdSums> face_sums(n);
@@ -266,6 +275,54 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
           summary.final_clusters = clusters;
           summary.final_energy = energy_sum.value();
           return summary;
+        }
+      });
+}
+
+std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy) {
+  if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
+    return HcGpuUnsupported(options, energy);
+  }
+  if (options.parallel) return "PML's levels are RunParallelMultilevelGpu's";
+  if (options.optimizer != MultilevelOptions::Optimizer::kBoundaryBased) {
+    return "the GPU's ML optimises with BB (optimizer bb) or not at all (none, HC's steps), "
+           "not EMLO";
+  }
+  // The rest as PML with BB: the energies, the guard, no p-percent.
+  MultilevelOptions as_pml = options;
+  as_pml.parallel = true;
+  return PmlGpuUnsupported(as_pml, energy);
+}
+
+absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const MeshProblem& problem,
+                                                   const MultilevelOptions& options,
+                                                   LevelSink& sink) {
+  if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
+    return RunHierarchyGpu(context, problem, options, sink);  // HC's steps: the same levels
+  }
+  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
+    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
+  }
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(problem.energy));
+  if (options.min_clusters < 1) {
+    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
+  }
+  const std::string unsupported = MlGpuUnsupported(options, problem.energy.kind);
+  if (!unsupported.empty())
+    return absl::UnimplementedError(absl::StrCat("ML on the GPU: ", unsupported));
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
+  return WithMeshEnergy(
+      problem.energy, *problem.mesh, *problem.measures,
+      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
+        using Energy = std::decay_t<decltype(energy)>;
+        if constexpr (!std::is_same_v<Energy, CvdEnergy>) {
+          return absl::UnimplementedError("ML on the GPU: not a CVD energy");
+        } else {
+          // One merge per level, down to options.min_clusters (the driver stops there).
+          const MergeLevel ml_step = [&](PmlLevelsGpu& levels, uint32_t, PmlLevelGpu& level) {
+            return levels.Step(options.ties_to_fewest_faces, level);
+          };
+          return RunLevelsWithBoundaryBased(context, problem, options, energy, ml_step, sink);
         }
       });
 }
