@@ -4,7 +4,6 @@
 #include <array>
 #include <functional>
 #include <span>
-#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -19,6 +18,7 @@
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/stages/hierarchy_gpu.h"
+#include "gpu/stages/mesh_levels_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -53,14 +53,10 @@ absl::StatusOr<MultilevelSummary> RunLevelsWithBoundaryBased(
     const CvdEnergy& energy, const MergeLevel& merge_level, LevelSink& sink) {
   const FaceAdjacency& adjacency = *problem.adjacency;
   const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-  std::vector<CvdSums> face_sums(n);
   std::vector<PointAndWeight> points(n);
-  for (uint32_t f = 0; f < n; ++f) {
-    face_sums[f] = energy.face_sums(f);
-    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
-  }
+  for (uint32_t f = 0; f < n; ++f) points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
   MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                           PmlLevelsGpu::Create(context, face_sums, adjacency));
+                           PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), adjacency));
   MLCLUST_RETURN_IF_ERROR(levels.EnableBoundaryOptimisation(adjacency, points));
   // The ring structure always: the conflict rule reads it whatever the guard (as
   // OptimizeBoundaryBased).
@@ -75,11 +71,7 @@ absl::StatusOr<MultilevelSummary> RunLevelsWithBoundaryBased(
   LevelRecorder recorder(n, n);
   recorder.Reset(0.0);
   auto energy_of = [&](uint32_t c) { return partition.cluster_energy(c); };
-  {
-    std::vector<ClusterId> start(n);
-    for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-    MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
-  }
+  MLCLUST_RETURN_IF_ERROR(ReportStartLevel(sink, n));
   MLCLUST_RETURN_IF_ERROR(InspectGpuLabels(options, levels, 0));
   MultilevelSummary summary;
   summary.levels = 1;
@@ -215,67 +207,36 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
                                                            const MeshProblem& problem,
                                                            const MultilevelOptions& options,
                                                            LevelSink& sink) {
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
-  }
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(problem.energy));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  const std::string unsupported = PmlGpuUnsupported(options, problem.energy.kind);
-  if (!unsupported.empty())
-    return absl::UnimplementedError(absl::StrCat("PML on the GPU: ", unsupported));
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "PML set-up"));
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
-        using Energy = std::decay_t<decltype(energy)>;
-        if constexpr (!std::is_same_v<Energy, CvdEnergy>) {
-          return absl::UnimplementedError("PML on the GPU: not a CVD energy");
-        } else if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased) {
+  return WithCvdLevelsProblem(
+      problem, options, "PML", PmlGpuUnsupported(options, problem.energy.kind),
+      [&](const CvdEnergy& energy) -> absl::StatusOr<MultilevelSummary> {
+        if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased) {
           const MergeLevel pml_level = [&](PmlLevelsGpu& levels, uint32_t clusters,
                                            PmlLevelGpu& level) {
             return levels.Level(options.pml_pairs, clusters, options.min_clusters, level);
           };
           return RunLevelsWithBoundaryBased(context, problem, options, energy, pml_level, sink);
-        } else {
-          const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-          std::vector<CvdSums> face_sums(n);
-          for (uint32_t f = 0; f < n; ++f) face_sums[f] = energy.face_sums(f);
-          MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                                   PmlLevelsGpu::Create(context, face_sums, *problem.adjacency));
-          std::vector<ClusterId> start(n);
-          for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-          MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
-          MultilevelSummary summary;
-          summary.levels = 1;
-          ::mlclust::detail::CompensatedSum energy_sum;
-          energy_sum.Reset(0);
-          uint32_t clusters = n;
-          PmlLevelGpu level;
-          while (clusters > options.min_clusters) {
-            MLCLUST_RETURN_IF_ERROR(
-                CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-            MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.Level(options.pml_pairs, clusters,
-                                                                     options.min_clusters, level));
-            if (!merged) break;  // one cluster per component
-            clusters -= level.merged;
-            energy_sum.Add(level.energy_change);
-            LevelMoves moves;
-            moves.level = summary.levels;
-            moves.cluster_count = clusters;
-            moves.energy = energy_sum.value();
-            moves.element = level.element;
-            moves.to_cluster = level.to_cluster;
-            moves.from_cluster = level.from_cluster;
-            MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
-            summary.moves += level.element.size();
-            ++summary.levels;
-          }
-          summary.final_clusters = clusters;
-          summary.final_energy = energy_sum.value();
-          return summary;
         }
+        const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
+        MLCLUST_ASSIGN_OR_RETURN(
+            PmlLevelsGpu levels,
+            PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), *problem.adjacency));
+        MergeLevelReporter reporter(sink);
+        MLCLUST_RETURN_IF_ERROR(reporter.Start(n));
+        uint32_t clusters = n, level_number = 1;
+        PmlLevelGpu level;
+        while (clusters > options.min_clusters) {
+          MLCLUST_RETURN_IF_ERROR(
+              CheckCancelled(options.cancel, absl::StrCat("level ", level_number++)));
+          MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.Level(options.pml_pairs, clusters,
+                                                                   options.min_clusters, level));
+          if (!merged) break;  // one cluster per component
+          clusters -= level.merged;
+          reporter.AddChange(level.energy_change);
+          MLCLUST_RETURN_IF_ERROR(
+              reporter.Report(clusters, level.element, level.to_cluster, level.from_cluster));
+        }
+        return reporter.Finish();
       });
 }
 
@@ -300,30 +261,15 @@ absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const Mes
   if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
     return RunHierarchyGpu(context, problem, options, sink);  // HC's steps: the same levels
   }
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
-  }
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(problem.energy));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  const std::string unsupported = MlGpuUnsupported(options, problem.energy.kind);
-  if (!unsupported.empty())
-    return absl::UnimplementedError(absl::StrCat("ML on the GPU: ", unsupported));
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "ML set-up"));
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
-        using Energy = std::decay_t<decltype(energy)>;
-        if constexpr (!std::is_same_v<Energy, CvdEnergy>) {
-          return absl::UnimplementedError("ML on the GPU: not a CVD energy");
-        } else {
-          // One merge per level, down to options.min_clusters (the driver stops there).
-          const MergeLevel ml_step = [&](PmlLevelsGpu& levels, uint32_t, PmlLevelGpu& level) {
-            return levels.Step(options.ties_to_fewest_faces, level);
-          };
-          return RunLevelsWithBoundaryBased(context, problem, options, energy, ml_step, sink);
-        }
+  return WithCvdLevelsProblem(
+      problem, options, "ML", MlGpuUnsupported(options, problem.energy.kind),
+      [&](const CvdEnergy& energy) {
+        // One merge per level, down to options.min_clusters (the driver stops there).
+        const MergeLevel ml_step = [&](PmlLevelsGpu& levels, uint32_t /*clusters*/,
+                                       PmlLevelGpu& level) {
+          return levels.Step(options.ties_to_fewest_faces, level);
+        };
+        return RunLevelsWithBoundaryBased(context, problem, options, energy, ml_step, sink);
       });
 }
 

@@ -28,6 +28,7 @@
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/gpu_mesh_levels.h"
 #include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -226,12 +227,9 @@ TEST(PmlBbGpu, MovesAndRebuiltEdgesCarryIntoTheNextLevels) {
 // energy is the energy of those labels, every cluster stays connected (the ring test
 // guards the moves, merges join neighbours), the counts fall level by level, and BB moved
 // faces.
-// The GPU drivers under test: PML (RunParallelMultilevelGpu) and ML (RunMultilevelGpu).
-using GpuRun = absl::StatusOr<MultilevelSummary> (*)(GlContext&, const MeshProblem&,
-                                                     const MultilevelOptions&, LevelSink&);
-
 void ExpectConsistentRun(const fixtures::LoadedMesh& mesh, MeshEnergyKind kind,
-                         const MultilevelOptions& base, GpuRun run_gpu = RunParallelMultilevelGpu) {
+                         const MultilevelOptions& base,
+                         fixtures::GpuLevelsRun run_gpu = RunParallelMultilevelGpu) {
   const MeshProblem problem = mesh.problem(kind);
   MultilevelOptions options = base;
   std::vector<std::vector<uint32_t>> gpu_labels;
@@ -346,16 +344,14 @@ TEST(PmlBbGpu, AgainstTheCpuEngine) {
 // give the same levels, triplets and energies bit for bit.
 TEST(PmlBbGpu, TwoDimensionalGridsGiveTheSameLevels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
-  GlContextOptions capped_options;
-  capped_options.max_groups_per_dimension = 16;
-  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(capped_options);
-  ASSERT_TRUE(capped.ok()) << capped.status();
+  const std::unique_ptr<GlContext> grids = fixtures::MakeTwoDimensionalGridContext();
+  ASSERT_NE(grids, nullptr);
   const MultilevelOptions options = PmlBbOptions(PmlPairRule::kCheaperHalf, 100);
   ReplaySink linear, grid;
   absl::StatusOr<MultilevelSummary> on_linear =
       RunParallelMultilevelGpu(Context(), mesh.problem(), options, linear);
   absl::StatusOr<MultilevelSummary> on_grid =
-      RunParallelMultilevelGpu(**capped, mesh.problem(), options, grid);
+      RunParallelMultilevelGpu(*grids, mesh.problem(), options, grid);
   ASSERT_TRUE(on_linear.ok()) << on_linear.status();
   ASSERT_TRUE(on_grid.ok()) << on_grid.status();
   EXPECT_GT(on_linear->optimisation_moves, 0u);
@@ -381,21 +377,9 @@ TEST(PmlBbGpu, RefusesTheVertexCountGuard) {
 // pass; the context works again afterwards.
 TEST(PmlBbGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(10, 10, 0.3f));
-  for (const char* pass : {"pml bb decide", "pml bb apply", "pml bb edges"}) {
-    ReplaySink sink;
-    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
-    absl::StatusOr<MultilevelSummary> failed = RunParallelMultilevelGpu(
-        Context(), mesh.problem(), PmlBbOptions(PmlPairRule::kAll, 1), sink);
-    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
-    EXPECT_THAT(failed.status().message(), HasSubstr("GL_INVALID_VALUE"));
-  }
-  ReplaySink sink;
-  absl::StatusOr<MultilevelSummary> again =
-      RunParallelMultilevelGpu(Context(), mesh.problem(), PmlBbOptions(PmlPairRule::kAll, 1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  fixtures::ExpectInjectedFailuresAreCleanErrors(RunParallelMultilevelGpu, mesh.problem(),
+                                                 PmlBbOptions(PmlPairRule::kAll, 1),
+                                                 {"pml bb decide", "pml bb apply", "pml bb edges"});
 }
 
 // The plan: PML with optimizer bb goes to the GPU with device gpu (llvmpipe too) and with
@@ -532,20 +516,8 @@ TEST(MlBbGpu, CoversNoneAndBbOnly) {
 // error, named by pass; the context works again afterwards.
 TEST(MlBbGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(8, 8, 0.3f));
-  for (const char* pass : {"ml min ode", "pml bb decide", "pml bb apply"}) {
-    ReplaySink sink;
-    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
-    absl::StatusOr<MultilevelSummary> failed =
-        RunMultilevelGpu(Context(), mesh.problem(), MlBbOptions(1), sink);
-    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
-  }
-  ReplaySink sink;
-  absl::StatusOr<MultilevelSummary> again =
-      RunMultilevelGpu(Context(), mesh.problem(), MlBbOptions(1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  fixtures::ExpectInjectedFailuresAreCleanErrors(RunMultilevelGpu, mesh.problem(), MlBbOptions(1),
+                                                 {"ml min ode", "pml bb decide", "pml bb apply"});
 }
 
 // The plan: ML with optimizer bb (or none) goes to the GPU with device gpu only (auto keeps
