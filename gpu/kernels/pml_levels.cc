@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/compensated_sum.h"
@@ -231,31 +232,36 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
-                                         PmlLevelGpu& level) {
+absl::StatusOr<uint32_t> PmlLevelsGpu::StartLevel(PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   absl::StatusOr<uint32_t> pairs = FindPairs();
   if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
   level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
+  return *pairs;
+}
+
+absl::Status PmlLevelsGpu::FinishLevel(const std::function<absl::Status()>& collapse,
+                                       uint32_t pairs, PmlLevelGpu& level) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
+  absl::Status collapsed = collapse();
   if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return PassError(kTripletsPass, Extract(pairs, level));
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                         PmlLevelGpu& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const uint32_t pairs, StartLevel(level));
+  if (pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(
+      FinishLevel([&] { return Collapse(rule, clusters, lowest, pairs, level); }, pairs, level));
   return true;
 }
 
 absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& level) {
-  level = PmlLevelGpu();
-  proxies_current_ = false;  // the merge changes sums
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
+  MLCLUST_RETURN_IF_ERROR(StartLevel(level).status());
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
   std::array<uint32_t, 2> pair{};
   const absl::Status chosen = [&]() -> absl::Status {
@@ -281,13 +287,8 @@ absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& 
   }();
   if (!chosen.ok()) return PassError(kMinOdePass, chosen);
   if (pair[0] == kNoCluster) return false;  // one cluster per component
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Merge(1, /*use_flags=*/false);
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   level.merged = 1;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(1, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  MLCLUST_RETURN_IF_ERROR(FinishLevel([&] { return Merge(1, /*use_flags=*/false); }, 1, level));
   return true;
 }
 
@@ -382,24 +383,10 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
     gl.UseProgram(0);
-    uint32_t count = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Download(0, &count, sizeof(count)));
-    if (count > num_faces_) {
-      return absl::InternalError(
-          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
-    }
-    proposals.resize(count);
-    if (count > 0) {
-      MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposals].Download(std::span<PmlFaceMove>(proposals)));
-    }
-    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kBbDecidePass, bb_buffers_[kProposalCount],
+                                              bb_buffers_[kProposals], num_faces_, num_faces_,
+                                              proposals));
     proxies_current_ = true;
-    for (const auto& [face, cluster] : proposals) {
-      if (face >= num_faces_ || cluster >= num_faces_) {
-        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
-                                                cluster, " of ", num_faces_, " faces"));
-      }
-    }
     return absl::OkStatus();
   }();
   if (!status.ok()) {

@@ -66,6 +66,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <utility>
 #include <vector>
@@ -211,6 +212,11 @@ class PmlLevelsGpu {
 
   void BindAll();
   absl::StatusOr<uint32_t> FindPairs();
+  // A level's start ("pml odes"): every ODE and the mutual pairs (returned).
+  absl::StatusOr<uint32_t> StartLevel(PmlLevelGpu& level);
+  // A level's end: `collapse` ("pml collapse"), then the triplets of `pairs` pairs.
+  absl::Status FinishLevel(const std::function<absl::Status()>& collapse, uint32_t pairs,
+                           PmlLevelGpu& level);
   absl::Status Merge(uint32_t pairs, bool use_flags);
   absl::Status Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest, uint32_t pairs,
                         PmlLevelGpu& level);
