@@ -8,13 +8,11 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cstdlib>
 #include <utility>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
-#include "gpu/context/pass.h"
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
@@ -26,7 +24,6 @@
 namespace mlclust::gpu {
 namespace {
 
-using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 

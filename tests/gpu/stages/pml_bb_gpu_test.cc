@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <span>
@@ -21,7 +20,6 @@
 #include "core/cluster/partition.h"
 #include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
-#include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/stages/hierarchy_gpu.h"
@@ -35,7 +33,6 @@
 namespace mlclust::gpu {
 namespace {
 
-using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 
