@@ -27,12 +27,8 @@ std::string HcGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind en
 absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const MeshProblem& problem,
                                                   const MultilevelOptions& options,
                                                   LevelSink& sink) {
-  std::string unsupported = HcGpuUnsupported(options, problem.energy.kind);
-  if (unsupported.empty() && problem.polygons != nullptr) {
-    unsupported = "polygons stay on the CPU";
-  }
   return WithCvdLevelsProblem(
-      problem, options, "HC", unsupported,
+      problem, options, "HC", HcGpuUnsupported(options, problem.energy.kind),
       [&](const CvdEnergy& energy) -> absl::StatusOr<MultilevelSummary> {
         const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
         MLCLUST_ASSIGN_OR_RETURN(

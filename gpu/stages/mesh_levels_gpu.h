@@ -27,9 +27,10 @@
 namespace mlclust::gpu {
 
 // RunMultilevel's checks (the problem's parts, the energy's options, at least 1 cluster),
-// then UNIMPLEMENTED "<what> on the GPU: <unsupported>" where `unsupported` is not empty
-// (nothing reported), CANCELLED if options.cancel is set, and `run(const CvdEnergy&)` for
-// the CVD energies (UNIMPLEMENTED for the others).
+// then UNIMPLEMENTED "<what> on the GPU: <unsupported>" where `unsupported` is not empty or
+// the problem has polygons (problem.polygons: per-polygon clustering; nothing reported), CANCELLED
+// if options.cancel is set, and `run(const CvdEnergy&)` for the CVD energies (UNIMPLEMENTED for the
+// others).
 template <typename Run>
 absl::StatusOr<MultilevelSummary> WithCvdLevelsProblem(const MeshProblem& problem,
                                                        const MultilevelOptions& options,
@@ -44,6 +45,9 @@ absl::StatusOr<MultilevelSummary> WithCvdLevelsProblem(const MeshProblem& proble
   }
   if (!unsupported.empty()) {
     return absl::UnimplementedError(absl::StrCat(what, " on the GPU: ", unsupported));
+  }
+  if (problem.polygons != nullptr) {
+    return absl::UnimplementedError(absl::StrCat(what, " on the GPU: polygons stay on the CPU"));
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat(what, " set-up")));
   return WithMeshEnergy(

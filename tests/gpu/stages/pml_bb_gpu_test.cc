@@ -509,6 +509,21 @@ TEST(MlBbGpu, CoversNoneAndBbOnly) {
               absl::StatusCode::kUnimplemented);
     EXPECT_TRUE(sink.counts.empty());
   }
+  // Per-polygon clustering (problem.polygons) stays on the CPU, for ML and PML with BB.
+  const std::vector<uint32_t> one_each(mesh.mesh.num_faces(), 1);
+  absl::StatusOr<MeshPolygons> polygons = MakeMeshPolygons(one_each, mesh.adjacency);
+  ASSERT_TRUE(polygons.ok()) << polygons.status();
+  MeshProblem per_polygon = mesh.problem();
+  per_polygon.polygons = &*polygons;
+  ReplaySink sink;
+  EXPECT_EQ(RunMultilevelGpu(Context(), per_polygon, MlBbOptions(1), sink).status().code(),
+            absl::StatusCode::kUnimplemented);
+  EXPECT_EQ(
+      RunParallelMultilevelGpu(Context(), per_polygon, PmlBbOptions(PmlPairRule::kAll, 1), sink)
+          .status()
+          .code(),
+      absl::StatusCode::kUnimplemented);
+  EXPECT_TRUE(sink.counts.empty());
 }
 
 // A GL error injected into ML's own pass and the BB passes it shares with PML is the run's
