@@ -349,6 +349,16 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
   return PassError(kBbDecidePass, status);
 }
 
+void PmlLevelsGpu::BindBbBuffers() {
+  buffers_[kSums].Bind(0);
+  buffers_[kSizes].Bind(1);
+  buffers_[kLabels].Bind(2);
+  bb_buffers_[kProxies].Bind(3);
+  bb_buffers_[kLabelChanges].Bind(4);
+  bb_buffers_[kClusterChanges].Bind(5);
+  bb_buffers_[kClusterSums].Bind(6);
+}
+
 absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
   proposals.clear();
   if (bb_buffers_.empty()) {
@@ -361,11 +371,8 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     const uint32_t zero = 0;
     MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     if (!proxies_current_) {
-      // The proxies of every cluster id (pml_bb.glsl's bindings); ApplyMoves keeps them.
-      buffers_[kSums].Bind(0);
-      buffers_[kSizes].Bind(1);
-      buffers_[kLabels].Bind(2);
-      bb_buffers_[kProxies].Bind(3);
+      // The proxies of every cluster id; ApplyMoves keeps them.
+      BindBbBuffers();
       gl.UseProgram(bb_program_);
       gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
       gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
@@ -416,13 +423,7 @@ absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbApplyPass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    buffers_[kSums].Bind(0);
-    buffers_[kSizes].Bind(1);
-    buffers_[kLabels].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kLabelChanges].Bind(4);
-    bb_buffers_[kClusterChanges].Bind(5);
-    bb_buffers_[kClusterSums].Bind(6);
+    BindBbBuffers();
     gl.UseProgram(bb_program_);
     for (size_t begin = 0; begin < moves.size(); begin += kPmlBbChangeChunk) {
       const size_t count = std::min<size_t>(kPmlBbChangeChunk, moves.size() - begin);

@@ -211,6 +211,9 @@ class PmlLevelsGpu {
         buffers_(std::move(buffers)) {}
 
   void BindAll();
+  // pml_bb.glsl's bindings: sums, sizes, labels, proxies, the label changes, the cluster
+  // changes and their sums.
+  void BindBbBuffers();
   absl::StatusOr<uint32_t> FindPairs();
   // A level's start ("pml odes"): every ODE and the mutual pairs (returned).
   absl::StatusOr<uint32_t> StartLevel(PmlLevelGpu& level);
