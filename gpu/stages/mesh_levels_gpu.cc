@@ -1,5 +1,7 @@
 #include "gpu/stages/mesh_levels_gpu.h"
 
+#include "gpu/stages/gpu_level_sink.h"
+
 namespace mlclust::gpu {
 
 std::vector<CvdSums> CvdFaceSums(const CvdEnergy& energy, uint32_t num_faces) {
@@ -24,14 +26,8 @@ absl::Status MergeLevelReporter::Start(uint32_t num_faces) {
 absl::Status MergeLevelReporter::Report(uint32_t clusters, std::span<const uint32_t> element,
                                         std::span<const uint32_t> to,
                                         std::span<const uint32_t> from) {
-  LevelMoves moves;
-  moves.level = summary_.levels;
-  moves.cluster_count = clusters;
-  moves.energy = energy_.value();
-  moves.element = element;
-  moves.to_cluster = to;
-  moves.from_cluster = from;
-  MLCLUST_RETURN_IF_ERROR(sink_.OnLevel(moves));
+  MLCLUST_RETURN_IF_ERROR(
+      SendGpuLevel(element, to, from, summary_.levels, clusters, energy_.value(), sink_));
   summary_.moves += element.size();
   summary_.final_clusters = clusters;
   ++summary_.levels;

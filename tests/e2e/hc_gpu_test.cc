@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,7 +17,7 @@
 #include "core/io/mesh_io.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
-#include "tests/fixtures/gpu_job_levels.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -34,18 +35,11 @@ class HcGpuTest : public testing::GpuServerTest {
 };
 
 TEST_F(HcGpuTest, DeviceGpuRunsTheHcStepsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(HcSpec("gpu"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(HcSpec("cpu"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
-  // The same levels: counts, energies (bit for bit) and labels at every level.
-  EXPECT_GT(testing::ExpectSameJobLevels(gpu->hierarchy, cpu->hierarchy, 0), 10000u);
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(HcSpec("gpu"), HcSpec("cpu"), gpu, cpu));
+  // The same levels: counts, energies and labels at every level.
+  ASSERT_GT(gpu->hierarchy.num_levels(), 10000u);
+  testing::ExpectSameLevels(gpu->hierarchy, cpu->hierarchy, /*relative=*/0);
   EXPECT_EQ(gpu->hierarchy.cluster_count(gpu->hierarchy.num_levels() - 1), 20u);
 }
 

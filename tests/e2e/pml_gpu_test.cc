@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,7 +19,7 @@
 #include "core/io/mesh_io.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
-#include "tests/fixtures/gpu_job_levels.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -37,18 +38,11 @@ class PmlGpuTest : public testing::GpuServerTest {
 };
 
 TEST_F(PmlGpuTest, DeviceGpuRunsThePmlLevelsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "none"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(PmlSpec("cpu", "none"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(PmlSpec("gpu", "none"), PmlSpec("cpu", "none"), gpu, cpu));
   // The same levels: counts, energies within 1%, labels at every level.
-  EXPECT_GT(testing::ExpectSameJobLevels(gpu->hierarchy, cpu->hierarchy, 0.01), 10u);
+  ASSERT_GT(gpu->hierarchy.num_levels(), 10u);
+  testing::ExpectSameLevels(gpu->hierarchy, cpu->hierarchy, /*relative=*/0.01);
   EXPECT_EQ(gpu->hierarchy.cluster_count(gpu->hierarchy.num_levels() - 1), 20u);
 }
 
@@ -71,14 +65,8 @@ TEST_F(PmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
 // in the events and Done); every level replays from the triplets, ends at the asked count,
 // and the last level's energy is near the CPU engine's PML with BB (whose sweeps differ).
 TEST_F(PmlGpuTest, OptimizerBbRunsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(PmlSpec("cpu", "bb"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(PmlSpec("gpu", "bb"), PmlSpec("cpu", "bb"), gpu, cpu));
   const size_t levels = gpu->hierarchy.num_levels();
   ASSERT_GT(levels, 10u);
   std::vector<ClusterId> labels(gpu->hierarchy.start_labels().begin(),
@@ -107,22 +95,14 @@ TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
 // with BB. Fandisk (12,946 faces) down to 12,500 clusters (446 steps: every step sweeps every
 // face).
 TEST_F(PmlGpuTest, MlWithBbRunsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
   auto ml_spec = [](const std::string& device) {
     v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_ML, 12500);
     spec.set_device(device);
     (*spec.mutable_options())["optimizer"] = "bb";
     return spec;
   };
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(ml_spec("gpu"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  progress.clear();
-  absl::StatusOr<client::JobResult> cpu = Run(ml_spec("auto"), &progress);
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(ClusterDevice(progress), "cpu");  // auto keeps ML on the CPU
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(ml_spec("gpu"), ml_spec("cpu"), gpu, cpu));
   const HierarchyLog& log = gpu->hierarchy;
   ASSERT_EQ(log.num_levels(), cpu->hierarchy.num_levels());
   std::vector<ClusterId> labels(log.start_labels().begin(), log.start_labels().end());
