@@ -25,55 +25,67 @@ namespace {
 constexpr uint32_t kNone = kNoCluster;
 }  // namespace
 
-// One LN k-means pass over `points_to_check` (indices): each point's best cluster among
-// its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
-// Writes the point's target (kNone: stays). With `margin`, also how far the point is from
-// changing its mind: for a point that stays, the distance to its second-best candidate
-// minus the distance to its own centroid (so it stays while its own centroid and the
-// candidates move by less than that in all); -infinity for a point that moves.
+// One point's LN k-means check: its best cluster among its own, its cluster's neighbours
+// and the neighbours of the neighbour in its subspace. Returns the target (kNone: stays)
+// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-best
+// candidate minus the distance to its own centroid (so it stays while its own centroid and the
+// candidates move by less than that in all); -infinity for a point that moves. `x` is
+// scratch. Reads `clusters` only (safe in parallel).
+template <bool kMargin>
+inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i, std::vector<double>& x,
+                           double& margin) {
+  uint32_t candidates[256];
+  const uint32_t own = clusters.label(i);
+  clusters.Relative(i, x);
+  const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
+  int count = 0;
+  for (uint32_t n : clusters.neighbours(own)) {
+    if (n != kNone && count < 256) candidates[count++] = n;
+  }
+  const uint32_t towards = clusters.neighbours(own)[s];
+  if (towards != kNone) {
+    for (uint32_t n : clusters.neighbours(towards)) {
+      if (n != kNone && n != own && count < 256) candidates[count++] = n;
+    }
+  }
+  const double own_distance = clusters.DistanceTo(x.data(), own);
+  double best = own_distance;
+  double second = std::numeric_limits<double>::infinity();
+  uint32_t best_cluster = own;
+  for (int c = 0; c < count; ++c) {
+    const uint32_t n = candidates[c];
+    if (n == best_cluster || clusters.count(n) == 0) continue;
+    const double dist = clusters.DistanceTo(x.data(), n);
+    if (dist < best || (dist == best && n < best_cluster && n != own)) {
+      second = best;
+      best = dist;
+      best_cluster = n;
+    } else if (dist < second) {
+      second = dist;
+    }
+  }
+  if constexpr (kMargin) {
+    margin = best_cluster != own ? -std::numeric_limits<double>::infinity()
+                                 : std::sqrt(second) - std::sqrt(own_distance);
+  }
+  return best_cluster != own ? best_cluster : kNone;
+}
+
+// One LN k-means pass over `points_to_check` (indices): CheckPoint for each, in parallel.
+// Writes the point's target (kNone: stays) and, with `margin`, its margin.
 void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
                    std::span<uint32_t> target, std::span<double> margin) {
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
         std::vector<double> x;
-        uint32_t candidates[256];
+        double point_margin = 0;
         for (size_t r = range.begin(); r != range.end(); ++r) {
-          const uint32_t i = points_to_check[r];
           if (r + 8 < range.end()) clusters.Prefetch(points_to_check[r + 8]);
-          const uint32_t own = clusters.label(i);
-          target[r] = kNone;
-          clusters.Relative(i, x);
-          const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
-          int count = 0;
-          for (uint32_t n : clusters.neighbours(own)) {
-            if (n != kNone && count < 256) candidates[count++] = n;
-          }
-          const uint32_t towards = clusters.neighbours(own)[s];
-          if (towards != kNone) {
-            for (uint32_t n : clusters.neighbours(towards)) {
-              if (n != kNone && n != own && count < 256) candidates[count++] = n;
-            }
-          }
-          const double own_distance = clusters.DistanceTo(x.data(), own);
-          double best = own_distance;
-          double second = std::numeric_limits<double>::infinity();
-          uint32_t best_cluster = own;
-          for (int c = 0; c < count; ++c) {
-            const uint32_t n = candidates[c];
-            if (n == best_cluster || clusters.count(n) == 0) continue;
-            const double dist = clusters.DistanceTo(x.data(), n);
-            if (dist < best || (dist == best && n < best_cluster && n != own)) {
-              second = best;
-              best = dist;
-              best_cluster = n;
-            } else if (dist < second) {
-              second = dist;
-            }
-          }
-          if (best_cluster != own) target[r] = best_cluster;
-          if (!margin.empty()) {
-            margin[r] = best_cluster != own ? -std::numeric_limits<double>::infinity()
-                                            : std::sqrt(second) - std::sqrt(own_distance);
+          if (margin.empty()) {
+            target[r] = CheckPoint<false>(clusters, points_to_check[r], x, point_margin);
+          } else {
+            target[r] = CheckPoint<true>(clusters, points_to_check[r], x, point_margin);
+            margin[r] = point_margin;
           }
         }
       });
@@ -488,35 +500,58 @@ class PointSpace {
   }
 
   // A later round's points to check, in region order: those not checked in this call, and
-  // those whose centroid and neighbourhood moved by more than their threshold. Without
-  // branches (which of the two is unpredictable), and in parallel over slices of the
-  // clusters where there are many points, joined in order: the same list either way. A
-  // cluster no round of this call has had in its region has no point checked yet: all of
-  // them, copied. With options_.bounded_drift (ours), a cluster whose own centroid moved
-  // in this call by less than that share of its RMS radius keeps its unchecked points
-  // unchecked (and, if none of its points is checked yet, is not scanned at all).
-  void SelectForCheck(std::span<const uint32_t> region) {
-    size_t total = 0;
+  // those whose centroid and neighbourhood moved by more than their threshold. A cluster
+  // no round of this call has had in its region has no point checked yet: all of them.
+  // With options_.bounded_drift (ours), a cluster whose own centroid moved in this call by
+  // less than that share of its RMS radius keeps its unchecked points unchecked (and, if
+  // none of its points is checked yet, is not scanned at all). Round 0 (`first`): every
+  // point of the region. Then ScanAndCheck.
+  void SelectAndCheck(std::span<const uint32_t> region, bool first) {
     slices_.clear();
     const double bounded = options_.bounded_drift;
     for (uint32_t c : region) {
-      const double drift = Drift(c) + NeighbourhoodDrift(c);
-      const bool all = region_epoch_[c] != epoch_;
-      bool unchecked_too = true;
-      if (bounded > 0) {
-        const double n = static_cast<double>(clusters_->count(c));
-        const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
-        unchecked_too = Drift(c) >= bounded * radius;
+      double drift = 0;
+      bool all = true, unchecked_too = true;
+      if (!first) {
+        drift = Drift(c) + NeighbourhoodDrift(c);
+        all = region_epoch_[c] != epoch_;
+        if (bounded > 0) {
+          const double n = static_cast<double>(clusters_->count(c));
+          const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
+          unchecked_too = Drift(c) >= bounded * radius;
+        }
+        if (all && !unchecked_too) continue;
       }
       if (unchecked_too) region_epoch_[c] = epoch_;
-      if (all && !unchecked_too) continue;
       const size_t size = members_[c].size();
-      total += size;
-      for (size_t begin = 0; begin < size; begin += kScanSlice) {
+      for (size_t begin = 0; begin < size; begin += kTaskPoints) {
         slices_.push_back(
-            {c, begin, std::min(size, begin + kScanSlice), drift, all, unchecked_too});
+            {c, begin, std::min(size, begin + kTaskPoints), drift, all, unchecked_too});
       }
     }
+    ScanAndCheck();
+  }
+
+  // The slices' points to check (a slice that is `all` copies its member list; otherwise
+  // without branches, which of the two is unpredictable: the unchecked ones and those over
+  // their threshold) and their checks (CheckPoint, stamped with this call's epoch and
+  // their threshold), in tasks of about kTaskPoints members, in parallel where there is
+  // more than one, joined in slice order into points_to_check_ and target_: the same lists
+  // on any number of threads. Slices hold distinct points, so each task writes its own
+  // points' stamps and thresholds only.
+  void ScanAndCheck() {
+    tasks_.clear();
+    size_t size = 0, first = 0;
+    for (size_t n = 0; n < slices_.size(); ++n) {
+      size += slices_[n].end - slices_[n].begin;
+      if (size >= kTaskPoints) {
+        tasks_.push_back({first, n + 1});
+        first = n + 1;
+        size = 0;
+      }
+    }
+    if (first < slices_.size()) tasks_.push_back({first, slices_.size()});
+    if (picked_.size() < tasks_.size()) picked_.resize(tasks_.size());
     auto scan = [&](const Slice& slice, uint32_t* out) {
       const uint32_t* list = members_[slice.cluster].data();
       if (slice.all) {
@@ -534,23 +569,39 @@ class PointSpace {
       }
       return count;
     };
-    if (total < 2 * kScanSlice) {
-      points_to_check_.resize(total);
-      size_t count = 0;
-      for (const Slice& slice : slices_) count += scan(slice, points_to_check_.data() + count);
-      points_to_check_.resize(count);
-      return;
-    }
-    picked_.resize(slices_.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, slices_.size(), 1), [&](const auto& range) {
-      for (size_t n = range.begin(); n != range.end(); ++n) {
-        std::vector<uint32_t>& out = picked_[n];
-        out.resize(slices_[n].end - slices_[n].begin);
-        out.resize(scan(slices_[n], out.data()));
+    auto run = [&](size_t t) {
+      Picked& out = picked_[t];
+      out.points.clear();
+      for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
+        const size_t at = out.points.size();
+        out.points.resize(at + (slices_[n].end - slices_[n].begin));
+        out.points.resize(at + scan(slices_[n], out.points.data() + at));
       }
-    });
-    for (size_t n = 0; n < slices_.size(); ++n) {
-      points_to_check_.insert(points_to_check_.end(), picked_[n].begin(), picked_[n].end());
+      out.targets.resize(out.points.size());
+      const PointClusters& clusters = *clusters_;
+      std::vector<double> x;
+      double margin = 0;
+      for (size_t r = 0; r < out.points.size(); ++r) {
+        const uint32_t i = out.points[r];
+        if (r + 8 < out.points.size()) clusters.Prefetch(out.points[r + 8]);
+        out.targets[r] = detail::CheckPoint<true>(clusters, i, x, margin);
+        stamp_[i] = epoch_;
+        threshold_[i] = margin + Drift(clusters.label(i));
+      }
+    };
+    if (tasks_.size() == 1) {
+      run(0);
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, tasks_.size(), 1), [&](const auto& range) {
+        for (size_t t = range.begin(); t != range.end(); ++t) run(t);
+      });
+    }
+    points_to_check_.clear();
+    target_.clear();
+    for (size_t t = 0; t < tasks_.size(); ++t) {
+      points_to_check_.insert(points_to_check_.end(), picked_[t].points.begin(),
+                              picked_[t].points.end());
+      target_.insert(target_.end(), picked_[t].targets.begin(), picked_[t].targets.end());
     }
   }
 
@@ -585,18 +636,8 @@ class PointSpace {
     const int rounds = static_cast<int>(options_.optimise_rounds);
     for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
          ++round) {
-      points_to_check_.clear();
-      if (round == 0) {
-        for (uint32_t c : region) {
-          points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
-        }
-      } else {
-        SelectForCheck(region);
-      }
+      SelectAndCheck(region, /*first=*/round == 0);
       const size_t full = points_to_check_.size();
-      if (round == 0) {
-        for (uint32_t c : region) region_epoch_[c] = epoch_;
-      }
       compare_with.clear();
       if (round == 0) {
         for (size_t g = 0; g < next_to.size();) {
@@ -610,34 +651,31 @@ class PointSpace {
         }
       }
       target_.resize(points_to_check_.size());
-      margin_.resize(full);
-      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full),
-                    std::span<uint32_t>(target_).first(full), margin_);
-      for (size_t r = 0; r < full; ++r) {
-        const uint32_t i = points_to_check_[r];
-        stamp_[i] = epoch_;
-        threshold_[i] = margin_[r] + Drift(clusters_->label(i));
-      }
       if (!compare_with.empty()) {
         const PointClusters& clusters = *clusters_;
-        tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
-                          [&](const auto& range) {
-                            for (size_t r = range.begin(); r != range.end(); ++r) {
-                              const uint32_t i = points_to_check_[r];
-                              if (r + 8 < range.end()) clusters.Prefetch(points_to_check_[r + 8]);
-                              double best = clusters.Distance(i, clusters.label(i));
-                              uint32_t to = kNone;
-                              const auto [begin, end] = compare_with[r - full];
-                              for (uint32_t g = begin; g < end; ++g) {
-                                const double dist = clusters.Distance(i, next_to[g].second);
-                                if (dist < best) {
-                                  best = dist;
-                                  to = next_to[g].second;
-                                }
-                              }
-                              target_[r] = to;
-                            }
-                          });
+        auto compare = [&](size_t begin, size_t end) {
+          for (size_t r = begin; r != end; ++r) {
+            const uint32_t i = points_to_check_[r];
+            if (r + 8 < end) clusters.Prefetch(points_to_check_[r + 8]);
+            double best = clusters.Distance(i, clusters.label(i));
+            uint32_t to = kNone;
+            const auto [from_g, end_g] = compare_with[r - full];
+            for (uint32_t g = from_g; g < end_g; ++g) {
+              const double dist = clusters.Distance(i, next_to[g].second);
+              if (dist < best) {
+                best = dist;
+                to = next_to[g].second;
+              }
+            }
+            target_[r] = to;
+          }
+        };
+        if (points_to_check_.size() - full <= kTaskPoints) {
+          compare(full, points_to_check_.size());
+        } else {
+          tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), kTaskPoints),
+                            [&](const auto& range) { compare(range.begin(), range.end()); });
+        }
       }
       changed.clear();
       old_centroids.clear();
@@ -823,9 +861,12 @@ class PointSpace {
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;
   std::vector<uint32_t> stamp_, drift_epoch_;
-  std::vector<double> threshold_, drift_, margin_;
-  // SelectForCheck's slices of the region's member lists and what each picked.
-  static constexpr size_t kScanSlice = 16384;
+  std::vector<double> threshold_, drift_;
+  // SelectAndCheck's slices of the region's member lists, ScanAndCheck's tasks (slices
+  // [first, last)) and what each picked and its targets. A task covers about kTaskPoints
+  // members: up to about 0.1 ms to check them all (about 50 ns each), so that TBB's cost
+  // per task (about a microsecond) stays small.
+  static constexpr size_t kTaskPoints = 2048;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
@@ -837,7 +878,14 @@ class PointSpace {
   // that call's rounds had it in its region and checked its unchecked points).
   std::vector<uint32_t> region_epoch_;
   std::vector<Slice> slices_;
-  std::vector<std::vector<uint32_t>> picked_;
+  struct Task {
+    size_t first, last;
+  };
+  std::vector<Task> tasks_;
+  struct Picked {
+    std::vector<uint32_t> points, targets;
+  };
+  std::vector<Picked> picked_;
 };
 
 }  // namespace
