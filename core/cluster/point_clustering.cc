@@ -371,6 +371,7 @@ class PointSpace {
     drift_epoch_.assign(k0_, 0);
     drift_.assign(k0_, 0.0);
     region_epoch_.assign(k0_, 0);
+    altered_.assign(k0_, 0);
   }
 
   uint32_t capacity() const { return k0_; }
@@ -417,11 +418,26 @@ class PointSpace {
 
  private:
   // ---- neighbour bookkeeping --------------------------------------------------------------
-  void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
+  // c's neighbours from `candidates` and its second-order neighbours (RefreshNeighbours),
+  // with the reverse lists kept. Returns whether the list changed.
+  bool Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
     std::span<uint32_t> out = clusters_->neighbours(c);
-    std::vector<uint32_t> before(out.begin(), out.end());
+    before_.assign(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
-    for (uint32_t n : before) {
+    return NeighboursSet(c);
+  }
+  // c's neighbours as `found` (FindNeighbours' result), the same way.
+  bool SetNeighbours(uint32_t c, std::span<const uint32_t> found) {
+    std::span<uint32_t> out = clusters_->neighbours(c);
+    before_.assign(out.begin(), out.end());
+    std::copy(found.begin(), found.end(), out.begin());
+    return NeighboursSet(c);
+  }
+  // After c's list changed from before_: the reverse lists, and LinkIsolated where it has
+  // none left. Returns whether the list differs from before_.
+  bool NeighboursSet(uint32_t c) {
+    std::span<uint32_t> out = clusters_->neighbours(c);
+    for (uint32_t n : before_) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
@@ -436,6 +452,7 @@ class PointSpace {
     if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
       LinkIsolated(c);
     }
+    return !std::equal(before_.begin(), before_.end(), out.begin());
   }
 
   // A live cluster left with no neighbours at all (an isolated occupied cell of the start,
@@ -499,6 +516,39 @@ class PointSpace {
     return largest;
   }
 
+  // One chosen move in Optimise's apply pass, in the order of the checks (a cluster's last
+  // point stays): the sums, the recorder, the member lists; a cluster that changes for the
+  // first time in this round goes to `changed` with its old centroid.
+  void ApplyMove(uint32_t i, uint32_t to, std::vector<uint32_t>& changed,
+                 std::vector<double>& old_centroids) {
+    const uint32_t from = clusters_->label(i);
+    if (clusters_->count(from) <= 1) return;
+    for (uint32_t c : {from, to}) {
+      if (!mark_[c]) {
+        mark_[c] = 1;
+        changed.push_back(c);
+        const std::span<const double> centroid = clusters_->centroid(c);
+        old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
+        if (drift_epoch_[c] != epoch_) {
+          drift_epoch_[c] = epoch_;
+          drift_[c] = 0;
+        }
+      }
+    }
+    Touch(from);
+    Touch(to);
+    Record(i, from);
+    clusters_->Move(i, to);
+    stamp_[i] = 0;  // its candidates are another cluster's now: check it again
+    auto& list = members_[from];
+    const uint32_t at = position_[i];
+    list[at] = list.back();
+    position_[list[at]] = at;
+    list.pop_back();
+    position_[i] = static_cast<uint32_t>(members_[to].size());
+    members_[to].push_back(i);
+  }
+
   // A later round's points to check, in region order: those not checked in this call, and
   // those whose centroid and neighbourhood moved by more than their threshold. A cluster
   // no round of this call has had in its region has no point checked yet: all of them.
@@ -536,8 +586,8 @@ class PointSpace {
   // without branches, which of the two is unpredictable: the unchecked ones and those over
   // their threshold) and their checks (CheckPoint, stamped with this call's epoch and
   // their threshold), in tasks of about kTaskPoints members, in parallel where there is
-  // more than one, joined in slice order into points_to_check_ and target_: the same lists
-  // on any number of threads. Slices hold distinct points, so each task writes its own
+  // more than one; the moves (point, target) joined in slice order into moves_: the same
+  // list on any number of threads. Slices hold distinct points, so each task writes its own
   // points' stamps and thresholds only.
   void ScanAndCheck() {
     tasks_.clear();
@@ -577,14 +627,15 @@ class PointSpace {
         out.points.resize(at + (slices_[n].end - slices_[n].begin));
         out.points.resize(at + scan(slices_[n], out.points.data() + at));
       }
-      out.targets.resize(out.points.size());
+      out.moves.clear();
       const PointClusters& clusters = *clusters_;
       std::vector<double> x;
       double margin = 0;
       for (size_t r = 0; r < out.points.size(); ++r) {
         const uint32_t i = out.points[r];
         if (r + 8 < out.points.size()) clusters.Prefetch(out.points[r + 8]);
-        out.targets[r] = detail::CheckPoint<true>(clusters, i, x, margin);
+        const uint32_t to = detail::CheckPoint<true>(clusters, i, x, margin);
+        if (to != kNone) out.moves.push_back({i, to});
         stamp_[i] = epoch_;
         threshold_[i] = margin + Drift(clusters.label(i));
       }
@@ -596,12 +647,9 @@ class PointSpace {
         for (size_t t = range.begin(); t != range.end(); ++t) run(t);
       });
     }
-    points_to_check_.clear();
-    target_.clear();
+    moves_.clear();
     for (size_t t = 0; t < tasks_.size(); ++t) {
-      points_to_check_.insert(points_to_check_.end(), picked_[t].points.begin(),
-                              picked_[t].points.end());
-      target_.insert(target_.end(), picked_[t].targets.begin(), picked_[t].targets.end());
+      moves_.insert(moves_.end(), picked_[t].moves.begin(), picked_[t].moves.end());
     }
   }
 
@@ -637,29 +685,30 @@ class PointSpace {
     for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
          ++round) {
       SelectAndCheck(region, /*first=*/round == 0);
-      const size_t full = points_to_check_.size();
+      // Round 0's neighbours of the merged clusters: compared with them only.
+      compared_.clear();
       compare_with.clear();
       if (round == 0) {
         for (size_t g = 0; g < next_to.size();) {
           size_t end = g;
           while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
           for (uint32_t i : members_[next_to[g].first]) {
-            points_to_check_.push_back(i);
+            compared_.push_back(i);
             compare_with.push_back({static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
           }
           g = end;
         }
       }
-      target_.resize(points_to_check_.size());
-      if (!compare_with.empty()) {
+      target_.resize(compared_.size());
+      if (!compared_.empty()) {
         const PointClusters& clusters = *clusters_;
         auto compare = [&](size_t begin, size_t end) {
           for (size_t r = begin; r != end; ++r) {
-            const uint32_t i = points_to_check_[r];
-            if (r + 8 < end) clusters.Prefetch(points_to_check_[r + 8]);
+            const uint32_t i = compared_[r];
+            if (r + 8 < end) clusters.Prefetch(compared_[r + 8]);
             double best = clusters.Distance(i, clusters.label(i));
             uint32_t to = kNone;
-            const auto [from_g, end_g] = compare_with[r - full];
+            const auto [from_g, end_g] = compare_with[r];
             for (uint32_t g = from_g; g < end_g; ++g) {
               const double dist = clusters.Distance(i, next_to[g].second);
               if (dist < best) {
@@ -670,44 +719,18 @@ class PointSpace {
             target_[r] = to;
           }
         };
-        if (points_to_check_.size() - full <= kTaskPoints) {
-          compare(full, points_to_check_.size());
+        if (compared_.size() <= kTaskPoints) {
+          compare(0, compared_.size());
         } else {
-          tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), kTaskPoints),
+          tbb::parallel_for(tbb::blocked_range<size_t>(0, compared_.size(), kTaskPoints),
                             [&](const auto& range) { compare(range.begin(), range.end()); });
         }
       }
       changed.clear();
       old_centroids.clear();
-      for (size_t r = 0; r < points_to_check_.size(); ++r) {
-        if (target_[r] == kNone) continue;
-        const uint32_t i = points_to_check_[r];
-        const uint32_t from = clusters_->label(i), to = target_[r];
-        if (clusters_->count(from) <= 1) continue;
-        for (uint32_t c : {from, to}) {
-          if (!mark_[c]) {
-            mark_[c] = 1;
-            changed.push_back(c);
-            const std::span<const double> centroid = clusters_->centroid(c);
-            old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
-            if (drift_epoch_[c] != epoch_) {
-              drift_epoch_[c] = epoch_;
-              drift_[c] = 0;
-            }
-          }
-        }
-        Touch(from);
-        Touch(to);
-        Record(i, from);
-        clusters_->Move(i, to);
-        stamp_[i] = 0;  // its candidates are another cluster's now: check it again
-        auto& list = members_[from];
-        const uint32_t at = position_[i];
-        list[at] = list.back();
-        position_[list[at]] = at;
-        list.pop_back();
-        position_[i] = static_cast<uint32_t>(members_[to].size());
-        members_[to].push_back(i);
+      for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
+      for (size_t r = 0; r < compared_.size(); ++r) {
+        if (target_[r] != kNone) ApplyMove(compared_[r], target_[r], changed, old_centroids);
       }
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];
@@ -751,26 +774,33 @@ class PointSpace {
     // cluster each gone neighbour merged into and that one's neighbours, and to a merged
     // cluster its partner's neighbours.
     const bool few = merged_.size() <= 8;
-    auto offer_neighbours_of = [&](uint32_t x) {
-      for (uint32_t n : clusters_->neighbours(x)) {
-        if (n != kNone) candidates.push_back(n);
-      }
-    };
-    for (uint32_t c : refresh) {
-      mark_[c] = 0;
-      candidates.clear();
+    auto offer = [&](uint32_t c, std::vector<uint32_t>& offered) {
+      offered.clear();
+      auto offer_neighbours_of = [&](uint32_t x) {
+        for (uint32_t n : clusters_->neighbours(x)) {
+          if (n != kNone) offered.push_back(n);
+        }
+      };
       if (few) {
-        candidates.assign(merged_.begin(), merged_.end());
+        offered.assign(merged_.begin(), merged_.end());
         for (uint32_t gone : gone_) offer_neighbours_of(gone);
       } else {
         if (partner_[c] != kNone) offer_neighbours_of(partner_[c]);
         for (uint32_t n : clusters_->neighbours(c)) {
           if (n == kNone || into_[n] == kNone) continue;
-          candidates.push_back(into_[n]);
+          offered.push_back(into_[n]);
           offer_neighbours_of(n);
         }
       }
-      Refresh(c, candidates);
+    };
+    if (refresh.size() < kParallelRefresh) {
+      for (uint32_t c : refresh) {
+        mark_[c] = 0;
+        offer(c, candidates);
+        Refresh(c, candidates);
+      }
+    } else {
+      RefreshInParallel(refresh, offer);
     }
     for (uint32_t gone : gone_) {
       partner_[into_[gone]] = kNone;
@@ -809,6 +839,49 @@ class PointSpace {
     for (uint32_t c : refresh_odes_) mark_[c] = 0;
     engine.RecomputeOdes(refresh_odes_);
     refresh_odes_.clear();
+  }
+
+  // UpdateOdes' refresh of many clusters, the same lists as one after the other in
+  // `refresh`'s order: each cluster's list from the lists as they were before the first
+  // (FindNeighbours, in parallel), then in order: a list stands unless a list it was
+  // found from (the cluster's own, its neighbours', in a PML step its partner's; the gone
+  // clusters' do not change here) changed before it in this order, in which case it is
+  // found again from the current lists (Refresh), as the sequential loop would.
+  template <typename Offer>
+  void RefreshInParallel(std::span<const uint32_t> refresh, const Offer& offer) {
+    const size_t width = 2 * size_t{d_};
+    found_.resize(refresh.size() * width);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, refresh.size(), 8), [&](const auto& range) {
+      std::vector<uint32_t> offered;
+      std::vector<double> best(width);
+      for (size_t k = range.begin(); k != range.end(); ++k) {
+        offer(refresh[k], offered);
+        clusters_->FindNeighbours(refresh[k], offered,
+                                  std::span<uint32_t>(found_).subspan(k * width, width), best);
+      }
+    });
+    if (++altered_now_ == 0) {
+      std::fill(altered_.begin(), altered_.end(), 0);
+      altered_now_ = 1;
+    }
+    std::vector<uint32_t> candidates;
+    for (size_t k = 0; k < refresh.size(); ++k) {
+      const uint32_t c = refresh[k];
+      mark_[c] = 0;
+      bool stale = altered_[c] == altered_now_ ||
+                   (partner_[c] != kNone && altered_[partner_[c]] == altered_now_);
+      for (uint32_t n : clusters_->neighbours(c)) {
+        stale = stale || (n != kNone && altered_[n] == altered_now_);
+      }
+      bool altered = false;
+      if (stale) {
+        offer(c, candidates);
+        altered = Refresh(c, candidates);
+      } else {
+        altered = SetNeighbours(c, std::span<const uint32_t>(found_).subspan(k * width, width));
+      }
+      if (altered) altered_[c] = altered_now_;
+    }
   }
 
   // The labels of the level, in the caller's point order, to options_.inspect_level.
@@ -852,11 +925,21 @@ class PointSpace {
   std::vector<uint32_t> position_;
   std::vector<uint8_t> mark_;
   LevelRecorder recorder_{0, 0};
-  std::vector<uint32_t> merged_, gone_, points_to_check_, target_;
+  std::vector<uint32_t> merged_, gone_;
+  // A round of Optimise: the moves its full checks chose, in order (ScanAndCheck); round
+  // 0's neighbours of the merged clusters and their targets (kNone: stay).
+  std::vector<std::pair<uint32_t, uint32_t>> moves_;
+  std::vector<uint32_t> compared_, target_;
   // In the current level: the cluster each gone one merged into, and each merged one's
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
   std::vector<uint32_t> refresh_odes_;
+  // UpdateOdes refreshes this many clusters or more in parallel (RefreshInParallel): the
+  // lists found there (2d per cluster) and, per cluster, the stamp of the last refresh
+  // pass that changed its list.
+  static constexpr size_t kParallelRefresh = 16;
+  std::vector<uint32_t> found_, altered_, before_;
+  uint32_t altered_now_ = 0;
   // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;
@@ -883,7 +966,8 @@ class PointSpace {
   };
   std::vector<Task> tasks_;
   struct Picked {
-    std::vector<uint32_t> points, targets;
+    std::vector<uint32_t> points;
+    std::vector<std::pair<uint32_t, uint32_t>> moves;
   };
   std::vector<Picked> picked_;
 };
