@@ -371,7 +371,6 @@ class PointSpace {
     drift_epoch_.assign(k0_, 0);
     drift_.assign(k0_, 0.0);
     region_epoch_.assign(k0_, 0);
-    altered_.assign(k0_, 0);
   }
 
   uint32_t capacity() const { return k0_; }
@@ -418,26 +417,11 @@ class PointSpace {
 
  private:
   // ---- neighbour bookkeeping --------------------------------------------------------------
-  // c's neighbours from `candidates` and its second-order neighbours (RefreshNeighbours),
-  // with the reverse lists kept. Returns whether the list changed.
-  bool Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
+  void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
     std::span<uint32_t> out = clusters_->neighbours(c);
-    before_.assign(out.begin(), out.end());
+    std::vector<uint32_t> before(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
-    return NeighboursSet(c);
-  }
-  // c's neighbours as `found` (FindNeighbours' result), the same way.
-  bool SetNeighbours(uint32_t c, std::span<const uint32_t> found) {
-    std::span<uint32_t> out = clusters_->neighbours(c);
-    before_.assign(out.begin(), out.end());
-    std::copy(found.begin(), found.end(), out.begin());
-    return NeighboursSet(c);
-  }
-  // After c's list changed from before_: the reverse lists, and LinkIsolated where it has
-  // none left. Returns whether the list differs from before_.
-  bool NeighboursSet(uint32_t c) {
-    std::span<uint32_t> out = clusters_->neighbours(c);
-    for (uint32_t n : before_) {
+    for (uint32_t n : before) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
@@ -452,7 +436,6 @@ class PointSpace {
     if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
       LinkIsolated(c);
     }
-    return !std::equal(before_.begin(), before_.end(), out.begin());
   }
 
   // A live cluster left with no neighbours at all (an isolated occupied cell of the start,
@@ -774,33 +757,26 @@ class PointSpace {
     // cluster each gone neighbour merged into and that one's neighbours, and to a merged
     // cluster its partner's neighbours.
     const bool few = merged_.size() <= 8;
-    auto offer = [&](uint32_t c, std::vector<uint32_t>& offered) {
-      offered.clear();
-      auto offer_neighbours_of = [&](uint32_t x) {
-        for (uint32_t n : clusters_->neighbours(x)) {
-          if (n != kNone) offered.push_back(n);
-        }
-      };
+    auto offer_neighbours_of = [&](uint32_t x) {
+      for (uint32_t n : clusters_->neighbours(x)) {
+        if (n != kNone) candidates.push_back(n);
+      }
+    };
+    for (uint32_t c : refresh) {
+      mark_[c] = 0;
+      candidates.clear();
       if (few) {
-        offered.assign(merged_.begin(), merged_.end());
+        candidates.assign(merged_.begin(), merged_.end());
         for (uint32_t gone : gone_) offer_neighbours_of(gone);
       } else {
         if (partner_[c] != kNone) offer_neighbours_of(partner_[c]);
         for (uint32_t n : clusters_->neighbours(c)) {
           if (n == kNone || into_[n] == kNone) continue;
-          offered.push_back(into_[n]);
+          candidates.push_back(into_[n]);
           offer_neighbours_of(n);
         }
       }
-    };
-    if (refresh.size() < kParallelRefresh) {
-      for (uint32_t c : refresh) {
-        mark_[c] = 0;
-        offer(c, candidates);
-        Refresh(c, candidates);
-      }
-    } else {
-      RefreshInParallel(refresh, offer);
+      Refresh(c, candidates);
     }
     for (uint32_t gone : gone_) {
       partner_[into_[gone]] = kNone;
@@ -839,49 +815,6 @@ class PointSpace {
     for (uint32_t c : refresh_odes_) mark_[c] = 0;
     engine.RecomputeOdes(refresh_odes_);
     refresh_odes_.clear();
-  }
-
-  // UpdateOdes' refresh of many clusters, the same lists as one after the other in
-  // `refresh`'s order: each cluster's list from the lists as they were before the first
-  // (FindNeighbours, in parallel), then in order: a list stands unless a list it was
-  // found from (the cluster's own, its neighbours', in a PML step its partner's; the gone
-  // clusters' do not change here) changed before it in this order, in which case it is
-  // found again from the current lists (Refresh), as the sequential loop would.
-  template <typename Offer>
-  void RefreshInParallel(std::span<const uint32_t> refresh, const Offer& offer) {
-    const size_t width = 2 * size_t{d_};
-    found_.resize(refresh.size() * width);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, refresh.size(), 8), [&](const auto& range) {
-      std::vector<uint32_t> offered;
-      std::vector<double> best(width);
-      for (size_t k = range.begin(); k != range.end(); ++k) {
-        offer(refresh[k], offered);
-        clusters_->FindNeighbours(refresh[k], offered,
-                                  std::span<uint32_t>(found_).subspan(k * width, width), best);
-      }
-    });
-    if (++altered_now_ == 0) {
-      std::fill(altered_.begin(), altered_.end(), 0);
-      altered_now_ = 1;
-    }
-    std::vector<uint32_t> candidates;
-    for (size_t k = 0; k < refresh.size(); ++k) {
-      const uint32_t c = refresh[k];
-      mark_[c] = 0;
-      bool stale = altered_[c] == altered_now_ ||
-                   (partner_[c] != kNone && altered_[partner_[c]] == altered_now_);
-      for (uint32_t n : clusters_->neighbours(c)) {
-        stale = stale || (n != kNone && altered_[n] == altered_now_);
-      }
-      bool altered = false;
-      if (stale) {
-        offer(c, candidates);
-        altered = Refresh(c, candidates);
-      } else {
-        altered = SetNeighbours(c, std::span<const uint32_t>(found_).subspan(k * width, width));
-      }
-      if (altered) altered_[c] = altered_now_;
-    }
   }
 
   // The labels of the level, in the caller's point order, to options_.inspect_level.
@@ -934,12 +867,6 @@ class PointSpace {
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
   std::vector<uint32_t> refresh_odes_;
-  // UpdateOdes refreshes this many clusters or more in parallel (RefreshInParallel): the
-  // lists found there (2d per cluster) and, per cluster, the stamp of the last refresh
-  // pass that changed its list.
-  static constexpr size_t kParallelRefresh = 16;
-  std::vector<uint32_t> found_, altered_, before_;
-  uint32_t altered_now_ = 0;
   // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;
@@ -947,9 +874,9 @@ class PointSpace {
   std::vector<double> threshold_, drift_;
   // SelectAndCheck's slices of the region's member lists, ScanAndCheck's tasks (slices
   // [first, last)) and what each picked and its targets. A task covers about kTaskPoints
-  // members: up to about 0.1 ms to check them all (about 50 ns each), so that TBB's cost
+  // members: up to about 25 us to check them all (about 50 ns each), so that TBB's cost
   // per task (about a microsecond) stays small.
-  static constexpr size_t kTaskPoints = 2048;
+  static constexpr size_t kTaskPoints = 512;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;

@@ -170,35 +170,6 @@ class PointClusters {
     candidates.clear();
   }
 
-  // RefreshNeighbours' choice without changing anything (safe in parallel): into `out`
-  // (2d), the nearest centroid in each subspace of c among `offered`, c's neighbours and
-  // theirs; a repeated candidate changes nothing, so the same lists as RefreshNeighbours
-  // with the same candidates.
-  void FindNeighbours(uint32_t c, std::span<const uint32_t> offered, std::span<uint32_t> out,
-                      std::span<double> best) const {
-    std::fill(out.begin(), out.end(), kNoCluster);
-    std::fill(best.begin(), best.end(), std::numeric_limits<double>::infinity());
-    auto consider = [&](uint32_t n) {
-      if (n == c || n == kNoCluster || count_[n] == 0) return;
-      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
-      double dist = 0;
-      for (uint32_t j = 0; j < d_; ++j) {
-        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
-        dist += diff * diff;
-      }
-      if (dist < best[s] || (dist == best[s] && n < out[s])) {
-        best[s] = dist;
-        out[s] = n;
-      }
-    };
-    for (uint32_t n : offered) consider(n);
-    for (uint32_t n : neighbours(c)) {
-      if (n == kNoCluster) continue;
-      consider(n);
-      for (uint32_t nn : neighbours(n)) consider(nn);
-    }
-  }
-
   double TotalEnergy() const {
     double total = 0;
     for (uint32_t c = 0; c < capacity(); ++c) total += Energy(c);
