@@ -419,9 +419,9 @@ class PointSpace {
   // ---- neighbour bookkeeping --------------------------------------------------------------
   void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
     std::span<uint32_t> out = clusters_->neighbours(c);
-    std::vector<uint32_t> before(out.begin(), out.end());
+    before_.assign(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
-    for (uint32_t n : before) {
+    for (uint32_t n : before_) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
@@ -867,6 +867,7 @@ class PointSpace {
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
   std::vector<uint32_t> refresh_odes_;
+  std::vector<uint32_t> before_;  // Refresh's copy of the list it replaces
   // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;

@@ -153,7 +153,8 @@ class PointClusters {
     }
     candidates.resize(unique);
     std::fill(out.begin(), out.end(), kNoCluster);
-    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
+    std::vector<double>& best = best_;
+    best.assign(2 * d_, std::numeric_limits<double>::infinity());
     for (uint32_t n : candidates) {
       if (n == c || n == kNoCluster || count_[n] == 0) continue;
       const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
@@ -199,6 +200,7 @@ class PointClusters {
   std::vector<uint32_t> neighbours_;
   std::vector<double> origin_;
   std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
+  std::vector<double> best_;    // and its nearest distance per subspace
   uint32_t stamp_now_ = 0;
 };
 
