@@ -538,15 +538,15 @@ class PointSpace {
   // With options_.bounded_drift (ours), a cluster whose own centroid moved in this call by
   // less than that share of its RMS radius keeps its unchecked points unchecked (and, if
   // none of its points is checked yet, is not scanned at all). Round 0 (`first`): every
-  // point of the region. Then ScanAndCheck.
-  void SelectAndCheck(std::span<const uint32_t> region, bool first) {
+  // point of the region, then the points of the clusters in `next_to` (sorted (cluster,
+  // merged cluster) pairs), each compared with its merged clusters only. Then ScanAndCheck.
+  void SelectAndCheck(std::span<const uint32_t> region, bool first,
+                      std::span<const std::pair<uint32_t, uint32_t>> next_to) {
     slices_.clear();
     const double bounded = options_.bounded_drift;
     for (uint32_t c : region) {
-      double drift = 0;
       bool all = true, unchecked_too = true;
       if (!first) {
-        drift = Drift(c) + NeighbourhoodDrift(c);
         all = region_epoch_[c] != epoch_;
         if (bounded > 0) {
           const double n = static_cast<double>(clusters_->count(c));
@@ -558,21 +558,36 @@ class PointSpace {
       if (unchecked_too) region_epoch_[c] = epoch_;
       const size_t size = members_[c].size();
       for (size_t begin = 0; begin < size; begin += kTaskPoints) {
-        slices_.push_back(
-            {c, begin, std::min(size, begin + kTaskPoints), drift, all, unchecked_too});
+        slices_.push_back({c, begin, std::min(size, begin + kTaskPoints), all, unchecked_too});
       }
     }
-    ScanAndCheck();
+    if (first) {
+      for (size_t g = 0; g < next_to.size();) {
+        size_t end = g;
+        while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
+        const uint32_t c = next_to[g].first;
+        const size_t size = members_[c].size();
+        for (size_t begin = 0; begin < size; begin += kTaskPoints) {
+          slices_.push_back({c, begin, std::min(size, begin + kTaskPoints), false, false,
+                             static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
+        }
+        g = end;
+      }
+    }
+    ScanAndCheck(next_to);
   }
 
-  // The slices' points to check (a slice that is `all` copies its member list; otherwise
-  // without branches, which of the two is unpredictable: the unchecked ones and those over
-  // their threshold) and their checks (CheckPoint, stamped with this call's epoch and
-  // their threshold), in tasks of about kTaskPoints members, in parallel where there is
-  // more than one; the moves (point, target) joined in slice order into moves_: the same
-  // list on any number of threads. Slices hold distinct points, so each task writes its own
-  // points' stamps and thresholds only.
-  void ScanAndCheck() {
+  // The slices' work in tasks of about kTaskPoints members, in parallel where there is more
+  // than one; the moves (point, target) joined in slice order into moves_: the same list on
+  // any number of threads. A region slice: its points to check (`all`: its member list;
+  // otherwise, without branches, which of the two is unpredictable: the unchecked ones and
+  // those over their threshold, the drift of its cluster and neighbourhood) and their
+  // checks (CheckPoint, stamped with this call's epoch and their threshold). A slice of a
+  // cluster next to the merged ones (round 0): each point against its own centroid and
+  // next_to's merged clusters [compare_begin, compare_end), the nearest strictly closer
+  // one its target. Slices hold distinct points, so each task writes its own points'
+  // stamps and thresholds only.
+  void ScanAndCheck(std::span<const std::pair<uint32_t, uint32_t>> next_to) {
     tasks_.clear();
     size_t size = 0, first = 0;
     for (size_t n = 0; n < slices_.size(); ++n) {
@@ -585,33 +600,26 @@ class PointSpace {
     }
     if (first < slices_.size()) tasks_.push_back({first, slices_.size()});
     if (picked_.size() < tasks_.size()) picked_.resize(tasks_.size());
+    const PointClusters& clusters = *clusters_;
     auto scan = [&](const Slice& slice, uint32_t* out) {
       const uint32_t* list = members_[slice.cluster].data();
       if (slice.all) {
         std::copy(list + slice.begin, list + slice.end, out);
         return slice.end - slice.begin;
       }
+      const double drift = Drift(slice.cluster) + NeighbourhoodDrift(slice.cluster);
       size_t count = 0;
       const auto unchecked_too = static_cast<size_t>(slice.unchecked_too);
       for (size_t at = slice.begin; at < slice.end; ++at) {
         const uint32_t i = list[at];
         out[count] = i;
         const auto unchecked = static_cast<size_t>(stamp_[i] != epoch_);
-        const auto over = static_cast<size_t>(slice.drift > threshold_[i]);
+        const auto over = static_cast<size_t>(drift > threshold_[i]);
         count += (unchecked & unchecked_too) | ((unchecked ^ 1) & over);
       }
       return count;
     };
-    auto run = [&](size_t t) {
-      Picked& out = picked_[t];
-      out.points.clear();
-      for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
-        const size_t at = out.points.size();
-        out.points.resize(at + (slices_[n].end - slices_[n].begin));
-        out.points.resize(at + scan(slices_[n], out.points.data() + at));
-      }
-      out.moves.clear();
-      const PointClusters& clusters = *clusters_;
+    auto check = [&](Picked& out) {
       std::vector<double> x;
       double margin = 0;
       for (size_t r = 0; r < out.points.size(); ++r) {
@@ -622,6 +630,41 @@ class PointSpace {
         stamp_[i] = epoch_;
         threshold_[i] = margin + Drift(clusters.label(i));
       }
+      out.points.clear();
+    };
+    auto compare = [&](const Slice& slice, Picked& out) {
+      const uint32_t* list = members_[slice.cluster].data();
+      for (size_t at = slice.begin; at < slice.end; ++at) {
+        const uint32_t i = list[at];
+        if (at + 8 < slice.end) clusters.Prefetch(list[at + 8]);
+        double best = clusters.Distance(i, slice.cluster);
+        uint32_t to = kNone;
+        for (uint32_t g = slice.compare_begin; g < slice.compare_end; ++g) {
+          const double dist = clusters.Distance(i, next_to[g].second);
+          if (dist < best) {
+            best = dist;
+            to = next_to[g].second;
+          }
+        }
+        if (to != kNone) out.moves.push_back({i, to});
+      }
+    };
+    auto run = [&](size_t t) {
+      Picked& out = picked_[t];
+      out.points.clear();
+      out.moves.clear();
+      for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
+        const Slice& slice = slices_[n];
+        if (slice.compare_end > slice.compare_begin) {
+          check(out);  // the region's points before it, in order
+          compare(slice, out);
+          continue;
+        }
+        const size_t at = out.points.size();
+        out.points.resize(at + (slice.end - slice.begin));
+        out.points.resize(at + scan(slice, out.points.data() + at));
+      }
+      check(out);
     };
     if (tasks_.size() == 1) {
       run(0);
@@ -662,59 +705,13 @@ class PointSpace {
     ++epoch_;
     std::vector<uint32_t> changed;
     std::vector<double> old_centroids;
-    // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
-    std::vector<std::pair<uint32_t, uint32_t>> compare_with;
     const int rounds = static_cast<int>(options_.optimise_rounds);
     for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
          ++round) {
-      SelectAndCheck(region, /*first=*/round == 0);
-      // Round 0's neighbours of the merged clusters: compared with them only.
-      compared_.clear();
-      compare_with.clear();
-      if (round == 0) {
-        for (size_t g = 0; g < next_to.size();) {
-          size_t end = g;
-          while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
-          for (uint32_t i : members_[next_to[g].first]) {
-            compared_.push_back(i);
-            compare_with.push_back({static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
-          }
-          g = end;
-        }
-      }
-      target_.resize(compared_.size());
-      if (!compared_.empty()) {
-        const PointClusters& clusters = *clusters_;
-        auto compare = [&](size_t begin, size_t end) {
-          for (size_t r = begin; r != end; ++r) {
-            const uint32_t i = compared_[r];
-            if (r + 8 < end) clusters.Prefetch(compared_[r + 8]);
-            double best = clusters.Distance(i, clusters.label(i));
-            uint32_t to = kNone;
-            const auto [from_g, end_g] = compare_with[r];
-            for (uint32_t g = from_g; g < end_g; ++g) {
-              const double dist = clusters.Distance(i, next_to[g].second);
-              if (dist < best) {
-                best = dist;
-                to = next_to[g].second;
-              }
-            }
-            target_[r] = to;
-          }
-        };
-        if (compared_.size() <= kTaskPoints) {
-          compare(0, compared_.size());
-        } else {
-          tbb::parallel_for(tbb::blocked_range<size_t>(0, compared_.size(), kTaskPoints),
-                            [&](const auto& range) { compare(range.begin(), range.end()); });
-        }
-      }
+      SelectAndCheck(region, /*first=*/round == 0, next_to);
       changed.clear();
       old_centroids.clear();
       for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
-      for (size_t r = 0; r < compared_.size(); ++r) {
-        if (target_[r] != kNone) ApplyMove(compared_[r], target_[r], changed, old_centroids);
-      }
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];
         mark_[c] = 0;
@@ -859,10 +856,8 @@ class PointSpace {
   std::vector<uint8_t> mark_;
   LevelRecorder recorder_{0, 0};
   std::vector<uint32_t> merged_, gone_;
-  // A round of Optimise: the moves its full checks chose, in order (ScanAndCheck); round
-  // 0's neighbours of the merged clusters and their targets (kNone: stay).
+  // A round of Optimise: the moves its checks chose, in order (ScanAndCheck).
   std::vector<std::pair<uint32_t, uint32_t>> moves_;
-  std::vector<uint32_t> compared_, target_;
   // In the current level: the cluster each gone one merged into, and each merged one's
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
@@ -881,9 +876,11 @@ class PointSpace {
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
-    double drift;
     bool all;            // the cluster was in no round's region of this call yet
     bool unchecked_too;  // its points not checked in this call are checked
+    // Round 0's neighbours of the merged clusters: next_to's pairs to compare with (none:
+    // a region slice).
+    uint32_t compare_begin = 0, compare_end = 0;
   };
   // Per cluster: the last call of Optimise (epoch_) that checked all its points (one of
   // that call's rounds had it in its region and checked its unchecked points).
