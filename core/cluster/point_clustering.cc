@@ -557,8 +557,8 @@ class PointSpace {
       }
       if (unchecked_too) region_epoch_[c] = epoch_;
       const size_t size = members_[c].size();
-      for (size_t begin = 0; begin < size; begin += kTaskPoints) {
-        slices_.push_back({c, begin, std::min(size, begin + kTaskPoints), all, unchecked_too});
+      for (size_t begin = 0; begin < size; begin += kSlicePoints) {
+        slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), all, unchecked_too});
       }
     }
     if (first) {
@@ -567,8 +567,8 @@ class PointSpace {
         while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
         const uint32_t c = next_to[g].first;
         const size_t size = members_[c].size();
-        for (size_t begin = 0; begin < size; begin += kTaskPoints) {
-          slices_.push_back({c, begin, std::min(size, begin + kTaskPoints), false, false,
+        for (size_t begin = 0; begin < size; begin += kSlicePoints) {
+          slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), false, false,
                              static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
         }
         g = end;
@@ -577,10 +577,10 @@ class PointSpace {
     ScanAndCheck(next_to);
   }
 
-  // The slices' work in tasks of about kTaskPoints members, in parallel where there is more
-  // than one; the moves (point, target) joined in slice order into moves_: the same list on
-  // any number of threads. A region slice: its points to check (`all`: its member list;
-  // otherwise, without branches, which of the two is unpredictable: the unchecked ones and
+  // The slices' work in tasks (of kSlicePoints members or more, see there), in parallel
+  // where there is more than one; the moves (point, target) joined in slice order into moves_: the
+  // same list on any number of threads. A region slice: its points to check (`all`: its member
+  // list; otherwise, without branches, which of the two is unpredictable: the unchecked ones and
   // those over their threshold, the drift of its cluster and neighbourhood) and their
   // checks (CheckPoint, stamped with this call's epoch and their threshold). A slice of a
   // cluster next to the merged ones (round 0): each point against its own centroid and
@@ -589,10 +589,13 @@ class PointSpace {
   // stamps and thresholds only.
   void ScanAndCheck(std::span<const std::pair<uint32_t, uint32_t>> next_to) {
     tasks_.clear();
+    size_t total = 0;
+    for (const Slice& slice : slices_) total += slice.end - slice.begin;
+    const size_t task_points = std::max(kSlicePoints, total / kTasksPerPass);
     size_t size = 0, first = 0;
     for (size_t n = 0; n < slices_.size(); ++n) {
       size += slices_[n].end - slices_[n].begin;
-      if (size >= kTaskPoints) {
+      if (size >= task_points) {
         tasks_.push_back({first, n + 1});
         first = n + 1;
         size = 0;
@@ -601,13 +604,17 @@ class PointSpace {
     if (first < slices_.size()) tasks_.push_back({first, slices_.size()});
     if (picked_.size() < tasks_.size()) picked_.resize(tasks_.size());
     const PointClusters& clusters = *clusters_;
-    auto scan = [&](const Slice& slice, uint32_t* out) {
+    // A task's scan; `drift_of` caches the drift of the cluster it scanned last.
+    auto scan = [&](const Slice& slice, uint32_t* out, std::pair<uint32_t, double>& drift_of) {
       const uint32_t* list = members_[slice.cluster].data();
       if (slice.all) {
         std::copy(list + slice.begin, list + slice.end, out);
         return slice.end - slice.begin;
       }
-      const double drift = Drift(slice.cluster) + NeighbourhoodDrift(slice.cluster);
+      if (drift_of.first != slice.cluster) {
+        drift_of = {slice.cluster, Drift(slice.cluster) + NeighbourhoodDrift(slice.cluster)};
+      }
+      const double drift = drift_of.second;
       size_t count = 0;
       const auto unchecked_too = static_cast<size_t>(slice.unchecked_too);
       for (size_t at = slice.begin; at < slice.end; ++at) {
@@ -653,6 +660,7 @@ class PointSpace {
       Picked& out = picked_[t];
       out.points.clear();
       out.moves.clear();
+      std::pair<uint32_t, double> drift_of{kNone, 0.0};
       for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
         const Slice& slice = slices_[n];
         if (slice.compare_end > slice.compare_begin) {
@@ -662,7 +670,7 @@ class PointSpace {
         }
         const size_t at = out.points.size();
         out.points.resize(at + (slice.end - slice.begin));
-        out.points.resize(at + scan(slice, out.points.data() + at));
+        out.points.resize(at + scan(slice, out.points.data() + at, drift_of));
       }
       check(out);
     };
@@ -868,11 +876,14 @@ class PointSpace {
   uint32_t epoch_ = 0;
   std::vector<uint32_t> stamp_, drift_epoch_;
   std::vector<double> threshold_, drift_;
-  // SelectAndCheck's slices of the region's member lists, ScanAndCheck's tasks (slices
-  // [first, last)) and what each picked and its targets. A task covers about kTaskPoints
-  // members: up to about 25 us to check them all (about 50 ns each), so that TBB's cost
-  // per task (about a microsecond) stays small.
-  static constexpr size_t kTaskPoints = 512;
+  // SelectAndCheck's slices of the member lists (kSlicePoints members at most),
+  // ScanAndCheck's tasks (slices [first, last)) and what each picked and chose. A pass
+  // makes tasks of at least kSlicePoints members, and of 1/kTasksPerPass of its members
+  // where it has more: up to about 13 us to check 256 points (about 50 ns each), so that
+  // TBB's cost per task (about a microsecond) stays small, and enough tasks on 16 cores
+  // for a large pass.
+  static constexpr size_t kSlicePoints = 256;
+  static constexpr size_t kTasksPerPass = 64;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
