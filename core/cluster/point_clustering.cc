@@ -33,8 +33,8 @@ constexpr uint32_t kNone = kNoCluster;
 // candidates move by less than that in all); -infinity for a point that moves. `x` is
 // scratch. Reads `clusters` only (safe in parallel).
 template <bool kMargin>
-inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i, std::vector<double>& x,
-                           double& margin) {
+[[gnu::always_inline]] inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i,
+                                                  std::vector<double>& x, double& margin) {
   uint32_t candidates[256];
   const uint32_t own = clusters.label(i);
   clusters.Relative(i, x);
@@ -628,15 +628,24 @@ class PointSpace {
       return count;
     };
     auto check = [&](Picked& out) {
-      std::vector<double> x;
-      double margin = 0;
-      for (size_t r = 0; r < out.points.size(); ++r) {
-        const uint32_t i = out.points[r];
-        if (r + 8 < out.points.size()) clusters.Prefetch(out.points[r + 8]);
-        const uint32_t to = detail::CheckPoint<true>(clusters, i, x, margin);
-        if (to != kNone) out.moves.push_back({i, to});
-        stamp_[i] = epoch_;
-        threshold_[i] = margin + Drift(clusters.label(i));
+      const size_t count = out.points.size();
+      const uint32_t* points = out.points.data();
+      out.targets.resize(count);
+      out.margins.resize(count);
+      uint32_t* targets = out.targets.data();
+      double* margins = out.margins.data();
+      for (size_t r = 0; r < count; ++r) {
+        if (r + 8 < count) clusters.Prefetch(points[r + 8]);
+        targets[r] = detail::CheckPoint<true>(clusters, points[r], out.x, margins[r]);
+      }
+      uint32_t* stamp = stamp_.data();
+      double* threshold = threshold_.data();
+      const uint32_t epoch = epoch_;
+      for (size_t r = 0; r < count; ++r) {
+        const uint32_t i = points[r];
+        stamp[i] = epoch;
+        threshold[i] = margins[r] + Drift(clusters.label(i));
+        if (targets[r] != kNone) out.moves.push_back({i, targets[r]});
       }
       out.points.clear();
     };
@@ -905,6 +914,8 @@ class PointSpace {
   struct Picked {
     std::vector<uint32_t> points;
     std::vector<std::pair<uint32_t, uint32_t>> moves;
+    std::vector<uint32_t> targets;  // scratch of the checks
+    std::vector<double> margins, x;
   };
   std::vector<Picked> picked_;
 };
