@@ -302,6 +302,33 @@ TEST(PointMultilevelTest, ParallelRoundScansDoNotDependOnTheThreadCount) {
   testing::ExpectSameLevelsOnOneAndTwoThreads(PointMultilevelOptions(), RunPoints(points), 100);
 }
 
+// Optimise's rounds scan and check in tasks of about 512 members, in parallel where a round
+// has more than one (here the upper levels' clusters hold thousands of points), joined in
+// order: the same levels on one, two and three threads, for ML, ML with bounded_drift
+// (ours) and PML then ML.
+TEST(PointMultilevelTest, RoundTasksGiveTheSameLevelsOnOneTwoAndThreeThreads) {
+  auto [points, truth] = Blobs(12, 500, 3, 37, 4);
+  for (int variant = 0; variant < 3; ++variant) {
+    SCOPED_TRACE(variant);
+    PointMultilevelOptions options;
+    options.grid = 24;  // many small start cells: several hundred ML levels
+    if (variant == 1) options.bounded_drift = 0.1;
+    if (variant == 2) {
+      options.parallel = true;
+      options.pml_until = 100;
+    }
+    std::vector<testing::RecordingSink> sinks(3);
+    for (int threads = 1; threads <= 3; ++threads) {
+      options.threads = threads;
+      ASSERT_TRUE(RunPointMultilevel(points, options, sinks[threads - 1]).ok());
+    }
+    EXPECT_GT(sinks[0].counts.size(), variant == 2 ? 50u : 300u);
+    EXPECT_EQ(sinks[0].counts.back(), 1u);
+    testing::ExpectSameLevels(sinks[0], sinks[1], /*with_start=*/true);
+    testing::ExpectSameLevels(sinks[0], sinks[2], /*with_start=*/true);
+  }
+}
+
 // optimise_rounds (ours): 8 is the default's hierarchy exactly; fewer rounds still make one
 // merge per level and change the hierarchy, at a higher energy where the clusters are large
 // (measured in BENCHMARKS.md: here about +6% on average, at most +23%); 0 and 65 are
