@@ -14,6 +14,7 @@
 #include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/detail/point_levels_checks.h"
+#include "core/cluster/detail/point_optimise.h"
 #include "core/cluster/kmeans.h"
 #include "core/energy/variance_energy.h"
 #include "core/hierarchy/level_recorder.h"
@@ -318,6 +319,9 @@ class PointSpace {
  public:
   using Engine = detail::MultilevelEngine<PointSpace>;
   static constexpr bool kOptimiseAllAtHandover = false;
+  using Slice = detail::PointOptimiseRounds::Slice;
+  using NextTo = detail::PointOptimiseRounds::NextTo;
+  using Move = detail::PointOptimiseRounds::Move;
 
   // `cells`: the voxel start (OccupiedCells), complete. The set-up stops early once
   // options.cancel is set; ReportStart then returns CANCELLED.
@@ -344,12 +348,6 @@ class PointSpace {
       std::copy_n(&points.values[size_t{original_[at]} * d_], d_, &sorted_.values[at * d_]);
     }
     clusters_ = std::make_unique<PointClusters>(sorted_, sorted_labels, k0_);
-    members_.resize(k0_);
-    position_.resize(m);
-    for (size_t i = 0; i < m; ++i) {
-      position_[i] = static_cast<uint32_t>(members_[sorted_labels[i]].size());
-      members_[sorted_labels[i]].push_back(static_cast<uint32_t>(i));
-    }
     VoxelNeighbours(cells, *clusters_, options.cancel);
     reverse_.resize(k0_);
     for (uint32_t c = 0; c < k0_; ++c) {
@@ -367,11 +365,8 @@ class PointSpace {
     mark_.assign(k0_, 0);
     into_.assign(k0_, kNone);
     partner_.assign(k0_, kNone);
-    stamp_.assign(points.num_points(), 0);
-    threshold_.assign(points.num_points(), 0.0);
-    drift_epoch_.assign(k0_, 0);
-    drift_.assign(k0_, 0.0);
-    region_epoch_.assign(k0_, 0);
+    optimise_ = std::make_unique<detail::PointOptimiseRounds>(
+        *clusters_, recorder_, options.optimise_rounds, options.bounded_drift);
   }
 
   uint32_t capacity() const { return k0_; }
@@ -456,177 +451,42 @@ class PointSpace {
     }
   }
 
-  void Touch(uint32_t c) {
-    recorder_.Touch(c, [&](uint32_t x) { return clusters_->Energy(x); });
-  }
-  void Record(uint32_t i, uint32_t from) { recorder_.RecordMove(i, from); }
-
  public:
   void Merge(uint32_t keep, uint32_t gone) {
-    Touch(keep);
-    Touch(gone);
-    for (uint32_t i : members_[gone]) {
-      Record(i, gone);
-      clusters_->SetLabel(i, keep);
-      position_[i] = static_cast<uint32_t>(members_[keep].size());
-      members_[keep].push_back(i);
-    }
-    std::vector<uint32_t>().swap(members_[gone]);
-    clusters_->MergeSums(keep, gone);
+    optimise_->Merge(keep, gone);
     into_[gone] = keep;
     partner_[keep] = gone;
     merged_.push_back(keep);
     gone_.push_back(gone);
   }
 
-  // LN k-means around the merged clusters: their points and their neighbours' points,
-  // then, for up to 8 rounds, the points of the clusters that changed. A point checked in
-  // this call keeps a margin (ChooseTargets) and is checked again only once its own
-  // centroid's drift plus the largest drift of any centroid since then could have used it
-  // up (Hamerly's bound); the rest of a changed cluster is skipped.
-  // How far cluster c's centroid has moved in this call of Optimise (a sum of steps).
-  double Drift(uint32_t c) const { return drift_epoch_[c] == epoch_ ? drift_[c] : 0.0; }
-  // The largest drift among the clusters a point of c can be compared with: c's
-  // neighbours and theirs.
-  double NeighbourhoodDrift(uint32_t c) const {
-    double largest = 0;
-    for (uint32_t n : clusters_->neighbours(c)) {
-      if (n == kNone) continue;
-      largest = std::max(largest, Drift(n));
-      for (uint32_t nn : clusters_->neighbours(n)) {
-        if (nn != kNone && nn != c) largest = std::max(largest, Drift(nn));
-      }
-    }
-    return largest;
-  }
-
-  // One chosen move in Optimise's apply pass, in the order of the checks (a cluster's last
-  // point stays): the sums, the recorder, the member lists; a cluster that changes for the
-  // first time in this round goes to `changed` with its old centroid.
-  void ApplyMove(uint32_t i, uint32_t to, std::vector<uint32_t>& changed,
-                 std::vector<double>& old_centroids) {
-    const uint32_t from = clusters_->label(i);
-    if (clusters_->count(from) <= 1) return;
-    for (uint32_t c : {from, to}) {
-      if (!mark_[c]) {
-        mark_[c] = 1;
-        changed.push_back(c);
-        const std::span<const double> centroid = clusters_->centroid(c);
-        old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
-        if (drift_epoch_[c] != epoch_) {
-          drift_epoch_[c] = epoch_;
-          drift_[c] = 0;
-        }
-      }
-    }
-    Touch(from);
-    Touch(to);
-    Record(i, from);
-    clusters_->Move(i, to);
-    stamp_[i] = 0;  // its candidates are another cluster's now: check it again
-    auto& list = members_[from];
-    const uint32_t at = position_[i];
-    list[at] = list.back();
-    position_[list[at]] = at;
-    list.pop_back();
-    position_[i] = static_cast<uint32_t>(members_[to].size());
-    members_[to].push_back(i);
-  }
-
-  // A later round's points to check, in region order: those not checked in this call, and
-  // those whose centroid and neighbourhood moved by more than their threshold. A cluster
-  // no round of this call has had in its region has no point checked yet: all of them.
-  // With options_.bounded_drift (ours), a cluster whose own centroid moved in this call by
-  // less than that share of its RMS radius keeps its unchecked points unchecked (and, if
-  // none of its points is checked yet, is not scanned at all). Round 0 (`first`): every
-  // point of the region, then the points of the clusters in `next_to` (sorted (cluster,
-  // merged cluster) pairs), each compared with its merged clusters only. Then ScanAndCheck.
-  void SelectAndCheck(std::span<const uint32_t> region, bool first,
-                      std::span<const std::pair<uint32_t, uint32_t>> next_to) {
-    slices_.clear();
-    const double bounded = options_.bounded_drift;
-    for (uint32_t c : region) {
-      bool all = true, unchecked_too = true;
-      if (!first) {
-        all = region_epoch_[c] != epoch_;
-        if (bounded > 0) {
-          const double n = static_cast<double>(clusters_->count(c));
-          const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
-          unchecked_too = Drift(c) >= bounded * radius;
-        }
-        if (all && !unchecked_too) continue;
-      }
-      if (unchecked_too) region_epoch_[c] = epoch_;
-      const size_t size = members_[c].size();
-      for (size_t begin = 0; begin < size; begin += kSlicePoints) {
-        slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), all, unchecked_too});
-      }
-    }
-    if (first) {
-      for (size_t g = 0; g < next_to.size();) {
-        size_t end = g;
-        while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
-        const uint32_t c = next_to[g].first;
-        const size_t size = members_[c].size();
-        for (size_t begin = 0; begin < size; begin += kSlicePoints) {
-          slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), false, false,
-                             static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
-        }
-        g = end;
-      }
-    }
-    ScanAndCheck(next_to);
-  }
-
-  // The slices' work in tasks (of kSlicePoints members or more, see there), in parallel
-  // where there is more than one; the moves (point, target) joined in slice order into moves_: the
-  // same list on any number of threads. A region slice: its points to check (`all`: its member
-  // list; otherwise, without branches, which of the two is unpredictable: the unchecked ones and
-  // those over their threshold, the drift of its cluster and neighbourhood) and their
-  // checks (CheckPoint, stamped with this call's epoch and their threshold). A slice of a
-  // cluster next to the merged ones (round 0): each point against its own centroid and
-  // next_to's merged clusters [compare_begin, compare_end), the nearest strictly closer
-  // one its target. Slices hold distinct points, so each task writes its own points'
-  // stamps and thresholds only.
-  void ScanAndCheck(std::span<const std::pair<uint32_t, uint32_t>> next_to) {
+  // The CPU's checks of a round's slices (detail::PointOptimiseRounds::Run's stage): the
+  // slices' work in tasks (of kSlicePoints members or more, see there), in parallel where
+  // there is more than one; the moves (point, target) joined in slice order into `moves`:
+  // the same list on any number of threads. A region slice: its points to check (Scan)
+  // and their checks (CheckPoint, then Stamp). A slice of a cluster next to the merged
+  // ones (round 0): each point against its own centroid and next_to's merged clusters
+  // [compare_begin, compare_end), the nearest strictly closer one its target. Slices hold
+  // distinct points, so each task stamps its own points only.
+  void CheckSlices(std::span<const Slice> slices, std::span<const NextTo> next_to,
+                   std::vector<Move>& moves) {
     tasks_.clear();
     size_t total = 0;
-    for (const Slice& slice : slices_) total += slice.end - slice.begin;
+    for (const Slice& slice : slices) total += slice.end - slice.begin;
     const size_t task_points = std::max(kSlicePoints, total / kTasksPerPass);
     size_t size = 0, first = 0;
-    for (size_t n = 0; n < slices_.size(); ++n) {
-      size += slices_[n].end - slices_[n].begin;
+    for (size_t n = 0; n < slices.size(); ++n) {
+      size += slices[n].end - slices[n].begin;
       if (size >= task_points) {
         tasks_.push_back({first, n + 1});
         first = n + 1;
         size = 0;
       }
     }
-    if (first < slices_.size()) tasks_.push_back({first, slices_.size()});
+    if (first < slices.size()) tasks_.push_back({first, slices.size()});
     if (picked_.size() < tasks_.size()) picked_.resize(tasks_.size());
     const PointClusters& clusters = *clusters_;
-    // A task's scan; `drift_of` caches the drift of the cluster it scanned last.
-    auto scan = [&](const Slice& slice, uint32_t* out, std::pair<uint32_t, double>& drift_of) {
-      const uint32_t* list = members_[slice.cluster].data();
-      if (slice.all) {
-        std::copy(list + slice.begin, list + slice.end, out);
-        return slice.end - slice.begin;
-      }
-      if (drift_of.first != slice.cluster) {
-        drift_of = {slice.cluster, Drift(slice.cluster) + NeighbourhoodDrift(slice.cluster)};
-      }
-      const double drift = drift_of.second;
-      size_t count = 0;
-      const auto unchecked_too = static_cast<size_t>(slice.unchecked_too);
-      for (size_t at = slice.begin; at < slice.end; ++at) {
-        const uint32_t i = list[at];
-        out[count] = i;
-        const auto unchecked = static_cast<size_t>(stamp_[i] != epoch_);
-        const auto over = static_cast<size_t>(drift > threshold_[i]);
-        count += (unchecked & unchecked_too) | ((unchecked ^ 1) & over);
-      }
-      return count;
-    };
+    detail::PointOptimiseRounds& optimise = *optimise_;
     auto check = [&](Picked& out) {
       const size_t count = out.points.size();
       const uint32_t* points = out.points.data();
@@ -638,19 +498,15 @@ class PointSpace {
         if (r + 8 < count) clusters.Prefetch(points[r + 8]);
         targets[r] = detail::CheckPoint<true>(clusters, points[r], out.x, margins[r]);
       }
-      uint32_t* stamp = stamp_.data();
-      double* threshold = threshold_.data();
-      const uint32_t epoch = epoch_;
       for (size_t r = 0; r < count; ++r) {
         const uint32_t i = points[r];
-        stamp[i] = epoch;
-        threshold[i] = margins[r] + Drift(clusters.label(i));
+        optimise.Stamp(i, margins[r]);
         if (targets[r] != kNone) out.moves.push_back({i, targets[r]});
       }
       out.points.clear();
     };
     auto compare = [&](const Slice& slice, Picked& out) {
-      const uint32_t* list = members_[slice.cluster].data();
+      const std::span<const uint32_t> list = optimise.members(slice.cluster);
       for (size_t at = slice.begin; at < slice.end; ++at) {
         const uint32_t i = list[at];
         if (at + 8 < slice.end) clusters.Prefetch(list[at + 8]);
@@ -672,7 +528,7 @@ class PointSpace {
       out.moves.clear();
       std::pair<uint32_t, double> drift_of{kNone, 0.0};
       for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
-        const Slice& slice = slices_[n];
+        const Slice& slice = slices[n];
         if (slice.compare_end > slice.compare_begin) {
           check(out);  // the region's points before it, in order
           compare(slice, out);
@@ -680,7 +536,7 @@ class PointSpace {
         }
         const size_t at = out.points.size();
         out.points.resize(at + (slice.end - slice.begin));
-        out.points.resize(at + scan(slice, out.points.data() + at, drift_of));
+        out.points.resize(at + optimise.Scan(slice, out.points.data() + at, drift_of));
       }
       check(out);
     };
@@ -691,61 +547,27 @@ class PointSpace {
         for (size_t t = range.begin(); t != range.end(); ++t) run(t);
       });
     }
-    moves_.clear();
+    moves.clear();
     for (size_t t = 0; t < tasks_.size(); ++t) {
-      moves_.insert(moves_.end(), picked_[t].moves.begin(), picked_[t].moves.end());
+      moves.insert(moves.end(), picked_[t].moves.begin(), picked_[t].moves.end());
     }
   }
 
-  // (LN k-means' assignment is parallel in every level.)
+  // LN k-means around the merged clusters (detail/point_optimise.h's rounds) with the
+  // CPU's checks (CheckSlices).
   void Optimise(std::span<const uint32_t> merged, bool /*parallel_level*/) {
     if (options_.optimizer == PointMultilevelOptions::Optimizer::kNone) return;
-    // Round 0: the merged clusters' points get the full check. A point of a cluster next
-    // to a merged one can only gain by moving to a merged cluster (its other candidates
-    // are as they were), so it is compared with the merged clusters that list its cluster
-    // as a neighbour, and with nothing else.
-    std::vector<uint32_t> region;
-    for (uint32_t c : merged) {
-      if (!mark_[c] && clusters_->count(c) > 0) {
-        mark_[c] = 1;
-        region.push_back(c);
-      }
-    }
-    std::vector<std::pair<uint32_t, uint32_t>> next_to;  // (cluster, merged cluster)
-    for (uint32_t c : merged) {
-      for (uint32_t n : clusters_->neighbours(c)) {
-        if (n != kNone && !mark_[n] && clusters_->count(n) > 0) next_to.push_back({n, c});
-      }
-    }
-    for (uint32_t c : region) mark_[c] = 0;
-    std::sort(next_to.begin(), next_to.end());
-    next_to.erase(std::unique(next_to.begin(), next_to.end()), next_to.end());
-    ++epoch_;
-    std::vector<uint32_t> changed;
-    std::vector<double> old_centroids;
-    const int rounds = static_cast<int>(options_.optimise_rounds);
-    for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
-         ++round) {
-      SelectAndCheck(region, /*first=*/round == 0, next_to);
-      changed.clear();
-      old_centroids.clear();
-      for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
-      for (size_t n = 0; n < changed.size(); ++n) {
-        const uint32_t c = changed[n];
-        mark_[c] = 0;
-        clusters_->UpdateCentroid(c);
-        const std::span<const double> centroid = clusters_->centroid(c);
-        double squared = 0;
-        for (uint32_t j = 0; j < d_; ++j) {
-          const double diff = centroid[j] - old_centroids[n * d_ + j];
-          squared += diff * diff;
-        }
-        const double drift = std::sqrt(squared) * (1 + 1e-12);
-        drift_[c] += drift;
-      }
-      if (changed.empty()) break;
-      region = changed;
-    }
+    // Cancelled: the engine reports it after the level.
+    static_cast<void>(optimise_->Run(
+        merged, options_.cancel,
+        [&](std::span<const Slice> slices, std::span<const NextTo> next_to,
+            std::vector<Move>& moves) {
+          CheckSlices(slices, next_to, moves);
+          return absl::OkStatus();
+        },
+        [](std::span<const uint32_t> /*changed*/, std::span<const Move> /*moved*/) {
+          return absl::OkStatus();
+        }));
   }
 
   // After a level: the neighbours of every cluster that changed and of those that saw a
@@ -869,44 +691,23 @@ class PointSpace {
   const uint32_t d_;
   uint32_t k0_ = 0;
   std::unique_ptr<PointClusters> clusters_;
-  std::vector<std::vector<uint32_t>> members_, reverse_;
-  std::vector<uint32_t> position_;
+  std::vector<std::vector<uint32_t>> reverse_;
   std::vector<uint8_t> mark_;
   LevelRecorder recorder_{0, 0};
   std::vector<uint32_t> merged_, gone_;
-  // A round of Optimise: the moves its checks chose, in order (ScanAndCheck).
-  std::vector<std::pair<uint32_t, uint32_t>> moves_;
   // In the current level: the cluster each gone one merged into, and each merged one's
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
   std::vector<uint32_t> refresh_odes_;
   std::vector<uint32_t> before_;  // Refresh's copy of the list it replaces
-  // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
-  // per cluster its centroid's drift in the current epoch.
-  uint32_t epoch_ = 0;
-  std::vector<uint32_t> stamp_, drift_epoch_;
-  std::vector<double> threshold_, drift_;
-  // SelectAndCheck's slices of the member lists (kSlicePoints members at most),
-  // ScanAndCheck's tasks (slices [first, last)) and what each picked and chose. A pass
-  // makes tasks of at least kSlicePoints members, and of 1/kTasksPerPass of its members
-  // where it has more: up to about 13 us to check 256 points (about 50 ns each), so that
-  // TBB's cost per task (about a microsecond) stays small, and enough tasks on 16 cores
-  // for a large pass.
-  static constexpr size_t kSlicePoints = 256;
+  // Optimise's rounds (member lists, bounds, apply) and CheckSlices' tasks (slices
+  // [first, last)) and what each picked and chose. A pass makes tasks of at least
+  // kSlicePoints members, and of 1/kTasksPerPass of its members where it has more: up to
+  // about 13 us to check 256 points (about 50 ns each), so that TBB's cost per task (about
+  // a microsecond) stays small, and enough tasks on 16 cores for a large pass.
+  std::unique_ptr<detail::PointOptimiseRounds> optimise_;
+  static constexpr size_t kSlicePoints = detail::PointOptimiseRounds::kSlicePoints;
   static constexpr size_t kTasksPerPass = 64;
-  struct Slice {
-    uint32_t cluster;
-    size_t begin, end;
-    bool all;            // the cluster was in no round's region of this call yet
-    bool unchecked_too;  // its points not checked in this call are checked
-    // Round 0's neighbours of the merged clusters: next_to's pairs to compare with (none:
-    // a region slice).
-    uint32_t compare_begin = 0, compare_end = 0;
-  };
-  // Per cluster: the last call of Optimise (epoch_) that checked all its points (one of
-  // that call's rounds had it in its region and checked its unchecked points).
-  std::vector<uint32_t> region_epoch_;
-  std::vector<Slice> slices_;
   struct Task {
     size_t first, last;
   };
@@ -1061,14 +862,6 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
                                                           const PointMultilevelOptions& options,
                                                           LevelSink& sink) {
   MLCLUST_RETURN_IF_ERROR(detail::CheckPointLevelsArguments(points, options));
-  if (options.optimise_rounds < 1 || options.optimise_rounds > 64) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("optimise_rounds: ", options.optimise_rounds, " is not in 1..64"));
-  }
-  if (!(options.bounded_drift >= 0 && options.bounded_drift <= 1)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("bounded_drift: ", options.bounded_drift, " is not in 0..1"));
-  }
   tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
   return arena.execute([&]() -> absl::StatusOr<PointMultilevelSummary> {
     const Bounds bounds = BoundsOf(points);

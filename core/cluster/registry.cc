@@ -939,7 +939,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  PmlUntilOption(true), PmlPairsOption()};
     a.options.push_back(BoundedDriftOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
-    // merges only, without the switch to ML.
+    // merges, with LN k-means inside the levels (--device gpu), without the switch to ML.
     a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);

@@ -29,14 +29,28 @@ enum Binding : uint32_t {
 
 }  // namespace
 
-uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters) {
-  return num_points * (4 * uint64_t{dims} + 20) + 8 * uint64_t{dims} +
+namespace {
+
+// The check list's words at most: the points (each at most once), a group per own entry,
+// the groups' starts and the candidates (at most one group per candidate).
+uint64_t CheckWords(uint64_t num_points, uint64_t own_candidates) {
+  return 2 * std::max<uint64_t>(num_points, 1) + 2 * own_candidates + 1;
+}
+
+}  // namespace
+
+uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters,
+                             uint64_t own_candidates) {
+  const uint64_t labels = num_clusters > 0 ? 4 * num_points : 0;
+  return num_points * (4 * uint64_t{dims} + 12) + labels +
+         4 * CheckWords(num_points, own_candidates) + 8 * uint64_t{dims} +
          uint64_t{num_clusters} * (16 * uint64_t{dims} + 4);
 }
 
 absl::StatusOr<LnKmeansKernel> LnKmeansKernel::Create(GlContext& context, const PointSet& points,
                                                       std::span<const double> origin,
-                                                      uint32_t num_clusters) {
+                                                      uint32_t num_clusters,
+                                                      uint64_t own_candidates) {
   const uint32_t d = points.dims;
   const uint64_t m = points.num_points();
   if (d == 0 || d > kLnKmeansMaxDims || origin.size() != d) {
@@ -53,10 +67,12 @@ absl::StatusOr<LnKmeansKernel> LnKmeansKernel::Create(GlContext& context, const 
   absl::StatusOr<LnKmeansKernel> kernel = [&]() -> absl::StatusOr<LnKmeansKernel> {
     const uint64_t points_or_one = std::max<uint64_t>(m, 1);
     const uint64_t k = std::max<uint32_t>(num_clusters, 1);
+    // Resident only (k = 0): no labels of its own (a placeholder), the check list's bound.
+    const uint64_t labels = num_clusters > 0 ? points_or_one * 4 : 4;
+    const uint64_t check = num_clusters > 0 ? points_or_one * 4 : 4 * CheckWords(m, own_candidates);
     const uint64_t bytes[kBindings] = {
-        points_or_one * d * 4, uint64_t{d} * 8, points_or_one * 4, k * d * 8,
-        k * 2 * d * 4,         k * 4,           points_or_one * 4, points_or_one * 4,
-        points_or_one * 8};
+        points_or_one * d * 4, uint64_t{d} * 8,  labels, k * d * 8, k * 2 * d * 4, k * 4, check,
+        points_or_one * 4,     points_or_one * 8};
     std::vector<StorageBuffer> buffers;
     for (uint64_t size : bytes) {
       MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
@@ -97,6 +113,9 @@ absl::Status LnKmeansKernel::Assign(std::span<const uint32_t> labels,
     return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", labels.size(),
                                                    " labels for ", num_points_, " points"));
   }
+  if (num_clusters_ == 0) {
+    return absl::FailedPreconditionError("ln-kmeans on the GPU: Assign on a kernel of 0 clusters");
+  }
   if (check.empty()) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kAssignPass));
   MLCLUST_RETURN_IF_ERROR(PassError(kAssignPass, buffers_[kLabels].Upload(labels)));
@@ -124,10 +143,10 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
                                             std::span<const uint32_t> check,
                                             std::span<uint32_t> target, std::span<double> margin,
                                             const LnKmeansOwnCandidates& own) {
-  const size_t full = own.ranges.empty() ? check.size() : own.full;
+  const size_t full = own.groups.empty() ? check.size() : own.full;
   if (check.size() != target.size() || check.size() > num_points_ ||
       (!margin.empty() && margin.size() != check.size()) || full > check.size() ||
-      own.ranges.size() != 2 * (check.size() - full)) {
+      own.groups.size() != check.size() - full) {
     return absl::InvalidArgumentError(absl::StrCat("ln-kmeans on the GPU: ", check.size(),
                                                    " points to check and ", target.size(),
                                                    " targets for ", num_points_, " points"));
@@ -138,9 +157,14 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
           absl::StrCat("ln-kmeans on the GPU: point ", i, " of ", num_points_));
     }
   }
-  for (size_t e = 0; e < own.ranges.size(); e += 2) {
-    if (own.ranges[e] > own.ranges[e + 1] || own.ranges[e + 1] > own.candidates.size()) {
-      return absl::InvalidArgumentError("ln-kmeans on the GPU: a candidate range out of range");
+  for (size_t q = 0; q < own.starts.size(); ++q) {
+    if (own.starts[q] > own.candidates.size() || (q > 0 && own.starts[q] < own.starts[q - 1])) {
+      return absl::InvalidArgumentError("ln-kmeans on the GPU: a candidate group out of range");
+    }
+  }
+  for (uint32_t q : own.groups) {
+    if (q + size_t{1} >= own.starts.size()) {
+      return absl::InvalidArgumentError("ln-kmeans on the GPU: a group out of range");
     }
   }
   for (uint32_t c : own.candidates) {
@@ -154,19 +178,16 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
         const uint32_t program,
         GetComputeProgram(*context_, "ln_kmeans_assign",
                           absl::StrCat(kComputeShaderPrelude, kLnKmeansAssignGlsl)));
-    const uint64_t entries = check.size() + own.ranges.size() + own.candidates.size();
+    // The check list, then the own entries' groups, the groups' starts and the candidates.
+    const uint64_t entries =
+        check.size() + own.groups.size() + own.starts.size() + own.candidates.size();
     if (entries * 4 > buffers_[kCheck].bytes()) {
-      MLCLUST_ASSIGN_OR_RETURN(
-          buffers_[kCheck],
-          StorageBuffer::Create(*context_, std::max(entries * 4, 2 * buffers_[kCheck].bytes())));
+      MLCLUST_ASSIGN_OR_RETURN(buffers_[kCheck], StorageBuffer::Create(*context_, entries * 4));
     }
-    MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(check));
-    if (!own.ranges.empty()) {
-      MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(own.ranges, check.size_bytes()));
-      if (!own.candidates.empty()) {
-        MLCLUST_RETURN_IF_ERROR(
-            buffers_[kCheck].Upload(own.candidates, check.size_bytes() + own.ranges.size_bytes()));
-      }
+    uint64_t at = 0;
+    for (const std::span<const uint32_t> part : {check, own.groups, own.starts, own.candidates}) {
+      if (!part.empty()) MLCLUST_RETURN_IF_ERROR(buffers_[kCheck].Upload(part, at));
+      at += part.size_bytes();
     }
     const detail::GlFunctions& gl = context_->gl();
     gl.UseProgram(program);
@@ -179,6 +200,8 @@ absl::Status LnKmeansKernel::DispatchAssign(const LnKmeansResidentClusters& clus
     gl.ProgramUniform1ui(program, 1, dims_);
     gl.ProgramUniform1ui(program, 2, margin.empty() ? 0u : 1u);
     gl.ProgramUniform1ui(program, 3, static_cast<GLuint>(full));
+    gl.ProgramUniform1ui(program, 4,
+                         static_cast<GLuint>(check.size() + own.groups.size() + own.starts.size()));
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, check.size()));
     gl.UseProgram(0);
     MLCLUST_RETURN_IF_ERROR(buffers_[kTargets].Download(0, target.data(), target.size_bytes()));

@@ -9,9 +9,12 @@
 // IEEE fp64 (llvmpipe) the targets equal ChooseTargets'.
 //
 // Memory: the points stay on the GPU (4 d bytes per point), with labels, the points to
-// check, their targets and margins (20 bytes per point), and per cluster its centroid, neighbours
-// and count (8 d + 8 d + 4 bytes); LnKmeansMemoryBound. Each array must fit one storage
-// buffer (RESOURCE_EXHAUSTED otherwise); d <= kLnKmeansMaxDims.
+// check, their targets and margins (20 bytes per point), and per cluster its centroid,
+// neighbours and count (8 d + 8 d + 4 bytes); a kernel for resident clusters only (k = 0)
+// has no labels or clusters of its own, and its check list holds up to `own_candidates`
+// own candidates besides (4 bytes per point and 8 per candidate more). LnKmeansMemoryBound.
+// Each array must fit one storage buffer (RESOURCE_EXHAUSTED otherwise); d <=
+// kLnKmeansMaxDims.
 #ifndef MLCLUST_GPU_KERNELS_LN_KMEANS_H_
 #define MLCLUST_GPU_KERNELS_LN_KMEANS_H_
 
@@ -32,7 +35,8 @@ namespace mlclust::gpu {
 // invocation).
 inline constexpr uint32_t kLnKmeansMaxDims = 64;
 
-uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters);
+uint64_t LnKmeansMemoryBound(uint64_t num_points, uint32_t dims, uint32_t num_clusters,
+                             uint64_t own_candidates = 0);
 
 // The clusters of another kernel, resident on the GPU, for LnKmeansKernel::AssignResident
 // (the point levels' own buffers, gpu/kernels/points_levels.h): the labels (one uint per
@@ -46,24 +50,28 @@ struct LnKmeansResidentClusters {
 };
 
 // Entries of AssignResident's check list compared with their own candidates only (the
-// CPU's round 0 for the points next to a merged cluster, PointSpace::Optimise): entries
-// from `full` on; entry full + e takes candidates[ranges[2e] .. ranges[2e + 1]) and moves to
-// the nearest that is strictly nearer than its own centroid. Empty ranges: none.
+// CPU's round 0 for the points next to a merged cluster, core/cluster/detail/
+// point_optimise.h): entries from `full` on; entry full + e is in group groups[e], whose
+// candidates are candidates[starts[q] .. starts[q + 1]) for q = groups[e], and moves to the
+// nearest that is strictly nearer than its own centroid. `starts` ascends, one more than
+// the groups. Empty groups: none.
 struct LnKmeansOwnCandidates {
   size_t full = 0;
-  std::span<const uint32_t> ranges;
+  std::span<const uint32_t> groups;
+  std::span<const uint32_t> starts;
   std::span<const uint32_t> candidates;
 };
 
 class LnKmeansKernel {
  public:
-  // Uploads the points and the data's mean `origin` (d values) for k clusters. Returns
-  // INVALID_ARGUMENT for d = 0 or > kLnKmeansMaxDims, origin.size() != d, or 2^31 points
-  // or more; RESOURCE_EXHAUSTED / INTERNAL as the other kernels. Errors name the pass
-  // "ln-kmeans assign".
+  // Uploads the points and the data's mean `origin` (d values) for k clusters (0: for
+  // AssignResident only, whose check list then takes up to `own_candidates` own
+  // candidates without growing). Returns INVALID_ARGUMENT for d = 0 or > kLnKmeansMaxDims,
+  // origin.size() != d, or 2^31 points or more; RESOURCE_EXHAUSTED / INTERNAL as the other
+  // kernels. Errors name the pass "ln-kmeans assign".
   static absl::StatusOr<LnKmeansKernel> Create(GlContext& context, const PointSet& points,
                                                std::span<const double> origin,
-                                               uint32_t num_clusters);
+                                               uint32_t num_clusters, uint64_t own_candidates = 0);
 
   // Uploads the clusters' state for the next passes: centroids (k x d, relative to the
   // origin), neighbours (k x 2d) and counts (k).
@@ -72,7 +80,8 @@ class LnKmeansKernel {
 
   // The assign stage: target[r] for point check[r] (kNoCluster: stays), with the point
   // labels `labels` (one per point, each < k; not checked) and the clusters of the last
-  // SetClusters. Every check[r] must be < the number of points (checked).
+  // SetClusters. Every check[r] must be < the number of points (checked). FAILED_PRECONDITION
+  // for a kernel of 0 clusters.
   absl::Status Assign(std::span<const uint32_t> labels, std::span<const uint32_t> check,
                       std::span<uint32_t> target);
 
@@ -82,9 +91,9 @@ class LnKmeansKernel {
   // neighbours name (not checked on the GPU); every check[r] < the number of points.
   // With `margin` (check.size() values) also ChooseTargets' margins
   // (core/cluster/detail/ln_kmeans_stages.h; 0 for the entries of `own`). With `own`
-  // (ranges for every entry from own.full on, each inside own.candidates), those entries
-  // are compared with their own candidates only. The check buffer grows to hold the
-  // ranges and candidates (4 bytes each).
+  // (a group for every entry from own.full on), those entries are compared with their own
+  // candidates only. The check buffer grows where the list is longer than Create's bound
+  // (RESOURCE_EXHAUSTED past the context's largest storage buffer).
   absl::Status AssignResident(const LnKmeansResidentClusters& clusters,
                               std::span<const uint32_t> check, std::span<uint32_t> target,
                               std::span<double> margin = {}, const LnKmeansOwnCandidates& own = {});

@@ -7,10 +7,11 @@
 // margin: for a point that stays, the distance to its second-best candidate less the
 // distance to its own centroid; -infinity for a point that moves. Entries from u_full on
 // are compared with their own candidates only (the CPU's round 0 for the points next to a
-// merged cluster, PointSpace::Optimise): entry u_full + e has the candidates
-// check[base + g] for g in [check[u_count + 2e], check[u_count + 2e + 1]), base = u_count +
-// 2 (u_count - u_full); it moves to the nearest that is strictly nearer than its own
-// centroid (margin 0, not used). After the prelude of gpu/context/compute.h.
+// merged cluster, core/cluster/detail/point_optimise.h): entry u_full + e is in group
+// q = check[u_count + e], whose candidates are check[u_candidates + g] for g in
+// [check[starts + q], check[starts + q + 1]), starts = u_count + (u_count - u_full); it
+// moves to the nearest that is strictly nearer than its own centroid (margin 0, not
+// used). After the prelude of gpu/context/compute.h.
 layout(std430, binding = 0) readonly buffer Points { float points[]; };         // d per point
 layout(std430, binding = 1) readonly buffer Origin { double origin[]; };        // d
 layout(std430, binding = 2) readonly buffer Labels { uint labels[]; };          // per point
@@ -24,6 +25,7 @@ layout(location = 1) uniform uint u_dims;   // d
 layout(std430, binding = 8) writeonly buffer Margins { double margins[]; };  // per check entry
 layout(location = 2) uniform uint u_margins;  // 1: write margins
 layout(location = 3) uniform uint u_full;     // entries before it get the full rule
+layout(location = 4) uniform uint u_candidates;  // where the own candidates start in check
 const uint kNone = 0xFFFFFFFFu;
 const uint kMaxCandidates = 256u;
 
@@ -61,12 +63,12 @@ void main() {
   uint point = check[r];
   own = labels[point];
   if (r >= u_full) {
-    uint e = r - u_full;
-    uint base = u_count + 2u * (u_count - u_full);
+    uint q = check[u_count + (r - u_full)];
+    uint starts = u_count + (u_count - u_full);
     double nearest = Distance(point, own);
     uint to = kNone;
-    for (uint g = check[u_count + 2u * e]; g < check[u_count + 2u * e + 1u]; ++g) {
-      uint candidate = check[base + g];
+    for (uint g = check[starts + q]; g < check[starts + q + 1u]; ++g) {
+      uint candidate = check[u_candidates + g];
       double dist = Distance(point, candidate);
       if (dist < nearest) {
         nearest = dist;

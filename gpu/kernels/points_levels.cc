@@ -28,6 +28,7 @@ constexpr char kCollapsePass[] = "points collapse";
 constexpr char kTripletsPass[] = "points triplets";
 constexpr char kNeighboursPass[] = "points neighbours";
 constexpr char kUpdatePass[] = "points update";
+constexpr char kReadBackPass[] = "points read-back";
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 // pml_compact.glsl's kind and counter slots (shared with the meshes' PML).
@@ -39,13 +40,20 @@ static_assert(kPairSlot == 0 && kCounterSlots == 4);
 uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
 uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
 uint64_t MaxPairs(uint64_t k) { return k / 2 + 1; }
+// Update's two staging buffers at their largest, bytes: ids (a cluster's id and count, a
+// point's id and label) and values (2d + 1 per cluster).
+std::array<uint64_t, 2> UpdateStagingBytes(uint64_t m, uint64_t k, uint32_t d) {
+  const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
+  return {8 * (n + c), 8 * c * (2 * uint64_t{d} + 1)};
+}
 
 }  // namespace
 
 uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d) {
   const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
   return n * 16 + Chunks(n) * 4 + Groups(n) * 4 + kCounterSlots * 4 +
-         c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36;
+         c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36 +
+         UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
 }
 
 absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
@@ -239,11 +247,15 @@ absl::Status PointLevelsGpu::Update(std::span<const uint32_t> clusters,
   if (entries == 0) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kUpdatePass));
   absl::Status status = [&]() -> absl::Status {
+    // Grown by doubling up to the largest update there can be (every cluster and every
+    // point, UpdateStagingBytes), which PointLevelsMemoryBound counts.
     const std::array<uint64_t, 2> bytes = {8 * entries, 8 * std::max<uint64_t>(values.size(), 1)};
+    const std::array<uint64_t, 2> most = UpdateStagingBytes(m_, k_, d_);
     for (size_t b = 0; b < 2; ++b) {
       const bool have = staging_.size() > b;
       if (have && staging_[b].bytes() >= bytes[b]) continue;
-      const uint64_t size = std::max(bytes[b], have ? 2 * staging_[b].bytes() : 0);
+      const uint64_t size =
+          std::max(bytes[b], std::min(most[b], have ? 2 * staging_[b].bytes() : 0));
       MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
       if (have) {
         staging_[b] = std::move(buffer);
@@ -278,16 +290,21 @@ absl::Status PointLevelsGpu::Update(std::span<const uint32_t> clusters,
 
 absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Labels() {
   std::vector<uint32_t> labels(m_);
-  if (m_ > 0) MLCLUST_RETURN_IF_ERROR(buffers_[kLabels].Download(std::span<uint32_t>(labels)));
+  if (m_ > 0) MLCLUST_RETURN_IF_ERROR(ReadBack(kLabels, std::span<uint32_t>(labels)));
   return labels;
 }
 
 absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Neighbours() {
   std::vector<uint32_t> table(size_t{k_} * 2 * d_);
-  if (k_ > 0) {
-    MLCLUST_RETURN_IF_ERROR(buffers_[kNeighboursIn].Download(std::span<uint32_t>(table)));
-  }
+  if (k_ > 0) MLCLUST_RETURN_IF_ERROR(ReadBack(kNeighboursIn, std::span<uint32_t>(table)));
   return table;
+}
+
+absl::Status PointLevelsGpu::ReadBack(uint32_t binding, std::span<uint32_t> out) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kReadBackPass));
+  absl::Status status = buffers_[binding].Download(out);
+  if (status.ok()) status = CheckGlError(*context_, kReadBackPass);
+  return PassError(kReadBackPass, status);
 }
 
 }  // namespace mlclust::gpu

@@ -23,7 +23,9 @@
 // (compaction counts); per cluster of the start 4 (size) + 8d (centroid) + 8(d + 1)
 // (sums) + 4 (remap) + 16d (two neighbour tables) + 12 (ODE) + 16d (ODE keys) + 8
 // (partner) + 18 (pairs: 36 bytes, at most one per two clusters): for 10^6 3-D points
-// from 1.25 * 10^5 voxels, 16 MB + 18 MB.
+// from 1.25 * 10^5 voxels, 16 MB + 18 MB. With LN k-means (Update's staging, grown on
+// demand up to every point and cluster at once) 8 more per point and 8 + 8(2d + 1) more
+// per cluster.
 #ifndef MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 #define MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 
@@ -87,7 +89,7 @@ class PointLevelsGpu {
   // each of `clusters` its count, its d + 1 sums and its d centroid values (`values`,
   // 2d + 1 per cluster), and for each of `points` its label. INVALID_ARGUMENT for sizes
   // that do not agree or ids out of range. The staging buffers grow to the largest update
-  // (at most 8 + 8(2d + 1) bytes per cluster and 8 per point).
+  // (at most 8 + 8(2d + 1) bytes per cluster and 8 per point: PointLevelsMemoryBound).
   absl::Status Update(std::span<const uint32_t> clusters, std::span<const uint32_t> counts,
                       std::span<const double> values, std::span<const uint32_t> points,
                       std::span<const uint32_t> labels);
@@ -96,7 +98,7 @@ class PointLevelsGpu {
   // ConnectWhenStuck; O(k^2), for few clusters). Pass "points neighbours".
   absl::Status LinkAll();
 
-  // The current labels and neighbour table (downloaded; for tests).
+  // The current labels and neighbour table, downloaded (pass "points read-back").
   absl::StatusOr<std::vector<uint32_t>> Labels();
   absl::StatusOr<std::vector<uint32_t>> Neighbours();
 
@@ -140,6 +142,8 @@ class PointLevelsGpu {
                         PointLevelGpu& level);
   absl::Status Extract(uint32_t pairs, PointLevelGpu& level);
   absl::Status Refresh(bool link_all);
+  // Buffer `binding`'s first out.size() uints into `out` (pass "points read-back").
+  absl::Status ReadBack(uint32_t binding, std::span<uint32_t> out);
 
   GlContext* context_;
   uint32_t m_, k_, d_;

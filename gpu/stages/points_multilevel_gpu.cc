@@ -179,15 +179,12 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   upload.neighbours = start.neighbours;
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
   // LN k-means inside the levels (points_optimise_gpu.h): the host's mirror starts from the
-  // values just uploaded.
+  // start just uploaded.
   std::optional<PointLevelsOptimiser> optimiser;
   if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
-    PointOptimiserStart mirror{std::move(start.origin),    std::move(voxels.labels),
-                               std::move(start.counts),    std::move(start.sums),
-                               std::move(start.centroids), start.energy};
-    MLCLUST_ASSIGN_OR_RETURN(PointLevelsOptimiser made,
-                             PointLevelsOptimiser::Create(context, points, std::move(mirror),
-                                                          options.optimise_rounds, options.cancel));
+    MLCLUST_ASSIGN_OR_RETURN(
+        PointLevelsOptimiser made,
+        PointLevelsOptimiser::Create(context, points, voxels.labels, k0, options));
     optimiser.emplace(std::move(made));
   }
   std::vector<uint32_t>().swap(voxels.labels);

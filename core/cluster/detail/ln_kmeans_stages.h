@@ -62,6 +62,9 @@ class PointClusters {
   std::span<const uint32_t> labels() const { return labels_; }
   uint64_t count(uint32_t c) const { return count_[c]; }
   std::span<const double> centroid(uint32_t c) const { return {&centroid_[size_t{c} * d_], d_}; }
+  // Cluster c's coordinate sums (d) and square sum, relative to the origin.
+  std::span<const double> sum(uint32_t c) const { return {&sum_[size_t{c} * d_], d_}; }
+  double square(uint32_t c) const { return square_[c]; }
   std::span<uint32_t> neighbours(uint32_t c) { return {&neighbours_[size_t{c} * 2 * d_], 2 * d_}; }
   std::span<const uint32_t> neighbours(uint32_t c) const {
     return {&neighbours_[size_t{c} * 2 * d_], 2 * d_};

@@ -13,7 +13,8 @@
 namespace mlclust::detail {
 
 // INVALID_ARGUMENT for invalid points (ValidatePoints), a lowest level under 1 cluster,
-// negative threads or a grid over 2^20 cells per axis.
+// negative threads, a grid over 2^20 cells per axis, optimise_rounds outside 1..64 or
+// bounded_drift outside 0..1 (NaN included).
 inline absl::Status CheckPointLevelsArguments(const PointSet& points,
                                               const PointMultilevelOptions& options) {
   MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
@@ -25,6 +26,14 @@ inline absl::Status CheckPointLevelsArguments(const PointSet& points,
   }
   if (options.grid > (1u << 20)) {
     return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
+  }
+  if (options.optimise_rounds < 1 || options.optimise_rounds > 64) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("optimise_rounds: ", options.optimise_rounds, " is not in 1..64"));
+  }
+  if (!(options.bounded_drift >= 0 && options.bounded_drift <= 1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("bounded_drift: ", options.bounded_drift, " is not in 0..1"));
   }
   return absl::OkStatus();
 }
