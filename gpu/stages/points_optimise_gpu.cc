@@ -79,6 +79,11 @@ absl::StatusOr<PointLevelsOptimiser> PointLevelsOptimiser::Create(
 
 PointLevelsOptimiser::PointLevelsOptimiser(std::unique_ptr<Mirror> mirror, LnKmeansKernel kernel)
     : mirror_(std::move(mirror)), kernel_(std::move(kernel)) {}
+PointLevelsOptimiser::PointLevelsOptimiser(PointLevelsOptimiser&&) noexcept = default;
+PointLevelsOptimiser& PointLevelsOptimiser::operator=(PointLevelsOptimiser&&) noexcept = default;
+PointLevelsOptimiser::~PointLevelsOptimiser() = default;
+
+uint64_t PointLevelsOptimiser::moves() const { return mirror_->recorder.moves(); }
 
 // The level's merges from the GPU's triplets (point, kept cluster, gone cluster): every
 // triplet must name a point of its gone cluster, and every point of a gone cluster must

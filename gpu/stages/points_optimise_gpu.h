@@ -67,7 +67,11 @@ class PointLevelsOptimiser {
   absl::Status Level(PointLevelsGpu& levels, const PointLevelGpu& merged, LevelSink& sink,
                      uint32_t index, uint32_t clusters);
 
-  uint64_t moves() const { return mirror_->recorder.moves(); }
+  uint64_t moves() const;
+
+  PointLevelsOptimiser(PointLevelsOptimiser&&) noexcept;
+  PointLevelsOptimiser& operator=(PointLevelsOptimiser&&) noexcept;
+  ~PointLevelsOptimiser();
 
  private:
   // The host's state; on the heap, as the driver holds references into it.
