@@ -211,6 +211,12 @@ if [ -x "$BIN/points_gpu_bench" ]; then
       header=
     done
   done
+  # PML with LN k-means inside the levels on the GPU (helper "gpupts2",
+  # gpu/stages/points_optimise_gpu.h; the jobs' default optimizer) against the CPU's.
+  for m in "${point_sizes[@]}"; do
+    "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs cheaper-half \
+      --optimizer lnkmeans --threads "$THREADS" --repeats 3 | tee -a "$points_out"
+  done
   if [ "$quick" = 0 ] && [ -x "$BIN/points_bench" ]; then
     "$BIN/points_bench" --algo ml --m 1000000 --d 3 --blobs 1000 --threads "$THREADS" \
       2>&1 | tee -a "$points_out"

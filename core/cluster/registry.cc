@@ -390,11 +390,15 @@ bool MlLevelsOnGpu(const JobPlan& plan) {
 }
 
 // Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
-// PointsPmlGpuUnsupported says the same): merges only (optimizer none), without the
-// switch to ML.
+// PointsPmlGpuUnsupported says the same): without the switch to ML; merges only (optimizer
+// none), or with LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) for
+// --device gpu only and without bounded-drift (auto keeps LN k-means on the CPU until the
+// NVIDIA figures are taken: each round is a round trip).
 bool PointPmlLevelsOnGpu(const JobPlan& plan) {
-  return plan.point_multilevel.optimizer == PointMultilevelOptions::Optimizer::kNone &&
-         plan.point_multilevel.pml_until == 0;
+  const PointMultilevelOptions& options = plan.point_multilevel;
+  if (options.pml_until != 0) return false;
+  if (options.optimizer == PointMultilevelOptions::Optimizer::kNone) return true;
+  return plan.device == DeviceChoice::kGpu && options.bounded_drift == 0;
 }
 
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
