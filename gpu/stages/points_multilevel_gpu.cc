@@ -1,7 +1,7 @@
 #include "gpu/stages/points_multilevel_gpu.h"
 
 #include <algorithm>
-#include <cmath>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -10,10 +10,9 @@
 #include "core/base/cancel.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
-#include "core/cluster/detail/local_neighbours.h"
+#include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/device_stages.h"
-#include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
 #include "gpu/stages/gpu_level_sink.h"
@@ -28,90 +27,37 @@ constexpr uint32_t kNone = 0xFFFFFFFFu;
 // The CPU's ConnectWhenStuck links the survivors only up to this many.
 constexpr uint32_t kMaxLinked = 20000;
 
-// The clusters of the voxel start as the CPU's PointSpace builds them.
-struct Start {
-  std::vector<uint32_t> counts;
-  std::vector<double> sums;       // k x (d + 1)
-  std::vector<double> centroids;  // k x d
-  std::vector<uint32_t> neighbours;
-  std::vector<double> origin;  // d: the data's mean the sums are relative to
-  double energy = 0;
-};
-
-// PointClusters::RefreshNeighbours on the flat tables (detail::RefreshLocalNeighbours, the
-// CPU's own).
-void RefreshNeighbours(Start& start, uint32_t d, uint32_t c, std::vector<uint32_t>& candidates,
-                       ::mlclust::detail::LocalNeighbourScratch& scratch) {
-  ::mlclust::detail::RefreshLocalNeighbours<uint32_t>(c, d, start.centroids, start.counts,
-                                                      start.neighbours, candidates, scratch);
-}
-
-// PointSpace's constructor: points ordered by starting cell (stable), the data's mean
-// and every cluster's sums in that order, the face-sharing neighbours refreshed one
-// cluster after the other, isolated cells linked to the nearest in each subspace.
-Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
-                 const std::atomic<bool>* cancel) {
-  const uint32_t d = points.dims, k = voxels.clusters;
-  const size_t m = points.num_points();
-  std::vector<uint32_t> first(size_t{k} + 1, 0), order(m);
-  for (const uint32_t c : voxels.labels) ++first[c + 1];
-  for (uint32_t c = 0; c < k; ++c) first[c + 1] += first[c];
-  for (size_t i = 0; i < m; ++i) order[first[voxels.labels[i]]++] = static_cast<uint32_t>(i);
-  std::vector<double> origin(d, 0.0);
-  for (size_t at = 0; at < m; ++at) {
-    for (uint32_t j = 0; j < d; ++j) origin[j] += points.values[size_t{order[at]} * d + j];
-  }
-  for (double& o : origin) o /= static_cast<double>(std::max<size_t>(m, 1));
-  Start start;
-  start.counts.assign(k, 0);
-  start.sums.assign(size_t{k} * (d + 1), 0.0);
-  start.centroids.assign(size_t{k} * d, 0.0);
-  for (size_t at = 0; at < m; ++at) {
-    const size_t i = order[at];
-    const uint32_t c = voxels.labels[i];
-    double* sum = &start.sums[size_t{c} * (d + 1)];
-    double s2 = 0;
-    for (uint32_t j = 0; j < d; ++j) {
-      const double v = points.values[i * d + j] - origin[j];
-      sum[j] += v;
-      s2 += v * v;
-    }
-    sum[d] += s2;
-    ++start.counts[c];
-  }
-  double total = 0;  // TotalEnergy's plain sum in cluster order
-  for (uint32_t c = 0; c < k; ++c) {
-    const double n = static_cast<double>(start.counts[c]);
-    for (uint32_t j = 0; j < d; ++j) {
-      start.centroids[size_t{c} * d + j] = n > 0 ? start.sums[size_t{c} * (d + 1) + j] / n : 0.0;
-    }
-    total +=
-        EnergyOfSums(n, {&start.sums[size_t{c} * (d + 1)], d}, start.sums[size_t{c} * (d + 1) + d]);
-  }
-  start.energy = total;
-  start.origin = origin;
-  start.neighbours = voxels.neighbours;
+// PointSpace's constructor: the host's clusters of the voxel start in the CPU's order
+// (MakePointLevelsHost), the face-sharing neighbours refreshed one cluster after the other,
+// isolated cells linked to the nearest in each subspace. Stops early once `cancel` is set
+// (the caller checks it).
+std::unique_ptr<PointLevelsHost> BuildStart(const PointSet& points,
+                                            const VoxelStartGpuResult& voxels,
+                                            const std::atomic<bool>* cancel) {
+  const uint32_t k = voxels.clusters;
+  std::unique_ptr<PointLevelsHost> host = MakePointLevelsHost(points, voxels.labels, k);
+  ::mlclust::detail::PointClusters& clusters = *host->clusters;
+  std::copy(voxels.neighbours.begin(), voxels.neighbours.end(), clusters.neighbour_table().begin());
   std::vector<uint32_t> candidates;
-  ::mlclust::detail::LocalNeighbourScratch scratch(k);
   for (uint32_t c = 0; c < k; ++c) {
-    if (c % 4096 == 0 && IsCancelled(cancel)) return start;
-    RefreshNeighbours(start, d, c, candidates, scratch);
+    if (c % 4096 == 0 && IsCancelled(cancel)) return host;
+    clusters.RefreshNeighbours(c, candidates);
   }
   std::vector<uint32_t> isolated;
   for (uint32_t c = 0; c < k; ++c) {
-    const uint32_t* row = &start.neighbours[size_t{c} * 2 * d];
-    if (std::all_of(row, row + 2 * d, [](uint32_t n) { return n == kNone; })) {
+    const std::span<const uint32_t> row = clusters.neighbours(c);
+    if (std::all_of(row.begin(), row.end(), [](uint32_t n) { return n == kNone; })) {
       isolated.push_back(c);
     }
   }
   for (const uint32_t c : isolated) {
-    if (IsCancelled(cancel)) return start;
+    if (IsCancelled(cancel)) return host;
     for (uint32_t n = 0; n < k; ++n) {
       if (n != c) candidates.push_back(n);
     }
-    RefreshNeighbours(start, d, c, candidates, scratch);
+    clusters.RefreshNeighbours(c, candidates);
   }
-  return start;
+  return host;
 }
 
 // Mesa's software renderers stop every loop of a shader invocation, without a word, once
@@ -165,28 +111,42 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
   MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
-  Start start = BuildStart(points, voxels, options.cancel);
+  std::unique_ptr<PointLevelsHost> host = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
   const uint32_t k0 = voxels.clusters;
-  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start.energy));
+  const ::mlclust::detail::PointClusters& start = *host->clusters;
+  const double start_energy = start.TotalEnergy();
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start_energy));
   if (options.inspect_level) options.inspect_level(0, voxels.labels);
+  // The upload: counts as uints, each cluster's sums and square sum together.
+  std::vector<uint32_t> counts(k0);
+  std::vector<double> sums(size_t{k0} * (d + 1));
+  for (uint32_t c = 0; c < k0; ++c) {
+    counts[c] = static_cast<uint32_t>(start.count(c));
+    const std::span<const double> sum = start.sum(c);
+    std::copy(sum.begin(), sum.end(), &sums[size_t{c} * (d + 1)]);
+    sums[size_t{c} * (d + 1) + d] = start.square(c);
+  }
   PointLevelsStart upload;
   upload.dims = d;
   upload.labels = voxels.labels;
-  upload.counts = start.counts;
-  upload.sums = start.sums;
-  upload.centroids = start.centroids;
-  upload.neighbours = start.neighbours;
+  upload.counts = counts;
+  upload.sums = sums;
+  upload.centroids = start.centroids();
+  upload.neighbours = start.neighbour_table();
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
-  // LN k-means inside the levels (points_optimise_gpu.h): the host's mirror starts from the
-  // start just uploaded.
+  std::vector<uint32_t>().swap(counts);
+  std::vector<double>().swap(sums);
+  // LN k-means inside the levels (points_optimise_gpu.h): the host's clusters become its
+  // mirror.
   std::optional<PointLevelsOptimiser> optimiser;
   if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
     MLCLUST_ASSIGN_OR_RETURN(
         PointLevelsOptimiser made,
-        PointLevelsOptimiser::Create(context, points, voxels.labels, k0, options));
+        PointLevelsOptimiser::Create(context, points, std::move(host), options));
     optimiser.emplace(std::move(made));
   }
+  host.reset();
   std::vector<uint32_t>().swap(voxels.labels);
   PointMultilevelSummary summary;
   summary.levels = 1;
@@ -195,7 +155,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
                                                : *std::max_element(voxels.cells_per_axis.begin(),
                                                                    voxels.cells_per_axis.end());
   ::mlclust::detail::CompensatedSum energy;
-  energy.Reset(start.energy);
+  energy.Reset(start_energy);
   uint32_t clusters = k0;
   PointLevelGpu level;
   bool linked = false;

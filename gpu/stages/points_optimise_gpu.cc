@@ -19,12 +19,33 @@ constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 }  // namespace
 
+std::unique_ptr<PointLevelsHost> MakePointLevelsHost(const PointSet& points,
+                                                     std::span<const uint32_t> labels,
+                                                     uint32_t clusters) {
+  const size_t m = points.num_points();
+  const uint32_t d = points.dims;
+  auto host = std::make_unique<PointLevelsHost>();
+  std::vector<uint32_t> first(size_t{clusters} + 1, 0), sorted_labels(m);
+  for (const uint32_t c : labels) ++first[c + 1];
+  for (uint32_t c = 0; c < clusters; ++c) first[c + 1] += first[c];
+  host->original.resize(m);
+  host->sorted_of.resize(m);
+  host->sorted.dims = d;
+  host->sorted.values.resize(points.values.size());
+  for (size_t i = 0; i < m; ++i) {
+    const uint32_t at = first[labels[i]]++;
+    host->original[at] = static_cast<uint32_t>(i);
+    host->sorted_of[i] = at;
+    sorted_labels[at] = labels[i];
+    std::copy_n(&points.values[i * d], d, &host->sorted.values[size_t{at} * d]);
+  }
+  host->clusters = std::make_unique<PointClusters>(host->sorted, sorted_labels, clusters);
+  return host;
+}
+
 struct PointLevelsOptimiser::Mirror {
   const PointMultilevelOptions* options = nullptr;
-  PointSet sorted;                  // the points by starting cluster (stable): the CPU's order
-  std::vector<uint32_t> original;   // sorted's point -> the caller's
-  std::vector<uint32_t> sorted_of;  // the caller's point -> sorted's
-  std::unique_ptr<PointClusters> clusters;
+  std::unique_ptr<PointLevelsHost> host;
   LevelRecorder recorder{0, 0};
   std::unique_ptr<PointOptimiseRounds> rounds;
   // Scratch: the level's pairs (cost, kept, gone) and merged clusters, a round's check list
@@ -36,44 +57,31 @@ struct PointLevelsOptimiser::Mirror {
 };
 
 absl::StatusOr<PointLevelsOptimiser> PointLevelsOptimiser::Create(
-    GlContext& context, const PointSet& points, std::span<const uint32_t> labels, uint32_t clusters,
+    GlContext& context, const PointSet& points, std::unique_ptr<PointLevelsHost> host,
     const PointMultilevelOptions& options) {
   const size_t m = points.num_points();
   const uint32_t d = points.dims;
-  if (labels.size() != m ||
-      std::any_of(labels.begin(), labels.end(), [&](uint32_t c) { return c >= clusters; })) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "LN k-means in the GPU's point levels: a start of ", labels.size(), " labels and ",
-        clusters, " clusters does not fit ", m, " points of ", d, " dimensions"));
+  if (host == nullptr || host->clusters == nullptr || host->sorted.dims != d ||
+      host->original.size() != m) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("LN k-means in the GPU's point levels: a start that does not fit ", m,
+                     " points of ", d, " dimensions"));
   }
+  const uint32_t clusters = host->clusters->capacity();
   auto mirror = std::make_unique<Mirror>();
   mirror->options = &options;
-  // The CPU's PointSpace: the points ordered by starting cluster, stably.
-  std::vector<uint32_t> first(size_t{clusters} + 1, 0), sorted_labels(m);
-  for (const uint32_t c : labels) ++first[c + 1];
-  for (uint32_t c = 0; c < clusters; ++c) first[c + 1] += first[c];
-  mirror->original.resize(m);
-  mirror->sorted_of.resize(m);
-  mirror->sorted.dims = d;
-  mirror->sorted.values.resize(points.values.size());
-  for (size_t i = 0; i < m; ++i) {
-    const uint32_t at = first[labels[i]]++;
-    mirror->original[at] = static_cast<uint32_t>(i);
-    mirror->sorted_of[i] = at;
-    sorted_labels[at] = labels[i];
-    std::copy_n(&points.values[i * d], d, &mirror->sorted.values[size_t{at} * d]);
-  }
-  mirror->clusters = std::make_unique<PointClusters>(mirror->sorted, sorted_labels, clusters);
+  mirror->host = std::move(host);
+  PointClusters& mirrored = *mirror->host->clusters;
   mirror->recorder = LevelRecorder(m, clusters);
-  mirror->recorder.Reset(mirror->clusters->TotalEnergy());
+  mirror->recorder.Reset(mirrored.TotalEnergy());
   mirror->rounds = std::make_unique<PointOptimiseRounds>(
-      *mirror->clusters, mirror->recorder, options.optimise_rounds, options.bounded_drift);
+      mirrored, mirror->recorder, options.optimise_rounds, options.bounded_drift);
   mirror->tally.assign(clusters, 0);
   // Round 0 compares the points next to the merged clusters with at most 2d merged
   // clusters that list their cluster each: fewer than 2d k candidates in all.
-  MLCLUST_ASSIGN_OR_RETURN(LnKmeansKernel kernel,
-                           LnKmeansKernel::Create(context, points, mirror->clusters->origin(), 0,
-                                                  2 * uint64_t{d} * clusters));
+  MLCLUST_ASSIGN_OR_RETURN(
+      LnKmeansKernel kernel,
+      LnKmeansKernel::Create(context, points, mirrored.origin(), 0, 2 * uint64_t{d} * clusters));
   return PointLevelsOptimiser(std::move(mirror), std::move(kernel));
 }
 
@@ -90,14 +98,14 @@ uint64_t PointLevelsOptimiser::moves() const { return mirror_->recorder.moves();
 // have one. The pairs merge in the CPU engine's order (merge cost, then pair).
 absl::Status PointLevelsOptimiser::ApplyMerges(const PointLevelGpu& merged) {
   Mirror& s = *mirror_;
-  PointClusters& clusters = *s.clusters;
+  PointClusters& clusters = *s.host->clusters;
   const uint32_t k = clusters.capacity();
   s.pairs.clear();
   for (size_t t = 0; t < merged.element.size(); ++t) {
     const uint32_t i = merged.element[t], keep = merged.to_cluster[t],
                    gone = merged.from_cluster[t];
-    if (i >= s.sorted_of.size() || keep >= k || gone >= k || keep == gone ||
-        clusters.label(s.sorted_of[i]) != gone || clusters.count(keep) == 0) {
+    if (i >= s.host->sorted_of.size() || keep >= k || gone >= k || keep == gone ||
+        clusters.label(s.host->sorted_of[i]) != gone || clusters.count(keep) == 0) {
       return absl::InternalError(
           absl::StrCat("LN k-means in the GPU's point levels: the GPU's triplet (", i, ", ", keep,
                        ", ", gone, ") does not match the host's labels"));
@@ -174,7 +182,7 @@ absl::Status PointLevelsOptimiser::Check(PointLevelsGpu& levels,
     full = s.check.size();
   }
   s.check_gpu.resize(s.check.size());
-  for (size_t r = 0; r < s.check.size(); ++r) s.check_gpu[r] = s.original[s.check[r]];
+  for (size_t r = 0; r < s.check.size(); ++r) s.check_gpu[r] = s.host->original[s.check[r]];
   s.target.resize(s.check.size());
   s.margin.resize(s.check.size());
   LnKmeansOwnCandidates own;
@@ -195,7 +203,7 @@ absl::Status PointLevelsOptimiser::Check(PointLevelsGpu& levels,
 absl::Status PointLevelsOptimiser::WriteBack(PointLevelsGpu& levels,
                                              std::span<const uint32_t> changed,
                                              std::span<const PointOptimiseRounds::Move> moved) {
-  const PointClusters& clusters = *mirror_->clusters;
+  const PointClusters& clusters = *mirror_->host->clusters;
   const uint32_t d = clusters.dims();
   const size_t width = 2 * size_t{d} + 1;
   std::vector<uint32_t> counts(changed.size()), points(moved.size()), labels(moved.size());
@@ -209,7 +217,7 @@ absl::Status PointLevelsOptimiser::WriteBack(PointLevelsGpu& levels,
     std::copy(centroid.begin(), centroid.end(), &values[r * width + d + 1]);
   }
   for (size_t r = 0; r < moved.size(); ++r) {
-    points[r] = mirror_->original[moved[r].first];
+    points[r] = mirror_->host->original[moved[r].first];
     labels[r] = clusters.label(moved[r].first);
   }
   return levels.Update(changed, counts, values, points, labels);
@@ -222,7 +230,7 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
   if (!s.merged.empty()) {
     // The neighbour table before the level's refresh, as the CPU's rounds see it.
     MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> table, levels.Neighbours());
-    std::copy(table.begin(), table.end(), s.clusters->neighbour_table().begin());
+    std::copy(table.begin(), table.end(), s.host->clusters->neighbour_table().begin());
   }
   MLCLUST_RETURN_IF_ERROR(s.rounds->Run(
       s.merged, s.options->cancel,
@@ -236,9 +244,10 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
       }));
   MLCLUST_RETURN_IF_ERROR(
       CheckCancelled(s.options->cancel, absl::StrCat("LN k-means of level ", index)));
-  s.recorder.Squash([&](uint32_t c) { return s.clusters->Energy(c); },
-                    [&](uint32_t i) { return s.clusters->label(i); },
-                    [&](uint32_t i) { return s.original[i]; });
+  const PointClusters& clusters_now = *s.host->clusters;
+  s.recorder.Squash([&](uint32_t c) { return clusters_now.Energy(c); },
+                    [&](uint32_t i) { return clusters_now.label(i); },
+                    [&](uint32_t i) { return s.host->original[i]; });
   return s.recorder.Emit(sink, index, clusters);
 }
 

@@ -47,15 +47,30 @@
 
 namespace mlclust::gpu {
 
+// The host's clusters of the GPU's point levels, as the CPU's PointSpace keeps them: the
+// points ordered by starting cluster (stably), their detail::PointClusters (the data's mean
+// and every cluster's sums in the CPU's operation order), and the maps between the two
+// orders. The start's neighbours are the caller's to set.
+struct PointLevelsHost {
+  PointSet sorted;
+  std::vector<uint32_t> original;   // sorted's point -> the caller's
+  std::vector<uint32_t> sorted_of;  // the caller's point -> sorted's
+  std::unique_ptr<::mlclust::detail::PointClusters> clusters;
+};
+
+// `labels`: one per point of `points`, each < `clusters` (not checked).
+std::unique_ptr<PointLevelsHost> MakePointLevelsHost(const PointSet& points,
+                                                     std::span<const uint32_t> labels,
+                                                     uint32_t clusters);
+
 class PointLevelsOptimiser {
  public:
-  // The mirror of the start (`labels`, one per point in the caller's order, of `clusters`
-  // clusters: the values PointLevelsGpu::Create uploaded) and the assign kernel (the
-  // points uploaded once more). `points` and `options` must outlive the optimiser.
-  // INVALID_ARGUMENT for labels that do not fit; errors as LnKmeansKernel::Create.
+  // The mirror (`host`: the start PointLevelsGpu::Create uploaded, of `points`) and the
+  // assign kernel (the points uploaded once more). `points` and `options` must outlive the
+  // optimiser. INVALID_ARGUMENT for a host of other points; errors as
+  // LnKmeansKernel::Create.
   static absl::StatusOr<PointLevelsOptimiser> Create(GlContext& context, const PointSet& points,
-                                                     std::span<const uint32_t> labels,
-                                                     uint32_t clusters,
+                                                     std::unique_ptr<PointLevelsHost> host,
                                                      const PointMultilevelOptions& options);
 
   // After levels.MergeLevel gave `merged` (true): its merges into the mirror, the LN
