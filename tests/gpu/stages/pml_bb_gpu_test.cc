@@ -25,6 +25,7 @@
 #include "gpu/stages/hierarchy_gpu.h"
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/tools/test_meshes.h"
+#include "tests/fixtures/energy_at_count.h"
 #include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/gpu_mesh_levels.h"
 #include "tests/fixtures/plan_checks.h"
@@ -279,28 +280,15 @@ TEST(PmlBbGpu, WithoutTheGuard) {
   ExpectConsistentRun(mesh, MeshEnergyKind::kCvd, options);
 }
 
-// The energy of a hierarchy at `count` clusters: a power law through the two levels
-// around it (log energy linear in log count; the levels' counts fall); -1 outside them or
-// where a level around it has energy 0.
-double EnergyAtCount(const ReplaySink& sink, uint32_t count) {
-  for (size_t l = 1; l < sink.counts.size(); ++l) {
-    const uint32_t above = sink.counts[l - 1], below = sink.counts[l];
-    if (count > above || count < below) continue;
-    if (count == below) return sink.energies[l];
-    if (!(sink.energies[l - 1] > 0)) return -1;
-    const double t = std::log(double(above) / count) / std::log(double(above) / below);
-    return sink.energies[l - 1] * std::pow(sink.energies[l] / sink.energies[l - 1], t);
-  }
-  return -1;
-}
-
 // Expects `gpu`'s energy at each of its levels at most `factor` x `cpu`'s at the same
-// count (EnergyAtCount); returns the levels compared (the worst ratio is printed).
+// count (EnergyAtCount, tests/fixtures/energy_at_count.h); returns the levels compared (the
+// worst ratio is printed).
 size_t ExpectEnergyAtMostAbove(const ReplaySink& gpu, const ReplaySink& cpu, double factor) {
   size_t compared = 0;
   double worst = 0, best = 1e300;
   for (size_t l = 1; l < gpu.counts.size(); ++l) {
-    const double reference = EnergyAtCount(cpu, gpu.counts[l]);
+    const double reference =
+        ::mlclust::testing::EnergyAtCount(cpu.counts, cpu.energies, gpu.counts[l]);
     if (reference <= 0) continue;
     EXPECT_LE(gpu.energies[l], factor * reference) << "level " << l << ", " << gpu.counts[l];
     worst = std::max(worst, gpu.energies[l] / reference);

@@ -25,6 +25,7 @@
 #include "gpu/context/gl_context.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/voxel_start.h"
+#include "tests/fixtures/energy_at_count.h"
 #include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
@@ -190,20 +191,6 @@ uint64_t KmeansMoves(const LevelsSink& sink) {
   return moves;
 }
 
-// The energy at `count` clusters: a level's where one has that count, else linear in the
-// count between the two levels around it (the hierarchies step through different counts,
-// and a level with more clusters has less energy).
-double EnergyBetweenLevels(const LevelsSink& sink, uint32_t count) {
-  for (size_t l = 1; l < sink.counts.size(); ++l) {
-    const uint32_t above = sink.counts[l - 1], below = sink.counts[l];
-    if (count > above || count < below) continue;
-    if (above == below) return sink.energies[l];
-    const double t = static_cast<double>(above - count) / (above - below);
-    return sink.energies[l - 1] + t * (sink.energies[l] - sink.energies[l - 1]);
-  }
-  return count >= sink.counts.front() ? sink.energies.front() : sink.energies.back();
-}
-
 // The GPU's levels against the CPU's: level 0 and level 1 identical (labels, counts,
 // triplets, energies), the same lowest level, and at each of a few cluster counts the
 // energy within `tolerance` (relative) of the CPU's, or with `at_most` only not above it
@@ -211,7 +198,7 @@ double EnergyBetweenLevels(const LevelsSink& sink, uint32_t count) {
 // CPU only the touched ones: with all pairs the CPU's stale neighbours merge whole blobs
 // that the GPU keeps apart). With LN k-means level 1 (merges and LN k-means rounds) is
 // the CPU's too, and the energy is compared at every one of the CPU's counts from half the
-// start's down (EnergyBetweenLevels).
+// start's down (EnergyAtCount, tests/fixtures/energy_at_count.h).
 void ExpectLikeTheCpu(const PointSet& points, const PointMultilevelOptions& options,
                       double tolerance, bool at_most = false) {
   LevelsSink cpu, gpu;
@@ -237,7 +224,8 @@ void ExpectLikeTheCpu(const PointSet& points, const PointMultilevelOptions& opti
     for (size_t l = 1; l < cpu.counts.size(); ++l) {
       const uint32_t count = cpu.counts[l];
       if (count > on_cpu->start_clusters / 2) continue;
-      const double at_cpu = cpu.energies[l], at_gpu = EnergyBetweenLevels(gpu, count);
+      const double at_cpu = cpu.energies[l],
+                   at_gpu = ::mlclust::testing::EnergyAtCount(gpu.counts, gpu.energies, count);
       EXPECT_NEAR(at_gpu, at_cpu, tolerance * at_cpu) << count << " clusters";
       worst = std::max(worst, std::abs(at_gpu / at_cpu - 1));
       ++compared;
@@ -390,6 +378,32 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
       RunPointParallelMultilevelGpu(Context(), points, options, sink).status();
   EXPECT_EQ(drift.code(), absl::StatusCode::kUnimplemented);
   EXPECT_THAT(drift.message(), HasSubstr("bounded-drift"));
+}
+
+// optimise_rounds outside 1..64 and bounded_drift outside 0..1 (NaN too) are refused with
+// the CPU's messages, before anything runs (detail::CheckPointLevelsArguments).
+TEST(PointsPmlGpu, RefusesTheCpusInvalidRoundsAndDrift) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(4, 50, 6.0, 11).points;
+  LevelsSink cpu_sink, gpu_sink;
+  for (const uint32_t rounds : {0u, 65u}) {
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
+    options.optimise_rounds = rounds;
+    const absl::Status on_gpu =
+        RunPointParallelMultilevelGpu(Context(), points, options, gpu_sink).status();
+    EXPECT_EQ(on_gpu.code(), absl::StatusCode::kInvalidArgument) << rounds;
+    EXPECT_THAT(on_gpu.message(), HasSubstr("optimise_rounds"));
+    EXPECT_EQ(on_gpu, RunPointMultilevel(points, options, cpu_sink).status());
+  }
+  for (const double drift : {-0.1, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
+    options.bounded_drift = drift;
+    const absl::Status on_gpu =
+        RunPointParallelMultilevelGpu(Context(), points, options, gpu_sink).status();
+    EXPECT_EQ(on_gpu.code(), absl::StatusCode::kInvalidArgument) << drift;
+    EXPECT_THAT(on_gpu.message(), HasSubstr("bounded_drift"));
+    EXPECT_EQ(on_gpu, RunPointMultilevel(points, options, cpu_sink).status());
+  }
+  EXPECT_TRUE(gpu_sink.counts.empty());  // refused before the start
 }
 
 // On a software renderer (llvmpipe stops an invocation's loops after 65,535 iterations) a
