@@ -385,22 +385,22 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
 TEST(PointsPmlGpu, RefusesTheCpusInvalidRoundsAndDrift) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(4, 50, 6.0, 11).points;
   LevelsSink cpu_sink, gpu_sink;
-  for (const uint32_t rounds : {0u, 65u}) {
+  struct Case {
+    uint32_t rounds;
+    double drift;
+    const char* option;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Case& bad : {Case{0, 0, "optimise_rounds"}, Case{65, 0, "optimise_rounds"},
+                          Case{8, -0.1, "bounded_drift"}, Case{8, 1.5, "bounded_drift"},
+                          Case{8, nan, "bounded_drift"}}) {
     PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
-    options.optimise_rounds = rounds;
+    options.optimise_rounds = bad.rounds;
+    options.bounded_drift = bad.drift;
     const absl::Status on_gpu =
         RunPointParallelMultilevelGpu(Context(), points, options, gpu_sink).status();
-    EXPECT_EQ(on_gpu.code(), absl::StatusCode::kInvalidArgument) << rounds;
-    EXPECT_THAT(on_gpu.message(), HasSubstr("optimise_rounds"));
-    EXPECT_EQ(on_gpu, RunPointMultilevel(points, options, cpu_sink).status());
-  }
-  for (const double drift : {-0.1, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
-    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
-    options.bounded_drift = drift;
-    const absl::Status on_gpu =
-        RunPointParallelMultilevelGpu(Context(), points, options, gpu_sink).status();
-    EXPECT_EQ(on_gpu.code(), absl::StatusCode::kInvalidArgument) << drift;
-    EXPECT_THAT(on_gpu.message(), HasSubstr("bounded_drift"));
+    EXPECT_EQ(on_gpu.code(), absl::StatusCode::kInvalidArgument) << bad.rounds << " " << bad.drift;
+    EXPECT_THAT(on_gpu.message(), HasSubstr(bad.option));
     EXPECT_EQ(on_gpu, RunPointMultilevel(points, options, cpu_sink).status());
   }
   EXPECT_TRUE(gpu_sink.counts.empty());  // refused before the start
