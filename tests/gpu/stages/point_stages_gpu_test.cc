@@ -105,6 +105,26 @@ TEST(LnKmeansKernel, SameTargetsAsChooseTargets) {
   EXPECT_EQ(gpu, cpu);
 }
 
+// The case's labels, centroids, neighbour table and counts in GPU buffers, as the point
+// levels hold them (LnKmeansResidentClusters' order).
+std::vector<StorageBuffer> ResidentBuffers(const AssignCase& test) {
+  std::vector<StorageBuffer> buffers;
+  for (const size_t bytes :
+       {test.clusters.labels().size_bytes(), test.clusters.centroids().size_bytes(),
+        std::span<const uint32_t>(test.clusters.neighbour_table()).size_bytes(),
+        test.counts.size() * sizeof(uint32_t)}) {
+    absl::StatusOr<StorageBuffer> buffer = StorageBuffer::Create(Context(), bytes);
+    EXPECT_TRUE(buffer.ok()) << buffer.status();
+    if (!buffer.ok()) return {};
+    buffers.push_back(*std::move(buffer));
+  }
+  EXPECT_TRUE(buffers[0].Upload(test.clusters.labels()).ok());
+  EXPECT_TRUE(buffers[1].Upload(test.clusters.centroids()).ok());
+  EXPECT_TRUE(buffers[2].Upload(std::span<const uint32_t>(test.clusters.neighbour_table())).ok());
+  EXPECT_TRUE(buffers[3].Upload(std::span<const uint32_t>(test.counts)).ok());
+  return buffers;
+}
+
 // AssignResident over labels and clusters already in GPU buffers (as the point levels
 // hold them) gives ChooseTargets' targets, and with margins ChooseTargets' margins:
 // -infinity for a point that moves, else within 1e-9 of the CPU's.
@@ -112,19 +132,8 @@ TEST(LnKmeansKernel, ResidentClustersGiveChooseTargetsTargetsAndMargins) {
   AssignCase test;
   absl::StatusOr<LnKmeansKernel> kernel = test.Kernel();
   ASSERT_TRUE(kernel.ok()) << kernel.status();
-  std::vector<StorageBuffer> buffers;
-  for (const size_t bytes :
-       {test.clusters.labels().size_bytes(), test.clusters.centroids().size_bytes(),
-        std::span<const uint32_t>(test.clusters.neighbour_table()).size_bytes(),
-        test.counts.size() * sizeof(uint32_t)}) {
-    absl::StatusOr<StorageBuffer> buffer = StorageBuffer::Create(Context(), bytes);
-    ASSERT_TRUE(buffer.ok()) << buffer.status();
-    buffers.push_back(*std::move(buffer));
-  }
-  ASSERT_TRUE(buffers[0].Upload(test.clusters.labels()).ok());
-  ASSERT_TRUE(buffers[1].Upload(test.clusters.centroids()).ok());
-  ASSERT_TRUE(buffers[2].Upload(std::span<const uint32_t>(test.clusters.neighbour_table())).ok());
-  ASSERT_TRUE(buffers[3].Upload(std::span<const uint32_t>(test.counts)).ok());
+  std::vector<StorageBuffer> buffers = ResidentBuffers(test);
+  ASSERT_EQ(buffers.size(), 4u);
   const size_t n = test.check.size();
   std::vector<uint32_t> cpu(n), gpu(n);
   std::vector<double> cpu_margin(n), gpu_margin(n);
@@ -145,6 +154,68 @@ TEST(LnKmeansKernel, ResidentClustersGiveChooseTargetsTargetsAndMargins) {
   }
   EXPECT_GT(moving, 0u);
   EXPECT_LT(moving, n);
+}
+
+// Entries with their own candidates (the point levels' round 0, in groups): each moves to
+// its group's nearest candidate strictly nearer than its own centroid, as the CPU's
+// comparison; the entries before `full` keep the full rule. A kernel for resident clusters
+// only (0 clusters) runs it, refuses Assign, and refuses a group out of range.
+TEST(LnKmeansKernel, OwnCandidatesInGroupsGiveTheNearestStrictlyNearer) {
+  AssignCase test;
+  absl::StatusOr<LnKmeansKernel> full_kernel = test.Kernel();  // sets the neighbours
+  ASSERT_TRUE(full_kernel.ok()) << full_kernel.status();
+  const uint32_t k = test.clusters.capacity();
+  absl::StatusOr<LnKmeansKernel> kernel =
+      LnKmeansKernel::Create(Context(), test.points, test.clusters.origin(), 0, 2 * 3 * k);
+  ASSERT_TRUE(kernel.ok()) << kernel.status();
+  std::vector<StorageBuffer> buffers = ResidentBuffers(test);
+  ASSERT_EQ(buffers.size(), 4u);
+  const LnKmeansResidentClusters resident{&buffers[0], &buffers[1], &buffers[2], &buffers[3]};
+  // Groups q = 0..4 of candidates {q, q + 7, ..., q + 7 (q + 1)} (mod k); every third point
+  // from the middle on in group i % 5 (an empty group 5 too).
+  const std::vector<uint32_t> starts = {0, 2, 5, 9, 14, 20, 20};
+  std::vector<uint32_t> candidates;
+  for (uint32_t q = 0; q < 5; ++q) {
+    for (uint32_t t = 0; t <= q + 1; ++t) candidates.push_back((q + 7 * t) % k);
+  }
+  const size_t full = test.check.size() / 2;
+  std::vector<uint32_t> check(test.check.begin(), test.check.begin() + full), groups;
+  for (uint32_t i = static_cast<uint32_t>(full); i < test.check.size(); i += 3) {
+    check.push_back(i);
+    groups.push_back(i % 7 == 0 ? 5 : i % 5);
+  }
+  const LnKmeansOwnCandidates own{full, groups, starts, candidates};
+  std::vector<uint32_t> gpu(check.size()), cpu(full);
+  std::vector<double> margin(check.size());
+  ASSERT_TRUE(kernel->AssignResident(resident, check, gpu, margin, own).ok());
+  mlclust::detail::ChooseTargets(test.clusters, std::span<const uint32_t>(check).first(full), cpu);
+  EXPECT_EQ(std::vector<uint32_t>(gpu.begin(), gpu.begin() + full), cpu);
+  size_t moving = 0;
+  for (size_t e = 0; e < groups.size(); ++e) {
+    const uint32_t i = check[full + e], q = groups[e];
+    double best = test.clusters.Distance(i, test.clusters.label(i));
+    uint32_t to = mlclust::detail::kNoCluster;
+    for (uint32_t g = starts[q]; g < starts[q + 1]; ++g) {
+      const double dist = test.clusters.Distance(i, candidates[g]);
+      if (dist < best) {
+        best = dist;
+        to = candidates[g];
+      }
+    }
+    EXPECT_EQ(gpu[full + e], to) << e;
+    moving += to != mlclust::detail::kNoCluster ? 1 : 0;
+  }
+  EXPECT_GT(moving, 0u);
+  EXPECT_LT(moving, groups.size());
+  std::vector<uint32_t> labels(test.points.num_points(), 0), target(1);
+  const std::vector<uint32_t> one = {0};
+  EXPECT_EQ(kernel->Assign(labels, one, target).code(), absl::StatusCode::kFailedPrecondition);
+  const std::vector<uint32_t> bad_group = {6};
+  const LnKmeansOwnCandidates bad{full, bad_group, starts, candidates};
+  std::vector<uint32_t> few(full + 1);
+  std::vector<uint32_t> few_check(check.begin(), check.begin() + full + 1);
+  EXPECT_EQ(kernel->AssignResident(resident, few_check, few, {}, bad).code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 // Issue 10: LN k-means inertia within 0.5% of the CPU's (identical on llvmpipe).
