@@ -8,8 +8,9 @@
 //
 // What is the CPU's and what is not:
 //   - the start is the CPU engine's exactly: the voxel labels (GPU), the clusters' sums
-//     in the CPU's order (host, one O(m d) pass over the points ordered by cell, as
-//     PointSpace does), the face-sharing neighbours (GPU), then the CPU's sequential
+//     in the CPU's order (host: a detail::PointClusters over the points ordered by cell,
+//     as PointSpace keeps them, MakePointLevelsHost; with LN k-means it stays as the
+//     rounds' mirror), the face-sharing neighbours (GPU), then the CPU's sequential
 //     refresh of them and its link of isolated cells (host, O(k d^2)); level 0 and its
 //     energy are identical;
 //   - the first level's ODEs, pairs and merges are identical (same Ward costs bit for
