@@ -100,11 +100,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
         faces * 40,      faces * 4,      faces * 4,  faces * 4,         edge_slots * 8,
         edge_slots * 8,  edge_slots * 8, faces * 12, MaxPairs(n) * 8,   MaxPairs(n) * 24,
         MaxPairs(n) * 4, chunks * 4,     groups * 4, kCounterSlots * 4, faces * 12};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> ones(n, 1), identity(n);
     for (uint32_t f = 0; f < n; ++f) identity[f] = f;
     if (n > 0) {
@@ -215,11 +212,8 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
                                                           slots * 8,
                                                           slots * 8,
                                                           slots * 40};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(*context_, bytes));
     if (!edges.empty()) {
       MLCLUST_RETURN_IF_ERROR(buffers[kFaceEdges].Upload(std::span<const uint32_t>(edges)));
     }

@@ -80,11 +80,8 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
         MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, Chunks(n) * 4,
         Groups(n) * 4,   kCounterSlots * 4, n * 12,          c * 8,
         c * 2 * d * 8};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> identity(k), partner(2 * k, kNone);
     for (uint32_t i = 0; i < k; ++i) identity[i] = i;
     if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kLabels].Upload(start.labels));
