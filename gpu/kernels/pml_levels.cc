@@ -168,18 +168,10 @@ absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, ui
                                          PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
-  return true;
+  return RunPmlLevelPasses(
+      *context_, {kOdesPass, kCollapsePass, kTripletsPass}, [&] { return FindPairs(); },
+      [&](uint32_t pairs) { return Collapse(rule, clusters, lowest, pairs, level); },
+      [&](uint32_t pairs) { return Extract(pairs, level); }, level);
 }
 
 absl::StatusOr<std::vector<uint32_t>> PmlLevelsGpu::Labels() {

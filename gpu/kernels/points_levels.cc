@@ -175,17 +175,13 @@ absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, 
                                            PointLevelGpu& level) {
   level = PointLevelGpu();
   ++level_;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  MLCLUST_ASSIGN_OR_RETURN(
+      const bool merged,
+      RunPmlLevelPasses(
+          *context_, {kOdesPass, kCollapsePass, kTripletsPass}, [&] { return FindPairs(); },
+          [&](uint32_t pairs) { return Collapse(rule, clusters, lowest, pairs, level); },
+          [&](uint32_t pairs) { return Extract(pairs, level); }, level));
+  if (!merged) return false;
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kNeighboursPass));
   absl::Status refreshed = Refresh(/*link_all=*/false);
   if (!refreshed.ok()) return PassError(kNeighboursPass, refreshed);
