@@ -9,6 +9,7 @@
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/kernels/hc_levels.h"
+#include "gpu/stages/gpu_level_sink.h"
 
 namespace mlclust::gpu {
 
@@ -49,14 +50,11 @@ absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const Mesh
           return absl::UnimplementedError("HC on the GPU: not a CVD energy");
         } else {
           const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-          std::vector<CvdSums> face_sums(n);
-          for (uint32_t f = 0; f < n; ++f) face_sums[f] = energy.face_sums(f);
-          MLCLUST_ASSIGN_OR_RETURN(HcLevelsGpu levels,
-                                   HcLevelsGpu::Create(context, face_sums, *problem.adjacency,
-                                                       options.ties_to_fewest_faces));
-          std::vector<ClusterId> start(n);
-          for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-          MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
+          MLCLUST_ASSIGN_OR_RETURN(
+              HcLevelsGpu levels,
+              HcLevelsGpu::Create(context, CvdFaceSums(energy, n), *problem.adjacency,
+                                  options.ties_to_fewest_faces));
+          MLCLUST_RETURN_IF_ERROR(SendFacesAsClusters(n, sink));
           MultilevelSummary summary;
           summary.levels = 1;
           // The CPU's LevelRecorder: keep's change, then gone's, per level.

@@ -48,14 +48,10 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
                                                           LevelSink& sink) {
   const FaceAdjacency& adjacency = *problem.adjacency;
   const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-  std::vector<CvdSums> face_sums(n);
   std::vector<PointAndWeight> points(n);
-  for (uint32_t f = 0; f < n; ++f) {
-    face_sums[f] = energy.face_sums(f);
-    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
-  }
+  for (uint32_t f = 0; f < n; ++f) points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
   MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                           PmlLevelsGpu::Create(context, face_sums, adjacency));
+                           PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), adjacency));
   MLCLUST_RETURN_IF_ERROR(levels.EnableBoundaryOptimisation(adjacency, points));
   // The ring structure always: the conflict rule reads it whatever the guard (as
   // OptimizeBoundaryBased).
@@ -70,11 +66,7 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
   LevelRecorder recorder(n, n);
   recorder.Reset(0.0);
   auto energy_of = [&](uint32_t c) { return partition.cluster_energy(c); };
-  {
-    std::vector<ClusterId> start(n);
-    for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-    MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
-  }
+  MLCLUST_RETURN_IF_ERROR(SendFacesAsClusters(n, sink));
   MLCLUST_RETURN_IF_ERROR(InspectGpuLabels(options, levels, 0));
   MultilevelSummary summary;
   summary.levels = 1;
@@ -232,13 +224,10 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
           return RunPmlWithBoundaryBased(context, problem, options, energy, sink);
         } else {
           const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-          std::vector<CvdSums> face_sums(n);
-          for (uint32_t f = 0; f < n; ++f) face_sums[f] = energy.face_sums(f);
-          MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                                   PmlLevelsGpu::Create(context, face_sums, *problem.adjacency));
-          std::vector<ClusterId> start(n);
-          for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-          MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
+          MLCLUST_ASSIGN_OR_RETURN(
+              PmlLevelsGpu levels,
+              PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), *problem.adjacency));
+          MLCLUST_RETURN_IF_ERROR(SendFacesAsClusters(n, sink));
           MultilevelSummary summary;
           summary.levels = 1;
           ::mlclust::detail::CompensatedSum energy_sum;
