@@ -18,6 +18,7 @@
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
@@ -45,31 +46,13 @@ MultilevelOptions HcOptions(uint32_t lowest) {
 // The GPU's levels against the CPU's: the same number, and level by level the same
 // cluster count, the same triplets in the same order and the same energy to the last
 // digit (the same merges in the same order, the same fp64 operations). Returns the
-// number of levels compared.
+// number of levels with the same triplets.
 size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
                         const MultilevelOptions& options) {
   LevelsSink cpu, gpu;
-  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
-  absl::StatusOr<MultilevelSummary> on_gpu = RunHierarchyGpu(context, problem, options, gpu);
-  EXPECT_TRUE(on_cpu.ok()) << on_cpu.status();
-  EXPECT_TRUE(on_gpu.ok()) << on_gpu.status();
-  if (!on_cpu.ok() || !on_gpu.ok()) return 0;
-  EXPECT_EQ(on_gpu->levels, on_cpu->levels);
-  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
-  EXPECT_EQ(on_gpu->moves, on_cpu->moves);
-  EXPECT_EQ(gpu.start, cpu.start);
-  EXPECT_GT(cpu.counts.size(), 3u);  // the comparison compares something
-  EXPECT_EQ(gpu.counts, cpu.counts);
-  const size_t levels = std::min(cpu.counts.size(), gpu.counts.size());
-  size_t same_triplets = 0, same_energy = 0;
-  for (size_t l = 0; l < levels; ++l) {
-    same_triplets += gpu.triplets[l] == cpu.triplets[l] ? 1 : 0;
-    same_energy += gpu.energies[l] == cpu.energies[l] ? 1 : 0;
-  }
-  EXPECT_EQ(same_triplets, levels) << "levels with the same triplets";
-  EXPECT_EQ(same_energy, levels) << "levels with the same energy";
-  EXPECT_EQ(on_gpu->final_energy, on_cpu->final_energy);
-  return levels;
+  const absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
+  const absl::StatusOr<MultilevelSummary> on_gpu = RunHierarchyGpu(context, problem, options, gpu);
+  return fixtures::ExpectSameTripletLevels(on_gpu, gpu, on_cpu, cpu, /*relative=*/0);
 }
 
 TEST(HcGpu, SameLevelsAsTheCpuOnFandiskDownToOneCluster) {

@@ -18,6 +18,7 @@
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
@@ -51,27 +52,10 @@ MultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
 size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
                         const MultilevelOptions& options) {
   LevelsSink cpu, gpu;
-  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
-  absl::StatusOr<MultilevelSummary> on_gpu =
+  const absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
+  const absl::StatusOr<MultilevelSummary> on_gpu =
       RunParallelMultilevelGpu(context, problem, options, gpu);
-  EXPECT_TRUE(on_cpu.ok()) << on_cpu.status();
-  EXPECT_TRUE(on_gpu.ok()) << on_gpu.status();
-  if (!on_cpu.ok() || !on_gpu.ok()) return 0;
-  EXPECT_EQ(on_gpu->levels, on_cpu->levels);
-  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
-  EXPECT_EQ(on_gpu->moves, on_cpu->moves);
-  EXPECT_EQ(gpu.start, cpu.start);
-  EXPECT_GT(cpu.counts.size(), 3u);  // the comparison compares something
-  EXPECT_EQ(gpu.counts, cpu.counts);
-  size_t same = 0;
-  const size_t levels = std::min(cpu.counts.size(), gpu.counts.size());
-  for (size_t l = 0; l < levels; ++l) {
-    EXPECT_NEAR(gpu.energies[l], cpu.energies[l], 0.01 * cpu.energies[l]) << "level " << l;
-    same += gpu.triplets[l] == cpu.triplets[l] ? 1 : 0;
-  }
-  EXPECT_EQ(same, levels) << "levels with the same triplets";
-  EXPECT_NEAR(on_gpu->final_energy, on_cpu->final_energy, 0.01 * on_cpu->final_energy);
-  return same;
+  return fixtures::ExpectSameTripletLevels(on_gpu, gpu, on_cpu, cpu, /*relative=*/0.01);
 }
 
 TEST(PmlGpu, SameLevelsAsTheCpuOnFandiskAllPairs) {
