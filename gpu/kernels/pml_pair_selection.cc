@@ -103,22 +103,35 @@ absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& coun
   return pairs;
 }
 
+absl::StatusOr<uint32_t> RunOdesPass(GlContext& context, const PmlLevelPasses& passes,
+                                     absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                     GpuPmlLevel& level) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.odes));
+  const absl::StatusOr<uint32_t> pairs = find_pairs();
+  if (!pairs.ok()) return PassError(passes.odes, pairs.status());
+  level.mutual_pairs = *pairs;
+  return *pairs;
+}
+
+absl::Status RunCollapsePasses(GlContext& context, const PmlLevelPasses& passes,
+                               absl::FunctionRef<absl::Status()> collapse,
+                               absl::FunctionRef<absl::Status()> extract) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.collapse));
+  const absl::Status collapsed = collapse();
+  if (!collapsed.ok()) return PassError(passes.collapse, collapsed);
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.triplets));
+  return PassError(passes.triplets, extract());
+}
+
 absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses& passes,
                                        absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
                                        absl::FunctionRef<absl::Status(uint32_t)> collapse,
                                        absl::FunctionRef<absl::Status(uint32_t)> extract,
                                        GpuPmlLevel& level) {
-  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.odes));
-  const absl::StatusOr<uint32_t> pairs = find_pairs();
-  if (!pairs.ok()) return PassError(passes.odes, pairs.status());
-  level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.collapse));
-  const absl::Status collapsed = collapse(*pairs);
-  if (!collapsed.ok()) return PassError(passes.collapse, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.triplets));
-  const absl::Status extracted = extract(*pairs);
-  if (!extracted.ok()) return PassError(passes.triplets, extracted);
+  MLCLUST_ASSIGN_OR_RETURN(const uint32_t pairs, RunOdesPass(context, passes, find_pairs, level));
+  if (pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(RunCollapsePasses(
+      context, passes, [&] { return collapse(pairs); }, [&] { return extract(pairs); }));
   return true;
 }
 

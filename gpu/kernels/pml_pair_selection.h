@@ -71,9 +71,20 @@ struct PmlLevelPasses {
   const char* triplets = "";  // the compaction and the level's read-back
 };
 
-// One PML level as the mesh and the point levels run it: find_pairs() in pass odes, its
-// count into level.mutual_pairs; where it found any, collapse(pairs) and extract(pairs),
-// each in its pass. False (nothing changed) where there is no mutual pair.
+// Pass `passes.odes` of a level: find_pairs(), its count into level.mutual_pairs.
+absl::StatusOr<uint32_t> RunOdesPass(GlContext& context, const PmlLevelPasses& passes,
+                                     absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                     GpuPmlLevel& level);
+
+// The passes of a level after its ODEs: collapse() in pass `passes.collapse`, then
+// extract() in pass `passes.triplets`.
+absl::Status RunCollapsePasses(GlContext& context, const PmlLevelPasses& passes,
+                               absl::FunctionRef<absl::Status()> collapse,
+                               absl::FunctionRef<absl::Status()> extract);
+
+// One PML level as the mesh and the point levels run it: RunOdesPass, and where it found
+// pairs, RunCollapsePasses with collapse(pairs) and extract(pairs). False (nothing
+// changed) where there is no mutual pair.
 absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses& passes,
                                        absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
                                        absl::FunctionRef<absl::Status(uint32_t)> collapse,

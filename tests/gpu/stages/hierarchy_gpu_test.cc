@@ -8,17 +8,15 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cstdlib>
 #include <utility>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
-#include "gpu/context/pass.h"
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
-#include "tests/fixtures/level_checks.h"
+#include "tests/fixtures/gpu_mesh_levels.h"
 #include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
@@ -26,7 +24,6 @@
 namespace mlclust::gpu {
 namespace {
 
-using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 
@@ -46,13 +43,11 @@ MultilevelOptions HcOptions(uint32_t lowest) {
 // The GPU's levels against the CPU's: the same number, and level by level the same
 // cluster count, the same triplets in the same order and the same energy to the last
 // digit (the same merges in the same order, the same fp64 operations). Returns the
-// number of levels with the same triplets.
+// number of levels compared.
 size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
                         const MultilevelOptions& options) {
-  LevelsSink cpu, gpu;
-  const absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
-  const absl::StatusOr<MultilevelSummary> on_gpu = RunHierarchyGpu(context, problem, options, gpu);
-  return fixtures::ExpectSameTripletLevels(on_gpu, gpu, on_cpu, cpu, /*relative=*/0);
+  return fixtures::ExpectSameLevelsAsCpu(RunHierarchyGpu, context, problem, options,
+                                         fixtures::SameLevels::kExact);
 }
 
 TEST(HcGpu, SameLevelsAsTheCpuOnFandiskDownToOneCluster) {
@@ -86,11 +81,9 @@ TEST(HcGpu, SameLevelsAsTheCpuOnARegularGridFullOfTies) {
 // and give the same levels.
 TEST(HcGpu, TwoDimensionalGridsGiveTheSameLevels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
-  GlContextOptions options;
-  options.max_groups_per_dimension = 16;
-  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(options);
-  ASSERT_TRUE(capped.ok()) << capped.status();
-  ExpectSameLevels(**capped, mesh.problem(), HcOptions(100));
+  const std::unique_ptr<GlContext> grids = fixtures::MakeTwoDimensionalGridContext();
+  ASSERT_NE(grids, nullptr);
+  ExpectSameLevels(*grids, mesh.problem(), HcOptions(100));
 }
 
 // The triplets of every step, applied to the previous labels, give the labels the GPU
@@ -165,17 +158,8 @@ TEST(HcGpu, RefusesWhatItDoesNotCover) {
 // pass; the context works again afterwards.
 TEST(HcGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(10, 10, 0.2f));
-  for (const char* pass : {"hc odes", "hc collapse", "hc triplets"}) {
-    fixtures::ExpectGlFailureInPass(pass, [&] {
-      LevelsSink sink;
-      return RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
-    });
-  }
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> again =
-      RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  fixtures::ExpectInjectedFailuresAreCleanErrors(RunHierarchyGpu, mesh.problem(), HcOptions(1),
+                                                 {"hc odes", "hc collapse", "hc triplets"});
 }
 
 // Buffers are sized from the stated bound: capped below it, RESOURCE_EXHAUSTED by pass.
@@ -183,15 +167,8 @@ TEST(HcGpu, BuffersOverTheLimitAreResourceExhausted) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(20, 20, 0.2f));
   EXPECT_GT(HcLevelsMemoryBound(mesh.mesh.num_faces(), 3 * mesh.mesh.num_faces()),
             100 * mesh.mesh.num_faces());
-  GlContextOptions options;
-  options.max_storage_buffer_bytes = 16 * static_cast<int64_t>(mesh.mesh.num_faces());
-  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
-  ASSERT_TRUE(small.ok()) << small.status();
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> result =
-      RunHierarchyGpu(**small, mesh.problem(), HcOptions(1), sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'hc odes'"));
+  fixtures::ExpectResourceExhaustedBelowTheBound(RunHierarchyGpu, mesh.problem(), HcOptions(1),
+                                                 "hc odes");
 }
 
 // Cancellation is checked between batches of steps: a sink that sets the flag at level 3
@@ -254,17 +231,7 @@ TEST(HcGpu, BatchSizesGiveTheSamePairs) {
 // Several components (two grids apart and a lone triangle): the levels stop at one
 // cluster per component, as the CPU's do.
 TEST(HcGpu, StopsAtOneClusterPerComponent) {
-  TriangleMesh mesh = meshes::MakeJitteredGrid(8, 12, 0.2f, 5);
-  const TriangleMesh second = meshes::MakeJitteredGrid(6, 6, 0.2f, 7);
-  const uint32_t offset = static_cast<uint32_t>(mesh.positions.size() / 3);
-  for (size_t i = 0; i < second.positions.size(); ++i) {
-    mesh.positions.push_back(second.positions[i] + (i % 3 == 0 ? 100.0f : 0.0f));
-  }
-  for (uint32_t v : second.indices) mesh.indices.push_back(v + offset);
-  const uint32_t lone = static_cast<uint32_t>(mesh.positions.size() / 3);
-  mesh.positions.insert(mesh.positions.end(), {-50, 0, 0, -49, 0, 0, -50, 1, 0});
-  mesh.indices.insert(mesh.indices.end(), {lone, lone + 1, lone + 2});
-  const fixtures::LoadedMesh loaded = fixtures::Load(std::move(mesh));
+  const fixtures::LoadedMesh loaded = fixtures::Load(fixtures::ThreeComponentMesh());
   ExpectSameLevels(Context(), loaded.problem(), HcOptions(1));
   LevelsSink sink;
   absl::StatusOr<MultilevelSummary> gpu =
