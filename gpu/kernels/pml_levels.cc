@@ -8,7 +8,6 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
 #include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
@@ -274,9 +273,6 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
     MLCLUST_ASSIGN_OR_RETURN(bb_program_, GetComputeProgram(*context_, "pml_bb",
                                                             absl::StrCat(kComputeShaderPrelude,
                                                                          kPmlCvdGlsl, kPmlBbGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(decide_program_,
-                             GetComputeProgram(*context_, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
     bb_buffers_ = std::move(buffers);
     num_face_edges_ = static_cast<uint32_t>(edges.size() / 2);
@@ -304,8 +300,6 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbDecidePass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    const uint32_t zero = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     if (!proxies_current_) {
       // The proxies of every cluster id; ApplyMoves keeps them.
       BindBbBuffers();
@@ -315,20 +309,11 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
       MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
       gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
-    // bb_decide.glsl's bindings: neighbours, labels, faces, proxies, proposals, count.
-    bb_buffers_[kNeighbours].Bind(0);
-    buffers_[kLabels].Bind(1);
-    bb_buffers_[kFacePoints].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kProposals].Bind(4);
-    bb_buffers_[kProposalCount].Bind(5);
-    gl.UseProgram(decide_program_);
-    gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.UseProgram(0);
-    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kBbDecidePass, bb_buffers_[kProposalCount],
-                                              bb_buffers_[kProposals], num_faces_, num_faces_,
-                                              proposals));
+    MLCLUST_RETURN_IF_ERROR(DispatchBoundaryDecide(
+        *context_, kBbDecidePass,
+        {&bb_buffers_[kNeighbours], &buffers_[kLabels], &bb_buffers_[kFacePoints],
+         &bb_buffers_[kProxies], &bb_buffers_[kProposals], &bb_buffers_[kProposalCount]},
+        num_faces_, num_faces_, proposals));
     proxies_current_ = true;
     return absl::OkStatus();
   }();
