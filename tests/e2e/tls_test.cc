@@ -8,7 +8,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "client/client.h"
 #include "core/io/draco_codec.h"
@@ -16,6 +15,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/files.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -26,13 +26,6 @@ using ::testing::Not;
 
 constexpr char kAlphaToken[] = "alpha-token-0123456789abcdef";
 constexpr char kBetaToken[] = "beta-token-0123456789abcdef";
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
@@ -69,7 +62,7 @@ class Certificates {
 
   bool ok() const { return ok_; }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string pem(const std::string& name) const { return ReadText(path(name)); }
+  std::string pem(const std::string& name) const { return testing::ReadFileBytes(path(name)); }
 
  private:
   static inline int counter_ = 0;
