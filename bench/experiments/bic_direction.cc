@@ -13,7 +13,6 @@
 #include "bench/bench_util.h"
 #include "core/cluster/point_clustering.h"
 #include "core/hierarchy/model_selection.h"
-#include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv, "usage: bic_direction FILE [--grid A] [--curve CURVE.csv]");
@@ -22,20 +21,16 @@ int main(int argc, char** argv) {
   options.grid = args.Get("grid", options.grid);
   const std::string curve_path = args.Get<std::string>("curve", "");
   if (!args.Done()) return 2;
-  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(path);
-  if (!points.ok()) {
-    std::fprintf(stderr, "%s\n", points.status().ToString().c_str());
-    return 1;
-  }
+  const mlclust::PointSet points = mlclust::bench::ReadPointsOrDie(path);
   mlclust::BicLevelRecorder recorder;
   absl::StatusOr<mlclust::PointMultilevelSummary> summary =
-      mlclust::RunPointMultilevel(*points, options, recorder);
+      mlclust::RunPointMultilevel(points, options, recorder);
   if (!summary.ok()) {
     std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
     return 1;
   }
   absl::StatusOr<mlclust::BicChoice> choice =
-      mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), points->dims);
+      mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), points.dims);
   if (!choice.ok()) {
     std::fprintf(stderr, "%s\n", choice.status().ToString().c_str());
     return 1;
