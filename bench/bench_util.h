@@ -182,6 +182,17 @@ double BestOf(int repeats, Run&& run) {
   return best;
 }
 
+// The value of `result`, or its status on stderr and exit(1): a bench has nothing to do
+// after a step that failed.
+template <typename T>
+T ValueOrDie(absl::StatusOr<T> result) {
+  if (!result.ok()) {
+    std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+    std::exit(1);
+  }
+  return *std::move(result);
+}
+
 // PrepareMeshFile, or a message on stderr and exit(1): benches have nothing to do
 // without their mesh.
 inline PreparedMesh PrepareOrDie(const std::string& path) {

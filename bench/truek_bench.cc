@@ -71,21 +71,13 @@ int main(int argc, char** argv) {
       options.parallel = algo == "pml";
       if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
       mlclust::BicLevelRecorder recorder;
-      absl::StatusOr<mlclust::PointMultilevelSummary> summary =
-          mlclust::RunPointMultilevel(points, options, recorder);
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      absl::StatusOr<mlclust::BicChoice> choice =
-          mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), 3);
-      if (!choice.ok()) {
-        std::fprintf(stderr, "%s\n", choice.status().ToString().c_str());
-        return 1;
-      }
+      const mlclust::PointMultilevelSummary summary =
+          mlclust::bench::ValueOrDie(mlclust::RunPointMultilevel(points, options, recorder));
+      const mlclust::BicChoice choice = mlclust::bench::ValueOrDie(
+          mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), 3));
       const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
       std::printf("%s,%u,%u,%zu,%.3f,%u,%u,%u\n", algo.c_str(), k, set, points.num_points(),
-                  seconds, summary->levels, choice->best_k, choice->first_decrease_k);
+                  seconds, summary.levels, choice.best_k, choice.first_decrease_k);
       std::fflush(stdout);
     }
   }
