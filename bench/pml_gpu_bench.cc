@@ -18,12 +18,10 @@
 // differ, their energies compare there.)
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "absl/time/clock.h"
 #include "bench/bench_util.h"
 #include "bench/gpu_bench_util.h"
 #include "core/cluster/multilevel.h"
@@ -32,16 +30,15 @@
 
 namespace {
 
-// Per level an order-independent fingerprint of its triplets and its cluster count; the
-// first level with at most `at` clusters.
-class FingerprintSink : public mlclust::LevelSink {
+// Per level an order-independent fingerprint of its triplets and its cluster count
+// (LevelPrintSink); the first level with at most `at` clusters.
+class FingerprintSink : public mlclust::bench::LevelPrintSink {
  public:
   explicit FingerprintSink(uint32_t at) : at_(at) {}
-  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
-                       double /*energy*/) override {
+  absl::Status OnStart(std::span<const mlclust::ClusterId> labels, uint32_t count,
+                       double energy) override {
     previous_count_ = count;
-    prints.push_back(count);
-    return absl::OkStatus();
+    return LevelPrintSink::OnStart(labels, count, energy);
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
     if (at_count == 0 && level.cluster_count <= at_) {
@@ -58,10 +55,8 @@ class FingerprintSink : public mlclust::LevelSink {
     }
     previous_count_ = level.cluster_count;
     previous_energy_ = level.energy;
-    prints.push_back(mlclust::bench::LevelFingerprint(level));
-    return absl::OkStatus();
+    return LevelPrintSink::OnLevel(level);
   }
-  std::vector<uint64_t> prints;
   uint32_t at_count = 0;
   double at_energy = 0;
 
@@ -102,57 +97,26 @@ int main(int argc, char** argv) {
   options.threads = threads;
   const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
   if (context == nullptr) return 1;
-  struct Row {
-    std::string device;
-    double seconds = std::numeric_limits<double>::infinity();
-    double cpu_seconds = 0;
-    mlclust::MultilevelSummary summary;
-    std::vector<uint64_t> prints;
-    uint32_t at_count = 0;
-    double at_energy = 0;
-  };
-  Row rows[2];
-  rows[0].device = "cpu";
-  rows[1].device = context->renderer();
-  for (int d = 0; d < 2; ++d) {
-    for (uint32_t r = 0; r < repeats; ++r) {
-      FingerprintSink sink(at);
-      const absl::Time start = absl::Now();
-      const double cpu_start = mlclust::bench::ProcessCpuSeconds();
-      absl::StatusOr<mlclust::MultilevelSummary> summary =
-          d == 0 ? mlclust::RunMultilevel(problem, options, sink)
-                 : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
-      const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu_start;
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      if (seconds < rows[d].seconds) {
-        rows[d].seconds = seconds;
-        rows[d].cpu_seconds = cpu_seconds;
-      }
-      rows[d].summary = *summary;
-      rows[d].prints = std::move(sink.prints);
-      rows[d].at_count = sink.at_count;
-      rows[d].at_energy = sink.at_energy;
-    }
-  }
-  size_t same = 0;
-  for (size_t l = 0; l < rows[0].prints.size() && l < rows[1].prints.size(); ++l) {
-    same += rows[0].prints[l] == rows[1].prints[l] ? 1 : 0;
-  }
+  const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::MultilevelSummary, FingerprintSink>(
+      *context, repeats, [at] { return FingerprintSink(at); },
+      [&](int device, FingerprintSink& sink) {
+        return device == 0
+                   ? mlclust::RunMultilevel(problem, options, sink)
+                   : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
+      });
+  if (!rows) return 1;
+  const size_t same = mlclust::bench::SameLevels((*rows)[0].sink->prints, (*rows)[1].sink->prints);
   if (header) {
     std::printf(
         "mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,"
         "same_levels,optimizer,cpu_seconds,at_clusters,at_energy\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
-  for (const Row& row : rows) {
+  for (const auto& row : *rows) {
     std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f,%u,%.10g\n", name.c_str(),
                 prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
                 row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same,
-                optimizer.c_str(), row.cpu_seconds, row.at_count, row.at_energy);
+                optimizer.c_str(), row.cpu_seconds, row.sink->at_count, row.sink->at_energy);
   }
   return 0;
 }

@@ -14,7 +14,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -83,55 +82,31 @@ int main(int argc, char** argv) {
   options.threads = threads;
   const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
   if (context == nullptr) return 1;
-  struct Row {
-    std::string device;
-    double seconds = std::numeric_limits<double>::infinity();
-    double cpu_seconds = 0;
-    mlclust::PointMultilevelSummary summary;
-    CurveSink curve;
-  };
-  Row rows[2];
-  rows[0].device = "cpu";
-  rows[1].device = context->renderer();
-  for (int device = 0; device < 2; ++device) {
-    for (uint32_t r = 0; r < repeats; ++r) {
-      CurveSink sink;
-      const double cpu_before = mlclust::bench::ProcessCpuSeconds();
-      const mlclust::bench::Stopwatch watch;
-      absl::StatusOr<mlclust::PointMultilevelSummary> summary =
-          device == 0
-              ? mlclust::RunPointMultilevel(points, options, sink)
-              : mlclust::gpu::RunPointParallelMultilevelGpu(*context, points, options, sink);
-      const double seconds = watch.Seconds();
-      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu_before;
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      if (seconds < rows[device].seconds) {
-        rows[device].seconds = seconds;
-        rows[device].cpu_seconds = cpu_seconds;
-      }
-      rows[device].summary = *summary;
-      rows[device].curve = std::move(sink);
-    }
-  }
+  const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::PointMultilevelSummary, CurveSink>(
+      *context, repeats, [] { return CurveSink(); },
+      [&](int device, CurveSink& sink) {
+        return device == 0
+                   ? mlclust::RunPointMultilevel(points, options, sink)
+                   : mlclust::gpu::RunPointParallelMultilevelGpu(*context, points, options, sink);
+      });
+  if (!rows) return 1;
   if (header) {
     std::printf(
         "points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,"
         "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs\n");
   }
-  for (const Row& row : rows) {
-    for (size_t l = 0; curve && l < row.curve.counts.size(); ++l) {
-      std::fprintf(stderr, "%s,%zu,%u,%.8g\n", row.device.c_str(), l, row.curve.counts[l],
-                   row.curve.energies[l]);
+  for (const auto& row : *rows) {
+    const CurveSink& sink = *row.sink;
+    for (size_t l = 0; curve && l < sink.counts.size(); ++l) {
+      std::fprintf(stderr, "%s,%zu,%u,%.8g\n", row.device.c_str(), l, sink.counts[l],
+                   sink.energies[l]);
     }
     const uint32_t low = row.summary.final_clusters;
     std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g\n",
                 static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
                 threads, row.seconds, row.cpu_seconds, row.summary.levels,
-                row.summary.start_clusters, low, row.curve.energies.back(), row.curve.At(4 * low),
-                row.curve.At(16 * low), row.curve.At(blobs));
+                row.summary.start_clusters, low, sink.energies.back(), sink.At(4 * low),
+                sink.At(16 * low), sink.At(blobs));
   }
   return 0;
 }

@@ -4,17 +4,15 @@
 #include <array>
 
 #include "absl/strings/str_cat.h"
-#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
-#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/pml_pairs_glsl.h"  // kPmlPairsGlsl, generated
 
@@ -28,8 +26,7 @@ constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
 
-// pml_compact.glsl's phases, kinds and counter slots.
-constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+// pml_compact.glsl's kinds and counter slots.
 constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
 // pml_bb.glsl's phases.
 constexpr uint32_t kFitProxies = 0, kWriteLabels = 1, kWriteClusters = 2;
@@ -119,17 +116,14 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kEdgesIn].Upload(std::span<const uint32_t>(edges)));
     Programs programs;
     const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl);
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.ode, GetComputeProgram(context, "pml_ode", absl::StrCat(prelude, kPmlOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.ode, GetPmlOdeProgram(context));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs, GetComputeProgram(context, "pml_pairs",
                                           absl::StrCat(prelude, kPmlPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.merge,
-        GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.compact, GetComputeProgram(context, "pml_compact",
-                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+        programs.merge, GetComputeProgram(context, "pml_merge",
+                                          absl::StrCat(prelude, kPmlMergeGlsl, kPairMergeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PmlLevelsGpu(context, static_cast<uint32_t>(n), static_cast<uint32_t>(m), programs,
                         std::move(buffers));
@@ -151,45 +145,14 @@ absl::StatusOr<uint32_t> PmlLevelsGpu::FindPairs() {
 
 absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                     uint32_t pairs, PmlLevelGpu& level) {
-  const detail::GlFunctions& gl = context_->gl();
-  MLCLUST_ASSIGN_OR_RETURN(
-      const bool use_flags,
-      SelectCollapsedPairs(rule, clusters, lowest, pairs, buffers_[kPairIds], buffers_[kPairValues],
-                           buffers_[kPairSelected], level.merged));
-  gl.UseProgram(programs_.merge);
-  gl.ProgramUniform1ui(programs_.merge, 0, pairs);
-  gl.ProgramUniform1ui(programs_.merge, 1, use_flags ? 1u : 0u);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  gl.UseProgram(0);
+  MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(*context_, programs_.merge, rule, clusters, lowest,
+                                             pairs, buffers_[kPairIds], buffers_[kPairValues],
+                                             buffers_[kPairSelected], level.merged));
   return CheckGlError(*context_, kCollapsePass);
 }
 
 absl::Status PmlLevelsGpu::Compact(uint32_t kind, uint32_t count, uint32_t slot) {
-  const detail::GlFunctions& gl = context_->gl();
-  if (count == 0) {
-    const uint32_t zero = 0;
-    return buffers_[kCounters].Upload(slot * 4, &zero, 4);
-  }
-  const uint32_t program = programs_.compact;
-  const uint64_t chunks = Chunks(count), groups = Groups(count);
-  gl.UseProgram(program);
-  gl.ProgramUniform1ui(program, 2, kind);
-  gl.ProgramUniform1ui(program, 3, slot);
-  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
-      std::pair<uint32_t, uint64_t>{kCount, chunks},
-      {kScanGroups, groups},
-      {kScanTop, 1},
-      {kWrite, chunks}};
-  for (const auto& [phase, invocations] : steps) {
-    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : count;
-    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
-    gl.ProgramUniform1ui(program, 1, phase);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  }
-  gl.UseProgram(0);
-  return absl::OkStatus();
+  return CompactInOrder(*context_, programs_.compact, kind, count, buffers_[kCounters], slot);
 }
 
 absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
@@ -197,31 +160,11 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
   MLCLUST_RETURN_IF_ERROR(Compact(kEdges, num_edges_, kEdgeSlot));
   std::array<uint32_t, kCounterSlots> counters{};
   MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(std::span<uint32_t>(counters)));
-  const uint32_t moved = counters[kTripletSlot];
   std::swap(buffers_[kEdgesIn], buffers_[kEdgesOut]);
   num_edges_ = counters[kEdgeSlot];
-  std::vector<uint32_t> triplets(size_t{3} * moved);
-  if (moved > 0)
-    MLCLUST_RETURN_IF_ERROR(buffers_[kTriplets].Download(std::span<uint32_t>(triplets)));
-  std::vector<double> values(size_t{3} * pairs);
-  MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
-  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kTripletsPass));
-  level.element.resize(moved);
-  level.to_cluster.resize(moved);
-  level.from_cluster.resize(moved);
-  for (uint32_t i = 0; i < moved; ++i) {
-    level.element[i] = triplets[3 * i];
-    level.to_cluster[i] = triplets[3 * i + 1];
-    level.from_cluster[i] = triplets[3 * i + 2];
-  }
-  ::mlclust::detail::CompensatedSum change;
-  change.Reset(0);
-  for (uint32_t i = 0; i < pairs; ++i) {
-    change.Add(values[3 * i + 1]);
-    change.Add(values[3 * i + 2]);
-  }
-  level.energy_change = change.value();
-  return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(ReadLevelTriplets(counters[kTripletSlot], pairs, buffers_[kTriplets],
+                                            buffers_[kPairValues], level));
+  return CheckGlError(*context_, kTripletsPass);
 }
 
 absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,

@@ -67,21 +67,12 @@
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
+#include "gpu/kernels/pml_pair_selection.h"
 
 namespace mlclust::gpu {
 
-// Elements per invocation and invocations per scan group of pml_compact.glsl.
-inline constexpr uint32_t kPmlChunk = 32;
-inline constexpr uint32_t kPmlGroup = 256;
-
-// One level's result.
-struct PmlLevelGpu {
-  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
-  uint32_t merged = 0;        // collapsed
-  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
-  // The triplets, in face order.
-  std::vector<uint32_t> element, to_cluster, from_cluster;
-};
+// One level's result (pml_pair_selection.h); the triplets in face order.
+using PmlLevelGpu = GpuPmlLevel;
 
 // The bytes PmlLevelsGpu allocates for `num_faces` faces and `num_edges` directed face
 // edges (at most 3 * num_faces).

@@ -37,17 +37,12 @@
 #include "core/cluster/detail/pml_pairs.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
+#include "gpu/kernels/pml_pair_selection.h"
 
 namespace mlclust::gpu {
 
-// One level's result.
-struct PointLevelGpu {
-  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
-  uint32_t merged = 0;        // collapsed
-  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
-  // The triplets, in point order.
-  std::vector<uint32_t> element, to_cluster, from_cluster;
-};
+// One level's result (pml_pair_selection.h); the triplets in point order.
+using PointLevelGpu = GpuPmlLevel;
 
 // The clusters of the start, as the GPU levels take them.
 struct PointLevelsStart {

@@ -17,6 +17,7 @@
 #include "core/mesh/connectivity_guard.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
+#include "gpu/stages/gpu_level_sink.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -252,14 +253,8 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
             if (!merged) break;  // one cluster per component
             clusters -= level.merged;
             energy_sum.Add(level.energy_change);
-            LevelMoves moves;
-            moves.level = summary.levels;
-            moves.cluster_count = clusters;
-            moves.energy = energy_sum.value();
-            moves.element = level.element;
-            moves.to_cluster = level.to_cluster;
-            moves.from_cluster = level.from_cluster;
-            MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
+            MLCLUST_RETURN_IF_ERROR(
+                SendGpuLevel(level, summary.levels, clusters, energy_sum.value(), sink));
             summary.moves += level.element.size();
             ++summary.levels;
           }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <span>
 #include <vector>
 
@@ -10,10 +9,13 @@
 #include "core/base/cancel.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/local_neighbours.h"
+#include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/device_stages.h"
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
+#include "gpu/stages/gpu_level_sink.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -33,39 +35,12 @@ struct Start {
   double energy = 0;
 };
 
-// PointClusters::RefreshNeighbours(c, {}) on the flat tables: the nearest candidate per
-// subspace among c's neighbours and theirs, equal distances to the smaller id.
+// PointClusters::RefreshNeighbours on the flat tables (detail::RefreshLocalNeighbours, the
+// CPU's own).
 void RefreshNeighbours(Start& start, uint32_t d, uint32_t c, std::vector<uint32_t>& candidates,
-                       std::vector<double>& best) {
-  const uint32_t slots = 2 * d;
-  uint32_t* out = &start.neighbours[size_t{c} * slots];
-  for (uint32_t s = 0; s < slots; ++s) {
-    const uint32_t n = out[s];
-    if (n == kNone) continue;
-    candidates.push_back(n);
-    for (uint32_t t = 0; t < slots; ++t) {
-      const uint32_t nn = start.neighbours[size_t{n} * slots + t];
-      if (nn != kNone) candidates.push_back(nn);
-    }
-  }
-  std::fill(out, out + slots, kNone);
-  best.assign(slots, std::numeric_limits<double>::infinity());
-  const std::span<const double> from(&start.centroids[size_t{c} * d], d);
-  for (const uint32_t n : candidates) {
-    if (n == c || start.counts[n] == 0) continue;
-    const std::span<const double> to(&start.centroids[size_t{n} * d], d);
-    const uint32_t s = SubspaceIndex(from, to);
-    double dist = 0;
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff = from[j] - to[j];
-      dist += diff * diff;
-    }
-    if (dist < best[s] || (dist == best[s] && n < out[s])) {
-      best[s] = dist;
-      out[s] = n;
-    }
-  }
-  candidates.clear();
+                       ::mlclust::detail::LocalNeighbourScratch& scratch) {
+  ::mlclust::detail::RefreshLocalNeighbours<uint32_t>(c, d, start.centroids, start.counts,
+                                                      start.neighbours, candidates, scratch);
 }
 
 // PointSpace's constructor: points ordered by starting cell (stable), the data's mean
@@ -113,10 +88,10 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
   start.energy = total;
   start.neighbours = voxels.neighbours;
   std::vector<uint32_t> candidates;
-  std::vector<double> best;
+  ::mlclust::detail::LocalNeighbourScratch scratch(k);
   for (uint32_t c = 0; c < k; ++c) {
     if (c % 4096 == 0 && IsCancelled(cancel)) return start;
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   std::vector<uint32_t> isolated;
   for (uint32_t c = 0; c < k; ++c) {
@@ -130,7 +105,7 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
     for (uint32_t n = 0; n < k; ++n) {
       if (n != c) candidates.push_back(n);
     }
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   return start;
 }
@@ -176,16 +151,7 @@ std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
 absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
     LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
-  }
-  if (options.grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
-  }
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
   const std::string unsupported = PointsPmlGpuUnsupported(options);
   if (!unsupported.empty()) {
     return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
@@ -234,14 +200,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     linked = false;
     clusters -= level.merged;
     energy.Add(level.energy_change);
-    LevelMoves moves;
-    moves.level = summary.levels;
-    moves.cluster_count = clusters;
-    moves.energy = energy.value();
-    moves.element = level.element;
-    moves.to_cluster = level.to_cluster;
-    moves.from_cluster = level.from_cluster;
-    MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
+    MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
     summary.moves += level.element.size();
     if (options.inspect_level) {
       MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());

@@ -9,12 +9,14 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "client/client.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/test_server.h"
 
 namespace mlclust {
@@ -40,16 +42,8 @@ class PointsPmlGpuTest : public testing::GpuServerTest {
 };
 
 TEST_F(PointsPmlGpuTest, DeviceGpuRunsTheVoxelStartAndTheLevelsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(Spec("gpu", "none"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(Spec("cpu", "none"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(Spec("gpu", "none"), Spec("cpu", "none"), gpu, cpu));
   // The same start (labels and energy), the same lowest level (20 clusters), and there
   // the energy within 1%.
   const auto& g = gpu->hierarchy;
