@@ -13,6 +13,7 @@
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/detail/member_lists.h"
 #include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/detail/polygon_energy.h"
 #include "core/cluster/partition.h"
@@ -522,14 +523,7 @@ class MeshSpace {
         AddEdgesOneSide(z, x, 1, mark_dirty);
       }
     }
-    // Members: swap-remove from y, append to x.
-    auto& from = members_[y];
-    const uint32_t at = position_[f];
-    from[at] = from.back();
-    position_[from[at]] = at;
-    from.pop_back();
-    position_[f] = static_cast<uint32_t>(members_[x].size());
-    members_[x].push_back(f);
+    detail::MoveMember(members_, position_, f, y, x);
   }
 
   void Touch(uint32_t cluster) {
