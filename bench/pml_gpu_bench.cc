@@ -4,14 +4,17 @@
 // have the same triplets on both (an order-independent fingerprint per level). With
 // --optimizer bb, Alg. 5.7: BB sweeps after each level (the CPU engine's are local
 // one-by-one sweeps, the GPU's Alg. 5.4 sweeps over every face, so the levels differ).
+// With --algo ml (Alg. 5.6, RunMultilevelGpu; optimizer none is HC's steps): one merge per
+// level, against the CPU engine's ML with the same optimizer (pairs and threads unused);
+// --clusters K stops both at K clusters (default 1: the whole hierarchy).
 //
-//   pml_gpu_bench MESH [--pairs all|cheaper-half] [--optimizer none|bb] [--threads T]
-//                 [--repeats R] [--at K] [--header]
+//   pml_gpu_bench MESH [--algo pml|ml] [--pairs all|cheaper-half] [--optimizer none|bb]
+//                 [--threads T] [--repeats R] [--at K] [--clusters K] [--header]
 //
 // Prints one CSV row per device (best time of R runs; cpu_seconds: the process's CPU time
 // of that run, every thread, llvmpipe's included):
 // mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels,
-// optimizer,cpu_seconds,at_clusters,at_energy
+// optimizer,cpu_seconds,at_clusters,at_energy (pairs: ml with --algo ml)
 // (at_clusters, at_energy: the energy at --at K clusters, default 1000, a power law between
 // the two levels around K (log energy linear in log count), or the first level with at most
 // K clusters where there is no level before it with more: where the optimisers' levels
@@ -70,26 +73,34 @@ class FingerprintSink : public mlclust::bench::LevelPrintSink {
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
-                            "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] "
-                            "[--optimizer none|bb] [--threads T] [--repeats R] [--at K] "
-                            "[--header]");
+                            "usage: pml_gpu_bench MESH [--algo pml|ml] [--pairs "
+                            "all|cheaper-half] [--optimizer none|bb] [--threads T] [--repeats R] "
+                            "[--at K] [--clusters K] [--header]");
   const bool header = args.Flag("header");
   const std::string pairs = args.Get<std::string>("pairs", "all");
   const std::string optimizer = args.Get<std::string>("optimizer", "none");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const uint32_t at = args.Get<uint32_t>("at", 1000);
+  const std::string algo = args.Get<std::string>("algo", "pml");
+  const uint32_t clusters = args.Get<uint32_t>("clusters", 1);
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
   if (optimizer != "none" && optimizer != "bb") {
     std::fprintf(stderr, "--optimizer: '%s' is not none or bb\n", optimizer.c_str());
     return 2;
   }
+  if (algo != "pml" && algo != "ml") {
+    std::fprintf(stderr, "--algo: '%s' is not pml or ml\n", algo.c_str());
+    return 2;
+  }
+  const bool ml = algo == "ml";
 
   const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
   const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, {});
   mlclust::MultilevelOptions options;
-  options.parallel = true;
+  options.parallel = !ml;
+  options.min_clusters = clusters;
   options.optimizer = optimizer == "bb" ? mlclust::MultilevelOptions::Optimizer::kBoundaryBased
                                         : mlclust::MultilevelOptions::Optimizer::kNone;
   options.pml_pairs =
@@ -100,9 +111,9 @@ int main(int argc, char** argv) {
   const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::MultilevelSummary, FingerprintSink>(
       *context, repeats, [at] { return FingerprintSink(at); },
       [&](int device, FingerprintSink& sink) {
-        return device == 0
-                   ? mlclust::RunMultilevel(problem, options, sink)
-                   : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
+        return device == 0 ? mlclust::RunMultilevel(problem, options, sink)
+               : ml        ? mlclust::gpu::RunMultilevelGpu(*context, problem, options, sink)
+                    : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
       });
   if (!rows) return 1;
   const size_t same = mlclust::bench::SameLevels((*rows)[0].sink->prints, (*rows)[1].sink->prints);
@@ -114,9 +125,10 @@ int main(int argc, char** argv) {
   const std::string name = path.substr(path.find_last_of('/') + 1);
   for (const auto& row : *rows) {
     std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f,%u,%.10g\n", name.c_str(),
-                prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
-                row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same,
-                optimizer.c_str(), row.cpu_seconds, row.sink->at_count, row.sink->at_energy);
+                prepared.mesh.num_faces(), row.device.c_str(), ml ? "ml" : pairs.c_str(), threads,
+                row.seconds, row.summary.levels, row.summary.final_clusters,
+                row.summary.final_energy, same, optimizer.c_str(), row.cpu_seconds,
+                row.sink->at_count, row.sink->at_energy);
   }
   return 0;
 }

@@ -1,16 +1,18 @@
-// PML for points (merges only) on the GPU (gpu/stages/points_multilevel_gpu.h: the voxel
-// start and every level on the GPU) against the CPU engine's PML with the same options
-// (core/cluster/point_clustering.h, RunPointMultilevel) on T threads, on Gaussian blobs:
+// PML for points on the GPU (gpu/stages/points_multilevel_gpu.h: the voxel start and every
+// level on the GPU; merges only, or with --optimizer lnkmeans the CPU's LN k-means rounds
+// after each level, gpu/stages/points_optimise_gpu.h) against the CPU engine's PML with the same
+// options (core/cluster/point_clustering.h, RunPointMultilevel) on T threads, on Gaussian blobs:
 // the whole hierarchy (for the GPU: upload, start, every level, every triplet read back),
 // wall seconds and the process's CPU seconds (llvmpipe's threads included), levels, the
 // energy at the lowest level, at 4x and 16x its clusters and at the number of blobs.
 //
 //   points_gpu_bench [--m M] [--d D] [--blobs B] [--pairs all|cheaper-half] [--until K]
-//                    [--threads T] [--repeats R] [--seed S] [--curve] [--header]
+//                    [--optimizer none|lnkmeans] [--threads T] [--repeats R] [--seed S]
+//                    [--curve] [--header]
 //
 // Prints one CSV row per device (best wall time of R runs):
 // points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
-// final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs
+// final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -56,7 +58,8 @@ class CurveSink : public mlclust::LevelSink {
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
                             "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
-                            "[--pairs all|cheaper-half] [--until K] [--threads T] [--repeats R] "
+                            "[--pairs all|cheaper-half] [--until K] [--optimizer none|lnkmeans] "
+                            "[--threads T] [--repeats R] "
                             "[--seed S] [--curve] [--header]");
   const bool header = args.Flag("header");
   const bool curve = args.Flag("curve");  // every level's count and energy to stderr
@@ -64,6 +67,7 @@ int main(int argc, char** argv) {
   const uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 1000);
   const std::string pairs = args.Get<std::string>("pairs", "cheaper-half");
   const uint32_t until = args.Get<uint32_t>("until", 1);
+  const std::string optimizer = args.Get<std::string>("optimizer", "none");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
@@ -72,10 +76,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bad option --pairs %s\n", pairs.c_str());
     return 2;
   }
+  if (optimizer != "none" && optimizer != "lnkmeans") {
+    std::fprintf(stderr, "bad option --optimizer %s\n", optimizer.c_str());
+    return 2;
+  }
   const mlclust::PointSet points = mlclust::bench::Blobs(m, d, blobs, seed);
   mlclust::PointMultilevelOptions options;
   options.parallel = true;
-  options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
+  options.optimizer = optimizer == "none" ? mlclust::PointMultilevelOptions::Optimizer::kNone
+                                          : mlclust::PointMultilevelOptions::Optimizer::kLnKmeans;
   options.pml_pairs =
       pairs == "all" ? mlclust::PmlPairRule::kAll : mlclust::PmlPairRule::kCheaperHalf;
   options.min_clusters = std::max(until, 1u);
@@ -93,7 +102,7 @@ int main(int argc, char** argv) {
   if (header) {
     std::printf(
         "points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,"
-        "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs\n");
+        "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer\n");
   }
   for (const auto& row : *rows) {
     const CurveSink& sink = *row.sink;
@@ -102,11 +111,11 @@ int main(int argc, char** argv) {
                    sink.energies[l]);
     }
     const uint32_t low = row.summary.final_clusters;
-    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g\n",
+    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g,%s\n",
                 static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
                 threads, row.seconds, row.cpu_seconds, row.summary.levels,
                 row.summary.start_clusters, low, sink.energies.back(), sink.At(4 * low),
-                sink.At(16 * low), sink.At(blobs));
+                sink.At(16 * low), sink.At(blobs), optimizer.c_str());
   }
   return 0;
 }

@@ -871,12 +871,8 @@ absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid,
 
 absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
                                            const LnKmeansOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  MLCLUST_RETURN_IF_ERROR(detail::CheckLnKmeansArguments(points, labels.size()));
   const size_t m = points.num_points();
-  if (labels.size() != m) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("labels: ", labels.size(), " for ", m, " points"));
-  }
   // Compact ids; remember the caller's.
   absl::flat_hash_map<uint32_t, uint32_t> compact_of;
   std::vector<uint32_t> compact(m);

@@ -1,6 +1,7 @@
 #include "gpu/kernels/bb_decide.h"
 
 #include <algorithm>
+#include <array>
 
 #include "absl/strings/str_cat.h"
 #include "gpu/context/gl_functions.h"
@@ -118,35 +119,14 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
   if (num_faces_ == 0) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kPass));
   const absl::Status status = [&]() -> absl::Status {
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t program,
-                             GetComputeProgram(*context_, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
     MLCLUST_RETURN_IF_ERROR(UpdateLabels(labels));
     MLCLUST_RETURN_IF_ERROR(buffers_[kProxies].Upload(proxies));
-    const uint32_t zero = 0;
-    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
-    const detail::GlFunctions& gl = context_->gl();
-    gl.UseProgram(program);
-    for (uint32_t b = kNeighbours; b <= kProposalCount; ++b) buffers_[b].Bind(b);
-    gl.ProgramUniform1ui(program, 0, num_faces_);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.UseProgram(0);
-    uint32_t count = 0;
-    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Download(0, &count, sizeof(count)));
-    if (count > num_faces_) {
-      return absl::InternalError(
-          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
-    }
-    proposals_.resize(count);
-    MLCLUST_RETURN_IF_ERROR(
-        buffers_[kProposals].Download(std::span<std::array<uint32_t, 2>>(proposals_)));
-    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kPass));
+    MLCLUST_RETURN_IF_ERROR(DispatchBoundaryDecide(
+        *context_, kPass,
+        {&buffers_[kNeighbours], &buffers_[kLabels], &buffers_[kFaces], &buffers_[kProxies],
+         &buffers_[kProposals], &buffers_[kProposalCount]},
+        num_faces_, num_clusters_, proposals_));
     for (const auto& [face, cluster] : proposals_) {
-      if (face >= num_faces_ || cluster >= num_clusters_) {
-        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
-                                                cluster, " of ", num_faces_, " faces and ",
-                                                num_clusters_, " clusters"));
-      }
       target[face] = cluster;
     }
     return absl::OkStatus();
@@ -156,6 +136,46 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
     std::fill(target.begin(), target.end(), kNoTarget);
   }
   return PassError(kPass, status);
+}
+
+absl::Status DispatchBoundaryDecide(GlContext& context, const char* pass,
+                                    const BoundaryDecideBuffers& buffers, uint32_t num_faces,
+                                    uint32_t num_clusters,
+                                    std::vector<std::array<uint32_t, 2>>& proposals) {
+  MLCLUST_ASSIGN_OR_RETURN(
+      const uint32_t program,
+      GetComputeProgram(context, "bb_decide", absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
+  uint32_t count = 0;
+  MLCLUST_RETURN_IF_ERROR(buffers.count->Upload(0, &count, sizeof(count)));
+  const std::array<StorageBuffer*, 6> bound = {buffers.neighbours, buffers.labels,
+                                               buffers.faces,      buffers.proxies,
+                                               buffers.proposals,  buffers.count};
+  for (uint32_t b = 0; b < bound.size(); ++b) bound[b]->Bind(b);
+  const detail::GlFunctions& gl = context.gl();
+  gl.UseProgram(program);
+  gl.ProgramUniform1ui(program, 0, num_faces);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, num_faces));
+  gl.UseProgram(0);
+  proposals.clear();
+  MLCLUST_RETURN_IF_ERROR(buffers.count->Download(0, &count, sizeof(count)));
+  if (count > num_faces) {
+    return absl::InternalError(
+        absl::StrCat("the GPU reports ", count, " proposals for ", num_faces, " faces"));
+  }
+  proposals.resize(count);
+  if (count > 0) {
+    MLCLUST_RETURN_IF_ERROR(
+        buffers.proposals->Download(std::span<std::array<uint32_t, 2>>(proposals)));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(context, pass));
+  for (const auto& [face, cluster] : proposals) {
+    if (face >= num_faces || cluster >= num_clusters) {
+      return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
+                                              cluster, " of ", num_faces, " faces and ",
+                                              num_clusters, " clusters"));
+    }
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace mlclust::gpu

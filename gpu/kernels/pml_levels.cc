@@ -2,12 +2,13 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
+#include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
@@ -25,6 +26,8 @@ constexpr char kTripletsPass[] = "pml triplets";
 constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
+constexpr char kMinOdePass[] = "ml min ode";
+constexpr uint32_t kNoCluster = 0xFFFFFFFFu;
 
 // pml_compact.glsl's kinds and counter slots.
 constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
@@ -167,21 +170,71 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
   return CheckGlError(*context_, kTripletsPass);
 }
 
-absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
-                                         PmlLevelGpu& level) {
+absl::StatusOr<uint32_t> PmlLevelsGpu::StartLevel(PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   absl::StatusOr<uint32_t> pairs = FindPairs();
   if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
   level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
+  return *pairs;
+}
+
+absl::Status PmlLevelsGpu::FinishLevel(const std::function<absl::Status()>& collapse,
+                                       uint32_t pairs, PmlLevelGpu& level) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
+  absl::Status collapsed = collapse();
   if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return PassError(kTripletsPass, Extract(pairs, level));
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                         PmlLevelGpu& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const uint32_t pairs, StartLevel(level));
+  if (pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(
+      FinishLevel([&] { return Collapse(rule, clusters, lowest, pairs, level); }, pairs, level));
+  return true;
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& level) {
+  MLCLUST_RETURN_IF_ERROR(StartLevel(level).status());
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
+  std::array<uint32_t, 2> pair{};
+  const absl::Status chosen = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    if (programs_.min_ode == 0) {
+      MLCLUST_ASSIGN_OR_RETURN(
+          programs_.min_ode, GetComputeProgram(*context_, "ml_min_ode",
+                                               absl::StrCat(kComputeShaderPrelude, kMlMinOdeGlsl)));
+    }
+    gl.UseProgram(programs_.min_ode);
+    gl.ProgramUniform1ui(programs_.min_ode, 0, num_faces_);
+    gl.ProgramUniform1ui(programs_.min_ode, 1, ties_to_fewest_faces ? 1u : 0u);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, 1));  // one work group
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    gl.UseProgram(0);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(pair)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kMinOdePass));
+    if (pair[0] != kNoCluster && (pair[0] >= num_faces_ || pair[1] >= num_faces_)) {
+      return absl::InternalError(absl::StrCat("the GPU's cheapest ODE joins clusters ", pair[0],
+                                              " and ", pair[1], " of ", num_faces_));
+    }
+    return absl::OkStatus();
+  }();
+  if (!chosen.ok()) return PassError(kMinOdePass, chosen);
+  if (pair[0] == kNoCluster) return false;  // one cluster per component
+  // The one pair, merged as a level of `all` above its floor merges its pairs (no flags).
+  MLCLUST_RETURN_IF_ERROR(FinishLevel(
+      [&]() -> absl::Status {
+        MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(
+            *context_, programs_.merge, PmlPairRule::kAll, /*clusters=*/2, /*lowest=*/1,
+            /*pairs=*/1, buffers_[kPairIds], buffers_[kPairValues], buffers_[kPairSelected],
+            level.merged));
+        return CheckGlError(*context_, kCollapsePass);
+      },
+      1, level));
   return true;
 }
 
@@ -231,15 +284,22 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
     MLCLUST_ASSIGN_OR_RETURN(bb_program_, GetComputeProgram(*context_, "pml_bb",
                                                             absl::StrCat(kComputeShaderPrelude,
                                                                          kPmlCvdGlsl, kPmlBbGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(decide_program_,
-                             GetComputeProgram(*context_, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
     bb_buffers_ = std::move(buffers);
     num_face_edges_ = static_cast<uint32_t>(edges.size() / 2);
     return absl::OkStatus();
   }();
   return PassError(kBbDecidePass, status);
+}
+
+void PmlLevelsGpu::BindBbBuffers() {
+  buffers_[kSums].Bind(0);
+  buffers_[kSizes].Bind(1);
+  buffers_[kLabels].Bind(2);
+  bb_buffers_[kProxies].Bind(3);
+  bb_buffers_[kLabelChanges].Bind(4);
+  bb_buffers_[kClusterChanges].Bind(5);
+  bb_buffers_[kClusterSums].Bind(6);
 }
 
 absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
@@ -251,49 +311,21 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbDecidePass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    const uint32_t zero = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     if (!proxies_current_) {
-      // The proxies of every cluster id (pml_bb.glsl's bindings); ApplyMoves keeps them.
-      buffers_[kSums].Bind(0);
-      buffers_[kSizes].Bind(1);
-      buffers_[kLabels].Bind(2);
-      bb_buffers_[kProxies].Bind(3);
+      // The proxies of every cluster id; ApplyMoves keeps them.
+      BindBbBuffers();
       gl.UseProgram(bb_program_);
       gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
       gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
       MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
       gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
-    // bb_decide.glsl's bindings: neighbours, labels, faces, proxies, proposals, count.
-    bb_buffers_[kNeighbours].Bind(0);
-    buffers_[kLabels].Bind(1);
-    bb_buffers_[kFacePoints].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kProposals].Bind(4);
-    bb_buffers_[kProposalCount].Bind(5);
-    gl.UseProgram(decide_program_);
-    gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.UseProgram(0);
-    uint32_t count = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Download(0, &count, sizeof(count)));
-    if (count > num_faces_) {
-      return absl::InternalError(
-          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
-    }
-    proposals.resize(count);
-    if (count > 0) {
-      MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposals].Download(std::span<PmlFaceMove>(proposals)));
-    }
-    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    MLCLUST_RETURN_IF_ERROR(DispatchBoundaryDecide(
+        *context_, kBbDecidePass,
+        {&bb_buffers_[kNeighbours], &buffers_[kLabels], &bb_buffers_[kFacePoints],
+         &bb_buffers_[kProxies], &bb_buffers_[kProposals], &bb_buffers_[kProposalCount]},
+        num_faces_, num_faces_, proposals));
     proxies_current_ = true;
-    for (const auto& [face, cluster] : proposals) {
-      if (face >= num_faces_ || cluster >= num_faces_) {
-        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
-                                                cluster, " of ", num_faces_, " faces"));
-      }
-    }
     return absl::OkStatus();
   }();
   if (!status.ok()) {
@@ -323,13 +355,7 @@ absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbApplyPass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    buffers_[kSums].Bind(0);
-    buffers_[kSizes].Bind(1);
-    buffers_[kLabels].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kLabelChanges].Bind(4);
-    bb_buffers_[kClusterChanges].Bind(5);
-    bb_buffers_[kClusterSums].Bind(6);
+    BindBbBuffers();
     gl.UseProgram(bb_program_);
     for (size_t begin = 0; begin < moves.size(); begin += kPmlBbChangeChunk) {
       const size_t count = std::min<size_t>(kPmlBbChangeChunk, moves.size() - begin);

@@ -17,6 +17,7 @@
 #include "gpu/kernels/points_ode_glsl.h"      // kPointsOdeGlsl, generated
 #include "gpu/kernels/points_pairs_glsl.h"    // kPointsPairsGlsl, generated
 #include "gpu/kernels/points_refresh_glsl.h"  // kPointsRefreshGlsl, generated
+#include "gpu/kernels/points_update_glsl.h"   // kPointsUpdateGlsl, generated
 #include "gpu/kernels/voxel_start.h"
 
 namespace mlclust::gpu {
@@ -26,6 +27,7 @@ constexpr char kOdesPass[] = "points odes";
 constexpr char kCollapsePass[] = "points collapse";
 constexpr char kTripletsPass[] = "points triplets";
 constexpr char kNeighboursPass[] = "points neighbours";
+constexpr char kUpdatePass[] = "points update";
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 // pml_compact.glsl's kind and counter slots (shared with the meshes' PML).
@@ -111,6 +113,9 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         programs.refresh,
         GetComputeProgram(context, "points_refresh", absl::StrCat(prelude, kPointsRefreshGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.update,
+        GetComputeProgram(context, "points_update", absl::StrCat(prelude, kPointsUpdateGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PointLevelsGpu(context, static_cast<uint32_t>(m), static_cast<uint32_t>(k), d, programs,
@@ -176,6 +181,13 @@ absl::Status PointLevelsGpu::LinkAll() {
 
 absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                            PointLevelGpu& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const bool merged, MergeLevel(rule, clusters, lowest, level));
+  if (merged) MLCLUST_RETURN_IF_ERROR(RefreshNeighbours());
+  return merged;
+}
+
+absl::StatusOr<bool> PointLevelsGpu::MergeLevel(PmlPairRule rule, uint32_t clusters,
+                                                uint32_t lowest, PointLevelGpu& level) {
   level = PointLevelGpu();
   ++level_;
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
@@ -189,10 +201,79 @@ absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, 
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
   absl::Status extracted = Extract(*pairs, level);
   if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return true;
+}
+
+absl::Status PointLevelsGpu::RefreshNeighbours() {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kNeighboursPass));
   absl::Status refreshed = Refresh(/*link_all=*/false);
   if (!refreshed.ok()) return PassError(kNeighboursPass, refreshed);
-  return true;
+  return absl::OkStatus();
+}
+
+LnKmeansResidentClusters PointLevelsGpu::Resident() const {
+  return {&buffers_[kLabels], &buffers_[kCentroids], &buffers_[kNeighboursIn], &buffers_[kCounts]};
+}
+
+absl::Status PointLevelsGpu::Update(std::span<const uint32_t> clusters,
+                                    std::span<const uint32_t> counts,
+                                    std::span<const double> values,
+                                    std::span<const uint32_t> points,
+                                    std::span<const uint32_t> labels) {
+  const uint64_t width = 2 * uint64_t{d_} + 1;
+  if (counts.size() != clusters.size() || values.size() != clusters.size() * width ||
+      labels.size() != points.size()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "points update: ", clusters.size(), " clusters with ", counts.size(), " counts and ",
+        values.size(), " values, ", points.size(), " points with ", labels.size(), " labels"));
+  }
+  for (const uint32_t c : clusters) {
+    if (c >= k_) return absl::InvalidArgumentError("points update: a cluster out of range");
+  }
+  for (size_t r = 0; r < points.size(); ++r) {
+    if (points[r] >= m_ || labels[r] >= k_) {
+      return absl::InvalidArgumentError("points update: a point or label out of range");
+    }
+  }
+  const uint64_t entries = clusters.size() + points.size();
+  if (entries == 0) return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kUpdatePass));
+  absl::Status status = [&]() -> absl::Status {
+    const std::array<uint64_t, 2> bytes = {8 * entries, 8 * std::max<uint64_t>(values.size(), 1)};
+    for (size_t b = 0; b < 2; ++b) {
+      const bool have = staging_.size() > b;
+      if (have && staging_[b].bytes() >= bytes[b]) continue;
+      const uint64_t size = std::max(bytes[b], have ? 2 * staging_[b].bytes() : 0);
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
+      if (have) {
+        staging_[b] = std::move(buffer);
+      } else {
+        staging_.push_back(std::move(buffer));
+      }
+    }
+    std::vector<uint32_t> ids;
+    ids.reserve(2 * entries);
+    ids.insert(ids.end(), clusters.begin(), clusters.end());
+    ids.insert(ids.end(), counts.begin(), counts.end());
+    ids.insert(ids.end(), points.begin(), points.end());
+    ids.insert(ids.end(), labels.begin(), labels.end());
+    MLCLUST_RETURN_IF_ERROR(staging_[0].Upload(std::span<const uint32_t>(ids)));
+    if (!values.empty()) MLCLUST_RETURN_IF_ERROR(staging_[1].Upload(values));
+    const detail::GlFunctions& gl = context_->gl();
+    BindAll();
+    staging_[0].Bind(kPairIds);
+    staging_[1].Bind(kPairValues);
+    gl.UseProgram(programs_.update);
+    gl.ProgramUniform1ui(programs_.update, 0, static_cast<uint32_t>(clusters.size()));
+    gl.ProgramUniform1ui(programs_.update, 1, static_cast<uint32_t>(points.size()));
+    gl.ProgramUniform1ui(programs_.update, 2, d_);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, entries));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl.UseProgram(0);
+    BindAll();
+    return CheckGlError(*context_, kUpdatePass);
+  }();
+  return PassError(kUpdatePass, status);
 }
 
 absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Labels() {

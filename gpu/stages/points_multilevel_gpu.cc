@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
 #include "gpu/stages/gpu_level_sink.h"
+#include "gpu/stages/points_optimise_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -32,6 +34,7 @@ struct Start {
   std::vector<double> sums;       // k x (d + 1)
   std::vector<double> centroids;  // k x d
   std::vector<uint32_t> neighbours;
+  std::vector<double> origin;  // d: the data's mean the sums are relative to
   double energy = 0;
 };
 
@@ -86,6 +89,7 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
         EnergyOfSums(n, {&start.sums[size_t{c} * (d + 1)], d}, start.sums[size_t{c} * (d + 1) + d]);
   }
   start.energy = total;
+  start.origin = origin;
   start.neighbours = voxels.neighbours;
   std::vector<uint32_t> candidates;
   ::mlclust::detail::LocalNeighbourScratch scratch(k);
@@ -141,8 +145,8 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone) {
-    return "the GPU's point levels are merges only (optimizer none)";
+  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone && options.bounded_drift > 0) {
+    return "bounded-drift (ours) is the CPU's LN k-means'";
   }
   if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
   return "";
@@ -161,7 +165,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
   MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
-  const Start start = BuildStart(points, voxels, options.cancel);
+  Start start = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
   const uint32_t k0 = voxels.clusters;
   MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start.energy));
@@ -174,6 +178,18 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   upload.centroids = start.centroids;
   upload.neighbours = start.neighbours;
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
+  // LN k-means inside the levels (points_optimise_gpu.h): the host's mirror starts from the
+  // values just uploaded.
+  std::optional<PointLevelsOptimiser> optimiser;
+  if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
+    PointOptimiserStart mirror{std::move(start.origin),    std::move(voxels.labels),
+                               std::move(start.counts),    std::move(start.sums),
+                               std::move(start.centroids), start.energy};
+    MLCLUST_ASSIGN_OR_RETURN(PointLevelsOptimiser made,
+                             PointLevelsOptimiser::Create(context, points, std::move(mirror),
+                                                          options.optimise_rounds, options.cancel));
+    optimiser.emplace(std::move(made));
+  }
   std::vector<uint32_t>().swap(voxels.labels);
   PointMultilevelSummary summary;
   summary.levels = 1;
@@ -189,7 +205,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
     MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+        const bool merged,
+        optimiser.has_value()
+            ? levels.MergeLevel(options.pml_pairs, clusters, options.min_clusters, level)
+            : levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
     if (!merged) {
       // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
       if (linked || clusters <= 1 || clusters > kMaxLinked) break;
@@ -199,9 +218,16 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     }
     linked = false;
     clusters -= level.merged;
-    energy.Add(level.energy_change);
-    MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
-    summary.moves += level.element.size();
+    if (optimiser.has_value()) {
+      // The level's LN k-means rounds and its report, then the neighbour refresh.
+      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      MLCLUST_RETURN_IF_ERROR(levels.RefreshNeighbours());
+      summary.moves = optimiser->moves();
+    } else {
+      energy.Add(level.energy_change);
+      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
+      summary.moves += level.element.size();
+    }
     if (options.inspect_level) {
       MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
       options.inspect_level(summary.levels, labels);

@@ -29,6 +29,18 @@ inline absl::Status CheckPointLevelsArguments(const PointSet& points,
   return absl::OkStatus();
 }
 
+// The checks of an LN k-means run from given labels, the CPU's (RunLnKmeans) and the GPU's
+// (gpu/stages/point_stages_gpu.h): INVALID_ARGUMENT for invalid points (ValidatePoints) or
+// not one label per point.
+inline absl::Status CheckLnKmeansArguments(const PointSet& points, size_t labels) {
+  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  if (labels != points.num_points()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("labels: ", labels, " for ", points.num_points(), " points"));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace mlclust::detail
 
 #endif  // MLCLUST_CORE_CLUSTER_DETAIL_POINT_LEVELS_CHECKS_H_
