@@ -294,9 +294,9 @@ TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
   }
 }
 
-// Large enough that the later LN k-means rounds' scan of the changed clusters runs in
-// parallel slices (over 32,768 points in the region): the same levels on one thread as
-// on two.
+// Large enough that the upper levels' LN k-means rounds scan and check the changed
+// clusters in up to 64 tasks of thousands of points (Optimise's ScanAndCheck): the same
+// levels on one thread as on two.
 TEST(PointMultilevelTest, ParallelRoundScansDoNotDependOnTheThreadCount) {
   auto [points, truth] = Blobs(40, 1000, 3, 29, 4);
   testing::ExpectSameLevelsOnOneAndTwoThreads(PointMultilevelOptions(), RunPoints(points), 100);
