@@ -28,10 +28,10 @@ constexpr uint32_t kNone = kNoCluster;
 
 // One point's LN k-means check: its best cluster among its own, its cluster's neighbours
 // and the neighbours of the neighbour in its subspace. Returns the target (kNone: stays)
-// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-best
-// candidate minus the distance to its own centroid (so it stays while its own centroid and the
-// candidates move by less than that in all); -infinity for a point that moves. `x` is
-// scratch. Reads `clusters` only (safe in parallel).
+// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-
+// best candidate minus the distance to its own centroid (so it stays while its own
+// centroid and the candidates move by less than that in all); -infinity for a point that
+// moves. `x` is scratch. Reads `clusters` only (safe in parallel).
 template <bool kMargin>
 [[gnu::always_inline]] inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i,
                                                   std::vector<double>& x, double& margin) {
@@ -579,15 +579,15 @@ class PointSpace {
   }
 
   // The slices' work in tasks (of kSlicePoints members or more, see there), in parallel
-  // where there is more than one; the moves (point, target) joined in slice order into moves_: the
-  // same list on any number of threads. A region slice: its points to check (`all`: its member
-  // list; otherwise, without branches, which of the two is unpredictable: the unchecked ones and
-  // those over their threshold, the drift of its cluster and neighbourhood) and their
-  // checks (CheckPoint, stamped with this call's epoch and their threshold). A slice of a
-  // cluster next to the merged ones (round 0): each point against its own centroid and
-  // next_to's merged clusters [compare_begin, compare_end), the nearest strictly closer
-  // one its target. Slices hold distinct points, so each task writes its own points'
-  // stamps and thresholds only.
+  // where there is more than one; the moves (point, target) joined in slice order into
+  // moves_: the same list on any number of threads. A region slice: its points to check
+  // (`all`: its member list; otherwise, without branches, which of the two is
+  // unpredictable: the unchecked ones and those over their threshold, the drift of its
+  // cluster and neighbourhood) and their checks (CheckPoint, stamped with this call's
+  // epoch and their threshold). A slice of a cluster next to the merged ones (round 0):
+  // each point against its own centroid and next_to's merged clusters [compare_begin,
+  // compare_end), the nearest strictly closer one its target. Slices hold distinct points,
+  // so each task writes its own points' stamps and thresholds only.
   void ScanAndCheck(std::span<const std::pair<uint32_t, uint32_t>> next_to) {
     tasks_.clear();
     size_t total = 0;
