@@ -96,6 +96,20 @@ struct MultilevelEngineSummary {
   double final_energy = 0;
 };
 
+// The face-order rounds' parallel steps (MeshSpace::ApplyRoundInSteps in
+// core/cluster/multilevel.cc, ours): counts summed over all runs of the process, for
+// benchmarks (bench/pml_cpu_bench prints them), and a switch for tests that compare the
+// steps with the loop they replace (the same levels). Relaxed atomics; nothing reads them.
+struct FaceOrderStepsCounters {
+  std::atomic<uint64_t> rounds{0};      // rounds run in steps
+  std::atomic<uint64_t> steps{0};       // parallel steps
+  std::atomic<uint64_t> candidates{0};  // candidates of those rounds
+  std::atomic<uint64_t> in_steps{0};    // of which run in a parallel step (the rest: in order)
+  std::atomic<uint64_t> moves{0};       // moves applied in those rounds
+};
+inline FaceOrderStepsCounters face_order_steps_counters;
+inline std::atomic<bool> face_order_steps_off_for_testing{false};
+
 // ODE computations in one parallel_for only above this many clusters (below it the
 // set-up costs more than the work).
 inline constexpr size_t kParallelOdeGrain = 256;
