@@ -721,6 +721,18 @@ class MeshSpace {
   // neighbours; rings of a manifold mesh, which ValidateMesh ensures). False (nothing done)
   // where the round has fewer than kStepsFrom candidates or max_moves could end it early:
   // the loop runs it.
+  // Whether ApplyRoundInSteps runs (detail::face_order_steps; either way the same levels).
+  static bool FaceOrderStepsOn() {
+    switch (detail::face_order_steps.load(std::memory_order_relaxed)) {
+      case detail::FaceOrderSteps::kAlways:
+        return true;
+      case detail::FaceOrderSteps::kNever:
+        return false;
+      case detail::FaceOrderSteps::kFromFourThreads:
+        break;
+    }
+    return tbb::this_task_arena::max_concurrency() >= detail::kFaceOrderStepsFromThreads;
+  }
   bool ApplyRoundInSteps(const ConnectivityGuard* guard, std::span<const uint32_t> list,
                          std::span<const uint32_t> target, std::span<const uint8_t> allowed,
                          uint64_t moves_left, std::vector<uint32_t>& next, uint64_t& moves) {
@@ -728,8 +740,7 @@ class MeshSpace {
     detail::CompactIndices(
         list.size(), [&](size_t i) { return target[i] != detail::kNoCluster; }, candidates);
     const size_t m = candidates.size();
-    if (m < kStepsFrom || m > moves_left ||
-        detail::face_order_steps_off_for_testing.load(std::memory_order_relaxed)) {
+    if (m < kStepsFrom || m > moves_left || !FaceOrderStepsOn()) {
       return false;
     }
     // The clusters face f reads (duplicates allowed).

@@ -165,7 +165,7 @@ TEST(MultilevelParallelTest, IndependentMovesWithoutGuardKeepEnergiesOfTheLabels
 TEST(MultilevelParallelTest, FaceOrderRoundsInStepsGiveTheLoopsLevels) {
   const Loaded& l = File("fandisk.off");
   struct StepsOn {
-    ~StepsOn() { detail::face_order_steps_off_for_testing = false; }
+    ~StepsOn() { detail::face_order_steps = detail::FaceOrderSteps::kFromFourThreads; }
   } steps_on;
   MultilevelOptions pml;
   pml.parallel = true;
@@ -181,10 +181,10 @@ TEST(MultilevelParallelTest, FaceOrderRoundsInStepsGiveTheLoopsLevels) {
   preset.optimise_below_at_least = 2000;
   for (MultilevelOptions options : {pml, unguarded, preset}) {
     options.threads = 1;
-    detail::face_order_steps_off_for_testing = true;
+    detail::face_order_steps = detail::FaceOrderSteps::kNever;
     testing::RecordingSink loop;
     ASSERT_TRUE(RunMultilevel(l.problem(), options, loop).ok());
-    detail::face_order_steps_off_for_testing = false;
+    detail::face_order_steps = detail::FaceOrderSteps::kAlways;
     EXPECT_GT(loop.counts.size(), 10u);
     for (int t = 1; t <= 3; ++t) {
       options.threads = t;
