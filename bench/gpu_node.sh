@@ -26,8 +26,10 @@
 #     the GPU's steps against the CPU engine's HC, same levels checked (bench/hc_gpu_bench)
 #   PML with BB sweeps after each level (Alg. 5.7, --optimizer bb) against the CPU
 #     engine's PML with its local BB
-# Not taken yet, because the GPU stages do not exist yet: PML with EMLO and ML with
-# optimisation on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
+#   ML with BB sweeps after each merge (Alg. 5.6, pml_gpu_bench --algo ml --optimizer bb):
+#     fandisk's whole hierarchy and bunny00's first 2,000 steps, against the CPU engine's ML
+#     with its local BB
+# Not taken yet, because the GPU stages do not exist yet: PML and ML with EMLO on the GPU, meshlet-sized levels, ML for points on the GPU (issue 10's
 # other rows).
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -130,6 +132,26 @@ if [ -x "$BIN/hc_gpu_bench" ]; then
 else
   echo "# $BIN/hc_gpu_bench missing: the HC rows were not taken" | tee -a "$out"
 fi
+# ML with BB on the GPU (Alg. 5.6: one collapse, then BB sweeps over every face, per level):
+# the GPU's steps (gpu/stages/multilevel_gpu.h, RunMultilevelGpu) against the CPU engine's
+# ML with its local BB (sequential). A step is O(faces) on the GPU, so fandisk's whole
+# hierarchy and bunny00's first 2,000 steps (BENCHMARKS.md "ML with BB on the GPU").
+if [ -x "$BIN/pml_gpu_bench" ]; then
+  if [ "$quick" = 1 ]; then
+    ml_runs=("data/bench/fandisk.off --clusters 10946")
+  else
+    ml_runs=("data/bench/fandisk.off" "data/bench/bunny00.off --clusters 73408")
+  fi
+  header=--header
+  for run in "${ml_runs[@]}"; do
+    # shellcheck disable=SC2086  # the mesh and its options
+    "$BIN/pml_gpu_bench" $run --algo ml --optimizer bb --threads "$THREADS" $header |
+      tee -a "$out"
+    header=
+  done
+else
+  echo "# $BIN/pml_gpu_bench missing: the ML rows were not taken" | tee -a "$out"
+fi
 # CPU PML on this node's cores against ML (issue 10: "CPU PML->ML vs ML on 16 cores: at
 # most a quarter of ML's time at energy within 2% at k = 1000"): bench/pml_cpu_bench.sh,
 # every configuration (the pml preset many-cores included) on 1, 2, 4, 8 and all threads.
@@ -188,6 +210,12 @@ if [ -x "$BIN/points_gpu_bench" ]; then
         --threads "$THREADS" --repeats 3 $header | tee -a "$points_out"
       header=
     done
+  done
+  # PML with LN k-means inside the levels on the GPU (helper "gpupts2",
+  # gpu/stages/points_optimise_gpu.h; the jobs' default optimizer) against the CPU's.
+  for m in "${point_sizes[@]}"; do
+    "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs cheaper-half \
+      --optimizer lnkmeans --threads "$THREADS" --repeats 3 | tee -a "$points_out"
   done
   if [ "$quick" = 0 ] && [ -x "$BIN/points_bench" ]; then
     "$BIN/points_bench" --algo ml --m 1000000 --d 3 --blobs 1000 --threads "$THREADS" \

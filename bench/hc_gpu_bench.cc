@@ -11,7 +11,6 @@
 // mesh,faces,device,energy,seconds,cpu_seconds,levels,final_clusters,final_energy,
 // same_levels,same_energies
 #include <cstdio>
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,29 +20,6 @@
 #include "core/cluster/multilevel.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/stages/hierarchy_gpu.h"
-
-namespace {
-
-// Per level an order-independent fingerprint of its triplets and its cluster count, and
-// its energy.
-class FingerprintSink : public mlclust::LevelSink {
- public:
-  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
-                       double energy) override {
-    prints.push_back(count);
-    energies.push_back(energy);
-    return absl::OkStatus();
-  }
-  absl::Status OnLevel(const mlclust::LevelMoves& level) override {
-    prints.push_back(mlclust::bench::LevelFingerprint(level));
-    energies.push_back(level.energy);
-    return absl::OkStatus();
-  }
-  std::vector<uint64_t> prints;
-  std::vector<double> energies;
-};
-
-}  // namespace
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
@@ -66,51 +42,24 @@ int main(int argc, char** argv) {
   options.min_clusters = lowest;
   const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
   if (context == nullptr) return 1;
-  struct Row {
-    std::string device;
-    double seconds = std::numeric_limits<double>::infinity();
-    double cpu_seconds = 0;
-    mlclust::MultilevelSummary summary;
-    FingerprintSink sink;
-  };
-  Row rows[2];
-  rows[0].device = "cpu";
-  rows[1].device = context->renderer();
-  for (int d = 0; d < 2; ++d) {
-    for (uint32_t r = 0; r < repeats; ++r) {
-      FingerprintSink sink;
-      const double cpu = mlclust::bench::ProcessCpuSeconds();
-      const mlclust::bench::Stopwatch watch;
-      absl::StatusOr<mlclust::MultilevelSummary> summary =
-          d == 0 ? mlclust::RunMultilevel(problem, options, sink)
-                 : mlclust::gpu::RunHierarchyGpu(*context, problem, options, sink);
-      const double seconds = watch.Seconds();
-      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu;
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      if (seconds < rows[d].seconds) {
-        rows[d].seconds = seconds;
-        rows[d].cpu_seconds = cpu_seconds;
-      }
-      rows[d].summary = *summary;
-      rows[d].sink = std::move(sink);
-    }
-  }
-  size_t same = 0, same_energies = 0;
-  const FingerprintSink &cpu = rows[0].sink, &gpu = rows[1].sink;
-  for (size_t l = 0; l < cpu.prints.size() && l < gpu.prints.size(); ++l) {
-    same += cpu.prints[l] == gpu.prints[l] ? 1 : 0;
-    same_energies += cpu.energies[l] == gpu.energies[l] ? 1 : 0;
-  }
+  using Sink = mlclust::bench::LevelPrintSink;
+  const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::MultilevelSummary, Sink>(
+      *context, repeats, [] { return Sink(); },
+      [&](int device, Sink& sink) {
+        return device == 0 ? mlclust::RunMultilevel(problem, options, sink)
+                           : mlclust::gpu::RunHierarchyGpu(*context, problem, options, sink);
+      });
+  if (!rows) return 1;
+  const Sink &cpu = *(*rows)[0].sink, &gpu = *(*rows)[1].sink;
+  const size_t same = mlclust::bench::SameLevels(cpu.prints, gpu.prints);
+  const size_t same_energies = mlclust::bench::SameLevels(cpu.energies, gpu.energies);
   if (header) {
     std::printf(
         "mesh,faces,device,energy,seconds,cpu_seconds,levels,final_clusters,final_energy,"
         "same_levels,same_energies\n");
   }
   const std::string name = mlclust::bench::BaseName(path);
-  for (const Row& row : rows) {
+  for (const auto& row : *rows) {
     std::printf("%s,%zu,\"%s\",%s,%.3f,%.3f,%u,%u,%.10g,%zu,%zu\n", name.c_str(),
                 prepared.mesh.num_faces(), row.device.c_str(), energy.c_str(), row.seconds,
                 row.cpu_seconds, row.summary.levels, row.summary.final_clusters,

@@ -4,26 +4,27 @@
 // have the same triplets on both (an order-independent fingerprint per level). With
 // --optimizer bb, Alg. 5.7: BB sweeps after each level (the CPU engine's are local
 // one-by-one sweeps, the GPU's Alg. 5.4 sweeps over every face, so the levels differ).
+// With --algo ml (Alg. 5.6, RunMultilevelGpu; optimizer none is HC's steps): one merge per
+// level, against the CPU engine's ML with the same optimizer (pairs and threads unused);
+// --clusters K stops both at K clusters (default 1: the whole hierarchy).
 //
-//   pml_gpu_bench MESH [--pairs all|cheaper-half] [--optimizer none|bb] [--threads T]
-//                 [--repeats R] [--at K] [--header]
+//   pml_gpu_bench MESH [--algo pml|ml] [--pairs all|cheaper-half] [--optimizer none|bb]
+//                 [--threads T] [--repeats R] [--at K] [--clusters K] [--header]
 //
 // Prints one CSV row per device (best time of R runs; cpu_seconds: the process's CPU time
 // of that run, every thread, llvmpipe's included):
 // mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,same_levels,
-// optimizer,cpu_seconds,at_clusters,at_energy
+// optimizer,cpu_seconds,at_clusters,at_energy (pairs: ml with --algo ml)
 // (at_clusters, at_energy: the energy at --at K clusters, default 1000, a power law between
 // the two levels around K (log energy linear in log count), or the first level with at most
 // K clusters where there is no level before it with more: where the optimisers' levels
 // differ, their energies compare there.)
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "absl/time/clock.h"
 #include "bench/bench_util.h"
 #include "bench/gpu_bench_util.h"
 #include "core/cluster/multilevel.h"
@@ -32,16 +33,15 @@
 
 namespace {
 
-// Per level an order-independent fingerprint of its triplets and its cluster count; the
-// first level with at most `at` clusters.
-class FingerprintSink : public mlclust::LevelSink {
+// Per level an order-independent fingerprint of its triplets and its cluster count
+// (LevelPrintSink); the first level with at most `at` clusters.
+class FingerprintSink : public mlclust::bench::LevelPrintSink {
  public:
   explicit FingerprintSink(uint32_t at) : at_(at) {}
-  absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
-                       double /*energy*/) override {
+  absl::Status OnStart(std::span<const mlclust::ClusterId> labels, uint32_t count,
+                       double energy) override {
     previous_count_ = count;
-    prints.push_back(count);
-    return absl::OkStatus();
+    return LevelPrintSink::OnStart(labels, count, energy);
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
     if (at_count == 0 && level.cluster_count <= at_) {
@@ -58,10 +58,8 @@ class FingerprintSink : public mlclust::LevelSink {
     }
     previous_count_ = level.cluster_count;
     previous_energy_ = level.energy;
-    prints.push_back(mlclust::bench::LevelFingerprint(level));
-    return absl::OkStatus();
+    return LevelPrintSink::OnLevel(level);
   }
-  std::vector<uint64_t> prints;
   uint32_t at_count = 0;
   double at_energy = 0;
 
@@ -75,26 +73,34 @@ class FingerprintSink : public mlclust::LevelSink {
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
-                            "usage: pml_gpu_bench MESH [--pairs all|cheaper-half] "
-                            "[--optimizer none|bb] [--threads T] [--repeats R] [--at K] "
-                            "[--header]");
+                            "usage: pml_gpu_bench MESH [--algo pml|ml] [--pairs "
+                            "all|cheaper-half] [--optimizer none|bb] [--threads T] [--repeats R] "
+                            "[--at K] [--clusters K] [--header]");
   const bool header = args.Flag("header");
   const std::string pairs = args.Get<std::string>("pairs", "all");
   const std::string optimizer = args.Get<std::string>("optimizer", "none");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const uint32_t at = args.Get<uint32_t>("at", 1000);
+  const std::string algo = args.Get<std::string>("algo", "pml");
+  const uint32_t clusters = args.Get<uint32_t>("clusters", 1);
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
   if (optimizer != "none" && optimizer != "bb") {
     std::fprintf(stderr, "--optimizer: '%s' is not none or bb\n", optimizer.c_str());
     return 2;
   }
+  if (algo != "pml" && algo != "ml") {
+    std::fprintf(stderr, "--algo: '%s' is not pml or ml\n", algo.c_str());
+    return 2;
+  }
+  const bool ml = algo == "ml";
 
   const mlclust::PreparedMesh prepared = mlclust::bench::PrepareOrDie(path);
   const mlclust::MeshProblem problem = mlclust::MakeMeshProblem(prepared, {});
   mlclust::MultilevelOptions options;
-  options.parallel = true;
+  options.parallel = !ml;
+  options.min_clusters = clusters;
   options.optimizer = optimizer == "bb" ? mlclust::MultilevelOptions::Optimizer::kBoundaryBased
                                         : mlclust::MultilevelOptions::Optimizer::kNone;
   options.pml_pairs =
@@ -102,57 +108,27 @@ int main(int argc, char** argv) {
   options.threads = threads;
   const std::unique_ptr<mlclust::gpu::GlContext> context = mlclust::bench::GlContextOrPrint();
   if (context == nullptr) return 1;
-  struct Row {
-    std::string device;
-    double seconds = std::numeric_limits<double>::infinity();
-    double cpu_seconds = 0;
-    mlclust::MultilevelSummary summary;
-    std::vector<uint64_t> prints;
-    uint32_t at_count = 0;
-    double at_energy = 0;
-  };
-  Row rows[2];
-  rows[0].device = "cpu";
-  rows[1].device = context->renderer();
-  for (int d = 0; d < 2; ++d) {
-    for (uint32_t r = 0; r < repeats; ++r) {
-      FingerprintSink sink(at);
-      const absl::Time start = absl::Now();
-      const double cpu_start = mlclust::bench::ProcessCpuSeconds();
-      absl::StatusOr<mlclust::MultilevelSummary> summary =
-          d == 0 ? mlclust::RunMultilevel(problem, options, sink)
-                 : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
-      const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-      const double cpu_seconds = mlclust::bench::ProcessCpuSeconds() - cpu_start;
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      if (seconds < rows[d].seconds) {
-        rows[d].seconds = seconds;
-        rows[d].cpu_seconds = cpu_seconds;
-      }
-      rows[d].summary = *summary;
-      rows[d].prints = std::move(sink.prints);
-      rows[d].at_count = sink.at_count;
-      rows[d].at_energy = sink.at_energy;
-    }
-  }
-  size_t same = 0;
-  for (size_t l = 0; l < rows[0].prints.size() && l < rows[1].prints.size(); ++l) {
-    same += rows[0].prints[l] == rows[1].prints[l] ? 1 : 0;
-  }
+  const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::MultilevelSummary, FingerprintSink>(
+      *context, repeats, [at] { return FingerprintSink(at); },
+      [&](int device, FingerprintSink& sink) {
+        return device == 0 ? mlclust::RunMultilevel(problem, options, sink)
+               : ml        ? mlclust::gpu::RunMultilevelGpu(*context, problem, options, sink)
+                    : mlclust::gpu::RunParallelMultilevelGpu(*context, problem, options, sink);
+      });
+  if (!rows) return 1;
+  const size_t same = mlclust::bench::SameLevels((*rows)[0].sink->prints, (*rows)[1].sink->prints);
   if (header) {
     std::printf(
         "mesh,faces,device,pairs,threads,seconds,levels,final_clusters,final_energy,"
         "same_levels,optimizer,cpu_seconds,at_clusters,at_energy\n");
   }
   const std::string name = path.substr(path.find_last_of('/') + 1);
-  for (const Row& row : rows) {
+  for (const auto& row : *rows) {
     std::printf("%s,%zu,\"%s\",%s,%d,%.3f,%u,%u,%.10g,%zu,%s,%.3f,%u,%.10g\n", name.c_str(),
-                prepared.mesh.num_faces(), row.device.c_str(), pairs.c_str(), threads, row.seconds,
-                row.summary.levels, row.summary.final_clusters, row.summary.final_energy, same,
-                optimizer.c_str(), row.cpu_seconds, row.at_count, row.at_energy);
+                prepared.mesh.num_faces(), row.device.c_str(), ml ? "ml" : pairs.c_str(), threads,
+                row.seconds, row.summary.levels, row.summary.final_clusters,
+                row.summary.final_energy, same, optimizer.c_str(), row.cpu_seconds,
+                row.sink->at_count, row.sink->at_energy);
   }
   return 0;
 }

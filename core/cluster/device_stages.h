@@ -81,6 +81,8 @@ class DeviceStages {
   // RunMultilevel (multilevel.h) for HC (optimizer none, one merge per level) with its
   // steps on the device (gpu/stages/hierarchy_gpu.h); same contract, plus the device's
   // errors. UNIMPLEMENTED where the device has none (the default).
+  // Also ML with optimizer bb (Alg. 5.6: one merge, then BB sweeps, per level;
+  // gpu/stages/multilevel_gpu.h's RunMultilevelGpu).
   virtual absl::StatusOr<MultilevelSummary> RunHierarchy(const MeshProblem& problem,
                                                          const MultilevelOptions& options,
                                                          LevelSink& sink) {

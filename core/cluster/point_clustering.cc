@@ -13,6 +13,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/multilevel_engine.h"
+#include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/kmeans.h"
 #include "core/energy/variance_energy.h"
 #include "core/hierarchy/level_recorder.h"
@@ -875,12 +876,8 @@ absl::StatusOr<VoxelStart> VoxelGridStart(const PointSet& points, uint32_t grid,
 
 absl::StatusOr<LnKmeansResult> RunLnKmeans(const PointSet& points, std::vector<ClusterId> labels,
                                            const LnKmeansOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  MLCLUST_RETURN_IF_ERROR(detail::CheckLnKmeansArguments(points, labels.size()));
   const size_t m = points.num_points();
-  if (labels.size() != m) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("labels: ", labels.size(), " for ", m, " points"));
-  }
   // Compact ids; remember the caller's.
   absl::flat_hash_map<uint32_t, uint32_t> compact_of;
   std::vector<uint32_t> compact(m);
@@ -984,16 +981,7 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
 absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
                                                           const PointMultilevelOptions& options,
                                                           LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
-  }
-  if (options.grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
-  }
+  MLCLUST_RETURN_IF_ERROR(detail::CheckPointLevelsArguments(points, options));
   if (options.optimise_rounds < 1 || options.optimise_rounds > 64) {
     return absl::InvalidArgumentError(
         absl::StrCat("optimise_rounds: ", options.optimise_rounds, " is not in 1..64"));

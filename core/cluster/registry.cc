@@ -377,12 +377,28 @@ bool HcLevelsOnGpu(const JobPlan& plan) {
          !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
 }
 
+// Whether ML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, MlGpuUnsupported
+// says the same): optimizer none (HC's steps, HcLevelsOnGpu) or bb (Alg. 5.6, one merge
+// then BB sweeps per level; ring test or no guard), for cvd and cvd-adaptive, without p%;
+// with device gpu only (one collapse per step is latency-bound, and on llvmpipe ML with BB
+// is far slower than the CPU's: BENCHMARKS.md "ML with BB on the GPU").
+bool MlLevelsOnGpu(const JobPlan& plan) {
+  const MultilevelOptions& ml = plan.multilevel;
+  if (ml.optimizer == MultilevelOptions::Optimizer::kNone) return HcLevelsOnGpu(plan);
+  return plan.device == DeviceChoice::kGpu && !ml.parallel && PmlLevelsOnGpu(plan) &&
+         ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased;
+}
+
 // Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
-// PointsPmlGpuUnsupported says the same): merges only (optimizer none), without the
-// switch to ML.
+// PointsPmlGpuUnsupported says the same): without the switch to ML; merges only (optimizer
+// none), or with LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) for
+// --device gpu only and without bounded-drift (auto keeps LN k-means on the CPU until the
+// NVIDIA figures are taken: each round is a round trip).
 bool PointPmlLevelsOnGpu(const JobPlan& plan) {
-  return plan.point_multilevel.optimizer == PointMultilevelOptions::Optimizer::kNone &&
-         plan.point_multilevel.pml_until == 0;
+  const PointMultilevelOptions& options = plan.point_multilevel;
+  if (options.pml_until != 0) return false;
+  if (options.optimizer == PointMultilevelOptions::Optimizer::kNone) return true;
+  return plan.device == DeviceChoice::kGpu && options.bounded_drift == 0;
 }
 
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
@@ -392,7 +408,7 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   options.cancel = context.cancel;
   absl::StatusOr<MultilevelSummary> ran;
   if (Stage(plan, "cluster").device == StageDevice::kGpu) {
-    // PML's levels (PmlLevelsOnGpu) or HC's steps (HcLevelsOnGpu) on the GPU.
+    // PML's levels (PmlLevelsOnGpu), HC's steps (HcLevelsOnGpu) or ML's (MlLevelsOnGpu).
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
           "the plan puts the cluster stage on the GPU but this run has no GPU stages");
@@ -768,7 +784,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = mesh_energies;
     a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves", /*vertex_count=*/true),
                  PPercentOption(), PPercentRuleOption()};
-    a.stages = {merge_stage};
+    // ML's levels on the GPU (gpu/stages/multilevel_gpu.h): HC's steps or one merge and BB.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, MlLevelsOnGpu}};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }

@@ -131,22 +131,10 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
     gl.ProgramUniform1ui(program, 0, num_faces_);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
     gl.UseProgram(0);
-    uint32_t count = 0;
-    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Download(0, &count, sizeof(count)));
-    if (count > num_faces_) {
-      return absl::InternalError(
-          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
-    }
-    proposals_.resize(count);
-    MLCLUST_RETURN_IF_ERROR(
-        buffers_[kProposals].Download(std::span<std::array<uint32_t, 2>>(proposals_)));
-    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kPass));
+    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kPass, buffers_[kProposalCount],
+                                              buffers_[kProposals], num_faces_, num_clusters_,
+                                              proposals_));
     for (const auto& [face, cluster] : proposals_) {
-      if (face >= num_faces_ || cluster >= num_clusters_) {
-        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
-                                                cluster, " of ", num_faces_, " faces and ",
-                                                num_clusters_, " clusters"));
-      }
       target[face] = cluster;
     }
     return absl::OkStatus();
@@ -156,6 +144,33 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
     std::fill(target.begin(), target.end(), kNoTarget);
   }
   return PassError(kPass, status);
+}
+
+absl::Status ReadBackProposals(GlContext& context, const char* pass, StorageBuffer& count_buffer,
+                               StorageBuffer& proposals_buffer, uint32_t num_faces,
+                               uint32_t num_clusters,
+                               std::vector<std::array<uint32_t, 2>>& proposals) {
+  proposals.clear();
+  uint32_t count = 0;
+  MLCLUST_RETURN_IF_ERROR(count_buffer.Download(0, &count, sizeof(count)));
+  if (count > num_faces) {
+    return absl::InternalError(
+        absl::StrCat("the GPU reports ", count, " proposals for ", num_faces, " faces"));
+  }
+  proposals.resize(count);
+  if (count > 0) {
+    MLCLUST_RETURN_IF_ERROR(
+        proposals_buffer.Download(std::span<std::array<uint32_t, 2>>(proposals)));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckGlError(context, pass));
+  for (const auto& [face, cluster] : proposals) {
+    if (face >= num_faces || cluster >= num_clusters) {
+      return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
+                                              cluster, " of ", num_faces, " faces and ",
+                                              num_clusters, " clusters"));
+    }
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace mlclust::gpu

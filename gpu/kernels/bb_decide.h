@@ -144,6 +144,15 @@ class BoundaryDecideKernel {
   std::vector<std::array<uint32_t, 2>> changes_, proposals_;
 };
 
+// The proposals a bb_decide.glsl dispatch appended (shared by BoundaryDecideKernel and
+// PmlLevelsGpu's "pml bb decide"): the count read from `count_buffer`, then as many (face,
+// cluster) pairs from `proposals_buffer`, then the GL error check of `pass`; INTERNAL where
+// the count exceeds num_faces or a face or cluster is out of range.
+absl::Status ReadBackProposals(GlContext& context, const char* pass, StorageBuffer& count_buffer,
+                               StorageBuffer& proposals_buffer, uint32_t num_faces,
+                               uint32_t num_clusters,
+                               std::vector<std::array<uint32_t, 2>>& proposals);
+
 // Changed labels a sweep uploads as (face, label) pairs at most; more, and all labels go.
 inline uint64_t BoundaryDecideMaxChanges(uint64_t num_faces) { return num_faces / 8 + 1; }
 

@@ -12,7 +12,7 @@
 #include "gpu/kernels/hc_init_glsl.h"    // kHcInitGlsl, generated
 #include "gpu/kernels/hc_steps_glsl.h"   // kHcStepsGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"    // kPmlCvdGlsl, generated (gpupml's)
-#include "gpu/kernels/pml_ode_glsl.h"    // kPmlOdeGlsl, generated (gpupml's)
+#include "gpu/kernels/pml_pair_selection.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -156,9 +156,8 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
       MLCLUST_RETURN_IF_ERROR(buffers[kEdgeNext].Upload(std::span<const uint32_t>(edge_next)));
     }
     const std::string cvd = absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl);
-    // The ODE kernel of PML (gpu/kernels/pml_levels.cc compiles the same source).
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t ode,
-                             GetComputeProgram(context, "pml_ode", absl::StrCat(cvd, kPmlOdeGlsl)));
+    // The ODE kernel of PML (pml_pair_selection.h).
+    MLCLUST_ASSIGN_OR_RETURN(const uint32_t ode, GetPmlOdeProgram(context));
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t init,
         GetComputeProgram(context, "hc_init", absl::StrCat(cvd, kHcCommonGlsl, kHcInitGlsl)));

@@ -12,7 +12,8 @@
 // directed cluster edges (src, dst): an edge is kept where remap[src] != remap[dst] and
 // written relabelled to edges_out. u_kind 2, the directed face edges (f, g) after BB moves
 // (face_edges, every one of the mesh): an edge is kept where labels[f] != labels[g] and
-// written as (labels[f], labels[g]) to edges_out. After the prelude of gpu/context/compute.h.
+// written as (labels[f], labels[g]) to edges_out. After the prelude of gpu/context/compute.h,
+// before compact_scan.glsl (phases 1 and 2).
 layout(std430, binding = 2) buffer Labels { uint labels[]; };
 layout(std430, binding = 3) readonly buffer Remap { uint remap[]; };
 layout(std430, binding = 4) readonly buffer EdgesIn { uint edges_in[]; };
@@ -29,6 +30,9 @@ layout(location = 3) uniform uint u_slot;
 const uint kChunk = 32u;   // kPmlChunk
 const uint kGroup = 256u;  // kPmlGroup
 
+void ScanChunkCounts(uint group);                 // compact_scan.glsl
+void ScanGroupTotals(uint invocation, uint slot);  // compact_scan.glsl
+
 bool Kept(uint e) {
   if (u_kind == 0u) return remap[labels[e]] != labels[e];
   if (u_kind == 2u) return labels[face_edges[2u * e]] != labels[face_edges[2u * e + 1u]];
@@ -38,27 +42,11 @@ bool Kept(uint e) {
 void main() {
   uint i = LinearInvocationIndex();
   if (u_phase == 1u) {
-    uint begin = i * kGroup;
-    if (begin >= u_count) return;
-    uint end = min(begin + kGroup, u_count);
-    uint sum = 0u;
-    for (uint c = begin; c < end; ++c) {
-      uint count = chunk_count[c];
-      chunk_count[c] = sum;
-      sum += count;
-    }
-    group_total[i] = sum;
+    ScanChunkCounts(i);
     return;
   }
   if (u_phase == 2u) {
-    if (i != 0u) return;
-    uint sum = 0u;
-    for (uint g = 0u; g < u_count; ++g) {
-      uint total = group_total[g];
-      group_total[g] = sum;
-      sum += total;
-    }
-    counters[u_slot] = sum;
+    ScanGroupTotals(i, u_slot);
     return;
   }
   uint begin = i * kChunk;

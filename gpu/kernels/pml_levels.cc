@@ -2,19 +2,19 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 
 #include "absl/strings/str_cat.h"
-#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
+#include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
+#include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_bb_glsl.h"        // kPmlBbGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
 #include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
 #include "gpu/kernels/pml_merge_glsl.h"     // kPmlMergeGlsl, generated
-#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/pml_pairs_glsl.h"  // kPmlPairsGlsl, generated
 
@@ -27,9 +27,10 @@ constexpr char kTripletsPass[] = "pml triplets";
 constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
+constexpr char kMinOdePass[] = "ml min ode";
+constexpr uint32_t kNoCluster = 0xFFFFFFFFu;
 
-// pml_compact.glsl's phases, kinds and counter slots.
-constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+// pml_compact.glsl's kinds and counter slots.
 constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
 // pml_bb.glsl's phases.
 constexpr uint32_t kFitProxies = 0, kWriteLabels = 1, kWriteClusters = 2;
@@ -119,17 +120,14 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
     if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kEdgesIn].Upload(std::span<const uint32_t>(edges)));
     Programs programs;
     const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl);
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.ode, GetComputeProgram(context, "pml_ode", absl::StrCat(prelude, kPmlOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.ode, GetPmlOdeProgram(context));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs, GetComputeProgram(context, "pml_pairs",
                                           absl::StrCat(prelude, kPmlPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.merge,
-        GetComputeProgram(context, "pml_merge", absl::StrCat(prelude, kPmlMergeGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.compact, GetComputeProgram(context, "pml_compact",
-                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+        programs.merge, GetComputeProgram(context, "pml_merge",
+                                          absl::StrCat(prelude, kPmlMergeGlsl, kPairMergeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PmlLevelsGpu(context, static_cast<uint32_t>(n), static_cast<uint32_t>(m), programs,
                         std::move(buffers));
@@ -151,45 +149,14 @@ absl::StatusOr<uint32_t> PmlLevelsGpu::FindPairs() {
 
 absl::Status PmlLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                     uint32_t pairs, PmlLevelGpu& level) {
-  const detail::GlFunctions& gl = context_->gl();
-  MLCLUST_ASSIGN_OR_RETURN(
-      const bool use_flags,
-      SelectCollapsedPairs(rule, clusters, lowest, pairs, buffers_[kPairIds], buffers_[kPairValues],
-                           buffers_[kPairSelected], level.merged));
-  gl.UseProgram(programs_.merge);
-  gl.ProgramUniform1ui(programs_.merge, 0, pairs);
-  gl.ProgramUniform1ui(programs_.merge, 1, use_flags ? 1u : 0u);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  gl.UseProgram(0);
+  MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(*context_, programs_.merge, rule, clusters, lowest,
+                                             pairs, buffers_[kPairIds], buffers_[kPairValues],
+                                             buffers_[kPairSelected], level.merged));
   return CheckGlError(*context_, kCollapsePass);
 }
 
 absl::Status PmlLevelsGpu::Compact(uint32_t kind, uint32_t count, uint32_t slot) {
-  const detail::GlFunctions& gl = context_->gl();
-  if (count == 0) {
-    const uint32_t zero = 0;
-    return buffers_[kCounters].Upload(slot * 4, &zero, 4);
-  }
-  const uint32_t program = programs_.compact;
-  const uint64_t chunks = Chunks(count), groups = Groups(count);
-  gl.UseProgram(program);
-  gl.ProgramUniform1ui(program, 2, kind);
-  gl.ProgramUniform1ui(program, 3, slot);
-  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
-      std::pair<uint32_t, uint64_t>{kCount, chunks},
-      {kScanGroups, groups},
-      {kScanTop, 1},
-      {kWrite, chunks}};
-  for (const auto& [phase, invocations] : steps) {
-    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : count;
-    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
-    gl.ProgramUniform1ui(program, 1, phase);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  }
-  gl.UseProgram(0);
-  return absl::OkStatus();
+  return CompactInOrder(*context_, programs_.compact, kind, count, buffers_[kCounters], slot);
 }
 
 absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
@@ -197,48 +164,78 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
   MLCLUST_RETURN_IF_ERROR(Compact(kEdges, num_edges_, kEdgeSlot));
   std::array<uint32_t, kCounterSlots> counters{};
   MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(std::span<uint32_t>(counters)));
-  const uint32_t moved = counters[kTripletSlot];
   std::swap(buffers_[kEdgesIn], buffers_[kEdgesOut]);
   num_edges_ = counters[kEdgeSlot];
-  std::vector<uint32_t> triplets(size_t{3} * moved);
-  if (moved > 0)
-    MLCLUST_RETURN_IF_ERROR(buffers_[kTriplets].Download(std::span<uint32_t>(triplets)));
-  std::vector<double> values(size_t{3} * pairs);
-  MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
-  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kTripletsPass));
-  level.element.resize(moved);
-  level.to_cluster.resize(moved);
-  level.from_cluster.resize(moved);
-  for (uint32_t i = 0; i < moved; ++i) {
-    level.element[i] = triplets[3 * i];
-    level.to_cluster[i] = triplets[3 * i + 1];
-    level.from_cluster[i] = triplets[3 * i + 2];
-  }
-  ::mlclust::detail::CompensatedSum change;
-  change.Reset(0);
-  for (uint32_t i = 0; i < pairs; ++i) {
-    change.Add(values[3 * i + 1]);
-    change.Add(values[3 * i + 2]);
-  }
-  level.energy_change = change.value();
-  return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(ReadLevelTriplets(counters[kTripletSlot], pairs, buffers_[kTriplets],
+                                            buffers_[kPairValues], level));
+  return CheckGlError(*context_, kTripletsPass);
 }
 
-absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
-                                         PmlLevelGpu& level) {
+absl::StatusOr<uint32_t> PmlLevelsGpu::StartLevel(PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   absl::StatusOr<uint32_t> pairs = FindPairs();
   if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
   level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
+  return *pairs;
+}
+
+absl::Status PmlLevelsGpu::FinishLevel(const std::function<absl::Status()>& collapse,
+                                       uint32_t pairs, PmlLevelGpu& level) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
+  absl::Status collapsed = collapse();
   if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return PassError(kTripletsPass, Extract(pairs, level));
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                         PmlLevelGpu& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const uint32_t pairs, StartLevel(level));
+  if (pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(
+      FinishLevel([&] { return Collapse(rule, clusters, lowest, pairs, level); }, pairs, level));
+  return true;
+}
+
+absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& level) {
+  MLCLUST_RETURN_IF_ERROR(StartLevel(level).status());
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
+  std::array<uint32_t, 2> pair{};
+  const absl::Status chosen = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    if (programs_.min_ode == 0) {
+      MLCLUST_ASSIGN_OR_RETURN(
+          programs_.min_ode, GetComputeProgram(*context_, "ml_min_ode",
+                                               absl::StrCat(kComputeShaderPrelude, kMlMinOdeGlsl)));
+    }
+    gl.UseProgram(programs_.min_ode);
+    gl.ProgramUniform1ui(programs_.min_ode, 0, num_faces_);
+    gl.ProgramUniform1ui(programs_.min_ode, 1, ties_to_fewest_faces ? 1u : 0u);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, 1));  // one work group
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+    gl.UseProgram(0);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairIds].Download(std::span<uint32_t>(pair)));
+    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kMinOdePass));
+    if (pair[0] != kNoCluster && (pair[0] >= num_faces_ || pair[1] >= num_faces_)) {
+      return absl::InternalError(absl::StrCat("the GPU's cheapest ODE joins clusters ", pair[0],
+                                              " and ", pair[1], " of ", num_faces_));
+    }
+    return absl::OkStatus();
+  }();
+  if (!chosen.ok()) return PassError(kMinOdePass, chosen);
+  if (pair[0] == kNoCluster) return false;  // one cluster per component
+  // The one pair, merged as a level of `all` above its floor merges its pairs (no flags).
+  MLCLUST_RETURN_IF_ERROR(FinishLevel(
+      [&]() -> absl::Status {
+        MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(
+            *context_, programs_.merge, PmlPairRule::kAll, /*clusters=*/2, /*lowest=*/1,
+            /*pairs=*/1, buffers_[kPairIds], buffers_[kPairValues], buffers_[kPairSelected],
+            level.merged));
+        return CheckGlError(*context_, kCollapsePass);
+      },
+      1, level));
   return true;
 }
 
@@ -299,6 +296,16 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
   return PassError(kBbDecidePass, status);
 }
 
+void PmlLevelsGpu::BindBbBuffers() {
+  buffers_[kSums].Bind(0);
+  buffers_[kSizes].Bind(1);
+  buffers_[kLabels].Bind(2);
+  bb_buffers_[kProxies].Bind(3);
+  bb_buffers_[kLabelChanges].Bind(4);
+  bb_buffers_[kClusterChanges].Bind(5);
+  bb_buffers_[kClusterSums].Bind(6);
+}
+
 absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
   proposals.clear();
   if (bb_buffers_.empty()) {
@@ -311,11 +318,8 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     const uint32_t zero = 0;
     MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     if (!proxies_current_) {
-      // The proxies of every cluster id (pml_bb.glsl's bindings); ApplyMoves keeps them.
-      buffers_[kSums].Bind(0);
-      buffers_[kSizes].Bind(1);
-      buffers_[kLabels].Bind(2);
-      bb_buffers_[kProxies].Bind(3);
+      // The proxies of every cluster id; ApplyMoves keeps them.
+      BindBbBuffers();
       gl.UseProgram(bb_program_);
       gl.ProgramUniform1ui(bb_program_, 0, num_faces_);
       gl.ProgramUniform1ui(bb_program_, 1, kFitProxies);
@@ -333,24 +337,10 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
     gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
     gl.UseProgram(0);
-    uint32_t count = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Download(0, &count, sizeof(count)));
-    if (count > num_faces_) {
-      return absl::InternalError(
-          absl::StrCat("the GPU reports ", count, " proposals for ", num_faces_, " faces"));
-    }
-    proposals.resize(count);
-    if (count > 0) {
-      MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposals].Download(std::span<PmlFaceMove>(proposals)));
-    }
-    MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
+    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kBbDecidePass, bb_buffers_[kProposalCount],
+                                              bb_buffers_[kProposals], num_faces_, num_faces_,
+                                              proposals));
     proxies_current_ = true;
-    for (const auto& [face, cluster] : proposals) {
-      if (face >= num_faces_ || cluster >= num_faces_) {
-        return absl::InternalError(absl::StrCat("the GPU proposes face ", face, " -> cluster ",
-                                                cluster, " of ", num_faces_, " faces"));
-      }
-    }
     return absl::OkStatus();
   }();
   if (!status.ok()) {
@@ -380,13 +370,7 @@ absl::Status PmlLevelsGpu::ApplyMoves(std::span<const PmlFaceMove> moves,
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbApplyPass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    buffers_[kSums].Bind(0);
-    buffers_[kSizes].Bind(1);
-    buffers_[kLabels].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kLabelChanges].Bind(4);
-    bb_buffers_[kClusterChanges].Bind(5);
-    bb_buffers_[kClusterSums].Bind(6);
+    BindBbBuffers();
     gl.UseProgram(bb_program_);
     for (size_t begin = 0; begin < moves.size(); begin += kPmlBbChangeChunk) {
       const size_t count = std::min<size_t>(kPmlBbChangeChunk, moves.size() - begin);

@@ -46,6 +46,17 @@
 //   "pml bb edges"  after a level with moves: the directed cluster edges rebuilt from
 //                   every directed face edge and the labels (pml_compact.glsl, kind 2),
 //                   since a move can turn an inner face edge into a boundary one
+// Alg. 5.6 (ML: one collapse per step, then minimizeEnergy(); gpu/stages/multilevel_gpu.h
+// drives it with the BB passes above): Step is a level of one merge, "pml odes" as above,
+// then
+//   "ml min ode"   findMinDE(): the cheapest ODE of all clusters (ml_min_ode.glsl, one work
+//                  group), in the CPU engine's queue order (cost, then the fewer faces with
+//                  ties_to_fewest_faces, then the smaller id; HC's tree of minima orders
+//                  the same), its pair read back (8 bytes)
+// and that pair through "pml collapse" and "pml triplets". Each step costs O(faces + face
+// edges) on the GPU (as the dissertation's findMinDE over every boundary face), so the
+// steps of a whole hierarchy O(faces^2): HC's incremental steps (hc_levels.h) cannot take
+// BB's moves, which re-shape clusters anywhere.
 // Memory for BB (PmlBoundaryMemoryBound), bytes per face: 24 (the face edges, kept) + 12
 // (neighbours) + 32 (point and mass) + 32 (proxies) + 8 (proposals) = 108, plus 56 per
 // change slot (kPmlBbChangeChunk at most: label change 8, cluster id and size 8, sums
@@ -55,6 +66,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <utility>
 #include <vector>
@@ -67,21 +79,12 @@
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
+#include "gpu/kernels/pml_pair_selection.h"
 
 namespace mlclust::gpu {
 
-// Elements per invocation and invocations per scan group of pml_compact.glsl.
-inline constexpr uint32_t kPmlChunk = 32;
-inline constexpr uint32_t kPmlGroup = 256;
-
-// One level's result.
-struct PmlLevelGpu {
-  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
-  uint32_t merged = 0;        // collapsed
-  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
-  // The triplets, in face order.
-  std::vector<uint32_t> element, to_cluster, from_cluster;
-};
+// One level's result (pml_pair_selection.h); the triplets in face order.
+using PmlLevelGpu = GpuPmlLevel;
 
 // The bytes PmlLevelsGpu allocates for `num_faces` faces and `num_edges` directed face
 // edges (at most 3 * num_faces).
@@ -119,6 +122,12 @@ class PmlLevelsGpu {
   // pair. Errors name the pass.
   absl::StatusOr<bool> Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                              PmlLevelGpu& level);
+
+  // One ML step (Alg. 5.6) at the current clusters: the cheapest ODE (ties as the CPU
+  // engine's queue, `ties_to_fewest_faces` as MultilevelOptions) collapsed, into `level`
+  // (merged 1, its triplets and energy change); false (and nothing changed) where no
+  // cluster has an ODE left. Errors name the pass ("ml min ode" for the choice).
+  absl::StatusOr<bool> Step(bool ties_to_fewest_faces, PmlLevelGpu& level);
 
   // The current labels (downloaded; for tests).
   absl::StatusOr<std::vector<uint32_t>> Labels();
@@ -168,6 +177,7 @@ class PmlLevelsGpu {
   };
   struct Programs {
     uint32_t ode = 0, pairs = 0, merge = 0, compact = 0;
+    uint32_t min_ode = 0;  // Step's, compiled at its first call
   };
   // EnableBoundaryOptimisation's buffers (bindings are set per pass).
   enum BoundaryBuffer : uint32_t {
@@ -192,7 +202,15 @@ class PmlLevelsGpu {
         buffers_(std::move(buffers)) {}
 
   void BindAll();
+  // pml_bb.glsl's bindings: sums, sizes, labels, proxies, the label changes, the cluster
+  // changes and their sums.
+  void BindBbBuffers();
   absl::StatusOr<uint32_t> FindPairs();
+  // A level's start ("pml odes"): every ODE and the mutual pairs (returned).
+  absl::StatusOr<uint32_t> StartLevel(PmlLevelGpu& level);
+  // A level's end: `collapse` ("pml collapse"), then the triplets of `pairs` pairs.
+  absl::Status FinishLevel(const std::function<absl::Status()>& collapse, uint32_t pairs,
+                           PmlLevelGpu& level);
   absl::Status Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest, uint32_t pairs,
                         PmlLevelGpu& level);
   absl::Status Compact(uint32_t kind, uint32_t count, uint32_t slot);

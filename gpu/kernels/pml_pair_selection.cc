@@ -5,8 +5,15 @@
 #include <cstddef>
 #include <utility>
 
+#include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
+#include "gpu/kernels/compact_scan_glsl.h"  // kCompactScanGlsl, generated
+#include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
+#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
+#include "gpu/kernels/pml_cvd_glsl.h"       // kPmlCvdGlsl, generated
+#include "gpu/kernels/pml_ode_glsl.h"       // kPmlOdeGlsl, generated
 
 namespace mlclust::gpu {
 
@@ -93,6 +100,88 @@ absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& coun
   MLCLUST_RETURN_IF_ERROR(counters.Download(0, &pairs, 4));
   MLCLUST_RETURN_IF_ERROR(CheckGlError(context, passes.pass));
   return pairs;
+}
+
+absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlPairRule rule,
+                                uint32_t clusters, uint32_t lowest, uint32_t pairs,
+                                StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
+                                uint32_t& merged) {
+  const detail::GlFunctions& gl = context.gl();
+  MLCLUST_ASSIGN_OR_RETURN(
+      const bool use_flags,
+      SelectCollapsedPairs(rule, clusters, lowest, pairs, ids, values, selected, merged));
+  gl.UseProgram(merge_program);
+  gl.ProgramUniform1ui(merge_program, 0, pairs);
+  gl.ProgramUniform1ui(merge_program, 1, use_flags ? 1u : 0u);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, pairs));
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<uint32_t> GetPmlOdeProgram(GlContext& context) {
+  return GetComputeProgram(
+      context, "pml_ode",
+      absl::StrCat(kComputeShaderPrelude, kPmlCvdGlsl, kPmlOdeGlsl, kOdeMinGlsl));
+}
+
+absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context) {
+  return GetComputeProgram(context, "pml_compact",
+                           absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl, kCompactScanGlsl));
+}
+
+absl::Status CompactInOrder(GlContext& context, uint32_t program, uint32_t kind, uint32_t count,
+                            StorageBuffer& counters, uint32_t slot) {
+  // pml_compact.glsl's phases.
+  constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+  if (count == 0) {
+    const uint32_t zero = 0;
+    return counters.Upload(slot * 4, &zero, 4);
+  }
+  const detail::GlFunctions& gl = context.gl();
+  const uint64_t chunks = (uint64_t{count} + kPmlChunk - 1) / kPmlChunk;
+  const uint64_t groups = (chunks + kPmlGroup - 1) / kPmlGroup;
+  gl.UseProgram(program);
+  gl.ProgramUniform1ui(program, 2, kind);
+  gl.ProgramUniform1ui(program, 3, slot);
+  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
+      std::pair<uint32_t, uint64_t>{kCount, chunks},
+      {kScanGroups, groups},
+      {kScanTop, 1},
+      {kWrite, chunks}};
+  for (const auto& [phase, invocations] : steps) {
+    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : count;
+    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
+    gl.ProgramUniform1ui(program, 1, phase);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, invocations));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  gl.UseProgram(0);
+  return absl::OkStatus();
+}
+
+absl::Status ReadLevelTriplets(uint32_t moved, uint32_t pairs, StorageBuffer& triplets,
+                               StorageBuffer& pair_values, GpuPmlLevel& level) {
+  std::vector<uint32_t> words(size_t{3} * moved);
+  if (moved > 0) MLCLUST_RETURN_IF_ERROR(triplets.Download(std::span<uint32_t>(words)));
+  std::vector<double> values(size_t{3} * pairs);
+  MLCLUST_RETURN_IF_ERROR(pair_values.Download(std::span<double>(values)));
+  level.element.resize(moved);
+  level.to_cluster.resize(moved);
+  level.from_cluster.resize(moved);
+  for (uint32_t i = 0; i < moved; ++i) {
+    level.element[i] = words[3 * i];
+    level.to_cluster[i] = words[3 * i + 1];
+    level.from_cluster[i] = words[3 * i + 2];
+  }
+  ::mlclust::detail::CompensatedSum change;
+  change.Reset(0);
+  for (uint32_t i = 0; i < pairs; ++i) {
+    change.Add(values[3 * i + 1]);
+    change.Add(values[3 * i + 2]);
+  }
+  level.energy_change = change.value();
+  return absl::OkStatus();
 }
 
 }  // namespace mlclust::gpu

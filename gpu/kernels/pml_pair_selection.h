@@ -1,5 +1,7 @@
-// The host side of one GPU PML collapse, shared by the mesh (pml_levels.h) and the point
-// (points_levels.h) engines: which of a level's mutual pairs the merge pass collapses.
+// The host side of one GPU PML level, shared by the mesh (pml_levels.h) and the point
+// (points_levels.h) engines: the mutual-pair passes, which of a level's mutual pairs the
+// merge pass collapses, the stream compaction (pml_compact.glsl) and the level's
+// read-back.
 #ifndef MLCLUST_GPU_KERNELS_PML_PAIR_SELECTION_H_
 #define MLCLUST_GPU_KERNELS_PML_PAIR_SELECTION_H_
 
@@ -14,6 +16,19 @@
 #include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
+
+// Elements per invocation and invocations per scan group of pml_compact.glsl.
+inline constexpr uint32_t kPmlChunk = 32;
+inline constexpr uint32_t kPmlGroup = 256;
+
+// One level's result (PmlLevelsGpu::Level, PointLevelsGpu::Level).
+struct GpuPmlLevel {
+  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
+  uint32_t merged = 0;        // collapsed
+  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
+  // The triplets, in element order (faces or points).
+  std::vector<uint32_t> element, to_cluster, from_cluster;
+};
 
 // The CPU engine's selection (ParallelMerges) on the level's `ids` (2 per pair: the two
 // clusters) and `values` (3 per pair, the first the merge cost): the pair rule, then the
@@ -46,6 +61,34 @@ struct MutualPairPasses {
 // (counter slot 0). The buffers are bound by the caller.
 absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
                                          const MutualPairPasses& passes);
+
+// The collapse of `pairs` mutual pairs: SelectCollapsedPairs, then `merge_program` (the
+// merge pass: uniforms 0, the pairs, and 1, whether it reads the flags; the caller sets
+// any others) over the pairs. The buffers are bound by the caller.
+absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlPairRule rule,
+                                uint32_t clusters, uint32_t lowest, uint32_t pairs,
+                                StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
+                                uint32_t& merged);
+
+// The ODE program of the mesh levels (pml_cvd.glsl, pml_ode.glsl, ode_min.glsl),
+// "pml_ode"; PML's and HC's (hc_levels.h).
+absl::StatusOr<uint32_t> GetPmlOdeProgram(GlContext& context);
+
+// The program of pml_compact.glsl (with compact_scan.glsl), "pml_compact".
+absl::StatusOr<uint32_t> GetPmlCompactProgram(GlContext& context);
+
+// The stream compaction of pml_compact.glsl (`program`) over `count` elements of `kind`
+// in its four phases, the kept count to counter `slot` of `counters` (written 0 where
+// `count` is 0). The buffers are bound by the caller.
+absl::Status CompactInOrder(GlContext& context, uint32_t program, uint32_t kind, uint32_t count,
+                            StorageBuffer& counters, uint32_t slot);
+
+// The level's read-back: `moved` triplets (element, new, old) from `triplets` into
+// `level`'s element, to_cluster and from_cluster, and its energy change, the compensated
+// sum of the energy changes of the `pairs` pairs in `pair_values` (3 per pair: cost, then
+// the kept and the gone cluster's change).
+absl::Status ReadLevelTriplets(uint32_t moved, uint32_t pairs, StorageBuffer& triplets,
+                               StorageBuffer& pair_values, GpuPmlLevel& level);
 
 }  // namespace mlclust::gpu
 

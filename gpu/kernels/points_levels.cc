@@ -5,18 +5,19 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
-#include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
+#include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
+#include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
 #include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
 #include "gpu/kernels/points_ode_glsl.h"      // kPointsOdeGlsl, generated
 #include "gpu/kernels/points_pairs_glsl.h"    // kPointsPairsGlsl, generated
 #include "gpu/kernels/points_refresh_glsl.h"  // kPointsRefreshGlsl, generated
+#include "gpu/kernels/points_update_glsl.h"   // kPointsUpdateGlsl, generated
 #include "gpu/kernels/voxel_start.h"
 
 namespace mlclust::gpu {
@@ -26,18 +27,17 @@ constexpr char kOdesPass[] = "points odes";
 constexpr char kCollapsePass[] = "points collapse";
 constexpr char kTripletsPass[] = "points triplets";
 constexpr char kNeighboursPass[] = "points neighbours";
+constexpr char kUpdatePass[] = "points update";
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
-// pml_compact.glsl's phases, kind and counter slots (shared with the meshes' PML).
-constexpr uint32_t kCount = 0, kScanGroups = 1, kScanTop = 2, kWrite = 3;
+// pml_compact.glsl's kind and counter slots (shared with the meshes' PML).
 constexpr uint32_t kElements = 0;
 constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kCounterSlots = 4;
 // FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0.
 static_assert(kPairSlot == 0 && kCounterSlots == 4);
-constexpr uint32_t kChunk = 32, kGroup = 256;  // kPmlChunk, kPmlGroup
 
-uint64_t Chunks(uint64_t count) { return (count + kChunk - 1) / kChunk; }
-uint64_t Groups(uint64_t count) { return (Chunks(count) + kGroup - 1) / kGroup; }
+uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
+uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
 uint64_t MaxPairs(uint64_t k) { return k / 2 + 1; }
 
 }  // namespace
@@ -100,22 +100,23 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
     }
     Programs programs;
     const std::string prelude = absl::StrCat(kComputeShaderPrelude, kPointsCommonGlsl);
-    MLCLUST_ASSIGN_OR_RETURN(
-        programs.ode,
-        GetComputeProgram(context, "points_ode", absl::StrCat(prelude, kPointsOdeGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.ode,
+                             GetComputeProgram(context, "points_ode",
+                                               absl::StrCat(prelude, kPointsOdeGlsl, kOdeMinGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.pairs,
         GetComputeProgram(context, "points_pairs",
                           absl::StrCat(prelude, kPointsPairsGlsl, kMutualPairsGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.merge,
-        GetComputeProgram(context, "points_merge", absl::StrCat(prelude, kPointsMergeGlsl)));
+        programs.merge, GetComputeProgram(context, "points_merge",
+                                          absl::StrCat(prelude, kPointsMergeGlsl, kPairMergeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
         programs.refresh,
         GetComputeProgram(context, "points_refresh", absl::StrCat(prelude, kPointsRefreshGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(
-        programs.compact, GetComputeProgram(context, "pml_compact",
-                                            absl::StrCat(kComputeShaderPrelude, kPmlCompactGlsl)));
+        programs.update,
+        GetComputeProgram(context, "points_update", absl::StrCat(prelude, kPointsUpdateGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PointLevelsGpu(context, static_cast<uint32_t>(m), static_cast<uint32_t>(k), d, programs,
                           std::move(buffers));
@@ -137,67 +138,22 @@ absl::StatusOr<uint32_t> PointLevelsGpu::FindPairs() {
 absl::Status PointLevelsGpu::Collapse(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                       uint32_t pairs, PointLevelGpu& level) {
   const detail::GlFunctions& gl = context_->gl();
-  MLCLUST_ASSIGN_OR_RETURN(
-      const bool use_flags,
-      SelectCollapsedPairs(rule, clusters, lowest, pairs, buffers_[kPairIds], buffers_[kPairValues],
-                           buffers_[kPairSelected], level.merged));
-  gl.UseProgram(programs_.merge);
-  gl.ProgramUniform1ui(programs_.merge, 0, pairs);
-  gl.ProgramUniform1ui(programs_.merge, 1, use_flags ? 1u : 0u);
   gl.ProgramUniform1ui(programs_.merge, 2, d_);
   gl.ProgramUniform1ui(programs_.merge, 3, level_);
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, pairs));
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  gl.UseProgram(0);
+  MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(*context_, programs_.merge, rule, clusters, lowest,
+                                             pairs, buffers_[kPairIds], buffers_[kPairValues],
+                                             buffers_[kPairSelected], level.merged));
   return CheckGlError(*context_, kCollapsePass);
 }
 
 absl::Status PointLevelsGpu::Extract(uint32_t pairs, PointLevelGpu& level) {
-  const detail::GlFunctions& gl = context_->gl();
-  const uint32_t program = programs_.compact;
-  const uint64_t chunks = Chunks(m_), groups = Groups(m_);
-  gl.UseProgram(program);
-  gl.ProgramUniform1ui(program, 2, kElements);
-  gl.ProgramUniform1ui(program, 3, kTripletSlot);
-  const std::array<std::pair<uint32_t, uint64_t>, 4> steps = {
-      std::pair<uint32_t, uint64_t>{kCount, chunks},
-      {kScanGroups, groups},
-      {kScanTop, 1},
-      {kWrite, chunks}};
-  for (const auto& [phase, invocations] : steps) {
-    const uint64_t elements = phase == kScanGroups ? chunks : phase == kScanTop ? groups : m_;
-    gl.ProgramUniform1ui(program, 0, static_cast<uint32_t>(elements));
-    gl.ProgramUniform1ui(program, 1, phase);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
-    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  }
-  gl.UseProgram(0);
+  MLCLUST_RETURN_IF_ERROR(CompactInOrder(*context_, programs_.compact, kElements, m_,
+                                         buffers_[kCounters], kTripletSlot));
   std::array<uint32_t, kCounterSlots> counters{};
   MLCLUST_RETURN_IF_ERROR(buffers_[kCounters].Download(std::span<uint32_t>(counters)));
-  const uint32_t moved = counters[kTripletSlot];
-  std::vector<uint32_t> triplets(size_t{3} * moved);
-  if (moved > 0) {
-    MLCLUST_RETURN_IF_ERROR(buffers_[kTriplets].Download(std::span<uint32_t>(triplets)));
-  }
-  std::vector<double> values(size_t{3} * pairs);
-  MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
-  MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kTripletsPass));
-  level.element.resize(moved);
-  level.to_cluster.resize(moved);
-  level.from_cluster.resize(moved);
-  for (uint32_t i = 0; i < moved; ++i) {
-    level.element[i] = triplets[3 * i];
-    level.to_cluster[i] = triplets[3 * i + 1];
-    level.from_cluster[i] = triplets[3 * i + 2];
-  }
-  ::mlclust::detail::CompensatedSum change;
-  change.Reset(0);
-  for (uint32_t i = 0; i < pairs; ++i) {
-    change.Add(values[3 * i + 1]);
-    change.Add(values[3 * i + 2]);
-  }
-  level.energy_change = change.value();
-  return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(ReadLevelTriplets(counters[kTripletSlot], pairs, buffers_[kTriplets],
+                                            buffers_[kPairValues], level));
+  return CheckGlError(*context_, kTripletsPass);
 }
 
 absl::Status PointLevelsGpu::Refresh(bool link_all) {
@@ -225,6 +181,13 @@ absl::Status PointLevelsGpu::LinkAll() {
 
 absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                                            PointLevelGpu& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const bool merged, MergeLevel(rule, clusters, lowest, level));
+  if (merged) MLCLUST_RETURN_IF_ERROR(RefreshNeighbours());
+  return merged;
+}
+
+absl::StatusOr<bool> PointLevelsGpu::MergeLevel(PmlPairRule rule, uint32_t clusters,
+                                                uint32_t lowest, PointLevelGpu& level) {
   level = PointLevelGpu();
   ++level_;
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
@@ -238,10 +201,79 @@ absl::StatusOr<bool> PointLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, 
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
   absl::Status extracted = Extract(*pairs, level);
   if (!extracted.ok()) return PassError(kTripletsPass, extracted);
+  return true;
+}
+
+absl::Status PointLevelsGpu::RefreshNeighbours() {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kNeighboursPass));
   absl::Status refreshed = Refresh(/*link_all=*/false);
   if (!refreshed.ok()) return PassError(kNeighboursPass, refreshed);
-  return true;
+  return absl::OkStatus();
+}
+
+LnKmeansResidentClusters PointLevelsGpu::Resident() const {
+  return {&buffers_[kLabels], &buffers_[kCentroids], &buffers_[kNeighboursIn], &buffers_[kCounts]};
+}
+
+absl::Status PointLevelsGpu::Update(std::span<const uint32_t> clusters,
+                                    std::span<const uint32_t> counts,
+                                    std::span<const double> values,
+                                    std::span<const uint32_t> points,
+                                    std::span<const uint32_t> labels) {
+  const uint64_t width = 2 * uint64_t{d_} + 1;
+  if (counts.size() != clusters.size() || values.size() != clusters.size() * width ||
+      labels.size() != points.size()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "points update: ", clusters.size(), " clusters with ", counts.size(), " counts and ",
+        values.size(), " values, ", points.size(), " points with ", labels.size(), " labels"));
+  }
+  for (const uint32_t c : clusters) {
+    if (c >= k_) return absl::InvalidArgumentError("points update: a cluster out of range");
+  }
+  for (size_t r = 0; r < points.size(); ++r) {
+    if (points[r] >= m_ || labels[r] >= k_) {
+      return absl::InvalidArgumentError("points update: a point or label out of range");
+    }
+  }
+  const uint64_t entries = clusters.size() + points.size();
+  if (entries == 0) return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kUpdatePass));
+  absl::Status status = [&]() -> absl::Status {
+    const std::array<uint64_t, 2> bytes = {8 * entries, 8 * std::max<uint64_t>(values.size(), 1)};
+    for (size_t b = 0; b < 2; ++b) {
+      const bool have = staging_.size() > b;
+      if (have && staging_[b].bytes() >= bytes[b]) continue;
+      const uint64_t size = std::max(bytes[b], have ? 2 * staging_[b].bytes() : 0);
+      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
+      if (have) {
+        staging_[b] = std::move(buffer);
+      } else {
+        staging_.push_back(std::move(buffer));
+      }
+    }
+    std::vector<uint32_t> ids;
+    ids.reserve(2 * entries);
+    ids.insert(ids.end(), clusters.begin(), clusters.end());
+    ids.insert(ids.end(), counts.begin(), counts.end());
+    ids.insert(ids.end(), points.begin(), points.end());
+    ids.insert(ids.end(), labels.begin(), labels.end());
+    MLCLUST_RETURN_IF_ERROR(staging_[0].Upload(std::span<const uint32_t>(ids)));
+    if (!values.empty()) MLCLUST_RETURN_IF_ERROR(staging_[1].Upload(values));
+    const detail::GlFunctions& gl = context_->gl();
+    BindAll();
+    staging_[0].Bind(kPairIds);
+    staging_[1].Bind(kPairValues);
+    gl.UseProgram(programs_.update);
+    gl.ProgramUniform1ui(programs_.update, 0, static_cast<uint32_t>(clusters.size()));
+    gl.ProgramUniform1ui(programs_.update, 1, static_cast<uint32_t>(points.size()));
+    gl.ProgramUniform1ui(programs_.update, 2, d_);
+    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, entries));
+    gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    gl.UseProgram(0);
+    BindAll();
+    return CheckGlError(*context_, kUpdatePass);
+  }();
+  return PassError(kUpdatePass, status);
 }
 
 absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Labels() {

@@ -37,17 +37,13 @@
 #include "core/cluster/detail/pml_pairs.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
+#include "gpu/kernels/ln_kmeans.h"
+#include "gpu/kernels/pml_pair_selection.h"
 
 namespace mlclust::gpu {
 
-// One level's result.
-struct PointLevelGpu {
-  uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
-  uint32_t merged = 0;        // collapsed
-  double energy_change = 0;   // sum of E(after) - E(before) over the changed clusters
-  // The triplets, in point order.
-  std::vector<uint32_t> element, to_cluster, from_cluster;
-};
+// One level's result (pml_pair_selection.h); the triplets in point order.
+using PointLevelGpu = GpuPmlLevel;
 
 // The clusters of the start, as the GPU levels take them.
 struct PointLevelsStart {
@@ -75,6 +71,26 @@ class PointLevelsGpu {
   // changed) where there is no mutual pair. Errors name the pass.
   absl::StatusOr<bool> Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
                              PointLevelGpu& level);
+
+  // Level in two parts, for LN k-means between them (gpu/stages/points_optimise_gpu.h):
+  // MergeLevel is Level up to the triplets (the neighbour table is still the one before the
+  // level; false: no mutual pair, nothing changed), RefreshNeighbours its last pass.
+  absl::StatusOr<bool> MergeLevel(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
+                                  PointLevelGpu& level);
+  absl::Status RefreshNeighbours();
+
+  // The resident labels, centroids, neighbour table and counts, for LN k-means' assign
+  // (LnKmeansKernel::AssignResident); valid until the next call that changes this object.
+  LnKmeansResidentClusters Resident() const;
+
+  // Writes moves made on the host into the resident state (pass "points update"): for
+  // each of `clusters` its count, its d + 1 sums and its d centroid values (`values`,
+  // 2d + 1 per cluster), and for each of `points` its label. INVALID_ARGUMENT for sizes
+  // that do not agree or ids out of range. The staging buffers grow to the largest update
+  // (at most 8 + 8(2d + 1) bytes per cluster and 8 per point).
+  absl::Status Update(std::span<const uint32_t> clusters, std::span<const uint32_t> counts,
+                      std::span<const double> values, std::span<const uint32_t> points,
+                      std::span<const uint32_t> labels);
 
   // Every live cluster's neighbours: the nearest live cluster in each subspace (the CPU's
   // ConnectWhenStuck; O(k^2), for few clusters). Pass "points neighbours".
@@ -106,7 +122,7 @@ class PointLevelsGpu {
     kBindings
   };
   struct Programs {
-    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0, refresh = 0;
+    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0, refresh = 0, update = 0;
   };
 
   PointLevelsGpu(GlContext& context, uint32_t m, uint32_t k, uint32_t d, Programs programs,
@@ -130,6 +146,7 @@ class PointLevelsGpu {
   uint32_t level_ = 0;
   Programs programs_;
   std::vector<StorageBuffer> buffers_;
+  std::vector<StorageBuffer> staging_;  // Update's ids and values, grown on demand
 };
 
 }  // namespace mlclust::gpu

@@ -16,7 +16,8 @@
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/voxel_start_glsl.h"  // kVoxelStartGlsl, generated
+#include "gpu/kernels/compact_scan_glsl.h"  // kCompactScanGlsl, generated
+#include "gpu/kernels/voxel_start_glsl.h"   // kVoxelStartGlsl, generated
 
 namespace mlclust::gpu {
 namespace {
@@ -204,7 +205,7 @@ absl::StatusOr<VoxelStartGpuResult> VoxelGridStartGpu(GlContext& context, const 
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t program,
         GetComputeProgram(context, "voxel_start",
-                          absl::StrCat(kComputeShaderPrelude, kVoxelStartGlsl)));
+                          absl::StrCat(kComputeShaderPrelude, kVoxelStartGlsl, kCompactScanGlsl)));
     VoxelGrid voxels(context, static_cast<uint32_t>(m), d, program, std::move(buffers));
     MLCLUST_ASSIGN_OR_RETURN(auto box, voxels.Bounds());
     const std::vector<float>& lo = box.first;

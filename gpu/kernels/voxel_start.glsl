@@ -19,7 +19,7 @@
 //   u_phase 6  label     per point: its cell's cluster
 //   u_phase 7  neighbours per cluster: the occupied cell one step up (2j) and down (2j + 1)
 //                        each axis j, else none (0xFFFFFFFF)
-// After the prelude of gpu/context/compute.h.
+// After the prelude of gpu/context/compute.h, before compact_scan.glsl (phases 3 and 4).
 layout(std430, binding = 0) readonly buffer Points { float points[]; };  // m x d
 struct Axis {
   double span;  // hi - lo in double, as the CPU's
@@ -45,6 +45,9 @@ const uint kChunk = 32u;
 const uint kGroup = 256u;
 const uint kNone = 0xFFFFFFFFu;
 const uint kMaxDims = 64u;  // kVoxelStartMaxDims
+
+void ScanChunkCounts(uint group);                 // compact_scan.glsl
+void ScanGroupTotals(uint invocation, uint slot);  // compact_scan.glsl
 
 uint FloatKey(float f) {
   uint bits = floatBitsToUint(f);
@@ -112,27 +115,11 @@ void main() {
     return;
   }
   if (u_phase == 3u) {
-    uint begin = i * kGroup;
-    if (begin >= u_count) return;
-    uint end = min(begin + kGroup, u_count);
-    uint sum = 0u;
-    for (uint c = begin; c < end; ++c) {
-      uint count = chunk_count[c];
-      chunk_count[c] = sum;
-      sum += count;
-    }
-    group_total[i] = sum;
+    ScanChunkCounts(i);
     return;
   }
   if (u_phase == 4u) {
-    if (i != 0u) return;
-    uint sum = 0u;
-    for (uint g = 0u; g < u_count; ++g) {
-      uint total = group_total[g];
-      group_total[g] = sum;
-      sum += total;
-    }
-    counters[0] = sum;
+    ScanGroupTotals(i, 0u);
     return;
   }
   if (u_phase == 2u || u_phase == 5u) {

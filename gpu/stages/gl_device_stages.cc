@@ -37,7 +37,7 @@ absl::StatusOr<MultilevelSummary> GlDeviceStages::RunMultilevel(const MeshProble
 absl::StatusOr<MultilevelSummary> GlDeviceStages::RunHierarchy(const MeshProblem& problem,
                                                                const MultilevelOptions& options,
                                                                LevelSink& sink) {
-  return RunHierarchyGpu(context_, problem, options, sink);
+  return RunMultilevelGpu(context_, problem, options, sink);  // HC, or ML with BB
 }
 
 absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(

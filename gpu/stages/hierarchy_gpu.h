@@ -8,7 +8,8 @@
 // optimizer none; not parallel (PML is gpu/stages/multilevel_gpu.h); p-percent 0; both
 // tie rules (ties_to_fewest_faces). The levels are the CPU engine's exactly where the GPU's
 // fp64 is IEEE (llvmpipe, NVIDIA): the same pairs, triplets (in the same order) and
-// energies. MultilevelOptions::inspect_level and threads are not used.
+// energies. MultilevelOptions::inspect_level and threads are not used. ML with optimizer
+// none is HC: RunMultilevelGpu (multilevel_gpu.h) runs it here.
 #ifndef MLCLUST_GPU_STAGES_HIERARCHY_GPU_H_
 #define MLCLUST_GPU_STAGES_HIERARCHY_GPU_H_
 

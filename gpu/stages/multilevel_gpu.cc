@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 #include <span>
-#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -17,6 +17,8 @@
 #include "core/mesh/connectivity_guard.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
+#include "gpu/stages/hierarchy_gpu.h"
+#include "gpu/stages/mesh_levels_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -35,26 +37,26 @@ absl::Status InspectGpuLabels(const MultilevelOptions& options, PmlLevelsGpu& le
   return absl::OkStatus();
 }
 
-// Alg. 5.7: PML levels on the GPU, each followed by BB sweeps (Alg. 5.4) whose decide
-// runs on the GPU and whose conflict rule and moves are the CPU stage's own
-// (boundary_based::ResolveConflicts, ApplyMoves, UndoMoves) on a host Partition that
-// mirrors the GPU's labels, sizes and sums; the level's moves go through the CPU engine's
-// LevelRecorder, so the triplets and the energy are kept as the CPU engine keeps them.
-absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
-                                                          const MeshProblem& problem,
-                                                          const MultilevelOptions& options,
-                                                          const CvdEnergy& energy,
-                                                          LevelSink& sink) {
+// One level's merges on the GPU (PML's mutual pairs, or ML's one cheapest pair) at
+// `clusters` clusters: false where none is left.
+using MergeLevel = std::function<absl::StatusOr<bool>(PmlLevelsGpu& levels, uint32_t clusters,
+                                                      PmlLevelGpu& level)>;
+
+// Alg. 5.7 and 5.6: levels of merges on the GPU (PML's, or ML's one collapse), each
+// followed by BB sweeps (Alg. 5.4) whose decide runs on the GPU and whose conflict rule and
+// moves are the CPU stage's own (boundary_based::ResolveConflicts, ApplyMoves, UndoMoves)
+// on a host Partition that mirrors the GPU's labels, sizes and sums; the level's moves go
+// through the CPU engine's LevelRecorder, so the triplets and the energy are kept as the
+// CPU engine keeps them.
+absl::StatusOr<MultilevelSummary> RunLevelsWithBoundaryBased(
+    GlContext& context, const MeshProblem& problem, const MultilevelOptions& options,
+    const CvdEnergy& energy, const MergeLevel& merge_level, LevelSink& sink) {
   const FaceAdjacency& adjacency = *problem.adjacency;
   const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-  std::vector<CvdSums> face_sums(n);
   std::vector<PointAndWeight> points(n);
-  for (uint32_t f = 0; f < n; ++f) {
-    face_sums[f] = energy.face_sums(f);
-    points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
-  }
+  for (uint32_t f = 0; f < n; ++f) points[f] = ProxyPointForm<CvdEnergy>::Face(energy, f);
   MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                           PmlLevelsGpu::Create(context, face_sums, adjacency));
+                           PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), adjacency));
   MLCLUST_RETURN_IF_ERROR(levels.EnableBoundaryOptimisation(adjacency, points));
   // The ring structure always: the conflict rule reads it whatever the guard (as
   // OptimizeBoundaryBased).
@@ -69,11 +71,7 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
   LevelRecorder recorder(n, n);
   recorder.Reset(0.0);
   auto energy_of = [&](uint32_t c) { return partition.cluster_energy(c); };
-  {
-    std::vector<ClusterId> start(n);
-    for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-    MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
-  }
+  MLCLUST_RETURN_IF_ERROR(ReportStartLevel(sink, n));
   MLCLUST_RETURN_IF_ERROR(InspectGpuLabels(options, levels, 0));
   MultilevelSummary summary;
   summary.levels = 1;
@@ -90,8 +88,7 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
   boundary_based::ConflictScratch scratch;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+    MLCLUST_ASSIGN_OR_RETURN(const bool merged, merge_level(levels, clusters, level));
     if (!merged) break;  // one cluster per component
     clusters -= level.merged;
     // The level's merges on the host, recorded as the CPU engine records them: the faces
@@ -112,9 +109,9 @@ absl::StatusOr<MultilevelSummary> RunPmlWithBoundaryBased(GlContext& context,
       recorder.Touch(keep, energy_of);
       recorder.Touch(gone, energy_of);
       if (members.size() != partition.size(gone) || partition.size(keep) == 0) {
-        return absl::InternalError(absl::StrCat(
-            "PML on the GPU: level ", summary.levels, " merges ", members.size(),
-            " faces of cluster ", gone, " (", partition.size(gone), " on the host) into ", keep));
+        return absl::InternalError(absl::StrCat("the GPU's level ", summary.levels, " merges ",
+                                                members.size(), " faces of cluster ", gone, " (",
+                                                partition.size(gone), " on the host) into ", keep));
       }
       partition.MergeUncounted(keep, gone, members);
       ++pairs;
@@ -210,63 +207,69 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
                                                            const MeshProblem& problem,
                                                            const MultilevelOptions& options,
                                                            LevelSink& sink) {
-  if (problem.mesh == nullptr || problem.adjacency == nullptr || problem.measures == nullptr) {
-    return absl::InvalidArgumentError("mesh problem without mesh, adjacency or measures");
-  }
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(problem.energy));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  const std::string unsupported = PmlGpuUnsupported(options, problem.energy.kind);
-  if (!unsupported.empty())
-    return absl::UnimplementedError(absl::StrCat("PML on the GPU: ", unsupported));
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "PML set-up"));
-  return WithMeshEnergy(
-      problem.energy, *problem.mesh, *problem.measures,
-      [&](const auto& energy) -> absl::StatusOr<MultilevelSummary> {
-        using Energy = std::decay_t<decltype(energy)>;
-        if constexpr (!std::is_same_v<Energy, CvdEnergy>) {
-          return absl::UnimplementedError("PML on the GPU: not a CVD energy");
-        } else if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased) {
-          return RunPmlWithBoundaryBased(context, problem, options, energy, sink);
-        } else {
-          const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
-          std::vector<CvdSums> face_sums(n);
-          for (uint32_t f = 0; f < n; ++f) face_sums[f] = energy.face_sums(f);
-          MLCLUST_ASSIGN_OR_RETURN(PmlLevelsGpu levels,
-                                   PmlLevelsGpu::Create(context, face_sums, *problem.adjacency));
-          std::vector<ClusterId> start(n);
-          for (uint32_t f = 0; f < n; ++f) start[f] = ClusterId(f);
-          MLCLUST_RETURN_IF_ERROR(sink.OnStart(start, n, 0.0));
-          MultilevelSummary summary;
-          summary.levels = 1;
-          ::mlclust::detail::CompensatedSum energy_sum;
-          energy_sum.Reset(0);
-          uint32_t clusters = n;
-          PmlLevelGpu level;
-          while (clusters > options.min_clusters) {
-            MLCLUST_RETURN_IF_ERROR(
-                CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-            MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.Level(options.pml_pairs, clusters,
-                                                                     options.min_clusters, level));
-            if (!merged) break;  // one cluster per component
-            clusters -= level.merged;
-            energy_sum.Add(level.energy_change);
-            LevelMoves moves;
-            moves.level = summary.levels;
-            moves.cluster_count = clusters;
-            moves.energy = energy_sum.value();
-            moves.element = level.element;
-            moves.to_cluster = level.to_cluster;
-            moves.from_cluster = level.from_cluster;
-            MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
-            summary.moves += level.element.size();
-            ++summary.levels;
-          }
-          summary.final_clusters = clusters;
-          summary.final_energy = energy_sum.value();
-          return summary;
+  return WithCvdLevelsProblem(
+      problem, options, "PML", PmlGpuUnsupported(options, problem.energy.kind),
+      [&](const CvdEnergy& energy) -> absl::StatusOr<MultilevelSummary> {
+        if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased) {
+          const MergeLevel pml_level = [&](PmlLevelsGpu& levels, uint32_t clusters,
+                                           PmlLevelGpu& level) {
+            return levels.Level(options.pml_pairs, clusters, options.min_clusters, level);
+          };
+          return RunLevelsWithBoundaryBased(context, problem, options, energy, pml_level, sink);
         }
+        const uint32_t n = static_cast<uint32_t>(problem.mesh->num_faces());
+        MLCLUST_ASSIGN_OR_RETURN(
+            PmlLevelsGpu levels,
+            PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), *problem.adjacency));
+        MergeLevelReporter reporter(sink);
+        MLCLUST_RETURN_IF_ERROR(reporter.Start(n));
+        uint32_t clusters = n, level_number = 1;
+        PmlLevelGpu level;
+        while (clusters > options.min_clusters) {
+          MLCLUST_RETURN_IF_ERROR(
+              CheckCancelled(options.cancel, absl::StrCat("level ", level_number++)));
+          MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.Level(options.pml_pairs, clusters,
+                                                                   options.min_clusters, level));
+          if (!merged) break;  // one cluster per component
+          clusters -= level.merged;
+          reporter.AddChange(level.energy_change);
+          MLCLUST_RETURN_IF_ERROR(
+              reporter.Report(clusters, level.element, level.to_cluster, level.from_cluster));
+        }
+        return reporter.Finish();
+      });
+}
+
+std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy) {
+  if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
+    return HcGpuUnsupported(options, energy);
+  }
+  if (options.parallel) return "PML's levels are RunParallelMultilevelGpu's";
+  if (options.optimizer != MultilevelOptions::Optimizer::kBoundaryBased) {
+    return "the GPU's ML optimises with BB (optimizer bb) or not at all (none, HC's steps), "
+           "not EMLO";
+  }
+  // The rest as PML with BB: the energies, the guard, no p-percent.
+  MultilevelOptions as_pml = options;
+  as_pml.parallel = true;
+  return PmlGpuUnsupported(as_pml, energy);
+}
+
+absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const MeshProblem& problem,
+                                                   const MultilevelOptions& options,
+                                                   LevelSink& sink) {
+  if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
+    return RunHierarchyGpu(context, problem, options, sink);  // HC's steps: the same levels
+  }
+  return WithCvdLevelsProblem(
+      problem, options, "ML", MlGpuUnsupported(options, problem.energy.kind),
+      [&](const CvdEnergy& energy) {
+        // One merge per level, down to options.min_clusters (the driver stops there).
+        const MergeLevel ml_step = [&](PmlLevelsGpu& levels, uint32_t /*clusters*/,
+                                       PmlLevelGpu& level) {
+          return levels.Step(options.ties_to_fewest_faces, level);
+        };
+        return RunLevelsWithBoundaryBased(context, problem, options, energy, ml_step, sink);
       });
 }
 

@@ -52,6 +52,23 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
                                                            const MultilevelOptions& options,
                                                            LevelSink& sink);
 
+// ML (Alg. 5.6: findMinDE, collapseMinDE, minimizeEnergy) for meshes on the GPU, for
+// RunMultilevel's sequential levels (not options.parallel):
+//   optimizer none: HC's steps (gpu/stages/hierarchy_gpu.h, RunHierarchyGpu): the CPU
+//     engine's ML with optimizer none is HC, and so are these levels;
+//   optimizer bb: one merge per level (PmlLevelsGpu::Step: every ODE, the cheapest in the
+//     CPU queue's order, collapsed), then BB sweeps over every face until none moves (at
+//     most 64), all as PML's optimizer bb above (the same driver: decide on the GPU, the
+//     CPU stage's conflict rule and moves, the LevelRecorder). The CPU engine's ML with
+//     optimizer bb sweeps locally around the merge, faces one by one; the levels differ.
+// Covered (MlGpuUnsupported): cvd and cvd-adaptive; guard on (ring test) or off, not
+// vertex-count; p-percent 0. Errors as RunParallelMultilevelGpu, the step's choice named
+// "ml min ode".
+std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy);
+absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const MeshProblem& problem,
+                                                   const MultilevelOptions& options,
+                                                   LevelSink& sink);
+
 }  // namespace mlclust::gpu
 
 #endif  // MLCLUST_GPU_STAGES_MULTILEVEL_GPU_H_

@@ -5,12 +5,12 @@
 #include <utility>
 #include <vector>
 
-#include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/renumber.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/lloyd.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
+#include "core/cluster/detail/point_levels_checks.h"
 #include "gpu/kernels/kmeans_assign.h"
 #include "gpu/kernels/ln_kmeans.h"
 
@@ -62,12 +62,8 @@ class GpuLloydAssign final : public mlclust::detail::LloydAssignStage {
 absl::StatusOr<LnKmeansResult> RunLnKmeansGpu(GlContext& context, const PointSet& points,
                                               std::vector<ClusterId> labels,
                                               const LnKmeansOptions& options) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
+  MLCLUST_RETURN_IF_ERROR(mlclust::detail::CheckLnKmeansArguments(points, labels.size()));
   const size_t m = points.num_points();
-  if (labels.size() != m) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("labels: ", labels.size(), " for ", m, " points"));
-  }
   // Compact ids by first appearance, as RunLnKmeans does; the caller's come back.
   const Renumbering<ClusterId> compact =
       RenumberByFirstAppearance(std::span<const ClusterId>(labels));

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -10,10 +10,14 @@
 #include "core/base/cancel.h"
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/local_neighbours.h"
+#include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/device_stages.h"
 #include "core/energy/variance_energy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
+#include "gpu/stages/gpu_level_sink.h"
+#include "gpu/stages/points_optimise_gpu.h"
 
 namespace mlclust::gpu {
 namespace {
@@ -30,42 +34,16 @@ struct Start {
   std::vector<double> sums;       // k x (d + 1)
   std::vector<double> centroids;  // k x d
   std::vector<uint32_t> neighbours;
+  std::vector<double> origin;  // d: the data's mean the sums are relative to
   double energy = 0;
 };
 
-// PointClusters::RefreshNeighbours(c, {}) on the flat tables: the nearest candidate per
-// subspace among c's neighbours and theirs, equal distances to the smaller id.
+// PointClusters::RefreshNeighbours on the flat tables (detail::RefreshLocalNeighbours, the
+// CPU's own).
 void RefreshNeighbours(Start& start, uint32_t d, uint32_t c, std::vector<uint32_t>& candidates,
-                       std::vector<double>& best) {
-  const uint32_t slots = 2 * d;
-  uint32_t* out = &start.neighbours[size_t{c} * slots];
-  for (uint32_t s = 0; s < slots; ++s) {
-    const uint32_t n = out[s];
-    if (n == kNone) continue;
-    candidates.push_back(n);
-    for (uint32_t t = 0; t < slots; ++t) {
-      const uint32_t nn = start.neighbours[size_t{n} * slots + t];
-      if (nn != kNone) candidates.push_back(nn);
-    }
-  }
-  std::fill(out, out + slots, kNone);
-  best.assign(slots, std::numeric_limits<double>::infinity());
-  const std::span<const double> from(&start.centroids[size_t{c} * d], d);
-  for (const uint32_t n : candidates) {
-    if (n == c || start.counts[n] == 0) continue;
-    const std::span<const double> to(&start.centroids[size_t{n} * d], d);
-    const uint32_t s = SubspaceIndex(from, to);
-    double dist = 0;
-    for (uint32_t j = 0; j < d; ++j) {
-      const double diff = from[j] - to[j];
-      dist += diff * diff;
-    }
-    if (dist < best[s] || (dist == best[s] && n < out[s])) {
-      best[s] = dist;
-      out[s] = n;
-    }
-  }
-  candidates.clear();
+                       ::mlclust::detail::LocalNeighbourScratch& scratch) {
+  ::mlclust::detail::RefreshLocalNeighbours<uint32_t>(c, d, start.centroids, start.counts,
+                                                      start.neighbours, candidates, scratch);
 }
 
 // PointSpace's constructor: points ordered by starting cell (stable), the data's mean
@@ -111,12 +89,13 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
         EnergyOfSums(n, {&start.sums[size_t{c} * (d + 1)], d}, start.sums[size_t{c} * (d + 1) + d]);
   }
   start.energy = total;
+  start.origin = origin;
   start.neighbours = voxels.neighbours;
   std::vector<uint32_t> candidates;
-  std::vector<double> best;
+  ::mlclust::detail::LocalNeighbourScratch scratch(k);
   for (uint32_t c = 0; c < k; ++c) {
     if (c % 4096 == 0 && IsCancelled(cancel)) return start;
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   std::vector<uint32_t> isolated;
   for (uint32_t c = 0; c < k; ++c) {
@@ -130,7 +109,7 @@ Start BuildStart(const PointSet& points, const VoxelStartGpuResult& voxels,
     for (uint32_t n = 0; n < k; ++n) {
       if (n != c) candidates.push_back(n);
     }
-    RefreshNeighbours(start, d, c, candidates, best);
+    RefreshNeighbours(start, d, c, candidates, scratch);
   }
   return start;
 }
@@ -166,8 +145,8 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone) {
-    return "the GPU's point levels are merges only (optimizer none)";
+  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone && options.bounded_drift > 0) {
+    return "bounded-drift (ours) is the CPU's LN k-means'";
   }
   if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
   return "";
@@ -176,16 +155,7 @@ std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
 absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
     LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(ValidatePoints(points));
-  if (options.min_clusters < 1) {
-    return absl::InvalidArgumentError("clusters: the lowest level must have at least 1");
-  }
-  if (options.threads < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("threads: ", options.threads, " < 0"));
-  }
-  if (options.grid > (1u << 20)) {
-    return absl::InvalidArgumentError(absl::StrCat("grid: ", options.grid, " is over 2^20"));
-  }
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
   const std::string unsupported = PointsPmlGpuUnsupported(options);
   if (!unsupported.empty()) {
     return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
@@ -195,7 +165,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
   MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
-  const Start start = BuildStart(points, voxels, options.cancel);
+  Start start = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
   const uint32_t k0 = voxels.clusters;
   MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start.energy));
@@ -208,6 +178,18 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   upload.centroids = start.centroids;
   upload.neighbours = start.neighbours;
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
+  // LN k-means inside the levels (points_optimise_gpu.h): the host's mirror starts from the
+  // values just uploaded.
+  std::optional<PointLevelsOptimiser> optimiser;
+  if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
+    PointOptimiserStart mirror{std::move(start.origin),    std::move(voxels.labels),
+                               std::move(start.counts),    std::move(start.sums),
+                               std::move(start.centroids), start.energy};
+    MLCLUST_ASSIGN_OR_RETURN(PointLevelsOptimiser made,
+                             PointLevelsOptimiser::Create(context, points, std::move(mirror),
+                                                          options.optimise_rounds, options.cancel));
+    optimiser.emplace(std::move(made));
+  }
   std::vector<uint32_t>().swap(voxels.labels);
   PointMultilevelSummary summary;
   summary.levels = 1;
@@ -223,7 +205,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
     MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged, levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+        const bool merged,
+        optimiser.has_value()
+            ? levels.MergeLevel(options.pml_pairs, clusters, options.min_clusters, level)
+            : levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
     if (!merged) {
       // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
       if (linked || clusters <= 1 || clusters > kMaxLinked) break;
@@ -233,16 +218,16 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     }
     linked = false;
     clusters -= level.merged;
-    energy.Add(level.energy_change);
-    LevelMoves moves;
-    moves.level = summary.levels;
-    moves.cluster_count = clusters;
-    moves.energy = energy.value();
-    moves.element = level.element;
-    moves.to_cluster = level.to_cluster;
-    moves.from_cluster = level.from_cluster;
-    MLCLUST_RETURN_IF_ERROR(sink.OnLevel(moves));
-    summary.moves += level.element.size();
+    if (optimiser.has_value()) {
+      // The level's LN k-means rounds and its report, then the neighbour refresh.
+      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      MLCLUST_RETURN_IF_ERROR(levels.RefreshNeighbours());
+      summary.moves = optimiser->moves();
+    } else {
+      energy.Add(level.energy_change);
+      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
+      summary.moves += level.element.size();
+    }
     if (options.inspect_level) {
       MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
       options.inspect_level(summary.levels, labels);

@@ -1,8 +1,10 @@
 // PML for points on the GPU (section 6.4.3, Alg. 5.3 over the local neighbours): the
-// levels of core/cluster/point_clustering.h's RunPointMultilevel with options.parallel
-// and optimizer none (merges only), the voxel start (gpu/kernels/voxel_start.h) and every
-// level's ODEs, mutual pairs, collapse, triplets and neighbour refresh on the GPU
-// (gpu/kernels/points_levels.h), the levels streamed to the same LevelSink.
+// levels of core/cluster/point_clustering.h's RunPointMultilevel with options.parallel,
+// the voxel start (gpu/kernels/voxel_start.h) and every level's ODEs, mutual pairs,
+// collapse, triplets and neighbour refresh on the GPU (gpu/kernels/points_levels.h), the
+// levels streamed to the same LevelSink. With optimizer none the levels are merges only;
+// with LN k-means (the CPU's default) each level's merges are followed by the CPU's LN
+// k-means rounds before the refresh (gpu/stages/points_optimise_gpu.h says who does what).
 //
 // What is the CPU's and what is not:
 //   - the start is the CPU engine's exactly: the voxel labels (GPU), the clusters' sums
@@ -17,8 +19,9 @@
 //     only the clusters the level touched, one after the other, each seeing the ones
 //     before it. So later levels differ: the hierarchies are alike, not equal (the tests
 //     bound the energies at equal cluster counts).
-// Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none, pml-until
-// 0, both pair rules, min_clusters, grid; at most kVoxelStartMaxDims dimensions.
+// Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none or LN
+// k-means (optimise_rounds; not bounded_drift), pml-until 0, both pair rules,
+// min_clusters, grid; at most kVoxelStartMaxDims dimensions.
 // PointMultilevelOptions::threads is not used (the host's part of the start runs on one
 // thread); inspect_level is called with each level's labels (downloaded; slow, for tests).
 #ifndef MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "core/io/mesh_io.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -33,34 +35,11 @@ class HcGpuTest : public testing::GpuServerTest {
 };
 
 TEST_F(HcGpuTest, DeviceGpuRunsTheHcStepsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(HcSpec("gpu"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(HcSpec("cpu"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(HcSpec("gpu"), HcSpec("cpu"), gpu, cpu));
   // The same levels: counts, energies and labels at every level.
-  ASSERT_EQ(gpu->hierarchy.num_levels(), cpu->hierarchy.num_levels());
   ASSERT_GT(gpu->hierarchy.num_levels(), 10000u);
-  std::vector<ClusterId> gpu_labels(gpu->hierarchy.start_labels().begin(),
-                                    gpu->hierarchy.start_labels().end());
-  std::vector<ClusterId> cpu_labels(cpu->hierarchy.start_labels().begin(),
-                                    cpu->hierarchy.start_labels().end());
-  size_t same_labels = 0;
-  for (size_t l = 0; l < gpu->hierarchy.num_levels(); ++l) {
-    EXPECT_EQ(gpu->hierarchy.cluster_count(l), cpu->hierarchy.cluster_count(l));
-    EXPECT_EQ(gpu->hierarchy.energy(l), cpu->hierarchy.energy(l)) << "level " << l;
-    if (l > 0) {
-      ASSERT_TRUE(gpu->hierarchy.StepLabels(gpu_labels, l - 1, l).ok());
-      ASSERT_TRUE(cpu->hierarchy.StepLabels(cpu_labels, l - 1, l).ok());
-    }
-    same_labels += gpu_labels == cpu_labels ? 1 : 0;
-  }
-  EXPECT_EQ(same_labels, gpu->hierarchy.num_levels());
+  testing::ExpectSameLevels(gpu->hierarchy, cpu->hierarchy, /*relative=*/0);
   EXPECT_EQ(gpu->hierarchy.cluster_count(gpu->hierarchy.num_levels() - 1), 20u);
 }
 

@@ -4,11 +4,13 @@
 // Done, and streams the CPU's levels; with optimizer bb (Alg. 5.7) the levels and their BB
 // sweeps run there too; with EMLO (not on the GPU) the cluster stage stays on the CPU and
 // says so; a GL failure injected into a PML pass is a clean job error and the server keeps
-// serving.
+// serving. --algo ml with optimizer bb (Alg. 5.6: one collapse, then BB sweeps, per level)
+// runs on the GL context too, with device gpu.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include "core/io/mesh_io.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -35,33 +38,11 @@ class PmlGpuTest : public testing::GpuServerTest {
 };
 
 TEST_F(PmlGpuTest, DeviceGpuRunsThePmlLevelsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  ASSERT_FALSE(renderer.empty());
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "none"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(PmlSpec("cpu", "none"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
-  EXPECT_EQ(cpu->done.device(), "cpu");
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(PmlSpec("gpu", "none"), PmlSpec("cpu", "none"), gpu, cpu));
   // The same levels: counts, energies within 1%, labels at every level.
-  ASSERT_EQ(gpu->hierarchy.num_levels(), cpu->hierarchy.num_levels());
   ASSERT_GT(gpu->hierarchy.num_levels(), 10u);
-  std::vector<ClusterId> gpu_labels(gpu->hierarchy.start_labels().begin(),
-                                    gpu->hierarchy.start_labels().end());
-  std::vector<ClusterId> cpu_labels(cpu->hierarchy.start_labels().begin(),
-                                    cpu->hierarchy.start_labels().end());
-  for (size_t l = 0; l < gpu->hierarchy.num_levels(); ++l) {
-    EXPECT_EQ(gpu->hierarchy.cluster_count(l), cpu->hierarchy.cluster_count(l));
-    EXPECT_NEAR(gpu->hierarchy.energy(l), cpu->hierarchy.energy(l),
-                0.01 * cpu->hierarchy.energy(l));
-    if (l > 0) {
-      ASSERT_TRUE(gpu->hierarchy.StepLabels(gpu_labels, l - 1, l).ok());
-      ASSERT_TRUE(cpu->hierarchy.StepLabels(cpu_labels, l - 1, l).ok());
-    }
-    EXPECT_EQ(gpu_labels, cpu_labels) << "level " << l;
-  }
+  testing::ExpectSameLevels(gpu->hierarchy, cpu->hierarchy, /*relative=*/0.01);
   EXPECT_EQ(gpu->hierarchy.cluster_count(gpu->hierarchy.num_levels() - 1), 20u);
 }
 
@@ -84,14 +65,8 @@ TEST_F(PmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServing) {
 // in the events and Done); every level replays from the triplets, ends at the asked count,
 // and the last level's energy is near the CPU engine's PML with BB (whose sweeps differ).
 TEST_F(PmlGpuTest, OptimizerBbRunsOnTheGlContext) {
-  const std::string renderer = server_->gl_renderer();
-  std::vector<v1::Progress> progress;
-  absl::StatusOr<client::JobResult> gpu = Run(PmlSpec("gpu", "bb"), &progress);
-  ASSERT_TRUE(gpu.ok()) << gpu.status();
-  EXPECT_EQ(ClusterDevice(progress), renderer);
-  EXPECT_EQ(gpu->done.device(), renderer);
-  absl::StatusOr<client::JobResult> cpu = Run(PmlSpec("cpu", "bb"));
-  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(PmlSpec("gpu", "bb"), PmlSpec("cpu", "bb"), gpu, cpu));
   const size_t levels = gpu->hierarchy.num_levels();
   ASSERT_GT(levels, 10u);
   std::vector<ClusterId> labels(gpu->hierarchy.start_labels().begin(),
@@ -112,6 +87,34 @@ TEST_F(PmlGpuTest, InjectedGlFailureInABbPassIsACleanJobError) {
     ExpectFailsInPass(PmlSpec("gpu", "bb"), pass);
   }
   ExpectRunsWithTheHookCleared(PmlSpec("gpu", "bb"));
+}
+
+// Alg. 5.6: --algo ml --optimizer bb --device gpu runs the steps and their BB sweeps on
+// the GL context (named in the events and Done): one merge per level, every level replays
+// from the triplets, and the energy at each count is at most 1% above the CPU engine's ML
+// with BB. Fandisk (12,946 faces) down to 12,500 clusters (446 steps: every step sweeps every
+// face).
+TEST_F(PmlGpuTest, MlWithBbRunsOnTheGlContext) {
+  auto ml_spec = [](const std::string& device) {
+    v1::JobSpec spec = testing::MeshSpec(v1::ALGORITHM_ML, 12500);
+    spec.set_device(device);
+    (*spec.mutable_options())["optimizer"] = "bb";
+    return spec;
+  };
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(ml_spec("gpu"), ml_spec("cpu"), gpu, cpu));
+  const HierarchyLog& log = gpu->hierarchy;
+  ASSERT_EQ(log.num_levels(), cpu->hierarchy.num_levels());
+  std::vector<ClusterId> labels(log.start_labels().begin(), log.start_labels().end());
+  for (size_t l = 1; l < log.num_levels(); ++l) {
+    ASSERT_TRUE(log.StepLabels(labels, l - 1, l).ok()) << "level " << l;
+    EXPECT_EQ(log.cluster_count(l), log.cluster_count(l - 1) - 1);
+    EXPECT_EQ(log.cluster_count(l), cpu->hierarchy.cluster_count(l));
+    EXPECT_LE(log.energy(l), 1.01 * cpu->hierarchy.energy(l)) << "level " << l;
+  }
+  EXPECT_EQ(log.cluster_count(log.num_levels() - 1), 12500u);
+  ExpectFailsInPass(ml_spec("gpu"), "ml min ode");
+  ExpectRunsWithTheHookCleared(ml_spec("gpu"));
 }
 
 }  // namespace

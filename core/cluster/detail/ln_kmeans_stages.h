@@ -15,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/detail/local_neighbours.h"
 #include "core/cluster/detail/ode_heap.h"
 #include "core/cluster/point_clustering.h"
 #include "core/energy/variance_energy.h"
@@ -39,7 +40,7 @@ class PointClusters {
         centroid_(size_t{capacity} * d_, 0.0),
         neighbours_(size_t{capacity} * 2 * d_, kNoCluster),
         origin_(d_, 0.0),
-        seen_(capacity, 0) {
+        scratch_(capacity) {
     const size_t m = points.num_points();
     for (size_t i = 0; i < m; ++i) {
       for (uint32_t j = 0; j < d_; ++j) origin_[j] += points.values[i * d_ + j];
@@ -129,45 +130,10 @@ class PointClusters {
   }
 
   // Eq. 6.1 neighbours of `c` from `candidates` (its own and the second-order ones, or
-  // any others the caller adds): the nearest candidate centroid in each subspace.
+  // any others the caller adds): the nearest candidate centroid in each subspace
+  // (RefreshLocalNeighbours, local_neighbours.h).
   void RefreshNeighbours(uint32_t c, std::vector<uint32_t>& candidates) {
-    std::span<uint32_t> out = neighbours(c);
-    for (uint32_t n : out) {
-      if (n == kNoCluster) continue;
-      candidates.push_back(n);
-      for (uint32_t nn : neighbours(n)) {
-        if (nn != kNoCluster) candidates.push_back(nn);
-      }
-    }
-    // Each candidate once (a stamp per cluster instead of sorting: with 2d neighbours
-    // each, there are up to 4d^2 of them, mostly repeats).
-    if (++stamp_now_ == 0) {
-      std::fill(seen_.begin(), seen_.end(), 0);
-      stamp_now_ = 1;
-    }
-    size_t unique = 0;
-    for (uint32_t n : candidates) {
-      if (n == kNoCluster || seen_[n] == stamp_now_) continue;
-      seen_[n] = stamp_now_;
-      candidates[unique++] = n;
-    }
-    candidates.resize(unique);
-    std::fill(out.begin(), out.end(), kNoCluster);
-    std::vector<double> best(2 * d_, std::numeric_limits<double>::infinity());
-    for (uint32_t n : candidates) {
-      if (n == c || n == kNoCluster || count_[n] == 0) continue;
-      const uint32_t s = SubspaceIndex(centroid(c), centroid(n));
-      double dist = 0;
-      for (uint32_t j = 0; j < d_; ++j) {
-        const double diff = centroid_[size_t{c} * d_ + j] - centroid_[size_t{n} * d_ + j];
-        dist += diff * diff;
-      }
-      if (dist < best[s] || (dist == best[s] && n < out[s])) {
-        best[s] = dist;
-        out[s] = n;
-      }
-    }
-    candidates.clear();
+    RefreshLocalNeighbours<uint64_t>(c, d_, centroid_, count_, neighbours_, candidates, scratch_);
   }
 
   double TotalEnergy() const {
@@ -198,8 +164,7 @@ class PointClusters {
   std::vector<double> centroid_;
   std::vector<uint32_t> neighbours_;
   std::vector<double> origin_;
-  std::vector<uint32_t> seen_;  // RefreshNeighbours' per-cluster stamps
-  uint32_t stamp_now_ = 0;
+  LocalNeighbourScratch scratch_;  // RefreshNeighbours'
 };
 
 // LN k-means (Alg. 6.1) in three stages, each replaceable on its own (a device backend

@@ -8,16 +8,15 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cstdlib>
 #include <utility>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
-#include "gpu/context/pass.h"
 #include "gpu/kernels/hc_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/gpu_mesh_levels.h"
 #include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
@@ -25,7 +24,6 @@
 namespace mlclust::gpu {
 namespace {
 
-using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 
@@ -48,28 +46,8 @@ MultilevelOptions HcOptions(uint32_t lowest) {
 // number of levels compared.
 size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
                         const MultilevelOptions& options) {
-  LevelsSink cpu, gpu;
-  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
-  absl::StatusOr<MultilevelSummary> on_gpu = RunHierarchyGpu(context, problem, options, gpu);
-  EXPECT_TRUE(on_cpu.ok()) << on_cpu.status();
-  EXPECT_TRUE(on_gpu.ok()) << on_gpu.status();
-  if (!on_cpu.ok() || !on_gpu.ok()) return 0;
-  EXPECT_EQ(on_gpu->levels, on_cpu->levels);
-  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
-  EXPECT_EQ(on_gpu->moves, on_cpu->moves);
-  EXPECT_EQ(gpu.start, cpu.start);
-  EXPECT_GT(cpu.counts.size(), 3u);  // the comparison compares something
-  EXPECT_EQ(gpu.counts, cpu.counts);
-  const size_t levels = std::min(cpu.counts.size(), gpu.counts.size());
-  size_t same_triplets = 0, same_energy = 0;
-  for (size_t l = 0; l < levels; ++l) {
-    same_triplets += gpu.triplets[l] == cpu.triplets[l] ? 1 : 0;
-    same_energy += gpu.energies[l] == cpu.energies[l] ? 1 : 0;
-  }
-  EXPECT_EQ(same_triplets, levels) << "levels with the same triplets";
-  EXPECT_EQ(same_energy, levels) << "levels with the same energy";
-  EXPECT_EQ(on_gpu->final_energy, on_cpu->final_energy);
-  return levels;
+  return fixtures::ExpectSameLevelsAsCpu(RunHierarchyGpu, context, problem, options,
+                                         fixtures::SameLevels::kExact);
 }
 
 TEST(HcGpu, SameLevelsAsTheCpuOnFandiskDownToOneCluster) {
@@ -103,11 +81,9 @@ TEST(HcGpu, SameLevelsAsTheCpuOnARegularGridFullOfTies) {
 // and give the same levels.
 TEST(HcGpu, TwoDimensionalGridsGiveTheSameLevels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
-  GlContextOptions options;
-  options.max_groups_per_dimension = 16;
-  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(options);
-  ASSERT_TRUE(capped.ok()) << capped.status();
-  ExpectSameLevels(**capped, mesh.problem(), HcOptions(100));
+  const std::unique_ptr<GlContext> grids = fixtures::MakeTwoDimensionalGridContext();
+  ASSERT_NE(grids, nullptr);
+  ExpectSameLevels(*grids, mesh.problem(), HcOptions(100));
 }
 
 // The triplets of every step, applied to the previous labels, give the labels the GPU
@@ -182,21 +158,8 @@ TEST(HcGpu, RefusesWhatItDoesNotCover) {
 // pass; the context works again afterwards.
 TEST(HcGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(10, 10, 0.2f));
-  for (const char* pass : {"hc odes", "hc collapse", "hc triplets"}) {
-    LevelsSink sink;
-    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
-    absl::StatusOr<MultilevelSummary> failed =
-        RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
-    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
-    EXPECT_THAT(failed.status().message(), HasSubstr("GL_INVALID_VALUE"));
-  }
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> again =
-      RunHierarchyGpu(Context(), mesh.problem(), HcOptions(1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  fixtures::ExpectInjectedFailuresAreCleanErrors(RunHierarchyGpu, mesh.problem(), HcOptions(1),
+                                                 {"hc odes", "hc collapse", "hc triplets"});
 }
 
 // Buffers are sized from the stated bound: capped below it, RESOURCE_EXHAUSTED by pass.
@@ -204,15 +167,8 @@ TEST(HcGpu, BuffersOverTheLimitAreResourceExhausted) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(20, 20, 0.2f));
   EXPECT_GT(HcLevelsMemoryBound(mesh.mesh.num_faces(), 3 * mesh.mesh.num_faces()),
             100 * mesh.mesh.num_faces());
-  GlContextOptions options;
-  options.max_storage_buffer_bytes = 16 * static_cast<int64_t>(mesh.mesh.num_faces());
-  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
-  ASSERT_TRUE(small.ok()) << small.status();
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> result =
-      RunHierarchyGpu(**small, mesh.problem(), HcOptions(1), sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'hc odes'"));
+  fixtures::ExpectResourceExhaustedBelowTheBound(RunHierarchyGpu, mesh.problem(), HcOptions(1),
+                                                 "hc odes");
 }
 
 // Cancellation is checked between batches of steps: a sink that sets the flag at level 3
@@ -275,17 +231,7 @@ TEST(HcGpu, BatchSizesGiveTheSamePairs) {
 // Several components (two grids apart and a lone triangle): the levels stop at one
 // cluster per component, as the CPU's do.
 TEST(HcGpu, StopsAtOneClusterPerComponent) {
-  TriangleMesh mesh = meshes::MakeJitteredGrid(8, 12, 0.2f, 5);
-  const TriangleMesh second = meshes::MakeJitteredGrid(6, 6, 0.2f, 7);
-  const uint32_t offset = static_cast<uint32_t>(mesh.positions.size() / 3);
-  for (size_t i = 0; i < second.positions.size(); ++i) {
-    mesh.positions.push_back(second.positions[i] + (i % 3 == 0 ? 100.0f : 0.0f));
-  }
-  for (uint32_t v : second.indices) mesh.indices.push_back(v + offset);
-  const uint32_t lone = static_cast<uint32_t>(mesh.positions.size() / 3);
-  mesh.positions.insert(mesh.positions.end(), {-50, 0, 0, -49, 0, 0, -50, 1, 0});
-  mesh.indices.insert(mesh.indices.end(), {lone, lone + 1, lone + 2});
-  const fixtures::LoadedMesh loaded = fixtures::Load(std::move(mesh));
+  const fixtures::LoadedMesh loaded = fixtures::Load(fixtures::ThreeComponentMesh());
   ExpectSameLevels(Context(), loaded.problem(), HcOptions(1));
   LevelsSink sink;
   absl::StatusOr<MultilevelSummary> gpu =

@@ -8,23 +8,22 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cstdlib>
 #include <tuple>
 
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "gpu/context/gl_context.h"
-#include "gpu/context/pass.h"
 #include "gpu/kernels/pml_levels.h"
 #include "gpu/tools/test_meshes.h"
 #include "tests/fixtures/gl_test_context.h"
+#include "tests/fixtures/gpu_mesh_levels.h"
+#include "tests/fixtures/plan_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
 namespace {
 
-using ::testing::HasSubstr;
 namespace fixtures = ::mlclust::testing;
 namespace meshes = ::mlclust::gpu::testing;
 
@@ -46,32 +45,13 @@ MultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
 }
 
 // The GPU's levels against the CPU's: the same number, and level by level the same
-// cluster count and triplets (counted: where ties could differ they would show here) and
-// the energy within 1%. Returns the number of identical levels.
+// cluster count and triplets (as sets: the CPU reports them in merge order, the GPU in face
+// order; where ties could differ they would show here) and the energy within 1%. Returns
+// the number of levels compared.
 size_t ExpectSameLevels(GlContext& context, const MeshProblem& problem,
                         const MultilevelOptions& options) {
-  LevelsSink cpu, gpu;
-  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(problem, options, cpu);
-  absl::StatusOr<MultilevelSummary> on_gpu =
-      RunParallelMultilevelGpu(context, problem, options, gpu);
-  EXPECT_TRUE(on_cpu.ok()) << on_cpu.status();
-  EXPECT_TRUE(on_gpu.ok()) << on_gpu.status();
-  if (!on_cpu.ok() || !on_gpu.ok()) return 0;
-  EXPECT_EQ(on_gpu->levels, on_cpu->levels);
-  EXPECT_EQ(on_gpu->final_clusters, on_cpu->final_clusters);
-  EXPECT_EQ(on_gpu->moves, on_cpu->moves);
-  EXPECT_EQ(gpu.start, cpu.start);
-  EXPECT_GT(cpu.counts.size(), 3u);  // the comparison compares something
-  EXPECT_EQ(gpu.counts, cpu.counts);
-  size_t same = 0;
-  const size_t levels = std::min(cpu.counts.size(), gpu.counts.size());
-  for (size_t l = 0; l < levels; ++l) {
-    EXPECT_NEAR(gpu.energies[l], cpu.energies[l], 0.01 * cpu.energies[l]) << "level " << l;
-    same += gpu.triplets[l] == cpu.triplets[l] ? 1 : 0;
-  }
-  EXPECT_EQ(same, levels) << "levels with the same triplets";
-  EXPECT_NEAR(on_gpu->final_energy, on_cpu->final_energy, 0.01 * on_cpu->final_energy);
-  return same;
+  return fixtures::ExpectSameLevelsAsCpu(RunParallelMultilevelGpu, context, problem, options,
+                                         fixtures::SameLevels::kSortedWithinAPercent);
 }
 
 TEST(PmlGpu, SameLevelsAsTheCpuOnFandiskAllPairs) {
@@ -110,11 +90,9 @@ TEST(PmlGpu, SameLevelsAsTheCpuOnARegularGridFullOfTies) {
 // 2-D grids (12,946 faces: 51 groups; 38,838 directed edges: 152) and give the same levels.
 TEST(PmlGpu, TwoDimensionalGridsGiveTheSameLevels) {
   const fixtures::LoadedMesh& mesh = fixtures::LoadDataFile("fandisk.off");
-  GlContextOptions options;
-  options.max_groups_per_dimension = 16;
-  absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(options);
-  ASSERT_TRUE(capped.ok()) << capped.status();
-  ExpectSameLevels(**capped, mesh.problem(), PmlOptions(PmlPairRule::kAll, 100));
+  const std::unique_ptr<GlContext> grids = fixtures::MakeTwoDimensionalGridContext();
+  ASSERT_NE(grids, nullptr);
+  ExpectSameLevels(*grids, mesh.problem(), PmlOptions(PmlPairRule::kAll, 100));
 }
 
 // The triplets of every level, applied to the previous labels, give the labels the GPU
@@ -177,35 +155,16 @@ TEST(PmlGpu, RefusesWhatItDoesNotCover) {
 // pass; the context works again afterwards.
 TEST(PmlGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(10, 10, 0.2f));
-  for (const char* pass : {"pml odes", "pml collapse", "pml triplets"}) {
-    LevelsSink sink;
-    ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
-    absl::StatusOr<MultilevelSummary> failed =
-        RunParallelMultilevelGpu(Context(), mesh.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
-    ASSERT_EQ(unsetenv(kFailPassVariable), 0);
-    EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
-    EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
-    EXPECT_THAT(failed.status().message(), HasSubstr("GL_INVALID_VALUE"));
-  }
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> again =
-      RunParallelMultilevelGpu(Context(), mesh.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  fixtures::ExpectInjectedFailuresAreCleanErrors(RunParallelMultilevelGpu, mesh.problem(),
+                                                 PmlOptions(PmlPairRule::kAll, 1),
+                                                 {"pml odes", "pml collapse", "pml triplets"});
 }
 
 // Buffers are sized from the stated bound: capped below it, RESOURCE_EXHAUSTED by pass.
 TEST(PmlGpu, BuffersOverTheLimitAreResourceExhausted) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(20, 20, 0.2f));
-  GlContextOptions options;
-  options.max_storage_buffer_bytes = 16 * static_cast<int64_t>(mesh.mesh.num_faces());
-  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
-  ASSERT_TRUE(small.ok()) << small.status();
-  LevelsSink sink;
-  absl::StatusOr<MultilevelSummary> result =
-      RunParallelMultilevelGpu(**small, mesh.problem(), PmlOptions(PmlPairRule::kAll, 1), sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'pml odes'"));
+  fixtures::ExpectResourceExhaustedBelowTheBound(RunParallelMultilevelGpu, mesh.problem(),
+                                                 PmlOptions(PmlPairRule::kAll, 1), "pml odes");
 }
 
 // Cancellation is checked between levels: a sink that sets the flag at level 3 stops the
@@ -225,17 +184,7 @@ TEST(PmlGpu, CancelledBetweenLevels) {
 // Several components (two grids apart and a lone triangle): the levels stop at one
 // cluster per component, as the CPU's do.
 TEST(PmlGpu, StopsAtOneClusterPerComponent) {
-  TriangleMesh mesh = meshes::MakeJitteredGrid(8, 12, 0.2f, 5);
-  const TriangleMesh second = meshes::MakeJitteredGrid(6, 6, 0.2f, 7);
-  const uint32_t offset = static_cast<uint32_t>(mesh.positions.size() / 3);
-  for (size_t i = 0; i < second.positions.size(); ++i) {
-    mesh.positions.push_back(second.positions[i] + (i % 3 == 0 ? 100.0f : 0.0f));
-  }
-  for (uint32_t v : second.indices) mesh.indices.push_back(v + offset);
-  const uint32_t lone = static_cast<uint32_t>(mesh.positions.size() / 3);
-  mesh.positions.insert(mesh.positions.end(), {-50, 0, 0, -49, 0, 0, -50, 1, 0});
-  mesh.indices.insert(mesh.indices.end(), {lone, lone + 1, lone + 2});
-  const fixtures::LoadedMesh loaded = fixtures::Load(std::move(mesh));
+  const fixtures::LoadedMesh loaded = fixtures::Load(fixtures::ThreeComponentMesh());
   ExpectSameLevels(Context(), loaded.problem(), PmlOptions(PmlPairRule::kAll, 1));
   LevelsSink sink;
   absl::StatusOr<MultilevelSummary> gpu =
@@ -246,23 +195,14 @@ TEST(PmlGpu, StopsAtOneClusterPerComponent) {
 
 // The plan (core/cluster/registry.cc): PML's levels go to the GPU for merges only (and BB:
 // pml_bb_gpu_test.cc) and the CVD energies, with device gpu even on llvmpipe, with auto
-// only on hardware.
+// only on hardware. (HC's and ML's: hierarchy_gpu_test.cc, pml_bb_gpu_test.cc.)
 TEST(PmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
   auto device_of = [](const DeviceCaps& caps, DeviceChoice choice, const char* energy,
-                      const char* optimizer) -> std::string {
-    JobRequest request;
-    request.algorithm = FindAlgorithm(InputKind::kMesh, "pml");
-    request.energy = FindEnergy(InputKind::kMesh, energy);
-    request.clusters = 10;
-    request.device = choice;
-    request.options = {{"optimizer", optimizer}};
-    absl::StatusOr<JobPlan> plan = PlanJob(request);
-    EXPECT_TRUE(plan.ok()) << plan.status();
-    if (!plan.ok() || !PlanDevices(caps, *plan).ok()) return "error";
-    const StagePlan* stage = FindStage(*plan, "cluster");
-    return stage == nullptr ? "none" : StageDeviceName(*stage, caps);
+                      const char* optimizer) {
+    return fixtures::ClusterStageDeviceFor(caps, InputKind::kMesh, "pml", energy, choice,
+                                           {{"optimizer", optimizer}});
   };
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd", "none"), "llvmpipe");
   EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "cvd-adaptive", "none"), "llvmpipe");
@@ -271,15 +211,6 @@ TEST(PmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "cvd", "none"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "cvd", "emlo"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "planar", "none"), "cpu");
-  // HC and ML keep their levels on the CPU.
-  JobRequest ml;
-  ml.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
-  ml.device = DeviceChoice::kGpu;
-  ml.options = {{"optimizer", "none"}};
-  absl::StatusOr<JobPlan> plan = PlanJob(ml);
-  ASSERT_TRUE(plan.ok()) << plan.status();
-  ASSERT_TRUE(PlanDevices(hardware, *plan).ok());
-  EXPECT_EQ(FindStage(*plan, "cluster")->device, StageDevice::kCpu);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <random>
 
@@ -11,6 +12,7 @@
 #include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/point_clustering.h"
+#include "gpu/context/compute.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/context/pass.h"
 #include "gpu/kernels/ln_kmeans.h"
@@ -47,35 +49,102 @@ std::vector<ClusterId> Seeds(const PointSet& points, uint32_t k) {
   return seeds.ok() ? *seeds : std::vector<ClusterId>{};
 }
 
+// 60 seeded clusters of 20,000 3-D points with the GPU's brute-force neighbours, the
+// assign kernel set to them, and every point to check.
+struct AssignCase {
+  AssignCase()
+      : points(Blobs(20000, 3, 40, 1)),
+        compact(RenumberByFirstAppearance(std::span<const ClusterId>(Seeds(points, 60)))),
+        clusters(points, compact.dense, compact.size()),
+        counts(compact.size()),
+        check(points.num_points()) {
+    for (uint32_t c = 0; c < counts.size(); ++c) {
+      counts[c] = static_cast<uint32_t>(clusters.count(c));
+    }
+    for (uint32_t i = 0; i < check.size(); ++i) check[i] = i;
+  }
+  // The kernel with the clusters and their neighbours set (the neighbours from the GPU's
+  // brute force, into `clusters` too).
+  absl::StatusOr<LnKmeansKernel> Kernel() {
+    absl::StatusOr<LnKmeansKernel> kernel =
+        LnKmeansKernel::Create(Context(), points, clusters.origin(), compact.size());
+    if (!kernel.ok()) return kernel;
+    absl::Status status =
+        kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts);
+    if (status.ok()) status = kernel->InitialNeighbours(clusters.neighbour_table());
+    if (status.ok()) {
+      status = kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts);
+    }
+    if (!status.ok()) return status;
+    return kernel;
+  }
+
+  PointSet points;
+  Renumbering<ClusterId> compact;
+  mlclust::detail::PointClusters clusters;
+  std::vector<uint32_t> counts, check;
+};
+
 // The assign kernel against ChooseTargets on the same clusters and neighbours: identical
 // targets on llvmpipe (fp64, `precise`). The neighbours come from the GPU's brute force.
 TEST(LnKmeansKernel, SameTargetsAsChooseTargets) {
-  const PointSet points = Blobs(20000, 3, 40, 1);
-  const std::vector<ClusterId> seeds = Seeds(points, 60);
-  const Renumbering<ClusterId> compact =
-      RenumberByFirstAppearance(std::span<const ClusterId>(seeds));
-  mlclust::detail::PointClusters clusters(points, compact.dense, compact.size());
-  absl::StatusOr<LnKmeansKernel> kernel =
-      LnKmeansKernel::Create(Context(), points, clusters.origin(), compact.size());
+  AssignCase test;
+  absl::StatusOr<LnKmeansKernel> kernel = test.Kernel();
   ASSERT_TRUE(kernel.ok()) << kernel.status();
-  std::vector<uint32_t> counts(compact.size());
-  for (uint32_t c = 0; c < counts.size(); ++c) counts[c] = static_cast<uint32_t>(clusters.count(c));
-  ASSERT_TRUE(kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts).ok());
-  ASSERT_TRUE(kernel->InitialNeighbours(clusters.neighbour_table()).ok());
   size_t with_neighbours = 0;
-  for (uint32_t n : clusters.neighbour_table()) with_neighbours += n != mlclust::detail::kNoCluster;
+  for (uint32_t n : test.clusters.neighbour_table()) {
+    with_neighbours += n != mlclust::detail::kNoCluster;
+  }
   EXPECT_GT(with_neighbours, 60u);
-  ASSERT_TRUE(kernel->SetClusters(clusters.centroids(), clusters.neighbour_table(), counts).ok());
-
-  std::vector<uint32_t> check(points.num_points());
-  for (uint32_t i = 0; i < check.size(); ++i) check[i] = i;
-  std::vector<uint32_t> cpu(check.size()), gpu(check.size());
-  mlclust::detail::ChooseTargets(clusters, check, cpu);
-  ASSERT_TRUE(kernel->Assign(clusters.labels(), check, gpu).ok());
+  std::vector<uint32_t> cpu(test.check.size()), gpu(test.check.size());
+  mlclust::detail::ChooseTargets(test.clusters, test.check, cpu);
+  ASSERT_TRUE(kernel->Assign(test.clusters.labels(), test.check, gpu).ok());
   size_t moves = 0;
   for (uint32_t t : cpu) moves += t != mlclust::detail::kNoCluster;
   EXPECT_GT(moves, 0u);
   EXPECT_EQ(gpu, cpu);
+}
+
+// AssignResident over labels and clusters already in GPU buffers (as the point levels
+// hold them) gives ChooseTargets' targets, and with margins ChooseTargets' margins:
+// -infinity for a point that moves, else within 1e-9 of the CPU's.
+TEST(LnKmeansKernel, ResidentClustersGiveChooseTargetsTargetsAndMargins) {
+  AssignCase test;
+  absl::StatusOr<LnKmeansKernel> kernel = test.Kernel();
+  ASSERT_TRUE(kernel.ok()) << kernel.status();
+  std::vector<StorageBuffer> buffers;
+  for (const size_t bytes :
+       {test.clusters.labels().size_bytes(), test.clusters.centroids().size_bytes(),
+        std::span<const uint32_t>(test.clusters.neighbour_table()).size_bytes(),
+        test.counts.size() * sizeof(uint32_t)}) {
+    absl::StatusOr<StorageBuffer> buffer = StorageBuffer::Create(Context(), bytes);
+    ASSERT_TRUE(buffer.ok()) << buffer.status();
+    buffers.push_back(*std::move(buffer));
+  }
+  ASSERT_TRUE(buffers[0].Upload(test.clusters.labels()).ok());
+  ASSERT_TRUE(buffers[1].Upload(test.clusters.centroids()).ok());
+  ASSERT_TRUE(buffers[2].Upload(std::span<const uint32_t>(test.clusters.neighbour_table())).ok());
+  ASSERT_TRUE(buffers[3].Upload(std::span<const uint32_t>(test.counts)).ok());
+  const size_t n = test.check.size();
+  std::vector<uint32_t> cpu(n), gpu(n);
+  std::vector<double> cpu_margin(n), gpu_margin(n);
+  mlclust::detail::ChooseTargets(test.clusters, test.check, cpu, cpu_margin);
+  ASSERT_TRUE(kernel
+                  ->AssignResident({&buffers[0], &buffers[1], &buffers[2], &buffers[3]}, test.check,
+                                   gpu, gpu_margin)
+                  .ok());
+  EXPECT_EQ(gpu, cpu);
+  size_t moving = 0;
+  for (size_t r = 0; r < n; ++r) {
+    if (std::isinf(cpu_margin[r]) && cpu_margin[r] < 0) {
+      ++moving;
+      EXPECT_TRUE(std::isinf(gpu_margin[r]) && gpu_margin[r] < 0) << r;
+    } else {
+      EXPECT_NEAR(gpu_margin[r], cpu_margin[r], 1e-9 * (1 + std::abs(cpu_margin[r]))) << r;
+    }
+  }
+  EXPECT_GT(moving, 0u);
+  EXPECT_LT(moving, n);
 }
 
 // Issue 10: LN k-means inertia within 0.5% of the CPU's (identical on llvmpipe).

@@ -1,6 +1,7 @@
 // The voxel start and PML for points on the GPU (gpu/kernels/voxel_start.h,
 // gpu/kernels/points_levels.h, gpu/stages/points_multilevel_gpu.h) against the CPU's
-// VoxelGridStart and RunPointMultilevel (merges only), on llvmpipe.
+// VoxelGridStart and RunPointMultilevel, merges only and with LN k-means inside the levels
+// (gpu/stages/points_optimise_gpu.h), on llvmpipe.
 #include "gpu/stages/points_multilevel_gpu.h"
 
 #include <gmock/gmock.h>
@@ -144,10 +145,13 @@ struct LevelsSink : ::mlclust::testing::TripletSink {
   LevelsSink() : TripletSink(/*sorted=*/true) {}
 };
 
-PointMultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest) {
+using Optimizer = PointMultilevelOptions::Optimizer;
+
+PointMultilevelOptions PmlOptions(PmlPairRule rule, uint32_t lowest,
+                                  Optimizer optimizer = Optimizer::kNone) {
   PointMultilevelOptions options;
   options.parallel = true;
-  options.optimizer = PointMultilevelOptions::Optimizer::kNone;
+  options.optimizer = optimizer;
   options.pml_pairs = rule;
   options.min_clusters = lowest;
   return options;
@@ -162,12 +166,28 @@ double EnergyAt(const LevelsSink& sink, uint32_t count) {
   return energy;
 }
 
+// The energy at `count` clusters: a level's where one has that count, else linear in the
+// count between the two levels around it (the hierarchies step through different counts,
+// and a level with more clusters has less energy).
+double EnergyBetweenLevels(const LevelsSink& sink, uint32_t count) {
+  for (size_t l = 1; l < sink.counts.size(); ++l) {
+    const uint32_t above = sink.counts[l - 1], below = sink.counts[l];
+    if (count > above || count < below) continue;
+    if (above == below) return sink.energies[l];
+    const double t = static_cast<double>(above - count) / (above - below);
+    return sink.energies[l - 1] + t * (sink.energies[l] - sink.energies[l - 1]);
+  }
+  return count >= sink.counts.front() ? sink.energies.front() : sink.energies.back();
+}
+
 // The GPU's levels against the CPU's: level 0 and level 1 identical (labels, counts,
 // triplets, energies), the same lowest level, and at each of a few cluster counts the
 // energy within `tolerance` (relative) of the CPU's, or with `at_most` only not above it
 // by more than that (the GPU refreshes every cluster's neighbours after each level, the
 // CPU only the touched ones: with all pairs the CPU's stale neighbours merge whole blobs
-// that the GPU keeps apart).
+// that the GPU keeps apart). With LN k-means level 1 (merges and LN k-means rounds) is
+// the CPU's too, and the energy is compared at every one of the CPU's counts from half the
+// start's down (EnergyBetweenLevels).
 void ExpectLikeTheCpu(const PointSet& points, const PointMultilevelOptions& options,
                       double tolerance, bool at_most = false) {
   LevelsSink cpu, gpu;
@@ -186,6 +206,23 @@ void ExpectLikeTheCpu(const PointSet& points, const PointMultilevelOptions& opti
   EXPECT_EQ(gpu.counts[1], cpu.counts[1]);
   EXPECT_EQ(gpu.triplets[1], cpu.triplets[1]);
   EXPECT_NEAR(gpu.energies[1], cpu.energies[1], 1e-9 * cpu.energies[1]);
+  if (options.optimizer == Optimizer::kLnKmeans) {
+    EXPECT_GT(on_gpu->moves, on_gpu->start_clusters);  // LN k-means moved points
+    double worst = 0;
+    size_t compared = 0;
+    for (size_t l = 1; l < cpu.counts.size(); ++l) {
+      const uint32_t count = cpu.counts[l];
+      if (count > on_cpu->start_clusters / 2) continue;
+      const double at_cpu = cpu.energies[l], at_gpu = EnergyBetweenLevels(gpu, count);
+      EXPECT_NEAR(at_gpu, at_cpu, tolerance * at_cpu) << count << " clusters";
+      worst = std::max(worst, std::abs(at_gpu / at_cpu - 1));
+      ++compared;
+    }
+    EXPECT_GT(compared, 2u);
+    std::cout << "LN k-means: largest relative energy difference " << worst << " over " << compared
+              << " cluster counts\n";
+    return;
+  }
   for (uint32_t count : {on_cpu->start_clusters / 4, on_cpu->start_clusters / 16,
                          options.min_clusters * 4, options.min_clusters}) {
     const double at_cpu = EnergyAt(cpu, count), at_gpu = EnergyAt(gpu, count);
@@ -217,65 +254,104 @@ TEST(PointsPmlGpu, LikeTheCpuIn2DAnd8D) {
   ExpectLikeTheCpu(Blobs(8, 10, 500, 8), PmlOptions(PmlPairRule::kCheaperHalf, 10), 0.01);
 }
 
+TEST(PointsPmlGpu, WithLnKmeansLikeTheCpuOn3DBlobs) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points;
+  ExpectLikeTheCpu(points, PmlOptions(PmlPairRule::kCheaperHalf, 40, Optimizer::kLnKmeans), 0.01);
+}
+
+TEST(PointsPmlGpu, WithLnKmeansLikeTheCpuIn2DAnd8D) {
+  ExpectLikeTheCpu(Blobs(2, 20, 400, 7),
+                   PmlOptions(PmlPairRule::kCheaperHalf, 20, Optimizer::kLnKmeans), 0.01);
+  ExpectLikeTheCpu(Blobs(8, 10, 500, 8),
+                   PmlOptions(PmlPairRule::kCheaperHalf, 10, Optimizer::kLnKmeans), 0.01);
+}
+
 // The triplets of every level, applied to the previous labels, give the labels the GPU
-// holds after the level, exactly; each triplet's old cluster is the point's previous one.
+// holds after the level, exactly (each triplet's old cluster the point's previous one),
+// and the energy reported with each level is that of those labels; merges only and with
+// LN k-means (whose moves between clusters that both live on are seen).
 TEST(PointsPmlGpu, TripletsRebuildTheGpuLabelsAtEveryLevel) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(20, 300, 6.0, 9, true).points;
-  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
-  std::vector<std::vector<uint32_t>> held;
-  options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
-    EXPECT_EQ(level, held.size());
-    held.emplace_back(labels.begin(), labels.end());
-  };
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> ran =
-      RunPointParallelMultilevelGpu(Context(), points, options, sink);
-  ASSERT_TRUE(ran.ok()) << ran.status();
-  EXPECT_EQ(ran->final_clusters, 1u);
-  ASSERT_EQ(held.size(), sink.counts.size());
-  ASSERT_GT(held.size(), 5u);
-  std::vector<uint32_t> labels = sink.start;
-  EXPECT_EQ(labels, held[0]);
-  for (size_t l = 1; l < held.size(); ++l) {
-    for (const auto& [point, to, from] : sink.triplets[l]) {
-      EXPECT_EQ(labels[point], from);
-      labels[point] = to;
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, optimizer);
+    std::vector<std::vector<uint32_t>> held;
+    options.inspect_level = [&](size_t level, std::span<const uint32_t> labels) {
+      EXPECT_EQ(level, held.size());
+      held.emplace_back(labels.begin(), labels.end());
+    };
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> ran =
+        RunPointParallelMultilevelGpu(Context(), points, options, sink);
+    ASSERT_TRUE(ran.ok()) << ran.status();
+    EXPECT_EQ(ran->final_clusters, 1u);
+    ASSERT_EQ(held.size(), sink.counts.size());
+    ASSERT_GT(held.size(), 5u);
+    std::vector<uint32_t> labels = sink.start;
+    EXPECT_EQ(labels, held[0]);
+    size_t moved_between = 0;  // triplets between two clusters that both live on
+    for (size_t l = 1; l < held.size(); ++l) {
+      for (const auto& [point, to, from] : sink.triplets[l]) {
+        EXPECT_EQ(labels[point], from);
+        labels[point] = to;
+      }
+      ASSERT_EQ(labels, held[l]) << "level " << l;
+      std::vector<uint32_t> distinct = labels;
+      std::sort(distinct.begin(), distinct.end());
+      distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+      EXPECT_EQ(distinct.size(), sink.counts[l]);
+      for (const auto& triplet : sink.triplets[l]) {
+        moved_between += std::binary_search(distinct.begin(), distinct.end(), triplet[2]);
+      }
+      std::vector<ClusterId> ids(labels.size());
+      for (size_t i = 0; i < labels.size(); ++i) ids[i] = ClusterId(labels[i]);
+      const double recomputed = PointEnergy(points, ids);
+      EXPECT_NEAR(sink.energies[l], recomputed, 1e-9 * recomputed + 1e-9) << "level " << l;
     }
-    ASSERT_EQ(labels, held[l]) << "level " << l;
-    std::vector<uint32_t> distinct = labels;
-    std::sort(distinct.begin(), distinct.end());
-    EXPECT_EQ(std::unique(distinct.begin(), distinct.end()) - distinct.begin(), sink.counts[l]);
+    if (optimizer == Optimizer::kLnKmeans) {
+      EXPECT_GT(moved_between, 0u) << "no LN k-means move in any level";
+    } else {
+      EXPECT_EQ(moved_between, 0u) << "a merges-only level moved points between clusters";
+    }
   }
 }
 
 // With at most 16 work groups per grid dimension the passes over points, clusters and
-// neighbour slots run as 2-D grids (12,000 points: 47 groups; the slots of ~1,500
-// clusters: 36) and give the same levels.
+// neighbour slots (and LN k-means' assign and update) run as 2-D grids (12,000 points: 47
+// groups; the slots of ~1,500 clusters: 36) and give the same levels.
 TEST(PointsPmlGpu, TwoDimensionalGridsGiveTheSameLevels) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(30, 400, 6.0, 10, true).points;
   GlContextOptions capped_options;
   capped_options.max_groups_per_dimension = 16;
   absl::StatusOr<std::unique_ptr<GlContext>> capped = GlContext::Create(capped_options);
   ASSERT_TRUE(capped.ok()) << capped.status();
-  const PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 5);
-  LevelsSink wide, narrow;
-  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, wide).ok());
-  ASSERT_TRUE(RunPointParallelMultilevelGpu(**capped, points, options, narrow).ok());
-  EXPECT_GT(wide.counts.size(), 5u);
-  EXPECT_EQ(narrow.start, wide.start);
-  EXPECT_EQ(narrow.counts, wide.counts);
-  EXPECT_EQ(narrow.energies, wide.energies);
-  EXPECT_EQ(narrow.triplets, wide.triplets);
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    const PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 5, optimizer);
+    LevelsSink wide, narrow;
+    ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, wide).ok());
+    ASSERT_TRUE(RunPointParallelMultilevelGpu(**capped, points, options, narrow).ok());
+    EXPECT_GT(wide.counts.size(), 5u);
+    EXPECT_EQ(narrow.start, wide.start);
+    EXPECT_EQ(narrow.counts, wide.counts);
+    EXPECT_EQ(narrow.energies, wide.energies);
+    EXPECT_EQ(narrow.triplets, wide.triplets);
+  }
+}
+
+// LN k-means' rounds per level are honoured: one round gives other levels than eight.
+TEST(PointsPmlGpu, WithLnKmeansOptimiseRoundsAreHonoured) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(20, 300, 6.0, 15, true).points;
+  PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 20, Optimizer::kLnKmeans);
+  LevelsSink eight, one;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, eight).ok());
+  options.optimise_rounds = 1;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, one).ok());
+  EXPECT_NE(eight.energies, one.energies);
 }
 
 TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(4, 50, 6.0, 11).points;
   LevelsSink sink;
   PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
-  options.optimizer = PointMultilevelOptions::Optimizer::kLnKmeans;
-  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
-            absl::StatusCode::kUnimplemented);
-  options = PmlOptions(PmlPairRule::kAll, 1);
   options.parallel = false;
   EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
             absl::StatusCode::kUnimplemented);
@@ -283,6 +359,12 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
   options.pml_until = 10;
   EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
             absl::StatusCode::kUnimplemented);
+  options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
+  options.bounded_drift = 0.03;
+  const absl::Status drift =
+      RunPointParallelMultilevelGpu(Context(), points, options, sink).status();
+  EXPECT_EQ(drift.code(), absl::StatusCode::kUnimplemented);
+  EXPECT_THAT(drift.message(), HasSubstr("bounded-drift"));
 }
 
 // On a software renderer (llvmpipe stops an invocation's loops after 65,535 iterations) a
@@ -307,24 +389,30 @@ TEST(PointsPmlGpu, SoftwareRendererRefusesWhatItsLoopLimitWouldCut) {
 }
 
 // A GL error injected into each pass (gpu/context/pass.h) is the run's error, named by
-// pass; the context works again afterwards.
+// pass, merges only and with LN k-means' passes; the context works again afterwards.
 TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
-  const PointSet points = ::mlclust::testing::GaussianBlobs(6, 100, 6.0, 12).points;
-  for (const char* pass :
-       {"voxel start", "points odes", "points collapse", "points triplets", "points neighbours"}) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(20, 300, 6.0, 9, true).points;
+  const std::vector<std::pair<Optimizer, const char*>> runs = {
+      {Optimizer::kNone, "voxel start"},       {Optimizer::kNone, "points odes"},
+      {Optimizer::kNone, "points collapse"},   {Optimizer::kNone, "points triplets"},
+      {Optimizer::kNone, "points neighbours"}, {Optimizer::kLnKmeans, "ln-kmeans assign"},
+      {Optimizer::kLnKmeans, "points update"}, {Optimizer::kLnKmeans, "points neighbours"}};
+  for (const auto& [optimizer, pass] : runs) {
     LevelsSink sink;
     ASSERT_EQ(setenv(kFailPassVariable, pass, 1), 0);
-    absl::StatusOr<PointMultilevelSummary> failed =
-        RunPointParallelMultilevelGpu(Context(), points, PmlOptions(PmlPairRule::kAll, 1), sink);
+    absl::StatusOr<PointMultilevelSummary> failed = RunPointParallelMultilevelGpu(
+        Context(), points, PmlOptions(PmlPairRule::kAll, 1, optimizer), sink);
     ASSERT_EQ(unsetenv(kFailPassVariable), 0);
     EXPECT_EQ(failed.status().code(), absl::StatusCode::kInternal) << pass;
     EXPECT_THAT(failed.status().message(), HasSubstr(absl::StrCat("GPU pass '", pass, "'")));
   }
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> again =
-      RunPointParallelMultilevelGpu(Context(), points, PmlOptions(PmlPairRule::kAll, 1), sink);
-  ASSERT_TRUE(again.ok()) << again.status();
-  EXPECT_EQ(again->final_clusters, 1u);
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> again = RunPointParallelMultilevelGpu(
+        Context(), points, PmlOptions(PmlPairRule::kAll, 1, optimizer), sink);
+    ASSERT_TRUE(again.ok()) << again.status();
+    EXPECT_EQ(again->final_clusters, 1u);
+  }
 }
 
 // A buffer over the context's storage-buffer limit (the points alone are 12 bytes a
@@ -345,21 +433,24 @@ TEST(PointsPmlGpu, BuffersOverTheLimitAreResourceExhausted) {
 
 TEST(PointsPmlGpu, CancelledBetweenLevels) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 13).points;
-  std::atomic<bool> cancel{false};
-  PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1);
-  options.cancel = &cancel;
-  options.inspect_level = [&](size_t level, std::span<const uint32_t>) {
-    if (level == 2) cancel = true;
-  };
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> ran =
-      RunPointParallelMultilevelGpu(Context(), points, options, sink);
-  EXPECT_EQ(ran.status().code(), absl::StatusCode::kCancelled);
-  EXPECT_EQ(sink.counts.size(), 3u);
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    std::atomic<bool> cancel{false};
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kAll, 1, optimizer);
+    options.cancel = &cancel;
+    options.inspect_level = [&](size_t level, std::span<const uint32_t>) {
+      if (level == 2) cancel = true;
+    };
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> ran =
+        RunPointParallelMultilevelGpu(Context(), points, options, sink);
+    EXPECT_EQ(ran.status().code(), absl::StatusCode::kCancelled);
+    EXPECT_EQ(sink.counts.size(), 3u);
+  }
 }
 
-// The plan (core/cluster/registry.cc): PML's point levels go to the GPU for merges only,
-// with device gpu even on llvmpipe, with auto only on hardware; ML and HC stay on the CPU.
+// The plan (core/cluster/registry.cc): PML's point levels go to the GPU, merges only with
+// device gpu even on llvmpipe and with auto only on hardware, with LN k-means for device
+// gpu only and without bounded-drift; ML stays on the CPU.
 TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
@@ -372,7 +463,13 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   EXPECT_EQ(device_of(software, DeviceChoice::kAuto, "pml", "none"), "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "pml", "none"), "NVIDIA H100");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kCpu, "pml", "none"), "cpu");
-  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "pml", "lnkmeans"), "cpu");
+  EXPECT_EQ(device_of(software, DeviceChoice::kGpu, "pml", "lnkmeans"), "llvmpipe");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "pml", "lnkmeans"), "NVIDIA H100");
+  EXPECT_EQ(device_of(hardware, DeviceChoice::kAuto, "pml", "lnkmeans"), "cpu");
+  EXPECT_EQ(::mlclust::testing::ClusterStageDeviceFor(
+                hardware, InputKind::kPoints, "pml", "variance", DeviceChoice::kGpu,
+                {{"optimizer", "lnkmeans"}, {"bounded-drift", "0.03"}}),
+            "cpu");
   EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "ml", "none"), "refused");
 }
 
