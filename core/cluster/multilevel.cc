@@ -721,6 +721,38 @@ class MeshSpace {
   // neighbours; rings of a manifold mesh, which ValidateMesh ensures). False (nothing done)
   // where the round has fewer than kStepsFrom candidates or max_moves could end it early:
   // the loop runs it.
+  // next = each of `count` moved faces (face_of(k)) followed by its edge neighbours, at
+  // offsets counted in parallel (the same list on any thread count), and `extra` entries
+  // after them for the caller to fill.
+  template <typename FaceOf>
+  void ListMovedAndNeighbours(size_t count, const FaceOf& face_of, size_t extra,
+                              std::vector<size_t>& offset, std::vector<uint32_t>& next) const {
+    offset.assign(count + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t k = range.begin(); k != range.end(); ++k) {
+                          size_t faces = 1;
+                          for (FaceId g : adjacency_.neighbours[face_of(k)]) {
+                            faces += g.valid() ? 1 : 0;
+                          }
+                          offset[k + 1] = faces;
+                        }
+                      });
+    for (size_t k = 0; k < count; ++k) offset[k + 1] += offset[k];
+    next.resize(offset.back() + extra);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t k = range.begin(); k != range.end(); ++k) {
+                          const uint32_t f = face_of(k);
+                          size_t at = offset[k];
+                          next[at++] = f;
+                          for (FaceId g : adjacency_.neighbours[f]) {
+                            if (g.valid()) next[at++] = g.value();
+                          }
+                        }
+                      });
+  }
+
   // Whether ApplyRoundInSteps runs (detail::face_order_steps; either way the same levels).
   static bool FaceOrderStepsOn() {
     switch (detail::face_order_steps.load(std::memory_order_relaxed)) {
@@ -979,31 +1011,9 @@ class MeshSpace {
     counters.in_steps.fetch_add(in_steps, std::memory_order_relaxed);
     counters.moves.fetch_add(step_applied_.size(), std::memory_order_relaxed);
     // The next list: each moved face and its edge neighbours (sorted by the caller).
-    const size_t applied = step_applied_.size();
-    step_offset_.assign(applied + 1, 0);
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, applied, 1024), [&](const tbb::blocked_range<size_t>& range) {
-          for (size_t a = range.begin(); a != range.end(); ++a) {
-            size_t count = 1;
-            for (FaceId g : adjacency_.neighbours[list[candidates[step_applied_[a]]]]) {
-              count += g.valid() ? 1 : 0;
-            }
-            step_offset_[a + 1] = count;
-          }
-        });
-    for (size_t a = 0; a < applied; ++a) step_offset_[a + 1] += step_offset_[a];
-    next.resize(step_offset_.back());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, applied, 1024),
-                      [&](const tbb::blocked_range<size_t>& range) {
-                        for (size_t a = range.begin(); a != range.end(); ++a) {
-                          const uint32_t f = list[candidates[step_applied_[a]]];
-                          size_t at = step_offset_[a];
-                          next[at++] = f;
-                          for (FaceId g : adjacency_.neighbours[f]) {
-                            if (g.valid()) next[at++] = g.value();
-                          }
-                        }
-                      });
+    ListMovedAndNeighbours(
+        step_applied_.size(), [&](size_t a) { return list[candidates[step_applied_[a]]]; }, 0,
+        step_offset_, next);
     return true;
   }
 
@@ -1248,30 +1258,9 @@ class MeshSpace {
                           }
                         });
       for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
-      next_offset.assign(winners.size() + 1, 0);
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
-                        [&](const tbb::blocked_range<size_t>& range) {
-                          for (size_t w = range.begin(); w != range.end(); ++w) {
-                            size_t count = 1;
-                            for (FaceId g : adjacency_.neighbours[list[candidates[winners[w]]]]) {
-                              count += g.valid() ? 1 : 0;
-                            }
-                            next_offset[w + 1] = count;
-                          }
-                        });
-      for (size_t w = 0; w < winners.size(); ++w) next_offset[w + 1] += next_offset[w];
-      next.resize(next_offset.back() + waiting.size());
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
-                        [&](const tbb::blocked_range<size_t>& range) {
-                          for (size_t w = range.begin(); w != range.end(); ++w) {
-                            const uint32_t f = list[candidates[winners[w]]];
-                            size_t at = next_offset[w];
-                            next[at++] = f;
-                            for (FaceId g : adjacency_.neighbours[f]) {
-                              if (g.valid()) next[at++] = g.value();
-                            }
-                          }
-                        });
+      ListMovedAndNeighbours(
+          winners.size(), [&](size_t w) { return list[candidates[winners[w]]]; }, waiting.size(),
+          next_offset, next);
       for (size_t k = 0; k < waiting.size(); ++k) {
         next[next_offset.back() + k] = list[candidates[waiting[k]]];
       }
