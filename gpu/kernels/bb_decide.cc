@@ -1,6 +1,7 @@
 #include "gpu/kernels/bb_decide.h"
 
 #include <algorithm>
+#include <array>
 
 #include "absl/strings/str_cat.h"
 #include "gpu/context/gl_functions.h"
@@ -55,11 +56,8 @@ absl::StatusOr<BoundaryDecideKernel> BoundaryDecideKernel::Create(
                                        faces_or_one * 8,
                                        4,
                                        BoundaryDecideMaxChanges(n) * 8};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     MLCLUST_RETURN_IF_ERROR(
         buffers[kNeighbours].Upload(std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
     MLCLUST_RETURN_IF_ERROR(buffers[kFaces].Upload(faces));
@@ -118,22 +116,13 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
   if (num_faces_ == 0) return absl::OkStatus();
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kPass));
   const absl::Status status = [&]() -> absl::Status {
-    MLCLUST_ASSIGN_OR_RETURN(const uint32_t program,
-                             GetComputeProgram(*context_, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
     MLCLUST_RETURN_IF_ERROR(UpdateLabels(labels));
     MLCLUST_RETURN_IF_ERROR(buffers_[kProxies].Upload(proxies));
-    const uint32_t zero = 0;
-    MLCLUST_RETURN_IF_ERROR(buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
-    const detail::GlFunctions& gl = context_->gl();
-    gl.UseProgram(program);
-    for (uint32_t b = kNeighbours; b <= kProposalCount; ++b) buffers_[b].Bind(b);
-    gl.ProgramUniform1ui(program, 0, num_faces_);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.UseProgram(0);
-    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kPass, buffers_[kProposalCount],
-                                              buffers_[kProposals], num_faces_, num_clusters_,
-                                              proposals_));
+    MLCLUST_RETURN_IF_ERROR(DispatchBoundaryDecide(
+        *context_, kPass,
+        {&buffers_[kNeighbours], &buffers_[kLabels], &buffers_[kFaces], &buffers_[kProxies],
+         &buffers_[kProposals], &buffers_[kProposalCount]},
+        num_faces_, num_clusters_, proposals_));
     for (const auto& [face, cluster] : proposals_) {
       target[face] = cluster;
     }
@@ -146,13 +135,26 @@ absl::Status BoundaryDecideKernel::Decide(std::span<const uint32_t> labels,
   return PassError(kPass, status);
 }
 
-absl::Status ReadBackProposals(GlContext& context, const char* pass, StorageBuffer& count_buffer,
-                               StorageBuffer& proposals_buffer, uint32_t num_faces,
-                               uint32_t num_clusters,
-                               std::vector<std::array<uint32_t, 2>>& proposals) {
-  proposals.clear();
+absl::Status DispatchBoundaryDecide(GlContext& context, const char* pass,
+                                    const BoundaryDecideBuffers& buffers, uint32_t num_faces,
+                                    uint32_t num_clusters,
+                                    std::vector<std::array<uint32_t, 2>>& proposals) {
+  MLCLUST_ASSIGN_OR_RETURN(
+      const uint32_t program,
+      GetComputeProgram(context, "bb_decide", absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
   uint32_t count = 0;
-  MLCLUST_RETURN_IF_ERROR(count_buffer.Download(0, &count, sizeof(count)));
+  MLCLUST_RETURN_IF_ERROR(buffers.count->Upload(0, &count, sizeof(count)));
+  const std::array<StorageBuffer*, 6> bound = {buffers.neighbours, buffers.labels,
+                                               buffers.faces,      buffers.proxies,
+                                               buffers.proposals,  buffers.count};
+  for (uint32_t b = 0; b < bound.size(); ++b) bound[b]->Bind(b);
+  const detail::GlFunctions& gl = context.gl();
+  gl.UseProgram(program);
+  gl.ProgramUniform1ui(program, 0, num_faces);
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, num_faces));
+  gl.UseProgram(0);
+  proposals.clear();
+  MLCLUST_RETURN_IF_ERROR(buffers.count->Download(0, &count, sizeof(count)));
   if (count > num_faces) {
     return absl::InternalError(
         absl::StrCat("the GPU reports ", count, " proposals for ", num_faces, " faces"));
@@ -160,7 +162,7 @@ absl::Status ReadBackProposals(GlContext& context, const char* pass, StorageBuff
   proposals.resize(count);
   if (count > 0) {
     MLCLUST_RETURN_IF_ERROR(
-        proposals_buffer.Download(std::span<std::array<uint32_t, 2>>(proposals)));
+        buffers.proposals->Download(std::span<std::array<uint32_t, 2>>(proposals)));
   }
   MLCLUST_RETURN_IF_ERROR(CheckGlError(context, pass));
   for (const auto& [face, cluster] : proposals) {

@@ -144,14 +144,24 @@ class BoundaryDecideKernel {
   std::vector<std::array<uint32_t, 2>> changes_, proposals_;
 };
 
-// The proposals a bb_decide.glsl dispatch appended (shared by BoundaryDecideKernel and
-// PmlLevelsGpu's "pml bb decide"): the count read from `count_buffer`, then as many (face,
-// cluster) pairs from `proposals_buffer`, then the GL error check of `pass`; INTERNAL where
-// the count exceeds num_faces or a face or cluster is out of range.
-absl::Status ReadBackProposals(GlContext& context, const char* pass, StorageBuffer& count_buffer,
-                               StorageBuffer& proposals_buffer, uint32_t num_faces,
-                               uint32_t num_clusters,
-                               std::vector<std::array<uint32_t, 2>>& proposals);
+// bb_decide.glsl's buffers, by its bindings 0-5.
+struct BoundaryDecideBuffers {
+  StorageBuffer* neighbours;  // 3 per face
+  StorageBuffer* labels;      // 1 per face
+  StorageBuffer* faces;       // point and mass per face
+  StorageBuffer* proxies;     // point and weight per cluster id
+  StorageBuffer* proposals;   // (face, cluster), one per face at most
+  StorageBuffer* count;       // the proposals' count
+};
+
+// One decide over `num_faces` faces (shared by BoundaryDecideKernel and PmlLevelsGpu's "pml
+// bb decide"): the count zeroed, bb_decide.glsl dispatched on `buffers`, the count and as
+// many (face, cluster) proposals read back, then the GL error check of `pass`; INTERNAL
+// where the count exceeds num_faces or a face or cluster is out of range.
+absl::Status DispatchBoundaryDecide(GlContext& context, const char* pass,
+                                    const BoundaryDecideBuffers& buffers, uint32_t num_faces,
+                                    uint32_t num_clusters,
+                                    std::vector<std::array<uint32_t, 2>>& proposals);
 
 // Changed labels a sweep uploads as (face, label) pairs at most; more, and all labels go.
 inline uint64_t BoundaryDecideMaxChanges(uint64_t num_faces) { return num_faces / 8 + 1; }

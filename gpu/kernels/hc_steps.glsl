@@ -86,11 +86,7 @@ uint Collapse(uint step, uint top) {
   if (used + gone_size > u_log_capacity) return 0u;
   precise double keep_before = CvdEnergy(keep);
   precise double gone_before = CvdEnergy(gone);
-  for (uint j = 0u; j < 5u; ++j) {
-    precise double sum = sums[5u * keep + j] + sums[5u * gone + j];
-    sums[5u * keep + j] = sum;
-    sums[5u * gone + j] = 0.0LF;
-  }
+  AddCvdSums(keep, gone);
   precise double keep_after = CvdEnergy(keep);
   uint mark = control[3] + 1u;
   control[3] = mark;

@@ -32,3 +32,13 @@ double CvdEnergy(uint c) {
   precise double energy = sums[5u * c + 4u] - dot / m;
   return max(0.0LF, energy);
 }
+
+// keep's sums become keep + gone in the CPU's order (CvdSums::operator+=), gone's zero: the
+// collapse of a pair (pml_merge.glsl's MergeInto, hc_steps.glsl's Collapse).
+void AddCvdSums(uint keep, uint gone) {
+  for (uint j = 0u; j < 5u; ++j) {
+    precise double sum = sums[5u * keep + j] + sums[5u * gone + j];
+    sums[5u * keep + j] = sum;
+    sums[5u * gone + j] = 0.0LF;
+  }
+}

@@ -8,7 +8,6 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
-#include "gpu/kernels/bb_decide_glsl.h"     // kBbDecideGlsl, generated
 #include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
@@ -24,6 +23,7 @@ namespace {
 constexpr char kOdesPass[] = "pml odes";
 constexpr char kCollapsePass[] = "pml collapse";
 constexpr char kTripletsPass[] = "pml triplets";
+constexpr PmlLevelPasses kLevelPasses{kOdesPass, kCollapsePass, kTripletsPass};
 constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
@@ -104,11 +104,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
         faces * 40,      faces * 4,      faces * 4,  faces * 4,         edge_slots * 8,
         edge_slots * 8,  edge_slots * 8, faces * 12, MaxPairs(n) * 8,   MaxPairs(n) * 24,
         MaxPairs(n) * 4, chunks * 4,     groups * 4, kCounterSlots * 4, faces * 12};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> ones(n, 1), identity(n);
     for (uint32_t f = 0; f < n; ++f) identity[f] = f;
     if (n > 0) {
@@ -174,20 +171,14 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
 absl::StatusOr<uint32_t> PmlLevelsGpu::StartLevel(PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
-  return *pairs;
+  return RunOdesPass(
+      *context_, kLevelPasses, [&] { return FindPairs(); }, level);
 }
 
 absl::Status PmlLevelsGpu::FinishLevel(const std::function<absl::Status()>& collapse,
                                        uint32_t pairs, PmlLevelGpu& level) {
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = collapse();
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  return PassError(kTripletsPass, Extract(pairs, level));
+  return RunCollapsePasses(*context_, kLevelPasses, collapse,
+                           [&] { return Extract(pairs, level); });
 }
 
 absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
@@ -269,11 +260,8 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
                                                           slots * 8,
                                                           slots * 8,
                                                           slots * 40};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(*context_, bytes));
     if (!edges.empty()) {
       MLCLUST_RETURN_IF_ERROR(buffers[kFaceEdges].Upload(std::span<const uint32_t>(edges)));
     }
@@ -285,9 +273,6 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
     MLCLUST_ASSIGN_OR_RETURN(bb_program_, GetComputeProgram(*context_, "pml_bb",
                                                             absl::StrCat(kComputeShaderPrelude,
                                                                          kPmlCvdGlsl, kPmlBbGlsl)));
-    MLCLUST_ASSIGN_OR_RETURN(decide_program_,
-                             GetComputeProgram(*context_, "bb_decide",
-                                               absl::StrCat(kComputeShaderPrelude, kBbDecideGlsl)));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kBbDecidePass));
     bb_buffers_ = std::move(buffers);
     num_face_edges_ = static_cast<uint32_t>(edges.size() / 2);
@@ -315,8 +300,6 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kBbDecidePass));
   const absl::Status status = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
-    const uint32_t zero = 0;
-    MLCLUST_RETURN_IF_ERROR(bb_buffers_[kProposalCount].Upload(0, &zero, sizeof(zero)));
     if (!proxies_current_) {
       // The proxies of every cluster id; ApplyMoves keeps them.
       BindBbBuffers();
@@ -326,20 +309,11 @@ absl::Status PmlLevelsGpu::Decide(std::vector<PmlFaceMove>& proposals) {
       MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
       gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
     }
-    // bb_decide.glsl's bindings: neighbours, labels, faces, proxies, proposals, count.
-    bb_buffers_[kNeighbours].Bind(0);
-    buffers_[kLabels].Bind(1);
-    bb_buffers_[kFacePoints].Bind(2);
-    bb_buffers_[kProxies].Bind(3);
-    bb_buffers_[kProposals].Bind(4);
-    bb_buffers_[kProposalCount].Bind(5);
-    gl.UseProgram(decide_program_);
-    gl.ProgramUniform1ui(decide_program_, 0, num_faces_);
-    MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, num_faces_));
-    gl.UseProgram(0);
-    MLCLUST_RETURN_IF_ERROR(ReadBackProposals(*context_, kBbDecidePass, bb_buffers_[kProposalCount],
-                                              bb_buffers_[kProposals], num_faces_, num_faces_,
-                                              proposals));
+    MLCLUST_RETURN_IF_ERROR(DispatchBoundaryDecide(
+        *context_, kBbDecidePass,
+        {&bb_buffers_[kNeighbours], &buffers_[kLabels], &bb_buffers_[kFacePoints],
+         &bb_buffers_[kProxies], &bb_buffers_[kProposals], &bb_buffers_[kProposalCount]},
+        num_faces_, num_faces_, proposals));
     proxies_current_ = true;
     return absl::OkStatus();
   }();

@@ -224,7 +224,7 @@ class PmlLevelsGpu {
   // BB (EnableBoundaryOptimisation): its buffers, the directed face edges and programs.
   std::vector<StorageBuffer> bb_buffers_;
   uint32_t num_face_edges_ = 0;
-  uint32_t bb_program_ = 0, decide_program_ = 0;
+  uint32_t bb_program_ = 0;
   // Whether the proxies on the GPU are those of the current sums (Level's merges change
   // sums; ApplyMoves fits the changed clusters' proxies again).
   bool proxies_current_ = false;

@@ -11,11 +11,7 @@ uint ClusterSize(uint c) { return sizes[c]; }
 double ClusterEnergy(uint c) { return CvdEnergy(c); }
 
 void MergeInto(uint keep, uint gone, uint size) {
-  for (uint j = 0u; j < 5u; ++j) {
-    precise double sum = sums[5u * keep + j] + sums[5u * gone + j];
-    sums[5u * keep + j] = sum;
-    sums[5u * gone + j] = 0.0LF;
-  }
+  AddCvdSums(keep, gone);
   sizes[keep] = size;
   sizes[gone] = 0u;
   remap[gone] = keep;
