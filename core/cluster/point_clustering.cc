@@ -29,10 +29,10 @@ constexpr uint32_t kNone = kNoCluster;
 
 // One point's LN k-means check: its best cluster among its own, its cluster's neighbours
 // and the neighbours of the neighbour in its subspace. Returns the target (kNone: stays)
-// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-best
-// candidate minus the distance to its own centroid (so it stays while its own centroid and the
-// candidates move by less than that in all); -infinity for a point that moves. `x` is
-// scratch. Reads `clusters` only (safe in parallel).
+// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-
+// best candidate minus the distance to its own centroid (so it stays while its own
+// centroid and the candidates move by less than that in all); -infinity for a point that
+// moves. `x` is scratch. Reads `clusters` only (safe in parallel).
 template <bool kMargin>
 [[gnu::always_inline]] inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i,
                                                   std::vector<double>& x, double& margin) {

@@ -30,19 +30,10 @@
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
+#include "core/cluster/detail/member_lists.h"
 #include "core/hierarchy/level_recorder.h"
 
 namespace mlclust::detail {
-
-// Removes point i from `list` (its position in position[i]) by moving the last member into
-// its place; the member lists of a space of points (PointOptimiseRounds, the PML levels).
-inline void SwapRemoveMember(std::vector<uint32_t>& list, std::vector<uint32_t>& position,
-                             uint32_t i) {
-  const uint32_t at = position[i];
-  list[at] = list.back();
-  position[list[at]] = at;
-  list.pop_back();
-}
 
 class PointOptimiseRounds {
  public:
@@ -282,9 +273,7 @@ class PointOptimiseRounds {
     recorder_.RecordMove(i, from);
     clusters_.Move(i, to);
     stamp_[i] = 0;  // its candidates are another cluster's now: check it again
-    SwapRemoveMember(members_[from], position_, i);
-    position_[i] = static_cast<uint32_t>(members_[to].size());
-    members_[to].push_back(i);
+    MoveMember(members_, position_, i, from, to);
     made_.push_back({i, to});
   }
 
