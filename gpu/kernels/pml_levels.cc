@@ -205,9 +205,10 @@ absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& 
   // Every cluster's ODE only: ML has no use for the mutual pairs (nor their count).
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
   BindAll();
-  MLCLUST_RETURN_IF_ERROR(PassError(
-      kOdesPass,
-      FindOdes(*context_, {programs_.ode, 0, num_faces_, num_edges_, std::nullopt, kOdesPass})));
+  const absl::Status odes =
+      FindOdes(*context_, {programs_.ode, 0, num_faces_, num_edges_, std::nullopt, kOdesPass});
+  MLCLUST_RETURN_IF_ERROR(
+      PassError(kOdesPass, odes.ok() ? CheckGlError(*context_, kOdesPass) : odes));
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
   std::array<uint32_t, 2> pair{};
   const absl::Status chosen = [&]() -> absl::Status {
