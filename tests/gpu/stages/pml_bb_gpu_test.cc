@@ -19,6 +19,7 @@
 #include "core/cluster/multilevel.h"
 #include "core/cluster/partition.h"
 #include "core/cluster/registry.h"
+#include "core/mesh/cluster_pieces.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
@@ -91,32 +92,6 @@ MultilevelOptions PmlBbOptions(PmlPairRule rule, uint32_t lowest) {
   options.pml_pairs = rule;
   options.min_clusters = lowest;
   return options;
-}
-
-// The number of clusters of `labels` that are not one edge-connected piece.
-size_t DisconnectedClusters(const FaceAdjacency& adjacency, std::span<const uint32_t> labels) {
-  const size_t n = labels.size();
-  std::vector<uint8_t> seen(n, 0), cluster_seen(n, 0);
-  std::vector<uint32_t> stack;
-  size_t disconnected = 0;
-  for (uint32_t f = 0; f < n; ++f) {
-    if (seen[f]) continue;
-    if (cluster_seen[labels[f]]) ++disconnected;  // a second piece of the cluster
-    cluster_seen[labels[f]] = 1;
-    seen[f] = 1;
-    stack.assign(1, f);
-    while (!stack.empty()) {
-      const uint32_t x = stack.back();
-      stack.pop_back();
-      for (FaceId g : adjacency.neighbours[x]) {
-        if (g.valid() && !seen[g.value()] && labels[g.value()] == labels[x]) {
-          seen[g.value()] = 1;
-          stack.push_back(g.value());
-        }
-      }
-    }
-  }
-  return disconnected;
 }
 
 // The problem's energy of `labels`, summed from scratch.
