@@ -1,4 +1,5 @@
-// What the bench mains share: `--name value` arguments, wall-clock timing and mesh set-up.
+// What the bench mains share: `--name value` arguments, wall-clock timing, mesh set-up and
+// point files.
 //
 //   bench::Args args(argc, argv, "usage: mesh_bench MESH --k K [--algo emlo|bb] ...");
 //   const bool header = args.Flag("header");      // flags first (see Flag)
@@ -20,8 +21,10 @@
 #include <vector>
 
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "core/io/points_io.h"
 #include "core/io/prepare_mesh.h"
 
 namespace mlclust::bench {
@@ -82,6 +85,25 @@ class Args {
       errors_ += "--" + entry->name + ": cannot parse '" + entry->value + "'\n";
     }
     return value;
+  }
+
+  // The value of --name as a comma-separated list ("1000,200"), each item parsed as T, or
+  // `fallback` (the same kind of list; "" for none) if --name is not given; Done() fails if
+  // an item does not parse.
+  template <typename T>
+  std::vector<T> GetList(std::string_view name, std::string_view fallback) {
+    const std::string text = Get<std::string>(name, std::string(fallback));
+    std::vector<T> values;
+    if (text.empty()) return values;
+    for (absl::string_view item : absl::StrSplit(text, ',')) {
+      T value{};
+      if (!Parse(std::string(item), value)) {
+        errors_ += "--" + std::string(name) + ": '" + text + "' is not a list of numbers\n";
+        return {};
+      }
+      values.push_back(value);
+    }
+    return values;
   }
 
   // Whether the flag --name was given (a flag takes no value). The parser cannot tell a
@@ -160,6 +182,17 @@ double BestOf(int repeats, Run&& run) {
   return best;
 }
 
+// The value of `result`, or its status on stderr and exit(1): a bench has nothing to do
+// after a step that failed.
+template <typename T>
+T ValueOrDie(absl::StatusOr<T> result) {
+  if (!result.ok()) {
+    std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+    std::exit(1);
+  }
+  return *std::move(result);
+}
+
 // PrepareMeshFile, or a message on stderr and exit(1): benches have nothing to do
 // without their mesh.
 inline PreparedMesh PrepareOrDie(const std::string& path) {
@@ -169,6 +202,19 @@ inline PreparedMesh PrepareOrDie(const std::string& path) {
     std::exit(1);
   }
   return *std::move(prepared);
+}
+
+// ReadPointsFile (with `dims` values per point; 0: from the file), or a message on stderr
+// and exit(1), as PrepareOrDie.
+inline PointSet ReadPointsOrDie(const std::string& path, uint32_t dims = 0) {
+  PointReadOptions options;
+  options.dims = dims;
+  absl::StatusOr<PointSet> points = ReadPointsFile(path, options);
+  if (!points.ok()) {
+    std::fprintf(stderr, "%s: %s\n", path.c_str(), points.status().ToString().c_str());
+    std::exit(1);
+  }
+  return *std::move(points);
 }
 
 // The file name without directories ("data/bench/armadillo.off" -> "armadillo.off").

@@ -11,13 +11,13 @@
 // Points: Gaussian blob sets (tests/fixtures/test_points.h); HC, ML, PML.
 #include <cinttypes>
 #include <cstdio>
-#include <cstring>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "absl/time/clock.h"
 #include "bench/bench_util.h"
+#include "bench/level_hash.h"
 #include "core/cluster/multilevel.h"
 #include "core/cluster/point_clustering.h"
 #include "tests/fixtures/test_points.h"
@@ -31,22 +31,13 @@ class FingerprintSink : public mlclust::LevelSink {
  public:
   absl::Status OnStart(std::span<const mlclust::ClusterId> labels, uint32_t cluster_count,
                        double energy) override {
-    for (mlclust::ClusterId c : labels) Mix(c.value());
-    Mix(cluster_count);
-    MixDouble(energy);
+    hash_.Start(labels, cluster_count, energy);
     Note(cluster_count, energy);
     return absl::OkStatus();
   }
   absl::Status OnLevel(const LevelMoves& level) override {
     ++levels_;
-    Mix(level.cluster_count);
-    MixDouble(level.energy);
-    Mix(static_cast<uint64_t>(level.element.size()));
-    for (size_t i = 0; i < level.element.size(); ++i) {
-      Mix(level.element[i]);
-      Mix(level.to_cluster[i]);
-      Mix(level.from_cluster[i]);
-    }
+    hash_.Level(level);
     Note(level.cluster_count, level.energy);
     last_energy_ = level.energy;
     last_count_ = level.cluster_count;
@@ -57,22 +48,11 @@ class FingerprintSink : public mlclust::LevelSink {
     std::snprintf(buffer, sizeof buffer,
                   "levels=%u final=%u energy=%.17g e1000=%.17g e200=%.17g e50=%.17g "
                   "hash=%016" PRIx64,
-                  levels_ + 1, last_count_, last_energy_, at_[0], at_[1], at_[2], hash_);
+                  levels_ + 1, last_count_, last_energy_, at_[0], at_[1], at_[2], hash_.value());
     return buffer;
   }
 
  private:
-  void Mix(uint64_t v) {
-    for (int b = 0; b < 8; ++b) {
-      hash_ ^= (v >> (8 * b)) & 0xff;
-      hash_ *= 0x100000001b3ull;
-    }
-  }
-  void MixDouble(double x) {
-    uint64_t bits;
-    std::memcpy(&bits, &x, sizeof bits);
-    Mix(bits);
-  }
   void Note(uint32_t count, double energy) {
     const uint32_t ks[3] = {1000, 200, 50};
     for (int i = 0; i < 3; ++i) {
@@ -82,7 +62,7 @@ class FingerprintSink : public mlclust::LevelSink {
       }
     }
   }
-  uint64_t hash_ = 0xcbf29ce484222325ull;
+  mlclust::bench::LevelHash hash_;
   uint32_t levels_ = 0, last_count_ = 0;
   double last_energy_ = 0;
   bool seen_[3] = {false, false, false};

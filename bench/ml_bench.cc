@@ -12,8 +12,6 @@
 #include <string>
 #include <vector>
 
-#include "absl/strings/numbers.h"
-#include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "bench/bench_util.h"
 #include "bench/cancel_timer.h"
@@ -46,17 +44,8 @@ int main(int argc, char** argv) {
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const double cancel_after = args.Get<double>("cancel-after", -1);
   const int threads = args.Get<int>("threads", 0);
-  const std::string at_text = args.Get<std::string>("at", "1000,200");
+  const std::vector<uint32_t> at = args.GetList<uint32_t>("at", "1000,200");
   if (!args.Done()) return 2;
-  std::vector<uint32_t> at;
-  for (absl::string_view part : absl::StrSplit(at_text, ',')) {
-    uint32_t k = 0;
-    if (!absl::SimpleAtoi(part, &k)) {
-      std::fprintf(stderr, "--at: '%s' is not a list of cluster counts\n", at_text.c_str());
-      return 2;
-    }
-    at.push_back(k);
-  }
   if ((!p_rule.empty() && p_rule != "sweep" && p_rule != "hc-first") ||
       (!pml_pairs.empty() && pml_pairs != "all" && pml_pairs != "cheaper-half")) {
     std::fprintf(stderr, "--p-rule is sweep or hc-first, --pml-pairs all or cheaper-half\n");

@@ -21,16 +21,15 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <string>
 
 #include "bench/bench_util.h"
 #include "bench/blobs.h"
 #include "bench/cancel_timer.h"
 #include "bench/curve_sink.h"
+#include "bench/level_hash.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/point_clustering.h"
-#include "core/io/points_io.h"
 
 namespace {
 
@@ -41,42 +40,18 @@ class CurveSink : public mlclust::bench::CurveSink {
   explicit CurveSink(bool hash) : hash_(hash) {}
   absl::Status OnStart(std::span<const mlclust::ClusterId> labels, uint32_t count,
                        double energy) override {
-    if (hash_) {
-      for (mlclust::ClusterId c : labels) Mix(c.value());
-      Mix(count);
-      MixDouble(energy);
-    }
+    if (hash_) levels_.Start(labels, count, energy);
     return mlclust::bench::CurveSink::OnStart(labels, count, energy);
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
-    if (hash_) {
-      Mix(level.cluster_count);
-      MixDouble(level.energy);
-      Mix(level.element.size());
-      for (size_t i = 0; i < level.element.size(); ++i) {
-        Mix(level.element[i]);
-        Mix(level.to_cluster[i]);
-        Mix(level.from_cluster[i]);
-      }
-    }
+    if (hash_) levels_.Level(level);
     return mlclust::bench::CurveSink::OnLevel(level);
   }
-  uint64_t hash() const { return state_; }
+  uint64_t hash() const { return levels_.value(); }
 
  private:
-  void Mix(uint64_t value) {
-    for (int b = 0; b < 8; ++b) {
-      state_ ^= (value >> (8 * b)) & 0xff;
-      state_ *= 1099511628211ull;
-    }
-  }
-  void MixDouble(double value) {
-    uint64_t bits = 0;
-    std::memcpy(&bits, &value, sizeof bits);
-    Mix(bits);
-  }
   bool hash_;
-  uint64_t state_ = 14695981039346656037ull;
+  mlclust::bench::LevelHash levels_;
 };
 
 }  // namespace
@@ -108,14 +83,7 @@ int main(int argc, char** argv) {
   }
   mlclust::PointSet points;
   if (!input.empty()) {
-    mlclust::PointReadOptions read;
-    read.dims = dims;
-    absl::StatusOr<mlclust::PointSet> loaded = mlclust::ReadPointsFile(input, read);
-    if (!loaded.ok()) {
-      std::fprintf(stderr, "%s\n", loaded.status().ToString().c_str());
-      return 1;
-    }
-    points = *std::move(loaded);
+    points = mlclust::bench::ReadPointsOrDie(input, dims);
     m = points.num_points();
     d = points.dims;
     blobs = 0;

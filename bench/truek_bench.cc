@@ -10,14 +10,13 @@
 //   algo,K,set,m,seconds,levels,best_k,first_decrease_k
 // seconds: the hierarchy and the BIC of all its levels. --write-npy DIR also writes each data
 // set to DIR/truek_K<K>_s<set>.npy, for the Ward + BIC peer (bench/peers/points_peers.py).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "bench/bench_util.h"
 #include "core/base/random.h"
@@ -29,24 +28,16 @@ int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
                             "usage: truek_bench [--ks 10,25,...] [--sets N] [--per-blob N] "
                             "[--seed S] [--algo ml|hc|pml] [--write-npy DIR]");
-  std::vector<uint32_t> ks;
-  for (absl::string_view part :
-       absl::StrSplit(args.Get<std::string>("ks", "10,25,50,100,150,200,250"), ',')) {
-    uint32_t k = 0;
-    if (!absl::SimpleAtoi(part, &k) || k == 0) {
-      std::fprintf(stderr, "--ks: '%s' is not a positive count\n", std::string(part).c_str());
-      return 2;
-    }
-    ks.push_back(k);
-  }
+  const std::vector<uint32_t> ks = args.GetList<uint32_t>("ks", "10,25,50,100,150,200,250");
   const uint32_t sets = args.Get<uint32_t>("sets", 10);
   const uint32_t per_blob = args.Get<uint32_t>("per-blob", 500);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
   const std::string algo = args.Get<std::string>("algo", "ml");
   const std::string npy_dir = args.Get<std::string>("write-npy", "");
   if (!args.Done()) return 2;
-  if (per_blob == 0 || (algo != "ml" && algo != "hc" && algo != "pml")) {
-    std::fprintf(stderr, "--per-blob must be > 0 and --algo one of ml, hc, pml\n");
+  if (per_blob == 0 || std::find(ks.begin(), ks.end(), 0u) != ks.end() ||
+      (algo != "ml" && algo != "hc" && algo != "pml")) {
+    std::fprintf(stderr, "--ks and --per-blob must be > 0 and --algo one of ml, hc, pml\n");
     return 2;
   }
   std::printf("algo,K,set,m,seconds,levels,best_k,first_decrease_k\n");
@@ -80,21 +71,13 @@ int main(int argc, char** argv) {
       options.parallel = algo == "pml";
       if (algo == "hc") options.optimizer = mlclust::PointMultilevelOptions::Optimizer::kNone;
       mlclust::BicLevelRecorder recorder;
-      absl::StatusOr<mlclust::PointMultilevelSummary> summary =
-          mlclust::RunPointMultilevel(points, options, recorder);
-      if (!summary.ok()) {
-        std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-        return 1;
-      }
-      absl::StatusOr<mlclust::BicChoice> choice =
-          mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), 3);
-      if (!choice.ok()) {
-        std::fprintf(stderr, "%s\n", choice.status().ToString().c_str());
-        return 1;
-      }
+      const mlclust::PointMultilevelSummary summary =
+          mlclust::bench::ValueOrDie(mlclust::RunPointMultilevel(points, options, recorder));
+      const mlclust::BicChoice choice = mlclust::bench::ValueOrDie(
+          mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), 3));
       const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
       std::printf("%s,%u,%u,%zu,%.3f,%u,%u,%u\n", algo.c_str(), k, set, points.num_points(),
-                  seconds, summary->levels, choice->best_k, choice->first_decrease_k);
+                  seconds, summary.levels, choice.best_k, choice.first_decrease_k);
       std::fflush(stdout);
     }
   }

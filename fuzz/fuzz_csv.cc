@@ -7,6 +7,7 @@
 
 #include "core/io/points_io.h"
 #include "fuzz/fuzz_check.h"
+#include "fuzz/fuzz_points.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace mlclust;
@@ -16,13 +17,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     ++data;
     --size;
   }
-  absl::StatusOr<PointSet> points =
-      DecodePointsText(absl::string_view(reinterpret_cast<const char*>(data), size), options);
-  if (!points.ok()) {
-    MLCLUST_FUZZ_CHECK(points.status().code() == absl::StatusCode::kInvalidArgument);
-    return 0;
-  }
-  MLCLUST_FUZZ_CHECK(ValidatePoints(*points, options.limits).ok());
+  const absl::StatusOr<PointSet> points = DecodePointsText(fuzz::AsBytes(data, size), options);
+  if (!fuzz::CheckDecodedPoints(points, options.limits)) return 0;
   MLCLUST_FUZZ_CHECK(options.dims == 0 || points->dims == options.dims);
   return 0;
 }

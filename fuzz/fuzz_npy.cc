@@ -6,18 +6,14 @@
 
 #include "core/io/points_io.h"
 #include "fuzz/fuzz_check.h"
+#include "fuzz/fuzz_points.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace mlclust;
   PointReadOptions options;
   options.limits.max_values = uint64_t{1} << 24;  // keeps a declared shape from costing time
-  absl::StatusOr<PointSet> points =
-      DecodePointsNpy(absl::string_view(reinterpret_cast<const char*>(data), size), options);
-  if (!points.ok()) {
-    MLCLUST_FUZZ_CHECK(points.status().code() == absl::StatusCode::kInvalidArgument);
-    return 0;
-  }
-  MLCLUST_FUZZ_CHECK(ValidatePoints(*points, options.limits).ok());
+  const absl::StatusOr<PointSet> points = DecodePointsNpy(fuzz::AsBytes(data, size), options);
+  if (!fuzz::CheckDecodedPoints(points, options.limits)) return 0;
   MLCLUST_FUZZ_CHECK(points->values.size() * 4 <= size);
   return 0;
 }

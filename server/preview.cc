@@ -1,5 +1,7 @@
 #include "server/preview.h"
 
+#include <type_traits>
+
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
@@ -31,14 +33,27 @@ absl::Status CheckAngles(float azimuth, float elevation, absl::string_view what)
   return absl::OkStatus();
 }
 
+// "A<separator>B", the separator one of `separators`, as two numbers (integers or floats).
+template <typename T>
+bool ParseTwoNumbers(absl::string_view text, absl::string_view separators, T& first, T& second) {
+  const auto parse = [](absl::string_view part, T& out) {
+    if constexpr (std::is_integral_v<T>) {
+      return absl::SimpleAtoi(part, &out);
+    } else {
+      return absl::SimpleAtof(part, &out);
+    }
+  };
+  const size_t at = text.find_first_of(separators);
+  return at != absl::string_view::npos && parse(text.substr(0, at), first) &&
+         parse(text.substr(at + 1), second);
+}
+
 }  // namespace
 
 absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view text,
                                                                absl::string_view what) {
-  const size_t x = text.find_first_of("xX");
   uint32_t width = 0, height = 0;
-  if (x == absl::string_view::npos || !absl::SimpleAtoi(text.substr(0, x), &width) ||
-      !absl::SimpleAtoi(text.substr(x + 1), &height)) {
+  if (!ParseTwoNumbers(text, "xX", width, height)) {
     return absl::InvalidArgumentError(
         absl::StrCat(what, ": '", text, "' is not WIDTHxHEIGHT in pixels (e.g. 1024x768)"));
   }
@@ -49,10 +64,8 @@ absl::StatusOr<std::pair<uint32_t, uint32_t>> ParsePreviewSize(absl::string_view
 
 absl::StatusOr<std::pair<float, float>> ParsePreviewView(absl::string_view text,
                                                          absl::string_view what) {
-  const size_t comma = text.find(',');
   float azimuth = 0, elevation = 0;
-  if (comma == absl::string_view::npos || !absl::SimpleAtof(text.substr(0, comma), &azimuth) ||
-      !absl::SimpleAtof(text.substr(comma + 1), &elevation)) {
+  if (!ParseTwoNumbers(text, ",", azimuth, elevation)) {
     return absl::InvalidArgumentError(
         absl::StrCat(what, ": '", text, "' is not AZIMUTH,ELEVATION in degrees (e.g. 215,20)"));
   }

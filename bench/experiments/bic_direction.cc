@@ -13,7 +13,6 @@
 #include "bench/bench_util.h"
 #include "core/cluster/point_clustering.h"
 #include "core/hierarchy/model_selection.h"
-#include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv, "usage: bic_direction FILE [--grid A] [--curve CURVE.csv]");
@@ -22,24 +21,11 @@ int main(int argc, char** argv) {
   options.grid = args.Get("grid", options.grid);
   const std::string curve_path = args.Get<std::string>("curve", "");
   if (!args.Done()) return 2;
-  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(path);
-  if (!points.ok()) {
-    std::fprintf(stderr, "%s\n", points.status().ToString().c_str());
-    return 1;
-  }
+  const mlclust::PointSet points = mlclust::bench::ReadPointsOrDie(path);
   mlclust::BicLevelRecorder recorder;
-  absl::StatusOr<mlclust::PointMultilevelSummary> summary =
-      mlclust::RunPointMultilevel(*points, options, recorder);
-  if (!summary.ok()) {
-    std::fprintf(stderr, "%s\n", summary.status().ToString().c_str());
-    return 1;
-  }
-  absl::StatusOr<mlclust::BicChoice> choice =
-      mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), points->dims);
-  if (!choice.ok()) {
-    std::fprintf(stderr, "%s\n", choice.status().ToString().c_str());
-    return 1;
-  }
+  mlclust::bench::ValueOrDie(mlclust::RunPointMultilevel(points, options, recorder));
+  const mlclust::BicChoice choice = mlclust::bench::ValueOrDie(
+      mlclust::ChooseByBic(recorder.levels(), recorder.num_points(), points.dims));
   const auto& levels = recorder.levels();
   if (!curve_path.empty()) {
     FILE* curve = std::fopen(curve_path.c_str(), "w");
@@ -48,21 +34,21 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::fprintf(curve, "clusters,bic\n");
-    for (size_t l = 0; l < choice->bic.size(); ++l) {
-      if (std::isfinite(choice->bic[l])) {
-        std::fprintf(curve, "%u,%.6f\n", levels[l].clusters, choice->bic[l]);
+    for (size_t l = 0; l < choice.bic.size(); ++l) {
+      if (std::isfinite(choice.bic[l])) {
+        std::fprintf(curve, "%u,%.6f\n", levels[l].clusters, choice.bic[l]);
       }
     }
     std::fclose(curve);
   }
   uint32_t agglomerative = levels.back().clusters;
-  for (size_t l = 0; l + 1 < choice->bic.size(); ++l) {
-    if (std::isfinite(choice->bic[l]) && choice->bic[l] > choice->bic[l + 1]) {
+  for (size_t l = 0; l + 1 < choice.bic.size(); ++l) {
+    if (std::isfinite(choice.bic[l]) && choice.bic[l] > choice.bic[l + 1]) {
       agglomerative = levels[l].clusters;
       break;
     }
   }
-  std::printf("%u,%u,%u,%u\n", levels.front().clusters, choice->best_k, choice->first_decrease_k,
+  std::printf("%u,%u,%u,%u\n", levels.front().clusters, choice.best_k, choice.first_decrease_k,
               agglomerative);
   return 0;
 }

@@ -16,7 +16,6 @@
 #include "core/cluster/bisecting_kmeans.h"
 #include "core/cluster/point_clustering.h"
 #include "core/cluster/xmeans.h"
-#include "core/io/points_io.h"
 
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
@@ -39,13 +38,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "--input FILE is required\n");
     return 2;
   }
-  mlclust::PointReadOptions read_options;
-  read_options.dims = dims;
-  absl::StatusOr<mlclust::PointSet> points = mlclust::ReadPointsFile(input, read_options);
-  if (!points.ok()) {
-    std::fprintf(stderr, "%s\n", points.status().ToString().c_str());
-    return 1;
-  }
+  const mlclust::PointSet points = mlclust::bench::ReadPointsOrDie(input, dims);
   const auto kmeans_init = [&](mlclust::KmeansOptions::Init fallback) {
     if (init == "random") return mlclust::KmeansOptions::Init::kRandom;
     if (init == "kmeans++") return mlclust::KmeansOptions::Init::kKmeansPlusPlus;
@@ -62,7 +55,7 @@ int main(int argc, char** argv) {
     options.seed = seed;
     options.threads = threads;
     absl::StatusOr<mlclust::BisectingKmeansResult> result =
-        mlclust::RunBisectingKmeans(*points, options);
+        mlclust::RunBisectingKmeans(points, options);
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!result.ok()) {
       std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
@@ -74,8 +67,8 @@ int main(int argc, char** argv) {
         "\"energy\": %.10g}\n",
         split.c_str(), trials,
         options.init == mlclust::KmeansOptions::Init::kRandom ? "random" : "kmeans++",
-        static_cast<unsigned long>(seed), threads, points->num_points(), seconds, k,
-        mlclust::PointEnergy(*points, result->labels));
+        static_cast<unsigned long>(seed), threads, points.num_points(), seconds, k,
+        mlclust::PointEnergy(points, result->labels));
   } else if (algo == "xmeans") {
     mlclust::XmeansOptions options;
     options.min_clusters = kmin;
@@ -84,7 +77,7 @@ int main(int argc, char** argv) {
     options.init = kmeans_init(mlclust::KmeansOptions::Init::kKmeansPlusPlus);
     options.seed = seed;
     options.threads = threads;
-    absl::StatusOr<mlclust::XmeansResult> result = mlclust::RunXmeans(*points, options);
+    absl::StatusOr<mlclust::XmeansResult> result = mlclust::RunXmeans(points, options);
     const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
     if (!result.ok()) {
       std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
@@ -101,8 +94,8 @@ int main(int argc, char** argv) {
         "{\"algo\": \"mlclust xmeans\", \"kmin\": %u, \"kmax\": %u, \"trials\": %u, "
         "\"seed\": %lu, \"threads\": %d, \"m\": %zu, \"seconds\": %.4f, \"clusters\": %u, "
         "\"energy\": %.10g, \"bic\": %.10g, \"rounds\": [%s]}\n",
-        kmin, kmax, trials, static_cast<unsigned long>(seed), threads, points->num_points(),
-        seconds, result->clusters, mlclust::PointEnergy(*points, result->labels), result->bic,
+        kmin, kmax, trials, static_cast<unsigned long>(seed), threads, points.num_points(), seconds,
+        result->clusters, mlclust::PointEnergy(points, result->labels), result->bic,
         rounds.c_str());
   } else {
     std::fprintf(stderr, "--algo must be bisecting or xmeans\n");

@@ -7,8 +7,6 @@
 #include <string>
 #include <vector>
 
-#include "absl/strings/numbers.h"
-#include "absl/strings/str_split.h"
 #include "bench/bench_util.h"
 #include "bench/experiments/clustered_ply.h"
 #include "core/cluster/multilevel.h"
@@ -21,15 +19,9 @@ int main(int argc, char** argv) {
   const std::string path = args.num_positional() > 0 ? args.Positional(0) : "";
   const std::string energy_name = args.Get<std::string>("energy", "cvd");
   const std::string algo = args.Get<std::string>("algo", "ml");
-  const std::string at = args.Get<std::string>("at", "");
+  const std::vector<uint32_t> ks = args.GetList<uint32_t>("at", "");
   const std::string out = args.Get<std::string>("out", "");
-  if (!args.Done() || path.empty() || at.empty() || out.empty()) return 2;
-  std::vector<uint32_t> ks;
-  for (absl::string_view part : absl::StrSplit(at, ',')) {
-    uint32_t k;
-    if (!absl::SimpleAtoi(part, &k)) return 2;
-    ks.push_back(k);
-  }
+  if (!args.Done() || path.empty() || ks.empty() || out.empty()) return 2;
   absl::StatusOr<MeshEnergyKind> kind = ParseMeshEnergyKind(energy_name);
   if (!kind.ok()) return 2;
   const PreparedMesh prepared = bench::PrepareOrDie(path);

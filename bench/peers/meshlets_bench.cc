@@ -36,7 +36,6 @@
 #include <string>
 #include <vector>
 
-#include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "bench/bench_util.h"
 #include "core/cluster/mesh_clustering.h"
@@ -270,7 +269,7 @@ int Run(int argc, char** argv) {
   const bool with_ml = args.Flag("ml");
   const bool with_emlo = args.Flag("emlo");
   const int repeats = args.Get<int>("repeats", 5);
-  const std::string sweeps_text = args.Get<std::string>("sweeps", "6");
+  const std::vector<uint32_t> sweep_counts = args.GetList<uint32_t>("sweeps", "6");
   const std::string growth = args.Get<std::string>("growth", "free");
   const int threads = args.Get<int>("threads", 0);
   const uint32_t reseeds = args.Get<uint32_t>("reseeds", 1);
@@ -282,15 +281,6 @@ int Run(int argc, char** argv) {
     }
     return false;
   };
-  std::vector<uint32_t> sweep_counts;
-  for (absl::string_view s : absl::StrSplit(sweeps_text, ',')) {
-    uint32_t value = 0;
-    if (!absl::SimpleAtoi(s, &value)) {
-      std::fprintf(stderr, "--sweeps: '%s' is not a list of counts\n", sweeps_text.c_str());
-      return 2;
-    }
-    sweep_counts.push_back(value);
-  }
   if (header) {
     std::printf(
         "mesh,faces,method,k,seconds,cpu_seconds,energy,energy_over_ml,patches,disconnected,"

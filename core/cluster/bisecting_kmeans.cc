@@ -40,8 +40,7 @@ absl::Status CheckOptions(const PointSet& points, const BisectingKmeansOptions& 
         "'clusters' must be in [1, ", m, "] (the number of points), not ", options.clusters));
   }
   if (options.trials < 1) return absl::InvalidArgumentError("'trials' must be at least 1");
-  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
-                                         options.threads);
+  return detail::CheckInnerKmeansOptions(options);
 }
 
 }  // namespace
@@ -82,11 +81,7 @@ absl::StatusOr<BisectingKmeansResult> RunBisectingKmeans(const PointSet& points,
 
     // Line 4, the bisecting step: 2-means `trials` times, the split of least energy kept.
     const PointSet subset = detail::Subset(points, split.members);
-    KmeansOptions two_means;
-    two_means.clusters = 2;
-    two_means.init = options.init;
-    two_means.max_iterations = options.max_iterations;
-    two_means.tolerance = options.tolerance;
+    KmeansOptions two_means = KmeansOptionsFor(options, 2);
     two_means.threads = split.members.size() >= kParallelPoints ? options.threads : 1;
     std::vector<ClusterId> best_labels;
     double best_inertia = 0;

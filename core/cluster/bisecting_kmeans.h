@@ -28,7 +28,14 @@
 
 namespace mlclust {
 
-struct BisectingKmeansOptions {
+// KmeansRunOptions: the settings of each 2-means run. Its seeding defaults to two random
+// points (scikit-learn's default for BisectingKMeans) instead of k-means++; `seed` seeds the
+// trials' seeds; `threads` serves the 2-means runs on clusters of at least 65,536 points
+// (smaller ones run on one thread), and the result does not depend on it; `cancel` is
+// checked before each split and within each 2-means run.
+struct BisectingKmeansOptions : KmeansRunOptions {
+  BisectingKmeansOptions() { init = Init::kRandom; }
+
   // k: in [1, points].
   uint32_t clusters = 0;
   enum class SplitChoice {
@@ -42,18 +49,6 @@ struct BisectingKmeansOptions {
   // L in Alg. 2.7: 2-means runs per bisecting step (seeds seed, seed + 1, ...); the split of
   // the smallest energy is kept. At least 1. 1 is scikit-learn's default (n_init=1).
   uint32_t trials = 1;
-  // Seeding of each 2-means run: k-means++ or two random points (scikit-learn's default for
-  // BisectingKMeans is random).
-  KmeansOptions::Init init = KmeansOptions::Init::kRandom;
-  // Lloyd iterations and tolerance of each 2-means run (KmeansOptions).
-  uint32_t max_iterations = 300;
-  double tolerance = 1e-4;
-  uint64_t seed = 1;
-  // Worker threads for the 2-means runs on clusters of at least 65,536 points (smaller
-  // ones run on one thread); 0: all cores. The result does not depend on it.
-  int threads = 0;
-  // Checked before each split.
-  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct BisectingSplit {

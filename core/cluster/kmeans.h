@@ -26,9 +26,10 @@
 
 namespace mlclust {
 
-struct KmeansOptions {
-  // k: in [1, points].
-  uint32_t clusters = 0;
+// How a Lloyd run goes: its seeding, iterations, tolerance, seed, threads and cancellation.
+// KmeansOptions is one; bisecting k-means and X-means are one too, for the k-means runs
+// inside them, and hand it on whole (KmeansOptionsFor).
+struct KmeansRunOptions {
   enum class Init {
     // greedy k-means++ (KmeansPlusPlusCentres below).
     kKmeansPlusPlus,
@@ -49,6 +50,14 @@ struct KmeansOptions {
   uint64_t seed = 1;
   // Worker threads; 0: all cores. The result does not depend on it.
   int threads = 0;
+  // Checked before each k-means++ centre and by every block of points in each iteration
+  // (core/base/cancel.h); a set flag returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+struct KmeansOptions : KmeansRunOptions {
+  // k: in [1, points].
+  uint32_t clusters = 0;
   // Called after each iteration with its number (1-based) and the energy of its partition
   // (KmeansResult::inertia of a run stopped there). Never increases from one call to the
   // next, up to rounding (about 1e-15 relative).
@@ -59,10 +68,16 @@ struct KmeansOptions {
   // that reports the seeding as a level of its own so needs no second run of that
   // iteration. Costs one copy of the labels.
   bool keep_first_assignment = false;
-  // Checked before each k-means++ centre and by every block of points in each iteration
-  // (core/base/cancel.h); a set flag returns CANCELLED.
-  const std::atomic<bool>* cancel = nullptr;
 };
+
+// A k-means run of `clusters` clusters with `run`'s settings (the rest as KmeansOptions'
+// defaults).
+inline KmeansOptions KmeansOptionsFor(const KmeansRunOptions& run, uint32_t clusters) {
+  KmeansOptions options;
+  static_cast<KmeansRunOptions&>(options) = run;
+  options.clusters = clusters;
+  return options;
+}
 
 struct KmeansResult {
   // One cluster per point, 0..k-1; every cluster holds at least one point.

@@ -13,6 +13,7 @@
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/emlo_impl.h"
+#include "core/cluster/detail/member_lists.h"
 #include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/detail/polygon_energy.h"
 #include "core/cluster/partition.h"
@@ -522,14 +523,7 @@ class MeshSpace {
         AddEdgesOneSide(z, x, 1, mark_dirty);
       }
     }
-    // Members: swap-remove from y, append to x.
-    auto& from = members_[y];
-    const uint32_t at = position_[f];
-    from[at] = from.back();
-    position_[from[at]] = at;
-    from.pop_back();
-    position_[f] = static_cast<uint32_t>(members_[x].size());
-    members_[x].push_back(f);
+    detail::MoveMember(members_, position_, f, y, x);
   }
 
   void Touch(uint32_t cluster) {
@@ -609,12 +603,10 @@ class MeshSpace {
     return {best_to, best_gain};
   }
 
-  // MultilevelOptions::parallel_optimisation: rounds of "every face of the list finds its
-  // best move in parallel, then the moves are checked again and applied in face order".
-  template <typename Guard, typename OnMove>
-  void OptimiseInRounds(const Guard* guard, uint64_t max_moves, OnMove& on_move) {
-    // The first list: the region's boundary faces and the faces across their boundary
-    // edges (EMLO compares both sides of each edge).
+  // The first list of the parallel rounds: worklist_ (the region's boundary faces) with the
+  // faces across their boundary edges (EMLO compares both sides of each edge), sorted and
+  // without repeats.
+  void AddFacesAcrossBoundaries() {
     std::vector<uint32_t>& list = worklist_;
     const size_t first = list.size();
     for (size_t i = 0; i < first; ++i) {
@@ -626,6 +618,14 @@ class MeshSpace {
     }
     tbb::parallel_sort(list.begin(), list.end());  // integers: the same order on any thread count
     list.erase(std::unique(list.begin(), list.end()), list.end());
+  }
+
+  // MultilevelOptions::parallel_optimisation: rounds of "every face of the list finds its
+  // best move in parallel, then the moves are checked again and applied in face order".
+  template <typename Guard, typename OnMove>
+  void OptimiseInRounds(const Guard* guard, uint64_t max_moves, OnMove& on_move) {
+    AddFacesAcrossBoundaries();
+    std::vector<uint32_t>& list = worklist_;
     std::vector<uint32_t> target, next;
     std::vector<uint8_t> allowed;
     // The ring test's answers from the parallel pass are kept (see below).
@@ -803,17 +803,8 @@ class MeshSpace {
   // 38.9M list entries (BENCHMARKS.md, "Why --parallel-optimisation independent did not finish").
   // Which moves win and when the rounds hand over do not depend on the thread count.
   uint64_t OptimiseInIndependentRounds(const ConnectivityGuard* guard, uint64_t max_moves) {
+    AddFacesAcrossBoundaries();
     std::vector<uint32_t>& list = worklist_;
-    const size_t first = list.size();
-    for (size_t i = 0; i < first; ++i) {
-      for (FaceId g : adjacency_.neighbours[list[i]]) {
-        if (g.valid() && partition_.label(g.value()) != partition_.label(list[i])) {
-          list.push_back(g.value());
-        }
-      }
-    }
-    tbb::parallel_sort(list.begin(), list.end());
-    list.erase(std::unique(list.begin(), list.end()), list.end());
     if (kept_target_.size() != n_) kept_target_.assign(n_, kUndecided);
     if (reserve_.size() != n_) {
       reserve_ = std::vector<std::atomic<uint32_t>>(n_);

@@ -12,6 +12,7 @@
 #include "core/base/random.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
+#include "core/cluster/detail/member_lists.h"
 #include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/detail/point_levels_checks.h"
 #include "core/cluster/kmeans.h"
@@ -664,13 +665,7 @@ class PointSpace {
         Record(i, from);
         clusters_->Move(i, to);
         stamp_[i] = 0;  // its candidates are another cluster's now: check it again
-        auto& list = members_[from];
-        const uint32_t at = position_[i];
-        list[at] = list.back();
-        position_[list[at]] = at;
-        list.pop_back();
-        position_[i] = static_cast<uint32_t>(members_[to].size());
-        members_[to].push_back(i);
+        detail::MoveMember(members_, position_, i, from, to);
       }
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];

@@ -629,14 +629,8 @@ absl::StatusOr<RunSummary> RunPointXmeans(const PointSet& points, const JobPlan&
   Report(context, plan, "seed",
          absl::StrCat(points.num_points(), " points in ", points.dims, " dimensions: k-means at ",
                       "k_min = ", options.min_clusters));
-  KmeansOptions first;
-  first.clusters = options.min_clusters;
-  first.init = options.init;
-  first.max_iterations = options.max_iterations;
-  first.tolerance = options.tolerance;
-  first.threads = options.threads;
+  KmeansOptions first = KmeansOptionsFor(options, options.min_clusters);
   first.seed = Random(options.seed).Next();
-  first.cancel = context.cancel;
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, RunKmeans(points, first));
   Report(context, plan, "cluster",
          absl::StrCat("X-means: virtual splits kept where the BIC rises, up to k_max = ",

@@ -34,8 +34,7 @@ absl::Status CheckOptions(const PointSet& points, const XmeansOptions& options) 
   if (options.split_trials < 1) {
     return absl::InvalidArgumentError("'split_trials' must be at least 1");
   }
-  return detail::CheckInnerKmeansOptions(options.max_iterations, options.tolerance,
-                                         options.threads);
+  return detail::CheckInnerKmeansOptions(options);
 }
 
 // The points of each cluster (labels 0..k-1), by a counting sort.
@@ -70,14 +69,8 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       options.max_clusters == 0 ? static_cast<uint32_t>(m) : options.max_clusters;
   Random seeds(options.seed);
 
-  KmeansOptions kmeans;
-  kmeans.init = options.init;
-  kmeans.max_iterations = options.max_iterations;
-  kmeans.tolerance = options.tolerance;
-  kmeans.threads = options.threads;
-
   // Alg. 2.5 lines 1-2: k-means with k_min clusters.
-  kmeans.clusters = options.min_clusters;
+  KmeansOptions kmeans = KmeansOptionsFor(options, options.min_clusters);
   kmeans.seed = seeds.Next();
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult current, RunKmeans(points, kmeans));
   uint32_t k = options.min_clusters;

@@ -28,7 +28,12 @@
 
 namespace mlclust {
 
-struct XmeansOptions {
+// KmeansRunOptions: the settings of the first k-means and of every 2-means and k-means run
+// after it (k-means++ seeding by default); `seed` seeds their seeds; `threads` serves
+// k-means over all points and 2-means on clusters of at least 65,536 points (smaller ones
+// run on one thread), and the result does not depend on it; `cancel` is checked between the
+// virtual splits, between rounds and within each k-means run.
+struct XmeansOptions : KmeansRunOptions {
   // k_min in [1, points]: the clusters of the first k-means.
   uint32_t min_clusters = 1;
   // k_max in [k_min, points]; 0: the number of points. No round goes beyond it.
@@ -36,18 +41,6 @@ struct XmeansOptions {
   // 2-means runs per virtual split (seeded differently); the halves of least energy are
   // tested. At least 1.
   uint32_t split_trials = 1;
-  // Seeding of the first k-means and of every 2-means.
-  KmeansOptions::Init init = KmeansOptions::Init::kKmeansPlusPlus;
-  // Lloyd iterations and tolerance of every k-means run (KmeansOptions).
-  uint32_t max_iterations = 300;
-  double tolerance = 1e-4;
-  uint64_t seed = 1;
-  // Worker threads for k-means over all points and for 2-means on clusters of at least
-  // 65,536 points (smaller ones run on one thread); 0: all cores. The result does not
-  // depend on it.
-  int threads = 0;
-  // Checked between the virtual splits and between rounds.
-  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct XmeansRound {

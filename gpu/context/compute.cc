@@ -2,6 +2,7 @@
 
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
@@ -157,6 +158,17 @@ absl::Status CheckGlError(GlContext& context, absl::string_view what) {
 
 uint64_t MaxElementsPerBuffer(const GlContext& context, uint64_t bytes_per_element) {
   return static_cast<uint64_t>(context.max_storage_buffer_bytes()) / bytes_per_element;
+}
+
+absl::StatusOr<std::vector<StorageBuffer>> CreateStorageBuffers(GlContext& context,
+                                                                std::span<const uint64_t> bytes) {
+  std::vector<StorageBuffer> buffers;
+  buffers.reserve(bytes.size());
+  for (const uint64_t size : bytes) {
+    MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
+    buffers.push_back(std::move(buffer));
+  }
+  return buffers;
 }
 
 absl::StatusOr<StorageBuffer> StorageBuffer::Create(GlContext& context, uint64_t bytes) {

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -141,6 +142,10 @@ class StorageBuffer {
   uint32_t id_ = 0;
   uint64_t bytes_ = 0;
 };
+
+// One StorageBuffer per entry of `bytes`, in order (errors as StorageBuffer::Create).
+absl::StatusOr<std::vector<StorageBuffer>> CreateStorageBuffers(GlContext& context,
+                                                                std::span<const uint64_t> bytes);
 
 }  // namespace mlclust::gpu
 

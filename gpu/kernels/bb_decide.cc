@@ -56,11 +56,8 @@ absl::StatusOr<BoundaryDecideKernel> BoundaryDecideKernel::Create(
                                        faces_or_one * 8,
                                        4,
                                        BoundaryDecideMaxChanges(n) * 8};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     MLCLUST_RETURN_IF_ERROR(
         buffers[kNeighbours].Upload(std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
     MLCLUST_RETURN_IF_ERROR(buffers[kFaces].Upload(faces));

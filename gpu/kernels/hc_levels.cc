@@ -134,11 +134,8 @@ absl::StatusOr<HcLevelsGpu> HcLevelsGpu::Create(GlContext& context,
         faces * 4,       TreeNodes(faces) * 8,
         (faces + 2) * 4, uint64_t{kHcMaxBatch} * sizeof(HcStepGpu),
         faces * 4,       kControlWords * 4};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     const uint32_t n32 = static_cast<uint32_t>(n);
     const std::array<uint32_t, kControlWords> control = {n32, 0, 0, 0, 0};
     MLCLUST_RETURN_IF_ERROR(buffers[kControl].Upload(std::span<const uint32_t>(control)));

@@ -57,11 +57,8 @@ absl::StatusOr<LnKmeansKernel> LnKmeansKernel::Create(GlContext& context, const 
         points_or_one * d * 4, uint64_t{d} * 8, points_or_one * 4, k * d * 8,
         k * 2 * d * 4,         k * 4,           points_or_one * 4, points_or_one * 4,
         points_or_one * 8};
-    std::vector<StorageBuffer> buffers;
-    for (uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     MLCLUST_RETURN_IF_ERROR(buffers[kPoints].Upload(std::span<const float>(points.values)));
     MLCLUST_RETURN_IF_ERROR(buffers[kOrigin].Upload(origin));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kAssignPass));

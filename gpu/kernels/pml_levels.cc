@@ -24,6 +24,7 @@ namespace {
 constexpr char kOdesPass[] = "pml odes";
 constexpr char kCollapsePass[] = "pml collapse";
 constexpr char kTripletsPass[] = "pml triplets";
+constexpr PmlLevelPasses kLevelPasses{kOdesPass, kCollapsePass, kTripletsPass};
 constexpr char kBbDecidePass[] = "pml bb decide";
 constexpr char kBbApplyPass[] = "pml bb apply";
 constexpr char kBbEdgesPass[] = "pml bb edges";
@@ -104,11 +105,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
         faces * 40,      faces * 4,      faces * 4,  faces * 4,         edge_slots * 8,
         edge_slots * 8,  edge_slots * 8, faces * 12, MaxPairs(n) * 8,   MaxPairs(n) * 24,
         MaxPairs(n) * 4, chunks * 4,     groups * 4, kCounterSlots * 4, faces * 12};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> ones(n, 1), identity(n);
     for (uint32_t f = 0; f < n; ++f) identity[f] = f;
     if (n > 0) {
@@ -174,20 +172,14 @@ absl::Status PmlLevelsGpu::Extract(uint32_t pairs, PmlLevelGpu& level) {
 absl::StatusOr<uint32_t> PmlLevelsGpu::StartLevel(PmlLevelGpu& level) {
   level = PmlLevelGpu();
   proxies_current_ = false;  // the merges change sums
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
-  return *pairs;
+  return RunOdesPass(
+      *context_, kLevelPasses, [&] { return FindPairs(); }, level);
 }
 
 absl::Status PmlLevelsGpu::FinishLevel(const std::function<absl::Status()>& collapse,
                                        uint32_t pairs, PmlLevelGpu& level) {
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = collapse();
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  return PassError(kTripletsPass, Extract(pairs, level));
+  return RunCollapsePasses(*context_, kLevelPasses, collapse,
+                           [&] { return Extract(pairs, level); });
 }
 
 absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, uint32_t lowest,
@@ -276,11 +268,8 @@ absl::Status PmlLevelsGpu::EnableBoundaryOptimisation(const FaceAdjacency& adjac
                                                           slots * 8,
                                                           slots * 8,
                                                           slots * 40};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(*context_, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(*context_, bytes));
     if (!edges.empty()) {
       MLCLUST_RETURN_IF_ERROR(buffers[kFaceEdges].Upload(std::span<const uint32_t>(edges)));
     }

@@ -9,6 +9,7 @@
 #include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
+#include "gpu/context/pass.h"
 #include "gpu/kernels/compact_scan_glsl.h"  // kCompactScanGlsl, generated
 #include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
 #include "gpu/kernels/pml_compact_glsl.h"   // kPmlCompactGlsl, generated
@@ -107,6 +108,38 @@ absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& coun
   MLCLUST_RETURN_IF_ERROR(counters.Download(0, &pairs, 4));
   MLCLUST_RETURN_IF_ERROR(CheckGlError(context, passes.pass));
   return pairs;
+}
+
+absl::StatusOr<uint32_t> RunOdesPass(GlContext& context, const PmlLevelPasses& passes,
+                                     absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                     GpuPmlLevel& level) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.odes));
+  const absl::StatusOr<uint32_t> pairs = find_pairs();
+  if (!pairs.ok()) return PassError(passes.odes, pairs.status());
+  level.mutual_pairs = *pairs;
+  return *pairs;
+}
+
+absl::Status RunCollapsePasses(GlContext& context, const PmlLevelPasses& passes,
+                               absl::FunctionRef<absl::Status()> collapse,
+                               absl::FunctionRef<absl::Status()> extract) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.collapse));
+  const absl::Status collapsed = collapse();
+  if (!collapsed.ok()) return PassError(passes.collapse, collapsed);
+  MLCLUST_RETURN_IF_ERROR(BeginPass(context, passes.triplets));
+  return PassError(passes.triplets, extract());
+}
+
+absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses& passes,
+                                       absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                       absl::FunctionRef<absl::Status(uint32_t)> collapse,
+                                       absl::FunctionRef<absl::Status(uint32_t)> extract,
+                                       GpuPmlLevel& level) {
+  MLCLUST_ASSIGN_OR_RETURN(const uint32_t pairs, RunOdesPass(context, passes, find_pairs, level));
+  if (pairs == 0) return false;
+  MLCLUST_RETURN_IF_ERROR(RunCollapsePasses(
+      context, passes, [&] { return collapse(pairs); }, [&] { return extract(pairs); }));
+  return true;
 }
 
 absl::Status DispatchPairMerge(GlContext& context, uint32_t merge_program, uint32_t pairs,

@@ -10,6 +10,8 @@
 #include <span>
 #include <vector>
 
+#include "absl/functional/function_ref.h"
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "core/cluster/detail/pml_pairs.h"
 #include "gpu/context/compute.h"
@@ -74,6 +76,33 @@ absl::Status FindOdes(GlContext& context, const MutualPairPasses& passes);
 // caller.
 absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
                                          const MutualPairPasses& passes);
+
+// The GPU passes of one PML level, named in errors and by MLCLUST_GPU_FAIL_PASS.
+struct PmlLevelPasses {
+  const char* odes = "";      // the optimal dual edges and the mutual pairs
+  const char* collapse = "";  // the merges of the selected pairs
+  const char* triplets = "";  // the compaction and the level's read-back
+};
+
+// Pass `passes.odes` of a level: find_pairs(), its count into level.mutual_pairs.
+absl::StatusOr<uint32_t> RunOdesPass(GlContext& context, const PmlLevelPasses& passes,
+                                     absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                     GpuPmlLevel& level);
+
+// The passes of a level after its ODEs: collapse() in pass `passes.collapse`, then
+// extract() in pass `passes.triplets`.
+absl::Status RunCollapsePasses(GlContext& context, const PmlLevelPasses& passes,
+                               absl::FunctionRef<absl::Status()> collapse,
+                               absl::FunctionRef<absl::Status()> extract);
+
+// One PML level as the mesh and the point levels run it: RunOdesPass, and where it found
+// pairs, RunCollapsePasses with collapse(pairs) and extract(pairs). False (nothing
+// changed) where there is no mutual pair.
+absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses& passes,
+                                       absl::FunctionRef<absl::StatusOr<uint32_t>()> find_pairs,
+                                       absl::FunctionRef<absl::Status(uint32_t)> collapse,
+                                       absl::FunctionRef<absl::Status(uint32_t)> extract,
+                                       GpuPmlLevel& level);
 
 // The merge pass alone: `merge_program` (uniforms 0, the pairs, and 1, whether it reads
 // the flags; the caller sets any others) over `pairs` pairs. The buffers are bound by the

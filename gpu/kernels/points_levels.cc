@@ -26,6 +26,7 @@ namespace {
 constexpr char kOdesPass[] = "points odes";
 constexpr char kCollapsePass[] = "points collapse";
 constexpr char kTripletsPass[] = "points triplets";
+constexpr PmlLevelPasses kLevelPasses{kOdesPass, kCollapsePass, kTripletsPass};
 constexpr char kNeighboursPass[] = "points neighbours";
 constexpr char kUpdatePass[] = "points update";
 constexpr uint32_t kNone = 0xFFFFFFFFu;
@@ -81,11 +82,8 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
         MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, chunks * 4,
         groups * 4,      kCounterSlots * 4, n * 12,          c * 8,
         c * 2 * d * 8};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> identity(k), partner(2 * k, kNone);
     for (uint32_t i = 0; i < k; ++i) identity[i] = i;
     if (m > 0) MLCLUST_RETURN_IF_ERROR(buffers[kLabels].Upload(start.labels));
@@ -189,18 +187,10 @@ absl::StatusOr<bool> PointLevelsGpu::MergeLevel(PmlPairRule rule, uint32_t clust
                                                 uint32_t lowest, PointLevelGpu& level) {
   level = PointLevelGpu();
   ++level_;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
-  absl::StatusOr<uint32_t> pairs = FindPairs();
-  if (!pairs.ok()) return PassError(kOdesPass, pairs.status());
-  level.mutual_pairs = *pairs;
-  if (*pairs == 0) return false;
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
-  absl::Status collapsed = Collapse(rule, clusters, lowest, *pairs, level);
-  if (!collapsed.ok()) return PassError(kCollapsePass, collapsed);
-  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kTripletsPass));
-  absl::Status extracted = Extract(*pairs, level);
-  if (!extracted.ok()) return PassError(kTripletsPass, extracted);
-  return true;
+  return RunPmlLevelPasses(
+      *context_, kLevelPasses, [&] { return FindPairs(); },
+      [&](uint32_t pairs) { return Collapse(rule, clusters, lowest, pairs, level); },
+      [&](uint32_t pairs) { return Extract(pairs, level); }, level);
 }
 
 absl::Status PointLevelsGpu::RefreshNeighbours() {

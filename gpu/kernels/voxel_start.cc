@@ -196,11 +196,8 @@ absl::StatusOr<VoxelStartGpuResult> VoxelGridStartGpu(GlContext& context, const 
     const std::array<uint64_t, kBindings> bytes = {
         n * d * 4,     d * 16, 2 * d * 4,    n * 4, Slots(n) * 8, Chunks(n) * 4,
         Groups(n) * 4, 16,     Slots(n) * 4, n * 4, n * 4,        n * 2 * d * 4};
-    std::vector<StorageBuffer> buffers;
-    for (const uint64_t size : bytes) {
-      MLCLUST_ASSIGN_OR_RETURN(StorageBuffer buffer, StorageBuffer::Create(context, size));
-      buffers.push_back(std::move(buffer));
-    }
+    MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
+                             CreateStorageBuffers(context, bytes));
     MLCLUST_RETURN_IF_ERROR(buffers[kPoints].Upload(std::span<const float>(points.values)));
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t program,

@@ -20,14 +20,12 @@ namespace mlclust::gpu {
 inline absl::Status SendGpuLevel(std::span<const uint32_t> element, std::span<const uint32_t> to,
                                  std::span<const uint32_t> from, uint32_t number, uint32_t clusters,
                                  double energy, LevelSink& sink) {
-  LevelMoves moves;
-  moves.level = number;
-  moves.cluster_count = clusters;
-  moves.energy = energy;
-  moves.element = element;
-  moves.to_cluster = to;
-  moves.from_cluster = from;
-  return sink.OnLevel(moves);
+  return sink.OnLevel(LevelMoves{.level = number,
+                                 .cluster_count = clusters,
+                                 .energy = energy,
+                                 .element = element,
+                                 .to_cluster = to,
+                                 .from_cluster = from});
 }
 
 // The same with `level`'s triplets.

@@ -88,26 +88,31 @@ def _scalar(fields, number):
     return value
 
 
-def _uint32s(fields, number):
+def _packed(fields, number, decode, dtype):
+    """A packed repeated field: each of its entries decoded by `decode` (which raises
+    ValueError for a broken one), joined; an entry that is not length-delimited raises too."""
     arrays = []
     for wire_type, value in fields.get(number, ()):
         if wire_type != 2:
             raise ValueError("an unpacked repeated field")
-        arrays.append(packed_uint32(value))
+        arrays.append(decode(value))
     if not arrays:
-        return np.empty(0, dtype=np.uint32)
+        return np.empty(0, dtype=dtype)
     return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+
+
+def _le_doubles(value):
+    if len(value) % 8:
+        raise ValueError("a broken packed repeated double")
+    return np.frombuffer(value, dtype="<f8")
+
+
+def _uint32s(fields, number):
+    return _packed(fields, number, packed_uint32, np.uint32)
 
 
 def _doubles(fields, number):
-    arrays = []
-    for wire_type, value in fields.get(number, ()):
-        if wire_type != 2 or len(value) % 8:
-            raise ValueError("an unpacked or broken repeated double")
-        arrays.append(np.frombuffer(value, dtype="<f8"))
-    if not arrays:
-        return np.empty(0, dtype=np.float64)
-    return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+    return _packed(fields, number, _le_doubles, np.float64)
 
 
 def _packed_le_uint32s(fields, number):

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
+
+#include "tests/fixtures/files.h"
 
 namespace mlclust::client {
 namespace {
@@ -170,10 +170,7 @@ TEST(PlotTest, WritesTheFileAndNamesAPathItCannotWrite) {
   const std::vector<EnergyCurvePoint> curve = {{100, 0.5}, {10, 1.0}, {1, 4.0}};
   const std::string path = ::testing::TempDir() + "/plot_test.png";
   ASSERT_TRUE(WriteEnergyPlotPng(curve, {}, path).ok());
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream bytes;
-  bytes << in.rdbuf();
-  EXPECT_EQ(bytes.str(), *RenderEnergyPlotPng(curve, {}));
+  EXPECT_EQ(mlclust::testing::ReadFileBytes(path), *RenderEnergyPlotPng(curve, {}));
   std::remove(path.c_str());
   const absl::Status status = WriteEnergyPlotPng(curve, {}, "/nonexistent-dir/plot.png");
   EXPECT_FALSE(status.ok());

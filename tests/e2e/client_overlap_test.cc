@@ -9,6 +9,7 @@
 #include "core/io/draco_codec.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
@@ -17,13 +18,10 @@ class ClientOverlapTest : public ::testing::Test {
  protected:
   void SetUp() override {
     server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
     options.gpu = server::GpuMode::kOff;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    server_ = testing::StartServer(options);
+    ASSERT_TRUE(server_);
+    channel_ = testing::ChannelTo(*server_);
     grid_ = *EncodeMeshToDraco(testing::Grid(30));  // 1,800 faces
   }
 

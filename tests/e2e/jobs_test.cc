@@ -1,10 +1,8 @@
 // Detached and attached jobs over loopback gRPC: submit with detach, Watch from any level
 // while the job runs or after (attached jobs too), resume a broken stream, Cancel, ListJobs,
 // and the retention time and memory budget that drop kept results (NOT_FOUND saying why).
-#include <arpa/inet.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -18,6 +16,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/loopback.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -535,15 +534,7 @@ class CuttingProxy {
  public:
   CuttingProxy(int server_port, size_t cut_after)
       : server_port_(server_port), cut_after_(cut_after) {
-    listener_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    bind(listener_, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-    socklen_t length = sizeof(address);
-    getsockname(listener_, reinterpret_cast<sockaddr*>(&address), &length);
-    port_ = ntohs(address.sin_port);
-    listen(listener_, 8);
+    listener_ = testing::ListenOnLoopback(8, port_);
     acceptor_ = std::thread([this] { Accept(); });
   }
   ~CuttingProxy() {
@@ -561,14 +552,9 @@ class CuttingProxy {
     while (!stopping_) {
       const int client = accept(listener_, nullptr, nullptr);
       if (client < 0) return;
-      const int upstream = socket(AF_INET, SOCK_STREAM, 0);
-      sockaddr_in address{};
-      address.sin_family = AF_INET;
-      address.sin_port = htons(static_cast<uint16_t>(server_port_));
-      address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-      if (connect(upstream, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+      const int upstream = testing::ConnectToLoopback(server_port_);
+      if (upstream < 0) {
         close(client);
-        close(upstream);
         continue;
       }
       const size_t limit = connections_++ == 0 ? cut_after_ : SIZE_MAX;

@@ -1,11 +1,8 @@
 // The Prometheus endpoint and the JSON log lines of a real server on loopback: counts by
 // algorithm and outcome, histograms, bytes in and out, 404 elsewhere, a port in use
 // refused; one JSON object per log line with the job's fields.
-#include <arpa/inet.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include "absl/strings/match.h"
@@ -15,6 +12,7 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/log.h"
 #include "server/server.h"
+#include "tests/fixtures/loopback.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -24,15 +22,8 @@ using ::testing::HasSubstr;
 
 // GET `path` from 127.0.0.1:`port` over plain HTTP/1.0; the whole response.
 std::string HttpGet(int port, const std::string& path) {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_port = htons(static_cast<uint16_t>(port));
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
-    close(fd);
-    return "";
-  }
+  const int fd = testing::ConnectToLoopback(port);
+  if (fd < 0) return "";
   const std::string request = "GET " + path + " HTTP/1.0\r\nHost: localhost\r\n\r\n";
   (void)!write(fd, request.data(), request.size());
   std::string response;

@@ -9,6 +9,7 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
@@ -76,14 +77,11 @@ class PackedTripletsTest : public ::testing::Test {
   // `max_event_bytes` 0: the server's default (3 MiB).
   void StartServer(size_t max_event_bytes = 0) {
     server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
     options.gpu = server::GpuMode::kOff;
     if (max_event_bytes != 0) options.max_event_bytes = max_event_bytes;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    server_ = testing::StartServer(options);
+    ASSERT_TRUE(server_);
+    channel_ = testing::ChannelTo(*server_);
   }
 
   void ExpectSame(v1::Algorithm algorithm, uint32_t clusters, uint32_t batch_triplets,

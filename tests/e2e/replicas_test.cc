@@ -4,10 +4,8 @@
 // after accepting a job fails it clearly without submitting it again.
 #include "client/replicas.h"
 
-#include <arpa/inet.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -18,6 +16,7 @@
 #include "client/client.h"
 #include "core/io/draco_codec.h"
 #include "server/server.h"
+#include "tests/fixtures/loopback.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -37,25 +36,12 @@ std::unique_ptr<server::Server> StartServer() {
 
 v1::JobSpec MeshSpec() { return testing::MeshSpec(v1::ALGORITHM_ML, 0, "replicas_test"); }
 
-// A TCP socket `fd` listening on 127.0.0.1 at a free `port`, with `backlog`.
-void ListenOnLoopback(int backlog, int& fd, int& port) {
-  fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-  ASSERT_EQ(listen(fd, backlog), 0);
-  socklen_t length = sizeof(address);
-  getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
-  port = ntohs(address.sin_port);
-}
-
 // A port that accepts TCP connections and closes them at once (a replica dying as each
 // call arrives, before any job is accepted).
 class ClosingListener {
  public:
   ClosingListener() {
-    ListenOnLoopback(64, fd_, port_);
+    fd_ = testing::ListenOnLoopback(64, port_);
     thread_ = std::thread([this] {
       while (!stop_) {
         const int connection = accept(fd_, nullptr, nullptr);
@@ -176,9 +162,9 @@ TEST(ReplicasTest, ADeadlineHitOnOneReplicaEndsTheJobThere) {
   std::unique_ptr<server::Server> a = StartServer();
   ASSERT_TRUE(a);
   // A replica that never answers: the kernel completes the TCP handshake, nobody speaks.
-  int silent = -1;
   int silent_port = 0;
-  ASSERT_NO_FATAL_FAILURE(ListenOnLoopback(8, silent, silent_port));
+  const int silent = testing::ListenOnLoopback(8, silent_port);
+  ASSERT_GE(silent, 0);
   const std::string silent_address = absl::StrCat("127.0.0.1:", silent_port);
 
   client::ReplicaOptions in_order;

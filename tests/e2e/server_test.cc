@@ -24,6 +24,7 @@
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
@@ -33,13 +34,10 @@ using ::testing::HasSubstr;
 class ServerTest : public ::testing::Test {
  protected:
   void StartServer(server::ServerOptions options = {}) {
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
+    server_ = testing::StartServer(std::move(options));
+    ASSERT_TRUE(server_);
     ASSERT_GT(server_->port(), 0);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    channel_ = testing::ChannelTo(*server_);
   }
   void SetUp() override { StartServer(); }
 
@@ -277,12 +275,10 @@ TEST_F(ServerTest, AnInputWhoseChecksumDiffersIsRefused) {
 
 TEST(ServerLimitsTest, InputOverTheLimitIsResourceExhaustedBeforeUpload) {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.max_input_bytes = 1000;
-  auto server = server::Server::Start(options);
-  ASSERT_TRUE(server.ok());
-  auto channel = client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()));
+  std::unique_ptr<server::Server> server = testing::StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = testing::ChannelTo(*server);
   absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(30));
   ASSERT_TRUE(bytes.ok());
   ASSERT_GT(bytes->size(), 1000u);
@@ -295,13 +291,11 @@ TEST(ServerLimitsTest, InputOverTheLimitIsResourceExhaustedBeforeUpload) {
 
 TEST(ServerLimitsTest, FullQueueIsResourceExhaustedAtOnceAndOthersFinish) {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.queue_capacity = 1;
   options.gpu = server::GpuMode::kOff;
-  auto server = server::Server::Start(options);
-  ASSERT_TRUE(server.ok());
-  auto channel = client::Connect(absl::StrCat("127.0.0.1:", (*server)->port()));
+  std::unique_ptr<server::Server> server = testing::StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = testing::ChannelTo(*server);
   absl::StatusOr<std::string> bytes = EncodeMeshToDraco(testing::Grid(150));  // 45k faces
   ASSERT_TRUE(bytes.ok());
   v1::JobSpec spec;
@@ -388,13 +382,9 @@ v1::JobSpec Spec(v1::Algorithm algorithm, v1::Energy energy = v1::ENERGY_CVD) {
 class AlgorithmsTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    server::ServerOptions options;
-    options.listen_address = "127.0.0.1:0";
-    options.log = false;
-    auto started = server::Server::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    server_ = *std::move(started);
-    channel_ = client::Connect(absl::StrCat("127.0.0.1:", server_->port()));
+    server_ = testing::StartServer();
+    ASSERT_TRUE(server_);
+    channel_ = testing::ChannelTo(*server_);
     mesh_ = *ReadMeshFile(testing::DataPath("elephant.off"));
     bytes_ = *EncodeMeshToDraco(mesh_);
   }

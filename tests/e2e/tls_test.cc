@@ -8,7 +8,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "client/client.h"
 #include "core/io/draco_codec.h"
@@ -16,7 +15,9 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
+#include "tests/fixtures/files.h"
 #include "tests/fixtures/test_meshes.h"
+#include "tests/fixtures/test_server.h"
 
 namespace mlclust {
 namespace {
@@ -26,13 +27,6 @@ using ::testing::Not;
 
 constexpr char kAlphaToken[] = "alpha-token-0123456789abcdef";
 constexpr char kBetaToken[] = "beta-token-0123456789abcdef";
-
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
@@ -69,7 +63,7 @@ class Certificates {
 
   bool ok() const { return ok_; }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string pem(const std::string& name) const { return ReadText(path(name)); }
+  std::string pem(const std::string& name) const { return testing::ReadFileBytes(path(name)); }
 
  private:
   static inline int counter_ = 0;
@@ -80,15 +74,13 @@ class Certificates {
 std::unique_ptr<server::Server> StartTlsServer(const Certificates& certs, bool tokens,
                                                bool client_certs, uint32_t per_tenant = 0) {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.gpu = server::GpuMode::kOff;
   options.tls_cert_pem = certs.pem("server.pem");
   options.tls_key_pem = certs.pem("server.key");
   if (client_certs) options.tls_client_ca_pem = certs.pem("ca.pem");
   if (tokens) options.auth_tokens = {{kAlphaToken, "alpha"}, {kBetaToken, "beta"}};
   options.max_jobs_per_tenant = per_tenant;
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  absl::StatusOr<std::unique_ptr<server::Server>> started = testing::StartLocal(options);
   EXPECT_TRUE(started.ok()) << started.status();
   return started.ok() ? *std::move(started) : nullptr;
 }
@@ -247,11 +239,9 @@ TEST(TlsTest, PerTenantJobLimitRefusesOnlyThatTenant) {
 
 TEST(TlsTest, TheServerRefusesTokensWithoutTls) {
   server::ServerOptions options;
-  options.listen_address = "127.0.0.1:0";
-  options.log = false;
   options.gpu = server::GpuMode::kOff;
   options.auth_tokens = {{kAlphaToken, "alpha"}};
-  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  absl::StatusOr<std::unique_ptr<server::Server>> started = testing::StartLocal(options);
   EXPECT_EQ(started.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(started.status().message(), HasSubstr("need TLS"));
 }

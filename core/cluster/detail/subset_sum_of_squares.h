@@ -11,6 +11,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "core/cluster/kmeans.h"
 #include "core/points/points.h"
 
 namespace mlclust::detail {
@@ -57,9 +58,10 @@ inline PointSet Subset(const PointSet& points, const std::vector<uint32_t>& memb
 
 // OK, or INVALID_ARGUMENT naming the option: max_iterations < 1, tolerance not >= 0 (NaN
 // too), threads < 0.
-inline absl::Status CheckInnerKmeansOptions(uint32_t max_iterations, double tolerance,
-                                            int threads) {
-  if (max_iterations < 1) {
+inline absl::Status CheckInnerKmeansOptions(const KmeansRunOptions& options) {
+  const double tolerance = options.tolerance;
+  const int threads = options.threads;
+  if (options.max_iterations < 1) {
     return absl::InvalidArgumentError("'max_iterations' must be at least 1");
   }
   if (!(tolerance >= 0)) {

@@ -50,18 +50,11 @@ std::map<uint32_t, ClusterTopology> Topology(const Loaded& l,
       edges[c].insert(std::minmax(a, b));
     }
   }
+  const std::vector<uint32_t> pieces = testing::PiecesPerCluster(l.adjacency, labels);
   for (auto& [c, count] : faces) {
     result[c].euler =
         static_cast<int>(vertices[c].size()) - static_cast<int>(edges[c].size()) + count;
-  }
-  std::vector<uint32_t> raw, piece;
-  for (ClusterId c : labels) raw.push_back(c.value());
-  const uint32_t pieces = LabelFaceComponents(l.adjacency, piece, raw);
-  std::vector<bool> counted(pieces, false);
-  for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (counted[piece[f]]) continue;
-    counted[piece[f]] = true;
-    ++result[raw[f]].pieces;
+    result[c].pieces = static_cast<int>(pieces[c]);
   }
   return result;
 }

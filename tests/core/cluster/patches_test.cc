@@ -14,21 +14,7 @@
 namespace mlclust {
 namespace {
 
-// The number of edge-connected pieces of each cluster (LabelFaceComponents by cluster).
-std::vector<uint32_t> PiecesPerCluster(const FaceAdjacency& adjacency,
-                                       std::span<const ClusterId> labels, uint32_t clusters) {
-  std::vector<uint32_t> region, component;
-  for (ClusterId c : labels) region.push_back(c.value());
-  const uint32_t count = LabelFaceComponents(adjacency, component, region);
-  std::vector<uint32_t> pieces(clusters, 0);
-  std::vector<uint8_t> counted(count, 0);
-  for (size_t f = 0; f < region.size(); ++f) {
-    if (counted[component[f]]) continue;
-    counted[component[f]] = 1;
-    ++pieces[region[f]];
-  }
-  return pieces;
-}
+using testing::PiecesPerCluster;
 
 // Two copies of a mesh side by side: two connected components.
 TriangleMesh TwoCopies(const TriangleMesh& mesh, float shift) {

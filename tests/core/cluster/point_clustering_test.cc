@@ -313,24 +313,12 @@ TEST(PointMultilevelTest, OptimiseRoundsEightIsTheDefaultAndFewerStayNear) {
   ASSERT_TRUE(RunPointMultilevel(points, options, by_default).ok());
   options.optimise_rounds = 8;
   ASSERT_TRUE(RunPointMultilevel(points, options, eight).ok());
-  EXPECT_EQ(by_default.counts, eight.counts);
-  EXPECT_EQ(by_default.energies, eight.energies);
-  EXPECT_EQ(by_default.moves, eight.moves);
+  testing::ExpectSameLevels(by_default, eight);
   options.optimise_rounds = 2;
   ASSERT_TRUE(RunPointMultilevel(points, options, two).ok());
   ASSERT_EQ(two.counts, by_default.counts);
   EXPECT_NE(two.moves, by_default.moves);
-  double sum = 0;
-  size_t compared = 0;
-  for (size_t l = 0; l < two.counts.size(); ++l) {
-    if (by_default.energies[l] <= 0) continue;
-    const double ratio = two.energies[l] / by_default.energies[l];
-    EXPECT_LT(ratio, 1.5) << two.counts[l] << " clusters";
-    sum += ratio;
-    ++compared;
-  }
-  ASSERT_GT(compared, 100u);
-  EXPECT_LT(sum / compared, 1.10);
+  EXPECT_LT(testing::MeanEnergyRatio(two, by_default, 1.5, 100), 1.10);
   for (uint32_t bad : {0u, 65u}) {
     options.optimise_rounds = bad;
     RecordingSink sink;
@@ -354,25 +342,14 @@ TEST(PointMultilevelTest, BoundedDriftChangesLittleAndOffIsTheDefault) {
   ASSERT_TRUE(RunPointMultilevel(points, options, by_default).ok());
   options.bounded_drift = 0;
   ASSERT_TRUE(RunPointMultilevel(points, options, off).ok());
-  EXPECT_EQ(by_default.counts, off.counts);
-  EXPECT_EQ(by_default.energies, off.energies);
-  EXPECT_EQ(by_default.moves, off.moves);
+  testing::ExpectSameLevels(by_default, off);
   options.bounded_drift = 0.1;
   ASSERT_TRUE(RunPointMultilevel(points, options, bounded).ok());
   ASSERT_EQ(bounded.counts, by_default.counts);
   EXPECT_EQ(bounded.start, by_default.start);
   EXPECT_NE(bounded.moves, by_default.moves);
-  double sum = 0;
-  size_t compared = 0;
-  for (size_t l = 0; l < bounded.counts.size(); ++l) {
-    if (by_default.energies[l] <= 0) continue;
-    const double ratio = bounded.energies[l] / by_default.energies[l];
-    EXPECT_LT(ratio, 1.5) << bounded.counts[l] << " clusters";
-    sum += ratio;
-    ++compared;
-  }
-  ASSERT_GT(compared, 200u);
-  EXPECT_LT(sum / compared, 1.15) << sum / compared;
+  const double mean_ratio = testing::MeanEnergyRatio(bounded, by_default, 1.5, 200);
+  EXPECT_LT(mean_ratio, 1.15) << mean_ratio;
   // The blobs are found all the same.
   const size_t twenty = bounded.counts.size() - 20;
   EXPECT_EQ(bounded.counts[twenty], 20u);

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
-#include <map>
 #include <set>
 
 #include "core/energy/energies.h"
@@ -43,21 +42,7 @@ TriangleMesh TwoCubes() {
 }
 
 using testing::DistinctLabels;
-
-// The number of edge-connected pieces of each region.
-std::map<uint32_t, int> Pieces(const Loaded& l, const std::vector<ClusterId>& labels) {
-  std::map<uint32_t, int> pieces;
-  std::vector<uint32_t> raw, piece;
-  for (ClusterId c : labels) raw.push_back(c.value());
-  const uint32_t count = LabelFaceComponents(l.adjacency, piece, raw);
-  std::vector<bool> counted(count, false);
-  for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (counted[piece[f]]) continue;
-    counted[piece[f]] = true;
-    ++pieces[raw[f]];
-  }
-  return pieces;
-}
+using testing::PiecesPerCluster;
 
 // Checks what every result must satisfy: exactly k regions numbered 0..k-1, each one
 // edge-connected piece holding its seed, and the reported energy equal to the planar
@@ -67,9 +52,8 @@ void ExpectValidPartition(const Loaded& l, const VsaResult& result, uint32_t k) 
   const std::set<uint32_t> regions = DistinctLabels(result.labels);
   ASSERT_EQ(regions.size(), k);
   EXPECT_EQ(*regions.rbegin(), k - 1);
-  for (const auto& [region, pieces] : Pieces(l, result.labels)) {
-    EXPECT_EQ(pieces, 1) << "region " << region;
-  }
+  const std::vector<uint32_t> pieces = PiecesPerCluster(l.adjacency, result.labels, k);
+  for (uint32_t r = 0; r < k; ++r) EXPECT_EQ(pieces[r], 1u) << "region " << r;
   ASSERT_EQ(result.seeds.size(), k);
   ASSERT_EQ(result.proxies.size(), k);
   for (uint32_t r = 0; r < k; ++r) {

@@ -7,9 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <iostream>
-#include <iterator>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -27,6 +25,7 @@
 #include "draco/mesh/mesh.h"
 #include "draco/metadata/geometry_metadata.h"
 #include "draco/point_cloud/point_cloud.h"
+#include "tests/fixtures/files.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -36,17 +35,10 @@ using testing::DataPath;
 using testing::Grid;
 using ::testing::HasSubstr;
 using testing::MakeMesh;
+using testing::ReadFuzzSeed;
 using testing::Tetrahedron;
 
 std::string Message(const absl::Status& status) { return std::string(status.message()); }
-
-// An input a fuzzer found, kept in its seed corpus (fuzz/corpus/TARGET/NAME); empty if
-// missing.
-std::string ReadFuzzSeed(const std::string& target_and_name) {
-  std::ifstream file(std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/" + target_and_name,
-                     std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(file), {});
-}
 
 TriangleMesh Fandisk() {
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(DataPath("fandisk.off"));
@@ -610,17 +602,11 @@ std::string Varint(uint32_t value) {
   return bytes;
 }
 
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 // fuzz/corpus/draco/edgebreaker_declares_354m_faces.drc: 110 bytes of bitstream 1.0 whose
 // edgebreaker header declares 353,703,189 faces. Before the header check Draco sized its
 // corner table from that count: 8.4 GB written and 14 s before "Failed to decode".
 TEST(DracoCodecTest, RefusesTheFuzzersHugeDeclaredConnectivityWithoutAllocating) {
-  const std::string bytes = ReadBytes(std::string(MLCLUST_DATA_DIR) +
-                                      "/../fuzz/corpus/draco/edgebreaker_declares_354m_faces.drc");
+  const std::string bytes = ReadFuzzSeed("draco/edgebreaker_declares_354m_faces.drc");
   ASSERT_EQ(bytes.size(), 110u);
   ScopedAllocationBudget watch(size_t{1} << 40);
   const absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes);

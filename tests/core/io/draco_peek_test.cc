@@ -1,14 +1,13 @@
 #include "core/io/draco_peek.h"
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "core/io/allocation_budget.h"
 #include "core/io/draco_codec.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "tests/fixtures/files.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -84,15 +83,12 @@ TEST(DracoPeekTest, MetadataDeclaringMoreThanThePayloadHoldsNamesNoFaceIds) {
 // The fuzz corpus (fuzz/corpus/draco): what the peek says at acceptance holds for every
 // payload the decoder accepts, as fuzz_draco checks on random bytes.
 TEST(DracoPeekTest, AgreesWithTheDecoderOnTheFuzzCorpus) {
-  const std::filesystem::path corpus =
-      std::filesystem::path(MLCLUST_DATA_DIR) / ".." / "fuzz" / "corpus" / "draco";
+  const std::filesystem::path corpus = std::filesystem::path(testing::FuzzSeedPath("draco"));
   int files = 0, decoded_with_ids = 0;
   for (const auto& entry : std::filesystem::directory_iterator(corpus)) {
-    std::ifstream in(entry.path(), std::ios::binary);
-    std::stringstream bytes;
-    bytes << in.rdbuf();
-    const DracoPayloadFacts facts = PeekDracoPayload(bytes.str());
-    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes.str());
+    const std::string bytes = testing::ReadFileBytes(entry.path().string());
+    const DracoPayloadFacts facts = PeekDracoPayload(bytes);
+    absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(bytes);
     ++files;
     if (!decoded.ok()) continue;
     EXPECT_TRUE(facts.is_draco && facts.is_mesh) << entry.path();

@@ -3,7 +3,6 @@
 #include <assimp/scene.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -13,8 +12,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <map>
 #include <numeric>
 #include <random>
@@ -29,6 +26,7 @@
 #include "core/io/draco_codec.h"
 #include "core/mesh/mesh.h"
 #include "nlohmann/json.hpp"
+#include "tests/fixtures/files.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -38,38 +36,14 @@ using testing::DataPath;
 using testing::Grid;
 using ::testing::HasSubstr;
 using testing::MakeMesh;
+using testing::ReadFileBytes;
+using testing::ReadFuzzSeed;
 using testing::Tetrahedron;
 
 // ---------------------------------------------------------------------------------------
 // Helpers.
 
-class MeshIoTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    directory_ = std::filesystem::path(::testing::TempDir()) /
-                 absl::StrCat("mesh_io_test_", info->name(), "_", ::getpid());
-    std::filesystem::create_directories(directory_);
-  }
-  void TearDown() override { std::filesystem::remove_all(directory_); }
-
-  // Writes `content` to a file named `name` in the test's directory; returns its path.
-  std::string Write(const std::string& name, const std::string& content) {
-    const std::string path = (directory_ / name).string();
-    std::ofstream file(path, std::ios::binary);
-    file.write(content.data(), static_cast<std::streamsize>(content.size()));
-    EXPECT_TRUE(file.good()) << path;
-    return path;
-  }
-  std::string Path(const std::string& name) const { return (directory_ / name).string(); }
-
-  std::filesystem::path directory_;
-};
-
-std::string ReadAll(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(file), {});
-}
+using MeshIoTest = testing::TempDirectoryTest;
 
 std::array<float, 3> CornerPosition(const TriangleMesh& mesh, size_t face, int corner) {
   const float* p = &mesh.positions[3 * size_t{mesh.indices[3 * face + corner]}];
@@ -211,7 +185,7 @@ std::string ToStlBinary(const TriangleMesh& mesh) {
 
 // A tiny OFF reader independent of the one under test: whitespace tokens, strtof.
 TriangleMesh ReadTriangleOffIndependently(const std::string& path) {
-  std::istringstream in(ReadAll(path));
+  std::istringstream in(ReadFileBytes(path));
   std::string keyword;
   size_t num_vertices = 0, num_faces = 0, num_edges = 0;
   in >> keyword >> num_vertices >> num_faces >> num_edges;
@@ -659,12 +633,9 @@ TEST_F(MeshIoTest, AsciiPlyBodiesThatDoNotMatchTheirHeaderAreRefusedBeforeAssimp
   }
   // fuzz_ply's 268 bytes whose list count 3555555555555555555555500 kept Assimp busy for
   // minutes (fuzz/corpus/ply/ascii_list_count_overflow.ply).
-  std::ifstream fuzzer_input(
-      std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/ply/ascii_list_count_overflow.ply",
-      std::ios::binary);
-  ASSERT_TRUE(fuzzer_input.good());
-  const absl::StatusOr<TriangleMesh> fuzzed = ReadMeshFile(
-      Write("overflow.ply", std::string(std::istreambuf_iterator<char>(fuzzer_input), {})));
+  const std::string overflow = ReadFuzzSeed("ply/ascii_list_count_overflow.ply");
+  ASSERT_FALSE(overflow.empty());
+  const absl::StatusOr<TriangleMesh> fuzzed = ReadMeshFile(Write("overflow.ply", overflow));
   // (It also holds bytes that are not text further on; the first problem is named.)
   EXPECT_THAT(std::string(fuzzed.status().message()),
               HasSubstr("PLY body line 5 (face 0): list count '3555555555555555555555500' is "
@@ -712,21 +683,15 @@ TEST_F(MeshIoTest, PlyHeaderProblemsAreRefusedBeforeAssimp) {
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(bad.message)) << bad.name;
     EXPECT_THAT(std::string(mesh.status().message()), HasSubstr(path)) << bad.name;
   }
-  std::ifstream fuzzer_input(
-      std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/ply/end_header_vertical_tab.ply",
-      std::ios::binary);
-  ASSERT_TRUE(fuzzer_input.good());
-  const std::string path =
-      Write("fuzzer.ply", std::string(std::istreambuf_iterator<char>(fuzzer_input), {}));
+  const std::string vertical_tab = ReadFuzzSeed("ply/end_header_vertical_tab.ply");
+  ASSERT_FALSE(vertical_tab.empty());
+  const std::string path = Write("fuzzer.ply", vertical_tab);
   absl::StatusOr<TriangleMesh> mesh = ReadMeshFile(path);
   EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("control character 0x0b"));
-  std::ifstream too_many(
-      std::string(MLCLUST_DATA_DIR) + "/../fuzz/corpus/ply/declares_too_many_faces.ply",
-      std::ios::binary);
-  ASSERT_TRUE(too_many.good());
-  mesh =
-      ReadMeshFile(Write("fuzzer2.ply", std::string(std::istreambuf_iterator<char>(too_many), {})));
+  const std::string too_many = ReadFuzzSeed("ply/declares_too_many_faces.ply");
+  ASSERT_FALSE(too_many.empty());
+  mesh = ReadMeshFile(Write("fuzzer2.ply", too_many));
   EXPECT_EQ(mesh.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(std::string(mesh.status().message()), HasSubstr("declares more elements"));
 }
@@ -986,7 +951,7 @@ TEST_F(MeshIoTest, ClusteredPlyKeepsVerticesAndCarriesClusterIdsAndColours) {
   const std::string path = Path("clusters.ply");
   ASSERT_TRUE(WriteClusteredPly(path, mesh, labels).ok());
 
-  const ParsedPly ply = ParsePly(ReadAll(path));
+  const ParsedPly ply = ParsePly(ReadFileBytes(path));
   ASSERT_EQ(ply.elements.size(), 2u);
   const ParsedPly::Element* vertex = ply.Find("vertex");
   const ParsedPly::Element* face = ply.Find("face");
@@ -1036,7 +1001,7 @@ TEST_F(MeshIoTest, ClusteredPlySplitVerticesForVertexColours) {
 
   const std::string path = Path("clusters.ply");
   ASSERT_TRUE(WriteClusteredPly(path, mesh, labels, {.split_vertices = true}).ok());
-  const ParsedPly ply = ParsePly(ReadAll(path));
+  const ParsedPly ply = ParsePly(ReadFileBytes(path));
   ASSERT_NE(ply.Find("vertex"), nullptr);
   ASSERT_NE(ply.Find("face"), nullptr);
   EXPECT_EQ(ply.Find("vertex")->count, pairs.size());
@@ -1095,7 +1060,7 @@ TEST_F(MeshIoTest, ClusteredGltfCarriesClusterIdsAndColoursPerFace) {
     SCOPED_TRACE(name);
     const std::string path = Path(name);
     ASSERT_TRUE(WriteClusteredGltf(path, mesh, labels).ok());
-    const auto [json, bin] = ReadGltfParts(ReadAll(path));
+    const auto [json, bin] = ReadGltfParts(ReadFileBytes(path));
     EXPECT_EQ(json["scenes"][0]["nodes"], nlohmann::json::array({0}));
     EXPECT_EQ(json["nodes"][0]["mesh"], 0);
     const nlohmann::json& primitive = json["meshes"][0]["primitives"][0];

@@ -2,16 +2,13 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <initializer_list>
-#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -19,6 +16,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/points/points.h"
+#include "tests/fixtures/files.h"
 
 namespace mlclust {
 namespace {
@@ -72,31 +70,8 @@ void ExpectInvalid(const absl::StatusOr<PointSet>& result, const std::string& me
   EXPECT_THAT(std::string(result.status().message()), HasSubstr(message));
 }
 
-class PointsIoTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    directory_ = std::filesystem::path(::testing::TempDir()) /
-                 absl::StrCat("points_io_test_", info->name(), "_", ::getpid());
-    std::filesystem::create_directories(directory_);
-  }
-  void TearDown() override { std::filesystem::remove_all(directory_); }
-
-  std::string Path(const std::string& name) const { return (directory_ / name).string(); }
-  std::string Write(const std::string& name, const std::string& content) {
-    const std::string path = Path(name);
-    std::ofstream file(path, std::ios::binary);
-    file.write(content.data(), static_cast<std::streamsize>(content.size()));
-    EXPECT_TRUE(file.good()) << path;
-    return path;
-  }
-  static std::string Slurp(const std::string& path) {
-    std::ifstream file(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(file), {});
-  }
-
-  std::filesystem::path directory_;
-};
+using PointsIoTest = testing::TempDirectoryTest;
+using testing::ReadFileBytes;
 
 // ---------------------------------------------------------------------------------------
 // .npy: what is read.
@@ -109,7 +84,7 @@ TEST_F(PointsIoTest, WriterRoundTripsFloat32Exactly) {
   ASSERT_TRUE(WritePointsNpy(path, points).ok());
 
   // The bytes are what NumPy 1.x writes for np.save of a (3, 3) float32 array.
-  const std::string bytes = Slurp(path);
+  const std::string bytes = ReadFileBytes(path);
   const std::string dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (3, 3), }";
   ASSERT_EQ(bytes.size(), 128u + 36u);
   EXPECT_EQ(bytes.substr(0, 10), std::string("\x93NUMPY\x01\x00\x76\x00", 10));
