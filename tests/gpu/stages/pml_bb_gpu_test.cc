@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <iostream>
 #include <memory>
 #include <span>
@@ -520,14 +519,8 @@ TEST(MlBbGpu, BuffersOverTheLimitAreResourceExhausted) {
 // run there with CANCELLED.
 TEST(MlBbGpu, CancelledBetweenSteps) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(12, 12, 0.2f));
-  std::atomic<bool> cancel{false};
-  fixtures::CancelAtLevel<ReplaySink> sink(cancel, 3);
-  MultilevelOptions options = MlBbOptions(1);
-  options.cancel = &cancel;
-  absl::StatusOr<MultilevelSummary> result =
-      RunMultilevelGpu(Context(), mesh.problem(), options, sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled);
-  EXPECT_EQ(sink.counts.size(), 4u);  // level 0 and levels 1-3
+  // Level 0 and levels 1-3.
+  EXPECT_EQ(fixtures::LevelsBeforeCancel(RunMultilevelGpu, mesh.problem(), MlBbOptions(1), 3), 4u);
 }
 
 // Several components (two grids apart and a lone triangle): the steps stop where no
