@@ -5,7 +5,7 @@
 //                 [--optimizer emlo|bb|none] [--parallel-optimisation]
 //                 [--independent-moves] [--at 1000] [--stop-at K]
 //                 [--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header]
-//                 [--preset many-cores]
+//                 [--preset many-cores] [--step-stats] [--face-order-steps auto|always|never]
 //
 // --preset many-cores: the registry's pml preset (core/cluster/registry.cc): PML, p95
 // hc-first (optimised at least below 2 pml-until clusters), pml-until max(stop-at, 1000),
@@ -15,6 +15,10 @@
 // mesh,faces,algo,energy,optimizer,parallel_optimisation,p_percent,p_rule,pml_until,threads,
 // seconds,seconds_to_k,levels,k,clusters_at_k,energy_at_k,cpu_seconds
 // (parallel_optimisation: 0 off, 1 rounds, 2 rounds with --independent-moves)
+// --step-stats: also, on stderr, what the face-order rounds ran in parallel steps (all R
+// runs together; core/cluster/detail/multilevel_engine.h, FaceOrderStepsCounters).
+// --face-order-steps: when those steps run (auto: on 4 threads or more; the same levels
+// either way); `always` profiles them on one thread.
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
@@ -23,6 +27,7 @@
 
 #include "absl/time/clock.h"
 #include "bench/bench_util.h"
+#include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/multilevel.h"
 
 namespace {
@@ -65,10 +70,11 @@ int main(int argc, char** argv) {
       "[--energy cvd|planar] [--optimizer emlo|bb|none] [--parallel-optimisation] "
       "[--independent-moves] [--at K] [--stop-at K] "
       "[--p-percent P] [--p-rule sweep|hc-first] [--repeats R] [--header] "
-      "[--preset many-cores]");
+      "[--preset many-cores] [--step-stats] [--face-order-steps auto|always|never]");
   const bool header = args.Flag("header");
   const bool parallel_optimisation = args.Flag("parallel-optimisation");
   const bool independent_moves = args.Flag("independent-moves");
+  const bool step_stats = args.Flag("step-stats");
   const std::string algo = args.Get<std::string>("algo", "ml");
   const uint32_t pml_until = args.Get<uint32_t>("pml-until", 0);
   const int threads = args.Get<int>("threads", 0);
@@ -81,6 +87,7 @@ int main(int argc, char** argv) {
   const double p_percent = args.Get<double>("p-percent", 0.0);
   const std::string p_rule = args.Get<std::string>("p-rule", "sweep");
   const std::string preset = args.Get<std::string>("preset", "none");
+  const std::string face_order_steps = args.Get<std::string>("face-order-steps", "auto");
   const std::string path = args.Positional(0);
   if (!args.Done()) return 2;
 
@@ -114,6 +121,15 @@ int main(int argc, char** argv) {
     options.independent_moves = false;
   } else if (preset != "none") {
     std::fprintf(stderr, "pml_cpu_bench: --preset %s is not none or many-cores\n", preset.c_str());
+    return 2;
+  }
+  if (face_order_steps == "always") {
+    mlclust::detail::face_order_steps = mlclust::detail::FaceOrderSteps::kAlways;
+  } else if (face_order_steps == "never") {
+    mlclust::detail::face_order_steps = mlclust::detail::FaceOrderSteps::kNever;
+  } else if (face_order_steps != "auto") {
+    std::fprintf(stderr, "pml_cpu_bench: --face-order-steps %s is not auto, always or never\n",
+                 face_order_steps.c_str());
     return 2;
   }
   if (optimizer == "bb") options.optimizer = mlclust::MultilevelOptions::Optimizer::kBoundaryBased;
@@ -157,5 +173,16 @@ int main(int argc, char** argv) {
       options.p_percent_rule == mlclust::MultilevelOptions::PPercentRule::kHcFirst ? "hc-first"
                                                                                    : "sweep",
       options.pml_until, threads, best, best_to_k, levels, k, clusters_at_k, energy_at_k, best_cpu);
+  if (step_stats) {
+    const mlclust::detail::FaceOrderStepsCounters& c = mlclust::detail::face_order_steps_counters;
+    std::fprintf(stderr,
+                 "face-order rounds in steps: %llu rounds, %llu steps, %llu candidates, %llu of "
+                 "them in parallel steps, %llu moves\n",
+                 static_cast<unsigned long long>(c.rounds.load()),
+                 static_cast<unsigned long long>(c.steps.load()),
+                 static_cast<unsigned long long>(c.candidates.load()),
+                 static_cast<unsigned long long>(c.in_steps.load()),
+                 static_cast<unsigned long long>(c.moves.load()));
+  }
   return 0;
 }

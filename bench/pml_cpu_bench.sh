@@ -12,7 +12,7 @@
 #                          [--stop-at 1000]
 #
 # Each round also runs --preset many-cores (pml's preset: p95, PML to max(stop-at, 1000),
-# parallel rounds) per thread count.
+# parallel rounds) per thread count, then the same with --face-order-steps never.
 # --stop-at K ends each run at K clusters (the whole hierarchy by default: 1); on a 16-core
 # node: bench/pml_cpu_bench.sh build --thread-list "1 2 4 8 16" --stop-at 1000
 set -euo pipefail
@@ -54,6 +54,11 @@ for mesh in $meshes; do
       done
       # The registry's pml preset many-cores (BENCHMARKS.md, "Multi-core PML: the preset").
       "$bench" "$path" --preset many-cores --threads "$t" --stop-at "$stop_at"
+      # The same levels with the face-order rounds as the loop (the steps run from 4 threads
+      # by default: BENCHMARKS.md, "The face-order rounds in parallel steps"); the CSV row
+      # does not say which: this one always follows the one above.
+      "$bench" "$path" --preset many-cores --threads "$t" --stop-at "$stop_at" \
+        --face-order-steps never
     done
   done
 done

@@ -647,6 +647,14 @@ class MeshSpace {
                         });
       evaluations_ += list.size();
       next.clear();
+      if constexpr (kGuardAnswerKept) {
+        if (ApplyRoundInSteps(guard, list, target, allowed, max_moves - moves, next, moves)) {
+          tbb::parallel_sort(next.begin(), next.end());
+          next.erase(std::unique(next.begin(), next.end()), next.end());
+          list.swap(next);
+          continue;
+        }
+      }
       for (size_t i = 0; i < list.size() && moves < max_moves; ++i) {
         if (target[i] == detail::kNoCluster) continue;
         const uint32_t f = list[i];
@@ -691,6 +699,322 @@ class MeshSpace {
       next.erase(std::unique(next.begin(), next.end()), next.end());
       list.swap(next);
     }
+  }
+
+  // The face-order loop of a round of OptimiseInRounds (ring guard or none), run in
+  // parallel steps with the same result (ours; BENCHMARKS.md, "The face-order rounds in
+  // parallel steps"). Candidate j (the j-th face of the round's list with a move) reads
+  // the clusters of its face and of the faces around it (edge neighbours and ring): the
+  // stale test, the new decision and the ring test of a stale face read nothing else, and
+  // its move writes only its face's cluster and the target, one of those. Each cluster
+  // keeps the list, in list order, of the candidates that read it; a candidate runs once
+  // it heads the lists of all its clusters, so every earlier candidate that reads one of
+  // them has run and no later one has: it sees the state the loop in list order gives it.
+  // A step runs all such candidates in parallel (they read pairwise disjoint clusters);
+  // then, where a move took a face from A to B, each open candidate around that face now
+  // reads B too and joins B's list after the mover (B is the mover's alone in the step);
+  // then the movers leave their lists' heads. The round's moves, labels, sums and cluster
+  // lists are the loop's; the shared lists (the recorder's, the dirty clusters) are filled
+  // afterwards in candidate order. Once a step would run fewer than kStepsMinFrontier
+  // candidates, the rest run in list order. Nothing depends on the thread count (the steps
+  // are fixed by the lists). Assumes "face g is around face f" is symmetric (edge
+  // neighbours; rings of a manifold mesh, which ValidateMesh ensures). False (nothing done)
+  // where the round has fewer than kStepsFrom candidates or max_moves could end it early:
+  // the loop runs it.
+  // next = each of `count` moved faces (face_of(k)) followed by its edge neighbours, at
+  // offsets counted in parallel (the same list on any thread count), and `extra` entries
+  // after them for the caller to fill.
+  template <typename FaceOf>
+  void ListMovedAndNeighbours(size_t count, const FaceOf& face_of, size_t extra,
+                              std::vector<size_t>& offset, std::vector<uint32_t>& next) const {
+    offset.assign(count + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t k = range.begin(); k != range.end(); ++k) {
+                          size_t faces = 1;
+                          for (FaceId g : adjacency_.neighbours[face_of(k)]) {
+                            faces += g.valid() ? 1 : 0;
+                          }
+                          offset[k + 1] = faces;
+                        }
+                      });
+    for (size_t k = 0; k < count; ++k) offset[k + 1] += offset[k];
+    next.resize(offset.back() + extra);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t k = range.begin(); k != range.end(); ++k) {
+                          const uint32_t f = face_of(k);
+                          size_t at = offset[k];
+                          next[at++] = f;
+                          for (FaceId g : adjacency_.neighbours[f]) {
+                            if (g.valid()) next[at++] = g.value();
+                          }
+                        }
+                      });
+  }
+
+  // Whether ApplyRoundInSteps runs (detail::face_order_steps; either way the same levels).
+  static bool FaceOrderStepsOn() {
+    switch (detail::face_order_steps.load(std::memory_order_relaxed)) {
+      case detail::FaceOrderSteps::kAlways:
+        return true;
+      case detail::FaceOrderSteps::kNever:
+        return false;
+      case detail::FaceOrderSteps::kFromFourThreads:
+        break;
+    }
+    return tbb::this_task_arena::max_concurrency() >= detail::kFaceOrderStepsFromThreads;
+  }
+  bool ApplyRoundInSteps(const ConnectivityGuard* guard, std::span<const uint32_t> list,
+                         std::span<const uint32_t> target, std::span<const uint8_t> allowed,
+                         uint64_t moves_left, std::vector<uint32_t>& next, uint64_t& moves) {
+    std::vector<uint32_t>& candidates = step_candidates_;
+    detail::CompactIndices(
+        list.size(), [&](size_t i) { return target[i] != detail::kNoCluster; }, candidates);
+    const size_t m = candidates.size();
+    if (m < kStepsFrom || m > moves_left || !FaceOrderStepsOn()) {
+      return false;
+    }
+    // The clusters face f reads (duplicates allowed).
+    auto for_each_read = [&](uint32_t f, const auto& visit) {
+      visit(partition_.label(f));
+      for (FaceId g : adjacency_.neighbours[f]) {
+        if (g.valid()) visit(partition_.label(g.value()));
+      }
+      if (guard != nullptr) {
+        for (uint32_t g : guard->Ring(f)) {
+          if (g != ConnectivityGuard::kGap) visit(partition_.label(g));
+        }
+      }
+    };
+    auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
+    step_moves_.resize(m);
+    // The loop's body for candidate j, its entries in the shared lists kept in its record.
+    auto body = [&](uint32_t j) {
+      StepMove& move = step_moves_[j];
+      move.applied = false;
+      step_done_[j] = 1;
+      const uint32_t i = candidates[j], f = list[i];
+      bool stale = round_mark_[partition_.label(f)] != 0;
+      for (FaceId g : adjacency_.neighbours[f]) {
+        stale = stale || (g.valid() && round_mark_[partition_.label(g.value())] != 0);
+      }
+      const uint32_t to = stale ? BestOwnMove(f).first : target[i];
+      if (to == detail::kNoCluster) return;
+      if (!stale && !allowed[i]) return;
+      if (stale && guard != nullptr &&
+          !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
+        return;
+      }
+      const uint32_t from = partition_.label(f);
+      move.from = from;
+      move.to = to;
+      move.touched_from = recorder_.TouchUnlisted(from, energy_of);
+      move.touched_to = recorder_.TouchUnlisted(to, energy_of);
+      partition_.Move(f, to);
+      move.first_move = recorder_.RecordMoveUnlisted(f, from);
+      move.dirty_count = 0;
+      move.dirty_overflow.clear();
+      OnFaceMoved(f, from, to, [&](uint32_t c) {
+        if (dirty_mark_[c]) return;
+        dirty_mark_[c] = 1;
+        if (move.dirty_count < StepMove::kDirty) {
+          move.dirty[move.dirty_count++] = c;
+        } else {
+          move.dirty_overflow.push_back(c);
+        }
+      });
+      round_mark_[from] = round_mark_[to] = 1;
+      move.applied = true;
+    };
+    // Per candidate its clusters (the set grows where a move brings a new cluster next to
+    // its face: room for one per face around it, as each moves at most once per round).
+    std::vector<uint32_t>& set_offset = step_set_offset_;
+    set_offset.assign(m + 1, 0);
+    if (step_set_size_.size() < m) step_set_size_ = std::vector<std::atomic<uint32_t>>(m);
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& range) {
+          std::vector<uint32_t> seen;
+          for (size_t j = range.begin(); j != range.end(); ++j) {
+            const uint32_t f = list[candidates[j]];
+            seen.clear();
+            uint32_t faces = 0;
+            for_each_read(f, [&](uint32_t c) {
+              ++faces;
+              if (std::find(seen.begin(), seen.end(), c) == seen.end()) {
+                seen.push_back(c);
+              }
+            });
+            set_offset[j + 1] = static_cast<uint32_t>(seen.size()) + faces;
+            step_set_size_[j].store(static_cast<uint32_t>(seen.size()), std::memory_order_relaxed);
+          }
+        });
+    for (size_t j = 0; j < m; ++j) set_offset[j + 1] += set_offset[j];
+    step_set_.resize(set_offset[m]);
+    if (step_of_face_.size() != n_) {
+      step_of_face_.assign(n_, detail::kNoCluster);
+      step_queue_.resize(n_);
+      step_head_.assign(n_, 0);
+    }
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t j = range.begin(); j != range.end(); ++j) {
+            const uint32_t f = list[candidates[j]];
+            step_of_face_[f] = static_cast<uint32_t>(j);
+            uint32_t at = set_offset[j];
+            const uint32_t begin = at;
+            for_each_read(f, [&](uint32_t c) {
+              if (std::find(&step_set_[begin], &step_set_[at], c) == &step_set_[at]) {
+                step_set_[at++] = c;
+              }
+            });
+            std::fill(&step_set_[at], &step_set_[set_offset[j + 1]], detail::kNoCluster);
+          }
+        });
+    // Per cluster, the candidates that read it, in list order (the first is its head).
+    step_clusters_.clear();
+    for (size_t j = 0; j < m; ++j) {
+      for (uint32_t at = set_offset[j], end = at + step_set_size_[j].load(); at < end; ++at) {
+        std::vector<uint32_t>& queue = step_queue_[step_set_[at]];
+        if (queue.empty()) step_clusters_.push_back(step_set_[at]);
+        queue.push_back(static_cast<uint32_t>(j));
+      }
+    }
+    // Per candidate, the number of its clusters it is not the head of.
+    if (step_pending_.size() < m) step_pending_ = std::vector<std::atomic<uint32_t>>(m);
+    step_done_.assign(m, 0);
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, m, 256), [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t j = range.begin(); j != range.end(); ++j) {
+            uint32_t pending = 0;
+            for (uint32_t at = set_offset[j],
+                          end = at + step_set_size_[j].load(std::memory_order_relaxed);
+                 at < end; ++at) {
+              pending += step_queue_[step_set_[at]].front() != j ? 1 : 0;
+            }
+            step_pending_[j].store(pending, std::memory_order_relaxed);
+          }
+        });
+    detail::CompactIndices(
+        m, [&](size_t j) { return step_pending_[j].load(std::memory_order_relaxed) == 0; },
+        step_frontier_);
+    uint64_t steps = 0;
+    size_t in_steps = 0;
+    // The faces whose candidates read the label of face h (the relation is symmetric).
+    auto for_each_around = [&](uint32_t h, const auto& visit) {
+      for (FaceId g : adjacency_.neighbours[h]) {
+        if (g.valid()) visit(g.value());
+      }
+      if (guard != nullptr) {
+        for (uint32_t g : guard->Ring(h)) {
+          if (g != ConnectivityGuard::kGap) visit(g);
+        }
+      }
+    };
+    while (step_frontier_.size() >= kStepsMinFrontier) {
+      ++steps;
+      const size_t width = step_frontier_.size();
+      in_steps += width;
+      const tbb::blocked_range<size_t> all(0, width, 32);
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t r = range.begin(); r != range.end(); ++r) body(step_frontier_[r]);
+      });
+      // A move from A to B: a candidate whose face is around the moved face now reads B.
+      // It joins B's list (B is the mover's alone in this step) after the mover.
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          const uint32_t j = step_frontier_[r];
+          const StepMove& move = step_moves_[j];
+          if (!move.applied) continue;
+          std::vector<uint32_t>& queue = step_queue_[move.to];
+          for_each_around(list[candidates[j]], [&](uint32_t g) {
+            const uint32_t q = step_of_face_[g];
+            if (q == detail::kNoCluster || step_done_[q]) return;
+            const uint32_t size = step_set_size_[q].load(std::memory_order_acquire);
+            for (uint32_t at = set_offset[q]; at < set_offset[q] + size; ++at) {
+              if (std::atomic_ref<uint32_t>(step_set_[at]).load(std::memory_order_relaxed) ==
+                  move.to) {
+                return;
+              }
+            }
+            // Another mover of this step may add another cluster to q's set at once.
+            const uint32_t at = set_offset[q] + step_set_size_[q].fetch_add(1);
+            std::atomic_ref<uint32_t>(step_set_[at]).store(move.to, std::memory_order_relaxed);
+            queue.insert(std::upper_bound(queue.begin() + step_head_[move.to], queue.end(), q), q);
+            step_pending_[q].fetch_add(1, std::memory_order_relaxed);
+          });
+        }
+      });
+      // Each mover leaves the head of its clusters' lists; a candidate that is now the
+      // head of all of its is in the next step.
+      step_next_offset_.assign(width + 1, 0);
+      for (size_t r = 0; r < width; ++r) {
+        step_next_offset_[r + 1] = step_next_offset_[r] + step_set_size_[step_frontier_[r]].load(
+                                                              std::memory_order_relaxed);
+      }
+      step_next_.assign(step_next_offset_[width], detail::kNoCluster);
+      tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t r = range.begin(); r != range.end(); ++r) {
+          const uint32_t j = step_frontier_[r];
+          uint32_t out = step_next_offset_[r];
+          for (uint32_t at = set_offset[j],
+                        end = at + step_set_size_[j].load(std::memory_order_relaxed);
+               at < end; ++at) {
+            const uint32_t c = step_set_[at];
+            const std::vector<uint32_t>& queue = step_queue_[c];
+            const uint32_t head = ++step_head_[c];
+            if (head < queue.size() &&
+                step_pending_[queue[head]].fetch_sub(1, std::memory_order_acq_rel) == 1) {
+              step_next_[out++] = queue[head];
+            }
+          }
+        }
+      });
+      detail::CompactIndices(
+          step_next_.size(), [&](size_t k) { return step_next_[k] != detail::kNoCluster; },
+          step_frontier_);
+      for (uint32_t& k : step_frontier_) k = step_next_[k];
+      tbb::parallel_sort(step_frontier_.begin(), step_frontier_.end());
+    }
+    // The rest in list order.
+    for (size_t j = 0; j < m; ++j) {
+      if (!step_done_[j]) body(static_cast<uint32_t>(j));
+    }
+    for (uint32_t c : step_clusters_) {
+      step_queue_[c].clear();
+      step_head_[c] = 0;
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, 1024),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t j = range.begin(); j != range.end(); ++j) {
+                          step_of_face_[list[candidates[j]]] = detail::kNoCluster;
+                        }
+                      });
+    // The shared lists in candidate order, as the loop fills them.
+    detail::CompactIndices(
+        m, [&](size_t j) { return step_moves_[j].applied; }, step_applied_);
+    for (uint32_t j : step_applied_) {
+      const StepMove& move = step_moves_[j];
+      if (move.touched_from) recorder_.ListTouched(move.from);
+      if (move.touched_to) recorder_.ListTouched(move.to);
+      if (move.first_move) recorder_.ListMoved(list[candidates[j]]);
+      dirty_.insert(dirty_.end(), move.dirty, move.dirty + move.dirty_count);
+      dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
+      round_mark_[move.from] = round_mark_[move.to] = 0;
+    }
+    moves += step_applied_.size();
+    optimisation_moves_ += step_applied_.size();
+    detail::FaceOrderStepsCounters& counters = detail::face_order_steps_counters;
+    counters.rounds.fetch_add(1, std::memory_order_relaxed);
+    counters.steps.fetch_add(steps, std::memory_order_relaxed);
+    counters.candidates.fetch_add(m, std::memory_order_relaxed);
+    counters.in_steps.fetch_add(in_steps, std::memory_order_relaxed);
+    counters.moves.fetch_add(step_applied_.size(), std::memory_order_relaxed);
+    // The next list: each moved face and its edge neighbours (sorted by the caller).
+    ListMovedAndNeighbours(
+        step_applied_.size(), [&](size_t a) { return list[candidates[step_applied_[a]]]; }, 0,
+        step_offset_, next);
+    return true;
   }
 
   // The winners of an independent round (apply[j] = 1; 0: the guard refused the move; 2:
@@ -925,30 +1249,9 @@ class MeshSpace {
                           }
                         });
       for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
-      next_offset.assign(winners.size() + 1, 0);
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
-                        [&](const tbb::blocked_range<size_t>& range) {
-                          for (size_t w = range.begin(); w != range.end(); ++w) {
-                            size_t count = 1;
-                            for (FaceId g : adjacency_.neighbours[list[candidates[winners[w]]]]) {
-                              count += g.valid() ? 1 : 0;
-                            }
-                            next_offset[w + 1] = count;
-                          }
-                        });
-      for (size_t w = 0; w < winners.size(); ++w) next_offset[w + 1] += next_offset[w];
-      next.resize(next_offset.back() + waiting.size());
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, winners.size(), 1024),
-                        [&](const tbb::blocked_range<size_t>& range) {
-                          for (size_t w = range.begin(); w != range.end(); ++w) {
-                            const uint32_t f = list[candidates[winners[w]]];
-                            size_t at = next_offset[w];
-                            next[at++] = f;
-                            for (FaceId g : adjacency_.neighbours[f]) {
-                              if (g.valid()) next[at++] = g.value();
-                            }
-                          }
-                        });
+      ListMovedAndNeighbours(
+          winners.size(), [&](size_t w) { return list[candidates[winners[w]]]; }, waiting.size(),
+          next_offset, next);
       for (size_t k = 0; k < waiting.size(); ++k) {
         next[next_offset.back() + k] = list[candidates[waiting[k]]];
       }
@@ -1052,6 +1355,26 @@ class MeshSpace {
   // between levels).
   static constexpr uint32_t kUndecided = 0xfffffffeu;
   std::vector<uint32_t> kept_target_;
+  // ApplyRoundInSteps: the round's candidates (indices into its list), per candidate its
+  // move as applied, per cluster the key (older step: larger) of the first open candidate
+  // that reads it, and scratch.
+  struct StepMove {
+    static constexpr uint32_t kDirty = 6;  // triangles mark at most 4 (polygons: overflow)
+    uint32_t from = 0, to = 0;
+    bool applied = false, touched_from = false, touched_to = false, first_move = false;
+    uint32_t dirty_count = 0;
+    uint32_t dirty[kDirty] = {};
+    std::vector<uint32_t> dirty_overflow;
+  };
+  static constexpr size_t kStepsFrom = 256, kStepsMinFrontier = 32;
+  std::vector<uint32_t> step_candidates_, step_applied_;
+  std::vector<StepMove> step_moves_;
+  std::vector<uint32_t> step_set_offset_, step_set_, step_of_face_, step_head_, step_clusters_;
+  std::vector<std::atomic<uint32_t>> step_set_size_, step_pending_;
+  std::vector<std::vector<uint32_t>> step_queue_;
+  std::vector<uint32_t> step_frontier_, step_next_, step_next_offset_;
+  std::vector<uint8_t> step_done_;
+  std::vector<size_t> step_offset_;
   std::vector<size_t> boundary_offset_;
   LevelRecorder recorder_;
   uint64_t optimisation_moves_ = 0, evaluations_ = 0;

@@ -27,55 +27,67 @@ namespace {
 constexpr uint32_t kNone = kNoCluster;
 }  // namespace
 
-// One LN k-means pass over `points_to_check` (indices): each point's best cluster among
-// its own, its cluster's neighbours and the neighbours of the neighbour in its subspace.
-// Writes the point's target (kNone: stays). With `margin`, also how far the point is from
-// changing its mind: for a point that stays, the distance to its second-best candidate
-// minus the distance to its own centroid (so it stays while its own centroid and the
-// candidates move by less than that in all); -infinity for a point that moves.
+// One point's LN k-means check: its best cluster among its own, its cluster's neighbours
+// and the neighbours of the neighbour in its subspace. Returns the target (kNone: stays)
+// and, with kMargin, sets `margin`: for a point that stays, the distance to its second-
+// best candidate minus the distance to its own centroid (so it stays while its own
+// centroid and the candidates move by less than that in all); -infinity for a point that
+// moves. `x` is scratch. Reads `clusters` only (safe in parallel).
+template <bool kMargin>
+[[gnu::always_inline]] inline uint32_t CheckPoint(const PointClusters& clusters, uint32_t i,
+                                                  std::vector<double>& x, double& margin) {
+  uint32_t candidates[256];
+  const uint32_t own = clusters.label(i);
+  clusters.Relative(i, x);
+  const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
+  int count = 0;
+  for (uint32_t n : clusters.neighbours(own)) {
+    if (n != kNone && count < 256) candidates[count++] = n;
+  }
+  const uint32_t towards = clusters.neighbours(own)[s];
+  if (towards != kNone) {
+    for (uint32_t n : clusters.neighbours(towards)) {
+      if (n != kNone && n != own && count < 256) candidates[count++] = n;
+    }
+  }
+  const double own_distance = clusters.DistanceTo(x.data(), own);
+  double best = own_distance;
+  double second = std::numeric_limits<double>::infinity();
+  uint32_t best_cluster = own;
+  for (int c = 0; c < count; ++c) {
+    const uint32_t n = candidates[c];
+    if (n == best_cluster || clusters.count(n) == 0) continue;
+    const double dist = clusters.DistanceTo(x.data(), n);
+    if (dist < best || (dist == best && n < best_cluster && n != own)) {
+      second = best;
+      best = dist;
+      best_cluster = n;
+    } else if (dist < second) {
+      second = dist;
+    }
+  }
+  if constexpr (kMargin) {
+    margin = best_cluster != own ? -std::numeric_limits<double>::infinity()
+                                 : std::sqrt(second) - std::sqrt(own_distance);
+  }
+  return best_cluster != own ? best_cluster : kNone;
+}
+
+// One LN k-means pass over `points_to_check` (indices): CheckPoint for each, in parallel.
+// Writes the point's target (kNone: stays) and, with `margin`, its margin.
 void ChooseTargets(const PointClusters& clusters, std::span<const uint32_t> points_to_check,
                    std::span<uint32_t> target, std::span<double> margin) {
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, points_to_check.size(), 1024), [&](const auto& range) {
         std::vector<double> x;
-        uint32_t candidates[256];
+        double point_margin = 0;
         for (size_t r = range.begin(); r != range.end(); ++r) {
-          const uint32_t i = points_to_check[r];
           if (r + 8 < range.end()) clusters.Prefetch(points_to_check[r + 8]);
-          const uint32_t own = clusters.label(i);
-          target[r] = kNone;
-          clusters.Relative(i, x);
-          const uint32_t s = SubspaceIndex(clusters.centroid(own), x);
-          int count = 0;
-          for (uint32_t n : clusters.neighbours(own)) {
-            if (n != kNone && count < 256) candidates[count++] = n;
-          }
-          const uint32_t towards = clusters.neighbours(own)[s];
-          if (towards != kNone) {
-            for (uint32_t n : clusters.neighbours(towards)) {
-              if (n != kNone && n != own && count < 256) candidates[count++] = n;
-            }
-          }
-          const double own_distance = clusters.DistanceTo(x.data(), own);
-          double best = own_distance;
-          double second = std::numeric_limits<double>::infinity();
-          uint32_t best_cluster = own;
-          for (int c = 0; c < count; ++c) {
-            const uint32_t n = candidates[c];
-            if (n == best_cluster || clusters.count(n) == 0) continue;
-            const double dist = clusters.DistanceTo(x.data(), n);
-            if (dist < best || (dist == best && n < best_cluster && n != own)) {
-              second = best;
-              best = dist;
-              best_cluster = n;
-            } else if (dist < second) {
-              second = dist;
-            }
-          }
-          if (best_cluster != own) target[r] = best_cluster;
-          if (!margin.empty()) {
-            margin[r] = best_cluster != own ? -std::numeric_limits<double>::infinity()
-                                            : std::sqrt(second) - std::sqrt(own_distance);
+          if (margin.empty()) {
+            target[r] = CheckPoint<false>(clusters, points_to_check[r], x, point_margin);
+          } else {
+            target[r] = CheckPoint<true>(clusters, points_to_check[r], x, point_margin);
+            margin[r] = point_margin;
           }
         }
       });
@@ -409,9 +421,9 @@ class PointSpace {
   // ---- neighbour bookkeeping --------------------------------------------------------------
   void Refresh(uint32_t c, std::vector<uint32_t>& candidates) {
     std::span<uint32_t> out = clusters_->neighbours(c);
-    std::vector<uint32_t> before(out.begin(), out.end());
+    before_.assign(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
-    for (uint32_t n : before) {
+    for (uint32_t n : before_) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
@@ -489,70 +501,194 @@ class PointSpace {
     return largest;
   }
 
+  // One chosen move in Optimise's apply pass, in the order of the checks (a cluster's last
+  // point stays): the sums, the recorder, the member lists; a cluster that changes for the
+  // first time in this round goes to `changed` with its old centroid.
+  void ApplyMove(uint32_t i, uint32_t to, std::vector<uint32_t>& changed,
+                 std::vector<double>& old_centroids) {
+    const uint32_t from = clusters_->label(i);
+    if (clusters_->count(from) <= 1) return;
+    for (uint32_t c : {from, to}) {
+      if (!mark_[c]) {
+        mark_[c] = 1;
+        changed.push_back(c);
+        const std::span<const double> centroid = clusters_->centroid(c);
+        old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
+        if (drift_epoch_[c] != epoch_) {
+          drift_epoch_[c] = epoch_;
+          drift_[c] = 0;
+        }
+      }
+    }
+    Touch(from);
+    Touch(to);
+    Record(i, from);
+    clusters_->Move(i, to);
+    stamp_[i] = 0;  // its candidates are another cluster's now: check it again
+    detail::MoveMember(members_, position_, i, from, to);
+  }
+
   // A later round's points to check, in region order: those not checked in this call, and
-  // those whose centroid and neighbourhood moved by more than their threshold. Without
-  // branches (which of the two is unpredictable), and in parallel over slices of the
-  // clusters where there are many points, joined in order: the same list either way. A
-  // cluster no round of this call has had in its region has no point checked yet: all of
-  // them, copied. With options_.bounded_drift (ours), a cluster whose own centroid moved
-  // in this call by less than that share of its RMS radius keeps its unchecked points
-  // unchecked (and, if none of its points is checked yet, is not scanned at all).
-  void SelectForCheck(std::span<const uint32_t> region) {
-    size_t total = 0;
+  // those whose centroid and neighbourhood moved by more than their threshold. A cluster
+  // no round of this call has had in its region has no point checked yet: all of them.
+  // With options_.bounded_drift (ours), a cluster whose own centroid moved in this call by
+  // less than that share of its RMS radius keeps its unchecked points unchecked (and, if
+  // none of its points is checked yet, is not scanned at all). Round 0 (`first`): every
+  // point of the region, then the points of the clusters in `next_to` (sorted (cluster,
+  // merged cluster) pairs), each compared with its merged clusters only. Then ScanAndCheck.
+  void SelectAndCheck(std::span<const uint32_t> region, bool first,
+                      std::span<const std::pair<uint32_t, uint32_t>> next_to) {
     slices_.clear();
     const double bounded = options_.bounded_drift;
     for (uint32_t c : region) {
-      const double drift = Drift(c) + NeighbourhoodDrift(c);
-      const bool all = region_epoch_[c] != epoch_;
-      bool unchecked_too = true;
-      if (bounded > 0) {
-        const double n = static_cast<double>(clusters_->count(c));
-        const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
-        unchecked_too = Drift(c) >= bounded * radius;
+      bool all = true, unchecked_too = true;
+      if (!first) {
+        all = region_epoch_[c] != epoch_;
+        if (bounded > 0) {
+          const double n = static_cast<double>(clusters_->count(c));
+          const double radius = std::sqrt(std::max(0.0, clusters_->Energy(c)) / n);
+          unchecked_too = Drift(c) >= bounded * radius;
+        }
+        if (all && !unchecked_too) continue;
       }
       if (unchecked_too) region_epoch_[c] = epoch_;
-      if (all && !unchecked_too) continue;
       const size_t size = members_[c].size();
-      total += size;
-      for (size_t begin = 0; begin < size; begin += kScanSlice) {
-        slices_.push_back(
-            {c, begin, std::min(size, begin + kScanSlice), drift, all, unchecked_too});
+      for (size_t begin = 0; begin < size; begin += kSlicePoints) {
+        slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), all, unchecked_too});
       }
     }
-    auto scan = [&](const Slice& slice, uint32_t* out) {
+    if (first) {
+      for (size_t g = 0; g < next_to.size();) {
+        size_t end = g;
+        while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
+        const uint32_t c = next_to[g].first;
+        const size_t size = members_[c].size();
+        for (size_t begin = 0; begin < size; begin += kSlicePoints) {
+          slices_.push_back({c, begin, std::min(size, begin + kSlicePoints), false, false,
+                             static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
+        }
+        g = end;
+      }
+    }
+    ScanAndCheck(next_to);
+  }
+
+  // The slices' work in tasks (of kSlicePoints members or more, see there), in parallel
+  // where there is more than one; the moves (point, target) joined in slice order into
+  // moves_: the same list on any number of threads. A region slice: its points to check
+  // (`all`: its member list; otherwise, without branches, which of the two is
+  // unpredictable: the unchecked ones and those over their threshold, the drift of its
+  // cluster and neighbourhood) and their checks (CheckPoint, stamped with this call's
+  // epoch and their threshold). A slice of a cluster next to the merged ones (round 0):
+  // each point against its own centroid and next_to's merged clusters [compare_begin,
+  // compare_end), the nearest strictly closer one its target. Slices hold distinct points,
+  // so each task writes its own points' stamps and thresholds only.
+  void ScanAndCheck(std::span<const std::pair<uint32_t, uint32_t>> next_to) {
+    tasks_.clear();
+    size_t total = 0;
+    for (const Slice& slice : slices_) total += slice.end - slice.begin;
+    const size_t task_points = std::max(kSlicePoints, total / kTasksPerPass);
+    size_t size = 0, first = 0;
+    for (size_t n = 0; n < slices_.size(); ++n) {
+      size += slices_[n].end - slices_[n].begin;
+      if (size >= task_points) {
+        tasks_.push_back({first, n + 1});
+        first = n + 1;
+        size = 0;
+      }
+    }
+    if (first < slices_.size()) tasks_.push_back({first, slices_.size()});
+    if (picked_.size() < tasks_.size()) picked_.resize(tasks_.size());
+    const PointClusters& clusters = *clusters_;
+    // A task's scan; `drift_of` caches the drift of the cluster it scanned last.
+    auto scan = [&](const Slice& slice, uint32_t* out, std::pair<uint32_t, double>& drift_of) {
       const uint32_t* list = members_[slice.cluster].data();
       if (slice.all) {
         std::copy(list + slice.begin, list + slice.end, out);
         return slice.end - slice.begin;
       }
+      if (drift_of.first != slice.cluster) {
+        drift_of = {slice.cluster, Drift(slice.cluster) + NeighbourhoodDrift(slice.cluster)};
+      }
+      const double drift = drift_of.second;
       size_t count = 0;
       const auto unchecked_too = static_cast<size_t>(slice.unchecked_too);
       for (size_t at = slice.begin; at < slice.end; ++at) {
         const uint32_t i = list[at];
         out[count] = i;
         const auto unchecked = static_cast<size_t>(stamp_[i] != epoch_);
-        const auto over = static_cast<size_t>(slice.drift > threshold_[i]);
+        const auto over = static_cast<size_t>(drift > threshold_[i]);
         count += (unchecked & unchecked_too) | ((unchecked ^ 1) & over);
       }
       return count;
     };
-    if (total < 2 * kScanSlice) {
-      points_to_check_.resize(total);
-      size_t count = 0;
-      for (const Slice& slice : slices_) count += scan(slice, points_to_check_.data() + count);
-      points_to_check_.resize(count);
-      return;
-    }
-    picked_.resize(slices_.size());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, slices_.size(), 1), [&](const auto& range) {
-      for (size_t n = range.begin(); n != range.end(); ++n) {
-        std::vector<uint32_t>& out = picked_[n];
-        out.resize(slices_[n].end - slices_[n].begin);
-        out.resize(scan(slices_[n], out.data()));
+    auto check = [&](Picked& out) {
+      const size_t count = out.points.size();
+      const uint32_t* points = out.points.data();
+      out.targets.resize(count);
+      out.margins.resize(count);
+      uint32_t* targets = out.targets.data();
+      double* margins = out.margins.data();
+      for (size_t r = 0; r < count; ++r) {
+        if (r + 8 < count) clusters.Prefetch(points[r + 8]);
+        targets[r] = detail::CheckPoint<true>(clusters, points[r], out.x, margins[r]);
       }
-    });
-    for (size_t n = 0; n < slices_.size(); ++n) {
-      points_to_check_.insert(points_to_check_.end(), picked_[n].begin(), picked_[n].end());
+      uint32_t* stamp = stamp_.data();
+      double* threshold = threshold_.data();
+      const uint32_t epoch = epoch_;
+      for (size_t r = 0; r < count; ++r) {
+        const uint32_t i = points[r];
+        stamp[i] = epoch;
+        threshold[i] = margins[r] + Drift(clusters.label(i));
+        if (targets[r] != kNone) out.moves.push_back({i, targets[r]});
+      }
+      out.points.clear();
+    };
+    auto compare = [&](const Slice& slice, Picked& out) {
+      const uint32_t* list = members_[slice.cluster].data();
+      for (size_t at = slice.begin; at < slice.end; ++at) {
+        const uint32_t i = list[at];
+        if (at + 8 < slice.end) clusters.Prefetch(list[at + 8]);
+        double best = clusters.Distance(i, slice.cluster);
+        uint32_t to = kNone;
+        for (uint32_t g = slice.compare_begin; g < slice.compare_end; ++g) {
+          const double dist = clusters.Distance(i, next_to[g].second);
+          if (dist < best) {
+            best = dist;
+            to = next_to[g].second;
+          }
+        }
+        if (to != kNone) out.moves.push_back({i, to});
+      }
+    };
+    auto run = [&](size_t t) {
+      Picked& out = picked_[t];
+      out.points.clear();
+      out.moves.clear();
+      std::pair<uint32_t, double> drift_of{kNone, 0.0};
+      for (size_t n = tasks_[t].first; n < tasks_[t].last; ++n) {
+        const Slice& slice = slices_[n];
+        if (slice.compare_end > slice.compare_begin) {
+          check(out);  // the region's points before it, in order
+          compare(slice, out);
+          continue;
+        }
+        const size_t at = out.points.size();
+        out.points.resize(at + (slice.end - slice.begin));
+        out.points.resize(at + scan(slice, out.points.data() + at, drift_of));
+      }
+      check(out);
+    };
+    if (tasks_.size() == 1) {
+      run(0);
+    } else {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, tasks_.size(), 1), [&](const auto& range) {
+        for (size_t t = range.begin(); t != range.end(); ++t) run(t);
+      });
+    }
+    moves_.clear();
+    for (size_t t = 0; t < tasks_.size(); ++t) {
+      moves_.insert(moves_.end(), picked_[t].moves.begin(), picked_[t].moves.end());
     }
   }
 
@@ -582,91 +718,13 @@ class PointSpace {
     ++epoch_;
     std::vector<uint32_t> changed;
     std::vector<double> old_centroids;
-    // Per point of the round-0 neighbours: where its merged clusters lie in next_to.
-    std::vector<std::pair<uint32_t, uint32_t>> compare_with;
     const int rounds = static_cast<int>(options_.optimise_rounds);
     for (int round = 0; round < rounds && !region.empty() && !IsCancelled(options_.cancel);
          ++round) {
-      points_to_check_.clear();
-      if (round == 0) {
-        for (uint32_t c : region) {
-          points_to_check_.insert(points_to_check_.end(), members_[c].begin(), members_[c].end());
-        }
-      } else {
-        SelectForCheck(region);
-      }
-      const size_t full = points_to_check_.size();
-      if (round == 0) {
-        for (uint32_t c : region) region_epoch_[c] = epoch_;
-      }
-      compare_with.clear();
-      if (round == 0) {
-        for (size_t g = 0; g < next_to.size();) {
-          size_t end = g;
-          while (end < next_to.size() && next_to[end].first == next_to[g].first) ++end;
-          for (uint32_t i : members_[next_to[g].first]) {
-            points_to_check_.push_back(i);
-            compare_with.push_back({static_cast<uint32_t>(g), static_cast<uint32_t>(end)});
-          }
-          g = end;
-        }
-      }
-      target_.resize(points_to_check_.size());
-      margin_.resize(full);
-      ChooseTargets(*clusters_, std::span<const uint32_t>(points_to_check_).first(full),
-                    std::span<uint32_t>(target_).first(full), margin_);
-      for (size_t r = 0; r < full; ++r) {
-        const uint32_t i = points_to_check_[r];
-        stamp_[i] = epoch_;
-        threshold_[i] = margin_[r] + Drift(clusters_->label(i));
-      }
-      if (!compare_with.empty()) {
-        const PointClusters& clusters = *clusters_;
-        tbb::parallel_for(tbb::blocked_range<size_t>(full, points_to_check_.size(), 4096),
-                          [&](const auto& range) {
-                            for (size_t r = range.begin(); r != range.end(); ++r) {
-                              const uint32_t i = points_to_check_[r];
-                              if (r + 8 < range.end()) clusters.Prefetch(points_to_check_[r + 8]);
-                              double best = clusters.Distance(i, clusters.label(i));
-                              uint32_t to = kNone;
-                              const auto [begin, end] = compare_with[r - full];
-                              for (uint32_t g = begin; g < end; ++g) {
-                                const double dist = clusters.Distance(i, next_to[g].second);
-                                if (dist < best) {
-                                  best = dist;
-                                  to = next_to[g].second;
-                                }
-                              }
-                              target_[r] = to;
-                            }
-                          });
-      }
+      SelectAndCheck(region, /*first=*/round == 0, next_to);
       changed.clear();
       old_centroids.clear();
-      for (size_t r = 0; r < points_to_check_.size(); ++r) {
-        if (target_[r] == kNone) continue;
-        const uint32_t i = points_to_check_[r];
-        const uint32_t from = clusters_->label(i), to = target_[r];
-        if (clusters_->count(from) <= 1) continue;
-        for (uint32_t c : {from, to}) {
-          if (!mark_[c]) {
-            mark_[c] = 1;
-            changed.push_back(c);
-            const std::span<const double> centroid = clusters_->centroid(c);
-            old_centroids.insert(old_centroids.end(), centroid.begin(), centroid.end());
-            if (drift_epoch_[c] != epoch_) {
-              drift_epoch_[c] = epoch_;
-              drift_[c] = 0;
-            }
-          }
-        }
-        Touch(from);
-        Touch(to);
-        Record(i, from);
-        clusters_->Move(i, to);
-        stamp_[i] = 0;  // its candidates are another cluster's now: check it again
-        detail::MoveMember(members_, position_, i, from, to);
-      }
+      for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];
         mark_[c] = 0;
@@ -810,30 +868,51 @@ class PointSpace {
   std::vector<uint32_t> position_;
   std::vector<uint8_t> mark_;
   LevelRecorder recorder_{0, 0};
-  std::vector<uint32_t> merged_, gone_, points_to_check_, target_;
+  std::vector<uint32_t> merged_, gone_;
+  // A round of Optimise: the moves its checks chose, in order (ScanAndCheck).
+  std::vector<std::pair<uint32_t, uint32_t>> moves_;
   // In the current level: the cluster each gone one merged into, and each merged one's
   // partner (kNone elsewhere).
   std::vector<uint32_t> into_, partner_;
   std::vector<uint32_t> refresh_odes_;
+  std::vector<uint32_t> before_;  // Refresh's copy of the list it replaces
   // Optimise's bounds: per point the epoch of its last check and the drift it can absorb;
   // per cluster its centroid's drift in the current epoch.
   uint32_t epoch_ = 0;
   std::vector<uint32_t> stamp_, drift_epoch_;
-  std::vector<double> threshold_, drift_, margin_;
-  // SelectForCheck's slices of the region's member lists and what each picked.
-  static constexpr size_t kScanSlice = 16384;
+  std::vector<double> threshold_, drift_;
+  // SelectAndCheck's slices of the member lists (kSlicePoints members at most),
+  // ScanAndCheck's tasks (slices [first, last)) and what each picked and chose. A pass
+  // makes tasks of at least kSlicePoints members, and of 1/kTasksPerPass of its members
+  // where it has more: up to about 13 us to check 256 points (about 50 ns each), so that
+  // TBB's cost per task (about a microsecond) stays small, and enough tasks on 16 cores
+  // for a large pass.
+  static constexpr size_t kSlicePoints = 256;
+  static constexpr size_t kTasksPerPass = 64;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
-    double drift;
     bool all;            // the cluster was in no round's region of this call yet
     bool unchecked_too;  // its points not checked in this call are checked
+    // Round 0's neighbours of the merged clusters: next_to's pairs to compare with (none:
+    // a region slice).
+    uint32_t compare_begin = 0, compare_end = 0;
   };
   // Per cluster: the last call of Optimise (epoch_) that checked all its points (one of
   // that call's rounds had it in its region and checked its unchecked points).
   std::vector<uint32_t> region_epoch_;
   std::vector<Slice> slices_;
-  std::vector<std::vector<uint32_t>> picked_;
+  struct Task {
+    size_t first, last;
+  };
+  std::vector<Task> tasks_;
+  struct Picked {
+    std::vector<uint32_t> points;
+    std::vector<std::pair<uint32_t, uint32_t>> moves;
+    std::vector<uint32_t> targets;  // scratch of the checks
+    std::vector<double> margins, x;
+  };
+  std::vector<Picked> picked_;
 };
 
 }  // namespace

@@ -96,6 +96,26 @@ struct MultilevelEngineSummary {
   double final_energy = 0;
 };
 
+// The face-order rounds' parallel steps (MeshSpace::ApplyRoundInSteps in
+// core/cluster/multilevel.cc, ours): counts summed over all runs of the process, for
+// benchmarks (bench/pml_cpu_bench prints them), and when the steps run. They give the
+// levels of the loop they replace, so the mode changes no result, only the work: the steps
+// cost about 40% more CPU than the loop on one core (BENCHMARKS.md, "The face-order rounds
+// in parallel steps"), so by default they run only on an arena of at least
+// kFaceOrderStepsFromThreads threads; kAlways is for tests that compare them with the loop
+// and for profiles on one thread. Relaxed atomics.
+struct FaceOrderStepsCounters {
+  std::atomic<uint64_t> rounds{0};      // rounds run in steps
+  std::atomic<uint64_t> steps{0};       // parallel steps
+  std::atomic<uint64_t> candidates{0};  // candidates of those rounds
+  std::atomic<uint64_t> in_steps{0};    // of which run in a parallel step (the rest: in order)
+  std::atomic<uint64_t> moves{0};       // moves applied in those rounds
+};
+inline FaceOrderStepsCounters face_order_steps_counters;
+enum class FaceOrderSteps : int { kFromFourThreads = 0, kAlways = 1, kNever = 2 };
+inline constexpr int kFaceOrderStepsFromThreads = 4;
+inline std::atomic<FaceOrderSteps> face_order_steps{FaceOrderSteps::kFromFourThreads};
+
 // ODE computations in one parallel_for only above this many clusters (below it the
 // set-up costs more than the work).
 inline constexpr size_t kParallelOdeGrain = 256;

@@ -1,10 +1,12 @@
 // PML's parallel options (ours): parallel_optimisation with independent_moves, and the
-// registry's "parallel-optimisation" option that sets them.
+// registry's "parallel-optimisation" option that sets them; the face-order rounds run in
+// parallel steps.
 #include <gtest/gtest.h>
 
 #include <span>
 #include <vector>
 
+#include "core/cluster/detail/multilevel_engine.h"
 #include "core/cluster/multilevel.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
@@ -153,6 +155,48 @@ TEST(MultilevelParallelTest, IndependentMovesWithoutGuardKeepEnergiesOfTheLabels
   HierarchyLog pml;
   testing::ExpectMultilevelRebuildsEngineLabels(
       l, problem, options, [](size_t level) { return level % 9 == 4; }, pml);
+}
+
+// The face-order rounds (parallel_optimisation without independent moves) run in parallel
+// steps where a round has enough candidates: every level (counts, energy bits, triplets in
+// order) is the one the loop in list order gives, on 1, 2 and 3 threads, with the ring guard
+// and without a guard, for PML to 500 and for the preset many-cores' options; and the steps
+// ran (their round counter grew).
+TEST(MultilevelParallelTest, FaceOrderRoundsInStepsGiveTheLoopsLevels) {
+  const Loaded& l = File("fandisk.off");
+  struct StepsOn {
+    ~StepsOn() { detail::face_order_steps = detail::FaceOrderSteps::kFromFourThreads; }
+  } steps_on;
+  MultilevelOptions pml;
+  pml.parallel = true;
+  pml.pml_until = 500;
+  pml.parallel_optimisation = true;
+  MultilevelOptions unguarded = pml;
+  unguarded.connectivity_guard = false;
+  unguarded.guard = ConnectivityGuardKind::kOff;
+  MultilevelOptions preset = pml;  // the registry's many-cores
+  preset.pml_until = 1000;
+  preset.p_percent = 95;
+  preset.p_percent_rule = MultilevelOptions::PPercentRule::kHcFirst;
+  preset.optimise_below_at_least = 2000;
+  for (MultilevelOptions options : {pml, unguarded, preset}) {
+    options.threads = 1;
+    detail::face_order_steps = detail::FaceOrderSteps::kNever;
+    testing::RecordingSink loop;
+    ASSERT_TRUE(RunMultilevel(l.problem(), options, loop).ok());
+    detail::face_order_steps = detail::FaceOrderSteps::kAlways;
+    EXPECT_GT(loop.counts.size(), 10u);
+    for (int t = 1; t <= 3; ++t) {
+      options.threads = t;
+      const uint64_t rounds = detail::face_order_steps_counters.rounds.load();
+      testing::RecordingSink steps;
+      ASSERT_TRUE(RunMultilevel(l.problem(), options, steps).ok());
+      EXPECT_GT(detail::face_order_steps_counters.rounds.load(), rounds);
+      EXPECT_EQ(loop.counts, steps.counts) << t << " threads";
+      EXPECT_EQ(loop.energies, steps.energies) << t << " threads";
+      EXPECT_EQ(loop.moves, steps.moves) << t << " threads";
+    }
+  }
 }
 
 }  // namespace

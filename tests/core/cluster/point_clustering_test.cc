@@ -294,12 +294,39 @@ TEST(PointMultilevelTest, LevelsDoNotDependOnTheThreadCount) {
   }
 }
 
-// Large enough that the later LN k-means rounds' scan of the changed clusters runs in
-// parallel slices (over 32,768 points in the region): the same levels on one thread as
-// on two.
+// Large enough that the upper levels' LN k-means rounds scan and check the changed
+// clusters in up to 64 tasks of thousands of points (Optimise's ScanAndCheck): the same
+// levels on one thread as on two.
 TEST(PointMultilevelTest, ParallelRoundScansDoNotDependOnTheThreadCount) {
   auto [points, truth] = Blobs(40, 1000, 3, 29, 4);
   testing::ExpectSameLevelsOnOneAndTwoThreads(PointMultilevelOptions(), RunPoints(points), 100);
+}
+
+// Optimise's rounds scan and check in tasks of about 512 members, in parallel where a round
+// has more than one (here the upper levels' clusters hold thousands of points), joined in
+// order: the same levels on one, two and three threads, for ML, ML with bounded_drift
+// (ours) and PML then ML.
+TEST(PointMultilevelTest, RoundTasksGiveTheSameLevelsOnOneTwoAndThreeThreads) {
+  auto [points, truth] = Blobs(12, 500, 3, 37, 4);
+  for (int variant = 0; variant < 3; ++variant) {
+    SCOPED_TRACE(variant);
+    PointMultilevelOptions options;
+    options.grid = 24;  // many small start cells: several hundred ML levels
+    if (variant == 1) options.bounded_drift = 0.1;
+    if (variant == 2) {
+      options.parallel = true;
+      options.pml_until = 100;
+    }
+    std::vector<testing::RecordingSink> sinks(3);
+    for (int threads = 1; threads <= 3; ++threads) {
+      options.threads = threads;
+      ASSERT_TRUE(RunPointMultilevel(points, options, sinks[threads - 1]).ok());
+    }
+    EXPECT_GT(sinks[0].counts.size(), variant == 2 ? 50u : 300u);
+    EXPECT_EQ(sinks[0].counts.back(), 1u);
+    testing::ExpectSameLevels(sinks[0], sinks[1], /*with_start=*/true);
+    testing::ExpectSameLevels(sinks[0], sinks[2], /*with_start=*/true);
+  }
 }
 
 // optimise_rounds (ours): 8 is the default's hierarchy exactly; fewer rounds still make one
