@@ -19,7 +19,6 @@
 // the two levels around K (log energy linear in log count), or the first level with at most
 // K clusters where there is no level before it with more: where the optimisers' levels
 // differ, their energies compare there.)
-#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -30,6 +29,7 @@
 #include "core/cluster/multilevel.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/stages/multilevel_gpu.h"
+#include "tests/fixtures/energy_at_count.h"
 
 namespace {
 
@@ -50,10 +50,9 @@ class FingerprintSink : public mlclust::bench::LevelPrintSink {
       // At exactly `at` clusters: a power law through this level and the one before.
       if (level.cluster_count < at_ && previous_count_ > at_ && previous_energy_ > 0 &&
           level.energy > 0) {
-        const double t = std::log(double(previous_count_) / at_) /
-                         std::log(double(previous_count_) / level.cluster_count);
         at_count = at_;
-        at_energy = previous_energy_ * std::pow(level.energy / previous_energy_, t);
+        at_energy = mlclust::testing::PowerLawEnergyAt(at_, previous_count_, previous_energy_,
+                                                       level.cluster_count, level.energy);
       }
     }
     previous_count_ = level.cluster_count;
