@@ -28,6 +28,7 @@
 #include "bench/bench_util.h"
 #include "core/energy/energies.h"
 #include "core/io/mesh_io.h"
+#include "core/mesh/cluster_pieces.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/face_measures.h"
 #include "core/mesh/prepared_mesh.h"
@@ -49,25 +50,7 @@ Topology Inspect(const TriangleMesh& mesh, const FaceAdjacency& adjacency,
   for (uint32_t l : labels) ++size[l];
   for (uint32_t c = 0; c < k; ++c) t.empty += size[c] == 0;
   // Components per cluster.
-  std::vector<uint32_t> components(k, 0);
-  std::vector<char> seen(n, 0);
-  std::vector<uint32_t> stack;
-  for (uint32_t f = 0; f < n; ++f) {
-    if (seen[f]) continue;
-    ++components[labels[f]];
-    seen[f] = 1;
-    stack.assign(1, f);
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[g]) {
-          seen[h.value()] = 1;
-          stack.push_back(h.value());
-        }
-      }
-    }
-  }
+  const std::vector<uint32_t> components = ClusterPieces(adjacency, labels, k);
   for (uint32_t c = 0; c < k; ++c) t.disconnected += components[c] > 1;
   // Euler characteristic V - E + F per cluster.
   std::vector<int64_t> chi(k, 0);

@@ -19,7 +19,6 @@
 // the two levels around K (log energy linear in log count), or the first level with at most
 // K clusters where there is no level before it with more: where the optimisers' levels
 // differ, their energies compare there.)
-#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -52,8 +51,8 @@ class FingerprintSink : public mlclust::bench::LevelPrintSink {
       if (level.cluster_count < at_ && previous_count_ > at_ && previous_energy_ > 0 &&
           level.energy > 0) {
         at_count = at_;
-        at_energy = mlclust::testing::PowerLawEnergy(previous_count_, previous_energy_,
-                                                     level.cluster_count, level.energy, at_);
+        at_energy = mlclust::testing::PowerLawEnergyAt(at_, previous_count_, previous_energy_,
+                                                       level.cluster_count, level.energy);
       }
     }
     previous_count_ = level.cluster_count;

@@ -791,7 +791,7 @@ class MeshSpace {
     step_moves_.resize(m);
     // The loop's body for candidate j, its entries in the shared lists kept in its record.
     auto body = [&](uint32_t j) {
-      StepMove& move = step_moves_[j];
+      UnlistedMove& move = step_moves_[j];
       move.applied = false;
       step_done_[j] = 1;
       const uint32_t i = candidates[j], f = list[i];
@@ -806,25 +806,7 @@ class MeshSpace {
           !guard->CanMove(f, to, partition_.labels(), partition_.sizes())) {
         return;
       }
-      const uint32_t from = partition_.label(f);
-      move.from = from;
-      move.to = to;
-      move.touched_from = recorder_.TouchUnlisted(from, energy_of);
-      move.touched_to = recorder_.TouchUnlisted(to, energy_of);
-      partition_.Move(f, to);
-      move.first_move = recorder_.RecordMoveUnlisted(f, from);
-      move.dirty_count = 0;
-      move.dirty_overflow.clear();
-      OnFaceMoved(f, from, to, [&](uint32_t c) {
-        if (dirty_mark_[c]) return;
-        dirty_mark_[c] = 1;
-        if (move.dirty_count < StepMove::kDirty) {
-          move.dirty[move.dirty_count++] = c;
-        } else {
-          move.dirty_overflow.push_back(c);
-        }
-      });
-      round_mark_[from] = round_mark_[to] = 1;
+      ApplyMoveUnlisted(f, to, energy_of, move);
       move.applied = true;
     };
     // Per candidate its clusters (the set grows where a move brings a new cluster next to
@@ -924,7 +906,7 @@ class MeshSpace {
       tbb::parallel_for(all, [&](const tbb::blocked_range<size_t>& range) {
         for (size_t r = range.begin(); r != range.end(); ++r) {
           const uint32_t j = step_frontier_[r];
-          const StepMove& move = step_moves_[j];
+          const UnlistedMove& move = step_moves_[j];
           if (!move.applied) continue;
           std::vector<uint32_t>& queue = step_queue_[move.to];
           for_each_around(list[candidates[j]], [&](uint32_t g) {
@@ -994,12 +976,8 @@ class MeshSpace {
     detail::CompactIndices(
         m, [&](size_t j) { return step_moves_[j].applied; }, step_applied_);
     for (uint32_t j : step_applied_) {
-      const StepMove& move = step_moves_[j];
-      if (move.touched_from) recorder_.ListTouched(move.from);
-      if (move.touched_to) recorder_.ListTouched(move.to);
-      if (move.first_move) recorder_.ListMoved(list[candidates[j]]);
-      dirty_.insert(dirty_.end(), move.dirty, move.dirty + move.dirty_count);
-      dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
+      const UnlistedMove& move = step_moves_[j];
+      ListMove(move, list[candidates[j]]);
       round_mark_[move.from] = round_mark_[move.to] = 0;
     }
     moves += step_applied_.size();
@@ -1150,14 +1128,7 @@ class MeshSpace {
     std::vector<uint32_t> target, candidates, winners, waiting, next;
     std::vector<uint8_t> apply;
     // A winner's move, as applied: its clusters and what the shared lists get from it.
-    struct AppliedMove {
-      uint32_t from, to;
-      bool touched_from, touched_to, first_move;
-      uint32_t dirty_count;
-      uint32_t dirty[8];
-      std::vector<uint32_t> dirty_overflow;
-    };
-    std::vector<AppliedMove> applied;
+    std::vector<UnlistedMove> applied;
     std::vector<size_t> next_offset;
     uint64_t moves = 0;
     while (!list.empty() && moves < max_moves && !IsCancelled(options_.cancel)) {
@@ -1190,27 +1161,7 @@ class MeshSpace {
       auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
       auto apply_one = [&](size_t w) {
         const uint32_t i = candidates[winners[w]];
-        const uint32_t f = list[i], from = partition_.label(f), to = target[i];
-        AppliedMove& move = applied[w];
-        move.from = from;
-        move.to = to;
-        move.touched_from = recorder_.TouchUnlisted(from, energy_of);
-        move.touched_to = recorder_.TouchUnlisted(to, energy_of);
-        partition_.Move(f, to);
-        round_mark_[from] = round_mark_[to] = 1;
-        move.first_move = recorder_.RecordMoveUnlisted(f, from);
-        move.dirty_count = 0;
-        move.dirty_overflow.clear();
-        OnFaceMoved(f, from, to, [&](uint32_t c) {
-          if (dirty_mark_[c]) return;
-          dirty_mark_[c] = 1;
-          // Triangles: at most 4 (from and three neighbours); polygons may have more.
-          if (move.dirty_count < 8) {
-            move.dirty[move.dirty_count++] = c;
-          } else {
-            move.dirty_overflow.push_back(c);
-          }
-        });
+        ApplyMoveUnlisted(list[i], target[i], energy_of, applied[w]);
       };
       if (winners.size() < 64) {
         for (size_t w = 0; w < winners.size(); ++w) apply_one(w);
@@ -1221,12 +1172,7 @@ class MeshSpace {
                           });
       }
       for (size_t w = 0; w < winners.size(); ++w) {
-        const AppliedMove& move = applied[w];
-        if (move.touched_from) recorder_.ListTouched(move.from);
-        if (move.touched_to) recorder_.ListTouched(move.to);
-        if (move.first_move) recorder_.ListMoved(list[candidates[winners[w]]]);
-        for (uint32_t d = 0; d < move.dirty_count; ++d) dirty_.push_back(move.dirty[d]);
-        dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
+        ListMove(applied[w], list[candidates[winners[w]]]);
       }
       optimisation_moves_ += winners.size();
       // The next list: each moved face and its edge neighbours (at offsets counted per
@@ -1248,7 +1194,7 @@ class MeshSpace {
                             if (!stale) kept_target_[f] = target[i];
                           }
                         });
-      for (const AppliedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
+      for (const UnlistedMove& move : applied) round_mark_[move.from] = round_mark_[move.to] = 0;
       ListMovedAndNeighbours(
           winners.size(), [&](size_t w) { return list[candidates[winners[w]]]; }, waiting.size(),
           next_offset, next);
@@ -1358,7 +1304,10 @@ class MeshSpace {
   // ApplyRoundInSteps: the round's candidates (indices into its list), per candidate its
   // move as applied, per cluster the key (older step: larger) of the first open candidate
   // that reads it, and scratch.
-  struct StepMove {
+  // A move applied in parallel with others on disjoint clusters: the sums, labels and
+  // members are changed at once, its entries in the shared lists (the recorder's touched
+  // and moved lists, the dirty clusters) kept here and listed afterwards in candidate order.
+  struct UnlistedMove {
     static constexpr uint32_t kDirty = 6;  // triangles mark at most 4 (polygons: overflow)
     uint32_t from = 0, to = 0;
     bool applied = false, touched_from = false, touched_to = false, first_move = false;
@@ -1366,9 +1315,38 @@ class MeshSpace {
     uint32_t dirty[kDirty] = {};
     std::vector<uint32_t> dirty_overflow;
   };
+  template <typename EnergyOf>
+  void ApplyMoveUnlisted(uint32_t f, uint32_t to, const EnergyOf& energy_of, UnlistedMove& move) {
+    const uint32_t from = partition_.label(f);
+    move.from = from;
+    move.to = to;
+    move.touched_from = recorder_.TouchUnlisted(from, energy_of);
+    move.touched_to = recorder_.TouchUnlisted(to, energy_of);
+    partition_.Move(f, to);
+    round_mark_[from] = round_mark_[to] = 1;
+    move.first_move = recorder_.RecordMoveUnlisted(f, from);
+    move.dirty_count = 0;
+    move.dirty_overflow.clear();
+    OnFaceMoved(f, from, to, [&](uint32_t c) {
+      if (dirty_mark_[c]) return;
+      dirty_mark_[c] = 1;
+      if (move.dirty_count < UnlistedMove::kDirty) {
+        move.dirty[move.dirty_count++] = c;
+      } else {
+        move.dirty_overflow.push_back(c);
+      }
+    });
+  }
+  void ListMove(const UnlistedMove& move, uint32_t f) {
+    if (move.touched_from) recorder_.ListTouched(move.from);
+    if (move.touched_to) recorder_.ListTouched(move.to);
+    if (move.first_move) recorder_.ListMoved(f);
+    dirty_.insert(dirty_.end(), move.dirty, move.dirty + move.dirty_count);
+    dirty_.insert(dirty_.end(), move.dirty_overflow.begin(), move.dirty_overflow.end());
+  }
   static constexpr size_t kStepsFrom = 256, kStepsMinFrontier = 32;
   std::vector<uint32_t> step_candidates_, step_applied_;
-  std::vector<StepMove> step_moves_;
+  std::vector<UnlistedMove> step_moves_;
   std::vector<uint32_t> step_set_offset_, step_set_, step_of_face_, step_head_, step_clusters_;
   std::vector<std::atomic<uint32_t>> step_set_size_, step_pending_;
   std::vector<std::vector<uint32_t>> step_queue_;

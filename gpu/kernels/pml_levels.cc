@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <functional>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
@@ -35,13 +36,12 @@ constexpr uint32_t kFaces = 0, kEdges = 1, kFaceEdgeList = 2;
 // pml_bb.glsl's phases.
 constexpr uint32_t kFitProxies = 0, kWriteLabels = 1, kWriteClusters = 2;
 constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kEdgeSlot = 2, kCounterSlots = 4;
-// FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0.
+// FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0;
+// pml_compact.glsl writes (not adds to) the others, so Step, which skips it, needs no zeroing.
 static_assert(kPairSlot == 0 && kCounterSlots == 4);
 
 static_assert(sizeof(CvdSums) == 5 * sizeof(double));
 
-uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
-uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
 uint64_t MaxPairs(uint64_t num_faces) { return num_faces / 2 + 1; }
 uint64_t ChangeSlots(uint64_t num_faces) {
   return std::min<uint64_t>(std::max<uint64_t>(num_faces, 1), kPmlBbChangeChunk);
@@ -75,7 +75,8 @@ uint64_t PmlBoundaryMemoryBound(uint64_t num_faces, uint64_t num_edges) {
 
 uint64_t PmlLevelsMemoryBound(uint64_t num_faces, uint64_t num_edges) {
   const uint64_t n = std::max<uint64_t>(num_faces, 1), m = std::max<uint64_t>(num_edges, 1);
-  const uint64_t chunks = std::max(Chunks(n), Chunks(m)), groups = std::max(Groups(n), Groups(m));
+  const uint64_t chunks = std::max(PmlChunks(n), PmlChunks(m)),
+                 groups = std::max(PmlGroups(n), PmlGroups(m));
   return n * (40 + 12 + 12 + 12) + 3 * m * 8 + MaxPairs(n) * (8 + 24 + 4) + chunks * 4 +
          groups * 4 + kCounterSlots * 4;
 }
@@ -98,8 +99,8 @@ absl::StatusOr<PmlLevelsGpu> PmlLevelsGpu::Create(GlContext& context,
   MLCLUST_RETURN_IF_ERROR(BeginPass(context, kOdesPass));
   absl::StatusOr<PmlLevelsGpu> made = [&]() -> absl::StatusOr<PmlLevelsGpu> {
     const uint64_t faces = std::max<uint64_t>(n, 1), edge_slots = std::max<uint64_t>(m, 1);
-    const uint64_t chunks = std::max(Chunks(faces), Chunks(edge_slots));
-    const uint64_t groups = std::max(Groups(faces), Groups(edge_slots));
+    const uint64_t chunks = std::max(PmlChunks(faces), PmlChunks(edge_slots));
+    const uint64_t groups = std::max(PmlGroups(faces), PmlGroups(edge_slots));
     const std::array<uint64_t, kBindings> bytes = {
         faces * 40,      faces * 4,      faces * 4,  faces * 4,         edge_slots * 8,
         edge_slots * 8,  edge_slots * 8, faces * 12, MaxPairs(n) * 8,   MaxPairs(n) * 24,
@@ -191,7 +192,15 @@ absl::StatusOr<bool> PmlLevelsGpu::Level(PmlPairRule rule, uint32_t clusters, ui
 }
 
 absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& level) {
-  MLCLUST_RETURN_IF_ERROR(StartLevel(level).status());
+  level = PmlLevelGpu();
+  proxies_current_ = false;  // the merge changes sums
+  // Every cluster's ODE only: ML has no use for the mutual pairs (nor their count).
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kOdesPass));
+  BindAll();
+  const absl::Status odes =
+      FindOdes(*context_, {programs_.ode, 0, num_faces_, num_edges_, std::nullopt, kOdesPass});
+  MLCLUST_RETURN_IF_ERROR(
+      PassError(kOdesPass, odes.ok() ? CheckGlError(*context_, kOdesPass) : odes));
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kMinOdePass));
   std::array<uint32_t, 2> pair{};
   const absl::Status chosen = [&]() -> absl::Status {
@@ -217,13 +226,12 @@ absl::StatusOr<bool> PmlLevelsGpu::Step(bool ties_to_fewest_faces, PmlLevelGpu& 
   }();
   if (!chosen.ok()) return PassError(kMinOdePass, chosen);
   if (pair[0] == kNoCluster) return false;  // one cluster per component
-  // The one pair, merged as a level of `all` above its floor merges its pairs (no flags).
+  // The one pair (pair 0, written by ml_min_ode.glsl) through the merge pass, no flags.
   MLCLUST_RETURN_IF_ERROR(FinishLevel(
       [&]() -> absl::Status {
-        MLCLUST_RETURN_IF_ERROR(MergeSelectedPairs(
-            *context_, programs_.merge, PmlPairRule::kAll, /*clusters=*/2, /*lowest=*/1,
-            /*pairs=*/1, buffers_[kPairIds], buffers_[kPairValues], buffers_[kPairSelected],
-            level.merged));
+        MLCLUST_RETURN_IF_ERROR(
+            DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
+        level.merged = 1;
         return CheckGlError(*context_, kCollapsePass);
       },
       1, level));

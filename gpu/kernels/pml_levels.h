@@ -47,16 +47,16 @@
 //                   every directed face edge and the labels (pml_compact.glsl, kind 2),
 //                   since a move can turn an inner face edge into a boundary one
 // Alg. 5.6 (ML: one collapse per step, then minimizeEnergy(); gpu/stages/multilevel_gpu.h
-// drives it with the BB passes above): Step is a level of one merge, "pml odes" as above,
-// then
+// drives it with the BB passes above): Step is a level of one merge, "pml odes" without
+// the mutual pairs (every cluster's ODE only; nothing read back), then
 //   "ml min ode"   findMinDE(): the cheapest ODE of all clusters (ml_min_ode.glsl, one work
 //                  group), in the CPU engine's queue order (cost, then the fewer faces with
 //                  ties_to_fewest_faces, then the smaller id; HC's tree of minima orders
 //                  the same), its pair read back (8 bytes)
-// and that pair through "pml collapse" and "pml triplets". Each step costs O(faces + face
-// edges) on the GPU (as the dissertation's findMinDE over every boundary face), so the
-// steps of a whole hierarchy O(faces^2): HC's incremental steps (hc_levels.h) cannot take
-// BB's moves, which re-shape clusters anywhere.
+// and that pair through "pml collapse" (the merge pass alone: no pair selection) and
+// "pml triplets". Each step costs O(faces + face edges) on the GPU (as the dissertation's
+// findMinDE over every boundary face), so the steps of a whole hierarchy O(faces^2): HC's
+// incremental steps (hc_levels.h) cannot take BB's moves, which re-shape clusters anywhere.
 // Memory for BB (PmlBoundaryMemoryBound), bytes per face: 24 (the face edges, kept) + 12
 // (neighbours) + 32 (point and mass) + 32 (proxies) + 8 (proposals) = 108, plus 56 per
 // change slot (kPmlBbChangeChunk at most: label change 8, cluster id and size 8, sums
@@ -125,8 +125,8 @@ class PmlLevelsGpu {
 
   // One ML step (Alg. 5.6) at the current clusters: the cheapest ODE (ties as the CPU
   // engine's queue, `ties_to_fewest_faces` as MultilevelOptions) collapsed, into `level`
-  // (merged 1, its triplets and energy change); false (and nothing changed) where no
-  // cluster has an ODE left. Errors name the pass ("ml min ode" for the choice).
+  // (merged 1, its triplets and energy change; mutual_pairs 0: not searched); false (and nothing
+  // changed) where no cluster has an ODE left. Errors name the pass ("ml min ode" for the choice).
   absl::StatusOr<bool> Step(bool ties_to_fewest_faces, PmlLevelGpu& level);
 
   // The current labels (downloaded; for tests).

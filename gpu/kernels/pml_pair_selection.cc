@@ -73,13 +73,10 @@ absl::StatusOr<bool> SelectCollapsedPairs(PmlPairRule rule, uint32_t clusters, u
   return true;
 }
 
-absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
-                                         const MutualPairPasses& passes) {
+absl::Status FindOdes(GlContext& context, const MutualPairPasses& passes) {
   // The ODE kernels' phases (pml_ode.glsl, points_ode.glsl).
   constexpr uint32_t kOdeCost = 0, kOdeLow = 1, kOdePartner = 2, kOdeReset = 3;
   const detail::GlFunctions& gl = context.gl();
-  const std::array<uint32_t, 4> zeros{};
-  MLCLUST_RETURN_IF_ERROR(counters.Upload(std::span<const uint32_t>(zeros)));
   gl.UseProgram(passes.ode_program);
   if (passes.dims) gl.ProgramUniform1ui(passes.ode_program, 2, *passes.dims);
   gl.ProgramUniform1ui(passes.ode_program, 0, passes.clusters);
@@ -92,6 +89,16 @@ absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& coun
     MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, passes.edges));
   }
   gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
+                                         const MutualPairPasses& passes) {
+  const detail::GlFunctions& gl = context.gl();
+  const std::array<uint32_t, 4> zeros{};
+  MLCLUST_RETURN_IF_ERROR(counters.Upload(std::span<const uint32_t>(zeros)));
+  MLCLUST_RETURN_IF_ERROR(FindOdes(context, passes));
   gl.UseProgram(passes.pairs_program);
   if (passes.dims) gl.ProgramUniform1ui(passes.pairs_program, 2, *passes.dims);
   gl.ProgramUniform1ui(passes.pairs_program, 0, passes.clusters);
@@ -135,14 +142,9 @@ absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses&
   return true;
 }
 
-absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlPairRule rule,
-                                uint32_t clusters, uint32_t lowest, uint32_t pairs,
-                                StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
-                                uint32_t& merged) {
+absl::Status DispatchPairMerge(GlContext& context, uint32_t merge_program, uint32_t pairs,
+                               bool use_flags) {
   const detail::GlFunctions& gl = context.gl();
-  MLCLUST_ASSIGN_OR_RETURN(
-      const bool use_flags,
-      SelectCollapsedPairs(rule, clusters, lowest, pairs, ids, values, selected, merged));
   gl.UseProgram(merge_program);
   gl.ProgramUniform1ui(merge_program, 0, pairs);
   gl.ProgramUniform1ui(merge_program, 1, use_flags ? 1u : 0u);
@@ -150,6 +152,16 @@ absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlP
   gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   gl.UseProgram(0);
   return absl::OkStatus();
+}
+
+absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlPairRule rule,
+                                uint32_t clusters, uint32_t lowest, uint32_t pairs,
+                                StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,
+                                uint32_t& merged) {
+  MLCLUST_ASSIGN_OR_RETURN(
+      const bool use_flags,
+      SelectCollapsedPairs(rule, clusters, lowest, pairs, ids, values, selected, merged));
+  return DispatchPairMerge(context, merge_program, pairs, use_flags);
 }
 
 absl::StatusOr<uint32_t> GetPmlOdeProgram(GlContext& context) {
@@ -172,8 +184,7 @@ absl::Status CompactInOrder(GlContext& context, uint32_t program, uint32_t kind,
     return counters.Upload(slot * 4, &zero, 4);
   }
   const detail::GlFunctions& gl = context.gl();
-  const uint64_t chunks = (uint64_t{count} + kPmlChunk - 1) / kPmlChunk;
-  const uint64_t groups = (chunks + kPmlGroup - 1) / kPmlGroup;
+  const uint64_t chunks = PmlChunks(count), groups = PmlGroups(count);
   gl.UseProgram(program);
   gl.ProgramUniform1ui(program, 2, kind);
   gl.ProgramUniform1ui(program, 3, slot);

@@ -23,6 +23,13 @@ namespace mlclust::gpu {
 inline constexpr uint32_t kPmlChunk = 32;
 inline constexpr uint32_t kPmlGroup = 256;
 
+// pml_compact.glsl's invocations (chunks of kPmlChunk elements) and scan groups (of
+// kPmlGroup chunks) over `count` elements: what its chunk and group buffers hold.
+inline constexpr uint64_t PmlChunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
+inline constexpr uint64_t PmlGroups(uint64_t count) {
+  return (PmlChunks(count) + kPmlGroup - 1) / kPmlGroup;
+}
+
 // One level's result (PmlLevelsGpu::Level, PointLevelsGpu::Level).
 struct GpuPmlLevel {
   uint32_t mutual_pairs = 0;  // found (before the pair rule and the lowest level)
@@ -59,8 +66,14 @@ struct MutualPairPasses {
   const char* pass = "";  // the GPU pass named in errors
 };
 
-// Zeroes the 4 counter slots of `counters`, runs `passes` and returns the pairs found
-// (counter slot 0). The buffers are bound by the caller.
+// The ODE program's phases of `passes` alone (every cluster's ODE; not the pairs
+// program): what ML's step (PmlLevelsGpu::Step) needs before its own choice. The buffers
+// are bound by the caller.
+absl::Status FindOdes(GlContext& context, const MutualPairPasses& passes);
+
+// Zeroes the 4 counter slots of `counters`, runs `passes` (FindOdes, then the pairs
+// program) and returns the pairs found (counter slot 0). The buffers are bound by the
+// caller.
 absl::StatusOr<uint32_t> FindMutualPairs(GlContext& context, StorageBuffer& counters,
                                          const MutualPairPasses& passes);
 
@@ -91,9 +104,14 @@ absl::StatusOr<bool> RunPmlLevelPasses(GlContext& context, const PmlLevelPasses&
                                        absl::FunctionRef<absl::Status(uint32_t)> extract,
                                        GpuPmlLevel& level);
 
-// The collapse of `pairs` mutual pairs: SelectCollapsedPairs, then `merge_program` (the
-// merge pass: uniforms 0, the pairs, and 1, whether it reads the flags; the caller sets
-// any others) over the pairs. The buffers are bound by the caller.
+// The merge pass alone: `merge_program` (uniforms 0, the pairs, and 1, whether it reads
+// the flags; the caller sets any others) over `pairs` pairs. The buffers are bound by the
+// caller.
+absl::Status DispatchPairMerge(GlContext& context, uint32_t merge_program, uint32_t pairs,
+                               bool use_flags);
+
+// The collapse of `pairs` mutual pairs: SelectCollapsedPairs, then DispatchPairMerge over
+// the pairs. The buffers are bound by the caller.
 absl::Status MergeSelectedPairs(GlContext& context, uint32_t merge_program, PmlPairRule rule,
                                 uint32_t clusters, uint32_t lowest, uint32_t pairs,
                                 StorageBuffer& ids, StorageBuffer& values, StorageBuffer& selected,

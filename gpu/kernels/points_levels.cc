@@ -38,8 +38,6 @@ constexpr uint32_t kPairSlot = 0, kTripletSlot = 1, kCounterSlots = 4;
 // FindMutualPairs (pml_pair_selection.h) zeroes 4 counter slots and reads the pairs' slot 0.
 static_assert(kPairSlot == 0 && kCounterSlots == 4);
 
-uint64_t Chunks(uint64_t count) { return (count + kPmlChunk - 1) / kPmlChunk; }
-uint64_t Groups(uint64_t count) { return (Chunks(count) + kPmlGroup - 1) / kPmlGroup; }
 uint64_t MaxPairs(uint64_t k) { return k / 2 + 1; }
 // Update's two staging buffers at their largest, bytes: ids (a cluster's id and count, a
 // point's id and label) and values (2d + 1 per cluster).
@@ -52,7 +50,7 @@ std::array<uint64_t, 2> UpdateStagingBytes(uint64_t m, uint64_t k, uint32_t d) {
 
 uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d) {
   const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
-  return n * 16 + Chunks(n) * 4 + Groups(n) * 4 + kCounterSlots * 4 +
+  return n * 16 + PmlChunks(n) * 4 + PmlGroups(n) * 4 + kCounterSlots * 4 +
          c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36 +
          UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
 }
@@ -85,11 +83,12 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
   MLCLUST_RETURN_IF_ERROR(BeginPass(context, kOdesPass));
   absl::StatusOr<PointLevelsGpu> made = [&]() -> absl::StatusOr<PointLevelsGpu> {
     const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
+    const uint64_t chunks = PmlChunks(n), groups = PmlGroups(n);
     const std::array<uint64_t, kBindings> bytes = {
         c * 4,           c * d * 8,         n * 4,           c * 4,
         c * 2 * d * 4,   c * 2 * d * 4,     c * (d + 1) * 8, c * 12,
-        MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, Chunks(n) * 4,
-        Groups(n) * 4,   kCounterSlots * 4, n * 12,          c * 8,
+        MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, chunks * 4,
+        groups * 4,      kCounterSlots * 4, n * 12,          c * 8,
         c * 2 * d * 8};
     MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
                              CreateStorageBuffers(context, bytes));

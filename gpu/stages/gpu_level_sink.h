@@ -1,6 +1,8 @@
-// What the GPU's PML drivers (multilevel_gpu.cc for meshes, points_multilevel_gpu.cc for
-// points; and HC's steps, gpu/stages/mesh_levels_gpu.h) do with a level the GPU computed:
-// hand its triplets to the sink.
+// How a level the GPU computed reaches the sink: its triplets handed over as they are. Used
+// by the merges-only mesh levels (MergeLevelReporter, gpu/stages/mesh_levels_gpu.h: HC's
+// steps and PML with optimizer none) and by the points' PML (points_multilevel_gpu.cc). The
+// mesh levels with BB (multilevel_gpu.cc's RunLevelsWithBoundaryBased) do not use it: their
+// merges and moves go through the CPU engine's LevelRecorder::Emit.
 #ifndef MLCLUST_GPU_STAGES_GPU_LEVEL_SINK_H_
 #define MLCLUST_GPU_STAGES_GPU_LEVEL_SINK_H_
 

@@ -38,19 +38,19 @@ absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const Mesh
         // The CPU's LevelRecorder: keep's change, then gone's, per level.
         MergeLevelReporter reporter(sink);
         MLCLUST_RETURN_IF_ERROR(reporter.Start(n));
-        uint32_t clusters = n, level = 1;
+        uint32_t clusters = n;
         HcBatchGpu batch;
         std::vector<uint32_t> to, from;
         // Small batches first: the first levels reach the sink early.
         uint32_t batch_steps = 64;
         while (clusters > options.min_clusters) {
-          MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", level)));
+          MLCLUST_RETURN_IF_ERROR(
+              CheckCancelled(options.cancel, absl::StrCat("level ", reporter.next_level())));
           MLCLUST_RETURN_IF_ERROR(levels.Steps(options.min_clusters, batch_steps, batch));
           if (batch.steps.empty()) break;  // one cluster per component
           batch_steps = std::min(kHcMaxBatch, 2 * batch_steps);
           for (const HcStepGpu& step : batch.steps) {
             --clusters;
-            ++level;
             reporter.AddChange(step.keep_change);
             reporter.AddChange(step.gone_change);
             to.assign(step.count, step.keep);

@@ -81,6 +81,8 @@ class MergeLevelReporter {
   // The next level: `clusters` left after it, its triplets (element, to, from).
   absl::Status Report(uint32_t clusters, std::span<const uint32_t> element,
                       std::span<const uint32_t> to, std::span<const uint32_t> from);
+  // The number the next Report gives its level (1 after Start): for cancellation messages.
+  uint32_t next_level() const { return summary_.levels; }
   // The summary after the last level.
   MultilevelSummary Finish();
 

@@ -23,9 +23,11 @@
 namespace mlclust::gpu {
 namespace {
 
-// BB sweeps after a PML level at most. Alg. 5.4 sweeps until no face moves; on fandisk
-// (PML `all` to 20 clusters) a cap of 8, the CPU engine's local BB's, ended 10% above the
-// CPU engine's energy, 32 1% above, 64 and 100 3% below, 1000 the same as 100.
+// BB sweeps after a level's merges at most (a PML level, or an ML step: the same driver,
+// RunLevelsWithBoundaryBased). Alg. 5.4 sweeps until no face moves; on fandisk (PML `all`
+// to 20 clusters) a cap of 8, the CPU engine's local BB's, ended 10% above the CPU
+// engine's energy, 32 1% above, 64 and 100 3% below, 1000 the same as 100 (measured with
+// PML only).
 constexpr uint32_t kPmlBbMaxSweeps = 64;
 
 // The GPU's labels at `level` to options.inspect_level (tests), if set.
@@ -223,11 +225,11 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
             PmlLevelsGpu::Create(context, CvdFaceSums(energy, n), *problem.adjacency));
         MergeLevelReporter reporter(sink);
         MLCLUST_RETURN_IF_ERROR(reporter.Start(n));
-        uint32_t clusters = n, level_number = 1;
+        uint32_t clusters = n;
         PmlLevelGpu level;
         while (clusters > options.min_clusters) {
           MLCLUST_RETURN_IF_ERROR(
-              CheckCancelled(options.cancel, absl::StrCat("level ", level_number++)));
+              CheckCancelled(options.cancel, absl::StrCat("level ", reporter.next_level())));
           MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.Level(options.pml_pairs, clusters,
                                                                    options.min_clusters, level));
           if (!merged) break;  // one cluster per component

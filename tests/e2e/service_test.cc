@@ -151,8 +151,18 @@ TEST(AdmissionTest, CallsPerConnectionAreBoundedAndSpecsReserveNothing) {
   auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
   auto stub = v1::Clustering::NewStub(channel);
   // Spec-only calls declaring 256 MiB each: 4 wait for their data, the rest are refused.
+  // Each of the first 4 is admitted before the next starts: calls started together can
+  // reach the server in any order, and a refused one among the first 4 would leave a later
+  // one waiting for data that never comes.
   std::vector<std::unique_ptr<StalledCall>> calls;
-  for (int i = 0; i < 10; ++i) calls.push_back(StartStalledCall(*stub, uint64_t{256} << 20, ""));
+  for (int i = 0; i < 10; ++i) {
+    calls.push_back(StartStalledCall(*stub, uint64_t{256} << 20, ""));
+    for (int wait = 0;
+         i < 4 && wait < 1000 && GetStats(channel).calls_active() <= static_cast<uint64_t>(i);
+         ++wait) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
   int refused = 0;
   for (int i = 4; i < 10; ++i) {
     const grpc::Status status = ReadToEnd(*calls[i]);

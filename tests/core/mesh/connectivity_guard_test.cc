@@ -8,6 +8,7 @@
 #include <set>
 #include <vector>
 
+#include "core/mesh/cluster_pieces.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -46,30 +47,6 @@ std::vector<uint32_t> BySquare(int n, F cluster_of) {
     }
   }
   return labels;
-}
-
-// Edge-connected components of each cluster, counted by breadth-first search.
-std::vector<int> Components(const FaceAdjacency& adjacency, const std::vector<uint32_t>& labels,
-                            uint32_t k) {
-  std::vector<int> components(k, 0);
-  std::vector<char> seen(labels.size(), 0);
-  for (uint32_t f = 0; f < labels.size(); ++f) {
-    if (seen[f]) continue;
-    ++components[labels[f]];
-    std::deque<uint32_t> queue = {f};
-    seen[f] = 1;
-    while (!queue.empty()) {
-      const uint32_t g = queue.front();
-      queue.pop_front();
-      for (FaceId h : adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()] == labels[g]) {
-          seen[h.value()] = 1;
-          queue.push_back(h.value());
-        }
-      }
-    }
-  }
-  return components;
 }
 
 // V - E + F of each cluster's faces (1 for a disc, 0 for an annulus).
@@ -152,7 +129,7 @@ TEST(VertexBoundaryEdgeCountTest, RejectsSplittingAStrip) {
   EXPECT_FALSE(ring.CanMove(face, 0, s.labels, s.sizes));
   // Without a guard the strip would indeed split.
   s.labels[face] = 0;
-  EXPECT_EQ(Components(s.adjacency, s.labels, 3)[1], 2);
+  EXPECT_EQ(ClusterPieces(s.adjacency, s.labels, 3)[1], 2u);
 }
 
 // Fig. 3.9 (c): closing a ring of the current cluster around a region (the current cluster
@@ -172,7 +149,7 @@ TEST(VertexBoundaryEdgeCountTest, RejectsClosingARing) {
   s.labels[Lower(n, 3, 2)] = s.labels[Upper(n, 3, 2)] = 0;
   s.Label(s.labels, 2);
   const uint32_t gap = Upper(n, 3, 2);
-  ASSERT_EQ(Components(s.adjacency, s.labels, 2), (std::vector<int>{1, 1}));
+  ASSERT_EQ(ClusterPieces(s.adjacency, s.labels, 2), (std::vector<uint32_t>{1, 1}));
   VertexBoundaryEdgeCountGuard guard(s.mesh, s.adjacency);
   guard.Reset(s.labels);
   const ConnectivityGuard ring(s.mesh, s.adjacency);
@@ -223,7 +200,7 @@ TEST(VertexBoundaryEdgeCountTest, RandomMovesKeepCountsExactAndClustersConnected
       }
     }
     s.Label(labels, k);
-    ASSERT_EQ(Components(s.adjacency, s.labels, k), std::vector<int>(k, 1)) << name;
+    ASSERT_EQ(ClusterPieces(s.adjacency, s.labels, k), std::vector<uint32_t>(k, 1)) << name;
     VertexBoundaryEdgeCountGuard guard(s.mesh, s.adjacency);
     guard.Reset(s.labels);
     const ConnectivityGuard ring(s.mesh, s.adjacency);
@@ -250,7 +227,7 @@ TEST(VertexBoundaryEdgeCountTest, RandomMovesKeepCountsExactAndClustersConnected
     }
     EXPECT_GT(moves, 1000) << name;
     EXPECT_EQ(ring_only, 0) << name;
-    EXPECT_EQ(Components(s.adjacency, s.labels, k), std::vector<int>(k, 1)) << name;
+    EXPECT_EQ(ClusterPieces(s.adjacency, s.labels, k), std::vector<uint32_t>(k, 1)) << name;
     // No cluster gained a hole or a handle (a cluster around one of the mesh's holes may
     // lose it: Alg. 3.2 lets it give the hole's rim away, which the ring test does not).
     const std::vector<int64_t> euler_after = EulerCharacteristics(s.mesh, s.adjacency, s.labels, k);

@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cmath>
 #include <iostream>
 #include <memory>
 #include <span>
@@ -19,6 +18,7 @@
 #include "core/cluster/multilevel.h"
 #include "core/cluster/partition.h"
 #include "core/cluster/registry.h"
+#include "core/mesh/cluster_pieces.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/pml_levels.h"
@@ -29,6 +29,7 @@
 #include "tests/fixtures/gl_test_context.h"
 #include "tests/fixtures/gpu_mesh_levels.h"
 #include "tests/fixtures/plan_checks.h"
+#include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust::gpu {
@@ -90,32 +91,6 @@ MultilevelOptions PmlBbOptions(PmlPairRule rule, uint32_t lowest) {
   options.pml_pairs = rule;
   options.min_clusters = lowest;
   return options;
-}
-
-// The number of clusters of `labels` that are not one edge-connected piece.
-size_t DisconnectedClusters(const FaceAdjacency& adjacency, std::span<const uint32_t> labels) {
-  const size_t n = labels.size();
-  std::vector<uint8_t> seen(n, 0), cluster_seen(n, 0);
-  std::vector<uint32_t> stack;
-  size_t disconnected = 0;
-  for (uint32_t f = 0; f < n; ++f) {
-    if (seen[f]) continue;
-    if (cluster_seen[labels[f]]) ++disconnected;  // a second piece of the cluster
-    cluster_seen[labels[f]] = 1;
-    seen[f] = 1;
-    stack.assign(1, f);
-    while (!stack.empty()) {
-      const uint32_t x = stack.back();
-      stack.pop_back();
-      for (FaceId g : adjacency.neighbours[x]) {
-        if (g.valid() && !seen[g.value()] && labels[g.value()] == labels[x]) {
-          seen[g.value()] = 1;
-          stack.push_back(g.value());
-        }
-      }
-    }
-  }
-  return disconnected;
 }
 
 // The problem's energy of `labels`, summed from scratch.
@@ -280,15 +255,19 @@ TEST(PmlBbGpu, WithoutTheGuard) {
   ExpectConsistentRun(mesh, MeshEnergyKind::kCvd, options);
 }
 
+// The energy of a hierarchy at `count` clusters (fixtures::EnergyAtCount: a power law
+// through the two levels around it); -1 outside them.
+double EnergyAtCount(const ReplaySink& sink, uint32_t count) {
+  return fixtures::EnergyAtCount(sink.counts, sink.energies, count);
+}
+
 // Expects `gpu`'s energy at each of its levels at most `factor` x `cpu`'s at the same
-// count (EnergyAtCount, tests/fixtures/energy_at_count.h); returns the levels compared (the
-// worst ratio is printed).
+// count (EnergyAtCount); returns the levels compared (the worst ratio is printed).
 size_t ExpectEnergyAtMostAbove(const ReplaySink& gpu, const ReplaySink& cpu, double factor) {
   size_t compared = 0;
   double worst = 0, best = 1e300;
   for (size_t l = 1; l < gpu.counts.size(); ++l) {
-    const double reference =
-        ::mlclust::testing::EnergyAtCount(cpu.counts, cpu.energies, gpu.counts[l]);
+    const double reference = EnergyAtCount(cpu, gpu.counts[l]);
     if (reference <= 0) continue;
     EXPECT_LE(gpu.energies[l], factor * reference) << "level " << l << ", " << gpu.counts[l];
     worst = std::max(worst, gpu.energies[l] / reference);
@@ -403,8 +382,9 @@ MultilevelOptions MlBbOptions(uint32_t lowest) {
 }
 
 // findMinDE and collapseMinDE (PmlLevelsGpu::Step) without BB are HC: step by step the same
-// pair as HC's tree of minima (hc_levels.h) and the CPU engine's queue (both tie rules),
-// so the same faces move into the same cluster, with the same energy changes.
+// pair as HC's tree of minima (hc_levels.h) and the CPU engine's queue (RunMultilevel's ML
+// with optimizer none; both tie rules), so the same faces move into the same cluster, with
+// the same energy changes.
 TEST(MlBbGpu, StepsWithoutOptimisationAreHcsSteps) {
   for (const bool fewest : {true, false}) {
     for (const bool grid : {false, true}) {
@@ -420,9 +400,11 @@ TEST(MlBbGpu, StepsWithoutOptimisationAreHcsSteps) {
       MultilevelOptions options;
       options.optimizer = MultilevelOptions::Optimizer::kNone;
       options.ties_to_fewest_faces = fewest;
-      ReplaySink hc;
+      ReplaySink hc, cpu;
       ASSERT_TRUE(RunHierarchyGpu(Context(), mesh.problem(), options, hc).ok());
       ASSERT_EQ(hc.replayed.size(), n);
+      ASSERT_TRUE(RunMultilevel(mesh.problem(), options, cpu).ok());
+      ASSERT_EQ(cpu.replayed.size(), n);
       PmlLevelGpu level;
       std::vector<uint32_t> labels = hc.replayed[0];
       double energy_sum = 0;
@@ -436,8 +418,10 @@ TEST(MlBbGpu, StepsWithoutOptimisationAreHcsSteps) {
           labels[level.element[i]] = level.to_cluster[i];
         }
         ASSERT_EQ(labels, hc.replayed[l]) << "step " << l;
+        ASSERT_EQ(labels, cpu.replayed[l]) << "step " << l;
         energy_sum += level.energy_change;
         EXPECT_NEAR(energy_sum, hc.energies[l], 1e-9 * hc.energies[l] + 1e-15) << "step " << l;
+        EXPECT_NEAR(energy_sum, cpu.energies[l], 1e-9 * cpu.energies[l] + 1e-15) << "step " << l;
       }
       absl::StatusOr<bool> none = levels->Step(fewest, level);
       ASSERT_TRUE(none.ok());
@@ -514,12 +498,47 @@ TEST(MlBbGpu, CoversNoneAndBbOnly) {
   EXPECT_TRUE(sink.counts.empty());
 }
 
-// A GL error injected into ML's own pass and the BB passes it shares with PML is the run's
-// error, named by pass; the context works again afterwards.
+// A GL error injected into any pass ML runs (its own and those it shares with PML) is the
+// run's error, named by pass; the context works again afterwards.
 TEST(MlBbGpu, InjectedGlFailureIsACleanError) {
   const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(8, 8, 0.3f));
-  fixtures::ExpectInjectedFailuresAreCleanErrors(RunMultilevelGpu, mesh.problem(), MlBbOptions(1),
-                                                 {"ml min ode", "pml bb decide", "pml bb apply"});
+  fixtures::ExpectInjectedFailuresAreCleanErrors(
+      RunMultilevelGpu, mesh.problem(), MlBbOptions(1),
+      {"pml odes", "ml min ode", "pml collapse", "pml triplets", "pml bb decide", "pml bb apply",
+       "pml bb edges"});
+}
+
+// Buffers are sized from the stated bound: capped below it, RESOURCE_EXHAUSTED by pass.
+TEST(MlBbGpu, BuffersOverTheLimitAreResourceExhausted) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(12, 12, 0.2f));
+  fixtures::ExpectResourceExhaustedBelowTheBound(RunMultilevelGpu, mesh.problem(), MlBbOptions(1),
+                                                 "pml odes");
+}
+
+// Cancellation is checked between steps: a sink that sets the flag at level 3 stops the
+// run there with CANCELLED.
+TEST(MlBbGpu, CancelledBetweenSteps) {
+  const fixtures::LoadedMesh mesh = fixtures::Load(meshes::MakeJitteredGrid(12, 12, 0.2f));
+  // Level 0 and levels 1-3.
+  EXPECT_EQ(fixtures::LevelsBeforeCancel(RunMultilevelGpu, mesh.problem(), MlBbOptions(1), 3), 4u);
+}
+
+// Several components (two grids apart and a lone triangle): the steps stop where no
+// cluster has an ODE left, at one cluster per component, above options.min_clusters (as
+// the CPU engine's ML with BB); the run stays consistent on the way.
+TEST(MlBbGpu, StopsAtOneClusterPerComponent) {
+  const fixtures::LoadedMesh loaded = fixtures::Load(fixtures::ThreeComponentMesh());
+  ReplaySink gpu, cpu;
+  absl::StatusOr<MultilevelSummary> on_gpu =
+      RunMultilevelGpu(Context(), loaded.problem(), MlBbOptions(1), gpu);
+  ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+  absl::StatusOr<MultilevelSummary> on_cpu = RunMultilevel(loaded.problem(), MlBbOptions(1), cpu);
+  ASSERT_TRUE(on_cpu.ok()) << on_cpu.status();
+  EXPECT_EQ(on_gpu->final_clusters, 3u);
+  EXPECT_EQ(on_cpu->final_clusters, 3u);
+  EXPECT_EQ(gpu.counts.back(), 3u);
+  EXPECT_EQ(gpu.counts.size(), loaded.mesh.num_faces() - 2);  // one merge per level
+  EXPECT_EQ(DisconnectedClusters(loaded.adjacency, gpu.replayed.back()), 0u);
 }
 
 // The plan: ML with optimizer bb (or none) goes to the GPU with device gpu only (auto keeps
