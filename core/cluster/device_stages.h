@@ -92,15 +92,16 @@ class DeviceStages {
     return absl::UnimplementedError("HC levels on this device");
   }
 
-  // RunPointMultilevel (point_clustering.h) for PML with the voxel start and the levels
-  // on the device (merges only: gpu/stages/points_multilevel_gpu.h); same contract, plus
-  // the device's errors. UNIMPLEMENTED where the device has none (the default).
+  // RunPointMultilevel (point_clustering.h) with the voxel start and the levels on the
+  // device: PML's levels, or HC's and ML's steps (options.parallel false), merges only or
+  // with LN k-means (gpu/stages/points_multilevel_gpu.h); same contract, plus the device's
+  // errors. UNIMPLEMENTED where the device has none (the default).
   virtual absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(
       const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
     (void)points;
     (void)options;
     (void)sink;
-    return absl::UnimplementedError("PML levels for points on this device");
+    return absl::UnimplementedError("point levels on this device");
   }
 };
 

@@ -391,14 +391,23 @@ bool MlLevelsOnGpu(const JobPlan& plan) {
 
 // Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
 // PointsPmlGpuUnsupported says the same): without the switch to ML; merges only (optimizer
-// none), or with LN k-means inside the levels (gpu/stages/points_optimise_gpu.h) for
-// --device gpu only and without bounded-drift (auto keeps LN k-means on the CPU until the
+// none), or with LN k-means inside the levels (gpu/stages/points_optimise_gpu.h, with or
+// without bounded-drift) for --device gpu only (auto keeps LN k-means on the CPU until the
 // NVIDIA figures are taken: each round is a round trip).
 bool PointPmlLevelsOnGpu(const JobPlan& plan) {
   const PointMultilevelOptions& options = plan.point_multilevel;
   if (options.pml_until != 0) return false;
   if (options.optimizer == PointMultilevelOptions::Optimizer::kNone) return true;
-  return plan.device == DeviceChoice::kGpu && options.bounded_drift == 0;
+  return plan.device == DeviceChoice::kGpu;
+}
+
+// Whether HC's and ML's steps for points can run on the GPU
+// (gpu/stages/points_multilevel_gpu.h, RunPointHierarchyGpu): merges only (HC) or LN k-means
+// around each merge (ML, with or without bounded-drift); with --device gpu only, as the
+// meshes' HcLevelsOnGpu (one collapse per step is latency-bound, and each of ML's rounds is a
+// round trip: auto keeps the CPU until the NVIDIA figures show otherwise).
+bool PointHierarchyLevelsOnGpu(const JobPlan& plan) {
+  return plan.device == DeviceChoice::kGpu && !plan.point_multilevel.parallel;
 }
 
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
@@ -528,11 +537,11 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
     }
   }
   if (on_gpu) {
-    // PML's levels for points on the GPU (the plan took it only where
-    // PointPmlLevelsOnGpu covers it).
+    // PML's levels (PointPmlLevelsOnGpu) or HC's and ML's steps (PointHierarchyLevelsOnGpu)
+    // for points on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
-          "PML: the plan puts the point levels on the GPU but this run has no GPU stages");
+          "the plan puts the point levels on the GPU but this run has no GPU stages");
     }
     ran = context.devices->RunPointMultilevel(points, options, sink);
   } else {
@@ -901,7 +910,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "merges only, from the voxel-grid start (section 6.2) down to one cluster";
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads};
-    a.stages = {merge_stage};
+    // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h).
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -916,7 +926,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
     a.options.push_back(BoundedDriftOption());
-    a.stages = {merge_stage};
+    // ML's steps (LN k-means around each merge) on the GPU with --device gpu.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }

@@ -8,11 +8,13 @@
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
+#include "gpu/kernels/ml_min_ode_glsl.h"    // kMlMinOdeGlsl, generated
 #include "gpu/kernels/mutual_pairs_glsl.h"  // kMutualPairsGlsl, generated
 #include "gpu/kernels/ode_min_glsl.h"       // kOdeMinGlsl, generated
 #include "gpu/kernels/pair_merge_glsl.h"    // kPairMergeGlsl, generated
 #include "gpu/kernels/pml_pair_selection.h"
 #include "gpu/kernels/points_common_glsl.h"   // kPointsCommonGlsl, generated
+#include "gpu/kernels/points_hc_glsl.h"       // kPointsHcGlsl, generated
 #include "gpu/kernels/points_merge_glsl.h"    // kPointsMergeGlsl, generated
 #include "gpu/kernels/points_ode_glsl.h"      // kPointsOdeGlsl, generated
 #include "gpu/kernels/points_pairs_glsl.h"    // kPointsPairsGlsl, generated
@@ -30,6 +32,17 @@ constexpr PmlLevelPasses kLevelPasses{kOdesPass, kCollapsePass, kTripletsPass};
 constexpr char kNeighboursPass[] = "points neighbours";
 constexpr char kUpdatePass[] = "points update";
 constexpr char kReadBackPass[] = "points read-back";
+constexpr char kHcOdesPass[] = "points hc odes";
+constexpr char kHcSelectPass[] = "points hc select";
+constexpr char kHcNeighboursPass[] = "points hc neighbours";
+// points_hc.glsl's phases.
+constexpr uint32_t kHcMark = 0, kHcOrder = 1, kHcRefresh = 2, kHcFinish = 3, kHcCommit = 4,
+                   kHcRepair = 5;
+// Mesa's software renderers stop an invocation's loops after 65,535 iterations (all loops
+// together; points_multilevel_gpu.cc refuses runs whose one refresh could pass this): the
+// sequential refresh (phase 2) refreshes at most this many iterations' worth of clusters
+// per dispatch.
+constexpr uint64_t kSoftwareLoopBudget = 60000;
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 // pml_compact.glsl's kind and counter slots (shared with the meshes' PML).
@@ -51,8 +64,8 @@ std::array<uint64_t, 2> UpdateStagingBytes(uint64_t m, uint64_t k, uint32_t d) {
 uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d) {
   const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
   return n * 16 + PmlChunks(n) * 4 + PmlGroups(n) * 4 + kCounterSlots * 4 +
-         c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36 +
-         UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
+         c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36 + c * 12 +
+         (4 + 5 * c) * 4 + UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
 }
 
 absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
@@ -84,12 +97,16 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
   absl::StatusOr<PointLevelsGpu> made = [&]() -> absl::StatusOr<PointLevelsGpu> {
     const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
     const uint64_t chunks = PmlChunks(n), groups = PmlGroups(n);
-    const std::array<uint64_t, kBindings> bytes = {
-        c * 4,           c * d * 8,         n * 4,           c * 4,
-        c * 2 * d * 4,   c * 2 * d * 4,     c * (d + 1) * 8, c * 12,
-        MaxPairs(c) * 8, MaxPairs(c) * 24,  MaxPairs(c) * 4, chunks * 4,
-        groups * 4,      kCounterSlots * 4, n * 12,          c * 8,
-        c * 2 * d * 8};
+    const std::array<uint64_t, kBindings> bytes = {c * 4,           c * d * 8,
+                                                   n * 4,           c * 4,
+                                                   c * 2 * d * 4,   c * 2 * d * 4,
+                                                   c * (d + 1) * 8, c * 12,
+                                                   MaxPairs(c) * 8, MaxPairs(c) * 24,
+                                                   MaxPairs(c) * 4, chunks * 4,
+                                                   groups * 4,      kCounterSlots * 4,
+                                                   n * 12,          c * 8,
+                                                   c * 2 * d * 8,   c * 12,
+                                                   (4 + 5 * c) * 4};
     MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
                              CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> identity(k), partner(2 * k, kNone);
@@ -121,6 +138,11 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
     MLCLUST_ASSIGN_OR_RETURN(
         programs.update,
         GetComputeProgram(context, "points_update", absl::StrCat(prelude, kPointsUpdateGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        programs.hc, GetComputeProgram(context, "points_hc", absl::StrCat(prelude, kPointsHcGlsl)));
+    MLCLUST_ASSIGN_OR_RETURN(programs.min_ode,
+                             GetComputeProgram(context, "ml_min_ode",
+                                               absl::StrCat(kComputeShaderPrelude, kMlMinOdeGlsl)));
     MLCLUST_ASSIGN_OR_RETURN(programs.compact, GetPmlCompactProgram(context));
     MLCLUST_RETURN_IF_ERROR(CheckGlError(context, kOdesPass));
     return PointLevelsGpu(context, static_cast<uint32_t>(m), static_cast<uint32_t>(k), d, programs,
@@ -275,6 +297,146 @@ absl::Status PointLevelsGpu::Update(std::span<const uint32_t> clusters,
     return CheckGlError(*context_, kUpdatePass);
   }();
   return PassError(kUpdatePass, status);
+}
+
+absl::Status PointLevelsGpu::HcPhase(
+    uint32_t phase, uint64_t invocations,
+    std::initializer_list<std::pair<uint32_t, uint32_t>> uniforms) {
+  const detail::GlFunctions& gl = context_->gl();
+  gl.UseProgram(programs_.hc);
+  gl.ProgramUniform1ui(programs_.hc, 0, k_);
+  gl.ProgramUniform1ui(programs_.hc, 1, phase);
+  gl.ProgramUniform1ui(programs_.hc, 2, d_);
+  for (const auto& [location, value] : uniforms) {
+    gl.ProgramUniform1ui(programs_.hc, location, value);
+  }
+  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
+  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  gl.UseProgram(0);
+  return absl::OkStatus();
+}
+
+absl::Status PointLevelsGpu::CommitOdes(bool all) {
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kHcOdesPass));
+  absl::Status status = [&]() -> absl::Status {
+    BindAll();
+    MLCLUST_RETURN_IF_ERROR(
+        FindOdes(*context_, {programs_.ode, 0, k_, k_ * 2 * d_, d_, kHcOdesPass}));
+    MLCLUST_RETURN_IF_ERROR(HcPhase(kHcCommit, k_, {{8, all ? 1u : 0u}}));
+    return CheckGlError(*context_, kHcOdesPass);
+  }();
+  return PassError(kHcOdesPass, status);
+}
+
+absl::Status PointLevelsGpu::StartSteps() {
+  if (k_ == 0) return absl::OkStatus();
+  return CommitOdes(/*all=*/true);
+}
+
+absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& keep,
+                                               uint32_t& gone) {
+  level = PointLevelGpu();
+  if (k_ == 0) return false;
+  ++level_;
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kHcSelectPass));
+  // The work's state: listed, repaired, the chosen cluster, its partner.
+  std::array<uint32_t, 4> state{};
+  absl::Status selected = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    // As the CPU's queue pops (OdeHeap::PopCheapest, then SequentialMerge): the cheapest
+    // stored ODE; where its partner is gone, that ODE recomputed and the next cheapest.
+    // Each repeat recomputes one cluster's ODE, so there are at most k of them.
+    for (uint32_t repeat = 0; repeat <= k_; ++repeat) {
+      BindAll();
+      buffers_[kCounts].Bind(1);      // ml_min_ode.glsl's sizes
+      buffers_[kStoredOdes].Bind(7);  // its ODEs: the stored ones
+      gl.UseProgram(programs_.min_ode);
+      gl.ProgramUniform1ui(programs_.min_ode, 0, k_);
+      gl.ProgramUniform1ui(programs_.min_ode, 1, 0);
+      MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, 1));  // one work group
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      gl.UseProgram(0);
+      BindAll();
+      MLCLUST_RETURN_IF_ERROR(HcPhase(kHcRepair, 1));
+      MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(state)));
+      MLCLUST_RETURN_IF_ERROR(CheckGlError(*context_, kHcSelectPass));
+      if (state[1] == 0) return absl::OkStatus();
+    }
+    return absl::InternalError("the stored ODEs kept naming gone partners");
+  }();
+  MLCLUST_RETURN_IF_ERROR(PassError(kHcSelectPass, selected));
+  if (state[2] == kNone) return false;
+  if (state[2] >= k_ || state[3] >= k_) {
+    return PassError(kHcSelectPass,
+                     absl::InternalError(absl::StrCat("the cheapest ODE joins clusters ", state[2],
+                                                      " and ", state[3], " of ", k_)));
+  }
+  MLCLUST_RETURN_IF_ERROR(RunCollapsePasses(
+      *context_, kLevelPasses,
+      [&]() -> absl::Status {
+        // The one pair (pair 0, written by ml_min_ode.glsl) through the merge pass.
+        const detail::GlFunctions& gl = context_->gl();
+        gl.ProgramUniform1ui(programs_.merge, 2, d_);
+        gl.ProgramUniform1ui(programs_.merge, 3, level_);
+        MLCLUST_RETURN_IF_ERROR(
+            DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
+        level.merged = 1;
+        return CheckGlError(*context_, kCollapsePass);
+      },
+      [&]() { return Extract(1, level); }));
+  if (level.element.empty()) {
+    return PassError(kTripletsPass, absl::InternalError("a merge moved no point"));
+  }
+  gone = level.from_cluster.front();
+  keep = level.to_cluster.front();
+  return true;
+}
+
+absl::Status PointLevelsGpu::StepRefresh(uint32_t keep, uint32_t gone,
+                                         std::span<const uint32_t> touched) {
+  if (keep >= k_ || gone >= k_ || touched.size() > k_) {
+    return absl::InvalidArgumentError(absl::StrCat("points hc: merge ", keep, " <- ", gone, " or ",
+                                                   touched.size(),
+                                                   " touched clusters out of range for ", k_));
+  }
+  for (const uint32_t c : touched) {
+    if (c >= k_) return absl::InvalidArgumentError("points hc: a touched cluster out of range");
+  }
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kHcNeighboursPass));
+  absl::Status status = [&]() -> absl::Status {
+    std::vector<uint32_t> head(4 + touched.size(), 0);
+    std::copy(touched.begin(), touched.end(), head.begin() + 4);
+    MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Upload(std::span<const uint32_t>(head)));
+    BindAll();
+    const auto count = static_cast<uint32_t>(touched.size());
+    const std::initializer_list<std::pair<uint32_t, uint32_t>> step = {
+        {3, count}, {4, keep}, {5, gone}};
+    MLCLUST_RETURN_IF_ERROR(HcPhase(kHcMark, k_, step));
+    uint32_t listed = 0;
+    MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(&listed, 1)));
+    if (listed > k_) return absl::InternalError("points hc: more clusters listed than there are");
+    if (listed > 0) MLCLUST_RETURN_IF_ERROR(HcPhase(kHcOrder, listed, step));
+    // One refresh offers the merged cluster, the gone one's 2d neighbours, its own and
+    // theirs (about 2d + 1 iterations each), and where none is left every cluster (at most
+    // once in a dispatch in practice; the stage refuses k0 (2d + 1) over the budget).
+    uint32_t chunk = std::max(listed, 1u);
+    if (context_->is_software()) {
+      const uint64_t slots = 2 * uint64_t{d_}, offer = 2 * uint64_t{d_} + 1;
+      const uint64_t one = (1 + slots + slots * (slots + 1)) * offer;
+      const uint64_t all = uint64_t{k_} * offer;
+      const uint64_t left = kSoftwareLoopBudget > all ? kSoftwareLoopBudget - all : 0;
+      chunk = static_cast<uint32_t>(std::max<uint64_t>(1, left / one));
+    }
+    for (uint32_t begin = 0; begin < listed; begin += chunk) {
+      const uint32_t end = std::min(listed, begin + chunk);
+      MLCLUST_RETURN_IF_ERROR(
+          HcPhase(kHcRefresh, 1, {{3, count}, {4, keep}, {5, gone}, {6, begin}, {7, end}}));
+    }
+    MLCLUST_RETURN_IF_ERROR(HcPhase(kHcFinish, 1, step));
+    return CheckGlError(*context_, kHcNeighboursPass);
+  }();
+  MLCLUST_RETURN_IF_ERROR(PassError(kHcNeighboursPass, status));
+  return CommitOdes(/*all=*/false);
 }
 
 absl::StatusOr<std::vector<uint32_t>> PointLevelsGpu::Labels() {

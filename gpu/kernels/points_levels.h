@@ -15,6 +15,18 @@
 //                       triplets (point, new, old) and are relabelled
 //   "points neighbours" every live cluster's local neighbours (eq. 6.1) from the
 //                       second-order candidates through the merges (points_refresh.glsl)
+// HC and ML (one merge per step: StartSteps, then StepMerge and StepRefresh per step; the
+// CPU engine's SequentialMerge and PointSpace::UpdateOdes), passes:
+//   "points hc odes"     every cluster's ODE afresh (points_ode.glsl, as above), then the
+//                        stored ODEs (the CPU's queue) take those the CPU recomputes
+//                        (points_hc.glsl)
+//   "points hc select"   the cheapest stored ODE (ml_min_ode.glsl: cost, then id), a
+//                        gone partner's ODE recomputed and the choice repeated
+//                        (points_hc.glsl); then "points collapse" and "points triplets"
+//                        as above, for the one pair
+//   "points hc neighbours" the clusters the CPU refreshes, in its order of groups (within
+//                        a group by id; the CPU: its reverse lists' order), refreshed one
+//                        after the other as the CPU does (points_hc.glsl)
 // Merge costs, sums, centroids and distances are computed in the CPU's operation order
 // with `precise`, so a level's ODEs, pairs and merges are the CPU engine's wherever the
 // neighbour tables agree (always at the first level; see points_multilevel_gpu.h).
@@ -25,11 +37,12 @@
 // (partner) + 18 (pairs: 36 bytes, at most one per two clusters): for 10^6 3-D points
 // from 1.25 * 10^5 voxels, 16 MB + 18 MB. With LN k-means (Update's staging, grown on
 // demand up to every point and cluster at once) 8 more per point and 8 + 8(2d + 1) more
-// per cluster.
+// per cluster. For HC and ML 12 (stored ODEs) + 20 (a step's lists) more per cluster.
 #ifndef MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 #define MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 
 #include <cstdint>
+#include <initializer_list>
 #include <span>
 #include <utility>
 #include <vector>
@@ -98,6 +111,17 @@ class PointLevelsGpu {
   // ConnectWhenStuck; O(k^2), for few clusters). Pass "points neighbours".
   absl::Status LinkAll();
 
+  // HC and ML (one merge per step). StartSteps: every stored ODE afresh (at the start,
+  // and after LinkAll as the CPU's ConnectWhenStuck). StepMerge: the cheapest stored ODE
+  // merged (its triplets into `level`, `keep` and `gone` set); false (nothing changed)
+  // where no cluster has an ODE. StepRefresh: after the step (and LN k-means), the
+  // neighbours of the clusters the CPU refreshes and the ODEs it recomputes; `touched`:
+  // the level's touched clusters in the CPU recorder's order (keep and gone first).
+  // Errors name the pass.
+  absl::Status StartSteps();
+  absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& keep, uint32_t& gone);
+  absl::Status StepRefresh(uint32_t keep, uint32_t gone, std::span<const uint32_t> touched);
+
   // The current labels and neighbour table, downloaded (pass "points read-back").
   absl::StatusOr<std::vector<uint32_t>> Labels();
   absl::StatusOr<std::vector<uint32_t>> Neighbours();
@@ -121,10 +145,13 @@ class PointLevelsGpu {
     kTriplets,
     kPartner,
     kEdgeKeys,
+    kStoredOdes,
+    kHcWork,
     kBindings
   };
   struct Programs {
-    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0, refresh = 0, update = 0;
+    uint32_t ode = 0, pairs = 0, merge = 0, compact = 0, refresh = 0, update = 0, hc = 0,
+             min_ode = 0;
   };
 
   PointLevelsGpu(GlContext& context, uint32_t m, uint32_t k, uint32_t d, Programs programs,
@@ -142,6 +169,12 @@ class PointLevelsGpu {
                         PointLevelGpu& level);
   absl::Status Extract(uint32_t pairs, PointLevelGpu& level);
   absl::Status Refresh(bool link_all);
+  // points_hc.glsl's phase over `invocations` (uniforms 0, 1 and those in `uniforms`:
+  // location, value).
+  absl::Status HcPhase(uint32_t phase, uint64_t invocations,
+                       std::initializer_list<std::pair<uint32_t, uint32_t>> uniforms = {});
+  // Every fresh ODE, then the stored ones := the fresh ones, all or those flagged.
+  absl::Status CommitOdes(bool all);
   // Buffer `binding`'s first out.size() uints into `out` (pass "points read-back").
   absl::Status ReadBack(uint32_t binding, std::span<uint32_t> out);
 

@@ -42,7 +42,8 @@ absl::StatusOr<MultilevelSummary> GlDeviceStages::RunHierarchy(const MeshProblem
 
 absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
     const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
-  return RunPointParallelMultilevelGpu(context_, points, options, sink);
+  return options.parallel ? RunPointParallelMultilevelGpu(context_, points, options, sink)
+                          : RunPointHierarchyGpu(context_, points, options, sink);  // HC or ML
 }
 
 }  // namespace mlclust::gpu

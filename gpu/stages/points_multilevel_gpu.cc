@@ -91,21 +91,24 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (options.optimizer != PointMultilevelOptions::Optimizer::kNone && options.bounded_drift > 0) {
-    return "bounded-drift (ours) is the CPU's LN k-means'";
-  }
   if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
   return "";
 }
 
-absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
-    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
-    LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
-  const std::string unsupported = PointsPmlGpuUnsupported(options);
-  if (!unsupported.empty()) {
-    return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
-  }
+namespace {
+
+// The start both loops share: the voxel start (level 0 to the sink), the GPU's levels and,
+// with LN k-means, the optimiser with the host's mirror.
+struct GpuLevelsStart {
+  uint32_t k0 = 0;
+  double energy = 0;
+  uint32_t grid = 0;
+  std::optional<PointLevelsGpu> levels;
+  std::optional<PointLevelsOptimiser> optimiser;
+};
+
+absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& points,
+                                           const PointMultilevelOptions& options, LevelSink& sink) {
   const uint32_t d = points.dims;
   MLCLUST_ASSIGN_OR_RETURN(VoxelStartGpuResult voxels,
                            VoxelGridStartGpu(context, points, options.grid, options.cancel));
@@ -113,10 +116,12 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   MLCLUST_RETURN_IF_ERROR(CheckSoftwareLoopBudget(context, d, voxels.clusters));
   std::unique_ptr<PointLevelsHost> host = BuildStart(points, voxels, options.cancel);
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start's neighbours"));
-  const uint32_t k0 = voxels.clusters;
+  GpuLevelsStart made;
+  made.k0 = voxels.clusters;
+  const uint32_t k0 = made.k0;
   const ::mlclust::detail::PointClusters& start = *host->clusters;
-  const double start_energy = start.TotalEnergy();
-  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start_energy));
+  made.energy = start.TotalEnergy();
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, made.energy));
   if (options.inspect_level) options.inspect_level(0, voxels.labels);
   // The upload: counts as uints, each cluster's sums and square sum together.
   std::vector<uint32_t> counts(k0);
@@ -135,28 +140,50 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   upload.centroids = start.centroids();
   upload.neighbours = start.neighbour_table();
   MLCLUST_ASSIGN_OR_RETURN(PointLevelsGpu levels, PointLevelsGpu::Create(context, upload));
-  std::vector<uint32_t>().swap(counts);
-  std::vector<double>().swap(sums);
+  made.levels.emplace(std::move(levels));
   // LN k-means inside the levels (points_optimise_gpu.h): the host's clusters become its
   // mirror.
-  std::optional<PointLevelsOptimiser> optimiser;
   if (options.optimizer == PointMultilevelOptions::Optimizer::kLnKmeans) {
     MLCLUST_ASSIGN_OR_RETURN(
-        PointLevelsOptimiser made,
+        PointLevelsOptimiser optimiser,
         PointLevelsOptimiser::Create(context, points, std::move(host), options));
-    optimiser.emplace(std::move(made));
+    made.optimiser.emplace(std::move(optimiser));
   }
-  host.reset();
-  std::vector<uint32_t>().swap(voxels.labels);
+  made.grid = voxels.cells_per_axis.empty()
+                  ? 0
+                  : *std::max_element(voxels.cells_per_axis.begin(), voxels.cells_per_axis.end());
+  return made;
+}
+
+// The caller's inspect_level with the GPU's labels (downloaded).
+absl::Status Inspect(const PointMultilevelOptions& options, PointLevelsGpu& levels,
+                     uint32_t level) {
+  if (!options.inspect_level) return absl::OkStatus();
+  MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
+  options.inspect_level(level, labels);
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
+    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
+    LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
+  const std::string unsupported = PointsPmlGpuUnsupported(options);
+  if (!unsupported.empty()) {
+    return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
+  }
+  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
+  PointLevelsGpu& levels = *started.levels;
+  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
   PointMultilevelSummary summary;
   summary.levels = 1;
-  summary.start_clusters = k0;
-  summary.grid = voxels.cells_per_axis.empty() ? 0
-                                               : *std::max_element(voxels.cells_per_axis.begin(),
-                                                                   voxels.cells_per_axis.end());
+  summary.start_clusters = started.k0;
+  summary.grid = started.grid;
   ::mlclust::detail::CompensatedSum energy;
-  energy.Reset(start_energy);
-  uint32_t clusters = k0;
+  energy.Reset(started.energy);
+  uint32_t clusters = started.k0;
   PointLevelGpu level;
   bool linked = false;
   while (clusters > options.min_clusters) {
@@ -185,10 +212,67 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
       MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
       summary.moves += level.element.size();
     }
-    if (options.inspect_level) {
-      MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> labels, levels.Labels());
-      options.inspect_level(summary.levels, labels);
+    MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
+    ++summary.levels;
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+  summary.final_clusters = clusters;
+  return summary;
+}
+
+absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
+                                                            const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
+  if (options.parallel) {
+    return absl::UnimplementedError(
+        "HC and ML for points on the GPU: one merge per level (PML is "
+        "RunPointParallelMultilevelGpu)");
+  }
+  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
+  PointLevelsGpu& levels = *started.levels;
+  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
+  PointMultilevelSummary summary;
+  summary.levels = 1;
+  summary.start_clusters = started.k0;
+  summary.grid = started.grid;
+  ::mlclust::detail::CompensatedSum energy;
+  energy.Reset(started.energy);
+  uint32_t clusters = started.k0;
+  MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
+  PointLevelGpu level;
+  std::vector<uint32_t> touched;
+  bool linked = false;
+  while (clusters > options.min_clusters) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+    uint32_t keep = 0, gone = 0;
+    MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.StepMerge(level, keep, gone));
+    if (!merged) {
+      // No ODE left: the CPU's ConnectWhenStuck links the survivors once they are few and
+      // recomputes their ODEs.
+      if (linked || clusters <= 1 || clusters > kMaxLinked) break;
+      MLCLUST_RETURN_IF_ERROR(levels.LinkAll());
+      MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
+      linked = true;
+      continue;
     }
+    linked = false;
+    --clusters;
+    if (optimiser.has_value()) {
+      // LN k-means around the merge (the CPU's rounds) and the level's report.
+      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      const std::span<const uint32_t> changed = optimiser->touched();
+      touched.assign(changed.begin(), changed.end());
+      summary.moves = optimiser->moves();
+    } else {
+      touched = {keep, gone};
+      energy.Add(level.energy_change);
+      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
+      summary.moves += level.element.size();
+    }
+    MLCLUST_RETURN_IF_ERROR(levels.StepRefresh(keep, gone, touched));
+    MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
     ++summary.levels;
   }
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));

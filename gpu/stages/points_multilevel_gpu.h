@@ -21,8 +21,8 @@
 //     before it. So later levels differ: the hierarchies are alike, not equal (the tests
 //     bound the energies at equal cluster counts).
 // Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none or LN
-// k-means (optimise_rounds; not bounded_drift), pml-until 0, both pair rules,
-// min_clusters, grid; at most kVoxelStartMaxDims dimensions.
+// k-means (optimise_rounds and bounded_drift: the shared round driver's), pml-until 0,
+// both pair rules, min_clusters, grid; at most kVoxelStartMaxDims dimensions.
 // PointMultilevelOptions::threads is not used (the host's part of the start runs on one
 // thread); inspect_level is called with each level's labels (downloaded; slow, for tests).
 #ifndef MLCLUST_GPU_STAGES_POINTS_MULTILEVEL_GPU_H_
@@ -47,6 +47,19 @@ std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options);
 absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
     GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
     LevelSink& sink);
+
+// HC and ML for points on the GPU (options.parallel false; optimizer none: HC, LN k-means:
+// ML), one merge per level: the same start, then per level the cheapest ODE of the CPU
+// engine's queue merged (PointLevelsGpu::StepMerge), with LN k-means the CPU's rounds
+// around it (PointLevelsOptimiser, as for PML), then the CPU's refresh of the touched
+// clusters' neighbours and its ODE recomputes (StepRefresh). RunPointMultilevel's
+// contract; UNIMPLEMENTED for options.parallel; the GPU's errors by pass; CANCELLED
+// between levels. What is the CPU's: see points_levels.h (the order of the refresh within
+// a group of clusters is by id, the CPU's that of its reverse lists).
+absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
+                                                            const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink);
 
 }  // namespace mlclust::gpu
 

@@ -53,6 +53,7 @@ struct PointLevelsOptimiser::Mirror {
   // triplets per gone cluster.
   std::vector<std::tuple<double, uint32_t, uint32_t>> pairs;
   std::vector<uint32_t> merged, check, check_gpu, groups, starts, candidates, target, tally;
+  std::vector<uint32_t> touched;  // the last level's recorder.affected()
   std::vector<double> margin;
 };
 
@@ -92,6 +93,8 @@ PointLevelsOptimiser& PointLevelsOptimiser::operator=(PointLevelsOptimiser&&) no
 PointLevelsOptimiser::~PointLevelsOptimiser() = default;
 
 uint64_t PointLevelsOptimiser::moves() const { return mirror_->recorder.moves(); }
+
+std::span<const uint32_t> PointLevelsOptimiser::touched() const { return mirror_->touched; }
 
 // The level's merges from the GPU's triplets (point, kept cluster, gone cluster): every
 // triplet must name a point of its gone cluster, and every point of a gone cluster must
@@ -248,6 +251,8 @@ absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLeve
   s.recorder.Squash([&](uint32_t c) { return clusters_now.Energy(c); },
                     [&](uint32_t i) { return clusters_now.label(i); },
                     [&](uint32_t i) { return s.host->original[i]; });
+  const std::span<const uint32_t> affected = s.recorder.affected();
+  s.touched.assign(affected.begin(), affected.end());
   return s.recorder.Emit(sink, index, clusters);
 }
 

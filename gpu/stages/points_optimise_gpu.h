@@ -83,6 +83,9 @@ class PointLevelsOptimiser {
                      uint32_t index, uint32_t clusters);
 
   uint64_t moves() const;
+  // The clusters the last Level touched (merged or changed by a move), in the order the
+  // CPU's LevelRecorder lists them (its affected()).
+  std::span<const uint32_t> touched() const;
 
   PointLevelsOptimiser(PointLevelsOptimiser&&) noexcept;
   PointLevelsOptimiser& operator=(PointLevelsOptimiser&&) noexcept;

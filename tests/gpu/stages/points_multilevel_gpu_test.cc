@@ -372,12 +372,21 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
   options.pml_until = 10;
   EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
             absl::StatusCode::kUnimplemented);
-  options = PmlOptions(PmlPairRule::kAll, 1, Optimizer::kLnKmeans);
+}
+
+// bounded-drift (ours) in the shared round driver: the GPU's PML with LN k-means and a
+// drift of 0.03 against the CPU's with the same option (level 1 identical, every count
+// within 1%), and the option changes the GPU's levels.
+TEST(PointsPmlGpu, WithBoundedDriftLikeTheCpuOn3DBlobs) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points;
+  PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 40, Optimizer::kLnKmeans);
   options.bounded_drift = 0.03;
-  const absl::Status drift =
-      RunPointParallelMultilevelGpu(Context(), points, options, sink).status();
-  EXPECT_EQ(drift.code(), absl::StatusCode::kUnimplemented);
-  EXPECT_THAT(drift.message(), HasSubstr("bounded-drift"));
+  ExpectLikeTheCpu(points, options, 0.01);
+  LevelsSink bounded, unbounded;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, bounded).ok());
+  options.bounded_drift = 0;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, options, unbounded).ok());
+  EXPECT_NE(bounded.triplets, unbounded.triplets);
 }
 
 // optimise_rounds outside 1..64 and bounded_drift outside 0..1 (NaN too) are refused with
@@ -487,7 +496,7 @@ TEST(PointsPmlGpu, CancelledBetweenLevels) {
 
 // The plan (core/cluster/registry.cc): PML's point levels go to the GPU, merges only with
 // device gpu even on llvmpipe and with auto only on hardware, with LN k-means for device
-// gpu only and without bounded-drift; ML stays on the CPU.
+// gpu only (with or without bounded-drift); ML stays on the CPU.
 TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
@@ -506,8 +515,63 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   EXPECT_EQ(::mlclust::testing::ClusterStageDeviceFor(
                 hardware, InputKind::kPoints, "pml", "variance", DeviceChoice::kGpu,
                 {{"optimizer", "lnkmeans"}, {"bounded-drift", "0.03"}}),
-            "cpu");
-  EXPECT_EQ(device_of(hardware, DeviceChoice::kGpu, "ml", "none"), "refused");
+            "NVIDIA H100");
+  // HC's and ML's steps (RunPointHierarchyGpu): --device gpu only, as the meshes' HC.
+  for (const char* algorithm : {"hc", "ml"}) {
+    auto step_device = [&](const DeviceCaps& caps, DeviceChoice choice) {
+      return ::mlclust::testing::ClusterStageDeviceFor(caps, InputKind::kPoints, algorithm,
+                                                       "variance", choice);
+    };
+    EXPECT_EQ(step_device(software, DeviceChoice::kGpu), "llvmpipe") << algorithm;
+    EXPECT_EQ(step_device(hardware, DeviceChoice::kGpu), "NVIDIA H100") << algorithm;
+    EXPECT_EQ(step_device(hardware, DeviceChoice::kAuto), "cpu") << algorithm;
+    EXPECT_EQ(step_device(software, DeviceChoice::kAuto), "cpu") << algorithm;
+    EXPECT_EQ(step_device(hardware, DeviceChoice::kCpu), "cpu") << algorithm;
+  }
+  EXPECT_EQ(::mlclust::testing::ClusterStageDeviceFor(
+                hardware, InputKind::kPoints, "ml", "variance", DeviceChoice::kGpu,
+                {{"optimizer", "lnkmeans"}, {"bounded-drift", "0.03"}}),
+            "NVIDIA H100");
+}
+
+}  // namespace
+}  // namespace mlclust::gpu
+
+namespace mlclust::gpu {
+namespace {
+
+PointMultilevelOptions StepOptions(uint32_t lowest, Optimizer optimizer) {
+  PointMultilevelOptions options;
+  options.optimizer = optimizer;
+  options.min_clusters = lowest;
+  return options;
+}
+
+// The first level at which the GPU's hierarchy differs from the CPU's (counts, triplets),
+// or the number of levels where none does.
+size_t FirstDifferentLevel(const LevelsSink& cpu, const LevelsSink& gpu) {
+  const size_t both = std::min(cpu.counts.size(), gpu.counts.size());
+  for (size_t l = 0; l < both; ++l) {
+    if (cpu.counts[l] != gpu.counts[l] || cpu.triplets[l] != gpu.triplets[l]) return l;
+  }
+  return both;
+}
+
+TEST(PointsHcGpu, ProbeAgainstTheCpu) {
+  for (const PointSet& points :
+       {::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points, Blobs(2, 20, 400, 7),
+        Blobs(8, 10, 500, 8), ::mlclust::testing::GaussianBlobs(100, 300, 6.0, 17, true).points})
+    for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+      const PointMultilevelOptions options = StepOptions(1, optimizer);
+      LevelsSink cpu, gpu;
+      absl::StatusOr<PointMultilevelSummary> on_cpu = RunPointMultilevel(points, options, cpu);
+      absl::StatusOr<PointMultilevelSummary> on_gpu =
+          RunPointHierarchyGpu(Context(), points, options, gpu);
+      ASSERT_TRUE(on_cpu.ok()) << on_cpu.status();
+      ASSERT_TRUE(on_gpu.ok()) << on_gpu.status();
+      std::cout << "levels CPU " << cpu.counts.size() << " GPU " << gpu.counts.size()
+                << " first different " << FirstDifferentLevel(cpu, gpu) << "\n";
+    }
 }
 
 }  // namespace
