@@ -6,14 +6,21 @@
 // wall seconds and the process's CPU seconds (llvmpipe's threads included), levels, the
 // energy at the lowest level, at 4x and 16x its clusters and at the number of blobs.
 //
-//   points_gpu_bench [--m M] [--d D] [--blobs B] [--pairs all|cheaper-half] [--until K]
-//                    [--optimizer none|lnkmeans] [--threads T] [--repeats R] [--seed S]
-//                    [--curve] [--header]
+//   points_gpu_bench [--m M] [--d D] [--blobs B] [--algo pml|hc|ml]
+//                    [--pairs all|cheaper-half] [--until K] [--optimizer none|lnkmeans]
+//                    [--bounded F] [--threads T] [--repeats R] [--seed S] [--curve] [--header]
+//
+// --algo hc (merges only) and ml (LN k-means unless --optimizer none) run one merge per
+// level (RunPointHierarchyGpu against the CPU engine's HC / ML); the row's `same_levels`
+// is the number of leading levels (level 0 included) the two devices agree on exactly
+// (counts and triplets; the CPU's row: its own levels).
 //
 // Prints one CSV row per device (best wall time of R runs):
 // points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,
-// final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer
+// final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer,algo,
+// same_levels,largest_energy_ratio (GPU / CPU at the CPU's counts, the largest |r - 1|)
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -29,18 +36,30 @@
 
 namespace {
 
-// Per level its cluster count and energy.
+// Per level its cluster count and energy, and a hash of its triplets.
 class CurveSink : public mlclust::LevelSink {
  public:
   absl::Status OnStart(std::span<const mlclust::ClusterId> /*labels*/, uint32_t count,
                        double energy) override {
     counts.push_back(count);
     energies.push_back(energy);
+    hashes.push_back(count);
     return absl::OkStatus();
   }
   absl::Status OnLevel(const mlclust::LevelMoves& level) override {
     counts.push_back(level.cluster_count);
     energies.push_back(level.energy);
+    // FNV-1a over the triplets sorted by element (their order differs between devices).
+    std::vector<std::array<uint32_t, 3>> sorted;
+    for (size_t t = 0; t < level.element.size(); ++t) {
+      sorted.push_back({level.element[t], level.to_cluster[t], level.from_cluster[t]});
+    }
+    std::sort(sorted.begin(), sorted.end());
+    uint64_t hash = 1469598103934665603ull;
+    for (const auto& triplet : sorted) {
+      for (const uint32_t v : triplet) hash = (hash ^ v) * 1099511628211ull;
+    }
+    hashes.push_back(hash);
     return absl::OkStatus();
   }
   // The energy of the last level with at least `count` clusters.
@@ -51,6 +70,7 @@ class CurveSink : public mlclust::LevelSink {
   }
   std::vector<uint32_t> counts;
   std::vector<double> energies;
+  std::vector<uint64_t> hashes;
 };
 
 }  // namespace
@@ -58,8 +78,8 @@ class CurveSink : public mlclust::LevelSink {
 int main(int argc, char** argv) {
   mlclust::bench::Args args(argc, argv,
                             "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
-                            "[--pairs all|cheaper-half] [--until K] [--optimizer none|lnkmeans] "
-                            "[--threads T] [--repeats R] "
+                            "[--algo pml|hc|ml] [--pairs all|cheaper-half] [--until K] "
+                            "[--optimizer none|lnkmeans] [--bounded F] [--threads T] [--repeats R] "
                             "[--seed S] [--curve] [--header]");
   const bool header = args.Flag("header");
   const bool curve = args.Flag("curve");  // every level's count and energy to stderr
@@ -67,7 +87,11 @@ int main(int argc, char** argv) {
   const uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 1000);
   const std::string pairs = args.Get<std::string>("pairs", "cheaper-half");
   const uint32_t until = args.Get<uint32_t>("until", 1);
-  const std::string optimizer = args.Get<std::string>("optimizer", "none");
+  const std::string algo = args.Get<std::string>("algo", "pml");
+  // PML's default is merges only (as before --algo); ML's is LN k-means; HC has none.
+  const std::string optimizer =
+      args.Get<std::string>("optimizer", algo == "ml" ? "lnkmeans" : "none");
+  const double bounded = args.Get<double>("bounded", 0.0);
   const int threads = args.Get<int>("threads", 0);
   const uint32_t repeats = args.Get<uint32_t>("repeats", 1);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
@@ -76,13 +100,18 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bad option --pairs %s\n", pairs.c_str());
     return 2;
   }
-  if (optimizer != "none" && optimizer != "lnkmeans") {
+  if (algo != "pml" && algo != "hc" && algo != "ml") {
+    std::fprintf(stderr, "bad option --algo %s\n", algo.c_str());
+    return 2;
+  }
+  if ((optimizer != "none" && optimizer != "lnkmeans") || (algo == "hc" && optimizer != "none")) {
     std::fprintf(stderr, "bad option --optimizer %s\n", optimizer.c_str());
     return 2;
   }
   const mlclust::PointSet points = mlclust::bench::Blobs(m, d, blobs, seed);
   mlclust::PointMultilevelOptions options;
-  options.parallel = true;
+  options.parallel = algo == "pml";
+  options.bounded_drift = bounded;
   options.optimizer = optimizer == "none" ? mlclust::PointMultilevelOptions::Optimizer::kNone
                                           : mlclust::PointMultilevelOptions::Optimizer::kLnKmeans;
   options.pml_pairs =
@@ -94,16 +123,19 @@ int main(int argc, char** argv) {
   const auto rows = mlclust::bench::RunOnCpuAndGpu<mlclust::PointMultilevelSummary, CurveSink>(
       *context, repeats, [] { return CurveSink(); },
       [&](int device, CurveSink& sink) {
-        return device == 0
-                   ? mlclust::RunPointMultilevel(points, options, sink)
-                   : mlclust::gpu::RunPointParallelMultilevelGpu(*context, points, options, sink);
+        if (device == 0) return mlclust::RunPointMultilevel(points, options, sink);
+        return options.parallel
+                   ? mlclust::gpu::RunPointParallelMultilevelGpu(*context, points, options, sink)
+                   : mlclust::gpu::RunPointHierarchyGpu(*context, points, options, sink);
       });
   if (!rows) return 1;
   if (header) {
     std::printf(
         "points,dims,blobs,device,pairs,threads,seconds,cpu_seconds,levels,start_clusters,"
-        "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer\n");
+        "final_clusters,energy_final,energy_4x,energy_16x,energy_at_blobs,optimizer,algo,"
+        "same_levels,largest_energy_ratio\n");
   }
+  const CurveSink& cpu = *rows->front().sink;
   for (const auto& row : *rows) {
     const CurveSink& sink = *row.sink;
     for (size_t l = 0; curve && l < sink.counts.size(); ++l) {
@@ -111,11 +143,20 @@ int main(int argc, char** argv) {
                    sink.energies[l]);
     }
     const uint32_t low = row.summary.final_clusters;
-    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g,%s\n",
+    size_t same = 0;
+    while (same < sink.hashes.size() && same < cpu.hashes.size() &&
+           sink.hashes[same] == cpu.hashes[same] && sink.counts[same] == cpu.counts[same]) {
+      ++same;
+    }
+    double largest = 0;
+    for (size_t l = 0; l < cpu.counts.size(); ++l) {
+      largest = std::max(largest, std::abs(sink.At(cpu.counts[l]) / cpu.energies[l] - 1));
+    }
+    std::printf("%llu,%u,%u,\"%s\",%s,%d,%.3f,%.3f,%u,%u,%u,%.8g,%.8g,%.8g,%.8g,%s,%s,%zu,%.3g\n",
                 static_cast<unsigned long long>(m), d, blobs, row.device.c_str(), pairs.c_str(),
                 threads, row.seconds, row.cpu_seconds, row.summary.levels,
                 row.summary.start_clusters, low, sink.energies.back(), sink.At(4 * low),
-                sink.At(16 * low), sink.At(blobs), optimizer.c_str());
+                sink.At(16 * low), sink.At(blobs), optimizer.c_str(), algo.c_str(), same, largest);
   }
   return 0;
 }

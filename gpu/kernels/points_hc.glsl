@@ -18,12 +18,15 @@
 //   4 (per cluster)  the flagged (every one with u_all) stored ODEs := the fresh ones
 //   5 (one)          after ml_min_ode.glsl chose (pair_ids): a partner gone means that
 //                    cluster's ODE is recomputed (stored := fresh) and the choice repeated
+//   6 (per listed)   the rows of the refreshed clusters (then the gone one's) gathered
+//                    after the step's lists, for the host's mirror (ML)
 layout(std430, binding = 4) buffer Neighbours { uint neighbours[]; };  // k x 2d, in place
 layout(std430, binding = 7) readonly buffer FreshOdes { uint fresh[]; };  // 3 per cluster
 layout(std430, binding = 8) readonly buffer PairIds { uint pair_ids[]; };
 layout(std430, binding = 17) buffer StoredOdes { uint stored[]; };  // 3 per cluster
 // The step's scratch: state (listed, repaired, chosen, its partner), the touched clusters
-// (u_touched), the listed clusters, the ordered ones, each cluster's group, the ODE flags.
+// (u_touched), the listed clusters, the ordered ones, each cluster's group, the ODE flags,
+// the gathered rows.
 layout(std430, binding = 18) buffer Work { uint work[]; };
 layout(location = 0) uniform uint u_count;  // cluster ids
 layout(location = 1) uniform uint u_phase;
@@ -40,6 +43,7 @@ uint ListedAt(uint i) { return 4u + u_count + i; }
 uint OrderedAt(uint i) { return 4u + 2u * u_count + i; }
 uint GroupAt(uint c) { return 4u + 3u * u_count + c; }
 uint FlagAt(uint c) { return 4u + 4u * u_count + c; }
+uint RowAt(uint r) { return 4u + 5u * u_count + r * 2u * u_dims; }
 
 bool Precedes(uint a, uint b) {
   uint ga = work[GroupAt(a)];
@@ -112,6 +116,13 @@ void main() {
     if (group == kNone) return;
     work[GroupAt(i)] = group;
     work[ListedAt(atomicAdd(work[0], 1u))] = i;
+    return;
+  }
+  if (u_phase == 6u) {
+    uint listed = work[0];
+    if (i > listed) return;
+    uint c = i < listed ? work[OrderedAt(i)] : u_gone;
+    for (uint s = 0u; s < slots; ++s) work[RowAt(i) + s] = neighbours[c * slots + s];
     return;
   }
   if (u_phase == 1u) {

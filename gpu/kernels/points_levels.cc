@@ -37,7 +37,10 @@ constexpr char kHcSelectPass[] = "points hc select";
 constexpr char kHcNeighboursPass[] = "points hc neighbours";
 // points_hc.glsl's phases.
 constexpr uint32_t kHcMark = 0, kHcOrder = 1, kHcRefresh = 2, kHcFinish = 3, kHcCommit = 4,
-                   kHcRepair = 5;
+                   kHcRepair = 5, kHcGather = 6;
+// points_hc.glsl's work buffer, uints: state, touched, listed, ordered, groups, flags (k
+// each), then the gathered rows (k + 1 of 2d).
+uint64_t HcWorkUints(uint64_t k, uint32_t d) { return 4 + 5 * k + (k + 1) * 2 * d; }
 // Mesa's software renderers stop an invocation's loops after 65,535 iterations (all loops
 // together; points_multilevel_gpu.cc refuses runs whose one refresh could pass this): the
 // sequential refresh (phase 2) refreshes at most this many iterations' worth of clusters
@@ -65,7 +68,7 @@ uint64_t PointLevelsMemoryBound(uint64_t m, uint64_t k, uint32_t d) {
   const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
   return n * 16 + PmlChunks(n) * 4 + PmlGroups(n) * 4 + kCounterSlots * 4 +
          c * (4 + 8 * d + 8 * (d + 1) + 4 + 16 * d + 12 + 16 * d + 8) + MaxPairs(c) * 36 + c * 12 +
-         (4 + 5 * c) * 4 + UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
+         HcWorkUints(c, d) * 4 + UpdateStagingBytes(m, k, d)[0] + UpdateStagingBytes(m, k, d)[1];
 }
 
 absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
@@ -97,16 +100,25 @@ absl::StatusOr<PointLevelsGpu> PointLevelsGpu::Create(GlContext& context,
   absl::StatusOr<PointLevelsGpu> made = [&]() -> absl::StatusOr<PointLevelsGpu> {
     const uint64_t n = std::max<uint64_t>(m, 1), c = std::max<uint64_t>(k, 1);
     const uint64_t chunks = PmlChunks(n), groups = PmlGroups(n);
-    const std::array<uint64_t, kBindings> bytes = {c * 4,           c * d * 8,
-                                                   n * 4,           c * 4,
-                                                   c * 2 * d * 4,   c * 2 * d * 4,
-                                                   c * (d + 1) * 8, c * 12,
-                                                   MaxPairs(c) * 8, MaxPairs(c) * 24,
-                                                   MaxPairs(c) * 4, chunks * 4,
-                                                   groups * 4,      kCounterSlots * 4,
-                                                   n * 12,          c * 8,
-                                                   c * 2 * d * 8,   c * 12,
-                                                   (4 + 5 * c) * 4};
+    const std::array<uint64_t, kBindings> bytes = {c * 4,
+                                                   c * d * 8,
+                                                   n * 4,
+                                                   c * 4,
+                                                   c * 2 * d * 4,
+                                                   c * 2 * d * 4,
+                                                   c * (d + 1) * 8,
+                                                   c * 12,
+                                                   MaxPairs(c) * 8,
+                                                   MaxPairs(c) * 24,
+                                                   MaxPairs(c) * 4,
+                                                   chunks * 4,
+                                                   groups * 4,
+                                                   kCounterSlots * 4,
+                                                   n * 12,
+                                                   c * 8,
+                                                   c * 2 * d * 8,
+                                                   c * 12,
+                                                   HcWorkUints(c, d) * 4};
     MLCLUST_ASSIGN_OR_RETURN(std::vector<StorageBuffer> buffers,
                              CreateStorageBuffers(context, bytes));
     std::vector<uint32_t> identity(k), partner(2 * k, kNone);
@@ -393,7 +405,8 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& k
 }
 
 absl::Status PointLevelsGpu::StepRefresh(uint32_t keep, uint32_t gone,
-                                         std::span<const uint32_t> touched) {
+                                         std::span<const uint32_t> touched,
+                                         std::vector<uint32_t>* rows) {
   if (keep >= k_ || gone >= k_ || touched.size() > k_) {
     return absl::InvalidArgumentError(absl::StrCat("points hc: merge ", keep, " <- ", gone, " or ",
                                                    touched.size(),
@@ -433,6 +446,20 @@ absl::Status PointLevelsGpu::StepRefresh(uint32_t keep, uint32_t gone,
           HcPhase(kHcRefresh, 1, {{3, count}, {4, keep}, {5, gone}, {6, begin}, {7, end}}));
     }
     MLCLUST_RETURN_IF_ERROR(HcPhase(kHcFinish, 1, step));
+    if (rows != nullptr) {
+      // The refreshed clusters in order, then their rows and the gone one's.
+      const uint64_t slots = 2 * uint64_t{d_};
+      rows->assign(listed + 1 + (uint64_t{listed} + 1) * slots, 0);
+      if (listed > 0) {
+        MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(
+            std::span<uint32_t>(rows->data(), listed), (4 + 2 * uint64_t{k_}) * 4));
+      }
+      (*rows)[listed] = gone;
+      MLCLUST_RETURN_IF_ERROR(HcPhase(kHcGather, uint64_t{listed} + 1, step));
+      MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(
+          std::span<uint32_t>(rows->data() + listed + 1, (uint64_t{listed} + 1) * slots),
+          (4 + 5 * uint64_t{k_}) * 4));
+    }
     return CheckGlError(*context_, kHcNeighboursPass);
   }();
   MLCLUST_RETURN_IF_ERROR(PassError(kHcNeighboursPass, status));

@@ -37,7 +37,8 @@
 // (partner) + 18 (pairs: 36 bytes, at most one per two clusters): for 10^6 3-D points
 // from 1.25 * 10^5 voxels, 16 MB + 18 MB. With LN k-means (Update's staging, grown on
 // demand up to every point and cluster at once) 8 more per point and 8 + 8(2d + 1) more
-// per cluster. For HC and ML 12 (stored ODEs) + 20 (a step's lists) more per cluster.
+// per cluster. For HC and ML 12 (stored ODEs) + 20 (a step's lists) + 8d (its rows) more
+// per cluster.
 #ifndef MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 #define MLCLUST_GPU_KERNELS_POINTS_LEVELS_H_
 
@@ -116,11 +117,13 @@ class PointLevelsGpu {
   // merged (its triplets into `level`, `keep` and `gone` set); false (nothing changed)
   // where no cluster has an ODE. StepRefresh: after the step (and LN k-means), the
   // neighbours of the clusters the CPU refreshes and the ODEs it recomputes; `touched`:
-  // the level's touched clusters in the CPU recorder's order (keep and gone first).
-  // Errors name the pass.
+  // the level's touched clusters in the CPU recorder's order (keep and gone first); with
+  // `rows`, the clusters whose rows changed (the refreshed ones, then the gone one: n + 1
+  // ids) and then their rows (2d each). Errors name the pass.
   absl::Status StartSteps();
   absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& keep, uint32_t& gone);
-  absl::Status StepRefresh(uint32_t keep, uint32_t gone, std::span<const uint32_t> touched);
+  absl::Status StepRefresh(uint32_t keep, uint32_t gone, std::span<const uint32_t> touched,
+                           std::vector<uint32_t>* rows = nullptr);
 
   // The current labels and neighbour table, downloaded (pass "points read-back").
   absl::StatusOr<std::vector<uint32_t>> Labels();

@@ -242,8 +242,11 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
   uint32_t clusters = started.k0;
   MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
   PointLevelGpu level;
-  std::vector<uint32_t> touched;
+  std::vector<uint32_t> touched, rows;
   bool linked = false;
+  // ML: the mirror's neighbour table is the GPU's (the start's) until LinkAll changes it
+  // all; after each step the refreshed rows come back.
+  bool read_neighbours = false;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
     uint32_t keep = 0, gone = 0;
@@ -255,13 +258,16 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
       MLCLUST_RETURN_IF_ERROR(levels.LinkAll());
       MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
       linked = true;
+      read_neighbours = true;
       continue;
     }
     linked = false;
     --clusters;
     if (optimiser.has_value()) {
       // LN k-means around the merge (the CPU's rounds) and the level's report.
-      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      MLCLUST_RETURN_IF_ERROR(
+          optimiser->Level(levels, level, sink, summary.levels, clusters, read_neighbours));
+      read_neighbours = false;
       const std::span<const uint32_t> changed = optimiser->touched();
       touched.assign(changed.begin(), changed.end());
       summary.moves = optimiser->moves();
@@ -271,7 +277,9 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
       MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
       summary.moves += level.element.size();
     }
-    MLCLUST_RETURN_IF_ERROR(levels.StepRefresh(keep, gone, touched));
+    MLCLUST_RETURN_IF_ERROR(
+        levels.StepRefresh(keep, gone, touched, optimiser.has_value() ? &rows : nullptr));
+    if (optimiser.has_value()) MLCLUST_RETURN_IF_ERROR(optimiser->SetNeighbourRows(rows));
     MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
     ++summary.levels;
   }

@@ -226,11 +226,29 @@ absl::Status PointLevelsOptimiser::WriteBack(PointLevelsGpu& levels,
   return levels.Update(changed, counts, values, points, labels);
 }
 
+absl::Status PointLevelsOptimiser::SetNeighbourRows(std::span<const uint32_t> rows) {
+  PointClusters& clusters = *mirror_->host->clusters;
+  const size_t slots = 2 * size_t{clusters.dims()};
+  const size_t ids = rows.size() / (slots + 1);
+  if (ids * (slots + 1) != rows.size()) {
+    return absl::InternalError("LN k-means in the GPU's point levels: rows that do not fit");
+  }
+  for (size_t r = 0; r < ids; ++r) {
+    if (rows[r] >= clusters.capacity()) {
+      return absl::InternalError("LN k-means in the GPU's point levels: a row out of range");
+    }
+    const std::span<const uint32_t> row = rows.subspan(ids + r * slots, slots);
+    std::copy(row.begin(), row.end(), clusters.neighbours(rows[r]).begin());
+  }
+  return absl::OkStatus();
+}
+
 absl::Status PointLevelsOptimiser::Level(PointLevelsGpu& levels, const PointLevelGpu& merged,
-                                         LevelSink& sink, uint32_t index, uint32_t clusters) {
+                                         LevelSink& sink, uint32_t index, uint32_t clusters,
+                                         bool read_neighbours) {
   Mirror& s = *mirror_;
   MLCLUST_RETURN_IF_ERROR(ApplyMerges(merged));
-  if (!s.merged.empty()) {
+  if (!s.merged.empty() && read_neighbours) {
     // The neighbour table before the level's refresh, as the CPU's rounds see it.
     MLCLUST_ASSIGN_OR_RETURN(const std::vector<uint32_t> table, levels.Neighbours());
     std::copy(table.begin(), table.end(), s.host->clusters->neighbour_table().begin());

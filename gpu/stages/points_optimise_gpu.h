@@ -79,8 +79,14 @@ class PointLevelsOptimiser {
   // refreshed (the caller's RefreshNeighbours). INTERNAL if the GPU's triplets do not
   // match the mirror; CANCELLED once options.cancel is set; the GPU's errors by pass; the
   // sink's.
+  // With `read_neighbours` false the mirror's neighbour table is taken as the GPU's (HC's
+  // and ML's steps keep it so with SetNeighbourRows).
   absl::Status Level(PointLevelsGpu& levels, const PointLevelGpu& merged, LevelSink& sink,
-                     uint32_t index, uint32_t clusters);
+                     uint32_t index, uint32_t clusters, bool read_neighbours = true);
+
+  // The rows PointLevelsGpu::StepRefresh gave (n + 1 cluster ids, then their rows) into the
+  // mirror's neighbour table. INTERNAL where they do not fit it.
+  absl::Status SetNeighbourRows(std::span<const uint32_t> rows);
 
   uint64_t moves() const;
   // The clusters the last Level touched (merged or changed by a move), in the order the
