@@ -4,7 +4,8 @@
 // cluster stage's events and in Done; the start is the CPU's; with LN k-means
 // (gpu/stages/points_optimise_gpu.h) device gpu runs the levels on the GPU too and auto
 // on llvmpipe keeps them on the CPU; a GL failure injected into a pass is a clean job
-// error and the server keeps serving.
+// error and the server keeps serving. HC and ML (one merge per level, RunPointHierarchyGpu)
+// with --device gpu as well.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -30,14 +31,15 @@ class PointsPmlGpuTest : public testing::GpuServerTest {
     input_ = testing::BlobBytes(6000, 17);  // 6,000 points around 20 centres
   }
 
-  static v1::JobSpec Spec(const std::string& device, const std::string& optimizer) {
+  static v1::JobSpec Spec(const std::string& device, const std::string& optimizer,
+                          v1::Algorithm algorithm = v1::ALGORITHM_PML) {
     v1::JobSpec spec;
     spec.set_input_kind(v1::INPUT_KIND_POINTS_F32);
     spec.set_point_dims(3);
-    spec.set_algorithm(v1::ALGORITHM_PML);
+    spec.set_algorithm(algorithm);
     spec.set_clusters(20);
     spec.set_device(device);
-    (*spec.mutable_options())["optimizer"] = optimizer;
+    if (!optimizer.empty()) (*spec.mutable_options())["optimizer"] = optimizer;
     return spec;
   }
 
@@ -88,6 +90,42 @@ TEST_F(PointsPmlGpuTest, InjectedGlFailureIsACleanJobErrorAndTheServerKeepsServi
   }
   ExpectRunsWithTheHookCleared(Spec("gpu", "none"));
   ExpectRunsWithTheHookCleared(Spec("gpu", "lnkmeans"));
+}
+
+// HC (merges only) and ML (LN k-means around each merge) with --device gpu: the steps on
+// the GL context (named in the events), HC's levels the CPU's (every level's count and
+// energy), ML's lowest level within 1% of the CPU's; auto keeps both on the CPU; a GL
+// failure injected into the steps' passes is a clean job error.
+TEST_F(PointsPmlGpuTest, HcAndMlDeviceGpuRunTheStepsOnTheGlContext) {
+  std::optional<client::JobResult> gpu, cpu;
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(Spec("gpu", "", v1::ALGORITHM_HC),
+                                         Spec("cpu", "", v1::ALGORITHM_HC), gpu, cpu));
+  ASSERT_GT(cpu->hierarchy.num_levels(), 50u);
+  ASSERT_EQ(gpu->hierarchy.num_levels(), cpu->hierarchy.num_levels());
+  for (size_t l = 0; l < cpu->hierarchy.num_levels(); ++l) {
+    EXPECT_EQ(gpu->hierarchy.cluster_count(l), cpu->hierarchy.cluster_count(l)) << l;
+    EXPECT_NEAR(gpu->hierarchy.energy(l), cpu->hierarchy.energy(l), 1e-9 * cpu->hierarchy.energy(l))
+        << l;
+  }
+  gpu.reset();
+  cpu.reset();
+  ASSERT_NO_FATAL_FAILURE(RunOnGpuAndCpu(Spec("gpu", "lnkmeans", v1::ALGORITHM_ML),
+                                         Spec("cpu", "lnkmeans", v1::ALGORITHM_ML), gpu, cpu));
+  const auto& g = gpu->hierarchy;
+  const auto& c = cpu->hierarchy;
+  EXPECT_EQ(g.cluster_count(g.num_levels() - 1), 20u);
+  EXPECT_NEAR(g.energy(g.num_levels() - 1), c.energy(c.num_levels() - 1),
+              0.01 * c.energy(c.num_levels() - 1));
+  for (const v1::Algorithm algorithm : {v1::ALGORITHM_HC, v1::ALGORITHM_ML}) {
+    std::vector<v1::Progress> progress;
+    absl::StatusOr<client::JobResult> result =
+        Run(Spec("auto", algorithm == v1::ALGORITHM_ML ? "lnkmeans" : "", algorithm), &progress);
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_EQ(ClusterDevice(progress), "cpu");
+  }
+  ExpectFailsInPass(Spec("gpu", "", v1::ALGORITHM_HC), "points hc select");
+  ExpectFailsInPass(Spec("gpu", "lnkmeans", v1::ALGORITHM_ML), "points hc neighbours");
+  ExpectRunsWithTheHookCleared(Spec("gpu", "lnkmeans", v1::ALGORITHM_ML));
 }
 
 }  // namespace
