@@ -5,6 +5,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "core/base/compensated_sum.h"
 #include "core/base/status_macros.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
@@ -345,8 +346,7 @@ absl::Status PointLevelsGpu::StartSteps() {
   return CommitOdes(/*all=*/true);
 }
 
-absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& keep,
-                                               uint32_t& gone) {
+absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& a, uint32_t& b) {
   level = PointLevelGpu();
   if (k_ == 0) return false;
   ++level_;
@@ -383,24 +383,27 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& k
                      absl::InternalError(absl::StrCat("the cheapest ODE joins clusters ", state[2],
                                                       " and ", state[3], " of ", k_)));
   }
-  MLCLUST_RETURN_IF_ERROR(RunCollapsePasses(
-      *context_, kLevelPasses,
-      [&]() -> absl::Status {
-        // The one pair (pair 0, written by ml_min_ode.glsl) through the merge pass.
-        const detail::GlFunctions& gl = context_->gl();
-        gl.ProgramUniform1ui(programs_.merge, 2, d_);
-        gl.ProgramUniform1ui(programs_.merge, 3, level_);
-        MLCLUST_RETURN_IF_ERROR(
-            DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
-        level.merged = 1;
-        return CheckGlError(*context_, kCollapsePass);
-      },
-      [&]() { return Extract(1, level); }));
-  if (level.element.empty()) {
-    return PassError(kTripletsPass, absl::InternalError("a merge moved no point"));
-  }
-  gone = level.from_cluster.front();
-  keep = level.to_cluster.front();
+  a = state[2];
+  b = state[3];
+  // The one pair (pair 0, written by ml_min_ode.glsl) through the merge pass, its energy
+  // changes read back (ReadLevelTriplets' sum, without triplets).
+  MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
+  const absl::Status merged = [&]() -> absl::Status {
+    const detail::GlFunctions& gl = context_->gl();
+    gl.ProgramUniform1ui(programs_.merge, 2, d_);
+    gl.ProgramUniform1ui(programs_.merge, 3, level_);
+    MLCLUST_RETURN_IF_ERROR(
+        DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
+    std::array<double, 3> values{};
+    MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+    ::mlclust::detail::CompensatedSum change;
+    change.Add(values[1]);
+    change.Add(values[2]);
+    level.energy_change = change.value();
+    level.merged = 1;
+    return CheckGlError(*context_, kCollapsePass);
+  }();
+  MLCLUST_RETURN_IF_ERROR(PassError(kCollapsePass, merged));
   return true;
 }
 

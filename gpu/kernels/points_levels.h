@@ -22,8 +22,8 @@
 //                        (points_hc.glsl)
 //   "points hc select"   the cheapest stored ODE (ml_min_ode.glsl: cost, then id), a
 //                        gone partner's ODE recomputed and the choice repeated
-//                        (points_hc.glsl); then "points collapse" and "points triplets"
-//                        as above, for the one pair
+//                        (points_hc.glsl); then "points collapse" as above for the one
+//                        pair (the caller's triplets, relabelled by "points update")
 //   "points hc neighbours" the clusters the CPU refreshes, in its order of groups (within
 //                        a group by id; the CPU: its reverse lists' order), refreshed one
 //                        after the other as the CPU does (points_hc.glsl)
@@ -113,15 +113,18 @@ class PointLevelsGpu {
   absl::Status LinkAll();
 
   // HC and ML (one merge per step). StartSteps: every stored ODE afresh (at the start,
-  // and after LinkAll as the CPU's ConnectWhenStuck). StepMerge: the cheapest stored ODE
-  // merged (its triplets into `level`, `keep` and `gone` set); false (nothing changed)
-  // where no cluster has an ODE. StepRefresh: after the step (and LN k-means), the
+  // and after LinkAll as the CPU's ConnectWhenStuck). StepMerge: the cheapest stored ODE's
+  // clusters `a` and `b` merged (the larger keeps its id, the smaller id on equal sizes:
+  // the CPU engine's KeepAndGone), level.merged = 1 and level.energy_change set; false
+  // (nothing changed) where no cluster has an ODE. The triplets (the gone cluster's points)
+  // and the relabelling (Update) are the caller's: a search of the points for them would
+  // cost every point per step (m k0 in all). StepRefresh: after the step (and LN k-means), the
   // neighbours of the clusters the CPU refreshes and the ODEs it recomputes; `touched`:
   // the level's touched clusters in the CPU recorder's order (keep and gone first); with
   // `rows`, the clusters whose rows changed (the refreshed ones, then the gone one: n + 1
   // ids) and then their rows (2d each). Errors name the pass.
   absl::Status StartSteps();
-  absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& keep, uint32_t& gone);
+  absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& a, uint32_t& b);
   absl::Status StepRefresh(uint32_t keep, uint32_t gone, std::span<const uint32_t> touched,
                            std::vector<uint32_t>* rows = nullptr);
 

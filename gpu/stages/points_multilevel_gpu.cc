@@ -100,6 +100,7 @@ namespace {
 // The start both loops share: the voxel start (level 0 to the sink), the GPU's levels and,
 // with LN k-means, the optimiser with the host's mirror.
 struct GpuLevelsStart {
+  std::vector<uint32_t> labels;  // the start's (HC's steps keep their own member lists)
   uint32_t k0 = 0;
   double energy = 0;
   uint32_t grid = 0;
@@ -149,6 +150,7 @@ absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& p
         PointLevelsOptimiser::Create(context, points, std::move(host), options));
     made.optimiser.emplace(std::move(optimiser));
   }
+  made.labels = std::move(voxels.labels);
   made.grid = voxels.cells_per_axis.empty()
                   ? 0
                   : *std::max_element(voxels.cells_per_axis.begin(), voxels.cells_per_axis.end());
@@ -241,6 +243,18 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
   energy.Reset(started.energy);
   uint32_t clusters = started.k0;
   MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
+  // The clusters' points (the caller's ids) for the triplets: HC's own lists, ML's mirror.
+  std::vector<std::vector<uint32_t>> members;
+  if (!optimiser.has_value()) {
+    members.resize(started.k0);
+    for (size_t i = 0; i < started.labels.size(); ++i) {
+      members[started.labels[i]].push_back(static_cast<uint32_t>(i));
+    }
+  }
+  std::vector<uint32_t>().swap(started.labels);
+  auto size_of = [&](uint32_t c) -> uint64_t {
+    return optimiser.has_value() ? optimiser->size(c) : members[c].size();
+  };
   PointLevelGpu level;
   std::vector<uint32_t> touched, rows;
   bool linked = false;
@@ -249,8 +263,8 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
   bool read_neighbours = false;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-    uint32_t keep = 0, gone = 0;
-    MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.StepMerge(level, keep, gone));
+    uint32_t a = 0, b = 0;
+    MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.StepMerge(level, a, b));
     if (!merged) {
       // No ODE left: the CPU's ConnectWhenStuck links the survivors once they are few and
       // recomputes their ODEs.
@@ -263,6 +277,21 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
     }
     linked = false;
     --clusters;
+    // The GPU's merge kept the larger cluster (the smaller id on equal sizes); the gone
+    // one's points are the level's triplets and are relabelled on the GPU.
+    const bool a_keeps = size_of(a) > size_of(b) || (size_of(a) == size_of(b) && a < b);
+    const uint32_t keep = a_keeps ? a : b, gone = a_keeps ? b : a;
+    if (optimiser.has_value()) {
+      optimiser->Members(gone, level.element);
+    } else {
+      level.element = std::move(members[gone]);
+      std::vector<uint32_t>().swap(members[gone]);
+      std::sort(level.element.begin(), level.element.end());
+      members[keep].insert(members[keep].end(), level.element.begin(), level.element.end());
+    }
+    level.to_cluster.assign(level.element.size(), keep);
+    level.from_cluster.assign(level.element.size(), gone);
+    MLCLUST_RETURN_IF_ERROR(levels.Update({}, {}, {}, level.element, level.to_cluster));
     if (optimiser.has_value()) {
       // LN k-means around the merge (the CPU's rounds) and the level's report.
       MLCLUST_RETURN_IF_ERROR(

@@ -226,6 +226,14 @@ absl::Status PointLevelsOptimiser::WriteBack(PointLevelsGpu& levels,
   return levels.Update(changed, counts, values, points, labels);
 }
 
+uint64_t PointLevelsOptimiser::size(uint32_t c) const { return mirror_->host->clusters->count(c); }
+
+void PointLevelsOptimiser::Members(uint32_t c, std::vector<uint32_t>& out) const {
+  out.clear();
+  for (const uint32_t i : mirror_->rounds->members(c)) out.push_back(mirror_->host->original[i]);
+  std::sort(out.begin(), out.end());
+}
+
 absl::Status PointLevelsOptimiser::SetNeighbourRows(std::span<const uint32_t> rows) {
   PointClusters& clusters = *mirror_->host->clusters;
   const size_t slots = 2 * size_t{clusters.dims()};

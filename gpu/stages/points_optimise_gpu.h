@@ -84,6 +84,10 @@ class PointLevelsOptimiser {
   absl::Status Level(PointLevelsGpu& levels, const PointLevelGpu& merged, LevelSink& sink,
                      uint32_t index, uint32_t clusters, bool read_neighbours = true);
 
+  // Cluster c's size in the mirror, and its points (the caller's ids, ascending) into `out`.
+  uint64_t size(uint32_t c) const;
+  void Members(uint32_t c, std::vector<uint32_t>& out) const;
+
   // The rows PointLevelsGpu::StepRefresh gave (n + 1 cluster ids, then their rows) into the
   // mirror's neighbour table. INTERNAL where they do not fit it.
   absl::Status SetNeighbourRows(std::span<const uint32_t> rows);
