@@ -219,9 +219,15 @@ TEST(RegistryTest, DevicesFollowThePlan) {
   EXPECT_EQ(device_of(DeviceChoice::kAuto, none, "measures"), "cpu");
   EXPECT_THAT(device_of(DeviceChoice::kGpu, none, "measures"), HasSubstr("no GPU"));
   // A point algorithm without a GPU stage: device gpu says so.
-  request.algorithm = FindAlgorithm(InputKind::kPoints, "hc");
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "bisecting");
+  request.clusters = 3;
   EXPECT_THAT(device_of(DeviceChoice::kGpu, hardware, "cluster"),
-              HasSubstr("no stage of hc on points has a GPU implementation"));
+              HasSubstr("no stage of bisecting on points has a GPU implementation"));
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
+  // Points HC: its steps on the GPU with device gpu only.
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "hc");
+  request.clusters = 0;
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, hardware, "cluster"), "NVIDIA H100");
   EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "cluster"), "cpu");
   // LN k-means assigns on the GPU from seeds, not from the voxel grid (whose neighbours
   // are the CPU's).
