@@ -103,9 +103,10 @@ struct GpuLevelsStart {
   std::vector<uint32_t> labels;  // the start's (HC's steps keep their own member lists)
   uint32_t k0 = 0;
   double energy = 0;
-  uint32_t grid = 0;
   std::optional<PointLevelsGpu> levels;
   std::optional<PointLevelsOptimiser> optimiser;
+  PointMultilevelSummary summary;                // level 0's
+  ::mlclust::detail::CompensatedSum energy_sum;  // from level 0's energy
 };
 
 absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& points,
@@ -151,9 +152,13 @@ absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& p
     made.optimiser.emplace(std::move(optimiser));
   }
   made.labels = std::move(voxels.labels);
-  made.grid = voxels.cells_per_axis.empty()
-                  ? 0
-                  : *std::max_element(voxels.cells_per_axis.begin(), voxels.cells_per_axis.end());
+  made.energy_sum.Reset(made.energy);
+  made.summary.levels = 1;
+  made.summary.start_clusters = k0;
+  made.summary.grid =
+      voxels.cells_per_axis.empty()
+          ? 0
+          : *std::max_element(voxels.cells_per_axis.begin(), voxels.cells_per_axis.end());
   return made;
 }
 
@@ -179,12 +184,8 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
   MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
   PointLevelsGpu& levels = *started.levels;
   std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
-  PointMultilevelSummary summary;
-  summary.levels = 1;
-  summary.start_clusters = started.k0;
-  summary.grid = started.grid;
-  ::mlclust::detail::CompensatedSum energy;
-  energy.Reset(started.energy);
+  PointMultilevelSummary& summary = started.summary;
+  ::mlclust::detail::CompensatedSum& energy = started.energy_sum;
   uint32_t clusters = started.k0;
   PointLevelGpu level;
   bool linked = false;
@@ -234,15 +235,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
   }
   MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
   PointLevelsGpu& levels = *started.levels;
-  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
-  PointMultilevelSummary summary;
-  summary.levels = 1;
-  summary.start_clusters = started.k0;
-  summary.grid = started.grid;
-  ::mlclust::detail::CompensatedSum energy;
-  energy.Reset(started.energy);
-  uint32_t clusters = started.k0;
   MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
+  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
+  PointMultilevelSummary& summary = started.summary;
+  uint32_t clusters = started.k0;
   // The clusters' points (the caller's ids) for the triplets: HC's own lists, ML's mirror.
   std::vector<std::vector<uint32_t>> members;
   if (!optimiser.has_value()) {
@@ -302,8 +298,9 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
       summary.moves = optimiser->moves();
     } else {
       touched = {keep, gone};
-      energy.Add(level.energy_change);
-      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
+      started.energy_sum.Add(level.energy_change);
+      MLCLUST_RETURN_IF_ERROR(
+          SendGpuLevel(level, summary.levels, clusters, started.energy_sum.value(), sink));
       summary.moves += level.element.size();
     }
     MLCLUST_RETURN_IF_ERROR(

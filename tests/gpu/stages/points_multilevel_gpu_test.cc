@@ -444,8 +444,28 @@ TEST(PointsPmlGpu, SoftwareRendererRefusesWhatItsLoopLimitWouldCut) {
                   .ok());
 }
 
-// A GL error injected into each pass (gpu/context/pass.h) is the run's error, named by
-// pass, merges only and with LN k-means' passes; the context works again afterwards.
+// A GL error injected into each of `runs`' passes (gpu/context/pass.h) is the run's error,
+// named by pass; the context works again afterwards (RunOnGpu with options_for(optimizer)).
+template <typename OptionsFor>
+void ExpectCleanFailures(const PointSet& points,
+                         const std::vector<std::pair<Optimizer, const char*>>& runs,
+                         const OptionsFor& options_for) {
+  for (const std::pair<Optimizer, const char*>& run : runs) {
+    ::mlclust::testing::ExpectGlFailureInPass(run.second, [&] {
+      LevelsSink sink;
+      return RunOnGpu(Context(), points, options_for(run.first), sink);
+    });
+  }
+  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> again =
+        RunOnGpu(Context(), points, options_for(optimizer), sink);
+    ASSERT_TRUE(again.ok()) << again.status();
+    EXPECT_EQ(again->final_clusters, 1u);
+  }
+}
+
+// PML's passes, merges only and with LN k-means'.
 TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(20, 300, 6.0, 9, true).points;
   const std::vector<std::pair<Optimizer, const char*>> runs = {
@@ -453,20 +473,9 @@ TEST(PointsPmlGpu, InjectedGlFailureIsACleanError) {
       {Optimizer::kNone, "points collapse"},   {Optimizer::kNone, "points triplets"},
       {Optimizer::kNone, "points neighbours"}, {Optimizer::kLnKmeans, "ln-kmeans assign"},
       {Optimizer::kLnKmeans, "points update"}, {Optimizer::kLnKmeans, "points neighbours"}};
-  for (const std::pair<Optimizer, const char*>& run : runs) {
-    ::mlclust::testing::ExpectGlFailureInPass(run.second, [&] {
-      LevelsSink sink;
-      return RunPointParallelMultilevelGpu(Context(), points,
-                                           PmlOptions(PmlPairRule::kAll, 1, run.first), sink);
-    });
-  }
-  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
-    LevelsSink sink;
-    absl::StatusOr<PointMultilevelSummary> again = RunPointParallelMultilevelGpu(
-        Context(), points, PmlOptions(PmlPairRule::kAll, 1, optimizer), sink);
-    ASSERT_TRUE(again.ok()) << again.status();
-    EXPECT_EQ(again->final_clusters, 1u);
-  }
+  ExpectCleanFailures(points, runs, [](Optimizer optimizer) {
+    return PmlOptions(PmlPairRule::kAll, 1, optimizer);
+  });
 }
 
 // A buffer over the context's storage-buffer limit (the points alone are 12 bytes a
@@ -477,12 +486,16 @@ TEST(PointsPmlGpu, BuffersOverTheLimitAreResourceExhausted) {
   options.max_storage_buffer_bytes = 8 * static_cast<int64_t>(points.num_points());
   absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
   ASSERT_TRUE(small.ok()) << small.status();
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> result =
-      RunPointParallelMultilevelGpu(**small, points, PmlOptions(PmlPairRule::kAll, 1), sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'voxel start'"));
-  EXPECT_TRUE(sink.counts.empty());
+  // PML's levels, and HC's steps (RunPointHierarchyGpu).
+  for (const bool parallel : {true, false}) {
+    PointMultilevelOptions run = PmlOptions(PmlPairRule::kAll, 1);
+    run.parallel = parallel;
+    LevelsSink sink;
+    absl::StatusOr<PointMultilevelSummary> result = RunOnGpu(**small, points, run, sink);
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
+    EXPECT_THAT(result.status().message(), HasSubstr("GPU pass 'voxel start'"));
+    EXPECT_TRUE(sink.counts.empty());
+  }
 }
 
 TEST(PointsPmlGpu, CancelledBetweenLevels) {
@@ -663,19 +676,7 @@ TEST(PointsHcGpu, InjectedGlFailureIsACleanError) {
       {Optimizer::kNone, "points collapse"},      {Optimizer::kNone, "points update"},
       {Optimizer::kNone, "points hc neighbours"}, {Optimizer::kLnKmeans, "ln-kmeans assign"},
       {Optimizer::kLnKmeans, "points update"},    {Optimizer::kLnKmeans, "points hc neighbours"}};
-  for (const std::pair<Optimizer, const char*>& run : runs) {
-    ::mlclust::testing::ExpectGlFailureInPass(run.second, [&] {
-      LevelsSink sink;
-      return RunPointHierarchyGpu(Context(), points, StepOptions(1, run.first), sink);
-    });
-  }
-  for (const Optimizer optimizer : {Optimizer::kNone, Optimizer::kLnKmeans}) {
-    LevelsSink sink;
-    absl::StatusOr<PointMultilevelSummary> again =
-        RunPointHierarchyGpu(Context(), points, StepOptions(1, optimizer), sink);
-    ASSERT_TRUE(again.ok()) << again.status();
-    EXPECT_EQ(again->final_clusters, 1u);
-  }
+  ExpectCleanFailures(points, runs, [](Optimizer optimizer) { return StepOptions(1, optimizer); });
 }
 
 TEST(PointsHcGpu, CancelledBetweenLevelsAndRefusesPml) {
@@ -697,21 +698,6 @@ TEST(PointsHcGpu, CancelledBetweenLevelsAndRefusesPml) {
                 .status()
                 .code(),
             absl::StatusCode::kUnimplemented);
-  EXPECT_TRUE(sink.counts.empty());
-}
-
-// A buffer over the context's storage-buffer limit is RESOURCE_EXHAUSTED, named by pass,
-// before anything reaches the sink.
-TEST(PointsHcGpu, BuffersOverTheLimitAreResourceExhausted) {
-  const PointSet points = ::mlclust::testing::GaussianBlobs(6, 100, 6.0, 14).points;
-  GlContextOptions options;
-  options.max_storage_buffer_bytes = 8 * static_cast<int64_t>(points.num_points());
-  absl::StatusOr<std::unique_ptr<GlContext>> small = GlContext::Create(options);
-  ASSERT_TRUE(small.ok()) << small.status();
-  LevelsSink sink;
-  absl::StatusOr<PointMultilevelSummary> result =
-      RunPointHierarchyGpu(**small, points, StepOptions(1, Optimizer::kNone), sink);
-  EXPECT_EQ(result.status().code(), absl::StatusCode::kResourceExhausted);
   EXPECT_TRUE(sink.counts.empty());
 }
 
