@@ -390,13 +390,14 @@ bool MlLevelsOnGpu(const JobPlan& plan) {
 }
 
 // Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
-// PointsPmlGpuUnsupported says the same): without the switch to ML; merges only (optimizer
-// none), or with LN k-means inside the levels (gpu/stages/points_optimise_gpu.h, with or
-// without bounded-drift) for --device gpu only (auto keeps LN k-means on the CPU until the
-// NVIDIA figures are taken: each round is a round trip).
+// PointsPmlGpuUnsupported says the same): merges only (optimizer none), or with LN k-means
+// inside the levels (gpu/stages/points_optimise_gpu.h, with or without bounded-drift) for
+// --device gpu only (auto keeps LN k-means on the CPU until the NVIDIA figures are taken:
+// each round is a round trip); the switch to ML (pml-until, then one merge per level as
+// PointHierarchyLevelsOnGpu) for --device gpu only too.
 bool PointPmlLevelsOnGpu(const JobPlan& plan) {
   const PointMultilevelOptions& options = plan.point_multilevel;
-  if (options.pml_until != 0) return false;
+  if (options.pml_until != 0) return plan.device == DeviceChoice::kGpu;
   if (options.optimizer == PointMultilevelOptions::Optimizer::kNone) return true;
   return plan.device == DeviceChoice::kGpu;
 }

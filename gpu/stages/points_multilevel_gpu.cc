@@ -91,7 +91,6 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
   return "";
 }
 
@@ -171,77 +170,22 @@ absl::Status Inspect(const PointMultilevelOptions& options, PointLevelsGpu& leve
   return absl::OkStatus();
 }
 
-}  // namespace
-
-absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
-    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
-    LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
-  const std::string unsupported = PointsPmlGpuUnsupported(options);
-  if (!unsupported.empty()) {
-    return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
-  }
-  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
-  PointLevelsGpu& levels = *started.levels;
-  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
-  PointMultilevelSummary& summary = started.summary;
-  ::mlclust::detail::CompensatedSum& energy = started.energy_sum;
-  uint32_t clusters = started.k0;
-  PointLevelGpu level;
-  bool linked = false;
-  while (clusters > options.min_clusters) {
-    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-    MLCLUST_ASSIGN_OR_RETURN(
-        const bool merged,
-        optimiser.has_value()
-            ? levels.MergeLevel(options.pml_pairs, clusters, options.min_clusters, level)
-            : levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
-    if (!merged) {
-      // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
-      if (linked || clusters <= 1 || clusters > kMaxLinked) break;
-      MLCLUST_RETURN_IF_ERROR(levels.LinkAll());
-      linked = true;
-      continue;
-    }
-    linked = false;
-    clusters -= level.merged;
-    if (optimiser.has_value()) {
-      // The level's LN k-means rounds and its report, then the neighbour refresh.
-      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
-      MLCLUST_RETURN_IF_ERROR(levels.RefreshNeighbours());
-      summary.moves = optimiser->moves();
-    } else {
-      energy.Add(level.energy_change);
-      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
-      summary.moves += level.element.size();
-    }
-    MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
-    ++summary.levels;
-  }
-  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-  summary.final_clusters = clusters;
-  return summary;
-}
-
-absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
-                                                            const PointSet& points,
-                                                            const PointMultilevelOptions& options,
-                                                            LevelSink& sink) {
-  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
-  if (options.parallel) {
-    return absl::UnimplementedError(
-        "HC and ML for points on the GPU: one merge per level (PML is "
-        "RunPointParallelMultilevelGpu)");
-  }
-  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
+// HC's and ML's steps (one merge per level) from `started` at `clusters` clusters down to
+// options.min_clusters; `table_current`: the optimiser's mirror has the GPU's neighbour
+// table (at the start; not after PML's levels).
+absl::Status RunSteps(GpuLevelsStart& started, const PointMultilevelOptions& options,
+                      LevelSink& sink, bool table_current, uint32_t& clusters) {
   PointLevelsGpu& levels = *started.levels;
   MLCLUST_RETURN_IF_ERROR(levels.StartSteps());
   std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
   PointMultilevelSummary& summary = started.summary;
-  uint32_t clusters = started.k0;
-  // The clusters' points (the caller's ids) for the triplets: HC's own lists, ML's mirror.
+  // The clusters' points (the caller's ids) for the triplets: HC's own lists (from the
+  // start's labels, or after PML's levels the GPU's), ML's mirror.
   std::vector<std::vector<uint32_t>> members;
   if (!optimiser.has_value()) {
+    if (started.labels.empty()) {
+      MLCLUST_ASSIGN_OR_RETURN(started.labels, levels.Labels());
+    }
     members.resize(started.k0);
     for (size_t i = 0; i < started.labels.size(); ++i) {
       members[started.labels[i]].push_back(static_cast<uint32_t>(i));
@@ -255,8 +199,8 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
   std::vector<uint32_t> touched, rows;
   bool linked = false;
   // ML: the mirror's neighbour table is the GPU's (the start's) until LinkAll changes it
-  // all; after each step the refreshed rows come back.
-  bool read_neighbours = false;
+  // all; after each step the refreshed rows come back. After PML's levels it is read once.
+  bool read_neighbours = !table_current;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
     uint32_t a = 0, b = 0;
@@ -309,6 +253,82 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
     MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
     ++summary.levels;
   }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
+    GlContext& context, const PointSet& points, const PointMultilevelOptions& options,
+    LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
+  const std::string unsupported = PointsPmlGpuUnsupported(options);
+  if (!unsupported.empty()) {
+    return absl::UnimplementedError(absl::StrCat("PML for points on the GPU: ", unsupported));
+  }
+  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
+  std::vector<uint32_t>().swap(started.labels);  // stale after the first level
+  PointLevelsGpu& levels = *started.levels;
+  std::optional<PointLevelsOptimiser>& optimiser = started.optimiser;
+  PointMultilevelSummary& summary = started.summary;
+  ::mlclust::detail::CompensatedSum& energy = started.energy_sum;
+  uint32_t clusters = started.k0;
+  PointLevelGpu level;
+  bool linked = false, stuck = false;
+  // PML's levels while more than pml_until clusters are left, then ML's (or HC's) steps.
+  while (clusters > std::max(options.min_clusters, options.pml_until)) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const bool merged,
+        optimiser.has_value()
+            ? levels.MergeLevel(options.pml_pairs, clusters, options.min_clusters, level)
+            : levels.Level(options.pml_pairs, clusters, options.min_clusters, level));
+    if (!merged) {
+      // No pair left: the CPU's ConnectWhenStuck links the survivors once they are few.
+      stuck = linked || clusters <= 1 || clusters > kMaxLinked;
+      if (stuck) break;
+      MLCLUST_RETURN_IF_ERROR(levels.LinkAll());
+      linked = true;
+      continue;
+    }
+    linked = false;
+    clusters -= level.merged;
+    if (optimiser.has_value()) {
+      // The level's LN k-means rounds and its report, then the neighbour refresh.
+      MLCLUST_RETURN_IF_ERROR(optimiser->Level(levels, level, sink, summary.levels, clusters));
+      MLCLUST_RETURN_IF_ERROR(levels.RefreshNeighbours());
+      summary.moves = optimiser->moves();
+    } else {
+      energy.Add(level.energy_change);
+      MLCLUST_RETURN_IF_ERROR(SendGpuLevel(level, summary.levels, clusters, energy.value(), sink));
+      summary.moves += level.element.size();
+    }
+    MLCLUST_RETURN_IF_ERROR(Inspect(options, levels, summary.levels));
+    ++summary.levels;
+  }
+  if (!stuck && clusters > options.min_clusters) {
+    MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+    MLCLUST_RETURN_IF_ERROR(RunSteps(started, options, sink, /*table_current=*/false, clusters));
+  }
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
+  summary.final_clusters = clusters;
+  return summary;
+}
+
+absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
+                                                            const PointSet& points,
+                                                            const PointMultilevelOptions& options,
+                                                            LevelSink& sink) {
+  MLCLUST_RETURN_IF_ERROR(::mlclust::detail::CheckPointLevelsArguments(points, options));
+  if (options.parallel) {
+    return absl::UnimplementedError(
+        "HC and ML for points on the GPU: one merge per level (PML is "
+        "RunPointParallelMultilevelGpu)");
+  }
+  MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
+  uint32_t clusters = started.k0;
+  MLCLUST_RETURN_IF_ERROR(RunSteps(started, options, sink, /*table_current=*/true, clusters));
+  PointMultilevelSummary& summary = started.summary;
   MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
   summary.final_clusters = clusters;
   return summary;

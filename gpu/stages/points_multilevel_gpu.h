@@ -22,7 +22,8 @@
 //     before it. So later levels differ: the hierarchies are alike, not equal (the tests
 //     bound the energies at equal cluster counts).
 // Covered (PointsPmlGpuUnsupported says why not otherwise): PML, optimizer none or LN
-// k-means (optimise_rounds and bounded_drift: the shared round driver's), pml-until 0,
+// k-means (optimise_rounds and bounded_drift: the shared round driver's), pml-until (PML's
+// levels down to it, then RunPointHierarchyGpu's steps; alike the CPU's, not identical),
 // both pair rules, min_clusters, grid; at most kVoxelStartMaxDims dimensions.
 // PointMultilevelOptions::threads is not used (the host's part of the start runs on one
 // thread); inspect_level is called with each level's labels (downloaded; slow, for tests).

@@ -376,10 +376,38 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
   options.parallel = false;
   EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
             absl::StatusCode::kUnimplemented);
-  options = PmlOptions(PmlPairRule::kAll, 1);
-  options.pml_until = 10;
-  EXPECT_EQ(RunPointParallelMultilevelGpu(Context(), points, options, sink).status().code(),
-            absl::StatusCode::kUnimplemented);
+}
+
+// pml-until: PML's levels down to it, then ML's steps (or HC's with optimizer none), on the
+// GPU as on the CPU: the same count where the switch happens is crossed, and the energies
+// within 1% of the CPU's PML->ML at every count from half the start's down.
+TEST(PointsPmlGpu, PmlUntilThenStepsLikeTheCpu) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points;
+  for (const Optimizer optimizer : {Optimizer::kLnKmeans, Optimizer::kNone}) {
+    PointMultilevelOptions options = PmlOptions(PmlPairRule::kCheaperHalf, 10, optimizer);
+    options.pml_until = 100;
+    LevelsSink cpu, gpu;
+    ASSERT_TRUE(RunPointMultilevel(points, options, cpu).ok());
+    absl::StatusOr<PointMultilevelSummary> ran =
+        RunPointParallelMultilevelGpu(Context(), points, options, gpu);
+    ASSERT_TRUE(ran.ok()) << ran.status();
+    EXPECT_EQ(ran->final_clusters, 10u);
+    // Below pml_until one merge per level, as on the CPU.
+    size_t steps = 0;
+    for (size_t l = 1; l < gpu.counts.size(); ++l) {
+      if (gpu.counts[l - 1] <= 100) {
+        EXPECT_EQ(gpu.counts[l], gpu.counts[l - 1] - 1) << l;
+        ++steps;
+      }
+    }
+    EXPECT_GT(steps, 50u);  // from where PML's last level left it (below 100) down to 10
+    for (size_t l = 1; l < cpu.counts.size(); ++l) {
+      if (cpu.counts[l] > 100) continue;
+      const double at_gpu =
+          ::mlclust::testing::EnergyAtCount(gpu.counts, gpu.energies, cpu.counts[l]);
+      EXPECT_NEAR(at_gpu, cpu.energies[l], 0.01 * cpu.energies[l]) << cpu.counts[l];
+    }
+  }
 }
 
 // bounded-drift (ours) in the shared round driver: the GPU's PML with LN k-means and a
@@ -537,6 +565,12 @@ TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
                 hardware, InputKind::kPoints, "pml", "variance", DeviceChoice::kGpu,
                 {{"optimizer", "lnkmeans"}, {"bounded-drift", "0.03"}}),
             "NVIDIA H100");
+  // PML then ML (pml-until): --device gpu only.
+  for (const DeviceChoice choice : {DeviceChoice::kGpu, DeviceChoice::kAuto}) {
+    EXPECT_EQ(::mlclust::testing::ClusterStageDeviceFor(hardware, InputKind::kPoints, "pml",
+                                                        "variance", choice, {{"pml-until", "100"}}),
+              choice == DeviceChoice::kGpu ? "NVIDIA H100" : "cpu");
+  }
   // HC's and ML's steps (RunPointHierarchyGpu): --device gpu only, as the meshes' HC.
   for (const char* algorithm : {"hc", "ml"}) {
     auto step_device = [&](const DeviceCaps& caps, DeviceChoice choice) {
