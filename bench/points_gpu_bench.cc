@@ -7,7 +7,8 @@
 // energy at the lowest level, at 4x and 16x its clusters and at the number of blobs.
 //
 //   points_gpu_bench [--m M] [--d D] [--blobs B] [--algo pml|hc|ml]
-//                    [--pairs all|cheaper-half] [--until K] [--optimizer none|lnkmeans]
+//                    [--pairs all|cheaper-half] [--until K] [--pml-until N]
+//                    [--optimizer none|lnkmeans]
 //                    [--bounded F] [--threads T] [--repeats R] [--seed S] [--curve] [--header]
 //
 // --algo hc (merges only) and ml (LN k-means unless --optimizer none) run one merge per
@@ -76,17 +77,19 @@ class CurveSink : public mlclust::LevelSink {
 }  // namespace
 
 int main(int argc, char** argv) {
-  mlclust::bench::Args args(argc, argv,
-                            "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
-                            "[--algo pml|hc|ml] [--pairs all|cheaper-half] [--until K] "
-                            "[--optimizer none|lnkmeans] [--bounded F] [--threads T] [--repeats R] "
-                            "[--seed S] [--curve] [--header]");
+  mlclust::bench::Args args(
+      argc, argv,
+      "usage: points_gpu_bench [--m M] [--d D] [--blobs B] "
+      "[--algo pml|hc|ml] [--pairs all|cheaper-half] [--until K] [--pml-until N] "
+      "[--optimizer none|lnkmeans] [--bounded F] [--threads T] [--repeats R] "
+      "[--seed S] [--curve] [--header]");
   const bool header = args.Flag("header");
   const bool curve = args.Flag("curve");  // every level's count and energy to stderr
   const uint64_t m = args.Get<uint64_t>("m", 100000);
   const uint32_t d = args.Get<uint32_t>("d", 3), blobs = args.Get<uint32_t>("blobs", 1000);
   const std::string pairs = args.Get<std::string>("pairs", "cheaper-half");
   const uint32_t until = args.Get<uint32_t>("until", 1);
+  const uint32_t pml_until = args.Get<uint32_t>("pml-until", 0);  // --algo pml: then ML
   const std::string algo = args.Get<std::string>("algo", "pml");
   // PML's default is merges only (as before --algo); ML's is LN k-means; HC has none.
   const std::string optimizer =
@@ -112,6 +115,7 @@ int main(int argc, char** argv) {
   mlclust::PointMultilevelOptions options;
   options.parallel = algo == "pml";
   options.bounded_drift = bounded;
+  options.pml_until = pml_until;
   options.optimizer = optimizer == "none" ? mlclust::PointMultilevelOptions::Optimizer::kNone
                                           : mlclust::PointMultilevelOptions::Optimizer::kLnKmeans;
   options.pml_pairs =
