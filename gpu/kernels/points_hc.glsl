@@ -15,7 +15,10 @@
 //                    neighbours as candidates; LinkIsolated where none is left)
 //   3 (one)          the gone cluster's row emptied; the ODEs to recompute flagged: the
 //                    refreshed clusters and the touched clusters' neighbours
-//   4 (per cluster)  the flagged (every one with u_all) stored ODEs := the fresh ones
+//   7 (per cluster)  flag 2 (fresh ODE needed, not stored) where the stored ODE's partner
+//                    is gone: phase 5 may need its fresh ODE (points_ode.glsl computes
+//                    the fresh ODEs of the flagged clusters only)
+//   4 (per cluster)  the flag-1 (every one with u_all) stored ODEs := the fresh ones
 //   5 (one)          after ml_min_ode.glsl chose (pair_ids): a partner gone means that
 //                    cluster's ODE is recomputed (stored := fresh) and the choice repeated
 //   6 (per listed)   the rows of the refreshed clusters (then the gone one's) gathered
@@ -91,10 +94,17 @@ void RefreshOne(uint c) {
 void main() {
   uint i = LinearInvocationIndex();
   uint slots = 2u * u_dims;
-  if (u_phase == 0u || u_phase == 4u) {
+  if (u_phase == 0u || u_phase == 4u || u_phase == 7u) {
     if (i >= u_count) return;
+    if (u_phase == 7u) {
+      uint partner = stored[3u * i + 2u];
+      if (work[FlagAt(i)] == 0u && counts[i] != 0u && partner != 0u && counts[partner - 1u] == 0u) {
+        work[FlagAt(i)] = 2u;
+      }
+      return;
+    }
     if (u_phase == 4u) {
-      if (u_all != 0u || work[FlagAt(i)] != 0u) {
+      if (u_all != 0u || work[FlagAt(i)] == 1u) {
         for (uint w = 0u; w < 3u; ++w) stored[3u * i + w] = fresh[3u * i + w];
       }
       work[FlagAt(i)] = 0u;

@@ -38,7 +38,7 @@ constexpr char kHcSelectPass[] = "points hc select";
 constexpr char kHcNeighboursPass[] = "points hc neighbours";
 // points_hc.glsl's phases.
 constexpr uint32_t kHcMark = 0, kHcOrder = 1, kHcRefresh = 2, kHcFinish = 3, kHcCommit = 4,
-                   kHcRepair = 5, kHcGather = 6;
+                   kHcRepair = 5, kHcGather = 6, kHcNeeded = 7;
 // points_hc.glsl's work buffer, uints: state, touched, listed, ordered, groups, flags (k
 // each), then the gathered rows (k + 1 of 2d).
 uint64_t HcWorkUints(uint64_t k, uint32_t d) { return 4 + 5 * k + (k + 1) * 2 * d; }
@@ -333,8 +333,14 @@ absl::Status PointLevelsGpu::CommitOdes(bool all) {
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kHcOdesPass));
   absl::Status status = [&]() -> absl::Status {
     BindAll();
+    // Not all: the fresh ODEs of the flagged clusters only (points_ode.glsl's u_needed_at,
+    // the flags' offset in the work buffer), those whose stored partner is gone included.
+    if (!all) MLCLUST_RETURN_IF_ERROR(HcPhase(kHcNeeded, k_));
+    context_->gl().ProgramUniform1ui(programs_.ode, 9,
+                                     all ? 0u : static_cast<uint32_t>(4 + 4 * uint64_t{k_}));
     MLCLUST_RETURN_IF_ERROR(
         FindOdes(*context_, {programs_.ode, 0, k_, k_ * 2 * d_, d_, kHcOdesPass}));
+    context_->gl().ProgramUniform1ui(programs_.ode, 9, 0);  // PML's: every edge
     MLCLUST_RETURN_IF_ERROR(HcPhase(kHcCommit, k_, {{8, all ? 1u : 0u}}));
     return CheckGlError(*context_, kHcOdesPass);
   }();

@@ -90,7 +90,7 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
 }  // namespace
 
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
-  if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
+  if (!options.parallel) return "one merge per level is RunPointHierarchyGpu's";
   return "";
 }
 

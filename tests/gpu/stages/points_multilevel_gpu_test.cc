@@ -545,7 +545,7 @@ TEST(PointsPmlGpu, CancelledBetweenLevels) {
 
 // The plan (core/cluster/registry.cc): PML's point levels go to the GPU, merges only with
 // device gpu even on llvmpipe and with auto only on hardware, with LN k-means for device
-// gpu only (with or without bounded-drift); ML stays on the CPU.
+// gpu only (with or without bounded-drift); pml-until, HC and ML with device gpu only.
 TEST(PointsPmlGpuPlan, TheClusterStageGoesToTheGpuWhereTheGpuCoversIt) {
   const DeviceCaps hardware{true, false, "NVIDIA H100"};
   const DeviceCaps software{true, true, "llvmpipe"};
