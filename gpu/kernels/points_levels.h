@@ -17,9 +17,10 @@
 //                       second-order candidates through the merges (points_refresh.glsl)
 // HC and ML (one merge per step: StartSteps, then StepMerge and StepRefresh per step; the
 // CPU engine's SequentialMerge and PointSpace::UpdateOdes), passes:
-//   "points hc odes"     every cluster's ODE afresh (points_ode.glsl, as above), then the
-//                        stored ODEs (the CPU's queue) take those the CPU recomputes
-//                        (points_hc.glsl)
+//   "points hc odes"     the ODEs afresh (points_ode.glsl, as above; after a step only
+//                        over the edges of the clusters the CPU recomputes and of those
+//                        whose stored partner is gone), then the stored ODEs (the CPU's
+//                        queue) take those the CPU recomputes (points_hc.glsl)
 //   "points hc select"   the cheapest stored ODE (ml_min_ode.glsl: cost, then id), a
 //                        gone partner's ODE recomputed and the choice repeated
 //                        (points_hc.glsl); then "points collapse" as above for the one
