@@ -21,6 +21,9 @@
 //   4 (per cluster)  the flag-1 (every one with u_all) stored ODEs := the fresh ones
 //   5 (one)          after ml_min_ode.glsl chose (pair_ids): a partner gone means that
 //                    cluster's ODE is recomputed (stored := fresh) and the choice repeated
+//   8 (one)          after the merge (pair_merge.glsl): the kept cluster's size, the kept
+//                    and the gone cluster into the state, as the GPU decided them
+//   9 (per touched)  the touched clusters' places (1 + p) in their flags, for phase 0
 //   6 (per listed)   the rows of the refreshed clusters (then the gone one's) gathered
 //                    after the step's lists, for the host's mirror (ML)
 layout(std430, binding = 4) buffer Neighbours { uint neighbours[]; };  // k x 2d, in place
@@ -111,21 +114,24 @@ void main() {
       return;
     }
     if (counts[i] == 0u) return;
+    // A touched cluster's flag holds 1 + its place p (phase 9): O(2d) per cluster.
     uint group = kNone;
     for (uint s = 0u; s < slots; ++s) {
       uint n = neighbours[i * slots + s];
       if (n == kNone) continue;
       if (n == u_gone) group = 0u;
-      for (uint p = 0u; p < u_touched; ++p) {
-        if (n == TouchedAt(p)) group = min(group, 2u * p + 2u);
-      }
+      uint place = work[FlagAt(n)];
+      if (place != 0u) group = min(group, 2u * place);
     }
-    for (uint p = 0u; p < u_touched; ++p) {
-      if (i == TouchedAt(p)) group = min(group, 2u * p + 1u);
-    }
+    uint own = work[FlagAt(i)];
+    if (own != 0u) group = min(group, 2u * own - 1u);
     if (group == kNone) return;
     work[GroupAt(i)] = group;
     work[ListedAt(atomicAdd(work[0], 1u))] = i;
+    return;
+  }
+  if (u_phase == 9u) {
+    if (i < u_touched) work[FlagAt(TouchedAt(i))] = i + 1u;
     return;
   }
   if (u_phase == 6u) {
@@ -148,6 +154,7 @@ void main() {
   if (u_phase == 2u) {
     for (uint r = u_begin; r < u_end; ++r) RefreshOne(work[OrderedAt(r)]);
   } else if (u_phase == 3u) {
+    for (uint p = 0u; p < u_touched; ++p) work[FlagAt(TouchedAt(p))] = 0u;  // phase 9's
     for (uint s = 0u; s < slots; ++s) neighbours[u_gone * slots + s] = kNone;
     uint listed = work[0];
     for (uint r = 0u; r < listed; ++r) work[FlagAt(work[OrderedAt(r)])] = 1u;
@@ -158,6 +165,13 @@ void main() {
         if (n != kNone && counts[n] != 0u) work[FlagAt(n)] = 1u;
       }
     }
+  } else if (u_phase == 8u) {
+    uint a = pair_ids[0];
+    uint b = pair_ids[1];
+    uint keep = counts[a] != 0u ? a : b;
+    work[1] = counts[keep];
+    work[2] = keep;
+    work[3] = keep == a ? b : a;
   } else if (u_phase == 5u) {
     uint chosen = pair_ids[0];
     uint partner = pair_ids[1];

@@ -38,15 +38,12 @@ constexpr char kHcSelectPass[] = "points hc select";
 constexpr char kHcNeighboursPass[] = "points hc neighbours";
 // points_hc.glsl's phases.
 constexpr uint32_t kHcMark = 0, kHcOrder = 1, kHcRefresh = 2, kHcFinish = 3, kHcCommit = 4,
-                   kHcRepair = 5, kHcGather = 6, kHcNeeded = 7;
+                   kHcRepair = 5, kHcGather = 6, kHcNeeded = 7, kHcMerged = 8, kHcPlaces = 9;
+// points_ode.glsl's u_needed_at (0: every edge; HC's and ML's steps: the flags' offset).
+constexpr uint32_t kOdeNeededAt = 9;
 // points_hc.glsl's work buffer, uints: state, touched, listed, ordered, groups, flags (k
 // each), then the gathered rows (k + 1 of 2d).
 uint64_t HcWorkUints(uint64_t k, uint32_t d) { return 4 + 5 * k + (k + 1) * 2 * d; }
-// Mesa's software renderers stop an invocation's loops after 65,535 iterations (all loops
-// together; points_multilevel_gpu.cc refuses runs whose one refresh could pass this): the
-// sequential refresh (phase 2) refreshes at most this many iterations' worth of clusters
-// per dispatch.
-constexpr uint64_t kSoftwareLoopBudget = 60000;
 constexpr uint32_t kNone = 0xFFFFFFFFu;
 
 // pml_compact.glsl's kind and counter slots (shared with the meshes' PML).
@@ -171,6 +168,7 @@ void PointLevelsGpu::BindAll() {
 
 absl::StatusOr<uint32_t> PointLevelsGpu::FindPairs() {
   BindAll();
+  context_->gl().ProgramUniform1ui(programs_.ode, kOdeNeededAt, 0);  // every edge
   return FindMutualPairs(*context_, buffers_[kCounters],
                          {programs_.ode, programs_.pairs, k_, k_ * 2 * d_, d_, kOdesPass});
 }
@@ -323,10 +321,10 @@ absl::Status PointLevelsGpu::HcPhase(
   for (const auto& [location, value] : uniforms) {
     gl.ProgramUniform1ui(programs_.hc, location, value);
   }
-  MLCLUST_RETURN_IF_ERROR(DispatchLinear(*context_, invocations));
-  gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  const absl::Status dispatched = DispatchLinear(*context_, invocations);
+  if (dispatched.ok()) gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   gl.UseProgram(0);
-  return absl::OkStatus();
+  return dispatched;
 }
 
 absl::Status PointLevelsGpu::CommitOdes(bool all) {
@@ -336,11 +334,14 @@ absl::Status PointLevelsGpu::CommitOdes(bool all) {
     // Not all: the fresh ODEs of the flagged clusters only (points_ode.glsl's u_needed_at,
     // the flags' offset in the work buffer), those whose stored partner is gone included.
     if (!all) MLCLUST_RETURN_IF_ERROR(HcPhase(kHcNeeded, k_));
-    context_->gl().ProgramUniform1ui(programs_.ode, 9,
+    context_->gl().ProgramUniform1ui(programs_.ode, kOdeNeededAt,
                                      all ? 0u : static_cast<uint32_t>(4 + 4 * uint64_t{k_}));
-    MLCLUST_RETURN_IF_ERROR(
-        FindOdes(*context_, {programs_.ode, 0, k_, k_ * 2 * d_, d_, kHcOdesPass}));
-    context_->gl().ProgramUniform1ui(programs_.ode, 9, 0);  // PML's: every edge
+    const absl::Status found =
+        FindOdes(*context_, {programs_.ode, 0, k_, k_ * 2 * d_, d_, kHcOdesPass});
+    // Back to every edge whatever happened (the program is cached per context; FindPairs
+    // sets it too).
+    context_->gl().ProgramUniform1ui(programs_.ode, kOdeNeededAt, 0);
+    MLCLUST_RETURN_IF_ERROR(found);
     MLCLUST_RETURN_IF_ERROR(HcPhase(kHcCommit, k_, {{8, all ? 1u : 0u}}));
     return CheckGlError(*context_, kHcOdesPass);
   }();
@@ -352,7 +353,8 @@ absl::Status PointLevelsGpu::StartSteps() {
   return CommitOdes(/*all=*/true);
 }
 
-absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& a, uint32_t& b) {
+absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& keep, uint32_t& gone,
+                                               uint32_t& size) {
   level = PointLevelGpu();
   if (k_ == 0) return false;
   ++level_;
@@ -389,10 +391,10 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& a
                      absl::InternalError(absl::StrCat("the cheapest ODE joins clusters ", state[2],
                                                       " and ", state[3], " of ", k_)));
   }
-  a = state[2];
-  b = state[3];
+  const uint32_t a = state[2], b = state[3];
   // The one pair (pair 0, written by ml_min_ode.glsl) through the merge pass, its energy
-  // changes read back (ReadLevelTriplets' sum, without triplets).
+  // changes read back (ReadLevelTriplets' sum, without triplets), and which cluster kept
+  // its id and its size (points_hc.glsl phase 8).
   MLCLUST_RETURN_IF_ERROR(BeginPass(*context_, kCollapsePass));
   const absl::Status merged = [&]() -> absl::Status {
     const detail::GlFunctions& gl = context_->gl();
@@ -400,6 +402,15 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& a
     gl.ProgramUniform1ui(programs_.merge, 3, level_);
     MLCLUST_RETURN_IF_ERROR(
         DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
+    MLCLUST_RETURN_IF_ERROR(HcPhase(kHcMerged, 1));
+    MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(state)));
+    if (!((state[2] == a && state[3] == b) || (state[2] == b && state[3] == a))) {
+      return absl::InternalError(absl::StrCat("the merge of ", a, " and ", b, " kept ", state[2],
+                                              " and removed ", state[3]));
+    }
+    keep = state[2];
+    gone = state[3];
+    size = state[1];
     std::array<double, 3> values{};
     MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
     ::mlclust::detail::CompensatedSum change;
@@ -433,6 +444,7 @@ absl::Status PointLevelsGpu::StepRefresh(uint32_t keep, uint32_t gone,
     const auto count = static_cast<uint32_t>(touched.size());
     const std::initializer_list<std::pair<uint32_t, uint32_t>> step = {
         {3, count}, {4, keep}, {5, gone}};
+    MLCLUST_RETURN_IF_ERROR(HcPhase(kHcPlaces, count, step));
     MLCLUST_RETURN_IF_ERROR(HcPhase(kHcMark, k_, step));
     uint32_t listed = 0;
     MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(&listed, 1)));
@@ -446,7 +458,7 @@ absl::Status PointLevelsGpu::StepRefresh(uint32_t keep, uint32_t gone,
       const uint64_t slots = 2 * uint64_t{d_}, offer = 2 * uint64_t{d_} + 1;
       const uint64_t one = (1 + slots + slots * (slots + 1)) * offer;
       const uint64_t all = uint64_t{k_} * offer;
-      const uint64_t left = kSoftwareLoopBudget > all ? kSoftwareLoopBudget - all : 0;
+      const uint64_t left = kPointsSoftwareLoopBudget > all ? kPointsSoftwareLoopBudget - all : 0;
       chunk = static_cast<uint32_t>(std::max<uint64_t>(1, left / one));
     }
     for (uint32_t begin = 0; begin < listed; begin += chunk) {

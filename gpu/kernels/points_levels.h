@@ -59,6 +59,13 @@
 
 namespace mlclust::gpu {
 
+// Mesa's software renderers stop every loop of a shader invocation, without a word, once
+// 65,535 iterations have run in it (all loops together; gpu/kernels/hc_levels.cc): the
+// iterations one invocation of the point levels may plan for there. The stage refuses runs
+// whose one refresh could pass it (points_multilevel_gpu.cc); HC's and ML's sequential
+// refresh dispatches at most this many iterations' worth of clusters at a time.
+inline constexpr uint64_t kPointsSoftwareLoopBudget = 60000;
+
 // One level's result (pml_pair_selection.h); the triplets in point order.
 using PointLevelGpu = GpuPmlLevel;
 
@@ -115,9 +122,10 @@ class PointLevelsGpu {
 
   // HC and ML (one merge per step). StartSteps: every stored ODE afresh (at the start,
   // and after LinkAll as the CPU's ConnectWhenStuck). StepMerge: the cheapest stored ODE's
-  // clusters `a` and `b` merged (the larger keeps its id, the smaller id on equal sizes:
-  // the CPU engine's KeepAndGone), level.merged = 1 and level.energy_change set; false
-  // (nothing changed) where no cluster has an ODE. The triplets (the gone cluster's points)
+  // two clusters merged (the larger keeps its id, the smaller id on equal sizes: the CPU
+  // engine's KeepAndGone), `keep`, `gone` and the merged `size` as the GPU has them,
+  // level.merged = 1 and level.energy_change set; false (nothing changed) where no cluster
+  // has an ODE. The triplets (the gone cluster's points)
   // and the relabelling (Update) are the caller's: a search of the points for them would
   // cost every point per step (m k0 in all). StepRefresh: after the step (and LN k-means), the
   // neighbours of the clusters the CPU refreshes and the ODEs it recomputes; `touched`:
@@ -125,7 +133,8 @@ class PointLevelsGpu {
   // `rows`, the clusters whose rows changed (the refreshed ones, then the gone one: n + 1
   // ids) and then their rows (2d each). Errors name the pass.
   absl::Status StartSteps();
-  absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& a, uint32_t& b);
+  absl::StatusOr<bool> StepMerge(PointLevelGpu& level, uint32_t& keep, uint32_t& gone,
+                                 uint32_t& size);
   absl::Status StepRefresh(uint32_t keep, uint32_t gone, std::span<const uint32_t> touched,
                            std::vector<uint32_t>* rows = nullptr);
 

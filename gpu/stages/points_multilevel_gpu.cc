@@ -60,13 +60,12 @@ std::unique_ptr<PointLevelsHost> BuildStart(const PointSet& points,
   return host;
 }
 
-// Mesa's software renderers stop every loop of a shader invocation, without a word, once
-// 65,535 iterations have run in it (all loops together; gpu/kernels/hc_levels.cc). One
+// The software renderers' loop limit (kPointsSoftwareLoopBudget, points_levels.h): one
 // offer in points_refresh.glsl costs about 2d + 1 iterations; a cluster's refresh offers
 // its 2d neighbours and theirs, twice when it kept a partner, and a cluster left without
 // neighbours (or LinkAll) offers every one of the start's k0 clusters. Where that can pass
 // the limit the run is refused on a software renderer rather than given short tables.
-constexpr uint64_t kSoftwareLoopBudget = 60000;
+constexpr uint64_t kSoftwareLoopBudget = kPointsSoftwareLoopBudget;
 
 absl::Status CheckSoftwareLoopBudget(const GlContext& context, uint32_t d, uint32_t k0) {
   if (!context.is_software()) return absl::OkStatus();
@@ -203,8 +202,8 @@ absl::Status RunSteps(GpuLevelsStart& started, const PointMultilevelOptions& opt
   bool read_neighbours = !table_current;
   while (clusters > options.min_clusters) {
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, absl::StrCat("level ", summary.levels)));
-    uint32_t a = 0, b = 0;
-    MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.StepMerge(level, a, b));
+    uint32_t keep = 0, gone = 0, size = 0;
+    MLCLUST_ASSIGN_OR_RETURN(const bool merged, levels.StepMerge(level, keep, gone, size));
     if (!merged) {
       // No ODE left: the CPU's ConnectWhenStuck links the survivors once they are few and
       // recomputes their ODEs.
@@ -217,10 +216,13 @@ absl::Status RunSteps(GpuLevelsStart& started, const PointMultilevelOptions& opt
     }
     linked = false;
     --clusters;
-    // The GPU's merge kept the larger cluster (the smaller id on equal sizes); the gone
-    // one's points are the level's triplets and are relabelled on the GPU.
-    const bool a_keeps = size_of(a) > size_of(b) || (size_of(a) == size_of(b) && a < b);
-    const uint32_t keep = a_keeps ? a : b, gone = a_keeps ? b : a;
+    // The gone cluster's points (the host's lists, or the mirror's) are the level's
+    // triplets and are relabelled on the GPU; the host's sizes must be the GPU's.
+    if (size_of(keep) + size_of(gone) != size) {
+      return absl::InternalError(absl::StrCat("points on the GPU: the merge of ", gone, " into ",
+                                              keep, " gave ", size, " points, the host has ",
+                                              size_of(keep), " + ", size_of(gone)));
+    }
     if (optimiser.has_value()) {
       optimiser->Members(gone, level.element);
     } else {

@@ -64,8 +64,9 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
 // history order): every level of the tests' 2-D and 3-D sets and of 10^5 3-D points, 230
 // of 730 levels in 8-D. ML: level 1 identical, then within 1% of the CPU at every count
 // from half the start's down on the tests' sets (BENCHMARKS.md for 10^5 points).
-// Cost: per level O(k0) GPU work (every ODE afresh, the mark pass) and three read-backs;
-// latency-bound (BENCHMARKS.md).
+// Cost: per level O(2d k0 + touched) GPU work (the ODE passes over every neighbour slot,
+// the mark pass) and four read-backs (ML: more per LN k-means round); latency-bound
+// (BENCHMARKS.md).
 absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
                                                             const PointSet& points,
                                                             const PointMultilevelOptions& options,

@@ -379,7 +379,7 @@ TEST(PointsPmlGpu, RefusesWhatItDoesNotCover) {
 }
 
 // pml-until: PML's levels down to it, then ML's steps (or HC's with optimizer none), on the
-// GPU as on the CPU: the same count where the switch happens is crossed, and the energies
+// GPU as on the CPU: a PML level crosses pml-until, one merge per level below it, and the energies
 // within 1% of the CPU's PML->ML at every count from half the start's down.
 TEST(PointsPmlGpu, PmlUntilThenStepsLikeTheCpu) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(40, 400, 6.0, 5, true).points;
@@ -400,7 +400,12 @@ TEST(PointsPmlGpu, PmlUntilThenStepsLikeTheCpu) {
         ++steps;
       }
     }
-    EXPECT_GT(steps, 50u);  // from where PML's last level left it (below 100) down to 10
+    EXPECT_GT(steps, 50u);
+    bool crossed = false;  // a PML level crosses 100 clusters, as on the CPU
+    for (size_t l = 1; l < gpu.counts.size(); ++l) {
+      crossed = crossed || (gpu.counts[l] <= 100 && gpu.counts[l - 1] > 100);
+    }
+    EXPECT_TRUE(crossed);  // from where PML's last level left it (below 100) down to 10
     for (size_t l = 1; l < cpu.counts.size(); ++l) {
       if (cpu.counts[l] > 100) continue;
       const double at_gpu =
@@ -711,6 +716,28 @@ TEST(PointsHcGpu, InjectedGlFailureIsACleanError) {
       {Optimizer::kNone, "points hc neighbours"}, {Optimizer::kLnKmeans, "ln-kmeans assign"},
       {Optimizer::kLnKmeans, "points update"},    {Optimizer::kLnKmeans, "points hc neighbours"}};
   ExpectCleanFailures(points, runs, [](Optimizer optimizer) { return StepOptions(1, optimizer); });
+}
+
+// The steps' ODE pass restricts the cached points_ode program to flagged edges; PML on the
+// same context afterwards (after a run and after a failed one) gives the same levels as
+// before.
+TEST(PointsHcGpu, PmlOnTheSameContextAfterStepsIsUnchanged) {
+  const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 9, true).points;
+  const PointMultilevelOptions pml = PmlOptions(PmlPairRule::kCheaperHalf, 1);
+  LevelsSink before, after_run, after_failure;
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, pml, before).ok());
+  LevelsSink steps;
+  ASSERT_TRUE(
+      RunPointHierarchyGpu(Context(), points, StepOptions(1, Optimizer::kNone), steps).ok());
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, pml, after_run).ok());
+  ::mlclust::testing::ExpectGlFailureInPass("points hc odes", [&] {
+    LevelsSink failed;
+    return RunPointHierarchyGpu(Context(), points, StepOptions(1, Optimizer::kNone), failed);
+  });
+  ASSERT_TRUE(RunPointParallelMultilevelGpu(Context(), points, pml, after_failure).ok());
+  EXPECT_EQ(after_run.triplets, before.triplets);
+  EXPECT_EQ(after_failure.triplets, before.triplets);
+  EXPECT_EQ(after_run.energies, before.energies);
 }
 
 TEST(PointsHcGpu, CancelledBetweenLevelsAndRefusesPml) {
