@@ -321,7 +321,7 @@ absl::Status PointLevelsGpu::HcPhase(
   for (const auto& [location, value] : uniforms) {
     gl.ProgramUniform1ui(programs_.hc, location, value);
   }
-  const absl::Status dispatched = DispatchLinear(*context_, invocations);
+  absl::Status dispatched = DispatchLinear(*context_, invocations);
   if (dispatched.ok()) gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   gl.UseProgram(0);
   return dispatched;
