@@ -22,13 +22,15 @@
 //   5 (one)          after ml_min_ode.glsl chose (pair_ids): a partner gone means that
 //                    cluster's ODE is recomputed (stored := fresh) and the choice repeated
 //   8 (one)          after the merge (pair_merge.glsl): the kept cluster's size, the kept
-//                    and the gone cluster into the state, as the GPU decided them
+//                    and the gone cluster into the state, as the GPU decided them, and
+//                    the two clusters' energy changes (their bits) after it (one read-back)
 //   9 (per touched)  the touched clusters' places (1 + p) in their flags, for phase 0
 //   6 (per listed)   the rows of the refreshed clusters (then the gone one's) gathered
 //                    after the step's lists, for the host's mirror (ML)
 layout(std430, binding = 4) buffer Neighbours { uint neighbours[]; };  // k x 2d, in place
 layout(std430, binding = 7) readonly buffer FreshOdes { uint fresh[]; };  // 3 per cluster
 layout(std430, binding = 8) readonly buffer PairIds { uint pair_ids[]; };
+layout(std430, binding = 9) readonly buffer PairValues { double pair_values[]; };
 layout(std430, binding = 17) buffer StoredOdes { uint stored[]; };  // 3 per cluster
 // The step's scratch: state (listed, repaired, chosen, its partner), the touched clusters
 // (u_touched), the listed clusters, the ordered ones, each cluster's group, the ODE flags,
@@ -172,6 +174,12 @@ void main() {
     work[1] = counts[keep];
     work[2] = keep;
     work[3] = keep == a ? b : a;
+    uvec2 keep_change = unpackDouble2x32(pair_values[1]);
+    uvec2 gone_change = unpackDouble2x32(pair_values[2]);
+    work[4] = keep_change.x;
+    work[5] = keep_change.y;
+    work[6] = gone_change.x;
+    work[7] = gone_change.y;
   } else if (u_phase == 5u) {
     uint chosen = pair_ids[0];
     uint partner = pair_ids[1];

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstring>
 #include <string>
 
 #include "absl/strings/str_cat.h"
@@ -403,7 +404,10 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& k
     MLCLUST_RETURN_IF_ERROR(
         DispatchPairMerge(*context_, programs_.merge, /*pairs=*/1, /*use_flags=*/false));
     MLCLUST_RETURN_IF_ERROR(HcPhase(kHcMerged, 1));
-    MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(state)));
+    // The state, then the two energy changes' bits (the touched list's place, free here).
+    std::array<uint32_t, 8> merged_state{};
+    MLCLUST_RETURN_IF_ERROR(buffers_[kHcWork].Download(std::span<uint32_t>(merged_state)));
+    std::copy_n(merged_state.begin(), 4, state.begin());
     if (!((state[2] == a && state[3] == b) || (state[2] == b && state[3] == a))) {
       return absl::InternalError(absl::StrCat("the merge of ", a, " and ", b, " kept ", state[2],
                                               " and removed ", state[3]));
@@ -411,11 +415,11 @@ absl::StatusOr<bool> PointLevelsGpu::StepMerge(PointLevelGpu& level, uint32_t& k
     keep = state[2];
     gone = state[3];
     size = state[1];
-    std::array<double, 3> values{};
-    MLCLUST_RETURN_IF_ERROR(buffers_[kPairValues].Download(std::span<double>(values)));
+    std::array<double, 2> values{};
+    std::memcpy(values.data(), &merged_state[4], sizeof(values));
     ::mlclust::detail::CompensatedSum change;
+    change.Add(values[0]);
     change.Add(values[1]);
-    change.Add(values[2]);
     level.energy_change = change.value();
     level.merged = 1;
     return CheckGlError(*context_, kCollapsePass);

@@ -65,7 +65,7 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
 // of 730 levels in 8-D. ML: level 1 identical, then within 1% of the CPU at every count
 // from half the start's down on the tests' sets (BENCHMARKS.md for 10^5 points).
 // Cost: per level O(2d k0 + touched) GPU work (the ODE passes over every neighbour slot,
-// the mark pass) and four read-backs (ML: more per LN k-means round); latency-bound
+// the mark pass) and three read-backs (ML: more per LN k-means round); latency-bound
 // (BENCHMARKS.md).
 absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
                                                             const PointSet& points,
