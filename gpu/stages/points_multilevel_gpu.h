@@ -63,7 +63,8 @@ absl::StatusOr<PointMultilevelSummary> RunPointParallelMultilevelGpu(
 // refresh within a group does not matter (the GPU: by id; the CPU: its reverse lists'
 // history order): every level of the tests' 2-D and 3-D sets and of 10^5 3-D points, 230
 // of 730 levels in 8-D. ML: level 1 identical, then within 1% of the CPU at every count
-// from half the start's down on the tests' sets (BENCHMARKS.md for 10^5 points).
+// on the tests' 2-D and 3-D sets (8-D: 1.3% at one count near the start, under 1% from
+// half the start's down; BENCHMARKS.md for 10^5 points).
 // Cost: per level O(2d k0 + touched) GPU work (the ODE passes over every neighbour slot,
 // the mark pass) and three read-backs (ML: more per LN k-means round); latency-bound
 // (BENCHMARKS.md).
