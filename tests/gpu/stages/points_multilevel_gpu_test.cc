@@ -724,7 +724,10 @@ TEST(PointsHcGpu, InjectedGlFailureIsACleanError) {
 
 // The steps' ODE pass restricts the cached points_ode program to flagged edges; PML on the
 // same context afterwards (after a run and after a failed one) gives the same levels as
-// before.
+// before. This guards the ordinary paths only: the injected failure surfaces before the
+// restriction is set, so it cannot reach the case of a real error inside that ODE pass;
+// what keeps PML safe after any failure is the explicit every-edge setting in
+// PointLevelsGpu::FindPairs.
 TEST(PointsHcGpu, PmlOnTheSameContextAfterStepsIsUnchanged) {
   const PointSet points = ::mlclust::testing::GaussianBlobs(10, 200, 6.0, 9, true).points;
   const PointMultilevelOptions pml = PmlOptions(PmlPairRule::kCheaperHalf, 1);
