@@ -102,6 +102,16 @@ class DeviceStages {
     (void)sink;
     return absl::UnimplementedError("PML levels for points on this device");
   }
+
+  // InitialClusters (mesh_clustering.h) with SeedOptions::Growth::kRounds' growth on the
+  // device (section 5.2; gpu/stages/seed_growth_gpu.h); same contract and result, plus the
+  // device's errors. UNIMPLEMENTED where the device has none (the default).
+  virtual absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
+                                                                 const SeedOptions& options) {
+    (void)problem;
+    (void)options;
+    return absl::UnimplementedError("the initial growth on this device");
+  }
 };
 
 }  // namespace mlclust

@@ -110,15 +110,70 @@ std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const
   return labels;
 }
 
+// Section 5.2's growth (Fig. 5.9, l. 2172-2185; SeedOptions::Growth::kRounds): in rounds,
+// every free face with an edge-neighbour in a cluster joins the neighbouring cluster with
+// the smallest id, all of a round's faces deciding on the labels before the round. The
+// faces that may join in round r are the free neighbours of those that joined in round
+// r - 1, so a round costs its frontier, not the mesh. Faces no seed reaches stay
+// kUnassigned. Empty if `cancel` was seen set (checked every round).
+template <typename Adjacency>
+std::vector<uint32_t> GrowInRounds(const Adjacency& adjacency, std::span<const uint32_t> seeds,
+                                   const std::atomic<bool>* cancel) {
+  const size_t n = adjacency.num_faces();
+  std::vector<uint32_t> labels(n, kUnassigned);
+  std::vector<uint32_t> frontier, candidates, chosen;
+  std::vector<uint8_t> queued(n, 0);  // a candidate of this round already (once per face)
+  for (uint32_t c = 0; c < seeds.size(); ++c) {
+    labels[seeds[c]] = c;
+    frontier.push_back(seeds[c]);
+  }
+  while (!frontier.empty()) {
+    if (IsCancelled(cancel)) return {};
+    candidates.clear();
+    for (uint32_t f : frontier) {
+      for (FaceId g : adjacency.neighbours[f]) {
+        if (!g.valid() || labels[g.value()] != kUnassigned || queued[g.value()]) continue;
+        queued[g.value()] = 1;
+        candidates.push_back(g.value());
+      }
+    }
+    // Decide all, then write: each reads the labels of the round before.
+    chosen.resize(candidates.size());
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      uint32_t smallest = kUnassigned;
+      for (FaceId h : adjacency.neighbours[candidates[i]]) {
+        if (h.valid()) smallest = std::min(smallest, labels[h.value()]);
+      }
+      chosen[i] = smallest;
+    }
+    for (size_t i = 0; i < candidates.size(); ++i) labels[candidates[i]] = chosen[i];
+    frontier.swap(candidates);
+  }
+  return labels;
+}
+
 // Grows `seeds` as `growth` says. The flood of the CVD family goes by distance (each
 // seed's centroid): geodesic Voronoi regions are compact discs, which the connectivity
 // guard then keeps and coarsening needs. The planar and sphere energies flood by their
 // own proxies, as VSA does: regions follow the shape's faces, and a feature may
-// legitimately sit inside another region. Empty if `cancel` was seen set.
+// legitimately sit inside another region. kRounds grows on the device where `device` is
+// set (SeedOptions::device_rounds). Empty if `cancel` was seen set or the device failed
+// (its error in *device_error).
 std::vector<uint32_t> Grow(const MeshProblem& problem, std::span<const uint32_t> seeds,
-                           SeedOptions::Growth growth, const std::atomic<bool>* cancel) {
+                           SeedOptions::Growth growth, const std::atomic<bool>* cancel,
+                           const SeedOptions::DeviceGrowth* device = nullptr,
+                           absl::Status* device_error = nullptr) {
   if (growth == SeedOptions::Growth::kEnergyFree) {
     return GrowEnergyFree(*problem.adjacency, seeds, cancel);
+  }
+  if (growth == SeedOptions::Growth::kRounds) {
+    if (device == nullptr || !*device) return GrowInRounds(*problem.adjacency, seeds, cancel);
+    absl::StatusOr<std::vector<uint32_t>> grown = (*device)(*problem.adjacency, seeds, cancel);
+    if (!grown.ok()) {
+      if (device_error != nullptr) *device_error = grown.status();
+      return {};
+    }
+    return *std::move(grown);
   }
   if (problem.energy.kind == MeshEnergyKind::kPlanar) {
     return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
@@ -252,13 +307,15 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const Adjacency& adjac
 // from its seed. Returns the final growth's labels; empty if `cancel` was seen set.
 std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<uint32_t> seeds,
                                       uint32_t target, SeedOptions::Growth growth,
-                                      const std::atomic<bool>* cancel) {
+                                      const std::atomic<bool>* cancel,
+                                      const SeedOptions::DeviceGrowth* device = nullptr,
+                                      absl::Status* device_error = nullptr) {
   const TriangleMesh& mesh = *problem.mesh;
   const FaceAdjacency& adjacency = *problem.adjacency;
   const VertexFaceTable table = BuildVertexFaceTable(mesh);
   std::vector<uint8_t> is_seed(adjacency.num_faces(), 0);
   for (uint32_t f : seeds) is_seed[f] = 1;
-  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel, device, device_error);
   while (!labels.empty() && seeds.size() < target) {
     const uint32_t clusters = static_cast<uint32_t>(seeds.size());
     std::vector<double> area(clusters, 0.0);
@@ -322,7 +379,7 @@ std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<ui
       is_seed[queue.back()] = 1;
       seeds.push_back(queue.back());
     }
-    labels = Grow(problem, seeds, growth, cancel);
+    labels = Grow(problem, seeds, growth, cancel, device, device_error);
   }
   return labels;
 }
@@ -392,6 +449,8 @@ namespace {
 struct TriangleElements {
   const MeshProblem& problem;
   const SeedOptions& options;
+  // The device growth's error (SeedOptions::device_rounds), if it failed.
+  mutable absl::Status device_error = absl::OkStatus();
   const FaceAdjacency& adjacency() const { return *problem.adjacency; }
   const char* noun() const { return "faces"; }
   uint32_t Components(std::vector<uint32_t>& component) const {
@@ -401,7 +460,8 @@ struct TriangleElements {
     return LNeighbourhoodSeeds(*problem.adjacency, level, options.cancel, seeds);
   }
   std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
-    return mlclust::Grow(problem, seeds, options.growth, options.cancel);
+    return mlclust::Grow(problem, seeds, options.growth, options.cancel, &options.device_rounds,
+                         &device_error);
   }
   std::vector<uint32_t> Reduce(std::vector<uint32_t> labels, uint32_t clusters, uint32_t target,
                                std::vector<uint32_t>* seeds) const {
@@ -414,7 +474,7 @@ struct TriangleElements {
   }
   std::vector<uint32_t> AddSeedsAndGrow(std::vector<uint32_t> seeds, uint32_t target) const {
     return mlclust::AddSeedsAndGrow(problem, std::move(seeds), target, options.growth,
-                                    options.cancel);
+                                    options.cancel, &options.device_rounds, &device_error);
   }
 };
 
@@ -468,6 +528,9 @@ struct PolygonElements {
     if (options.growth == SeedOptions::Growth::kEnergyFree) {
       return GrowEnergyFree(graph, seeds, options.cancel);
     }
+    if (options.growth == SeedOptions::Growth::kRounds) {
+      return GrowInRounds(graph, seeds, options.cancel);  // the CPU's, device or not
+    }
     if (problem.energy.kind == MeshEnergyKind::kPlanar) {
       return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
                             [&](const auto& triangles) {
@@ -496,6 +559,7 @@ struct PolygonElements {
                                         uint32_t /*target*/) const {
     return {};  // refused in InitialClusters
   }
+  absl::Status device_error = absl::OkStatus();  // polygons never grow on a device
 };
 
 // InitialClusters over `elements`: faces (TriangleElements) or polygons (PolygonElements),
@@ -508,7 +572,11 @@ absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& ele
   const auto& adjacency = elements.adjacency();
   const size_t n = adjacency.num_faces();
   const uint32_t k = options.clusters;
-  auto cancelled = [] { return absl::CancelledError("cancelled during initial clusters"); };
+  // Empty labels: cancelled, or the device growth's error.
+  auto cancelled = [&elements]() -> absl::Status {
+    if (!elements.device_error.ok()) return elements.device_error;
+    return absl::CancelledError("cancelled during initial clusters");
+  };
   if (k < 1 || k > n) {
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", k, " must be between 1 and the mesh's ", n, " ", elements.noun()));

@@ -77,8 +77,23 @@ struct SeedOptions {
     // The "initial cluster grow" of l. 671 and l. 1219: no energy; clusters in turn, in
     // seed order, each take every free face across their boundary, until none is free.
     kEnergyFree,
+    // Section 5.2's growth on the GPU (Fig. 5.9, l. 2172-2185): no energy; in rounds, every
+    // free face with an edge-neighbour in a cluster joins the neighbouring cluster with
+    // the smallest id, all faces of a round reading the labels before the round (Jacobi),
+    // until a round assigns nothing. The same on the CPU and the GPU (device_rounds).
+    kRounds,
   };
   Growth growth = Growth::kEnergyOrdered;
+
+  // Ours: kRounds on a device. Grows distinct in-range seed faces (cluster i from
+  // seeds[i]) over the triangles' adjacency exactly as the CPU's kRounds does, free faces
+  // left as 0xFFFFFFFF; its error (CANCELLED once `cancel` is seen set) is the caller's.
+  // Empty: the CPU grows. Not used with polygons (MeshProblem::polygons): those grow on
+  // the CPU.
+  using DeviceGrowth = std::function<absl::StatusOr<std::vector<uint32_t>>(
+      const FaceAdjacency& adjacency, std::span<const uint32_t> seeds,
+      const std::atomic<bool>* cancel)>;
+  DeviceGrowth device_rounds;
 
   // kLNeighbourhood with more seeds than k: how the three clusters meeting at the vertex
   // with the smallest summed area become one (l. 849), until k are left.

@@ -197,13 +197,16 @@ OptionInfo SeedInitOption() {
 }
 
 OptionInfo SeedGrowthOption() {
-  return Choice("growth", {"flood", "free"}, "flood",
+  return Choice("growth", {"flood", "free", "rounds"}, "flood",
                 "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
                 "energies by distance to the seed) or energy-free, each cluster in turn taking "
-                "the free faces across its boundary (l. 671, 1219)",
+                "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
+                "growth (Fig. 5.9), each round every free face next to clusters joining the one "
+                "with the smallest id (on the GPU where the seed stage is)",
                 [](const OptionValue& v, JobPlan& plan) {
-                  plan.seeds.growth = v.text == "free" ? SeedOptions::Growth::kEnergyFree
-                                                       : SeedOptions::Growth::kEnergyOrdered;
+                  plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
+                                      : v.text == "rounds" ? SeedOptions::Growth::kRounds
+                                                           : SeedOptions::Growth::kEnergyOrdered;
                 });
 }
 
@@ -454,7 +457,19 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
     return RunMeshPatches(problem, plan, sink, context);
   }
   Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
-  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, plan.seeds));
+  SeedOptions seeds = plan.seeds;
+  seeds.cancel = context.cancel;
+  absl::StatusOr<std::vector<ClusterId>> seeded;
+  if (Stage(plan, "seed").device == StageDevice::kGpu) {
+    if (context.devices == nullptr) {
+      return absl::FailedPreconditionError(
+          "the plan puts the seed stage's growth on the GPU but this run has no GPU stages");
+    }
+    seeded = context.devices->InitialClusters(problem, seeds);
+  } else {
+    seeded = InitialClusters(problem, seeds);
+  }
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, std::move(seeded));
   std::vector<ClusterId> labels = initial;
   absl::StatusOr<OptimizeResult> result;
   if (plan.algorithm->name == "emlo") {
@@ -751,7 +766,13 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     if (energy.input == InputKind::kMesh) mesh_energies.push_back(energy.name);
   }
   const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
-  const StageInfo seed_stage{"seed", "k initial clusters"};
+  // With growth rounds the seeding's growth on the GPU (section 5.2,
+  // gpu/stages/seed_growth_gpu.h); BB's preset patches seeds on the CPU.
+  const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)",
+                             /*has_gpu=*/true, [](const JobPlan& plan) {
+                               return plan.seeds.growth == SeedOptions::Growth::kRounds &&
+                                      !plan.bb_patches;
+                             }};
   std::vector<AlgorithmInfo> algorithms;
 
   // Meshes.

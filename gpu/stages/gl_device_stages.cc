@@ -7,6 +7,7 @@
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
 #include "gpu/stages/points_multilevel_gpu.h"
+#include "gpu/stages/seed_growth_gpu.h"
 
 namespace mlclust::gpu {
 
@@ -43,6 +44,11 @@ absl::StatusOr<MultilevelSummary> GlDeviceStages::RunHierarchy(const MeshProblem
 absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
     const PointSet& points, const PointMultilevelOptions& options, LevelSink& sink) {
   return RunPointParallelMultilevelGpu(context_, points, options, sink);
+}
+
+absl::StatusOr<std::vector<ClusterId>> GlDeviceStages::InitialClusters(const MeshProblem& problem,
+                                                                       const SeedOptions& options) {
+  return InitialClustersGpu(context_, problem, options);
 }
 
 }  // namespace mlclust::gpu

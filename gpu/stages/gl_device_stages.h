@@ -33,6 +33,9 @@ class GlDeviceStages : public DeviceStages {
                                                             const PointMultilevelOptions& options,
                                                             LevelSink& sink) override;
 
+  absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
+                                                         const SeedOptions& options) override;
+
  private:
   GlContext& context_;
 };
