@@ -77,6 +77,14 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const Adjacency& adjac
 // The initial cluster grow of l. 671 and l. 1219: no energy; in rounds, every cluster in
 // seed order takes the free faces across its boundary (the faces it took last round are
 // its boundary's inner side). Empty if `cancel` was seen set.
+//
+// This is also section 5.2's growth (Fig. 5.9, SeedOptions::Growth::kRounds: each round
+// every free face next to clusters joins the one with the smallest id, reading the
+// labels before the round): a face still free after round r - 1 has neighbours in
+// clusters only from round r - 1 (an older one would have taken it), and the first
+// cluster in seed order whose last-round faces touch it is the smallest such id. So the
+// CPU runs kRounds here; the GPU (gpu/kernels/seed_growth.h) runs the rule as written,
+// and tests/gpu/stages/seed_growth_gpu_test.cc checks both against a full sweep per round.
 template <typename Adjacency>
 std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const uint32_t> seeds,
                                      const std::atomic<bool>* cancel) {
@@ -110,48 +118,6 @@ std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const
   return labels;
 }
 
-// Section 5.2's growth (Fig. 5.9, l. 2172-2185; SeedOptions::Growth::kRounds): in rounds,
-// every free face with an edge-neighbour in a cluster joins the neighbouring cluster with
-// the smallest id, all of a round's faces deciding on the labels before the round. The
-// faces that may join in round r are the free neighbours of those that joined in round
-// r - 1, so a round costs its frontier, not the mesh. Faces no seed reaches stay
-// kUnassigned. Empty if `cancel` was seen set (checked every round).
-template <typename Adjacency>
-std::vector<uint32_t> GrowInRounds(const Adjacency& adjacency, std::span<const uint32_t> seeds,
-                                   const std::atomic<bool>* cancel) {
-  const size_t n = adjacency.num_faces();
-  std::vector<uint32_t> labels(n, kUnassigned);
-  std::vector<uint32_t> frontier, candidates, chosen;
-  std::vector<uint8_t> queued(n, 0);  // a candidate of this round already (once per face)
-  for (uint32_t c = 0; c < seeds.size(); ++c) {
-    labels[seeds[c]] = c;
-    frontier.push_back(seeds[c]);
-  }
-  while (!frontier.empty()) {
-    if (IsCancelled(cancel)) return {};
-    candidates.clear();
-    for (uint32_t f : frontier) {
-      for (FaceId g : adjacency.neighbours[f]) {
-        if (!g.valid() || labels[g.value()] != kUnassigned || queued[g.value()]) continue;
-        queued[g.value()] = 1;
-        candidates.push_back(g.value());
-      }
-    }
-    // Decide all, then write: each reads the labels of the round before.
-    chosen.resize(candidates.size());
-    for (size_t i = 0; i < candidates.size(); ++i) {
-      uint32_t smallest = kUnassigned;
-      for (FaceId h : adjacency.neighbours[candidates[i]]) {
-        if (h.valid()) smallest = std::min(smallest, labels[h.value()]);
-      }
-      chosen[i] = smallest;
-    }
-    for (size_t i = 0; i < candidates.size(); ++i) labels[candidates[i]] = chosen[i];
-    frontier.swap(candidates);
-  }
-  return labels;
-}
-
 // Grows `seeds` as `growth` says. The flood of the CVD family goes by distance (each
 // seed's centroid): geodesic Voronoi regions are compact discs, which the connectivity
 // guard then keeps and coarsening needs. The planar and sphere energies flood by their
@@ -163,11 +129,12 @@ std::vector<uint32_t> Grow(const MeshProblem& problem, std::span<const uint32_t>
                            SeedOptions::Growth growth, const std::atomic<bool>* cancel,
                            const SeedOptions::DeviceGrowth* device = nullptr,
                            absl::Status* device_error = nullptr) {
-  if (growth == SeedOptions::Growth::kEnergyFree) {
-    return GrowEnergyFree(*problem.adjacency, seeds, cancel);
+  const bool on_device = device != nullptr && *device;
+  if (growth == SeedOptions::Growth::kEnergyFree ||
+      (growth == SeedOptions::Growth::kRounds && !on_device)) {
+    return GrowEnergyFree(*problem.adjacency, seeds, cancel);  // kRounds' partition too
   }
   if (growth == SeedOptions::Growth::kRounds) {
-    if (device == nullptr || !*device) return GrowInRounds(*problem.adjacency, seeds, cancel);
     absl::StatusOr<std::vector<uint32_t>> grown = (*device)(*problem.adjacency, seeds, cancel);
     if (!grown.ok()) {
       if (device_error != nullptr) *device_error = grown.status();
@@ -525,11 +492,9 @@ struct PolygonElements {
   }
   std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
     const PolygonAdjacency& graph = problem.polygons->adjacency;
-    if (options.growth == SeedOptions::Growth::kEnergyFree) {
+    if (options.growth == SeedOptions::Growth::kEnergyFree ||
+        options.growth == SeedOptions::Growth::kRounds) {  // the same partition; no device
       return GrowEnergyFree(graph, seeds, options.cancel);
-    }
-    if (options.growth == SeedOptions::Growth::kRounds) {
-      return GrowInRounds(graph, seeds, options.cancel);  // the CPU's, device or not
     }
     if (problem.energy.kind == MeshEnergyKind::kPlanar) {
       return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,

@@ -80,7 +80,10 @@ struct SeedOptions {
     // Section 5.2's growth on the GPU (Fig. 5.9, l. 2172-2185): no energy; in rounds, every
     // free face with an edge-neighbour in a cluster joins the neighbouring cluster with
     // the smallest id, all faces of a round reading the labels before the round (Jacobi),
-    // until a round assigns nothing. The same on the CPU and the GPU (device_rounds).
+    // until a round assigns nothing. The same on the CPU and the GPU (device_rounds), and
+    // the same partition as kEnergyFree (whose clusters in turn take the faces across
+    // their last round's faces: the first to reach a face has the smallest id); the CPU
+    // grows it as kEnergyFree. Its own value for the device: the GPU runs this rule.
     kRounds,
   };
   Growth growth = Growth::kEnergyOrdered;

@@ -202,7 +202,7 @@ OptionInfo SeedGrowthOption() {
                 "energies by distance to the seed) or energy-free, each cluster in turn taking "
                 "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
                 "growth (Fig. 5.9), each round every free face next to clusters joining the one "
-                "with the smallest id (on the GPU where the seed stage is)",
+                "with the smallest id: free's partition, on the GPU where the seed stage is",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
                                       : v.text == "rounds" ? SeedOptions::Growth::kRounds
