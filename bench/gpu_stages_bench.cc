@@ -296,6 +296,7 @@ int RunGrowth(gpu::GlContext& context, Args& args, bool header) {
   const MeshProblem problem{&mesh.mesh, &mesh.adjacency, &mesh.measures, {}};  // CVD
   const std::vector<FaceId> seeds = ValueOrDie(SpreadSeeds(problem, k));
   std::vector<uint32_t> seed_faces;
+  seed_faces.reserve(seeds.size());
   for (FaceId f : seeds) seed_faces.push_back(f.value());
   // GPU: the first run compiles the program, not timed.
   absl::StatusOr<gpu::SeedGrowthGpuResult> gpu =

@@ -904,7 +904,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                "region teleportation when the iterations stall (Cohen-Steiner et al. 2004)",
                [](const OptionValue& v, JobPlan& plan) { plan.vsa.teleport = v.text == "on"; }),
     };
-    a.stages = {seed_stage, {"cluster", "Lloyd iterations: partition (flood), fit proxies"}};
+    a.stages = {{"seed", "k initial clusters"},  // VSA has no growth option: CPU
+                {"cluster", "Lloyd iterations: partition (flood), fit proxies"}};
     a.run_mesh = RunMeshVsa;
     algorithms.push_back(a);
   }

@@ -60,6 +60,7 @@ std::vector<uint32_t> RandomSeeds(size_t faces, uint32_t count, uint32_t seed) {
 
 std::vector<uint32_t> Values(const std::vector<ClusterId>& labels) {
   std::vector<uint32_t> out;
+  out.reserve(labels.size());
   for (ClusterId c : labels) out.push_back(c.value());
   return out;
 }
