@@ -677,6 +677,18 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
   return FaceLabelsOfPolygons(*problem.polygons, labels);
 }
 
+absl::Status CheckSeedFaces(size_t num_faces, std::span<const uint32_t> seeds) {
+  std::vector<uint8_t> is_seed(num_faces, 0);
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    if (seeds[i] >= num_faces || is_seed[seeds[i]]) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range or repeated"));
+    }
+    is_seed[seeds[i]] = 1;
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
                                                              std::span<const FaceId> typed_seeds,
                                                              SeedOptions::Growth growth,
@@ -685,14 +697,7 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
   const size_t n = problem.mesh->num_faces();
   std::vector<uint32_t> seeds(typed_seeds.size());
   for (size_t i = 0; i < seeds.size(); ++i) seeds[i] = typed_seeds[i].value();
-  std::vector<uint8_t> is_seed(n, 0);
-  for (size_t i = 0; i < seeds.size(); ++i) {
-    if (seeds[i] >= n || is_seed[seeds[i]]) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range or repeated"));
-    }
-    is_seed[seeds[i]] = 1;
-  }
+  MLCLUST_RETURN_IF_ERROR(CheckSeedFaces(n, seeds));
   if (problem.polygons != nullptr) {
     // Each seed face's polygon; two seeds in one polygon are one seed too many.
     const MeshPolygons& polygons = *problem.polygons;

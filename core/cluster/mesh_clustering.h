@@ -138,6 +138,10 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
                                                              SeedOptions::Growth growth,
                                                              const std::atomic<bool>* cancel);
 
+// OK, or INVALID_ARGUMENT naming the first seed that is out of range (>= num_faces) or
+// repeated: GrowClustersFromSeeds' check of its seeds.
+absl::Status CheckSeedFaces(size_t num_faces, std::span<const uint32_t> seeds);
+
 // Alg. 3.1 alone: the seed faces for neighbourhood size `level`, in face order.
 std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);
 

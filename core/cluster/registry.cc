@@ -202,7 +202,8 @@ OptionInfo SeedGrowthOption() {
                 "energies by distance to the seed) or energy-free, each cluster in turn taking "
                 "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
                 "growth (Fig. 5.9), each round every free face next to clusters joining the one "
-                "with the smallest id: free's partition, on the GPU where the seed stage is",
+                "with the smallest id: the same partition as free (proven in "
+                "mesh_clustering.cc); with --device gpu it runs as rounds on the GPU",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
                                       : v.text == "rounds" ? SeedOptions::Growth::kRounds
@@ -456,11 +457,21 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   if (plan.bb_patches && plan.algorithm->name == "bb") {
     return RunMeshPatches(problem, plan, sink, context);
   }
-  Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
+  // Polygons grow on the CPU (the GPU pass takes triangles): the stage's events say so.
+  const bool seed_on_gpu =
+      Stage(plan, "seed").device == StageDevice::kGpu && problem.polygons == nullptr;
+  if (Stage(plan, "seed").device == StageDevice::kGpu && !seed_on_gpu) {
+    if (context.on_stage) {
+      context.on_stage(StagePlan{"seed", StageDevice::kCpu},
+                       absl::StrCat(plan.clusters, " initial clusters (polygons: on the CPU)"));
+    }
+  } else {
+    Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
+  }
   SeedOptions seeds = plan.seeds;
   seeds.cancel = context.cancel;
   absl::StatusOr<std::vector<ClusterId>> seeded;
-  if (Stage(plan, "seed").device == StageDevice::kGpu) {
+  if (seed_on_gpu) {
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
           "the plan puts the seed stage's growth on the GPU but this run has no GPU stages");

@@ -9,9 +9,11 @@
 #include "core/base/cancel.h"
 #include "core/base/ids.h"
 #include "core/base/status_macros.h"
+#include "core/cluster/mesh_clustering.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
+#include "gpu/kernels/boundary_faces.h"
 #include "gpu/kernels/seed_growth_glsl.h"  // kSeedGrowthGlsl, generated
 
 namespace mlclust::gpu {
@@ -22,32 +24,15 @@ static_assert(sizeof(std::array<FaceId, 3>) == 12 && std::is_trivially_copyable_
 
 constexpr uint32_t kFree = ClusterId::kInvalidValue;
 
+// The faces' count, the adjacency's ids and the seeds (core's check), unprefixed.
 absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const uint32_t> seeds) {
   const size_t n = adjacency.num_faces();
   if (n > kMaxElementsPerChunk) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "initial growth on the GPU: ", n, " faces exceed the limit of ", kMaxElementsPerChunk));
+    return absl::InvalidArgumentError(
+        absl::StrCat(n, " faces exceed the limit of ", kMaxElementsPerChunk));
   }
-  // An id out of range would be an out-of-bounds read in the shader (undefined in GL).
-  for (size_t face = 0; face < n; ++face) {
-    for (int edge = 0; edge < 3; ++edge) {
-      const FaceId neighbour = adjacency.neighbours[face][edge];
-      if (neighbour.valid() && neighbour.value() >= n) {
-        return absl::InvalidArgumentError(absl::StrCat("face ", face, " edge ", edge,
-                                                       " has neighbour ", neighbour.value(),
-                                                       " but there are ", n, " faces"));
-      }
-    }
-  }
-  std::vector<uint8_t> seen(n, 0);
-  for (size_t i = 0; i < seeds.size(); ++i) {
-    if (seeds[i] >= n || seen[seeds[i]]) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range or repeated"));
-    }
-    seen[seeds[i]] = 1;
-  }
-  return absl::OkStatus();
+  MLCLUST_RETURN_IF_ERROR(CheckNeighboursInRange(adjacency));
+  return CheckSeedFaces(n, seeds);
 }
 
 }  // namespace
@@ -60,17 +45,20 @@ absl::StatusOr<SeedGrowthGpuResult> GrowSeedsInRoundsGpu(GlContext& context,
                                                          const FaceAdjacency& adjacency,
                                                          std::span<const uint32_t> seeds,
                                                          const std::atomic<bool>* cancel) {
-  MLCLUST_RETURN_IF_ERROR(CheckInputs(adjacency, seeds));
+  if (absl::Status checked = CheckInputs(adjacency, seeds); !checked.ok()) {
+    return PassError(kSeedGrowthPass, checked);
+  }
   const uint64_t n = adjacency.num_faces();
   SeedGrowthGpuResult result;
   result.labels.assign(n, kFree);
   for (uint32_t c = 0; c < seeds.size(); ++c) result.labels[seeds[c]] = c;
   if (n == 0) return result;
   if (n * 3 * sizeof(uint32_t) > static_cast<uint64_t>(context.max_storage_buffer_bytes())) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("GPU pass '", kSeedGrowthPass, "': the adjacency of ", n, " faces needs ",
-                     n * 3 * sizeof(uint32_t), " bytes in one storage buffer; the limit is ",
-                     context.max_storage_buffer_bytes()));
+    return PassError(
+        kSeedGrowthPass,
+        absl::ResourceExhaustedError(absl::StrCat(
+            "the adjacency of ", n, " faces needs ", n * 3 * sizeof(uint32_t),
+            " bytes in one storage buffer; the limit is ", context.max_storage_buffer_bytes())));
   }
   MLCLUST_RETURN_IF_ERROR(BeginPass(context, kSeedGrowthPass));
   absl::Status grown = [&]() -> absl::Status {
@@ -107,6 +95,9 @@ absl::StatusOr<SeedGrowthGpuResult> GrowSeedsInRoundsGpu(GlContext& context,
         gl.ProgramUniform1ui(program, 1, static_cast<GLuint>(end));
         MLCLUST_RETURN_IF_ERROR(DispatchLinear(context, end - begin));
       }
+      // The next round's shader reads this round's labels and counter; the download
+      // below reads the counter.
+      gl.MemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
       uint32_t now = 0;
       MLCLUST_RETURN_IF_ERROR(assigned_buffer.Download(0, &now, sizeof(now)));
       std::swap(before, after);  // `before` now holds this round's labels

@@ -1,5 +1,7 @@
 // The initial growth from seeds on the GPU (section 5.2, Fig. 5.9, l. 2172-2185): labels
-// and face adjacency resident, one dispatch per round (seed_growth.glsl). In round r every
+// and face adjacency resident for one growth (uploaded by each call: a seeding that grows
+// several times, e.g. with add-seeds, uploads them each time), one dispatch per round
+// (seed_growth.glsl). In round r every
 // free face with an edge-neighbour in a cluster joins the neighbouring cluster with the
 // smallest id, reading the labels of round r - 1 (two label buffers, swapped each round:
 // Jacobi rounds). The text ends the growth when an occlusion query counts no new face;
@@ -41,11 +43,11 @@ uint64_t SeedGrowthMemoryBound(uint64_t num_faces);
 
 // Grows `seeds` (distinct faces; cluster i from seeds[i]) over `adjacency` in rounds on
 // `context` (current thread: its owner). INVALID_ARGUMENT for a seed out of range or
-// repeated, a neighbour id neither FaceId::Invalid() nor < num_faces, or more faces than
-// kMaxElementsPerChunk (gpu/context/compute.h); RESOURCE_EXHAUSTED where the adjacency
-// (12 bytes per face) exceeds context.max_storage_buffer_bytes() or GPU memory runs out;
-// CANCELLED once `cancel` is set (checked between rounds); the GPU's errors naming the
-// pass.
+// repeated (CheckSeedFaces), a neighbour id neither FaceId::Invalid() nor < num_faces
+// (CheckNeighboursInRange), or more faces than kMaxElementsPerChunk
+// (gpu/context/compute.h); RESOURCE_EXHAUSTED where the adjacency (12 bytes per face)
+// exceeds context.max_storage_buffer_bytes() or GPU memory runs out; CANCELLED once
+// `cancel` is set (checked between rounds). Errors other than CANCELLED name the pass.
 absl::StatusOr<SeedGrowthGpuResult> GrowSeedsInRoundsGpu(GlContext& context,
                                                          const FaceAdjacency& adjacency,
                                                          std::span<const uint32_t> seeds,
