@@ -103,15 +103,11 @@ class DeviceStages {
     return absl::UnimplementedError("PML levels for points on this device");
   }
 
-  // InitialClusters (mesh_clustering.h) with SeedOptions::Growth::kRounds' growth on the
-  // device (section 5.2; gpu/stages/seed_growth_gpu.h); same contract and result, plus the
-  // device's errors. UNIMPLEMENTED where the device has none (the default).
-  virtual absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
-                                                                 const SeedOptions& options) {
-    (void)problem;
-    (void)options;
-    return absl::UnimplementedError("the initial growth on this device");
-  }
+  // SeedOptions::Growth::kRounds' growth on the device (section 5.2;
+  // gpu/stages/seed_growth_gpu.h), as SeedOptions::device_rounds: the seed stage of BB,
+  // EMLO and BB's preset patches sets it where the plan puts that stage on the device.
+  // Empty where the device has none (the default).
+  virtual SeedOptions::DeviceGrowth RoundsGrowth() { return {}; }
 };
 
 }  // namespace mlclust

@@ -689,10 +689,9 @@ absl::Status CheckSeedFaces(size_t num_faces, std::span<const uint32_t> seeds) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const FaceId> typed_seeds,
-                                                             SeedOptions::Growth growth,
-                                                             const std::atomic<bool>* cancel) {
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(
+    const MeshProblem& problem, std::span<const FaceId> typed_seeds, SeedOptions::Growth growth,
+    const std::atomic<bool>* cancel, const SeedOptions::DeviceGrowth* device) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
   const size_t n = problem.mesh->num_faces();
   std::vector<uint32_t> seeds(typed_seeds.size());
@@ -724,7 +723,9 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
     }
     return FaceLabelsOfPolygons(polygons, polygon_labels);
   }
-  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  absl::Status device_error = absl::OkStatus();
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel, device, &device_error);
+  MLCLUST_RETURN_IF_ERROR(device_error);
   if (labels.empty() && n != 0) return absl::CancelledError("cancelled while growing seeds");
   for (uint32_t f = 0; f < n; ++f) {
     if (labels[f] == kUnassigned) {

@@ -131,12 +131,13 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
                                                        const SeedOptions& options);
 
 // Grows distinct seed faces into a full partition, cluster i from seeds[i], as
-// `growth` says. INVALID_ARGUMENT if a seed is out of range or repeated, or a connected
-// component has no seed; CANCELLED if `cancel` (may be null) was set.
-absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const FaceId> seeds,
-                                                             SeedOptions::Growth growth,
-                                                             const std::atomic<bool>* cancel);
+// `growth` says; kRounds on the device where `device` (may be null) is set
+// (SeedOptions::device_rounds; not with polygons). INVALID_ARGUMENT if a seed is out of
+// range or repeated, or a connected component has no seed; CANCELLED if `cancel` (may be
+// null) was set; the device's errors.
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(
+    const MeshProblem& problem, std::span<const FaceId> seeds, SeedOptions::Growth growth,
+    const std::atomic<bool>* cancel, const SeedOptions::DeviceGrowth* device = nullptr);
 
 // OK, or INVALID_ARGUMENT naming the first seed that is out of range (>= num_faces) or
 // repeated: GrowClustersFromSeeds' check of its seeds.

@@ -426,6 +426,17 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
+// The device's growth rounds for a seed stage the plan put on the GPU.
+absl::StatusOr<SeedOptions::DeviceGrowth> DeviceRoundsGrowth(const RunContext& context) {
+  SeedOptions::DeviceGrowth growth;
+  if (context.devices != nullptr) growth = context.devices->RoundsGrowth();
+  if (!growth) {
+    return absl::FailedPreconditionError(
+        "the plan puts the seed stage's growth on the GPU but this run has no GPU stages");
+  }
+  return growth;
+}
+
 // BB's preset "patches" (core/cluster/patches.h): level 0 the grown seeds, level 1 the
 // swept patches.
 absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobPlan& plan,
@@ -442,6 +453,11 @@ absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobP
   options.guard = plan.boundary_based.connectivity_guard ? ConnectivityGuardKind::kRingTest
                                                          : ConnectivityGuardKind::kOff;
   options.cancel = context.cancel;
+  if (Stage(plan, "seed").device == StageDevice::kGpu) {
+    // The energy-free growth is growth rounds' partition: grown as rounds on the GPU.
+    options.growth = SeedOptions::Growth::kRounds;
+    MLCLUST_ASSIGN_OR_RETURN(options.device_rounds, DeviceRoundsGrowth(context));
+  }
   Report(context, plan, "seed",
          absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"));
   Report(context, plan, "cluster",
@@ -470,17 +486,10 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   }
   SeedOptions seeds = plan.seeds;
   seeds.cancel = context.cancel;
-  absl::StatusOr<std::vector<ClusterId>> seeded;
   if (seed_on_gpu) {
-    if (context.devices == nullptr) {
-      return absl::FailedPreconditionError(
-          "the plan puts the seed stage's growth on the GPU but this run has no GPU stages");
-    }
-    seeded = context.devices->InitialClusters(problem, seeds);
-  } else {
-    seeded = InitialClusters(problem, seeds);
+    MLCLUST_ASSIGN_OR_RETURN(seeds.device_rounds, DeviceRoundsGrowth(context));
   }
-  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, std::move(seeded));
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, seeds));
   std::vector<ClusterId> labels = initial;
   absl::StatusOr<OptimizeResult> result;
   if (plan.algorithm->name == "emlo") {
@@ -778,11 +787,13 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
   }
   const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
   // With growth rounds the seeding's growth on the GPU (section 5.2,
-  // gpu/stages/seed_growth_gpu.h); BB's preset patches seeds on the CPU.
+  // gpu/stages/seed_growth_gpu.h); BB's preset patches grows energy-free, the same
+  // partition, so its growth goes there too.
   const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)",
                              /*has_gpu=*/true, [](const JobPlan& plan) {
-                               return plan.seeds.growth == SeedOptions::Growth::kRounds &&
-                                      !plan.bb_patches;
+                               return plan.bb_patches
+                                          ? plan.patches.growth == SeedOptions::Growth::kEnergyFree
+                                          : plan.seeds.growth == SeedOptions::Growth::kRounds;
                              }};
   std::vector<AlgorithmInfo> algorithms;
 

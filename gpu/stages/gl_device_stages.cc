@@ -46,9 +46,6 @@ absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
   return RunPointParallelMultilevelGpu(context_, points, options, sink);
 }
 
-absl::StatusOr<std::vector<ClusterId>> GlDeviceStages::InitialClusters(const MeshProblem& problem,
-                                                                       const SeedOptions& options) {
-  return InitialClustersGpu(context_, problem, options);
-}
+SeedOptions::DeviceGrowth GlDeviceStages::RoundsGrowth() { return GpuRoundsGrowth(context_); }
 
 }  // namespace mlclust::gpu

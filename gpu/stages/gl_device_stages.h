@@ -33,8 +33,7 @@ class GlDeviceStages : public DeviceStages {
                                                             const PointMultilevelOptions& options,
                                                             LevelSink& sink) override;
 
-  absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& problem,
-                                                         const SeedOptions& options) override;
+  SeedOptions::DeviceGrowth RoundsGrowth() override;
 
  private:
   GlContext& context_;

@@ -1,6 +1,7 @@
 // The seeding stage's growth on the GPU through the server (llvmpipe where there is no
 // GPU): with --device gpu and growth rounds (section 5.2) the seed stage's events name
-// the renderer and the seeding equals the CPU's; a GL failure injected into the pass
+// the renderer and the seeding equals the CPU's (BB's preset patches, which grows
+// energy-free, likewise); a GL failure injected into the pass
 // "initial growth" is a clean job error.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -71,6 +72,27 @@ TEST_F(SeedGrowthGpuTest, BbWithGrowthRoundsSeedsOnTheGpu) {
   progress.clear();
   ASSERT_TRUE(Run(Spec(v1::ALGORITHM_BB, "gpu", "flood"), &progress).ok());
   EXPECT_EQ(SeedDevice(progress), "cpu");
+}
+
+// BB's preset patches grows energy-free, growth rounds' partition: with --device gpu its
+// growth runs on the GPU, and the patches (swept on the CPU) equal the CPU run's.
+TEST_F(SeedGrowthGpuTest, PresetPatchesGrowsOnTheGpuAndEqualsTheCpu) {
+  auto spec = [](const std::string& device) {
+    v1::JobSpec patches = testing::MeshSpec(v1::ALGORITHM_BB, 100);
+    patches.set_device(device);
+    (*patches.mutable_options())["preset"] = "patches";
+    return patches;
+  };
+  std::vector<v1::Progress> progress;
+  absl::StatusOr<client::JobResult> gpu = Run(spec("gpu"), &progress);
+  ASSERT_TRUE(gpu.ok()) << gpu.status();
+  EXPECT_EQ(SeedDevice(progress), server_->gl_renderer());
+  progress.clear();
+  absl::StatusOr<client::JobResult> cpu = Run(spec("cpu"), &progress);
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  EXPECT_EQ(SeedDevice(progress), "cpu");
+  testing::ExpectSameHierarchy(gpu->hierarchy, cpu->hierarchy);
+  ExpectFailsInPass(spec("gpu"), "initial growth");
 }
 
 TEST_F(SeedGrowthGpuTest, InjectedGlFailureIsACleanJobError) {
