@@ -264,8 +264,9 @@ std::vector<OptionInfo> PatchPresetOptions() {
              "ours: patches = many small connected patches fast (e.g. K = faces / 124, GPU "
              "meshlets): Morton-order seeds, energy-free growth, Lloyd steps on the seeds "
              "(patch-reseeds), then at most patch-sweeps BB sweeps applied in face order (on "
-             "the CPU); init, level, growth, seed-reduction, add-seeds and max-iterations do "
-             "not apply",
+             "the CPU); init, level, seed-reduction, add-seeds and max-iterations do not "
+             "apply; growth rounds grows (the same partition) on the GPU where the seed stage "
+             "is",
              [](const OptionValue& v, JobPlan& plan) { plan.bb_patches = v.text == "patches"; }),
       Integer("patch-sweeps", 0, 1000000, "6", "preset patches: BB sweeps at most",
               [](const OptionValue& v, JobPlan& plan) {
@@ -426,6 +427,24 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
+// Whether the seed stage grows on the GPU: where the plan puts it there, for triangles
+// (polygons grow on the CPU: the GPU pass takes triangles). Reports `message` on the
+// stage with the device it runs on.
+bool SeedGrowsOnGpu(const MeshProblem& problem, const JobPlan& plan, const RunContext& context,
+                    const std::string& message) {
+  const bool planned = Stage(plan, "seed").device == StageDevice::kGpu;
+  const bool on_gpu = planned && problem.polygons == nullptr;
+  if (planned && !on_gpu) {
+    if (context.on_stage) {
+      context.on_stage(StagePlan{"seed", StageDevice::kCpu},
+                       absl::StrCat(message, " (polygons: on the CPU)"));
+    }
+  } else {
+    Report(context, plan, "seed", message);
+  }
+  return on_gpu;
+}
+
 // The device's growth rounds for a seed stage the plan put on the GPU.
 absl::StatusOr<SeedOptions::DeviceGrowth> DeviceRoundsGrowth(const RunContext& context) {
   SeedOptions::DeviceGrowth growth;
@@ -453,13 +472,13 @@ absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobP
   options.guard = plan.boundary_based.connectivity_guard ? ConnectivityGuardKind::kRingTest
                                                          : ConnectivityGuardKind::kOff;
   options.cancel = context.cancel;
-  if (Stage(plan, "seed").device == StageDevice::kGpu) {
+  if (SeedGrowsOnGpu(
+          problem, plan, context,
+          absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"))) {
     // The energy-free growth is growth rounds' partition: grown as rounds on the GPU.
     options.growth = SeedOptions::Growth::kRounds;
     MLCLUST_ASSIGN_OR_RETURN(options.device_rounds, DeviceRoundsGrowth(context));
   }
-  Report(context, plan, "seed",
-         absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"));
   Report(context, plan, "cluster",
          absl::StrCat("patches: at most ", options.sweeps, " BB sweeps", EnergyNote(plan)));
   MLCLUST_ASSIGN_OR_RETURN(PatchResult result, BuildPatches(problem, options));
@@ -473,17 +492,8 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   if (plan.bb_patches && plan.algorithm->name == "bb") {
     return RunMeshPatches(problem, plan, sink, context);
   }
-  // Polygons grow on the CPU (the GPU pass takes triangles): the stage's events say so.
   const bool seed_on_gpu =
-      Stage(plan, "seed").device == StageDevice::kGpu && problem.polygons == nullptr;
-  if (Stage(plan, "seed").device == StageDevice::kGpu && !seed_on_gpu) {
-    if (context.on_stage) {
-      context.on_stage(StagePlan{"seed", StageDevice::kCpu},
-                       absl::StrCat(plan.clusters, " initial clusters (polygons: on the CPU)"));
-    }
-  } else {
-    Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
-  }
+      SeedGrowsOnGpu(problem, plan, context, absl::StrCat(plan.clusters, " initial clusters"));
   SeedOptions seeds = plan.seeds;
   seeds.cancel = context.cancel;
   if (seed_on_gpu) {
@@ -787,13 +797,11 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
   }
   const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
   // With growth rounds the seeding's growth on the GPU (section 5.2,
-  // gpu/stages/seed_growth_gpu.h); BB's preset patches grows energy-free, the same
-  // partition, so its growth goes there too.
+  // gpu/stages/seed_growth_gpu.h), BB's preset patches' too (its energy-free growth is the
+  // same partition).
   const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)",
                              /*has_gpu=*/true, [](const JobPlan& plan) {
-                               return plan.bb_patches
-                                          ? plan.patches.growth == SeedOptions::Growth::kEnergyFree
-                                          : plan.seeds.growth == SeedOptions::Growth::kRounds;
+                               return plan.seeds.growth == SeedOptions::Growth::kRounds;
                              }};
   std::vector<AlgorithmInfo> algorithms;
 

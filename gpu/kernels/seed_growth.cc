@@ -9,7 +9,6 @@
 #include "core/base/cancel.h"
 #include "core/base/ids.h"
 #include "core/base/status_macros.h"
-#include "core/cluster/mesh_clustering.h"
 #include "gpu/context/compute.h"
 #include "gpu/context/gl_functions.h"
 #include "gpu/context/pass.h"
@@ -24,7 +23,8 @@ static_assert(sizeof(std::array<FaceId, 3>) == 12 && std::is_trivially_copyable_
 
 constexpr uint32_t kFree = ClusterId::kInvalidValue;
 
-// The faces' count, the adjacency's ids and the seeds (core's check), unprefixed.
+// The faces' count, the adjacency's ids and the seeds' range (what memory safety needs;
+// repeated seeds are the caller's check: core's CheckSeedFaces), unprefixed.
 absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const uint32_t> seeds) {
   const size_t n = adjacency.num_faces();
   if (n > kMaxElementsPerChunk) {
@@ -32,7 +32,13 @@ absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const uint32_
         absl::StrCat(n, " faces exceed the limit of ", kMaxElementsPerChunk));
   }
   MLCLUST_RETURN_IF_ERROR(CheckNeighboursInRange(adjacency));
-  return CheckSeedFaces(n, seeds);
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    if (seeds[i] >= n) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range"));
+    }
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace

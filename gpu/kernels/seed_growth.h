@@ -42,11 +42,11 @@ struct SeedGrowthGpuResult {
 uint64_t SeedGrowthMemoryBound(uint64_t num_faces);
 
 // Grows `seeds` (distinct faces; cluster i from seeds[i]) over `adjacency` in rounds on
-// `context` (current thread: its owner). INVALID_ARGUMENT for a seed out of range or
-// repeated (CheckSeedFaces), a neighbour id neither FaceId::Invalid() nor < num_faces
-// (CheckNeighboursInRange), or more faces than kMaxElementsPerChunk
-// (gpu/context/compute.h); RESOURCE_EXHAUSTED where the adjacency (12 bytes per face)
-// exceeds context.max_storage_buffer_bytes() or GPU memory runs out; CANCELLED once
+// `context` (current thread: its owner); distinct seeds are the caller's promise (core
+// checks them: CheckSeedFaces). INVALID_ARGUMENT for a seed out of range, a neighbour id neither
+// FaceId::Invalid() nor < num_faces (CheckNeighboursInRange), or more faces than
+// kMaxElementsPerChunk (gpu/context/compute.h); RESOURCE_EXHAUSTED where the adjacency (12 bytes
+// per face) exceeds context.max_storage_buffer_bytes() or GPU memory runs out; CANCELLED once
 // `cancel` is set (checked between rounds). Errors other than CANCELLED name the pass.
 absl::StatusOr<SeedGrowthGpuResult> GrowSeedsInRoundsGpu(GlContext& context,
                                                          const FaceAdjacency& adjacency,

@@ -74,13 +74,15 @@ TEST_F(SeedGrowthGpuTest, BbWithGrowthRoundsSeedsOnTheGpu) {
   EXPECT_EQ(SeedDevice(progress), "cpu");
 }
 
-// BB's preset patches grows energy-free, growth rounds' partition: with --device gpu its
-// growth runs on the GPU, and the patches (swept on the CPU) equal the CPU run's.
+// BB's preset patches grows energy-free, growth rounds' partition: with --device gpu and
+// growth rounds its growth runs on the GPU, and the patches (swept on the CPU) equal the
+// CPU run's.
 TEST_F(SeedGrowthGpuTest, PresetPatchesGrowsOnTheGpuAndEqualsTheCpu) {
   auto spec = [](const std::string& device) {
     v1::JobSpec patches = testing::MeshSpec(v1::ALGORITHM_BB, 100);
     patches.set_device(device);
     (*patches.mutable_options())["preset"] = "patches";
+    (*patches.mutable_options())["growth"] = "rounds";
     return patches;
   };
   std::vector<v1::Progress> progress;
