@@ -79,7 +79,10 @@ absl::StatusOr<SeedGrowthGpuResult> GrowSeedsInRoundsGpu(GlContext& context,
     MLCLUST_RETURN_IF_ERROR(
         neighbours.Upload(std::span<const std::array<FaceId, 3>>(adjacency.neighbours)));
     MLCLUST_RETURN_IF_ERROR(before->Upload(std::span<const uint32_t>(result.labels)));
-    uint32_t assigned = static_cast<uint32_t>(seeds.size());  // faces in a cluster so far
+    // Faces in a cluster so far, counted (a repeated seed, which callers must not pass,
+    // labels one face).
+    uint32_t assigned = static_cast<uint32_t>(std::count_if(
+        result.labels.begin(), result.labels.end(), [](uint32_t label) { return label != kFree; }));
     MLCLUST_RETURN_IF_ERROR(assigned_buffer.Upload(0, &assigned, sizeof(assigned)));
     MLCLUST_ASSIGN_OR_RETURN(
         const uint32_t program,
