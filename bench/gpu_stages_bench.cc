@@ -12,6 +12,12 @@
 //   gpu_stages_bench sums --elements N --k K [--values D] [--repeats R]
 //       cluster sums of N random elements (D doubles each) over K clusters: GPU pass vs a
 //       plain fp64 loop on one core, best of R.
+//   gpu_stages_bench growth MESH --k K [--repeats R] [--bb-iterations I] [--threads T]
+//       The initial growth from K spread seeds (SpreadSeeds, patches.h): section 5.2's
+//       rounds on the GPU (gpu/kernels/seed_growth.h) vs the CPU's rounds (= energy-free)
+//       vs the CPU's energy-ordered flood, best of R each (wall and process CPU seconds);
+//       whether GPU and CPU labels are identical; the CVD energy after each growth and
+//       after BB (T threads, at most I sweeps) from the rounds' and the flood's partition.
 //   --header prints the CSV header first.
 //
 // Every row names the GL renderer; on Mesa llvmpipe the GPU figures are a software
@@ -24,15 +30,18 @@
 #include <vector>
 
 #include "bench/bench_util.h"
+#include "bench/gpu_bench_util.h"
 #include "core/base/renumber.h"
 #include "core/cluster/boundary_based.h"
 #include "core/cluster/kmeans.h"
 #include "core/cluster/mesh_clustering.h"
+#include "core/cluster/patches.h"
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
 #include "gpu/context/gl_context.h"
 #include "gpu/kernels/bb_decide.h"
 #include "gpu/kernels/cluster_sums.h"
+#include "gpu/kernels/seed_growth.h"
 #include "gpu/stages/boundary_based_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
 
@@ -43,6 +52,7 @@ constexpr char kUsage[] =
     "usage: gpu_stages_bench bb MESH --k K [--energy cvd|planar] [--threads T] [--repeats R]\n"
     "       gpu_stages_bench lnkmeans|kmeans --points M --k K [--dims D] [--threads T]\n"
     "       gpu_stages_bench sums --elements N --k K [--values D] [--repeats R]\n"
+    "       gpu_stages_bench growth MESH --k K [--repeats R] [--bb-iterations I] [--threads T]\n"
     "                        [--iterations I]\n"
     "       [--header]";
 
@@ -261,6 +271,78 @@ int RunSums(gpu::GlContext& context, Args& args, bool header) {
   return 0;
 }
 
+// Best of `repeats` runs of `run()` (false: failed), in wall and process CPU seconds.
+template <typename Run>
+std::pair<double, double> BestWallAndCpu(int repeats, Run&& run) {
+  double wall = std::numeric_limits<double>::infinity(), cpu = wall;
+  for (int r = 0; r < repeats; ++r) {
+    const double cpu_before = ProcessCpuSeconds();
+    Stopwatch watch;
+    if (!run()) return {-1, -1};
+    wall = std::min(wall, watch.Seconds());
+    cpu = std::min(cpu, ProcessCpuSeconds() - cpu_before);
+  }
+  return {wall, cpu};
+}
+
+int RunGrowth(gpu::GlContext& context, Args& args, bool header) {
+  const uint32_t k = args.Get<uint32_t>("k", 1000);
+  const int repeats = args.Get<int>("repeats", 3);
+  const uint32_t bb_iterations = args.Get<uint32_t>("bb-iterations", 200);
+  const int threads = args.Get<int>("threads", 0);
+  const std::string path = args.Positional(1);
+  if (!args.Done()) return 2;
+  const PreparedMesh mesh = PrepareOrDie(path);
+  const MeshProblem problem{&mesh.mesh, &mesh.adjacency, &mesh.measures, {}};  // CVD
+  const std::vector<FaceId> seeds = ValueOrDie(SpreadSeeds(problem, k));
+  std::vector<uint32_t> seed_faces;
+  seed_faces.reserve(seeds.size());
+  for (FaceId f : seeds) seed_faces.push_back(f.value());
+  // GPU: the first run compiles the program, not timed.
+  absl::StatusOr<gpu::SeedGrowthGpuResult> gpu =
+      GrowSeedsInRoundsGpu(context, mesh.adjacency, seed_faces);
+  if (!gpu.ok()) Die("growth on the GPU", gpu.status());
+  const auto [gpu_wall, gpu_cpu] = BestWallAndCpu(repeats, [&] {
+    gpu = GrowSeedsInRoundsGpu(context, mesh.adjacency, seed_faces);
+    return gpu.ok();
+  });
+  if (!gpu.ok()) Die("growth on the GPU", gpu.status());
+  auto grow = [&](SeedOptions::Growth growth, std::vector<ClusterId>& labels) {
+    return BestWallAndCpu(repeats, [&] {
+      absl::StatusOr<std::vector<ClusterId>> grown =
+          GrowClustersFromSeeds(problem, seeds, growth, nullptr);
+      if (!grown.ok()) Die("growth on the CPU", grown.status());
+      labels = *std::move(grown);
+      return true;
+    });
+  };
+  std::vector<ClusterId> rounds, flood;
+  const auto [rounds_wall, rounds_cpu] = grow(SeedOptions::Growth::kRounds, rounds);
+  const auto [flood_wall, flood_cpu] = grow(SeedOptions::Growth::kEnergyOrdered, flood);
+  bool identical = gpu->labels.size() == rounds.size();
+  for (size_t f = 0; identical && f < rounds.size(); ++f) {
+    identical = gpu->labels[f] == rounds[f].value();
+  }
+  BoundaryBasedOptions options;
+  options.threads = threads;
+  options.max_iterations = bb_iterations;
+  const OptimizeResult bb_rounds = ValueOrDie(OptimizeBoundaryBased(problem, rounds, options));
+  const OptimizeResult bb_flood = ValueOrDie(OptimizeBoundaryBased(problem, flood, options));
+  if (header) {
+    std::printf(
+        "stage,input,faces,k,rounds,gpu_s,gpu_cpu_s,cpu_rounds_s,cpu_rounds_cpu_s,cpu_flood_s,"
+        "cpu_flood_cpu_s,identical,energy_rounds,energy_flood,bb_threads,bb_rounds_sweeps,"
+        "bb_rounds_energy,bb_flood_sweeps,bb_flood_energy,renderer\n");
+  }
+  std::printf(
+      "growth,%s,%zu,%u,%u,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%s,%.9g,%.9g,%d,%u,%.9g,%u,%.9g,\"%s\"\n",
+      BaseName(path).c_str(), mesh.mesh.num_faces(), k, gpu->rounds, gpu_wall, gpu_cpu, rounds_wall,
+      rounds_cpu, flood_wall, flood_cpu, identical ? "yes" : "NO", bb_rounds.initial_energy,
+      bb_flood.initial_energy, threads, bb_rounds.iterations, bb_rounds.energy, bb_flood.iterations,
+      bb_flood.energy, context.renderer().c_str());
+  return identical ? 0 : 1;
+}
+
 int Main(int argc, char** argv) {
   Args args(argc, argv, kUsage);
   const bool header = args.Flag("header");
@@ -269,6 +351,7 @@ int Main(int argc, char** argv) {
   if (!context.ok()) Die("GL context", context.status());
   if (mode == "bb") return RunBb(**context, args, header);
   if (mode == "sums") return RunSums(**context, args, header);
+  if (mode == "growth") return RunGrowth(**context, args, header);
   if (mode == "lnkmeans" || mode == "kmeans") {
     return RunPoints(**context, args, header, mode == "lnkmeans");
   }

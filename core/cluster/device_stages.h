@@ -103,6 +103,12 @@ class DeviceStages {
     (void)sink;
     return absl::UnimplementedError("point levels on this device");
   }
+
+  // SeedOptions::Growth::kRounds' growth on the device (section 5.2;
+  // gpu/stages/seed_growth_gpu.h), as SeedOptions::device_rounds: the seed stage of BB,
+  // EMLO and BB's preset patches sets it where the plan puts that stage on the device.
+  // Empty where the device has none (the default).
+  virtual SeedOptions::DeviceGrowth RoundsGrowth() { return {}; }
 };
 
 }  // namespace mlclust

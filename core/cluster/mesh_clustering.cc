@@ -77,6 +77,14 @@ std::vector<uint32_t> GrowFromSeeds(const Energy& energy, const Adjacency& adjac
 // The initial cluster grow of l. 671 and l. 1219: no energy; in rounds, every cluster in
 // seed order takes the free faces across its boundary (the faces it took last round are
 // its boundary's inner side). Empty if `cancel` was seen set.
+//
+// This is also section 5.2's growth (Fig. 5.9, SeedOptions::Growth::kRounds: each round
+// every free face next to clusters joins the one with the smallest id, reading the
+// labels before the round): a face still free after round r - 1 has neighbours in
+// clusters only from round r - 1 (an older one would have taken it), and the first
+// cluster in seed order whose last-round faces touch it is the smallest such id. So the
+// CPU runs kRounds here; the GPU (gpu/kernels/seed_growth.h) runs the rule as written,
+// and tests/gpu/stages/seed_growth_gpu_test.cc checks both against a full sweep per round.
 template <typename Adjacency>
 std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const uint32_t> seeds,
                                      const std::atomic<bool>* cancel) {
@@ -114,11 +122,25 @@ std::vector<uint32_t> GrowEnergyFree(const Adjacency& adjacency, std::span<const
 // seed's centroid): geodesic Voronoi regions are compact discs, which the connectivity
 // guard then keeps and coarsening needs. The planar and sphere energies flood by their
 // own proxies, as VSA does: regions follow the shape's faces, and a feature may
-// legitimately sit inside another region. Empty if `cancel` was seen set.
+// legitimately sit inside another region. kRounds grows on the device where `device` is
+// set (SeedOptions::device_rounds). Empty if `cancel` was seen set or the device failed
+// (its error in *device_error).
 std::vector<uint32_t> Grow(const MeshProblem& problem, std::span<const uint32_t> seeds,
-                           SeedOptions::Growth growth, const std::atomic<bool>* cancel) {
-  if (growth == SeedOptions::Growth::kEnergyFree) {
-    return GrowEnergyFree(*problem.adjacency, seeds, cancel);
+                           SeedOptions::Growth growth, const std::atomic<bool>* cancel,
+                           const SeedOptions::DeviceGrowth* device = nullptr,
+                           absl::Status* device_error = nullptr) {
+  const bool on_device = device != nullptr && *device;
+  if (growth == SeedOptions::Growth::kEnergyFree ||
+      (growth == SeedOptions::Growth::kRounds && !on_device)) {
+    return GrowEnergyFree(*problem.adjacency, seeds, cancel);  // kRounds' partition too
+  }
+  if (growth == SeedOptions::Growth::kRounds) {
+    absl::StatusOr<std::vector<uint32_t>> grown = (*device)(*problem.adjacency, seeds, cancel);
+    if (!grown.ok()) {
+      if (device_error != nullptr) *device_error = grown.status();
+      return {};
+    }
+    return *std::move(grown);
   }
   if (problem.energy.kind == MeshEnergyKind::kPlanar) {
     return WithMeshEnergy(problem.energy, *problem.mesh, *problem.measures,
@@ -252,13 +274,15 @@ std::vector<uint32_t> ReduceToK(const TriangleMesh& mesh, const Adjacency& adjac
 // from its seed. Returns the final growth's labels; empty if `cancel` was seen set.
 std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<uint32_t> seeds,
                                       uint32_t target, SeedOptions::Growth growth,
-                                      const std::atomic<bool>* cancel) {
+                                      const std::atomic<bool>* cancel,
+                                      const SeedOptions::DeviceGrowth* device = nullptr,
+                                      absl::Status* device_error = nullptr) {
   const TriangleMesh& mesh = *problem.mesh;
   const FaceAdjacency& adjacency = *problem.adjacency;
   const VertexFaceTable table = BuildVertexFaceTable(mesh);
   std::vector<uint8_t> is_seed(adjacency.num_faces(), 0);
   for (uint32_t f : seeds) is_seed[f] = 1;
-  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel, device, device_error);
   while (!labels.empty() && seeds.size() < target) {
     const uint32_t clusters = static_cast<uint32_t>(seeds.size());
     std::vector<double> area(clusters, 0.0);
@@ -322,7 +346,7 @@ std::vector<uint32_t> AddSeedsAndGrow(const MeshProblem& problem, std::vector<ui
       is_seed[queue.back()] = 1;
       seeds.push_back(queue.back());
     }
-    labels = Grow(problem, seeds, growth, cancel);
+    labels = Grow(problem, seeds, growth, cancel, device, device_error);
   }
   return labels;
 }
@@ -392,6 +416,8 @@ namespace {
 struct TriangleElements {
   const MeshProblem& problem;
   const SeedOptions& options;
+  // The device growth's error (SeedOptions::device_rounds), if it failed.
+  mutable absl::Status device_error = absl::OkStatus();
   const FaceAdjacency& adjacency() const { return *problem.adjacency; }
   const char* noun() const { return "faces"; }
   uint32_t Components(std::vector<uint32_t>& component) const {
@@ -401,7 +427,8 @@ struct TriangleElements {
     return LNeighbourhoodSeeds(*problem.adjacency, level, options.cancel, seeds);
   }
   std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
-    return mlclust::Grow(problem, seeds, options.growth, options.cancel);
+    return mlclust::Grow(problem, seeds, options.growth, options.cancel, &options.device_rounds,
+                         &device_error);
   }
   std::vector<uint32_t> Reduce(std::vector<uint32_t> labels, uint32_t clusters, uint32_t target,
                                std::vector<uint32_t>* seeds) const {
@@ -414,7 +441,7 @@ struct TriangleElements {
   }
   std::vector<uint32_t> AddSeedsAndGrow(std::vector<uint32_t> seeds, uint32_t target) const {
     return mlclust::AddSeedsAndGrow(problem, std::move(seeds), target, options.growth,
-                                    options.cancel);
+                                    options.cancel, &options.device_rounds, &device_error);
   }
 };
 
@@ -465,7 +492,8 @@ struct PolygonElements {
   }
   std::vector<uint32_t> Grow(std::span<const uint32_t> seeds) const {
     const PolygonAdjacency& graph = problem.polygons->adjacency;
-    if (options.growth == SeedOptions::Growth::kEnergyFree) {
+    if (options.growth == SeedOptions::Growth::kEnergyFree ||
+        options.growth == SeedOptions::Growth::kRounds) {  // the same partition; no device
       return GrowEnergyFree(graph, seeds, options.cancel);
     }
     if (problem.energy.kind == MeshEnergyKind::kPlanar) {
@@ -496,6 +524,7 @@ struct PolygonElements {
                                         uint32_t /*target*/) const {
     return {};  // refused in InitialClusters
   }
+  absl::Status device_error = absl::OkStatus();  // polygons never grow on a device
 };
 
 // InitialClusters over `elements`: faces (TriangleElements) or polygons (PolygonElements),
@@ -508,7 +537,11 @@ absl::StatusOr<std::vector<uint32_t>> InitialElementClusters(const Elements& ele
   const auto& adjacency = elements.adjacency();
   const size_t n = adjacency.num_faces();
   const uint32_t k = options.clusters;
-  auto cancelled = [] { return absl::CancelledError("cancelled during initial clusters"); };
+  // Empty labels: cancelled, or the device growth's error.
+  auto cancelled = [&elements]() -> absl::Status {
+    if (!elements.device_error.ok()) return elements.device_error;
+    return absl::CancelledError("cancelled during initial clusters");
+  };
   if (k < 1 || k > n) {
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", k, " must be between 1 and the mesh's ", n, " ", elements.noun()));
@@ -644,22 +677,26 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
   return FaceLabelsOfPolygons(*problem.polygons, labels);
 }
 
-absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const FaceId> typed_seeds,
-                                                             SeedOptions::Growth growth,
-                                                             const std::atomic<bool>* cancel) {
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
-  const size_t n = problem.mesh->num_faces();
-  std::vector<uint32_t> seeds(typed_seeds.size());
-  for (size_t i = 0; i < seeds.size(); ++i) seeds[i] = typed_seeds[i].value();
-  std::vector<uint8_t> is_seed(n, 0);
+absl::Status CheckSeedFaces(size_t num_faces, std::span<const uint32_t> seeds) {
+  std::vector<uint8_t> is_seed(num_faces, 0);
   for (size_t i = 0; i < seeds.size(); ++i) {
-    if (seeds[i] >= n || is_seed[seeds[i]]) {
+    if (seeds[i] >= num_faces || is_seed[seeds[i]]) {
       return absl::InvalidArgumentError(
           absl::StrCat("seeds: seed ", i, " (face ", seeds[i], ") is out of range or repeated"));
     }
     is_seed[seeds[i]] = 1;
   }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(
+    const MeshProblem& problem, std::span<const FaceId> typed_seeds, SeedOptions::Growth growth,
+    const std::atomic<bool>* cancel, const SeedOptions::DeviceGrowth* device) {
+  MLCLUST_RETURN_IF_ERROR(ValidateMeshProblem(problem));
+  const size_t n = problem.mesh->num_faces();
+  std::vector<uint32_t> seeds(typed_seeds.size());
+  for (size_t i = 0; i < seeds.size(); ++i) seeds[i] = typed_seeds[i].value();
+  MLCLUST_RETURN_IF_ERROR(CheckSeedFaces(n, seeds));
   if (problem.polygons != nullptr) {
     // Each seed face's polygon; two seeds in one polygon are one seed too many.
     const MeshPolygons& polygons = *problem.polygons;
@@ -686,7 +723,9 @@ absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& 
     }
     return FaceLabelsOfPolygons(polygons, polygon_labels);
   }
-  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel);
+  absl::Status device_error = absl::OkStatus();
+  std::vector<uint32_t> labels = Grow(problem, seeds, growth, cancel, device, &device_error);
+  MLCLUST_RETURN_IF_ERROR(device_error);
   if (labels.empty() && n != 0) return absl::CancelledError("cancelled while growing seeds");
   for (uint32_t f = 0; f < n; ++f) {
     if (labels[f] == kUnassigned) {

@@ -77,8 +77,26 @@ struct SeedOptions {
     // The "initial cluster grow" of l. 671 and l. 1219: no energy; clusters in turn, in
     // seed order, each take every free face across their boundary, until none is free.
     kEnergyFree,
+    // Section 5.2's growth on the GPU (Fig. 5.9, l. 2172-2185): no energy; in rounds, every
+    // free face with an edge-neighbour in a cluster joins the neighbouring cluster with
+    // the smallest id, all faces of a round reading the labels before the round (Jacobi),
+    // until a round assigns nothing. The same on the CPU and the GPU (device_rounds), and
+    // the same partition as kEnergyFree (whose clusters in turn take the faces across
+    // their last round's faces: the first to reach a face has the smallest id); the CPU
+    // grows it as kEnergyFree. Its own value for the device: the GPU runs this rule.
+    kRounds,
   };
   Growth growth = Growth::kEnergyOrdered;
+
+  // Ours: kRounds on a device. Grows distinct in-range seed faces (cluster i from
+  // seeds[i]) over the triangles' adjacency exactly as the CPU's kRounds does, free faces
+  // left as 0xFFFFFFFF; its error (CANCELLED once `cancel` is seen set) is the caller's.
+  // Empty: the CPU grows. Not used with polygons (MeshProblem::polygons): those grow on
+  // the CPU.
+  using DeviceGrowth = std::function<absl::StatusOr<std::vector<uint32_t>>(
+      const FaceAdjacency& adjacency, std::span<const uint32_t> seeds,
+      const std::atomic<bool>* cancel)>;
+  DeviceGrowth device_rounds;
 
   // kLNeighbourhood with more seeds than k: how the three clusters meeting at the vertex
   // with the smallest summed area become one (l. 849), until k are left.
@@ -113,12 +131,17 @@ absl::StatusOr<std::vector<ClusterId>> InitialClusters(const MeshProblem& proble
                                                        const SeedOptions& options);
 
 // Grows distinct seed faces into a full partition, cluster i from seeds[i], as
-// `growth` says. INVALID_ARGUMENT if a seed is out of range or repeated, or a connected
-// component has no seed; CANCELLED if `cancel` (may be null) was set.
-absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(const MeshProblem& problem,
-                                                             std::span<const FaceId> seeds,
-                                                             SeedOptions::Growth growth,
-                                                             const std::atomic<bool>* cancel);
+// `growth` says; kRounds on the device where `device` (may be null) is set
+// (SeedOptions::device_rounds; not with polygons). INVALID_ARGUMENT if a seed is out of
+// range or repeated, or a connected component has no seed; CANCELLED if `cancel` (may be
+// null) was set; the device's errors.
+absl::StatusOr<std::vector<ClusterId>> GrowClustersFromSeeds(
+    const MeshProblem& problem, std::span<const FaceId> seeds, SeedOptions::Growth growth,
+    const std::atomic<bool>* cancel, const SeedOptions::DeviceGrowth* device = nullptr);
+
+// OK, or INVALID_ARGUMENT naming the first seed that is out of range (>= num_faces) or
+// repeated: GrowClustersFromSeeds' check of its seeds.
+absl::Status CheckSeedFaces(size_t num_faces, std::span<const uint32_t> seeds);
 
 // Alg. 3.1 alone: the seed faces for neighbourhood size `level`, in face order.
 std::vector<FaceId> LNeighbourhoodSeeds(const FaceAdjacency& adjacency, uint32_t level);

@@ -244,7 +244,8 @@ absl::StatusOr<PatchResult> BuildPatches(const MeshProblem& problem, const Patch
                            SpreadSeeds(problem, options.clusters, options.cancel));
   PatchResult result;
   MLCLUST_ASSIGN_OR_RETURN(result.initial_labels,
-                           GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel));
+                           GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel,
+                                                 &options.device_rounds));
   for (uint32_t step = 0; step < options.reseeds; ++step) {
     // Lloyd on the seeds: each cluster's seed moves to its face nearest the cluster's
     // area-weighted centroid, and all grow again.
@@ -271,7 +272,8 @@ absl::StatusOr<PatchResult> BuildPatches(const MeshProblem& problem, const Patch
       }
     }
     MLCLUST_ASSIGN_OR_RETURN(result.initial_labels,
-                             GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel));
+                             GrowClustersFromSeeds(problem, seeds, options.growth, options.cancel,
+                                                   &options.device_rounds));
   }
   result.labels = result.initial_labels;
   if (options.sweeps == 0) {

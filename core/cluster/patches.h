@@ -53,6 +53,8 @@ struct PatchOptions {
   // How the seeds grow (SeedOptions::Growth); energy-free by default: a BFS, the fastest,
   // and the sweeps then fit the patches to the energy.
   SeedOptions::Growth growth = SeedOptions::Growth::kEnergyFree;
+  // Ours: growth kRounds on a device (SeedOptions::device_rounds); empty: the CPU.
+  SeedOptions::DeviceGrowth device_rounds;
   // Lloyd steps on the seeds before the sweeps: every seed moves to its cluster's face
   // nearest the cluster's centroid and all grow again (ours).
   uint32_t reseeds = 1;

@@ -197,13 +197,17 @@ OptionInfo SeedInitOption() {
 }
 
 OptionInfo SeedGrowthOption() {
-  return Choice("growth", {"flood", "free"}, "flood",
+  return Choice("growth", {"flood", "free", "rounds"}, "flood",
                 "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
                 "energies by distance to the seed) or energy-free, each cluster in turn taking "
-                "the free faces across its boundary (l. 671, 1219)",
+                "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
+                "growth (Fig. 5.9), each round every free face next to clusters joining the one "
+                "with the smallest id: the same partition as free (proven in "
+                "mesh_clustering.cc); with --device gpu it runs as rounds on the GPU",
                 [](const OptionValue& v, JobPlan& plan) {
-                  plan.seeds.growth = v.text == "free" ? SeedOptions::Growth::kEnergyFree
-                                                       : SeedOptions::Growth::kEnergyOrdered;
+                  plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
+                                      : v.text == "rounds" ? SeedOptions::Growth::kRounds
+                                                           : SeedOptions::Growth::kEnergyOrdered;
                 });
 }
 
@@ -260,8 +264,9 @@ std::vector<OptionInfo> PatchPresetOptions() {
              "ours: patches = many small connected patches fast (e.g. K = faces / 124, GPU "
              "meshlets): Morton-order seeds, energy-free growth, Lloyd steps on the seeds "
              "(patch-reseeds), then at most patch-sweeps BB sweeps applied in face order (on "
-             "the CPU); init, level, growth, seed-reduction, add-seeds and max-iterations do "
-             "not apply",
+             "the CPU); init, level, seed-reduction, add-seeds and max-iterations do not "
+             "apply; growth rounds grows (the same partition) on the GPU where the seed stage "
+             "is",
              [](const OptionValue& v, JobPlan& plan) { plan.bb_patches = v.text == "patches"; }),
       Integer("patch-sweeps", 0, 1000000, "6", "preset patches: BB sweeps at most",
               [](const OptionValue& v, JobPlan& plan) {
@@ -432,6 +437,35 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
+// Whether the seed stage grows on the GPU: where the plan puts it there, for triangles
+// (polygons grow on the CPU: the GPU pass takes triangles). Reports `message` on the
+// stage with the device it runs on.
+bool SeedGrowsOnGpu(const MeshProblem& problem, const JobPlan& plan, const RunContext& context,
+                    const std::string& message) {
+  const bool planned = Stage(plan, "seed").device == StageDevice::kGpu;
+  const bool on_gpu = planned && problem.polygons == nullptr;
+  if (planned && !on_gpu) {
+    if (context.on_stage) {
+      context.on_stage(StagePlan{"seed", StageDevice::kCpu},
+                       absl::StrCat(message, " (polygons: on the CPU)"));
+    }
+  } else {
+    Report(context, plan, "seed", message);
+  }
+  return on_gpu;
+}
+
+// The device's growth rounds for a seed stage the plan put on the GPU.
+absl::StatusOr<SeedOptions::DeviceGrowth> DeviceRoundsGrowth(const RunContext& context) {
+  SeedOptions::DeviceGrowth growth;
+  if (context.devices != nullptr) growth = context.devices->RoundsGrowth();
+  if (!growth) {
+    return absl::FailedPreconditionError(
+        "the plan puts the seed stage's growth on the GPU but this run has no GPU stages");
+  }
+  return growth;
+}
+
 // BB's preset "patches" (core/cluster/patches.h): level 0 the grown seeds, level 1 the
 // swept patches.
 absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobPlan& plan,
@@ -448,8 +482,13 @@ absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobP
   options.guard = plan.boundary_based.connectivity_guard ? ConnectivityGuardKind::kRingTest
                                                          : ConnectivityGuardKind::kOff;
   options.cancel = context.cancel;
-  Report(context, plan, "seed",
-         absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"));
+  if (SeedGrowsOnGpu(
+          problem, plan, context,
+          absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"))) {
+    // The energy-free growth is growth rounds' partition: grown as rounds on the GPU.
+    options.growth = SeedOptions::Growth::kRounds;
+    MLCLUST_ASSIGN_OR_RETURN(options.device_rounds, DeviceRoundsGrowth(context));
+  }
   Report(context, plan, "cluster",
          absl::StrCat("patches: at most ", options.sweeps, " BB sweeps", EnergyNote(plan)));
   MLCLUST_ASSIGN_OR_RETURN(PatchResult result, BuildPatches(problem, options));
@@ -463,8 +502,14 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   if (plan.bb_patches && plan.algorithm->name == "bb") {
     return RunMeshPatches(problem, plan, sink, context);
   }
-  Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial clusters"));
-  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, plan.seeds));
+  const bool seed_on_gpu =
+      SeedGrowsOnGpu(problem, plan, context, absl::StrCat(plan.clusters, " initial clusters"));
+  SeedOptions seeds = plan.seeds;
+  seeds.cancel = context.cancel;
+  if (seed_on_gpu) {
+    MLCLUST_ASSIGN_OR_RETURN(seeds.device_rounds, DeviceRoundsGrowth(context));
+  }
+  MLCLUST_ASSIGN_OR_RETURN(std::vector<ClusterId> initial, InitialClusters(problem, seeds));
   std::vector<ClusterId> labels = initial;
   absl::StatusOr<OptimizeResult> result;
   if (plan.algorithm->name == "emlo") {
@@ -761,7 +806,13 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     if (energy.input == InputKind::kMesh) mesh_energies.push_back(energy.name);
   }
   const StageInfo merge_stage{"cluster", "merges (and local optimisation) level by level"};
-  const StageInfo seed_stage{"seed", "k initial clusters"};
+  // With growth rounds the seeding's growth on the GPU (section 5.2,
+  // gpu/stages/seed_growth_gpu.h), BB's preset patches' too (its energy-free growth is the
+  // same partition).
+  const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)",
+                             /*has_gpu=*/true, [](const JobPlan& plan) {
+                               return plan.seeds.growth == SeedOptions::Growth::kRounds;
+                             }};
   std::vector<AlgorithmInfo> algorithms;
 
   // Meshes.
@@ -893,7 +944,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                "region teleportation when the iterations stall (Cohen-Steiner et al. 2004)",
                [](const OptionValue& v, JobPlan& plan) { plan.vsa.teleport = v.text == "on"; }),
     };
-    a.stages = {seed_stage, {"cluster", "Lloyd iterations: partition (flood), fit proxies"}};
+    a.stages = {{"seed", "k initial clusters"},  // VSA has no growth option: CPU
+                {"cluster", "Lloyd iterations: partition (flood), fit proxies"}};
     a.run_mesh = RunMeshVsa;
     algorithms.push_back(a);
   }

@@ -32,19 +32,7 @@ absl::Status CheckInputs(const FaceAdjacency& adjacency, std::span<const Cluster
     return absl::InvalidArgumentError(
         absl::StrCat(num_faces, " faces exceed the limit of ", kMaxMeshElements));
   }
-  // A neighbour id out of range would be an out-of-bounds read in the shader, which GL
-  // leaves undefined (robust buffer access is not guaranteed), so check it here.
-  for (size_t face = 0; face < num_faces; ++face) {
-    for (int edge = 0; edge < 3; ++edge) {
-      const FaceId neighbour = adjacency.neighbours[face][edge];
-      if (neighbour.valid() && neighbour.value() >= num_faces) {
-        return absl::InvalidArgumentError(absl::StrCat("face ", face, " edge ", edge,
-                                                       " has neighbour ", neighbour.value(),
-                                                       " but there are ", num_faces, " faces"));
-      }
-    }
-  }
-  return absl::OkStatus();
+  return CheckNeighboursInRange(adjacency);
 }
 
 // Faces per chunk. Buffer bounds: labels whole (4 bytes/face); per chunk, neighbours 12
@@ -59,6 +47,23 @@ uint64_t FlagBytes(uint64_t faces) {
 }
 
 }  // namespace
+
+absl::Status CheckNeighboursInRange(const FaceAdjacency& adjacency) {
+  // A neighbour id out of range would be an out-of-bounds read in the shader, which GL
+  // leaves undefined (robust buffer access is not guaranteed), so check it here.
+  const size_t num_faces = adjacency.num_faces();
+  for (size_t face = 0; face < num_faces; ++face) {
+    for (int edge = 0; edge < 3; ++edge) {
+      const FaceId neighbour = adjacency.neighbours[face][edge];
+      if (neighbour.valid() && neighbour.value() >= num_faces) {
+        return absl::InvalidArgumentError(absl::StrCat("face ", face, " edge ", edge,
+                                                       " has neighbour ", neighbour.value(),
+                                                       " but there are ", num_faces, " faces"));
+      }
+    }
+  }
+  return absl::OkStatus();
+}
 
 uint64_t FlagBoundaryFacesMemoryBound(const GlContext& context, uint64_t num_faces) {
   const uint64_t chunk = ChunkFaces(context, num_faces);

@@ -36,6 +36,11 @@ absl::StatusOr<std::vector<uint8_t>> FlagBoundaryFaces(GlContext& context,
 // memory before it submits work.
 uint64_t FlagBoundaryFacesMemoryBound(const GlContext& context, uint64_t num_faces);
 
+// OK, or INVALID_ARGUMENT naming the first neighbour id that is neither FaceId::Invalid()
+// nor < num_faces: what every kernel reading the adjacency by index checks first (an
+// out-of-range index is an out-of-bounds read in a shader, undefined in GL).
+absl::Status CheckNeighboursInRange(const FaceAdjacency& adjacency);
+
 // The CPU reference of FlagBoundaryFaces, with the same result. Expects
 // labels.size() == adjacency.num_faces() and every neighbour Invalid() or in range
 // (asserted, not checked: this is the fallback for inputs core already validated).

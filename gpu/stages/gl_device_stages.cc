@@ -7,6 +7,7 @@
 #include "gpu/stages/multilevel_gpu.h"
 #include "gpu/stages/point_stages_gpu.h"
 #include "gpu/stages/points_multilevel_gpu.h"
+#include "gpu/stages/seed_growth_gpu.h"
 
 namespace mlclust::gpu {
 
@@ -45,5 +46,7 @@ absl::StatusOr<PointMultilevelSummary> GlDeviceStages::RunPointMultilevel(
   return options.parallel ? RunPointParallelMultilevelGpu(context_, points, options, sink)
                           : RunPointHierarchyGpu(context_, points, options, sink);  // HC or ML
 }
+
+SeedOptions::DeviceGrowth GlDeviceStages::RoundsGrowth() { return GpuRoundsGrowth(context_); }
 
 }  // namespace mlclust::gpu

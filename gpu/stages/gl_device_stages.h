@@ -33,6 +33,8 @@ class GlDeviceStages : public DeviceStages {
                                                             const PointMultilevelOptions& options,
                                                             LevelSink& sink) override;
 
+  SeedOptions::DeviceGrowth RoundsGrowth() override;
+
  private:
   GlContext& context_;
 };

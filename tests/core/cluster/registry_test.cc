@@ -247,6 +247,17 @@ TEST(RegistryTest, DevicesFollowThePlan) {
   request.energy = FindEnergy(InputKind::kMesh, "sphere");
   EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "cluster"), "cpu");
   request.energy = nullptr;
+  // The seed stage grows on the GPU with growth rounds only, BB's preset patches included
+  // (whose default energy-free growth stays on the CPU).
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "seed"), "cpu");
+  request.options = {{"preset", "patches"}};
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "seed"), "cpu");
+  request.options = {{"preset", "patches"}, {"growth", "rounds"}};
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, hardware, "seed"), "NVIDIA H100");
+  EXPECT_EQ(device_of(DeviceChoice::kAuto, software, "seed"), "cpu");
+  request.options = {{"growth", "rounds"}};
+  EXPECT_EQ(device_of(DeviceChoice::kGpu, software, "seed"), "llvmpipe");
+  request.options = {};
   // The worker a job needs follows from its plan.
   JobRequest ml;
   ml.algorithm = FindAlgorithm(InputKind::kMesh, "ml");
