@@ -401,9 +401,11 @@ class PointSpace {
   uint32_t TieKey(uint32_t /*c*/) const { return 0; }
 
   void Squash() {
+    // The moved points in parallel blocks where a level moved many (the recorder's
+    // blocks, joined in order: the same triplets).
     recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },
                      [&](uint32_t i) { return clusters_->label(i); },
-                     [&](uint32_t i) { return original_[i]; });
+                     [&](uint32_t i) { return original_[i]; }, detail::TbbBlocks{1});
   }
   void EndLevel() {
     merged_.clear();
@@ -417,17 +419,28 @@ class PointSpace {
     std::span<uint32_t> out = clusters_->neighbours(c);
     before_.assign(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
+    // c out of the reverse lists of its old neighbours (its entry swapped with the last, then
+    // dropped), and into those of its new ones (at the end). A neighbour in both lists (each
+    // lists a cluster once): the two steps in one, its entry swapped with the last.
+    auto listed = [](std::span<const uint32_t> list, uint32_t n) {
+      return std::find(list.begin(), list.end(), n) != list.end();
+    };
     for (uint32_t n : before_) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
-      if (it != list.end()) {
+      const bool stays = listed(out, n);
+      if (it == list.end()) {
+        if (stays) list.push_back(c);
+      } else if (stays) {
+        std::swap(*it, list.back());
+      } else {
         *it = list.back();
         list.pop_back();
       }
     }
     for (uint32_t n : out) {
-      if (n != kNone) reverse_[n].push_back(c);
+      if (n != kNone && !listed(before_, n)) reverse_[n].push_back(c);
     }
     if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
       LinkIsolated(c);
@@ -582,7 +595,7 @@ class PointSpace {
     };
     std::vector<uint32_t> candidates;
     for (uint32_t gone : gone_) {
-      for (uint32_t x : std::vector<uint32_t>(reverse_[gone])) add(x);
+      for (uint32_t x : reverse_[gone]) add(x);
     }
     for (uint32_t c : recorder_.affected()) {
       add(c);
