@@ -185,7 +185,11 @@ class PointOptimiseRounds {
       changed.clear();
       old_centroids.clear();
       made_.clear();
-      for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
+      // In order; the points of the moves ahead are asked for first (they lie anywhere).
+      for (size_t n = 0; n < moves_.size(); ++n) {
+        if (n + 8 < moves_.size()) Prefetch(moves_[n + 8].first);
+        ApplyMove(moves_[n].first, moves_[n].second, changed, old_centroids);
+      }
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];
         mark_[c] = 0;
@@ -247,6 +251,13 @@ class PointOptimiseRounds {
       }
       g = end;
     }
+  }
+
+  // Asks the caches for what ApplyMove reads and writes of point i.
+  void Prefetch(uint32_t i) const {
+    clusters_.Prefetch(i);
+    __builtin_prefetch(&position_[i]);
+    __builtin_prefetch(&stamp_[i]);
   }
 
   // One chosen move, in the order of the checks (a cluster's last point stays): the sums,
