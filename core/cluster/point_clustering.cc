@@ -265,7 +265,7 @@ VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
         uint64_t key = keys[i];
         for (uint32_t j = d; j-- > 0;) {
           cell[j] = static_cast<uint32_t>(key & ((uint64_t{1} << bits[j]) - 1));
-          key = bits[j] < 64 ? key >> bits[j] : 0;
+          key >>= bits[j];
         }
         cells.cell.push_back(std::move(cell));
       }
@@ -436,12 +436,6 @@ class PointSpace {
   template <typename F>
   void ForEachCandidate(uint32_t c, const F& f) const {
     if (clusters_->count(c) == 0) return;
-    // Their counts and centroids asked for first (found anywhere in the tables; the
-    // recomputed ODEs run in order after each level).
-    for (uint32_t n : clusters_->neighbours(c)) {
-      if (n != kNone) clusters_->PrefetchCluster(n);
-    }
-    for (uint32_t n : reverse_[c]) clusters_->PrefetchCluster(n);
     for (uint32_t n : clusters_->neighbours(c)) {
       if (n != kNone && clusters_->count(n) > 0) f(n);
     }
@@ -470,28 +464,17 @@ class PointSpace {
     std::span<uint32_t> out = clusters_->neighbours(c);
     before_.assign(out.begin(), out.end());
     clusters_->RefreshNeighbours(c, candidates);
-    // c out of the reverse lists of its old neighbours (its entry swapped with the last, then
-    // dropped), and into those of its new ones (at the end). A neighbour in both lists (each
-    // lists a cluster once): the two steps in one, its entry swapped with the last.
-    auto listed = [](std::span<const uint32_t> list, uint32_t n) {
-      return std::find(list.begin(), list.end(), n) != list.end();
-    };
     for (uint32_t n : before_) {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
-      const bool stays = listed(out, n);
-      if (it == list.end()) {
-        if (stays) list.push_back(c);
-      } else if (stays) {
-        std::swap(*it, list.back());
-      } else {
+      if (it != list.end()) {
         *it = list.back();
         list.pop_back();
       }
     }
     for (uint32_t n : out) {
-      if (n != kNone && !listed(before_, n)) reverse_[n].push_back(c);
+      if (n != kNone) reverse_[n].push_back(c);
     }
     if (std::all_of(out.begin(), out.end(), [](uint32_t n) { return n == kNone; })) {
       LinkIsolated(c);

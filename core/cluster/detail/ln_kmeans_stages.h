@@ -104,11 +104,6 @@ class PointClusters {
     __builtin_prefetch(&points_.values[i * d_]);
     __builtin_prefetch(&labels_[i]);
   }
-  // Asks the caches for cluster c's count and centroid.
-  void PrefetchCluster(uint32_t c) const {
-    __builtin_prefetch(&count_[c]);
-    __builtin_prefetch(&centroid_[size_t{c} * d_]);
-  }
   void Relative(size_t i, std::vector<double>& out) const {
     out.resize(d_);
     for (uint32_t j = 0; j < d_; ++j) out[j] = points_.values[i * d_ + j] - origin_[j];

@@ -6,7 +6,6 @@
 #define MLCLUST_CORE_CLUSTER_DETAIL_LOCAL_NEIGHBOURS_H_
 
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -37,12 +36,6 @@ void RefreshLocalNeighbours(uint32_t c, uint32_t d, std::span<const double> cent
                             std::vector<uint32_t>& candidates, LocalNeighbourScratch& scratch) {
   const size_t slots = size_t{2} * d;
   const std::span<uint32_t> out = neighbours.subspan(c * slots, slots);
-  // The rows, centroids and counts read below lie anywhere in tables of k entries: each is
-  // asked for ahead of its use, so that the cache misses overlap (this refresh runs in
-  // order between the levels, and its time was mostly those misses).
-  for (const uint32_t n : out) {
-    if (n != kNoCluster) __builtin_prefetch(&neighbours[size_t{n} * slots]);
-  }
   for (const uint32_t n : out) {
     if (n == kNoCluster) continue;
     candidates.push_back(n);
@@ -59,30 +52,20 @@ void RefreshLocalNeighbours(uint32_t c, uint32_t d, std::span<const double> cent
     if (n == kNoCluster || scratch.seen[n] == scratch.now) continue;
     scratch.seen[n] = scratch.now;
     candidates[unique++] = n;
-    __builtin_prefetch(&counts[n]);
-    __builtin_prefetch(&centroids[size_t{n} * d]);
   }
   candidates.resize(unique);
   std::fill(out.begin(), out.end(), kNoCluster);
   scratch.best.assign(slots, std::numeric_limits<double>::infinity());
-  const double* from = &centroids[size_t{c} * d];
+  const std::span<const double> from = centroids.subspan(size_t{c} * d, d);
   for (const uint32_t n : candidates) {
     if (n == c || counts[n] == 0) continue;
-    const double* to = &centroids[size_t{n} * d];
-    // SubspaceIndex(from, to) and the squared distance in one pass over the axes (the same
-    // values: |from - to| is |to - from| exactly, the sum in the same order).
-    double dist = 0, largest = -1;
-    uint32_t axis = 0;
+    const std::span<const double> to = centroids.subspan(size_t{n} * d, d);
+    const uint32_t s = SubspaceIndex(from, to);
+    double dist = 0;
     for (uint32_t j = 0; j < d; ++j) {
       const double diff = from[j] - to[j];
       dist += diff * diff;
-      const double size = std::abs(diff);
-      if (size > largest) {
-        largest = size;
-        axis = j;
-      }
     }
-    const uint32_t s = 2 * axis + (to[axis] > from[axis] ? 0 : 1);
     if (dist < scratch.best[s] || (dist == scratch.best[s] && n < out[s])) {
       scratch.best[s] = dist;
       out[s] = n;
