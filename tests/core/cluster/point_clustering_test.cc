@@ -136,7 +136,8 @@ TEST(VoxelGridStartTest, CellsNumberedByTheirFirstPointPackedOrNot) {
 
 // A level that moves over 16,384 points (the last merges of two blobs of 20,000) squashes
 // its moves in parallel blocks joined in order: the same levels on one, two and three
-// threads, and the triplets rebuild every level's labels as inspect_level reports them.
+// threads, and the triplets rebuild every level's labels as inspect_level reports them
+// (the recorder's blocks against its in-order loop: level_recorder_parallel_test).
 TEST(PointMultilevelTest, LargeLevelsSquashInBlocksTheSameOnOneTwoAndThreeThreads) {
   auto [points, truth] = Blobs(2, 20000, 3, 47, 20);
   PointMultilevelOptions options;
