@@ -219,7 +219,9 @@ Bounds BoundsOf(const PointSet& points) {
 // (the caller checks it). Where the cell coordinates pack into 64 bits (3-D: up to 2^21
 // cells per axis), each point's packed cell is found in parallel blocks and the numbering
 // runs over the packed keys (a flat hash of integers, no key allocated per point): the same
-// cells and labels as the general path.
+// cells and labels as the general path, which stays for keys that do not fit (more
+// dimensions). About 0.1 s of the start's ordered work at 1M 3-D points; the keys hold 8
+// bytes per point while the start runs.
 VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
                          std::span<const uint32_t> cells_per_axis,
                          const std::atomic<bool>* cancel) {

@@ -43,6 +43,9 @@ class PointOptimiseRounds {
   // and next_to's merged clusters [compare_begin, compare_end), the nearest strictly closer
   // one its target (not stamped).
   static constexpr size_t kSlicePoints = 256;
+  // The ordered apply asks for the point this many moves ahead (each move waits on a few
+  // of its point's entries; eight cover that wait, as the checks' look-ahead does).
+  static constexpr size_t kApplyAhead = 8;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
@@ -187,7 +190,7 @@ class PointOptimiseRounds {
       made_.clear();
       // In order; the points of the moves ahead are asked for first (they lie anywhere).
       for (size_t n = 0; n < moves_.size(); ++n) {
-        if (n + 8 < moves_.size()) Prefetch(moves_[n + 8].first);
+        if (n + kApplyAhead < moves_.size()) Prefetch(moves_[n + kApplyAhead].first);
         ApplyMove(moves_[n].first, moves_[n].second, changed, old_centroids);
       }
       for (size_t n = 0; n < changed.size(); ++n) {

@@ -12,6 +12,7 @@
 #include "absl/container/flat_hash_set.h"
 #include "core/base/random.h"
 #include "core/hierarchy/model_selection.h"
+#include "tbb/global_control.h"
 #include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_points.h"
@@ -139,6 +140,9 @@ TEST(VoxelGridStartTest, CellsNumberedByTheirFirstPointPackedOrNot) {
 // threads, and the triplets rebuild every level's labels as inspect_level reports them
 // (the recorder's blocks against its in-order loop: level_recorder_parallel_test).
 TEST(PointMultilevelTest, LargeLevelsSquashInBlocksTheSameOnOneTwoAndThreeThreads) {
+  // TBB limits its workers to the machine's cores less one (one worker on 2 cores, where
+  // three threads would run as two): allow four, so that three threads really run.
+  tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 4);
   auto [points, truth] = Blobs(2, 20000, 3, 47, 20);
   PointMultilevelOptions options;
   options.grid = 3;
