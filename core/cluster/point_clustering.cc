@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -29,16 +27,6 @@ namespace detail {
 namespace {
 constexpr uint32_t kNone = kNoCluster;
 }  // namespace
-
-TemporaryPointCounters::~TemporaryPointCounters() {
-  if (std::getenv("MLCLUST_POINT_COUNTERS") == nullptr) return;
-  std::fprintf(stderr,
-               "levels %lu refreshes %lu gathered %lu unique %lu odes %lu passes %lu one_task %lu "
-               "one_task_members %lu rounds %lu moves %lu moves_in_rounds_1024 %lu "
-               "moves_in_rounds_256 %lu reverse_finds %lu reverse_scanned %lu\n",
-               levels, refreshes, gathered, unique, odes, passes, one_task, one_task_members,
-               rounds, moves, moves_1024, moves_256, reverse_finds, reverse_scanned);
-}
 
 // One point's LN k-means check: its best cluster among its own, its cluster's neighbours
 // and the neighbours of the neighbour in its subspace. Returns the target (kNone: stays)
@@ -482,9 +470,6 @@ class PointSpace {
       if (n == kNone) continue;
       auto& list = reverse_[n];
       auto it = std::find(list.begin(), list.end(), c);
-      detail::temporary_point_counters.reverse_finds++;
-      detail::temporary_point_counters.reverse_scanned +=
-          (it - list.begin()) + (it != list.end() ? 1 : 0);
       if (it != list.end()) {
         *it = list.back();
         list.pop_back();
@@ -604,10 +589,7 @@ class PointSpace {
       }
       check(out);
     };
-    detail::temporary_point_counters.passes++;
     if (tasks_.size() == 1) {
-      detail::temporary_point_counters.one_task++;
-      detail::temporary_point_counters.one_task_members += total;
       run(0);
     } else {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, tasks_.size(), 1), [&](const auto& range) {
@@ -680,7 +662,6 @@ class PointSpace {
           offer_neighbours_of(n);
         }
       }
-      detail::temporary_point_counters.refreshes++;
       Refresh(c, candidates);
     }
     for (uint32_t gone : gone_) {
@@ -718,8 +699,6 @@ class PointSpace {
       }
     }
     for (uint32_t c : refresh_odes_) mark_[c] = 0;
-    detail::temporary_point_counters.levels++;
-    detail::temporary_point_counters.odes += refresh_odes_.size();
     engine.RecomputeOdes(refresh_odes_);
     refresh_odes_.clear();
   }

@@ -16,16 +16,6 @@
 
 namespace mlclust::detail {
 
-// TEMPORARY counters (this commit only, reverted by the next): printed at exit when
-// MLCLUST_POINT_COUNTERS is set.
-struct TemporaryPointCounters {
-  uint64_t levels = 0, refreshes = 0, gathered = 0, unique = 0, odes = 0, passes = 0, one_task = 0,
-           one_task_members = 0, rounds = 0, moves = 0, moves_1024 = 0, moves_256 = 0,
-           reverse_scanned = 0, reverse_finds = 0;
-  ~TemporaryPointCounters();
-};
-inline TemporaryPointCounters temporary_point_counters;
-
 // What RefreshLocalNeighbours keeps between calls: a stamp per cluster (each candidate is
 // taken once without sorting: with 2d neighbours each there are up to 4d^2 of them,
 // mostly repeats) and the best distance per subspace.
@@ -57,7 +47,6 @@ void RefreshLocalNeighbours(uint32_t c, uint32_t d, std::span<const double> cent
     std::fill(scratch.seen.begin(), scratch.seen.end(), 0);
     scratch.now = 1;
   }
-  temporary_point_counters.gathered += candidates.size();
   size_t unique = 0;
   for (const uint32_t n : candidates) {
     if (n == kNoCluster || scratch.seen[n] == scratch.now) continue;
@@ -65,7 +54,6 @@ void RefreshLocalNeighbours(uint32_t c, uint32_t d, std::span<const double> cent
     candidates[unique++] = n;
   }
   candidates.resize(unique);
-  temporary_point_counters.unique += unique;
   std::fill(out.begin(), out.end(), kNoCluster);
   scratch.best.assign(slots, std::numeric_limits<double>::infinity());
   const std::span<const double> from = centroids.subspan(size_t{c} * d, d);

@@ -30,7 +30,6 @@
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
-#include "core/cluster/detail/local_neighbours.h"
 #include "core/cluster/detail/member_lists.h"
 #include "core/hierarchy/level_recorder.h"
 
@@ -189,10 +188,6 @@ class PointOptimiseRounds {
       changed.clear();
       old_centroids.clear();
       made_.clear();
-      temporary_point_counters.rounds++;
-      temporary_point_counters.moves += moves_.size();
-      if (moves_.size() >= 1024) temporary_point_counters.moves_1024 += moves_.size();
-      if (moves_.size() >= 256) temporary_point_counters.moves_256 += moves_.size();
       // In order; the points of the moves ahead are asked for first (they lie anywhere).
       for (size_t n = 0; n < moves_.size(); ++n) {
         if (n + kApplyAhead < moves_.size()) Prefetch(moves_[n + kApplyAhead].first);
