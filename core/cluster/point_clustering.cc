@@ -1,6 +1,7 @@
 #include "core/cluster/point_clustering.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -213,27 +214,73 @@ Bounds BoundsOf(const PointSet& points) {
   return bounds;
 }
 
-// The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j.
-// Once `cancel` is set it stops early with no cells (the caller checks it).
+// The occupied cells of the bounding box cut into cells_per_axis[j] cells along axis j,
+// numbered in order of their first point. Once `cancel` is set it stops early with no cells
+// (the caller checks it). Where the cell coordinates pack into 64 bits (3-D: up to 2^21
+// cells per axis), each point's packed cell is found in parallel blocks and the numbering
+// runs over the packed keys (a flat hash of integers, no key allocated per point): the same
+// cells and labels as the general path, which stays for keys that do not fit (more
+// dimensions). About 0.1 s of the start's ordered work at 1M 3-D points; the keys hold 8
+// bytes per point while the start runs.
 VoxelCells OccupiedCells(const PointSet& points, const Bounds& bounds,
                          std::span<const uint32_t> cells_per_axis,
                          const std::atomic<bool>* cancel) {
   const uint32_t d = points.dims;
   const size_t m = points.num_points();
-  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
+  auto cell_of = [&](size_t i, uint32_t j) {
+    const uint32_t a = cells_per_axis[j];
+    const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
+    const double t = span > 0 ? (points.values[i * d + j] - bounds.lo[j]) / span : 0.0;
+    // Clamped in double: an axis spanning more than float's range makes the float offset
+    // above infinite, and casting infinity to uint32 is undefined (found by fuzzing).
+    return static_cast<uint32_t>(std::min<double>(a - 1, t * a));
+  };
   VoxelCells cells;
+  std::vector<uint32_t> bits(d);
+  uint32_t total_bits = 0;
+  for (uint32_t j = 0; j < d; ++j) {
+    bits[j] = static_cast<uint32_t>(std::bit_width(std::max(cells_per_axis[j], 1u) - 1));
+    total_bits += bits[j];
+  }
+  if (total_bits <= 64) {
+    constexpr size_t kBlock = 65536;
+    std::vector<uint64_t> keys(m);
+    std::atomic<bool> stopped{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m, kBlock), [&](const auto& range) {
+      if (IsCancelled(cancel)) {
+        stopped = true;
+        return;
+      }
+      for (size_t i = range.begin(); i != range.end(); ++i) {
+        uint64_t key = 0;
+        for (uint32_t j = 0; j < d; ++j) key = (key << bits[j]) | cell_of(i, j);
+        keys[i] = key;
+      }
+    });
+    if (stopped) return VoxelCells();
+    absl::flat_hash_map<uint64_t, uint32_t> index;
+    cells.labels.resize(m);
+    for (size_t i = 0; i < m; ++i) {
+      auto [it, inserted] = index.try_emplace(keys[i], static_cast<uint32_t>(cells.cell.size()));
+      if (inserted) {
+        std::vector<uint32_t> cell(d);
+        uint64_t key = keys[i];
+        for (uint32_t j = d; j-- > 0;) {
+          cell[j] = static_cast<uint32_t>(key & ((uint64_t{1} << bits[j]) - 1));
+          key >>= bits[j];
+        }
+        cells.cell.push_back(std::move(cell));
+      }
+      cells.labels[i] = it->second;
+    }
+    return cells;
+  }
+  absl::flat_hash_map<std::vector<uint32_t>, uint32_t, absl::Hash<std::vector<uint32_t>>> index;
   cells.labels.resize(m);
   std::vector<uint32_t> cell(d);
   for (size_t i = 0; i < m; ++i) {
     if (i % 65536 == 0 && IsCancelled(cancel)) return VoxelCells();
-    for (uint32_t j = 0; j < d; ++j) {
-      const uint32_t a = cells_per_axis[j];
-      const double span = static_cast<double>(bounds.hi[j]) - bounds.lo[j];
-      const double t = span > 0 ? (points.values[i * d + j] - bounds.lo[j]) / span : 0.0;
-      // Clamped in double: an axis spanning more than float's range makes the float offset
-      // above infinite, and casting infinity to uint32 is undefined (found by fuzzing).
-      cell[j] = static_cast<uint32_t>(std::min<double>(a - 1, t * a));
-    }
+    for (uint32_t j = 0; j < d; ++j) cell[j] = cell_of(i, j);
     auto [it, inserted] = index.try_emplace(cell, static_cast<uint32_t>(cells.cell.size()));
     if (inserted) cells.cell.push_back(cell);
     cells.labels[i] = it->second;
@@ -401,9 +448,11 @@ class PointSpace {
   uint32_t TieKey(uint32_t /*c*/) const { return 0; }
 
   void Squash() {
+    // The moved points in parallel blocks where a level moved many (the recorder's
+    // blocks, joined in order: the same triplets).
     recorder_.Squash([&](uint32_t c) { return clusters_->Energy(c); },
                      [&](uint32_t i) { return clusters_->label(i); },
-                     [&](uint32_t i) { return original_[i]; });
+                     [&](uint32_t i) { return original_[i]; }, detail::TbbBlocks{1});
   }
   void EndLevel() {
     merged_.clear();
@@ -582,7 +631,7 @@ class PointSpace {
     };
     std::vector<uint32_t> candidates;
     for (uint32_t gone : gone_) {
-      for (uint32_t x : std::vector<uint32_t>(reverse_[gone])) add(x);
+      for (uint32_t x : reverse_[gone]) add(x);
     }
     for (uint32_t c : recorder_.affected()) {
       add(c);

@@ -43,6 +43,9 @@ class PointOptimiseRounds {
   // and next_to's merged clusters [compare_begin, compare_end), the nearest strictly closer
   // one its target (not stamped).
   static constexpr size_t kSlicePoints = 256;
+  // The ordered apply asks for the point this many moves ahead (each move waits on a few
+  // of its point's entries; eight cover that wait, as the checks' look-ahead does).
+  static constexpr size_t kApplyAhead = 8;
   struct Slice {
     uint32_t cluster;
     size_t begin, end;
@@ -185,7 +188,11 @@ class PointOptimiseRounds {
       changed.clear();
       old_centroids.clear();
       made_.clear();
-      for (const auto& [i, to] : moves_) ApplyMove(i, to, changed, old_centroids);
+      // In order; the points of the moves ahead are asked for first (they lie anywhere).
+      for (size_t n = 0; n < moves_.size(); ++n) {
+        if (n + kApplyAhead < moves_.size()) Prefetch(moves_[n + kApplyAhead].first);
+        ApplyMove(moves_[n].first, moves_[n].second, changed, old_centroids);
+      }
       for (size_t n = 0; n < changed.size(); ++n) {
         const uint32_t c = changed[n];
         mark_[c] = 0;
@@ -247,6 +254,13 @@ class PointOptimiseRounds {
       }
       g = end;
     }
+  }
+
+  // Asks the caches for what ApplyMove reads and writes of point i.
+  void Prefetch(uint32_t i) const {
+    clusters_.Prefetch(i);
+    __builtin_prefetch(&position_[i]);
+    __builtin_prefetch(&stamp_[i]);
   }
 
   // One chosen move, in the order of the checks (a cluster's last point stays): the sums,

@@ -5,12 +5,14 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
 #include "absl/container/flat_hash_set.h"
 #include "core/base/random.h"
 #include "core/hierarchy/model_selection.h"
+#include "tbb/global_control.h"
 #include "tests/fixtures/level_checks.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_points.h"
@@ -92,6 +94,89 @@ TEST(VoxelGridStartTest, OnlyOccupiedCellsBecomeClusters) {
   absl::StatusOr<VoxelStart> chosen = VoxelGridStart(points, 0);
   ASSERT_TRUE(chosen.ok());
   EXPECT_EQ(chosen->clusters, 1u);
+}
+
+// The voxel start's cells, numbered in order of their first point: packed into 64-bit keys
+// and found in parallel blocks where the coordinates fit (3-D, 90,000 points: two blocks
+// of 65,536), cell vectors otherwise (4-D at 2^17 cells per axis: 68 bits); both against
+// the cells computed here point after point.
+TEST(VoxelGridStartTest, CellsNumberedByTheirFirstPointPackedOrNot) {
+  for (const auto& [dims, grid] : {std::pair<uint32_t, uint32_t>{3, 37}, {4, 1u << 17}}) {
+    SCOPED_TRACE(dims);
+    auto [points, truth] = Blobs(3, dims == 3 ? 30000 : 3000, dims, 43, 6);
+    const size_t m = points.num_points();
+    std::vector<float> lo(dims, std::numeric_limits<float>::max());
+    std::vector<float> hi(dims, -std::numeric_limits<float>::max());
+    for (size_t i = 0; i < m; ++i) {
+      for (uint32_t j = 0; j < dims; ++j) {
+        lo[j] = std::min(lo[j], points.values[i * dims + j]);
+        hi[j] = std::max(hi[j], points.values[i * dims + j]);
+      }
+    }
+    std::map<std::vector<uint32_t>, uint32_t> first;
+    std::vector<uint32_t> expected(m);
+    for (size_t i = 0; i < m; ++i) {
+      std::vector<uint32_t> cell(dims);
+      for (uint32_t j = 0; j < dims; ++j) {
+        const double span = static_cast<double>(hi[j]) - lo[j];
+        const double t = (points.values[i * dims + j] - lo[j]) / span;
+        cell[j] = static_cast<uint32_t>(std::min<double>(grid - 1, t * grid));
+      }
+      expected[i] = first.try_emplace(cell, static_cast<uint32_t>(first.size())).first->second;
+    }
+    absl::StatusOr<VoxelStart> start = VoxelGridStart(points, grid);
+    ASSERT_TRUE(start.ok()) << start.status();
+    EXPECT_EQ(start->clusters, first.size());
+    EXPECT_GT(first.size(), 100u);
+    ASSERT_EQ(start->labels.size(), m);
+    size_t differ = 0;
+    for (size_t i = 0; i < m; ++i) differ += start->labels[i].value() != expected[i] ? 1 : 0;
+    EXPECT_EQ(differ, 0u);
+  }
+}
+
+// A level that moves over 16,384 points (the last merges of two blobs of 20,000) squashes
+// its moves in parallel blocks joined in order: the same levels on one, two and three
+// threads, and the triplets rebuild every level's labels as inspect_level reports them
+// (the recorder's blocks against its in-order loop: level_recorder_parallel_test).
+TEST(PointMultilevelTest, LargeLevelsSquashInBlocksTheSameOnOneTwoAndThreeThreads) {
+  // TBB limits its workers to the machine's cores less one (one worker on 2 cores, where
+  // three threads would run as two): allow four, so that three threads really run.
+  tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 4);
+  auto [points, truth] = Blobs(2, 20000, 3, 47, 20);
+  PointMultilevelOptions options;
+  options.grid = 3;
+  std::vector<std::vector<uint32_t>> inspected;
+  std::vector<testing::RecordingSink> sinks(3);
+  for (int threads = 1; threads <= 3; ++threads) {
+    options.threads = threads;
+    if (threads == 1) {
+      options.inspect_level = [&](size_t /*level*/, std::span<const uint32_t> labels) {
+        inspected.emplace_back(labels.begin(), labels.end());
+      };
+    } else {
+      options.inspect_level = nullptr;
+    }
+    ASSERT_TRUE(RunPointMultilevel(points, options, sinks[threads - 1]).ok());
+  }
+  testing::ExpectSameLevels(sinks[0], sinks[1], /*with_start=*/true);
+  testing::ExpectSameLevels(sinks[0], sinks[2], /*with_start=*/true);
+  const testing::RecordingSink& sink = sinks[0];
+  ASSERT_EQ(inspected.size(), sink.counts.size());
+  std::vector<uint32_t> labels = sink.start;
+  EXPECT_EQ(labels, inspected[0]);
+  uint32_t largest = 0;
+  size_t at = 0;
+  for (size_t level = 1; level < sink.counts.size(); ++level) {
+    const uint32_t count = sink.moves[at++];
+    largest = std::max(largest, count);
+    for (uint32_t t = 0; t < count; ++t, at += 3) {
+      ASSERT_EQ(labels[sink.moves[at]], sink.moves[at + 2]);
+      labels[sink.moves[at]] = sink.moves[at + 1];
+    }
+    ASSERT_EQ(labels, inspected[level]) << level;
+  }
+  EXPECT_GE(largest, 16384u);
 }
 
 TEST(LnKmeansTest, FromTheVoxelGridKeepsOneClusterPerOccupiedCellAndLowersTheEnergy) {
