@@ -83,6 +83,8 @@ if [ -n "$need" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -1)
   exit 4
 fi
 
+ldconfig="$(command -v ldconfig || echo /sbin/ldconfig)"  # not on every PATH
+
 # (2) The GL/EGL loaders.
 gl_path=""
 if [ "$allow_software" = 1 ]; then
@@ -91,7 +93,7 @@ if [ "$allow_software" = 1 ]; then
   gl_path="$bundle/glroot/usr/lib/x86_64-linux-gnu"
 else
   for f in "$bundle"/gl/*.deb; do dpkg -x "$f" /; done
-  ldconfig
+  "$ldconfig"
 fi
 
 # (6, before LD_LIBRARY_PATH: python3 and xz use the device's own libraries) The meshes.
@@ -137,7 +139,7 @@ fi
 # (3) Our binaries' libraries; the bundle's C++ runtime only where the device's is too old
 # (a newer libstdc++ serves older binaries, and NVIDIA's libraries may want the newer one).
 cxx_need="$(sed -n 's/^glibcxx-needed //p' "$manifest")"
-system_cxx="$(ldconfig -p | sed -n 's/^[[:space:]]*libstdc++\.so\.6 (libc6,x86-64) => //p' | head -1)"
+system_cxx="$("$ldconfig" -p | sed -n 's/^[[:space:]]*libstdc++\.so\.6 (libc6,x86-64) => //p' | head -1)"
 cxx_path="$bundle/lib/cxx"
 if [ -n "$cxx_need" ] && [ -n "$system_cxx" ] && grep -aqF "GLIBCXX_$cxx_need" "$system_cxx"; then
   cxx_path=""
@@ -169,7 +171,7 @@ if [ "$info_rc" != 0 ] || { [ "$allow_software" = 0 ] && ! echo "$renderer" | gr
       "no figures taken. What the loader saw:"
     echo "  EGL vendor files: $(find /usr/share/glvnd/egl_vendor.d /etc/glvnd/egl_vendor.d \
       /usr/local/nvidia/share/glvnd/egl_vendor.d -name '*.json' 2>/dev/null | tr '\n' ' ')"
-    echo "  libEGL_nvidia: $(ldconfig -p | grep -m1 libEGL_nvidia || echo 'not in the ld cache')"
+    echo "  libEGL_nvidia: $("$ldconfig" -p | grep -m1 libEGL_nvidia || echo 'not in the ld cache')"
     ldd "$bundle/build/gpu/mlclust-gpu-info" | grep -E 'not found|EGL|GL' | sed 's/^/  /'
   } >&2
   exit 3

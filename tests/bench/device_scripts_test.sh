@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# The GPU-node scripts (bench/gpu_node.sh, bench/device_bundle.sh, bench/device_run.sh)
+# without a GPU, a bundle or the real binaries: syntax; the row lists (unique ids, two
+# parts, part 1 and part 2 each fitting one device call); and gpu_node.sh's budget logic on
+# fake binaries (a row over its time is killed and marked, a row that no longer fits is
+# skipped, a missing binary or flag skips its row, every row's output is in the CSV).
+#   tests/bench/device_scripts_test.sh [REPO_ROOT]
+set -uo pipefail
+root="${1:-$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)}"
+cd "$root"
+failures=0
+fail() { echo "FAIL: $*" >&2; failures=$((failures + 1)); }
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+
+# 1. Syntax.
+for script in bench/gpu_node.sh bench/device_bundle.sh bench/device_run.sh; do
+  bash -n "$script" || fail "bash -n $script"
+done
+
+# 2. The row lists. Part 1 must leave room for the set-up (~60 s: loaders, renderer check,
+# armadillo_1m made again) in `device_run.sh --budget 540`, part 2 too.
+total_of() { sed -n 's/^total estimate: \([0-9]*\)s.*/\1/p'; }
+part1="$(bash bench/gpu_node.sh --dry-run --part 1 --threads 16 | total_of)"
+part2="$(bash bench/gpu_node.sh --dry-run --part 2 --threads 16 | total_of)"
+quick="$(bash bench/gpu_node.sh --dry-run --quick --part all | total_of)"
+[ -n "$part1" ] && [ "$part1" -le 480 ] || fail "part 1 estimate '${part1}' s over 480 s"
+[ -n "$part2" ] && [ "$part2" -le 480 ] || fail "part 2 estimate '${part2}' s over 480 s"
+[ -n "$quick" ] && [ "$quick" -le 300 ] || fail "--quick estimate '${quick}' s over 300 s"
+ids="$(bash bench/gpu_node.sh --dry-run --part all | awk 'NR > 1 && $1 ~ /^[12]$/ { print $2 }')"
+[ "$(echo "$ids" | sort | uniq -d)" = "" ] || fail "duplicate row ids: $(echo "$ids" | sort | uniq -d)"
+n1="$(bash bench/gpu_node.sh --dry-run --part 1 | grep -c '^1 ')"
+n2="$(bash bench/gpu_node.sh --dry-run --part 2 | grep -c '^2 ')"
+[ "$((n1 + n2))" = "$(echo "$ids" | wc -l)" ] || fail "parts 1 ($n1) + 2 ($n2) != all rows"
+[ "$n1" -ge 10 ] || fail "part 1 has only $n1 rows"
+bash bench/device_run.sh --dry-run --budget 540 | grep -q '^total estimate' ||
+  fail "device_run.sh --dry-run lists no rows"
+bash bench/device_run.sh --budget soon >/dev/null 2>&1
+[ $? = 2 ] || fail "device_run.sh accepted --budget soon"
+OUT="$work/none" bash bench/device_run.sh --bundle "$work" >/dev/null 2>&1 &&
+  fail "device_run.sh ran without a bundle"
+bash bench/device_bundle.sh --check --out "$work" >/dev/null 2>&1 &&
+  fail "device_bundle.sh --check passed an empty folder"
+
+# 3. The budget logic on fake binaries: each prints a CSV line and sleeps FAKE_SLEEP_<name>.
+mkdir -p "$work/build/bench" "$work/build/gpu"
+cat >"$work/fake" <<'FAKE'
+#!/usr/bin/env bash
+name="$(basename "$0")"
+echo "fake,$name,$*"
+eval "sleep \${FAKE_SLEEP_$name:-0}"
+FAKE
+chmod +x "$work/fake"
+for name in gpu_stages_bench pml_gpu_bench pml_cpu_bench points_bench points_gpu_bench; do
+  cp "$work/fake" "$work/build/bench/$name"
+done
+printf '#!/bin/sh\necho "renderer:  fake"\n' >"$work/build/gpu/mlclust-gpu-info"
+chmod +x "$work/build/gpu/mlclust-gpu-info"
+# bb-small-klow (quick estimate >= 1 s) runs under a 4 s limit and sleeps 30: killed; then
+# bb-small-khigh has no time left: skipped; hc-gpu-meshes has no binary: skipped.
+start=$SECONDS
+FAKE_SLEEP_gpu_stages_bench=30 bash bench/gpu_node.sh --quick --build "$work/build" \
+  --only bb-small-klow,bb-small-khigh,hc-gpu-meshes --budget 4 --out "$work/out" >/dev/null 2>&1 ||
+  fail "gpu_node.sh exited non-zero on the fake build"
+took=$((SECONDS - start))
+[ "$took" -le 15 ] || fail "the budget did not stop the row ($took s)"
+status="$work/out/gpu_node_status.tsv"
+grep -q $'^bb-small-klow\t1\ttimeout: budget' "$status" || fail "no timeout for bb-small-klow"
+grep -q $'^bb-small-khigh\t1\tskipped: budget' "$status" || fail "bb-small-khigh not skipped"
+grep -q $'^hc-gpu-meshes\t2\tskipped: no .*hc_gpu_bench' "$status" || fail "hc-gpu-meshes not skipped"
+grep -q '^fake,gpu_stages_bench,bb .*fandisk.off --k 100 ' "$work/out/gpu_node.csv" ||
+  fail "the killed row's output is not in the CSV"
+grep -q 'renderer:  fake' "$work/out/gpu_node.csv" || fail "no renderer in the CSV"
+# Without a budget every selected row runs; a guard on a string the binary lacks skips.
+bash bench/gpu_node.sh --quick --build "$work/build" --part 1 --out "$work/all" >/dev/null 2>&1 ||
+  fail "gpu_node.sh --part 1 on the fake build"
+ran="$(grep -c $'\tok\t' "$work/all/gpu_node_status.tsv")"
+[ "$ran" -ge 10 ] || fail "only $ran rows of part 1 ran on the fake build"
+[ "$(grep -c '^fake,' "$work/all/gpu_node.csv")" -ge "$ran" ] || fail "rows missing in the CSV"
+
+if [ "$failures" = 0 ]; then echo "device scripts: all checks passed"; else exit 1; fi
