@@ -39,7 +39,7 @@ while [ $# -gt 0 ]; do
     --out) out="${2:?}"; shift 2 ;;
     --check) check=1; shift ;;
     --no-build) do_build=0; shift ;;
-    -h | --help) sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "device_bundle: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done

@@ -12,7 +12,8 @@
 #   --quick           gpu_node.sh's small sizes
 #   --allow-software  accept a software renderer (llvmpipe) and unpack the loaders under the
 #                     bundle instead of /: only to prove the script on a machine without a
-#                     GPU (bench/device_run_test.sh, BENCHMARKS.md)
+#                     GPU (BENCHMARKS.md, "Taking the GPU-node figures in one device call")
+#   --bundle-cxx      use the bundle's C++ runtime even where the device's is new enough
 #   --bundle DIR      the bundle (default .devbundle)
 #   --dry-run         print what it would do and the rows with their estimates; run nothing
 #
@@ -32,7 +33,7 @@ started=$SECONDS
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
-budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0
+budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0 bundle_cxx=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --budget) budget="${2:?}"; shift 2 ;;
@@ -40,8 +41,9 @@ while [ $# -gt 0 ]; do
     --quick) quick=1; shift ;;
     --allow-software) allow_software=1; shift ;;
     --bundle) bundle="${2:?}"; shift 2 ;;
+    --bundle-cxx) bundle_cxx=1; shift ;;
     --dry-run) dry_run=1; shift ;;
-    -h | --help) sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "device_run: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -141,7 +143,7 @@ fi
 cxx_need="$(sed -n 's/^glibcxx-needed //p' "$manifest")"
 system_cxx="$("$ldconfig" -p | sed -n 's/^[[:space:]]*libstdc++\.so\.6 (libc6,x86-64) => //p' | head -1)"
 cxx_path="$bundle/lib/cxx"
-if [ -n "$cxx_need" ] && [ -n "$system_cxx" ] && grep -aqF "GLIBCXX_$cxx_need" "$system_cxx"; then
+if [ "$bundle_cxx" = 0 ] && [ -n "$cxx_need" ] && [ -n "$system_cxx" ] && grep -aqF "GLIBCXX_$cxx_need" "$system_cxx"; then
   cxx_path=""
 fi
 echo "device_run: C++ runtime: ${cxx_path:-$system_cxx} (GLIBCXX_$cxx_need needed)"

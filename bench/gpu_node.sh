@@ -54,7 +54,7 @@ while [ $# -gt 0 ]; do
     --only) only=",${2:?},"; shift 2 ;;
     --dry-run) dry_run=1; shift ;;
     --list-binaries) list_binaries=1; shift ;;
-    -h | --help) sed -n '2,41p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "gpu_node: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
