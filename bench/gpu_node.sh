@@ -36,6 +36,7 @@
 # Rows given by other engineers' tasks (points HC/ML on the GPU, growth on the GPU, points
 # ML on many cores) run only where the binary has the flag (the "guard" column): a binary
 # built before that work is merged skips them as "skipped: no FLAG in BIN".
+
 # shellcheck disable=SC2016  # the rows' commands expand in bash -c, not here
 set -euo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -103,44 +104,44 @@ row() {
 }
 
 # Part 1: the issue's headline figures.
-row 1 pml-gpu-1m-all 15 8 pml_gpu_bench \
-  "2 cores: CPU 13.4 s, llvmpipe 22.3 s; 16 cores ~3 s, GPU ~1 s, mesh load ~3 s" \
+row 1 pml-gpu-1m-all 15 6 pml_gpu_bench \
+  "2 cores (loaded): CPU 13.4 s, llvmpipe 22.3 s; 16 cores ~3 s, GPU ~2 s, reading the mesh ~3 s" \
   '"$BIN/pml_gpu_bench" "$M/$MESH_1M.off" --pairs all --threads "$THREADS" --repeats 1 --header'
 row 1 pml-gpu-1m-cheaper-half 15 8 pml_gpu_bench \
   "as pml-gpu-1m-all (cheaper-half: one host round trip per level more)" \
   '"$BIN/pml_gpu_bench" "$M/$MESH_1M.off" --pairs cheaper-half --threads "$THREADS" --repeats 1 --header'
-row 1 bb-small-klow 5 3 gpu_stages_bench \
-  "bunny00 k=1000: 2 cores CPU run 0.085 s, llvmpipe 0.27 s, x5 repeats of decide" \
+row 1 bb-small-klow 5 2 gpu_stages_bench \
+  "bunny00 k=1000: 2 cores CPU run 0.085 s, llvmpipe 0.27 s; decide best of 5" \
   '"$BIN/gpu_stages_bench" bb "$M/$MESH_SMALL.off" --k "$K_LOW" --energy cvd --threads "$THREADS" --repeats 5 --header'
-row 1 bb-small-khigh 5 3 gpu_stages_bench \
-  "bunny00 k=10000: as k=1000, fewer sweeps" \
+row 1 bb-small-khigh 5 2 gpu_stages_bench \
+  "bunny00 k=10000: as k=1000" \
   '"$BIN/gpu_stages_bench" bb "$M/$MESH_SMALL.off" --k "$K_HIGH" --energy cvd --threads "$THREADS" --repeats 5 --header'
-row 1 bb-1m-klow 30 5 gpu_stages_bench \
-  "armadillo_1m k=1000: 2 cores CPU run + llvmpipe run measured here (BENCHMARKS.md), /5 CPU, /20 GPU, + load" \
+row 1 bb-1m-klow 20 8 gpu_stages_bench \
+  "armadillo_1m k=1000, 2 cores (load 10): CPU run 15.7 s (200 sweeps), llvmpipe 46 s, process 17.6 CPU-s; 16 cores /4, GPU /20, seeding + mesh ~4 s" \
   '"$BIN/gpu_stages_bench" bb "$M/$MESH_1M.off" --k "$K_LOW" --energy cvd --threads "$THREADS" --repeats 5 --header'
-row 1 bb-1m-khigh 30 5 gpu_stages_bench \
-  "armadillo_1m k=10000: as k=1000" \
+row 1 bb-1m-khigh 20 6 gpu_stages_bench \
+  "armadillo_1m k=10000, 2 cores (load 10): CPU 9.0 s (107 sweeps), llvmpipe 24.3 s, 9.1 CPU-s" \
   '"$BIN/gpu_stages_bench" bb "$M/$MESH_1M.off" --k "$K_HIGH" --energy cvd --threads "$THREADS" --repeats 5 --header'
-row 1 lnkmeans-10m 60 8 gpu_stages_bench \
-  "10M points k=10000: 1M k=10000 on 2 cores measured here x10 points, /5 on 16 cores, GPU /20" \
+row 1 lnkmeans-10m 60 10 gpu_stages_bench \
+  "1M points k=10000 on 2 cores (load 10): CPU 25.3 s (71 iterations), llvmpipe 74 s, 23.8 CPU-s; x10 points, CPU /8 (apply and refresh sequential), GPU /20" \
   '"$BIN/gpu_stages_bench" lnkmeans --points "$LN_POINTS" --k "$LN_K" --threads "$THREADS" --header'
 row 1 torch-kmeans-10m 20 0 torch \
   "PyTorch import + CUDA start ~10 s, 3 chunked cdist iterations on 10M x 10k ~2 s" \
   'env -u LD_LIBRARY_PATH python3 bench/peers/torch_kmeans.py --points "$KM_POINTS" --k "$KM_K" --iterations 3 | sed "1istage,points,dims,k,iterations,seconds,seconds_per_iteration,inertia,device"'
-row 1 kmeans-10m 90 5 gpu_stages_bench \
-  "10M x 10k brute force, 3 iterations + k-means++ seeding on 16 cores: 1M k=1000 on 2 cores x100 work /5" \
+row 1 kmeans-10m 60 4 gpu_stages_bench \
+  "1M points k=1000 on 2 cores (load 10): CPU 0.51 s/iteration, 32.9 CPU-s with llvmpipe; x100 work, /12 on 16 cores: ~13 s, k-means++ seeding ~one iteration, GPU ~10 s" \
   '"$BIN/gpu_stages_bench" kmeans --points "$KM_POINTS" --k "$KM_K" --iterations 3 --threads "$THREADS" --header'
-row 1 cpu-pml-ml-small 6 5 pml_cpu_bench \
+row 1 cpu-pml-ml-small 6 2 pml_cpu_bench \
   "bunny00 to k=1000: ML 2.2 s and the preset many-cores ~1 s on 2 cores" \
   'for a in "--algo ml" "--preset many-cores"; do "$BIN/pml_cpu_bench" "$M/$MESH_SMALL.off" $a --threads "$THREADS" --stop-at 1000 ${h---header}; h=; done'
-row 1 cpu-pml-ml-1m 50 5 pml_cpu_bench \
-  "armadillo_1m to k=1000: ML 41.5 s on 2 loaded cores (sequential: ~25 s on an idle core), preset 8-11 CPU s /5" \
+row 1 cpu-pml-ml-1m 45 12 pml_cpu_bench \
+  "armadillo_1m to k=1000: ML 41.5 s on 2 loaded cores (sequential: ~20 s on an idle core), preset 8-11 CPU-s /4, two mesh reads" \
   'for a in "--algo ml" "--preset many-cores"; do "$BIN/pml_cpu_bench" "$M/$MESH_1M.off" $a --threads "$THREADS" --stop-at 1000 ${h---header}; h=; done'
-row 1 points-ml-1m-cpu 25 10 points_bench \
+row 1 points-ml-1m-cpu 25 20 points_bench \
   "1M points ML: 51 s on one thread, 16-core Amdahl bound 12 s (BENCHMARKS.md, ML for points on many cores)" \
   '"$BIN/points_bench" --algo ml --m "$POINTS_1M" --d 3 --blobs 1000 --threads "$THREADS" | sed "1ialgo,m,d,blobs,k,grid,threads,seconds,init_seconds,steps,energy,start_clusters"'
-row 1 points-pml-gpu-1m 25 15 points_gpu_bench \
-  "1M points PML merges only: 2 cores CPU ~6 s, llvmpipe ~10 s per device, x2 devices, /5" \
+row 1 points-pml-gpu-1m 20 4 points_gpu_bench \
+  "1M points PML merges only on 2 cores: CPU 7.9 s, llvmpipe 44 s (BENCHMARKS.md); CPU /4, GPU /20, data ~1 s" \
   '"$BIN/points_gpu_bench" --m "$POINTS_1M" --d 3 --blobs 1000 --pairs cheaper-half --threads "$THREADS" --repeats 1 --header'
 
 # Part 2: the rest, in the order of the issue's list.
