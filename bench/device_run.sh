@@ -13,6 +13,8 @@
 #   --allow-software  accept a software renderer (llvmpipe) and unpack the loaders under the
 #                     bundle instead of /: only to prove the script on a machine without a
 #                     GPU (BENCHMARKS.md, "Taking the GPU-node figures in one device call")
+#   --gl-root DIR     unpack the loaders' .debs under DIR and put its lib folder on
+#                     LD_LIBRARY_PATH (default: / and ldconfig; --allow-software: BUNDLE/glroot)
 #   --bundle-cxx      use the bundle's C++ runtime even where the device's is new enough
 #   --bundle DIR      the bundle (default .devbundle)
 #   --dry-run         print what it would do and the rows with their estimates; run nothing
@@ -33,7 +35,7 @@ started=$SECONDS
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
-budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0 bundle_cxx=0
+budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0 bundle_cxx=0 gl_root=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --budget) budget="${2:?}"; shift 2 ;;
@@ -42,6 +44,7 @@ while [ $# -gt 0 ]; do
     --allow-software) allow_software=1; shift ;;
     --bundle) bundle="${2:?}"; shift 2 ;;
     --bundle-cxx) bundle_cxx=1; shift ;;
+    --gl-root) gl_root="${2:?}"; shift 2 ;;
     --dry-run) dry_run=1; shift ;;
     -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "device_run: unknown argument '$1'" >&2; exit 2 ;;
@@ -52,8 +55,8 @@ node_args=(--part "$part")
 [ "$quick" = 1 ] && node_args+=(--quick)
 
 if [ "$dry_run" = 1 ]; then
-  echo "device_run: would unpack $bundle/gl/*.deb to $([ "$allow_software" = 1 ] &&
-    echo "$bundle/glroot" || echo /), set LD_LIBRARY_PATH=$bundle/lib, check the renderer" \
+  echo "device_run: would unpack $bundle/gl/*.deb to ${gl_root:-$([ "$allow_software" = 1 ] &&
+    echo "$bundle/glroot" || echo /)}, set LD_LIBRARY_PATH=$bundle/lib, check the renderer" \
     "($([ "$allow_software" = 1 ] && echo "any" || echo "NVIDIA only")), unpack the meshes," \
     "make armadillo_1m, then run within $budget s (set-up included):"
   exec bash bench/gpu_node.sh --dry-run "${node_args[@]}"
@@ -89,10 +92,11 @@ ldconfig="$(command -v ldconfig || echo /sbin/ldconfig)"  # not on every PATH
 
 # (2) The GL/EGL loaders.
 gl_path=""
-if [ "$allow_software" = 1 ]; then
-  mkdir -p "$bundle/glroot"
-  for f in "$bundle"/gl/*.deb; do dpkg -x "$f" "$bundle/glroot"; done
-  gl_path="$bundle/glroot/usr/lib/x86_64-linux-gnu"
+[ -z "$gl_root" ] && [ "$allow_software" = 1 ] && gl_root="$bundle/glroot"
+if [ -n "$gl_root" ] && [ "$gl_root" != / ]; then
+  mkdir -p "$gl_root"
+  for f in "$bundle"/gl/*.deb; do dpkg -x "$f" "$gl_root"; done
+  gl_path="$(cd "$gl_root" && pwd)/usr/lib/x86_64-linux-gnu"
 else
   for f in "$bundle"/gl/*.deb; do dpkg -x "$f" /; done
   "$ldconfig"

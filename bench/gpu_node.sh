@@ -76,7 +76,7 @@ if [ "$quick" = 1 ]; then
   MESH_1M=bunny00 MESH_MID=fandisk MESH_SMALL=fandisk
   K_LOW=100 K_HIGH=1000
   LN_POINTS=200000 LN_K=1000 KM_POINTS=100000 KM_K=100
-  POINTS_1M=100000 POINTS_MID=100000
+  POINTS_1M=100000 POINTS_MID=50000
   ML_RUN_A="$M/fandisk.off --clusters 10946" ML_RUN_B=""
 else
   MESH_1M=armadillo_1m MESH_MID=armadillo MESH_SMALL=bunny00
@@ -145,32 +145,32 @@ row 1 points-pml-gpu-1m 20 4 points_gpu_bench \
   '"$BIN/points_gpu_bench" --m "$POINTS_1M" --d 3 --blobs 1000 --pairs cheaper-half --threads "$THREADS" --repeats 1 --header'
 
 # Part 2: the rest, in the order of the issue's list.
-row 2 sums-1m 5 3 gpu_stages_bench \
+row 2 sums-1m 5 2 gpu_stages_bench \
   "cluster sums of 10^6 x 5 doubles: 0.22 s llvmpipe, x6 runs" \
   '"$BIN/gpu_stages_bench" sums --elements 1000000 --k "$LN_K" --values 5 --header'
-row 2 pml-gpu-meshes 25 10 pml_gpu_bench \
-  "bunny00 + armadillo, both pair rules, 3 repeats: 2 cores 0.35-2.8 s per run" \
+row 2 pml-gpu-meshes 15 4 pml_gpu_bench \
+  "bunny00 + armadillo, both pair rules, best of 3: 2 cores 0.35-2.8 s per run and device" \
   'for m in "$MESH_SMALL" "$MESH_MID"; do for p in all cheaper-half; do "$BIN/pml_gpu_bench" "$M/$m.off" --pairs "$p" --threads "$THREADS" --repeats 3 ${h---header}; h=; done; done'
-row 2 pml-gpu-bb 60 20 pml_gpu_bench \
-  "Alg. 5.7 (BB after each level), bunny00, armadillo, armadillo_1m, both pair rules" \
+row 2 pml-gpu-bb 90 25 pml_gpu_bench \
+  "Alg. 5.7 (BB after each level), bunny00, armadillo, armadillo_1m, both pair rules; --quick (fandisk, bunny00) 22 s on llvmpipe; 1M: ~60 levels of BB sweeps on both" \
   'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do for p in all cheaper-half; do "$BIN/pml_gpu_bench" "$M/$m.off" --pairs "$p" --optimizer bb --threads "$THREADS" --repeats 1 ${h---header}; h=; done; done'
-row 2 pml-cpu-emlo 40 10 pml_cpu_bench \
-  "for context: the CPU's PML as jobs run it (EMLO per level), three meshes" \
+row 2 pml-cpu-emlo 45 3 pml_cpu_bench \
+  "for context: the CPU's PML as jobs run it (EMLO per level), three meshes; 1M ~30 s" \
   'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do "$BIN/pml_cpu_bench" "$M/$m.off" --algo pml --optimizer emlo --threads "$THREADS" ${h---header}; h=; done'
-row 2 hc-gpu-meshes 60 20 hc_gpu_bench \
-  "HC one collapse per step, bunny00, armadillo, armadillo_1m (1M: k0 steps, latency-bound)" \
+row 2 hc-gpu-meshes 90 8 hc_gpu_bench \
+  "HC one collapse per step, bunny00, armadillo, armadillo_1m: 1M on 2 cores CPU 7.2 CPU-s, llvmpipe 346 s (832,000 steps, latency-bound: ~50 us a step there)" \
   'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do "$BIN/hc_gpu_bench" "$M/$m.off" --repeats 1 ${h---header}; h=; done'
-row 2 ml-bb-gpu 60 30 pml_gpu_bench \
-  "ML with BB (Alg. 5.6): fandisk whole hierarchy + bunny00's first 2,000 steps, each step O(faces)" \
+row 2 ml-bb-gpu 60 25 pml_gpu_bench \
+  "ML with BB (Alg. 5.6): fandisk whole hierarchy + bunny00's first 2,000 steps, each step O(faces); --quick (fandisk 2,000 steps) 20 s on llvmpipe" \
   'for r in "$ML_RUN_A" ${ML_RUN_B:+"$ML_RUN_B"}; do "$BIN/pml_gpu_bench" $r --algo ml --optimizer bb --threads "$THREADS" ${h---header}; h=; done'
-row 2 points-pml-gpu-sizes 40 20 points_gpu_bench \
-  "10^5 and 3*10^5 points, both pair rules, and LN k-means inside the levels at every size" \
-  'for m in 100000 "$POINTS_MID"; do for p in all cheaper-half; do "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs "$p" --threads "$THREADS" --repeats 3 ${h---header}; h=; done; done; for m in 100000 "$POINTS_MID" "$POINTS_1M"; do "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs cheaper-half --optimizer lnkmeans --threads "$THREADS" --repeats 1; done'
-row 2 cpu-pml-ml-threads 150 40 pml_cpu_bench \
-  "bench/pml_cpu_bench.sh, one round, bunny00 + armadillo + armadillo_1m, threads 1 4 16, to k=1000" \
-  'if [ "$MESH_1M" = armadillo_1m ]; then ms="bunny00 armadillo armadillo_1m" tl="1 4 $THREADS"; else ms=fandisk tl="1 $THREADS"; fi; bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "$ms" --rounds 1 --thread-list "$tl" --stop-at 1000'
-row 2 meshlets 30 10 meshlets_bench \
-  "K = faces/124 patches against meshoptimizer and METIS (binary not on main yet)" \
+row 2 points-pml-gpu-sizes 60 50 points_gpu_bench \
+  "10^5 and 3*10^5 points, both pair rules, best of 3, and LN k-means inside the levels at 3*10^5 and 10^6; --quick (10^5 twice) 52 s on llvmpipe" \
+  'for m in "$POINTS_MID" 100000; do for p in all cheaper-half; do "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs "$p" --threads "$THREADS" --repeats 3 ${h---header}; h=; done; done; for m in "$POINTS_MID" "$POINTS_1M"; do "$BIN/points_gpu_bench" --m "$m" --d 3 --blobs 1000 --pairs cheaper-half --optimizer lnkmeans --threads "$THREADS" --repeats 1; done'
+row 2 cpu-pml-ml-threads 60 3 pml_cpu_bench \
+  "bench/pml_cpu_bench.sh, one round, bunny00 + armadillo on 1, 4 and 16 threads to k=1000 (2 cores: 1-3 s a run, 25 runs); armadillo_1m at 16 threads is in part 1" \
+  'if [ "$MESH_1M" = armadillo_1m ]; then ms="bunny00 armadillo" tl="1 4 $THREADS"; else ms=fandisk tl="1 $THREADS"; fi; bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "$ms" --rounds 1 --thread-list "$tl" --stop-at 1000'
+row 2 meshlets 45 10 meshlets_bench \
+  "K = faces/124 (bench/peers/meshlets_bench.cc), 3 meshes x 5 repeats: 2 cores 0.05-0.42 s per peer and mesh, plus ML to K (--ml): armadillo_1m ~20 s on an idle core" \
   '"$BIN/meshlets_bench" "$M/$MESH_SMALL.off" "$M/$MESH_MID.off" "$M/$MESH_1M.off" --repeats 5 --threads "$THREADS" --sweeps 4,6,8 --ml --header'
 # Rows handed over by the engineers of issue 10's other parts (/work/wt/tasks/rows-*.txt)
 # go below, guarded by what their binaries must contain.
