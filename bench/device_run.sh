@@ -75,14 +75,15 @@ echo "device_run: $(date -u +%FT%TZ), budget ${budget}s, part $part, quick $quic
   echo "cores $(nproc)"
   grep -m1 'model name' /proc/cpuinfo || true
   command -v nvidia-smi >/dev/null && nvidia-smi -L && nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=csv || echo "no nvidia-smi"
-  ldd --version | head -1
+  ldd --version | awk 'NR == 1'
   sed -n '1,4p' "$manifest"
 } >"$out/env.txt" 2>&1 || true
 
 # (1) glibc: the binaries were linked against this machine's; the device's must not be older.
 need="$(sed -n 's/^glibc-needed //p' "$manifest")"
-have="$(ldd --version | head -1 | grep -o '[0-9]\+\.[0-9]\+$' || echo 0)"
-if [ -n "$need" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -1)" != "$need" ]; then
+# (awk reads to the end: under pipefail an early exit of the reader fails the writer.)
+have="$(ldd --version 2>&1 | awk 'NR == 1 { print $NF }')"
+if [ -n "$need" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | awk 'NR == 1')" != "$need" ]; then
   echo "device_run: the device's glibc $have is older than the $need the bundle needs:" \
     "build the bundle on an older distribution" >&2
   exit 4
@@ -145,7 +146,7 @@ fi
 # (3) Our binaries' libraries; the bundle's C++ runtime only where the device's is too old
 # (a newer libstdc++ serves older binaries, and NVIDIA's libraries may want the newer one).
 cxx_need="$(sed -n 's/^glibcxx-needed //p' "$manifest")"
-system_cxx="$("$ldconfig" -p | sed -n 's/^[[:space:]]*libstdc++\.so\.6 (libc6,x86-64) => //p' | head -1)"
+system_cxx="$("$ldconfig" -p | awk '$1 == "libstdc++.so.6" && /x86-64/ && !n++ { print $NF }')"
 cxx_path="$bundle/lib/cxx"
 if [ "$bundle_cxx" = 0 ] && [ -n "$cxx_need" ] && [ -n "$system_cxx" ] && grep -aqF "GLIBCXX_$cxx_need" "$system_cxx"; then
   cxx_path=""
@@ -170,14 +171,14 @@ info="$("$bundle/build/gpu/mlclust-gpu-info" "${info_args[@]}" 2>&1)"
 info_rc=$?
 set -e
 echo "$info" | tee -a "$out/env.txt"
-renderer="$(echo "$info" | sed -n 's/^renderer: *//p' | head -1)"
+renderer="$(echo "$info" | sed -n 's/^renderer: *//p' | awk 'NR == 1')"
 if [ "$info_rc" != 0 ] || { [ "$allow_software" = 0 ] && ! echo "$renderer" | grep -qi nvidia; }; then
   {
     echo "device_run: no NVIDIA renderer (mlclust-gpu-info exit $info_rc, renderer '${renderer:-none}'):" \
       "no figures taken. What the loader saw:"
     echo "  EGL vendor files: $(find /usr/share/glvnd/egl_vendor.d /etc/glvnd/egl_vendor.d \
       /usr/local/nvidia/share/glvnd/egl_vendor.d -name '*.json' 2>/dev/null | tr '\n' ' ')"
-    echo "  libEGL_nvidia: $("$ldconfig" -p | grep -m1 libEGL_nvidia || echo 'not in the ld cache')"
+    echo "  libEGL_nvidia: $("$ldconfig" -p | awk '/libEGL_nvidia/ && !n++ { print $NF } END { if (!n) print "not in the ld cache" }')"
     ldd "$bundle/build/gpu/mlclust-gpu-info" | grep -E 'not found|EGL|GL' | sed 's/^/  /'
   } >&2
   exit 3

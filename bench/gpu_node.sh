@@ -227,7 +227,7 @@ else
 fi
 mkdir -p "$out_dir"
 renderer="$("$build_dir/gpu/mlclust-gpu-info" --rows=8 --repeats=1 2>/dev/null |
-  grep -m1 -i renderer || echo "renderer: ?")"
+  awk 'tolower($0) ~ /renderer/ && !n++ { print } END { if (!n) print "renderer: ?" }')"
 echo "# run $(date -u +%FT%TZ) host=${host%%.*} cores=$(nproc) threads=$THREADS" \
   "part=$part quick=$quick budget=${budget:-none} $renderer" | tee -a "$csv"
 [ -s "$status" ] || printf 'row\tpart\tstatus\tseconds\testimate\n' >>"$status"
