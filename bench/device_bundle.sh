@@ -85,6 +85,14 @@ check_bundle() {
   for deb in "${gl_debs[@]}"; do
     compgen -G "$out/gl/${deb}_*.deb" >/dev/null || { echo "device_bundle: no $deb .deb" >&2; bad=1; }
   done
+  # Nothing beside what the manifest lists (unpacked meshes would not travel: 64 MiB).
+  local extra
+  extra="$(cd "$out" && find . -type f ! -name MANIFEST | sed 's|^\./||' | sort |
+    comm -23 - <(sed -n 's/^file [0-9a-f]*  //p' MANIFEST | sort))"
+  if [ -n "$extra" ]; then
+    echo "device_bundle: files in $out that MANIFEST does not list: $(tr "\n" " " <<<"$extra")" >&2
+    bad=1
+  fi
   local binary unresolved
   for binary in "$out"/build/bench/* "$out"/build/gpu/*; do
     [ -f "$binary" ] || continue

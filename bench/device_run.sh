@@ -14,9 +14,11 @@
 #                     bundle instead of /: only to prove the script on a machine without a
 #                     GPU (BENCHMARKS.md, "Taking the GPU-node figures in one device call")
 #   --gl-root DIR     unpack the loaders' .debs under DIR and put its lib folder on
-#                     LD_LIBRARY_PATH (default: / and ldconfig; --allow-software: BUNDLE/glroot)
+#                     LD_LIBRARY_PATH (default: / and ldconfig; --allow-software: WORK/glroot)
 #   --bundle-cxx      use the bundle's C++ runtime even where the device's is new enough
 #   --bundle DIR      the bundle (default .devbundle)
+#   --work DIR        where the meshes are unpacked (default /tmp/mlclust_device_run: never
+#                     inside the bundle, which must stay small enough to travel)
 #   --dry-run         print what it would do and the rows with their estimates; run nothing
 #
 # Steps: (1) the device's glibc against the bundle's need; (2) the GL/EGL loaders' .debs
@@ -27,7 +29,7 @@
 # name an NVIDIA renderer, else it says why and exits 3 before any row (no llvmpipe
 # figures by mistake); (6) the meshes unpacked and armadillo_1m made again (md5 checked);
 # (7) bench/gpu_node.sh --build BUNDLE/build --part N --budget LEFT --out $OUT.
-# Everything goes to $OUT (default BUNDLE/out): device_run.log, env.txt, gpu_node.csv and
+# Everything goes to $OUT (default WORK/out): device_run.log, env.txt, gpu_node.csv and
 # gpu_node_status.tsv, written row by row, so a kill at the call's limit loses nothing
 # that was written.
 set -euo pipefail
@@ -36,6 +38,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0 bundle_cxx=0 gl_root=""
+work=/tmp/mlclust_device_run
 while [ $# -gt 0 ]; do
   case "$1" in
     --budget) budget="${2:?}"; shift 2 ;;
@@ -45,6 +48,7 @@ while [ $# -gt 0 ]; do
     --bundle) bundle="${2:?}"; shift 2 ;;
     --bundle-cxx) bundle_cxx=1; shift ;;
     --gl-root) gl_root="${2:?}"; shift 2 ;;
+    --work) work="${2:?}"; shift 2 ;;
     --dry-run) dry_run=1; shift ;;
     -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "device_run: unknown argument '$1'" >&2; exit 2 ;;
@@ -56,13 +60,15 @@ node_args=(--part "$part")
 
 if [ "$dry_run" = 1 ]; then
   echo "device_run: would unpack $bundle/gl/*.deb to ${gl_root:-$([ "$allow_software" = 1 ] &&
-    echo "$bundle/glroot" || echo /)}, set LD_LIBRARY_PATH=$bundle/lib, check the renderer" \
+    echo "$work/glroot" || echo /)}, set LD_LIBRARY_PATH=$bundle/lib, check the renderer" \
     "($([ "$allow_software" = 1 ] && echo "any" || echo "NVIDIA only")), unpack the meshes," \
     "make armadillo_1m, then run within $budget s (set-up included):"
   exec bash bench/gpu_node.sh --dry-run "${node_args[@]}"
 fi
 
-out="${OUT:-$bundle/out}"
+mkdir -p "$work"
+work="$(cd "$work" && pwd)"
+out="${OUT:-$work/out}"
 mkdir -p "$out"
 exec > >(tee -a "$out/device_run.log") 2>&1
 bundle="$(cd "$bundle" && pwd)"
@@ -93,7 +99,7 @@ ldconfig="$(command -v ldconfig || echo /sbin/ldconfig)"  # not on every PATH
 
 # (2) The GL/EGL loaders.
 gl_path=""
-[ -z "$gl_root" ] && [ "$allow_software" = 1 ] && gl_root="$bundle/glroot"
+[ -z "$gl_root" ] && [ "$allow_software" = 1 ] && gl_root="$work/glroot"
 if [ -n "$gl_root" ] && [ "$gl_root" != / ]; then
   mkdir -p "$gl_root"
   for f in "$bundle"/gl/*.deb; do dpkg -x "$f" "$gl_root"; done
@@ -112,12 +118,13 @@ unxz_to() {
   fi
 }
 md5_of() { md5sum <"$1" | cut -d' ' -f1; }
-meshes="$bundle/meshes"
+meshes="$work/meshes"
+mkdir -p "$meshes"
 while read -r name md5; do
   target="$meshes/$name"
   [ -f "$target" ] && [ "$(md5_of "$target")" = "$md5" ] && continue
-  if [ -f "$target.xz" ]; then
-    unxz_to "$target.xz" "$target.tmp"
+  if [ -f "$bundle/meshes/$name.xz" ]; then
+    unxz_to "$bundle/meshes/$name.xz" "$target.tmp"
   elif [ "$name" = armadillo_1m.off ]; then
     # scripts/fetch-bench-meshes.sh's subdivision, read from that script (one copy).
     mesh_start=$SECONDS
@@ -126,7 +133,7 @@ while read -r name md5; do
     python3 "$meshes/subdivide.py" "$meshes/armadillo.off" "$target.tmp"
     echo "device_run: armadillo_1m.off made again in $((SECONDS - mesh_start))s"
   else
-    echo "device_run: no $target.xz in the bundle" >&2
+    echo "device_run: no $name.xz in $bundle/meshes" >&2
     exit 1
   fi
   if [ "$(md5_of "$target.tmp")" != "$md5" ]; then
