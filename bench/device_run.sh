@@ -4,11 +4,12 @@
 # bench/device_bundle.sh made here carried along:
 #
 #   run(command="bash bench/device_run.sh --budget 540", carry=[".devbundle"], timeout_s=600)
-#   run(command="bash bench/device_run.sh --budget 540 --part 2", ...)   # the rest
+#   run(command="bash bench/device_run.sh --budget 540 --part 2", ...)   # the rest: 2, then 3
 #
 #   --budget S        seconds for everything (set-up included; default 540): the rows get
 #                     what the set-up leaves, less 10 s for the last copies
-#   --part 1|2|all    bench/gpu_node.sh's rows (default 1: the headline rows, ~7 minutes)
+#   --part 1|2|3|all  bench/gpu_node.sh's rows (default 1: the headline rows, ~8 minutes;
+#                     2 and 3: the rest, one call each)
 #   --quick           gpu_node.sh's small sizes
 #   --allow-software  accept a software renderer (llvmpipe) and unpack the loaders under the
 #                     bundle instead of /: only to prove the script on a machine without a
