@@ -102,7 +102,7 @@ points_ml() {
   shift
   [ "$*" = "--bounded 0.03" ] && want="$POINTS_HASH_BOUNDED"
   echo "algo,m,d,blobs,k,grid,threads,seconds,init_seconds,steps,energy,start_clusters"
-  output="$({ TIMEFORMAT="# wall_s=%R user_s=%U"; time "$BIN/points_bench" --algo ml \
+  output="$({ TIMEFORMAT="wall_s=%R user_s=%U"; time "$BIN/points_bench" --algo ml \
     --m "$POINTS_1M" --blobs 1000 --threads "$threads" --fingerprint 1 "$@"; } 2>&1)"
   sed '/^ml,/!s/^/# /; /^# $/d' <<<"$output"  # the CSV row; the rest as comments
   grep -q "hash=$want" <<<"$output" || { echo "# hash is not $want" >&2; return 1; }
