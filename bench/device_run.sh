@@ -72,6 +72,9 @@ work="$(cd "$work" && pwd)"
 out="${OUT:-$work/out}"
 mkdir -p "$out"
 exec > >(tee -a "$out/device_run.log") 2>&1
+tee_pid=$!
+# On every exit, let tee write the last lines (the status table) before the call returns.
+trap 'exec >&- 2>&-; wait "$tee_pid" 2>/dev/null' EXIT
 bundle="$(cd "$bundle" && pwd)"
 manifest="$bundle/MANIFEST"
 [ -f "$manifest" ] || { echo "device_run: $manifest missing: run bench/device_bundle.sh here and carry $bundle" >&2; exit 1; }

@@ -187,9 +187,6 @@ row 2 pml-gpu-meshes 15 4 pml_gpu_bench \
 row 2 pml-gpu-bb 90 40 pml_gpu_bench \
   "Alg. 5.7 (BB after each level), bunny00, armadillo, armadillo_1m, both pair rules; --quick (fandisk, bunny00) 22-52 s on llvmpipe; 1M: ~60 levels of BB sweeps on both" \
   'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do for p in all cheaper-half; do "$BIN/pml_gpu_bench" "$M/$m.off" --pairs "$p" --optimizer bb --threads "$THREADS" --repeats 1 ${h---header}; h=; done; done'
-row 3 pml-cpu-emlo 45 3 pml_cpu_bench \
-  "for context: the CPU's PML as jobs run it (EMLO per level), three meshes; 1M ~30 s" \
-  'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do "$BIN/pml_cpu_bench" "$M/$m.off" --algo pml --optimizer emlo --threads "$THREADS" ${h---header}; h=; done'
 row 2 hc-gpu-meshes 90 8 hc_gpu_bench \
   "HC one collapse per step, bunny00, armadillo, armadillo_1m: 1M on 2 cores CPU 7.2 CPU-s, llvmpipe 346 s (832,000 steps, latency-bound: ~50 us a step there)" \
   'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do "$BIN/hc_gpu_bench" "$M/$m.off" --repeats 1 ${h---header}; h=; done'
@@ -202,9 +199,6 @@ row 2 points-pml-gpu-sizes 60 50 points_gpu_bench \
 row 2 cpu-pml-ml-threads 60 3 pml_cpu_bench \
   "bench/pml_cpu_bench.sh, one round, bunny00 + armadillo on 1, 4 and 16 threads to k=1000 (2 cores: 1-3 s a run, 25 runs); armadillo_1m at 16 threads is in part 1" \
   'if [ "$MESH_1M" = armadillo_1m ]; then ms="bunny00 armadillo" tl="1 4 $THREADS"; else ms=fandisk tl="1 $THREADS"; fi; bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "$ms" --rounds 1 --thread-list "$tl" --stop-at 1000'
-row 3 meshlets 45 10 meshlets_bench \
-  "K = faces/124 (bench/peers/meshlets_bench.cc), 3 meshes x 5 repeats: 2 cores 0.05-0.42 s per peer and mesh, plus ML to K (--ml): armadillo_1m ~20 s on an idle core" \
-  '"$BIN/meshlets_bench" "$M/$MESH_SMALL.off" "$M/$MESH_MID.off" "$M/$MESH_1M.off" --repeats 5 --threads "$THREADS" --sweeps 4,6,8 --ml --header'
 row 2 points-ml-1m-cpu-1thread 50 10 points_bench \
   "the same on one thread, for the speed-up: 48-52 s (BENCHMARKS.md)" \
   'points_ml 1'
@@ -222,6 +216,13 @@ row 3 points-ml-gpu-bounded 70 15 "points_gpu_bench:pml|hc|ml" \
 row 3 points-ml-cpu-threads 85 12 points_bench \
   "the CPU's points ML at 1M on 2, 4 and 8 threads (~30, 18, 14 s) and with bounded-drift 0.03 on 16, hashes checked" \
   'for t in 2 4 8; do points_ml "$t" || exit 1; done; points_ml "$THREADS" --bounded 0.03'
+row 3 pml-cpu-emlo 45 3 pml_cpu_bench \
+  "for context: the CPU's PML as jobs run it (EMLO per level), three meshes; 1M ~30 s" \
+  'for m in "$MESH_SMALL" "$MESH_MID" "$MESH_1M"; do "$BIN/pml_cpu_bench" "$M/$m.off" --algo pml --optimizer emlo --threads "$THREADS" ${h---header}; h=; done'
+row 3 meshlets 45 10 meshlets_bench \
+  "K = faces/124 (bench/peers/meshlets_bench.cc), 3 meshes x 5 repeats: 2 cores 0.05-0.42 s per peer and mesh, plus ML to K (--ml): armadillo_1m ~20 s on an idle core" \
+  '"$BIN/meshlets_bench" "$M/$MESH_SMALL.off" "$M/$MESH_MID.off" "$M/$MESH_1M.off" --repeats 5 --threads "$THREADS" --sweeps 4,6,8 --ml --header'
+
 # --- Selection --------------------------------------------------------------------------
 selected=()
 for i in "${!ids[@]}"; do
