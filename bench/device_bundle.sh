@@ -21,7 +21,8 @@
 #              there again by scripts/fetch-bench-meshes.sh's subdivision (its Python
 #              imports only sys, so the device's python3 runs it); its md5 is in MANIFEST
 #   MANIFEST   commit, date, files, md5s, the newest GLIBC and GLIBCXX symbol versions the
-#              binaries and libraries ask for (device_run.sh checks them against the device's)
+#              binaries and libraries ask for, and the C++ runtime's own GLIBC need apart
+#              (device_run.sh checks them against the device's)
 # and prints the total size. Exits non-zero if the bundle and the tree that travels with
 # it (tracked and untracked-not-ignored files) exceed 64 MiB, the device call's limit,
 # less DEVBUNDLE_MARGIN_MIB (default 2) for what the call adds.
@@ -125,6 +126,8 @@ if [ "$do_build" = 1 ]; then
   fi
   grep -q '^CMAKE_BUILD_TYPE:STRING=Release$' "$build_dir/CMakeCache.txt" ||
     die "$build_dir is not a Release build (figures from it would mislead)"
+  ! grep -q 'march=native' "$build_dir/CMakeCache.txt" ||
+    die "$build_dir is built with -march=native: its binaries may not run on the device's CPU"
   mapfile -t known < <(cmake --build "$build_dir" --target help 2>/dev/null |
     sed -n 's/^\([A-Za-z0-9_.-]*\): .*/\1/p')
   targets=()
@@ -189,9 +192,13 @@ done
 # --- 5. The manifest ----------------------------------------------------------------------
 # The symbol versions asked for (the C++ runtime's own definitions are not asks: objdump
 # marks undefined symbols *UND*).
-symbols="$(find "$out.tmp/build" "$out.tmp/lib" -type f -exec objdump -T {} + 2>/dev/null)"
+# The C++ runtime's own glibc need apart: it is used there only where the device's is older.
+symbols="$(find "$out.tmp/build" "$out.tmp/lib" -path "$out.tmp/lib/cxx" -prune -o -type f \
+  -exec objdump -T {} + 2>/dev/null)"
 glibc="$(grep -o 'GLIBC_[0-9.]*' <<<"$symbols" | sort -Vu | tail -1)"
 glibcxx="$(grep '\*UND\*' <<<"$symbols" | grep -o 'GLIBCXX_[0-9.]*' | sort -Vu | tail -1)"
+glibc_cxx="$(find "$out.tmp/lib/cxx" -type f -exec objdump -T {} + 2>/dev/null |
+  grep -o 'GLIBC_[0-9.]*' | sort -Vu | tail -1)"
 {
   echo "commit $(git rev-parse HEAD)$(git diff --quiet HEAD -- . ':!data' || echo '+changes')"
   echo "date $(date -u +%FT%TZ)"
@@ -199,6 +206,7 @@ glibcxx="$(grep '\*UND\*' <<<"$symbols" | grep -o 'GLIBCXX_[0-9.]*' | sort -Vu |
   echo "built-on $(. /etc/os-release && echo "$ID-$VERSION_ID") $(uname -m)"
   echo "glibc-needed ${glibc#GLIBC_}"
   echo "glibcxx-needed ${glibcxx#GLIBCXX_}"
+  echo "glibc-needed-by-cxx ${glibc_cxx#GLIBC_}"
   for mesh in "${meshes[@]}" armadillo_1m; do
     echo "mesh-md5 $mesh.off $(md5sum <"data/bench/$mesh.off" | cut -d' ' -f1)"
   done

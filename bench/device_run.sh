@@ -90,10 +90,11 @@ echo "device_run: $(date -u +%FT%TZ), budget ${budget}s, part $part, quick $quic
 } >"$out/env.txt" 2>&1 || true
 
 # (1) glibc: the binaries were linked against this machine's; the device's must not be older.
-need="$(sed -n 's/^glibc-needed //p' "$manifest")"
 # (awk reads to the end: under pipefail an early exit of the reader fails the writer.)
 have="$(ldd --version 2>&1 | awk 'NR == 1 { print $NF }')"
-if [ -n "$need" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | awk 'NR == 1')" != "$need" ]; then
+glibc_at_least() { [ "$(printf '%s\n%s\n' "$1" "$have" | sort -V | awk 'NR == 1')" = "$1" ]; }
+need="$(sed -n 's/^glibc-needed //p' "$manifest")"
+if [ -n "$need" ] && ! glibc_at_least "$need"; then
   echo "device_run: the device's glibc $have is older than the $need the bundle needs:" \
     "build the bundle on an older distribution" >&2
   exit 4
@@ -163,6 +164,12 @@ if [ "$bundle_cxx" = 0 ] && [ -n "$cxx_need" ] && [ -n "$system_cxx" ] && grep -
   cxx_path=""
 fi
 echo "device_run: C++ runtime: ${cxx_path:-$system_cxx} (GLIBCXX_$cxx_need needed)"
+need="$(sed -n 's/^glibc-needed-by-cxx //p' "$manifest")"
+if [ -n "$cxx_path" ] && [ -n "$need" ] && ! glibc_at_least "$need"; then
+  echo "device_run: the device's libstdc++ lacks GLIBCXX_$cxx_need and its glibc $have is" \
+    "older than the $need the bundle's libstdc++ needs" >&2
+  exit 4
+fi
 export LD_LIBRARY_PATH="$bundle/lib${cxx_path:+:$cxx_path}${gl_path:+:$gl_path}${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 
 # (4) NVIDIA's EGL vendor file, where glvnd's default folders do not list it.
