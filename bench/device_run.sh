@@ -180,6 +180,13 @@ if [ -z "${__EGL_VENDOR_LIBRARY_FILENAMES:-}" ] && [ -f "$nvidia_vendor" ] &&
   export __EGL_VENDOR_LIBRARY_FILENAMES="$nvidia_vendor"
 fi
 echo "device_run: EGL vendor files: ${__EGL_VENDOR_LIBRARY_FILENAMES:-the default folders of glvnd}"
+# The vendor library itself, where the loader cache does not know it (glvnd dlopens it by name).
+nvidia_lib=/usr/local/nvidia/lib64
+if ! "$ldconfig" -p | awk '/libEGL_nvidia/ { n++ } END { exit n ? 0 : 1 }' &&
+  [ -f "$nvidia_lib/libEGL_nvidia.so.0" ]; then
+  export LD_LIBRARY_PATH="$LD_LIBRARY_PATH:$nvidia_lib"
+  echo "device_run: libEGL_nvidia from $nvidia_lib (not in the loader cache)"
+fi
 
 # (5) The renderer.
 info_args=(--rows=64 --repeats=1)
