@@ -17,10 +17,11 @@
 #                    all (default): every row, in order
 #   --budget S       seconds for all rows together: each row runs under `timeout` with what
 #                    is left, a row whose estimate does not fit is written "skipped: budget"
-#   --out DIR        where the rows go (default bench/results): gpu_node.csv (every row's
-#                    block: a "# row ID" line, its CSV header and rows) and
-#                    gpu_node_status.tsv (one line per row: id, part, status, seconds,
-#                    estimate); appended row by row, so a kill loses nothing written
+#   --out DIR        where the rows go: DIR/gpu_node.csv (every row's block: a "# row ID"
+#                    line, its CSV header and rows) and DIR/gpu_node_status.tsv (one line
+#                    per row: id, part, status, seconds, estimate), appended row by row, so
+#                    a kill loses nothing written (default: bench/results/gpu_node_<host>.csv
+#                    or gpu_node_quick.csv, and the same name with _status.tsv)
 #   --build DIR      the build tree holding bench/ and gpu/ (default build; built with
 #                    scripts/build.sh when missing); BIN=DIR/bench as before also works
 #   --threads N      the CPU stages' threads (default: all cores)
@@ -36,8 +37,8 @@
 # (tests/bench/device_scripts_test.sh).
 #
 # Rows given by other engineers' tasks (points HC/ML on the GPU, growth on the GPU, points
-# ML on many cores) run only where the binary has the flag (the "guard" column): a binary
-# built before that work is merged skips them as "skipped: no FLAG in BIN".
+# ML on many cores) run only where the binary has their mode or flag (the "guard" column): a
+# binary built before that work is merged skips them as "skipped: no 'STRING' in BINARY".
 
 # shellcheck disable=SC2016  # the rows' commands expand in bash -c, not here
 set -euo pipefail
