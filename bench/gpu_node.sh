@@ -16,7 +16,8 @@
 #                    the set-up); parts 2 and 3: the rest, each sized for one more call;
 #                    all (default): every row, in order
 #   --budget S       seconds for all rows together: each row runs under `timeout` with what
-#                    is left, a row whose estimate does not fit is written "skipped: budget"
+#                    is left (at most 3x its estimate, or its estimate + 60 s), a row whose
+#                    estimate does not fit is written "skipped: budget"
 #   --out DIR        where the rows go: DIR/gpu_node.csv (every row's block: a "# row ID"
 #                    line, its CSV header and rows) and DIR/gpu_node_status.tsv (one line
 #                    per row: id, part, status, seconds, estimate), appended row by row, so
@@ -303,15 +304,22 @@ guard_fails() {
   esac
 }
 
+slack="${GPU_NODE_ROW_SLACK:-60}"  # the cap's least slack over an estimate (tests: less)
 started=$SECONDS
 for i in "${selected[@]}"; do
-  id="${ids[$i]}" e="$(estimate "$i")" limit=()
+  id="${ids[$i]}" e="$(estimate "$i")" limit=() cut="budget"
   why="$(guard_fails "$i")"
   if [ -z "$why" ] && [ -n "$budget" ]; then
     left=$((budget - (SECONDS - started)))
     if [ "$left" -lt "$e" ] || [ "$left" -le 0 ]; then
       why="budget (estimate ${e}s, ${left}s left)"
     else
+      # A row gets at most 3x its estimate (at least a minute more), so that one row far
+      # over its estimate leaves the later rows their turn.
+      cap=$((3 * e > e + slack ? 3 * e : e + slack))
+      if [ "$cap" -lt "$left" ]; then
+        left="$cap" cut="3x its estimate"
+      fi
       limit=(timeout -k 5 "$left")
     fi
   fi
@@ -329,7 +337,7 @@ for i in "${selected[@]}"; do
   took=$((SECONDS - row_start))
   case "$rc" in
     0) state=ok ;;
-    124 | 137) state="timeout: budget" ;;
+    124 | 137) state="timeout: $cut" ;;
     *) state="failed: exit $rc" ;;
   esac
   [ "$rc" != 0 ] && echo "# row $id $state after ${took}s" | tee -a "$csv"

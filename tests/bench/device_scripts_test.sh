@@ -72,6 +72,15 @@ grep -q $'^hc-gpu-meshes\t2\tskipped: no .*hc_gpu_bench' "$status" || fail "hc-g
 grep -q '^fake,gpu_stages_bench,bb .*fandisk.off --k 100 ' "$work/out/gpu_node.csv" ||
   fail "the killed row's output is not in the CSV"
 grep -q 'renderer:  fake' "$work/out/gpu_node.csv" || fail "no renderer in the CSV"
+# A row far over its estimate is cut at 3x it (estimate + GPU_NODE_ROW_SLACK at least) even
+# with budget left: bb-small-klow's 2 s give 6 s here, of a 100 s budget.
+start=$SECONDS
+FAKE_SLEEP_gpu_stages_bench=30 GPU_NODE_ROW_SLACK=1 bash bench/gpu_node.sh --quick \
+  --build "$work/build" --only bb-small-klow --budget 100 --out "$work/cap" >/dev/null 2>&1
+took=$((SECONDS - start))
+grep -q $'^bb-small-klow\t1\ttimeout: 3x its estimate' "$work/cap/gpu_node_status.tsv" ||
+  fail "bb-small-klow not cut at 3x its estimate"
+[ "$took" -le 20 ] || fail "the row cap did not stop the row ($took s)"
 # Without a budget every selected row runs; a guard on a string the binary lacks skips.
 bash bench/gpu_node.sh --quick --build "$work/build" --part 1 --out "$work/all" >/dev/null 2>&1 ||
   fail "gpu_node.sh --part 1 on the fake build"
