@@ -80,7 +80,8 @@ if [ "$quick" = 1 ]; then
   MESH_1M=bunny00 MESH_MID=fandisk MESH_SMALL=fandisk
   K_LOW=100 K_HIGH=1000
   LN_POINTS=200000 LN_K=1000 KM_POINTS=100000 KM_K=100
-  POINTS_1M=100000 POINTS_MID=50000 POINTS_GPU_ML=10000 POINTS_GPU_ML_1M=20000
+  POINTS_1M=100000 POINTS_MID=50000 POINTS_GPU_ML=10000 POINTS_GPU_ML_MID=10000 POINTS_GPU_ML_1M=20000
+  POINTS_GPU_HC=10000 POINTS_GPU_PML_UNTIL=20000
   POINTS_HASH=fee37f0eb420da64 POINTS_HASH_BOUNDED=2352d100b86f59b5
   GROWTH_1M=bunny00 GROWTH_K=1000 GROWTH_PATCHES=608
   ML_RUN_A="$M/fandisk.off --clusters 10946" ML_RUN_B=""
@@ -88,14 +89,15 @@ else
   MESH_1M=armadillo_1m MESH_MID=armadillo MESH_SMALL=bunny00
   K_LOW=1000 K_HIGH=10000
   LN_POINTS=10000000 LN_K=10000 KM_POINTS=10000000 KM_K=10000
-  POINTS_1M=1000000 POINTS_MID=300000 POINTS_GPU_ML=300000 POINTS_GPU_ML_1M=1000000
+  POINTS_1M=1000000 POINTS_MID=300000 POINTS_GPU_ML=100000 POINTS_GPU_ML_MID=300000 POINTS_GPU_ML_1M=1000000
+  POINTS_GPU_HC=1000000 POINTS_GPU_PML_UNTIL=1000000
   POINTS_HASH=7a96f446597992b4 POINTS_HASH_BOUNDED=4506abff75850083
   GROWTH_1M=armadillo_1m GROWTH_K=1000 GROWTH_PATCHES=6709
   ML_RUN_A="$M/fandisk.off" ML_RUN_B="$M/bunny00.off --clusters 73408"
 fi
 export MESH_1M MESH_MID MESH_SMALL K_LOW K_HIGH LN_POINTS LN_K KM_POINTS KM_K POINTS_1M \
-  POINTS_MID ML_RUN_A ML_RUN_B POINTS_GPU_ML POINTS_GPU_ML_1M POINTS_HASH POINTS_HASH_BOUNDED \
-  GROWTH_1M GROWTH_K GROWTH_PATCHES
+  POINTS_MID ML_RUN_A ML_RUN_B POINTS_GPU_ML POINTS_GPU_ML_MID POINTS_GPU_ML_1M POINTS_GPU_HC \
+  POINTS_GPU_PML_UNTIL POINTS_HASH POINTS_HASH_BOUNDED GROWTH_1M GROWTH_K GROWTH_PATCHES
 # points_ml THREADS [--bounded F]: the CPU's ML on $POINTS_1M points (points_bench's own
 # blobs), wall and user seconds (bash's time: the device may have no /usr/bin/time) and the
 # hash over every level, which must equal the one-thread hash (fails the row otherwise).
@@ -167,16 +169,20 @@ row 1 points-pml-gpu-1m 20 4 points_gpu_bench \
   "1M points PML merges only on 2 cores: CPU 7.9 s, llvmpipe 44 s (BENCHMARKS.md); CPU /4, GPU /20, data ~1 s" \
   '"$BIN/points_gpu_bench" --m "$POINTS_1M" --d 3 --blobs 1000 --pairs cheaper-half --threads "$THREADS" --repeats 1 --header'
 
-# Handed over by the engineers of issue 10's other parts (/work/wt/tasks/rows-*.txt; their
-# binaries' new modes are guarded: built before that work is merged, the rows skip).
+# Handed over by the engineers of issue 10's other parts (growth on the GPU, points HC/ML on
+# the GPU, points ML on many cores); their binaries' new modes are guarded: built before
+# that work is merged, the rows skip.
 row 1 growth-1m 10 3 "gpu_stages_bench:growth MESH" \
   "initial growth (Fig. 5.9) K=1000 on armadillo_1m, GPU vs CPU rounds vs flood, then BB from each: 7.6 s on 2 loaded cores (BB dominates), ~5 s on the node" \
   '"$BIN/gpu_stages_bench" growth "$M/$GROWTH_1M.off" --k "$GROWTH_K" --threads "$THREADS" --header'
-row 1 points-hc-gpu-1m 70 15 "points_gpu_bench:pml|hc|ml" \
-  "points HC on the GPU, 1M points: ~60,000 steps, latency-bound, 0.3-1 ms a step on an H100: 20-60 s; CPU HC 1-2 s (10^5 on llvmpipe: 150 s)" \
-  '"$BIN/points_gpu_bench" --m "$POINTS_1M" --d 3 --blobs 1000 --algo hc --threads "$THREADS" --header'
-row 1 points-ml-gpu-300k 80 15 "points_gpu_bench:pml|hc|ml" \
-  "points ML with LN k-means on the GPU at 3*10^5 (~20,000 steps, a third of 1M's 60-180 s) against the CPU's ML on 16 cores; 1M is in part 3" \
+row 1 points-ml-1m-cpu-1thread 50 10 points_bench \
+  "points-ml-1m-cpu on one thread, for the speed-up: 48-52 s (BENCHMARKS.md)" \
+  'points_ml 1'
+row 1 points-pml-until-gpu-1m 40 15 "points_gpu_bench:pml-until" \
+  "points PML then ML below 1000 (LN k-means) on the GPU at 1M, the route to the issue's ML row: ~73 PML levels + 1,000 steps; 10^5 on 2 cores: llvmpipe 24 s, CPU 3.3 s; x10 points, CPU /4, GPU /20" \
+  '"$BIN/points_gpu_bench" --m "$POINTS_GPU_PML_UNTIL" --d 3 --blobs 1000 --algo pml --optimizer lnkmeans --pml-until 1000 --threads "$THREADS" --header'
+row 1 points-ml-gpu-100k 30 15 "points_gpu_bench:pml|hc|ml" \
+  "points ML with LN k-means on the GPU at 10^5 (7,682 steps, 3-10 s on an H100 by its author) against the CPU's ML; 1M is in part 3" \
   '"$BIN/points_gpu_bench" --m "$POINTS_GPU_ML" --d 3 --blobs 1000 --algo ml --threads "$THREADS" --header'
 
 # Part 2: the rest, in the order of the issue's list.
@@ -201,20 +207,20 @@ row 2 points-pml-gpu-sizes 60 50 points_gpu_bench \
 row 2 cpu-pml-ml-threads 60 3 pml_cpu_bench \
   "bench/pml_cpu_bench.sh, one round, bunny00 + armadillo on 1, 4 and 16 threads to k=1000 (2 cores: 1-3 s a run, 25 runs); armadillo_1m at 16 threads is in part 1" \
   'if [ "$MESH_1M" = armadillo_1m ]; then ms="bunny00 armadillo" tl="1 4 $THREADS"; else ms=fandisk tl="1 $THREADS"; fi; bash bench/pml_cpu_bench.sh "$BIN/.." --meshes "$ms" --rounds 1 --thread-list "$tl" --stop-at 1000'
-row 2 points-ml-1m-cpu-1thread 50 10 points_bench \
-  "the same on one thread, for the speed-up: 48-52 s (BENCHMARKS.md)" \
-  'points_ml 1'
+row 2 points-hc-gpu-1m 70 15 "points_gpu_bench:pml|hc|ml" \
+  "points HC on the GPU, 1M points: ~60,000 steps, latency-bound, 0.3-1 ms a step on an H100: 20-60 s; CPU HC 1-2 s (10^5 on llvmpipe: 150 s); may be cut at its cap: no partial row" \
+  '"$BIN/points_gpu_bench" --m "$POINTS_GPU_HC" --d 3 --blobs 1000 --algo hc --threads "$THREADS" --header'
 row 2 growth-patches 15 3 "gpu_stages_bench:growth MESH" \
   "growth at K = faces/124 on armadillo_1m (9.8 s on 2 loaded cores) and bunny00 at K = 1000 and 608 (0.9 s each)" \
   'for r in "$M/$GROWTH_1M.off --k $GROWTH_PATCHES" "$M/bunny00.off --k 1000" "$M/bunny00.off --k 608"; do "$BIN/gpu_stages_bench" growth $r --threads "$THREADS" ${h---header}; h=; done'
 
 # Part 3: what fits neither call: the 1M points ML on the GPU, the curves, the context rows.
 row 3 points-ml-gpu-1m 200 20 "points_gpu_bench:pml|hc|ml" \
-  "the issue's row: points ML on the GPU at 1M (60,000 steps and LN k-means rounds, 60-180 s on an H100) against the CPU's ML on 16 cores (10-40 s)" \
+  "the issue's row: points ML on the GPU at 1M (60,000 steps and LN k-means rounds, 60-180 s on an H100 by its author's guess) against the CPU's ML on 16 cores (10-40 s); may be cut at its cap: no partial row" \
   '"$BIN/points_gpu_bench" --m "$POINTS_GPU_ML_1M" --d 3 --blobs 1000 --algo ml --threads "$THREADS" --header'
 row 3 points-ml-gpu-bounded 70 15 "points_gpu_bench:pml|hc|ml" \
   "points ML with bounded-drift 0.03 (ours) on the GPU at 3*10^5, against the CPU's" \
-  '"$BIN/points_gpu_bench" --m "$POINTS_GPU_ML" --d 3 --blobs 1000 --algo ml --bounded 0.03 --threads "$THREADS" --header'
+  '"$BIN/points_gpu_bench" --m "$POINTS_GPU_ML_MID" --d 3 --blobs 1000 --algo ml --bounded 0.03 --threads "$THREADS" --header'
 row 3 points-ml-cpu-threads 85 12 points_bench \
   "the CPU's points ML at 1M on 2, 4 and 8 threads (~30, 18, 14 s) and with bounded-drift 0.03 on 16, hashes checked" \
   'for t in 2 4 8; do points_ml "$t" || exit 1; done; points_ml "$THREADS" --bounded 0.03'
