@@ -4,7 +4,11 @@
 # bench/device_bundle.sh made here carried along:
 #
 #   run(command="bash bench/device_run.sh --budget 540", carry=[".devbundle"], timeout_s=600)
-#   run(command="bash bench/device_run.sh --budget 540 --part 2", ...)   # the rest: 2, then 3
+#   run(command="bash bench/device_run.sh --budget 540 --part 2", ...)   # next session: 2, 3
+#
+# One part per session: with the start, a 540-s call leaves about 4 of the 15 minutes. A
+# second call in the same session only if `status` says budget_left_s >= 300 and the machine
+# is still warm: --budget $((budget_left_s - 120)), timeout_s that + 30, then give_back.
 #
 #   --budget S        seconds for everything (set-up included; default 540): the rows get
 #                     what the set-up leaves, less 10 s for the last copies
@@ -16,6 +20,8 @@
 #                     GPU (BENCHMARKS.md, "Taking the GPU-node figures in one device call")
 #   --gl-root DIR     unpack the loaders' .debs under DIR and put its lib folder on
 #                     LD_LIBRARY_PATH (default: / and ldconfig; --allow-software: WORK/glroot)
+#   --threads N       the CPU stages' threads (default: nproc; a line in the log and env.txt
+#                     says so when that is not the 16 cores the issue's figures assume)
 #   --bundle-cxx      use the bundle's C++ runtime even where the device's is new enough
 #   --bundle DIR      the bundle (default .devbundle)
 #   --work DIR        where the meshes are unpacked (default /tmp/mlclust_device_run: never
@@ -39,7 +45,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 budget=540 part=1 quick=0 allow_software=0 bundle=.devbundle dry_run=0 bundle_cxx=0 gl_root=""
-work=/tmp/mlclust_device_run
+work=/tmp/mlclust_device_run threads=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --budget) budget="${2:?}"; shift 2 ;;
@@ -50,6 +56,7 @@ while [ $# -gt 0 ]; do
     --bundle-cxx) bundle_cxx=1; shift ;;
     --gl-root) gl_root="${2:?}"; shift 2 ;;
     --work) work="${2:?}"; shift 2 ;;
+    --threads) threads="${2:?}"; shift 2 ;;
     --dry-run) dry_run=1; shift ;;
     -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "device_run: unknown argument '$1'" >&2; exit 2 ;;
@@ -210,11 +217,19 @@ if [ "$info_rc" != 0 ] || { [ "$allow_software" = 0 ] && ! echo "$renderer" | gr
 fi
 echo "device_run: renderer $renderer; set-up took $((SECONDS - started))s"
 
+# The threads: the issue's CPU figures are 16-core figures; say so where they are not.
+threads="${threads:-$(nproc)}"
+if [ "$threads" != 16 ] && [ "$quick" = 0 ]; then
+  echo "device_run: WARNING: the CPU rows run on $threads threads (nproc $(nproc)), not the" \
+    "16 cores issue 10's figures assume: label them so" | tee -a "$out/env.txt"
+fi
+
 # (7) The rows, in priority order, in what is left.
 left=$((budget - (SECONDS - started) - 10))
 [ "$left" -gt 0 ] || { echo "device_run: no time left for the rows" >&2; exit 5; }
 set +e
-bash bench/gpu_node.sh --build "$bundle/build" "${node_args[@]}" --budget "$left" --out "$out"
+bash bench/gpu_node.sh --build "$bundle/build" "${node_args[@]}" --threads "$threads" \
+  --budget "$left" --out "$out"
 rc=$?
 set -e
 echo "device_run: rows done (exit $rc) after $((SECONDS - started))s of ${budget}s:"

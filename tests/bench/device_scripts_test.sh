@@ -18,8 +18,10 @@ for script in bench/gpu_node.sh bench/device_bundle.sh bench/device_run.sh; do
   bash -n "$script" || fail "bash -n $script"
 done
 
-# 2. The row lists. Each part must leave room for the set-up (~30 s: loaders, renderer
-# check, armadillo_1m made again) in `device_run.sh --budget 540`.
+# 2. The row lists. Each part must leave room in `device_run.sh --budget 540` for the set-up
+# (2-6 s here: loaders, renderer check, armadillo_1m made again in 2-4 s; BENCHMARKS.md) and
+# device_run.sh's 10 s for the last copies: 480 s keeps 60 s, most of it for estimates that
+# turn out low.
 total_of() { sed -n 's/^total estimate: \([0-9]*\)s.*/\1/p'; }
 count=0
 for part in 1 2 3; do
