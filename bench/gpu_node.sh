@@ -178,7 +178,7 @@ row 1 growth-1m 10 3 "gpu_stages_bench:growth MESH" \
 row 1 points-ml-1m-cpu-1thread 50 10 points_bench \
   "points-ml-1m-cpu on one thread, for the speed-up: 48-52 s (BENCHMARKS.md)" \
   'points_ml 1'
-row 1 points-pml-until-gpu-1m 40 15 "points_gpu_bench:pml-until" \
+row 1 points-pml-until-gpu-1m 40 15 "points_gpu_bench:[--pml-until N]" \
   "points PML then ML below 1000 (LN k-means) on the GPU at 1M, the route to the issue's ML row: ~73 PML levels + 1,000 steps; 10^5 on 2 cores: llvmpipe 24 s, CPU 3.3 s; x10 points, CPU /4, GPU /20" \
   '"$BIN/points_gpu_bench" --m "$POINTS_GPU_PML_UNTIL" --d 3 --blobs 1000 --algo pml --optimizer lnkmeans --pml-until 1000 --threads "$THREADS" --header'
 row 1 points-ml-gpu-100k 30 15 "points_gpu_bench:pml|hc|ml" \
