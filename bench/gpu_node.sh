@@ -116,9 +116,9 @@ export -f points_ml
 # --- The rows, in priority order ------------------------------------------------------
 # row PART ID NODE_S QUICK_S GUARD BASIS COMMAND
 #   NODE_S / QUICK_S: estimated seconds on a GPU node / with --quick on 2 cores + llvmpipe.
-#   GUARD: BINARY (must exist in $BIN, or gpu/ for mlclust-gpu-info), BINARY:STRING (and
-#   the binary must contain STRING, e.g. a flag added by later work), torch (python3 with
-#   torch and CUDA), or - (nothing).
+#   GUARD: BINARY (must exist in $BIN), BINARY:STRING (and the binary must contain STRING:
+#   take a piece of the usage text of a mode or flag added by later work, e.g. "[--pml-until
+#   N]", not a bare name that messages may hold), torch (python3 with torch and CUDA), or -.
 #   BASIS: where NODE_S comes from (2-core figures of BENCHMARKS.md / this machine).
 #   COMMAND: run with bash -c; $BIN, $M, $THREADS and the sizes above are exported. Its
 #   stdout is the row's CSV block (each command prints its own header).
