@@ -28,6 +28,8 @@
 #   --threads N      the CPU stages' threads (default: all cores)
 #   --only ID,ID     just these rows
 #   --list-binaries  the binaries the rows use (bench/device_bundle.sh bundles them)
+#   --check-guards   the rows this build's binaries would skip (a missing binary, mode or
+#                    flag), torch aside; bench/device_bundle.sh prints them as warnings
 #
 # Estimates: each row carries two, in seconds: on a GPU node (16 cores, H100/H200) and with
 # --quick on a 2-core machine with llvmpipe. The quick ones were measured (bench/
@@ -47,6 +49,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 quick=0 part=all budget="" out_dir="" build_dir="" dry_run=0 only="" list_binaries=0
+check_guards=0
 THREADS="${THREADS:-$(nproc)}"
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -59,6 +62,7 @@ while [ $# -gt 0 ]; do
     --only) only=",${2:?},"; shift 2 ;;
     --dry-run) dry_run=1; shift ;;
     --list-binaries) list_binaries=1; shift ;;
+    --check-guards) check_guards=1; shift ;;
     -h | --help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) echo "gpu_node: unknown argument '$1'" >&2; exit 2 ;;
   esac
@@ -243,6 +247,41 @@ for i in "${!ids[@]}"; do
 done
 estimate() { if [ "$quick" = 1 ]; then echo "${quick_est[$1]}"; else echo "${node_est[$1]}"; fi; }
 
+# guard_fails I: prints why row I cannot run here (nothing when it can).
+guard_fails() {
+  local g="${guards[$1]}" name want
+  case "$g" in
+    -) ;;
+    torch)
+      env -u LD_LIBRARY_PATH python3 -c \
+        "import torch, sys; sys.exit(0 if torch.cuda.is_available() else 1)" 2>/dev/null ||
+        echo "torch with CUDA not available"
+      ;;
+    *)
+      name="${g%%:*}" want=""
+      [ "$name" != "$g" ] && want="${g#*:}"
+      if [ ! -x "$BIN/$name" ]; then
+        echo "no $BIN/$name"
+      elif [ -n "$want" ] && ! grep -aqF -- "$want" "$BIN/$name"; then
+        echo "no '$want' in $name"
+      fi
+      ;;
+  esac
+}
+
+if [ "$check_guards" = 1 ]; then
+  # Every row whose guard this build fails, torch aside (the device has it, here may not).
+  missing=0
+  for i in "${selected[@]}"; do
+    [ "${guards[$i]}" = torch ] && continue
+    why="$(guard_fails "$i")"
+    [ -z "$why" ] && continue
+    echo "gpu_node: row ${ids[$i]} (part ${parts[$i]}) would be skipped: $why"
+    missing=$((missing + 1))
+  done
+  echo "gpu_node: $missing of ${#selected[@]} rows would be skipped by their guards with $BIN"
+  exit 0
+fi
 if [ "$list_binaries" = 1 ]; then
   for g in "${guards[@]}"; do
     case "$g" in - | torch) ;; *) echo "bench/${g%%:*}" ;; esac
@@ -288,27 +327,6 @@ echo "# run $(date -u +%FT%TZ) host=${host%%.*} cores=$(nproc) threads=$THREADS"
   "part=$part quick=$quick budget=${budget:-none} $renderer" | tee -a "$csv"
 [ -s "$status" ] || printf 'row\tpart\tstatus\tseconds\testimate\n' >>"$status"
 
-# guard_fails I: prints why row I cannot run here (nothing when it can).
-guard_fails() {
-  local g="${guards[$1]}" name want
-  case "$g" in
-    -) ;;
-    torch)
-      env -u LD_LIBRARY_PATH python3 -c \
-        "import torch, sys; sys.exit(0 if torch.cuda.is_available() else 1)" 2>/dev/null ||
-        echo "torch with CUDA not available"
-      ;;
-    *)
-      name="${g%%:*}" want=""
-      [ "$name" != "$g" ] && want="${g#*:}"
-      if [ ! -x "$BIN/$name" ]; then
-        echo "no $BIN/$name"
-      elif [ -n "$want" ] && ! grep -aqF -- "$want" "$BIN/$name"; then
-        echo "no '$want' in $name"
-      fi
-      ;;
-  esac
-}
 
 slack="${GPU_NODE_ROW_SLACK:-60}"  # the cap's least slack over an estimate (tests: less)
 started=$SECONDS

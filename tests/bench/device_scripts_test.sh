@@ -95,5 +95,12 @@ grep -q $'^growth-1m\t1\tskipped: no \'growth MESH\' in gpu_stages_bench' "$work
   fail "growth-1m not skipped on a gpu_stages_bench without the growth mode"
 grep -q $'^points-ml-1m-cpu\t1\tfailed: exit 1' "$work/all/gpu_node_status.tsv" ||
   fail "points-ml-1m-cpu did not fail without its hash"
+# --check-guards (device_bundle.sh's warnings) names the rows the fake build would skip.
+guards="$(bash bench/gpu_node.sh --check-guards --build "$work/build")"
+grep -q "row growth-1m (part 1) would be skipped: no 'growth MESH'" <<<"$guards" ||
+  fail "--check-guards does not name growth-1m"
+grep -q "row hc-gpu-meshes (part 2) would be skipped: no .*hc_gpu_bench" <<<"$guards" ||
+  fail "--check-guards does not name hc-gpu-meshes"
+grep -q "row pml-gpu-1m-all" <<<"$guards" && fail "--check-guards names a row that can run"
 
 if [ "$failures" = 0 ]; then echo "device scripts: all checks passed"; else exit 1; fi
