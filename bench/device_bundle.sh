@@ -219,5 +219,6 @@ echo "device_bundle: $out: $(find "$out/build" -type f | wc -l) binaries," \
   "$(find "$out/meshes" -type f | wc -l) meshes; glibc ${glibc#GLIBC_} or newer needed there"
 # Rows the bundled binaries would skip (a mode or flag of later work not in this build):
 # better known here than after a device call.
-bash bench/gpu_node.sh --check-guards --build "$out/build" | sed 's/^gpu_node: row/device_bundle: WARNING: row/; s/^gpu_node:/device_bundle:/'
+bash bench/gpu_node.sh --check-guards --build "$out/build" |
+  sed 's/^gpu_node: row/device_bundle: WARNING: row/; s/^gpu_node:/device_bundle:/'
 size_report
