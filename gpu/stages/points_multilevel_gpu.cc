@@ -65,14 +65,13 @@ std::unique_ptr<PointLevelsHost> BuildStart(const PointSet& points,
 // its 2d neighbours and theirs, twice when it kept a partner, and a cluster left without
 // neighbours (or LinkAll) offers every one of the start's k0 clusters. Where that can pass
 // the limit the run is refused on a software renderer rather than given short tables.
-constexpr uint64_t kSoftwareLoopBudget = kPointsSoftwareLoopBudget;
-
 absl::Status CheckSoftwareLoopBudget(const GlContext& context, uint32_t d, uint32_t k0) {
   if (!context.is_software()) return absl::OkStatus();
   const uint64_t offer = 2 * uint64_t{d} + 1, slots = 2 * uint64_t{d};
   const uint64_t around = 2 * slots * (slots + 1) * offer;
   const uint64_t all = uint64_t{k0} * offer;
-  if (around <= kSoftwareLoopBudget && all <= kSoftwareLoopBudget) return absl::OkStatus();
+  if (around <= kPointsSoftwareLoopBudget && all <= kPointsSoftwareLoopBudget)
+    return absl::OkStatus();
   return absl::FailedPreconditionError(absl::StrCat(
       "PML for points on the GPU: ", d, " dimensions and ", k0, " start clusters need up to ",
       std::max(around, all),
@@ -100,7 +99,6 @@ namespace {
 struct GpuLevelsStart {
   std::vector<uint32_t> labels;  // the start's (HC's steps keep their own member lists)
   uint32_t k0 = 0;
-  double energy = 0;
   std::optional<PointLevelsGpu> levels;
   std::optional<PointLevelsOptimiser> optimiser;
   PointMultilevelSummary summary;                // level 0's
@@ -120,8 +118,8 @@ absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& p
   made.k0 = voxels.clusters;
   const uint32_t k0 = made.k0;
   const ::mlclust::detail::PointClusters& start = *host->clusters;
-  made.energy = start.TotalEnergy();
-  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, made.energy));
+  const double start_energy = start.TotalEnergy();
+  MLCLUST_RETURN_IF_ERROR(sink.OnStart(AsClusterIds(voxels.labels), k0, start_energy));
   if (options.inspect_level) options.inspect_level(0, voxels.labels);
   // The upload: counts as uints, each cluster's sums and square sum together.
   std::vector<uint32_t> counts(k0);
@@ -150,7 +148,7 @@ absl::StatusOr<GpuLevelsStart> StartLevels(GlContext& context, const PointSet& p
     made.optimiser.emplace(std::move(optimiser));
   }
   made.labels = std::move(voxels.labels);
-  made.energy_sum.Reset(made.energy);
+  made.energy_sum.Reset(start_energy);
   made.summary.levels = 1;
   made.summary.start_clusters = k0;
   made.summary.grid =
