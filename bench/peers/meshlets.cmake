@@ -19,3 +19,17 @@ if(MLCLUST_METIS_INCLUDE_DIR AND MLCLUST_METIS_LIBRARY)
 endif()
 message(STATUS "meshlets_bench peers: meshoptimizer ${meshoptimizer_FOUND}, METIS "
                "${MLCLUST_METIS_LIBRARY}")
+
+# meshlets_caps_bench (bench/peers/meshlets_caps_bench.cc): capped meshlets, ours
+# (core/meshlets) against meshopt_buildMeshlets at the same caps and METIS k-way.
+add_executable(meshlets_caps_bench ${CMAKE_CURRENT_LIST_DIR}/meshlets_caps_bench.cc)
+target_link_libraries(meshlets_caps_bench PRIVATE mlclust_core absl::time absl::strings)
+if(meshoptimizer_FOUND)
+  target_link_libraries(meshlets_caps_bench PRIVATE meshoptimizer::meshoptimizer)
+  target_compile_definitions(meshlets_caps_bench PRIVATE MLCLUST_HAVE_MESHOPTIMIZER)
+endif()
+if(MLCLUST_METIS_INCLUDE_DIR AND MLCLUST_METIS_LIBRARY)
+  target_include_directories(meshlets_caps_bench PRIVATE ${MLCLUST_METIS_INCLUDE_DIR})
+  target_link_libraries(meshlets_caps_bench PRIVATE ${MLCLUST_METIS_LIBRARY})
+  target_compile_definitions(meshlets_caps_bench PRIVATE MLCLUST_HAVE_METIS)
+endif()

@@ -1,0 +1,346 @@
+// Capped meshlets: ours (core/meshlets/meshlets.h) against meshoptimizer's
+// meshopt_buildMeshlets at the same caps, and METIS k-way on the face dual graph.
+//
+//   meshlets_caps_bench MESH... [--repeats R] [--max-vertices 64] [--max-triangles 124]
+//                       [--cone-weights 0,0.25] [--ours-cone-weights 0,0.25]
+//                       [--merge-below N] [--peers meshoptimizer,metis|none] [--header]
+//
+// One CSV row per mesh and method (best of R timings; the meshlets of the last run):
+//   mesh,faces,method,cone_weight,meshlets,fill,vertices_per_triangle,mean_radius,
+//   mean_cone_cutoff,disconnected,over_cap,max_vertices,max_triangles,seconds,cpu_seconds
+// fill: mean triangles per meshlet; vertices_per_triangle: meshlet vertex entries over
+// faces (what the vertex runs cost); mean_radius, mean_cone_cutoff: means over meshlets of
+// meshopt_computeMeshletBounds' radius and cone_cutoff (lower is tighter); disconnected:
+// meshlets whose faces are not one edge-connected piece; over_cap: meshlets above either
+// cap. seconds: wall clock of the build *with* the bounds of every meshlet; cpu_seconds:
+// the process's CPU time over all threads (the steadier figure on a shared machine).
+// methods:
+//   meshoptimizer  meshopt_buildMeshlets (output buffers allocated before the timing) and
+//                  meshopt_computeMeshletBounds per meshlet.
+//   ours           BuildMeshlets (bounds included: it calls meshopt_computeMeshletBounds).
+//   metis          METIS_PartGraphKway, METIS_OPTION_CONTIG, on the face dual graph (edge
+//                  neighbours; the CSR graph built before the timing), K = meshoptimizer's
+//                  count at the first cone weight; parts are not capped, so over_cap
+//                  counts them, and no bounds (meshoptimizer's take at most 512 triangles).
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_split.h"
+#include "bench/bench_util.h"
+#include "core/meshlets/meshlets.h"
+#include "core/mesh/prepared_mesh.h"
+
+#ifdef MLCLUST_HAVE_MESHOPTIMIZER
+#include <meshoptimizer.h>
+#endif
+#ifdef MLCLUST_HAVE_METIS
+#include <metis.h>
+#endif
+
+namespace mlclust {
+namespace {
+
+double ProcessCpuSeconds() {
+  timespec now{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+struct Row {
+  std::string method;
+  float cone_weight = 0;
+  double seconds = std::numeric_limits<double>::infinity();
+  double cpu_seconds = std::numeric_limits<double>::infinity();
+  std::vector<uint32_t> labels;  // each face's meshlet
+  std::vector<float> radius, cutoff;
+};
+
+template <typename Run>
+bool Time(int repeats, Run&& run, Row& row) {
+  for (int r = 0; r < repeats; ++r) {
+    const double cpu = ProcessCpuSeconds();
+    bench::Stopwatch watch;
+    if (!run()) return false;
+    row.seconds = std::min(row.seconds, watch.Seconds());
+    row.cpu_seconds = std::min(row.cpu_seconds, ProcessCpuSeconds() - cpu);
+  }
+  return true;
+}
+
+void PrintRow(const std::string& mesh_name, const PreparedMesh& prepared, const Row& row,
+              uint32_t max_vertices, uint32_t max_triangles) {
+  const TriangleMesh& mesh = prepared.mesh;
+  const size_t n = mesh.num_faces();
+  uint32_t k = 0;
+  for (uint32_t m : row.labels) k = std::max(k, m + 1);
+  std::vector<uint32_t> triangles(k, 0), pieces(k, 0), vertices(k, 0);
+  for (uint32_t m : row.labels) ++triangles[m];
+  // Pieces per meshlet: a flood across edges inside the meshlet.
+  std::vector<uint8_t> seen(n, 0);
+  std::vector<uint32_t> stack;
+  for (uint32_t f = 0; f < n; ++f) {
+    if (seen[f]) continue;
+    const uint32_t m = row.labels[f];
+    ++pieces[m];
+    seen[f] = 1;
+    stack.assign(1, f);
+    while (!stack.empty()) {
+      const uint32_t g = stack.back();
+      stack.pop_back();
+      for (FaceId h : prepared.adjacency.neighbours[g]) {
+        if (h.valid() && !seen[h.value()] && row.labels[h.value()] == m) {
+          seen[h.value()] = 1;
+          stack.push_back(h.value());
+        }
+      }
+    }
+  }
+  // Distinct vertices per meshlet: faces bucketed by meshlet, a stamp per vertex.
+  std::vector<uint32_t> start(k + 1, 0), order(n);
+  for (uint32_t m : row.labels) ++start[m + 1];
+  for (uint32_t m = 0; m < k; ++m) start[m + 1] += start[m];
+  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  for (uint32_t f = 0; f < n; ++f) order[fill[row.labels[f]]++] = f;
+  std::vector<uint32_t> stamp(mesh.num_vertices(), UINT32_MAX);
+  uint32_t meshlets = 0, disconnected = 0, over_cap = 0, most_vertices = 0, most_triangles = 0;
+  uint64_t vertex_entries = 0;
+  for (uint32_t m = 0; m < k; ++m) {
+    if (triangles[m] == 0) continue;
+    ++meshlets;
+    for (uint32_t i = start[m]; i < start[m + 1]; ++i) {
+      for (int corner = 0; corner < 3; ++corner) {
+        const uint32_t v = mesh.indices[3 * size_t{order[i]} + corner];
+        if (stamp[v] != m) {
+          stamp[v] = m;
+          ++vertices[m];
+        }
+      }
+    }
+    vertex_entries += vertices[m];
+    if (pieces[m] > 1) ++disconnected;
+    if (vertices[m] > max_vertices || triangles[m] > max_triangles) ++over_cap;
+    most_vertices = std::max(most_vertices, vertices[m]);
+    most_triangles = std::max(most_triangles, triangles[m]);
+  }
+  double radius = 0, cutoff = 0;
+  for (float r : row.radius) radius += r;
+  for (float c : row.cutoff) cutoff += c;
+  const double bounded = static_cast<double>(std::max<size_t>(row.radius.size(), 1));
+  std::string radius_text, cutoff_text;
+  if (!row.radius.empty()) {
+    radius_text = absl::StrCat(radius / bounded);
+    cutoff_text = absl::StrCat(cutoff / bounded);
+  }
+  std::printf("%s,%zu,%s,%g,%u,%.2f,%.4f,%s,%s,%u,%u,%u,%u,%.4f,%.4f\n", mesh_name.c_str(), n,
+              row.method.c_str(), row.cone_weight, meshlets,
+              static_cast<double>(n) / std::max(meshlets, 1u),
+              static_cast<double>(vertex_entries) / static_cast<double>(n), radius_text.c_str(),
+              cutoff_text.c_str(), disconnected, over_cap, most_vertices, most_triangles,
+              row.seconds, row.cpu_seconds);
+  std::fflush(stdout);
+}
+
+#ifdef MLCLUST_HAVE_MESHOPTIMIZER
+// meshopt_buildMeshlets with its bounds; its meshlets as face labels (each meshlet
+// triangle's face found among the faces around its first vertex, outside the timing).
+bool RunMeshoptimizer(const PreparedMesh& prepared, uint32_t max_vertices, uint32_t max_triangles,
+                      float cone_weight, int repeats, Row& row) {
+  const TriangleMesh& mesh = prepared.mesh;
+  const size_t index_count = mesh.indices.size();
+  const size_t bound = meshopt_buildMeshletsBound(index_count, max_vertices, max_triangles);
+  std::vector<meshopt_Meshlet> meshlets(bound);
+  std::vector<unsigned int> meshlet_vertices(bound * max_vertices);
+  std::vector<unsigned char> meshlet_triangles(bound * max_triangles * 3);
+  size_t count = 0;
+  row.method = "meshoptimizer";
+  row.cone_weight = cone_weight;
+  const bool ok = Time(
+      repeats,
+      [&] {
+        count = meshopt_buildMeshlets(meshlets.data(), meshlet_vertices.data(),
+                                      meshlet_triangles.data(), mesh.indices.data(), index_count,
+                                      mesh.positions.data(), mesh.num_vertices(), 3 * sizeof(float),
+                                      max_vertices, max_triangles, cone_weight);
+        row.radius.resize(count);
+        row.cutoff.resize(count);
+        for (size_t m = 0; m < count; ++m) {
+          const meshopt_Meshlet& meshlet = meshlets[m];
+          const meshopt_Bounds bounds = meshopt_computeMeshletBounds(
+              &meshlet_vertices[meshlet.vertex_offset], &meshlet_triangles[meshlet.triangle_offset],
+              meshlet.triangle_count, mesh.positions.data(), mesh.num_vertices(),
+              3 * sizeof(float));
+          row.radius[m] = bounds.radius;
+          row.cutoff[m] = bounds.cone_cutoff;
+        }
+        return count > 0;
+      },
+      row);
+  if (!ok) return false;
+  const VertexFaceTable table = BuildVertexFaceTable(mesh);
+  row.labels.assign(mesh.num_faces(), UINT32_MAX);
+  for (uint32_t m = 0; m < count; ++m) {
+    const meshopt_Meshlet& meshlet = meshlets[m];
+    for (uint32_t t = 0; t < meshlet.triangle_count; ++t) {
+      uint32_t v[3];
+      for (int corner = 0; corner < 3; ++corner) {
+        v[corner] = meshlet_vertices[meshlet.vertex_offset +
+                                     meshlet_triangles[meshlet.triangle_offset + 3 * t + corner]];
+      }
+      for (uint32_t f : table.faces_around(v[0])) {
+        const uint32_t* w = &mesh.indices[3 * size_t{f}];
+        const bool same = (w[0] == v[0] || w[0] == v[1] || w[0] == v[2]) &&
+                          (w[1] == v[0] || w[1] == v[1] || w[1] == v[2]) &&
+                          (w[2] == v[0] || w[2] == v[1] || w[2] == v[2]);
+        if (same && row.labels[f] == UINT32_MAX) {
+          row.labels[f] = m;
+          break;
+        }
+      }
+    }
+  }
+  for (uint32_t m : row.labels) {
+    if (m == UINT32_MAX) {
+      std::fprintf(stderr, "meshoptimizer: a face is in no meshlet\n");
+      return false;
+    }
+  }
+  return true;
+}
+#endif
+
+#ifdef MLCLUST_HAVE_METIS
+bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
+  const size_t n = prepared.mesh.num_faces();
+  std::vector<idx_t> xadj(n + 1, 0), adjncy;
+  adjncy.reserve(3 * n);
+  for (size_t f = 0; f < n; ++f) {
+    for (FaceId g : prepared.adjacency.neighbours[f]) {
+      if (g.valid()) adjncy.push_back(static_cast<idx_t>(g.value()));
+    }
+    xadj[f + 1] = static_cast<idx_t>(adjncy.size());
+  }
+  std::vector<idx_t> part(n, 0);
+  row.method = "metis";
+  return Time(
+      repeats,
+      [&] {
+        idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
+        idx_t cut = 0;
+        idx_t options[METIS_NOPTIONS];
+        METIS_SetDefaultOptions(options);
+        options[METIS_OPTION_CONTIG] = 1;
+        const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
+                                               nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
+                                               options, &cut, part.data());
+        if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
+        if (status != METIS_OK) return false;
+        row.labels.resize(n);
+        for (size_t f = 0; f < n; ++f) row.labels[f] = static_cast<uint32_t>(part[f]);
+        return true;
+      },
+      row);
+}
+#endif
+
+int Run(int argc, char** argv) {
+  bench::Args args(argc, argv,
+                   "usage: meshlets_caps_bench MESH... [--repeats R] [--max-vertices 64] "
+                   "[--max-triangles 124] [--cone-weights 0,0.25] [--ours-cone-weights 0,0.25] "
+                   "[--merge-below N] [--peers meshoptimizer,metis|none] [--header]");
+  const bool header = args.Flag("header");
+  const int repeats = args.Get<int>("repeats", 5);
+  const auto max_vertices = args.Get<uint32_t>("max-vertices", 64);
+  const auto max_triangles = args.Get<uint32_t>("max-triangles", 124);
+  const std::vector<double> cone_weights = args.GetList<double>("cone-weights", "0,0.25");
+  const std::vector<double> ours_cone_weights =
+      args.GetList<double>("ours-cone-weights", "0,0.25");
+  const auto merge_below = args.Get<uint32_t>("merge-below", 0);
+  const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
+  if (!args.Done()) return 2;
+  auto with_peer = [&](absl::string_view name) {
+    for (absl::string_view p : absl::StrSplit(peers, ',')) {
+      if (p == name) return true;
+    }
+    return false;
+  };
+  if (header) {
+    std::printf(
+        "mesh,faces,method,cone_weight,meshlets,fill,vertices_per_triangle,mean_radius,"
+        "mean_cone_cutoff,disconnected,over_cap,max_vertices,max_triangles,seconds,"
+        "cpu_seconds\n");
+  }
+  for (size_t i = 0; i < args.num_positional(); ++i) {
+    const std::string path = args.Positional(i);
+    const std::string name = bench::BaseName(path);
+    const PreparedMesh prepared = bench::PrepareOrDie(path);
+    uint32_t peer_count = 0;
+#ifdef MLCLUST_HAVE_MESHOPTIMIZER
+    if (with_peer("meshoptimizer")) {
+      for (double weight : cone_weights) {
+        Row row;
+        if (!RunMeshoptimizer(prepared, max_vertices, max_triangles, static_cast<float>(weight),
+                              repeats, row)) {
+          return 1;
+        }
+        if (peer_count == 0) {
+          for (uint32_t m : row.labels) peer_count = std::max(peer_count, m + 1);
+        }
+        PrintRow(name, prepared, row, max_vertices, max_triangles);
+      }
+    }
+#endif
+    for (double weight : ours_cone_weights) {
+      MeshletOptions options;
+      options.max_vertices = max_vertices;
+      options.max_triangles = max_triangles;
+      options.cone_weight = static_cast<float>(weight);
+      options.merge_below = merge_below;
+      Row row;
+      row.method = "ours";
+      row.cone_weight = options.cone_weight;
+      MeshletResult result;
+      const bool ok = Time(
+          repeats,
+          [&] {
+            absl::StatusOr<MeshletResult> built = BuildMeshlets(prepared.mesh, options);
+            if (!built.ok()) {
+              std::fprintf(stderr, "%s\n", built.status().ToString().c_str());
+              return false;
+            }
+            result = *std::move(built);
+            return true;
+          },
+          row);
+      if (!ok) return 1;
+      const absl::Status layout =
+          CheckMeshletLayout(prepared.mesh, result, max_vertices, max_triangles);
+      if (!layout.ok()) {
+        std::fprintf(stderr, "ours: %s\n", layout.ToString().c_str());
+        return 1;
+      }
+      row.labels = result.face_meshlet;
+      for (const MeshletBounds& b : result.bounds) {
+        row.radius.push_back(b.radius);
+        row.cutoff.push_back(b.cone_cutoff);
+      }
+      PrintRow(name, prepared, row, max_vertices, max_triangles);
+    }
+#ifdef MLCLUST_HAVE_METIS
+    if (with_peer("metis") && peer_count > 1) {
+      Row row;
+      if (!RunMetis(prepared, peer_count, repeats, row)) return 1;
+      PrintRow(name, prepared, row, max_vertices, max_triangles);
+    }
+#endif
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace mlclust
+
+int main(int argc, char** argv) { return mlclust::Run(argc, argv); }
