@@ -24,6 +24,7 @@
 //                  counts them, and no bounds (meshoptimizer's take at most 512 triangles).
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <limits>
 #include <string>
@@ -125,6 +126,17 @@ void PrintRow(const std::string& mesh_name, const PreparedMesh& prepared, const 
     if (vertices[m] > max_vertices || triangles[m] > max_triangles) ++over_cap;
     most_vertices = std::max(most_vertices, vertices[m]);
     most_triangles = std::max(most_triangles, triangles[m]);
+  }
+  if (std::getenv("MESHLETS_HISTOGRAM") != nullptr) {
+    std::vector<uint32_t> by_triangles(14, 0), full_vertices(14, 0);
+    for (uint32_t m = 0; m < k; ++m) {
+      if (triangles[m] == 0) continue;
+      ++by_triangles[std::min<uint32_t>(triangles[m] / 10, 13)];
+      if (vertices[m] == max_vertices) ++full_vertices[std::min<uint32_t>(triangles[m] / 10, 13)];
+    }
+    std::fprintf(stderr, "%s %s: triangles/10 histogram (of which at the vertex cap):", mesh_name.c_str(), row.method.c_str());
+    for (int b = 0; b < 14; ++b) std::fprintf(stderr, " %d:%u(%u)", b, by_triangles[b], full_vertices[b]);
+    std::fprintf(stderr, "\n");
   }
   double radius = 0, cutoff = 0;
   for (float r : row.radius) radius += r;

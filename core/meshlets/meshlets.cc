@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <span>
@@ -34,15 +35,30 @@ struct EdgeNeighbours {
   }
 };
 
-bool HasVertex(const uint32_t* face, uint32_t vertex) {
-  return face[0] == vertex || face[1] == vertex || face[2] == vertex;
-}
-
+// Half-edge matching through the corners around each vertex: for every face at vertex v,
+// the face and its two other corners (the next and the previous one), so that the faces on
+// an edge (v, w) are found in v's rows without reading the index buffer at random.
 absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const TriangleMesh& mesh,
-                                                   const VertexFaceTable& around,
                                                    const std::atomic<bool>* cancel) {
   const auto faces = static_cast<uint32_t>(mesh.num_faces());
+  const size_t vertices = mesh.num_vertices();
   const uint32_t* indices = mesh.indices.data();
+  struct Corner {
+    uint32_t face, next, previous;
+  };
+  std::vector<uint32_t> start(vertices + 1, 0);
+  for (size_t i = 0; i < 3 * size_t{faces}; ++i) ++start[indices[i] + 1];
+  for (size_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
+  std::vector<Corner> corners(3 * size_t{faces});
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (uint32_t f = 0; f < faces; ++f) {
+      const uint32_t* c = indices + 3 * size_t{f};
+      corners[fill[c[0]]++] = {f, c[1], c[2]};
+      corners[fill[c[1]]++] = {f, c[2], c[0]};
+      corners[fill[c[2]]++] = {f, c[0], c[1]};
+    }
+  }
   EdgeNeighbours result;
   result.offset.resize(size_t{faces} + 1);
   result.faces.reserve(3 * size_t{faces});
@@ -50,22 +66,24 @@ absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const TriangleMesh& mesh,
     if (f % kCancelStride == 0) {
       if (IsCancelled(cancel)) return absl::CancelledError("cancelled during meshlet adjacency");
     }
-    result.offset[f] = static_cast<uint32_t>(result.faces.size());
-    const uint32_t* corners = indices + 3 * size_t{f};
+    const auto first = static_cast<uint32_t>(result.faces.size());
+    result.offset[f] = first;
+    const uint32_t* c = indices + 3 * size_t{f};
     for (int edge = 0; edge < 3; ++edge) {
-      const uint32_t a = corners[edge];
-      const uint32_t b = corners[(edge + 1) % 3];
+      const uint32_t a = c[edge];
+      const uint32_t b = c[(edge + 1) % 3];
       if (a == b) continue;
       // Walk the end with fewer faces: a fan of 1,000 faces around one vertex costs each
       // spoke its other end's handful, not the hub's thousand.
-      const uint32_t walk = around.faces_around(a).size() <= around.faces_around(b).size() ? a : b;
-      const uint32_t other = walk == a ? b : a;
-      for (uint32_t g : around.faces_around(walk)) {
-        if (g == f || !HasVertex(indices + 3 * size_t{g}, other)) continue;
-        const auto begin = result.faces.begin() + result.offset[f];
-        if (std::find(begin, result.faces.end(), g) == result.faces.end()) {
-          result.faces.push_back(g);
-        }
+      const bool walk_a = start[a + 1] - start[a] <= start[b + 1] - start[b];
+      const uint32_t walk = walk_a ? a : b;
+      const uint32_t other = walk_a ? b : a;
+      for (uint32_t i = start[walk]; i < start[walk + 1]; ++i) {
+        const Corner& corner = corners[i];
+        if (corner.face == f || (corner.next != other && corner.previous != other)) continue;
+        bool known = false;
+        for (size_t j = first; j < result.faces.size(); ++j) known |= result.faces[j] == corner.face;
+        if (!known) result.faces.push_back(corner.face);
       }
     }
   }
@@ -86,6 +104,7 @@ class MeshletBuilder {
                  const VertexFaceTable& around, const EdgeNeighbours& neighbours)
       : mesh_(mesh),
         options_(options),
+        around_(around),
         neighbours_(neighbours),
         faces_(static_cast<uint32_t>(mesh.num_faces())),
         meshlet_of_(faces_, kNone),
@@ -94,6 +113,7 @@ class MeshletBuilder {
         live_vertex_(mesh.num_vertices()),
         local_(mesh.num_vertices(), kNotInMeshlet),
         candidate_stamp_(faces_, kNone),
+        closing_(mesh.num_vertices()),
         frames_(faces_) {
     for (uint32_t f = 0; f < faces_; ++f) {
       live_faces_[f] = static_cast<uint32_t>(neighbours.of(f).size());
@@ -121,6 +141,8 @@ class MeshletBuilder {
     const double disc = area / std::max<uint32_t>(faces_, 1) * options.max_triangles;
     expected_radius_ = static_cast<float>(std::sqrt(disc / 3.14159265358979));
     if (!(expected_radius_ > 0)) expected_radius_ = 1;
+    if (const char* b = std::getenv("MESHLETS_BONUS")) closing_bonus_ = std::strtof(b, nullptr);
+    if (const char* b = std::getenv("MESHLETS_SEED")) seed_rule_ = std::atoi(b);
   }
 
   absl::Status Grow() {
@@ -163,6 +185,17 @@ class MeshletBuilder {
     const uint32_t max_vertices = options_.max_vertices;
     const float cone_weight = options_.cone_weight;
     while (triangles_[meshlet] < options_.max_triangles) {
+      // Faces that add no vertex are taken at once, without scoring: whatever the order,
+      // the greedy would take them before any face that adds one.
+      if (!free_.empty()) {
+        const uint32_t face = free_.back();
+        free_.pop_back();
+        if (meshlet_of_[face] == kNone) {
+          Add(meshlet, face, sum);
+          ++assigned;
+        }
+        continue;
+      }
       const auto count = static_cast<double>(triangles_[meshlet]);
       const float center[3] = {static_cast<float>(sum[0] / count),
                                static_cast<float>(sum[1] / count),
@@ -172,61 +205,96 @@ class MeshletBuilder {
       const float axis[3] = {static_cast<float>(sum[3] * axis_scale),
                              static_cast<float>(sum[4] * axis_scale),
                              static_cast<float>(sum[5] * axis_scale)};
-      uint32_t best = kNone;
+      size_t best = kNone;
       int best_class = 3;
       float best_score = std::numeric_limits<float>::infinity();
+      // Pass 1: count, per outside vertex, the candidates it would admit (a vertex that
+      // closes several faces at once keeps the border short). Counts are stamped with the
+      // step so that nothing has to be cleared.
+      ++step_;
       size_t kept = 0;
       for (size_t i = 0; i < candidates_.size(); ++i) {
-        const uint32_t c = candidates_[i];
-        if (meshlet_of_[c] != kNone) continue;
-        candidates_[kept++] = c;
-        const uint32_t* corners = &mesh_.indices[3 * size_t{c}];
-        const uint32_t added = static_cast<uint32_t>(local_[corners[0]] == kNotInMeshlet) +
-                               static_cast<uint32_t>(local_[corners[1]] == kNotInMeshlet) +
-                               static_cast<uint32_t>(local_[corners[2]] == kNotInMeshlet);
-        if (vertices_.size() + added > max_vertices) continue;
-        int face_class = 0;
-        if (added > 0) {
-          const bool stranded = live_faces_[c] == 0 || live_vertex_[corners[0]] == 1 ||
-                                live_vertex_[corners[1]] == 1 || live_vertex_[corners[2]] == 1;
-          face_class = stranded ? 1 : 2;
+        const Candidate& candidate = candidates_[i];
+        if (meshlet_of_[candidate.face] != kNone) continue;  // taken from free_
+        candidates_[kept++] = candidate;
+        for (const uint32_t v : candidate.corners) {
+          if (local_[v] != kNotInMeshlet) continue;
+          Closing& closing = closing_[v];
+          if (closing.step != step_) closing = {step_, 0};
+          ++closing.count;
         }
+      }
+      candidates_.resize(kept);
+      for (size_t i = 0; i < candidates_.size(); ++i) {
+        const Candidate& candidate = candidates_[i];
+        uint32_t added = 0;
+        uint32_t closes = 0;
+        bool stranded = live_faces_[candidate.face] == 0;
+        for (const uint32_t v : candidate.corners) {
+          if (local_[v] == kNotInMeshlet) {
+            ++added;
+            closes = std::max(closes, closing_[v].count);
+          }
+          stranded |= live_vertex_[v] == 1;
+        }
+        if (vertices_.size() + added > max_vertices) continue;
+        const int face_class = added == 0 ? 0 : (stranded ? 1 : 2);
         if (face_class > best_class) continue;
-        const FaceFrame& frame = frames_[c];
-        const float dx = frame.centroid[0] - center[0];
-        const float dy = frame.centroid[1] - center[1];
-        const float dz = frame.centroid[2] - center[2];
+        const float dx = candidate.centroid[0] - center[0];
+        const float dy = candidate.centroid[1] - center[1];
+        const float dz = candidate.centroid[2] - center[2];
         const float distance = std::sqrt(dx * dx + dy * dy + dz * dz) / expected_radius_;
-        const float spread =
-            frame.normal[0] * axis[0] + frame.normal[1] * axis[1] + frame.normal[2] * axis[2];
+        const float spread = candidate.normal[0] * axis[0] + candidate.normal[1] * axis[1] +
+                             candidate.normal[2] * axis[2];
         const float cone = std::max(1.0f - spread * cone_weight, 1e-3f);
-        const float score = (1.0f + distance * (1.0f - cone_weight)) * cone;
+        float score = (1.0f + distance * (1.0f - cone_weight)) * cone;
+        if (added == 1) score -= closing_bonus_ * static_cast<float>(closes - 1);
         if (face_class < best_class || score < best_score) {
-          best = c;
+          best = i;
           best_class = face_class;
           best_score = score;
         }
       }
-      candidates_.resize(kept);
       if (best == kNone) break;
-      Add(meshlet, best, sum);
+      const uint32_t face = candidates_[best].face;
+      candidates_[best] = candidates_.back();
+      candidates_.pop_back();
+      Add(meshlet, face, sum);
       ++assigned;
     }
     for (uint32_t v : vertices_) local_[v] = kNotInMeshlet;
-    // The next seed: the most enclosed face left over.
+    for (const uint32_t face : free_) {
+      if (meshlet_of_[face] == kNone) pending_.push_back(face);
+    }
+    free_.clear();
+    // The next seed: the most enclosed face left over (fewest unassigned edge neighbours,
+    // then fewest unassigned faces around its corners).
     uint32_t next = kNone;
-    uint32_t next_live = kNone;
-    for (uint32_t c : candidates_) {
+    uint64_t next_key = std::numeric_limits<uint64_t>::max();
+    for (const Candidate& candidate : candidates_) {
+      const uint32_t c = candidate.face;
       if (meshlet_of_[c] != kNone) continue;
-      if (live_faces_[c] < next_live) {
+      const uint32_t* corners = &mesh_.indices[3 * size_t{c}];
+      const uint64_t around = uint64_t{live_vertex_[corners[0]]} + live_vertex_[corners[1]] +
+                              live_vertex_[corners[2]];
+      const uint64_t key = seed_rule_ == 0 ? (uint64_t{live_faces_[c]} << 40) | around
+                         : seed_rule_ == 1 ? around
+                                           : uint64_t{live_faces_[c]};
+      if (key < next_key) {
         if (next != kNone) pending_.push_back(next);
         next = c;
-        next_live = live_faces_[c];
+        next_key = key;
       } else {
         pending_.push_back(c);
       }
     }
     return next;
+  }
+
+  bool AllInside(uint32_t face) const {
+    const uint32_t* c = &mesh_.indices[3 * size_t{face}];
+    return local_[c[0]] != kNotInMeshlet && local_[c[1]] != kNotInMeshlet &&
+           local_[c[2]] != kNotInMeshlet;
   }
 
   void Add(uint32_t meshlet, uint32_t face, std::array<double, 6>& sum) {
@@ -244,6 +312,12 @@ class MeshletBuilder {
       if (local_[v] == kNotInMeshlet) {
         local_[v] = static_cast<uint8_t>(vertices_.size());
         vertices_.push_back(v);
+        // Candidates around the new vertex may now add none.
+        for (const uint32_t g : around_.faces_around(v)) {
+          if (candidate_stamp_[g] == meshlet && meshlet_of_[g] == kNone && AllInside(g)) {
+            free_.push_back(g);
+          }
+        }
       }
       --live_vertex_[v];
     }
@@ -251,7 +325,13 @@ class MeshletBuilder {
       --live_faces_[g];
       if (meshlet_of_[g] == kNone && candidate_stamp_[g] != meshlet) {
         candidate_stamp_[g] = meshlet;
-        candidates_.push_back(g);
+        if (AllInside(g)) {
+          free_.push_back(g);
+          continue;
+        }
+        const uint32_t* c = &mesh_.indices[3 * size_t{g}];
+        const FaceFrame& frame = frames_[g];
+        candidates_.push_back({g, {c[0], c[1], c[2]}, frame.centroid, frame.normal});
       }
     }
     const FaceFrame& frame = frames_[face];
@@ -390,6 +470,7 @@ class MeshletBuilder {
  private:
   const TriangleMesh& mesh_;
   const MeshletOptions& options_;
+  const VertexFaceTable& around_;
   const EdgeNeighbours& neighbours_;
   uint32_t faces_;
   float expected_radius_ = 1;
@@ -401,10 +482,26 @@ class MeshletBuilder {
   std::vector<uint32_t> live_vertex_;  // unassigned faces around each vertex
   std::vector<uint8_t> local_;         // a vertex's index in the meshlet being built
   std::vector<uint32_t> candidate_stamp_;
+  struct Closing {
+    uint32_t step = 0;
+    uint32_t count = 0;
+  };
+  std::vector<Closing> closing_;  // scratch: candidates each outside vertex admits
+  uint32_t step_ = 0;
+  float closing_bonus_ = 1;
+  int seed_rule_ = 0;
   std::vector<FaceFrame> frames_;
   std::vector<uint32_t> vertices_;    // of the meshlet being built
-  std::vector<uint32_t> candidates_;  // of the meshlet being built
+  // A face across an edge of the meshlet being built, with what scoring reads.
+  struct Candidate {
+    uint32_t face;
+    std::array<uint32_t, 3> corners;
+    std::array<float, 3> centroid;
+    std::array<float, 3> normal;
+  };
+  std::vector<Candidate> candidates_;  // of the meshlet being built; none assigned
   std::vector<uint32_t> pending_;     // left over by finished meshlets
+  std::vector<uint32_t> free_;        // candidates that add no vertex (may repeat)
 };
 
 absl::Status CheckMeshletInput(const TriangleMesh& mesh) {
@@ -462,7 +559,7 @@ absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& mesh,
   MLCLUST_RETURN_IF_ERROR(ValidateMeshletOptions(options));
   MLCLUST_RETURN_IF_ERROR(CheckMeshletInput(mesh));
   const VertexFaceTable around = BuildVertexFaceTable(mesh);
-  absl::StatusOr<EdgeNeighbours> neighbours = BuildEdgeNeighbours(mesh, around, options.cancel);
+  absl::StatusOr<EdgeNeighbours> neighbours = BuildEdgeNeighbours(mesh, options.cancel);
   if (!neighbours.ok()) return neighbours.status();
   MeshletBuilder builder(mesh, options, around, *neighbours);
   MLCLUST_RETURN_IF_ERROR(builder.Grow());
