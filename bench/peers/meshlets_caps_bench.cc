@@ -329,7 +329,7 @@ int Run(int argc, char** argv) {
           row);
       if (!ok) return 1;
       const absl::Status layout =
-          CheckMeshletLayout(prepared.mesh, result, max_vertices, max_triangles);
+          CheckMeshletLayout(result, max_vertices, max_triangles, &prepared.mesh);
       if (!layout.ok()) {
         std::fprintf(stderr, "ours: %s\n", layout.ToString().c_str());
         return 1;

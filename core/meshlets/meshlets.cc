@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <span>
@@ -141,8 +140,6 @@ class MeshletBuilder {
     const double disc = area / std::max<uint32_t>(faces_, 1) * options.max_triangles;
     expected_radius_ = static_cast<float>(std::sqrt(disc / 3.14159265358979));
     if (!(expected_radius_ > 0)) expected_radius_ = 1;
-    if (const char* b = std::getenv("MESHLETS_BONUS")) closing_bonus_ = std::strtof(b, nullptr);
-    if (const char* b = std::getenv("MESHLETS_SEED")) seed_rule_ = std::atoi(b);
   }
 
   absl::Status Grow() {
@@ -248,7 +245,8 @@ class MeshletBuilder {
                              candidate.normal[2] * axis[2];
         const float cone = std::max(1.0f - spread * cone_weight, 1e-3f);
         float score = (1.0f + distance * (1.0f - cone_weight)) * cone;
-        if (added == 1) score -= closing_bonus_ * static_cast<float>(closes - 1);
+        // Each further face the new vertex admits counts as one unit of distance.
+        if (added == 1) score -= static_cast<float>(closes - 1);
         if (face_class < best_class || score < best_score) {
           best = i;
           best_class = face_class;
@@ -277,9 +275,7 @@ class MeshletBuilder {
       const uint32_t* corners = &mesh_.indices[3 * size_t{c}];
       const uint64_t around = uint64_t{live_vertex_[corners[0]]} + live_vertex_[corners[1]] +
                               live_vertex_[corners[2]];
-      const uint64_t key = seed_rule_ == 0 ? (uint64_t{live_faces_[c]} << 40) | around
-                         : seed_rule_ == 1 ? around
-                                           : uint64_t{live_faces_[c]};
+      const uint64_t key = (uint64_t{live_faces_[c]} << 40) | around;
       if (key < next_key) {
         if (next != kNone) pending_.push_back(next);
         next = c;
@@ -488,8 +484,6 @@ class MeshletBuilder {
   };
   std::vector<Closing> closing_;  // scratch: candidates each outside vertex admits
   uint32_t step_ = 0;
-  float closing_bonus_ = 1;
-  int seed_rule_ = 0;
   std::vector<FaceFrame> frames_;
   std::vector<uint32_t> vertices_;    // of the meshlet being built
   // A face across an edge of the meshlet being built, with what scoring reads.
@@ -503,6 +497,39 @@ class MeshletBuilder {
   std::vector<uint32_t> pending_;     // left over by finished meshlets
   std::vector<uint32_t> free_;        // candidates that add no vertex (may repeat)
 };
+
+// meshopt_computeMeshletBounds skips zero-area triangles and returns all zeros for a
+// meshlet of nothing else (a cutoff of 0 with a zero axis would cull it from every
+// side): a sphere around its vertices' box centre, and a cone that never culls.
+void DegenerateBounds(const TriangleMesh& mesh, const MeshletResult& result,
+                      const Meshlet& meshlet, MeshletBounds& out) {
+  std::array<float, 3> low = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                              std::numeric_limits<float>::max()};
+  std::array<float, 3> high = {-low[0], -low[1], -low[2]};
+  for (uint32_t i = 0; i < meshlet.vertex_count; ++i) {
+    const float* p = &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
+    for (int axis = 0; axis < 3; ++axis) {
+      low[axis] = std::min(low[axis], p[axis]);
+      high[axis] = std::max(high[axis], p[axis]);
+    }
+  }
+  double radius = 0;
+  for (int axis = 0; axis < 3; ++axis) out.center[axis] = 0.5f * (low[axis] + high[axis]);
+  for (uint32_t i = 0; i < meshlet.vertex_count; ++i) {
+    const float* p = &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
+    double d2 = 0;
+    for (int axis = 0; axis < 3; ++axis) d2 += std::pow(p[axis] - out.center[axis], 2);
+    radius = std::max(radius, std::sqrt(d2));
+  }
+  out.radius = static_cast<float>(radius);
+  std::memcpy(out.cone_apex, out.center, sizeof(out.cone_apex));
+  out.cone_axis[0] = out.cone_axis[1] = 0;
+  out.cone_axis[2] = 1;
+  out.cone_cutoff = 1;
+  out.cone_axis_s8[0] = out.cone_axis_s8[1] = 0;
+  out.cone_axis_s8[2] = 127;
+  out.cone_cutoff_s8 = 127;
+}
 
 absl::Status CheckMeshletInput(const TriangleMesh& mesh) {
   if (mesh.positions.size() % 3 != 0) {
@@ -585,14 +612,15 @@ absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& mesh,
       out.cone_cutoff = b.cone_cutoff;
       for (int axis = 0; axis < 3; ++axis) out.cone_axis_s8[axis] = b.cone_axis_s8[axis];
       out.cone_cutoff_s8 = b.cone_cutoff_s8;
+      if (b.radius == 0) DegenerateBounds(mesh, result, meshlet, out);
     }
   }
   return result;
 }
 
-absl::Status CheckMeshletLayout(const TriangleMesh& mesh, const MeshletResult& meshlets,
-                                uint32_t max_vertices, uint32_t max_triangles) {
-  const size_t faces = mesh.num_faces();
+absl::Status CheckMeshletLayout(const MeshletResult& meshlets, uint32_t max_vertices,
+                                uint32_t max_triangles, const TriangleMesh* mesh) {
+  const size_t faces = mesh != nullptr ? mesh->num_faces() : meshlets.face_meshlet.size();
   if (meshlets.face_meshlet.size() != faces || meshlets.triangle_faces.size() != faces) {
     return absl::InvalidArgumentError(
         absl::StrCat("meshlets: ", meshlets.face_meshlet.size(), " face labels and ",
@@ -639,8 +667,8 @@ absl::Status CheckMeshletLayout(const TriangleMesh& mesh, const MeshletResult& m
           return fail(absl::StrCat("triangle ", t, " local index ", local, " >= vertex count ",
                                    meshlet.vertex_count));
         }
-        if (meshlets.meshlet_vertices[meshlet.vertex_offset + local] !=
-            mesh.indices[3 * size_t{face} + corner]) {
+        if (mesh != nullptr && meshlets.meshlet_vertices[meshlet.vertex_offset + local] !=
+                                   mesh->indices[3 * size_t{face} + corner]) {
           return fail(absl::StrCat("triangle ", t, " corner ", corner, " is not face ", face,
                                    "'s vertex"));
         }

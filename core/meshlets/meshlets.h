@@ -111,11 +111,11 @@ absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& mesh,
 // The checks a consumer would make, for tests and for files read back: offsets and counts
 // within the arrays and contiguous in meshlet order, 4-byte aligned triangle runs, every
 // local index below its meshlet's vertex count, both caps, each face exactly once
-// (triangle_faces and face_meshlet agree), each triangle's vertices those of its face,
-// and bounds (when present) one per meshlet. OK, or INVALID_ARGUMENT naming the first
-// meshlet that breaks one.
-absl::Status CheckMeshletLayout(const TriangleMesh& mesh, const MeshletResult& meshlets,
-                                uint32_t max_vertices, uint32_t max_triangles);
+// (triangle_faces and face_meshlet agree, F = face_meshlet's size), bounds (when present)
+// one per meshlet; with `mesh`, also F = its face count and each triangle's corners those
+// of its face, in order. OK, or INVALID_ARGUMENT naming the first meshlet that breaks one.
+absl::Status CheckMeshletLayout(const MeshletResult& meshlets, uint32_t max_vertices,
+                                uint32_t max_triangles, const TriangleMesh* mesh = nullptr);
 
 }  // namespace mlclust
 
