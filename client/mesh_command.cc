@@ -12,6 +12,7 @@
 #include "absl/strings/str_join.h"
 #include "client/commands.h"
 #include "client/job_cli.h"
+#include "client/meshlets_command.h"
 #include "client/polygons.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/planar_merging.h"
@@ -102,6 +103,7 @@ absl::Status WritePreview(const std::string& path, const v1::Preview& preview) {
 }
 
 int RunMesh(const Arguments& args) {
+  if (args.has("meshlets")) return RunMeshMeshlets(args);  // client/meshlets_command.h
   if (args.positional().size() != 1) {
     return Fail(absl::InvalidArgumentError("mesh: give exactly one INPUT file"));
   }
@@ -440,7 +442,7 @@ int RunMesh(const Arguments& args) {
 }  // namespace
 
 Command MeshCommand() {
-  const std::vector<Flag> own = {
+  std::vector<Flag> own = {
       EnergyFlag(InputKind::kMesh, "the algorithm's first below", /*wire_only=*/true),
       {"clusters", "K",
        "the level written by --labels, --ply and --coarse (for single-level algorithms the "
@@ -500,12 +502,15 @@ Command MeshCommand() {
       {"preview-view", "AZ,EL",
        "the camera in degrees (default 35,25: from the right of +z, above; 215,25 looks from "
        "the other side)"}};
+  for (Flag& flag : MeshletFlags()) own.push_back(std::move(flag));
   return {{"mesh",
            "INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]\n"
            "                     [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]\n"
            "                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]\n"
            "                     [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy "
-           "options]",
+           "options]\n"
+           "  mlclust mesh INPUT --meshlets FILE [--max-vertices 64] [--max-triangles 124] "
+           "[--labels FILE]",
            "Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and "
            "receives every level. Without --server the server runs inside this process.",
            JobFlagGroups(InputKind::kMesh, own)},

@@ -36,6 +36,8 @@ packages=(
   python3-yaml
   # the CLI's option parser (client/cli.cc; header only)
   libcli11-dev
+  # meshlet bounds and normal cones (core/meshlets: meshopt_computeMeshletBounds; 0.18)
+  libmeshoptimizer-dev
 )
 
 if [ "${1:-}" = "--deploy" ]; then
@@ -49,8 +51,9 @@ if [ "${1:-}" = "--bench" ]; then
   # the Python peers run under Debian's /usr/bin/python3)
   packages+=(libcgal-dev libcgal-demo python3-numpy python3-matplotlib
              python3-sklearn python3-fastcluster python3-faiss)
-  # the meshlet peers of bench/peers/meshlets_bench.cc: meshopt_buildMeshlets and METIS k-way
-  packages+=(libmeshoptimizer-dev libmetis-dev)
+  # the meshlet peers of bench/peers/meshlets_bench.cc and meshlets_caps_bench.cc:
+  # meshopt_buildMeshlets (libmeshoptimizer-dev, above) and METIS k-way
+  packages+=(libmetis-dev)
 fi
 
 # The Node example and its test (examples/node, tests/e2e/node_client_test.sh): Debian 12's

@@ -32,8 +32,8 @@
 
 #include "absl/strings/str_split.h"
 #include "bench/bench_util.h"
-#include "core/meshlets/meshlets.h"
 #include "core/mesh/prepared_mesh.h"
+#include "core/meshlets/meshlets.h"
 
 #ifdef MLCLUST_HAVE_MESHOPTIMIZER
 #include <meshoptimizer.h>
@@ -134,8 +134,11 @@ void PrintRow(const std::string& mesh_name, const PreparedMesh& prepared, const 
       ++by_triangles[std::min<uint32_t>(triangles[m] / 10, 13)];
       if (vertices[m] == max_vertices) ++full_vertices[std::min<uint32_t>(triangles[m] / 10, 13)];
     }
-    std::fprintf(stderr, "%s %s: triangles/10 histogram (of which at the vertex cap):", mesh_name.c_str(), row.method.c_str());
-    for (int b = 0; b < 14; ++b) std::fprintf(stderr, " %d:%u(%u)", b, by_triangles[b], full_vertices[b]);
+    std::fprintf(stderr,
+                 "%s %s: triangles/10 histogram (of which at the vertex cap):", mesh_name.c_str(),
+                 row.method.c_str());
+    for (int b = 0; b < 14; ++b)
+      std::fprintf(stderr, " %d:%u(%u)", b, by_triangles[b], full_vertices[b]);
     std::fprintf(stderr, "\n");
   }
   double radius = 0, cutoff = 0;
@@ -268,8 +271,7 @@ int Run(int argc, char** argv) {
   const auto max_vertices = args.Get<uint32_t>("max-vertices", 64);
   const auto max_triangles = args.Get<uint32_t>("max-triangles", 124);
   const std::vector<double> cone_weights = args.GetList<double>("cone-weights", "0,0.25");
-  const std::vector<double> ours_cone_weights =
-      args.GetList<double>("ours-cone-weights", "0,0.25");
+  const std::vector<double> ours_cone_weights = args.GetList<double>("ours-cone-weights", "0,0.25");
   const auto merge_below = args.Get<uint32_t>("merge-below", 0);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;

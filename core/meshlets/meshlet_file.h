@@ -63,8 +63,7 @@ absl::StatusOr<MeshletFile> DecodeMeshletFile(const std::string& bytes);
 
 // Writes EncodeMeshletFile's bytes to `path`; UNAVAILABLE naming the path if it cannot.
 absl::Status WriteMeshletFile(const std::string& path, const MeshletResult& meshlets,
-                              uint32_t vertex_count, uint32_t max_vertices,
-                              uint32_t max_triangles);
+                              uint32_t vertex_count, uint32_t max_vertices, uint32_t max_triangles);
 
 }  // namespace mlclust
 

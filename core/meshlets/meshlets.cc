@@ -81,7 +81,8 @@ absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const TriangleMesh& mesh,
         const Corner& corner = corners[i];
         if (corner.face == f || (corner.next != other && corner.previous != other)) continue;
         bool known = false;
-        for (size_t j = first; j < result.faces.size(); ++j) known |= result.faces[j] == corner.face;
+        for (size_t j = first; j < result.faces.size(); ++j)
+          known |= result.faces[j] == corner.face;
         if (!known) result.faces.push_back(corner.face);
       }
     }
@@ -273,8 +274,8 @@ class MeshletBuilder {
       const uint32_t c = candidate.face;
       if (meshlet_of_[c] != kNone) continue;
       const uint32_t* corners = &mesh_.indices[3 * size_t{c}];
-      const uint64_t around = uint64_t{live_vertex_[corners[0]]} + live_vertex_[corners[1]] +
-                              live_vertex_[corners[2]];
+      const uint64_t around =
+          uint64_t{live_vertex_[corners[0]]} + live_vertex_[corners[1]] + live_vertex_[corners[2]];
       const uint64_t key = (uint64_t{live_faces_[c]} << 40) | around;
       if (key < next_key) {
         if (next != kNone) pending_.push_back(next);
@@ -485,7 +486,7 @@ class MeshletBuilder {
   std::vector<Closing> closing_;  // scratch: candidates each outside vertex admits
   uint32_t step_ = 0;
   std::vector<FaceFrame> frames_;
-  std::vector<uint32_t> vertices_;    // of the meshlet being built
+  std::vector<uint32_t> vertices_;  // of the meshlet being built
   // A face across an edge of the meshlet being built, with what scoring reads.
   struct Candidate {
     uint32_t face;
@@ -494,20 +495,21 @@ class MeshletBuilder {
     std::array<float, 3> normal;
   };
   std::vector<Candidate> candidates_;  // of the meshlet being built; none assigned
-  std::vector<uint32_t> pending_;     // left over by finished meshlets
-  std::vector<uint32_t> free_;        // candidates that add no vertex (may repeat)
+  std::vector<uint32_t> pending_;      // left over by finished meshlets
+  std::vector<uint32_t> free_;         // candidates that add no vertex (may repeat)
 };
 
 // meshopt_computeMeshletBounds skips zero-area triangles and returns all zeros for a
 // meshlet of nothing else (a cutoff of 0 with a zero axis would cull it from every
 // side): a sphere around its vertices' box centre, and a cone that never culls.
-void DegenerateBounds(const TriangleMesh& mesh, const MeshletResult& result,
-                      const Meshlet& meshlet, MeshletBounds& out) {
+void DegenerateBounds(const TriangleMesh& mesh, const MeshletResult& result, const Meshlet& meshlet,
+                      MeshletBounds& out) {
   std::array<float, 3> low = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
                               std::numeric_limits<float>::max()};
   std::array<float, 3> high = {-low[0], -low[1], -low[2]};
   for (uint32_t i = 0; i < meshlet.vertex_count; ++i) {
-    const float* p = &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
+    const float* p =
+        &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
     for (int axis = 0; axis < 3; ++axis) {
       low[axis] = std::min(low[axis], p[axis]);
       high[axis] = std::max(high[axis], p[axis]);
@@ -516,7 +518,8 @@ void DegenerateBounds(const TriangleMesh& mesh, const MeshletResult& result,
   double radius = 0;
   for (int axis = 0; axis < 3; ++axis) out.center[axis] = 0.5f * (low[axis] + high[axis]);
   for (uint32_t i = 0; i < meshlet.vertex_count; ++i) {
-    const float* p = &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
+    const float* p =
+        &mesh.positions[3 * size_t{result.meshlet_vertices[meshlet.vertex_offset + i]}];
     double d2 = 0;
     for (int axis = 0; axis < 3; ++axis) d2 += std::pow(p[axis] - out.center[axis], 2);
     radius = std::max(radius, std::sqrt(d2));
@@ -537,14 +540,14 @@ absl::Status CheckMeshletInput(const TriangleMesh& mesh) {
                                                    " position floats, not whole xyz triples"));
   }
   if (mesh.indices.size() % 3 != 0) {
-    return absl::InvalidArgumentError(absl::StrCat("meshlets: ", mesh.indices.size(),
-                                                   " indices, not whole triangles"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("meshlets: ", mesh.indices.size(), " indices, not whole triangles"));
   }
   if (mesh.indices.empty()) return absl::InvalidArgumentError("meshlets: the mesh has no face");
   if (mesh.num_faces() > kMaxMeshElements || mesh.num_vertices() > kMaxMeshElements) {
     return absl::InvalidArgumentError(absl::StrCat("meshlets: ", mesh.num_faces(), " faces and ",
-                                                   mesh.num_vertices(),
-                                                   " vertices; at most ", kMaxMeshElements));
+                                                   mesh.num_vertices(), " vertices; at most ",
+                                                   kMaxMeshElements));
   }
   MLCLUST_RETURN_IF_ERROR(CheckVertexIndices(mesh));
   for (size_t i = 0; i < mesh.positions.size(); ++i) {
@@ -649,8 +652,7 @@ absl::Status CheckMeshletLayout(const MeshletResult& meshlets, uint32_t max_vert
     vertex_end += meshlet.vertex_count;
     byte_end += (3 * size_t{meshlet.triangle_count} + 3) & ~size_t{3};
     if (vertex_end > meshlets.meshlet_vertices.size() ||
-        byte_end > meshlets.meshlet_triangles.size() ||
-        triangle + meshlet.triangle_count > faces) {
+        byte_end > meshlets.meshlet_triangles.size() || triangle + meshlet.triangle_count > faces) {
       return fail("runs past the end of the arrays");
     }
     for (uint32_t t = 0; t < meshlet.triangle_count; ++t, ++triangle) {
@@ -669,8 +671,8 @@ absl::Status CheckMeshletLayout(const MeshletResult& meshlets, uint32_t max_vert
         }
         if (mesh != nullptr && meshlets.meshlet_vertices[meshlet.vertex_offset + local] !=
                                    mesh->indices[3 * size_t{face} + corner]) {
-          return fail(absl::StrCat("triangle ", t, " corner ", corner, " is not face ", face,
-                                   "'s vertex"));
+          return fail(
+              absl::StrCat("triangle ", t, " corner ", corner, " is not face ", face, "'s vertex"));
         }
       }
     }

@@ -55,8 +55,8 @@ uint32_t DisconnectedMeshlets(const TriangleMesh& mesh, const std::vector<uint32
 }
 
 // Builds with these caps and checks everything a consumer relies on; returns the result.
-MeshletResult BuildAndCheck(const TriangleMesh& mesh, uint32_t max_vertices,
-                            uint32_t max_triangles, float cone_weight = 0) {
+MeshletResult BuildAndCheck(const TriangleMesh& mesh, uint32_t max_vertices, uint32_t max_triangles,
+                            float cone_weight = 0) {
   MeshletOptions options;
   options.max_vertices = max_vertices;
   options.max_triangles = max_triangles;
@@ -95,9 +95,8 @@ TriangleMesh Fan(uint32_t spokes) {
   mesh.positions = {0, 0, 0};
   for (uint32_t i = 0; i < spokes; ++i) {
     const double angle = 2 * 3.14159265358979 * i / spokes;
-    mesh.positions.insert(mesh.positions.end(),
-                          {static_cast<float>(std::cos(angle)), static_cast<float>(std::sin(angle)),
-                           0.0f});
+    mesh.positions.insert(mesh.positions.end(), {static_cast<float>(std::cos(angle)),
+                                                 static_cast<float>(std::sin(angle)), 0.0f});
   }
   for (uint32_t i = 0; i < spokes; ++i) {
     mesh.indices.insert(mesh.indices.end(), {0, 1 + i, 1 + (i + 1) % spokes});
@@ -294,8 +293,8 @@ TEST(BuildMeshlets, WithoutBounds) {
 
 TEST(BuildMeshlets, RejectsBadOptions) {
   const TriangleMesh mesh = testing::TwoTriangles();
-  for (const auto& [v, t] : std::vector<std::pair<uint32_t, uint32_t>>{
-           {2, 124}, {256, 124}, {64, 0}, {64, 513}}) {
+  for (const auto& [v, t] :
+       std::vector<std::pair<uint32_t, uint32_t>>{{2, 124}, {256, 124}, {64, 0}, {64, 513}}) {
     MeshletOptions options;
     options.max_vertices = v;
     options.max_triangles = t;
