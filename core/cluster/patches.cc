@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
+#include "core/base/morton.h"
 #include "core/base/status_macros.h"
 #include "core/cluster/boundary_based.h"
 #include "core/cluster/partition.h"
@@ -14,16 +15,6 @@
 
 namespace mlclust {
 namespace {
-
-// The 10 low bits of v spread to every third bit (bit i to bit 3i).
-uint32_t SpreadBits(uint32_t v) {
-  v &= 0x3ffu;
-  v = (v | (v << 16)) & 0x030000ffu;
-  v = (v | (v << 8)) & 0x0300f00fu;
-  v = (v | (v << 4)) & 0x030c30c3u;
-  v = (v | (v << 2)) & 0x09249249u;
-  return v;
-}
 
 // Morton code of every face's centroid in the bounding box of the centroids: 10 bits per
 // axis, interleaved (x lowest). The box's longest side sets one scale for all three axes,
@@ -43,8 +34,7 @@ std::vector<uint32_t> MortonCodes(const FaceMeasures& measures) {
   std::vector<uint32_t> codes(n);
   for (size_t f = 0; f < n; ++f) {
     const Vec3& c = measures.centroid[f];
-    codes[f] = SpreadBits(cell(c.x, low.x)) | (SpreadBits(cell(c.y, low.y)) << 1) |
-               (SpreadBits(cell(c.z, low.z)) << 2);
+    codes[f] = MortonCode(cell(c.x, low.x), cell(c.y, low.y), cell(c.z, low.z));
   }
   return codes;
 }

@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
+#include "core/base/morton.h"
 #include "core/base/status_macros.h"
 
 namespace mlclust {
@@ -22,76 +23,181 @@ constexpr uint8_t kNotInMeshlet = 0xff;
 // Faces between two looks at the cancel flag.
 constexpr uint32_t kCancelStride = 4096;
 
-// The faces across each face's edges, in compressed rows; an edge shared by k faces gives
-// each of them the other k - 1 (a non-manifold edge connects all its faces). Edges of a
-// degenerate face whose two ends are one vertex connect nothing.
-struct EdgeNeighbours {
-  std::vector<uint32_t> offset;  // faces + 1
-  std::vector<uint32_t> faces;
-
-  std::span<const uint32_t> of(uint32_t face) const {
-    return {faces.data() + offset[face], faces.data() + offset[face + 1]};
-  }
+// The mesh with its faces in Morton order of their centroids (10 bits per axis of the
+// vertices' box) and its vertices in order of first use by those faces. Growth visits
+// faces near each other in space; in this order they are near each other in memory too
+// (scanned meshes often list faces in no spatial order: bunny00's faces span 15,000
+// vertex ids at the median), so every per-face and per-vertex array is read in runs.
+struct SpatialOrder {
+  TriangleMesh mesh;
+  std::vector<uint32_t> input_face;    // of each face of `mesh`
+  std::vector<uint32_t> input_vertex;  // of each vertex of `mesh`
 };
 
-// Half-edge matching through the corners around each vertex: for every face at vertex v,
-// the face and its two other corners (the next and the previous one), so that the faces on
-// an edge (v, w) are found in v's rows without reading the index buffer at random.
-absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const TriangleMesh& mesh,
-                                                   const std::atomic<bool>* cancel) {
+SpatialOrder OrderSpatially(const TriangleMesh& input) {
+  const auto faces = static_cast<uint32_t>(input.num_faces());
+  const size_t vertices = input.num_vertices();
+  std::array<float, 3> low = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                              std::numeric_limits<float>::max()};
+  std::array<float, 3> high = {-low[0], -low[1], -low[2]};
+  for (size_t v = 0; v < vertices; ++v) {
+    for (int axis = 0; axis < 3; ++axis) {
+      low[axis] = std::min(low[axis], input.positions[3 * v + axis]);
+      high[axis] = std::max(high[axis], input.positions[3 * v + axis]);
+    }
+  }
+  const float extent = std::max({high[0] - low[0], high[1] - low[1], high[2] - low[2]});
+  // Three times the centroid: the corners' sum, scaled once.
+  const float scale = extent > 0 ? 1023.0f / (3.0f * extent) : 0.0f;
+  std::vector<uint32_t> codes(faces);
+  for (uint32_t f = 0; f < faces; ++f) {
+    uint32_t cell[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      float sum = -3.0f * low[axis];
+      for (int corner = 0; corner < 3; ++corner) {
+        sum += input.positions[3 * size_t{input.indices[3 * size_t{f} + corner]} + axis];
+      }
+      cell[axis] = static_cast<uint32_t>(std::clamp(sum * scale, 0.0f, 1023.0f));
+    }
+    codes[f] = MortonCode(cell[0], cell[1], cell[2]);
+  }
+  // Two stable 15-bit counting passes over the 30-bit codes (ties keep the input order).
+  SpatialOrder order;
+  order.input_face.resize(faces);
+  std::vector<uint32_t> pass(faces);
+  for (uint32_t f = 0; f < faces; ++f) pass[f] = f;
+  constexpr uint32_t kBits = 15;
+  std::vector<uint32_t> start((1u << kBits) + 1);
+  for (int shift : {0, static_cast<int>(kBits)}) {
+    std::fill(start.begin(), start.end(), 0);
+    for (uint32_t f : pass) ++start[((codes[f] >> shift) & ((1u << kBits) - 1)) + 1];
+    for (size_t b = 0; b + 1 < start.size(); ++b) start[b + 1] += start[b];
+    for (uint32_t f : pass)
+      order.input_face[start[(codes[f] >> shift) & ((1u << kBits) - 1)]++] = f;
+    pass.swap(order.input_face);
+  }
+  order.input_face.swap(pass);
+  std::vector<uint32_t> renumber(vertices, kNone);
+  order.mesh.indices.resize(3 * size_t{faces});
+  order.input_vertex.reserve(vertices);
+  for (uint32_t f = 0; f < faces; ++f) {
+    const uint32_t* corners = &input.indices[3 * size_t{order.input_face[f]}];
+    for (int corner = 0; corner < 3; ++corner) {
+      uint32_t& id = renumber[corners[corner]];
+      if (id == kNone) {
+        id = static_cast<uint32_t>(order.input_vertex.size());
+        order.input_vertex.push_back(corners[corner]);
+      }
+      order.mesh.indices[3 * size_t{f} + corner] = id;
+    }
+  }
+  order.mesh.positions.resize(3 * order.input_vertex.size());
+  for (size_t v = 0; v < order.input_vertex.size(); ++v) {
+    for (int axis = 0; axis < 3; ++axis) {
+      order.mesh.positions[3 * v + axis] =
+          input.positions[3 * size_t{order.input_vertex[v]} + axis];
+    }
+  }
+  return order;
+}
+
+// The corners around each vertex, in compressed rows (a counting sort by vertex): for each
+// face at vertex v, the face, which of its corners v is, and its two other corners. The
+// faces on an edge (v, w) are then found in v's row alone, without reading the index buffer
+// at random; the row also gives the faces around v.
+struct CornerTable {
+  struct Corner {
+    uint32_t face;
+    uint32_t next;      // the face's corner after v (the edge v -> next is this corner's)
+    uint32_t previous;  // the face's corner before v
+    uint32_t corner;    // v is corner 0, 1 or 2 of the face
+  };
+  std::vector<uint32_t> start;  // vertices + 1
+  std::vector<Corner> corners;
+
+  std::span<const Corner> around(uint32_t vertex) const {
+    return {corners.data() + start[vertex], corners.data() + start[vertex + 1]};
+  }
+  uint32_t faces_around(uint32_t vertex) const { return start[vertex + 1] - start[vertex]; }
+};
+
+CornerTable BuildCornerTable(const TriangleMesh& mesh) {
   const auto faces = static_cast<uint32_t>(mesh.num_faces());
   const size_t vertices = mesh.num_vertices();
   const uint32_t* indices = mesh.indices.data();
-  struct Corner {
-    uint32_t face, next, previous;
-  };
-  std::vector<uint32_t> start(vertices + 1, 0);
-  for (size_t i = 0; i < 3 * size_t{faces}; ++i) ++start[indices[i] + 1];
-  for (size_t v = 0; v < vertices; ++v) start[v + 1] += start[v];
-  std::vector<Corner> corners(3 * size_t{faces});
-  {
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (uint32_t f = 0; f < faces; ++f) {
-      const uint32_t* c = indices + 3 * size_t{f};
-      corners[fill[c[0]]++] = {f, c[1], c[2]};
-      corners[fill[c[1]]++] = {f, c[2], c[0]};
-      corners[fill[c[2]]++] = {f, c[0], c[1]};
-    }
-  }
-  EdgeNeighbours result;
-  result.offset.resize(size_t{faces} + 1);
-  result.faces.reserve(3 * size_t{faces});
+  CornerTable table;
+  table.start.assign(vertices + 1, 0);
+  for (size_t i = 0; i < 3 * size_t{faces}; ++i) ++table.start[indices[i] + 1];
+  for (size_t v = 0; v < vertices; ++v) table.start[v + 1] += table.start[v];
+  table.corners.resize(3 * size_t{faces});
+  std::vector<uint32_t> fill(table.start.begin(), table.start.end() - 1);
   for (uint32_t f = 0; f < faces; ++f) {
-    if (f % kCancelStride == 0) {
-      if (IsCancelled(cancel)) return absl::CancelledError("cancelled during meshlet adjacency");
-    }
-    const auto first = static_cast<uint32_t>(result.faces.size());
-    result.offset[f] = first;
     const uint32_t* c = indices + 3 * size_t{f};
-    for (int edge = 0; edge < 3; ++edge) {
-      const uint32_t a = c[edge];
-      const uint32_t b = c[(edge + 1) % 3];
-      if (a == b) continue;
-      // Walk the end with fewer faces: a fan of 1,000 faces around one vertex costs each
-      // spoke its other end's handful, not the hub's thousand.
-      const bool walk_a = start[a + 1] - start[a] <= start[b + 1] - start[b];
-      const uint32_t walk = walk_a ? a : b;
-      const uint32_t other = walk_a ? b : a;
-      for (uint32_t i = start[walk]; i < start[walk + 1]; ++i) {
-        const Corner& corner = corners[i];
-        if (corner.face == f || (corner.next != other && corner.previous != other)) continue;
-        bool known = false;
-        for (size_t j = first; j < result.faces.size(); ++j)
-          known |= result.faces[j] == corner.face;
-        if (!known) result.faces.push_back(corner.face);
+    table.corners[fill[c[0]]++] = {f, c[1], c[2], 0};
+    table.corners[fill[c[1]]++] = {f, c[2], c[0], 1};
+    table.corners[fill[c[2]]++] = {f, c[0], c[1], 2};
+  }
+  return table;
+}
+
+// The faces across each face's edges, in compressed rows over half-edges: the faces across
+// edge k of face f (corner k to corner k + 1) are faces[offset[3f + k] .. offset[3f + k + 1]),
+// so a face's neighbours are one run from offset[3f] to offset[3f + 3]. An edge shared by n
+// faces gives each of them the other n - 1 (a non-manifold edge connects all its faces; a
+// face may appear twice when two faces share two edges). Edges of a degenerate face whose
+// two ends are one vertex connect nothing.
+struct EdgeNeighbours {
+  std::vector<uint32_t> offset;  // 3 faces + 1
+  std::vector<uint32_t> faces;
+
+  std::span<const uint32_t> of(uint32_t face) const {
+    return {faces.data() + offset[3 * size_t{face}], faces.data() + offset[3 * size_t{face} + 3]};
+  }
+};
+
+// Every half-edge v -> w is matched in v's row of the corner table: the other faces at v
+// that have w as their next or previous corner. Two passes over the rows (count, fill);
+// each row writes only its own half-edges' runs.
+absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const CornerTable& table, uint32_t faces,
+                                                   const std::atomic<bool>* cancel) {
+  using Corner = CornerTable::Corner;
+  const auto vertices = static_cast<uint32_t>(table.start.size() - 1);
+  EdgeNeighbours result;
+  result.offset.assign(3 * size_t{faces} + 1, 0);
+  auto for_each_partner = [&](uint32_t v, auto&& visit) {
+    const std::span<const Corner> ring = table.around(v);
+    for (const Corner& corner : ring) {
+      if (corner.next == v) continue;  // degenerate edge
+      for (const Corner& other : ring) {
+        if (other.face != corner.face &&
+            (other.previous == corner.next || other.next == corner.next)) {
+          visit(corner, other.face);
+        }
       }
     }
+  };
+  for (uint32_t v = 0; v < vertices; ++v) {
+    if (v % kCancelStride == 0 && IsCancelled(cancel)) {
+      return absl::CancelledError("cancelled during meshlet adjacency");
+    }
+    for_each_partner(v, [&](const Corner& corner, uint32_t /*face*/) {
+      ++result.offset[3 * size_t{corner.face} + corner.corner + 1];
+    });
   }
-  result.offset[faces] = static_cast<uint32_t>(result.faces.size());
+  for (size_t i = 0; i < 3 * size_t{faces}; ++i) result.offset[i + 1] += result.offset[i];
+  result.faces.resize(result.offset.back());
+  std::vector<uint32_t> fill(result.offset.begin(), result.offset.end() - 1);
+  for (uint32_t v = 0; v < vertices; ++v) {
+    for_each_partner(v, [&](const Corner& corner, uint32_t face) {
+      result.faces[fill[3 * size_t{corner.face} + corner.corner]++] = face;
+    });
+  }
   return result;
 }
 
+// What scoring reads of a face, copied into a candidate when it becomes one.
 struct FaceFrame {
+  std::array<uint32_t, 3> corners;
   std::array<float, 3> centroid;
   std::array<float, 3> normal;  // unit, or zero for a zero-area face
 };
@@ -100,26 +206,24 @@ struct FaceFrame {
 // list head[m] -> next[f] -> ... so that the merge pass can join two in O(1).
 class MeshletBuilder {
  public:
-  MeshletBuilder(const TriangleMesh& mesh, const MeshletOptions& options,
-                 const VertexFaceTable& around, const EdgeNeighbours& neighbours)
+  MeshletBuilder(const TriangleMesh& mesh, const MeshletOptions& options, const CornerTable& around,
+                 const EdgeNeighbours& neighbours)
       : mesh_(mesh),
         options_(options),
         around_(around),
         neighbours_(neighbours),
         faces_(static_cast<uint32_t>(mesh.num_faces())),
-        meshlet_of_(faces_, kNone),
+        state_(faces_),
         next_(faces_, kNone),
-        live_faces_(faces_),
         live_vertex_(mesh.num_vertices()),
         local_(mesh.num_vertices(), kNotInMeshlet),
-        candidate_stamp_(faces_, kNone),
         closing_(mesh.num_vertices()),
         frames_(faces_) {
     for (uint32_t f = 0; f < faces_; ++f) {
-      live_faces_[f] = static_cast<uint32_t>(neighbours.of(f).size());
+      state_[f].live = static_cast<uint32_t>(neighbours.of(f).size());
     }
     for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-      live_vertex_[v] = static_cast<uint32_t>(around.faces_around(static_cast<uint32_t>(v)).size());
+      live_vertex_[v] = around.faces_around(static_cast<uint32_t>(v));
     }
     double area = 0;
     for (uint32_t f = 0; f < faces_; ++f) {
@@ -130,6 +234,8 @@ class MeshletBuilder {
       const double length = Norm(n);
       const double scale = length > 0 ? 1.0 / length : 0.0;
       const Vec3 c = (p0 + p1 + p2) / 3.0;
+      frames_[f].corners = {mesh.indices[3 * size_t{f}], mesh.indices[3 * size_t{f} + 1],
+                            mesh.indices[3 * size_t{f} + 2]};
       frames_[f].centroid = {static_cast<float>(c.x), static_cast<float>(c.y),
                              static_cast<float>(c.z)};
       frames_[f].normal = {static_cast<float>(n.x * scale), static_cast<float>(n.y * scale),
@@ -148,14 +254,14 @@ class MeshletBuilder {
     uint32_t seed = kNone;
     uint32_t assigned = 0;
     while (assigned < faces_) {
-      if (seed == kNone || meshlet_of_[seed] != kNone) {
+      if (seed == kNone || state_[seed].meshlet != kNone) {
         seed = kNone;
         while (!pending_.empty() && seed == kNone) {
-          if (meshlet_of_[pending_.back()] == kNone) seed = pending_.back();
+          if (state_[pending_.back()].meshlet == kNone) seed = pending_.back();
           pending_.pop_back();
         }
         while (seed == kNone) {
-          if (meshlet_of_[scan] == kNone) seed = scan;
+          if (state_[scan].meshlet == kNone) seed = scan;
           ++scan;
         }
       }
@@ -188,7 +294,7 @@ class MeshletBuilder {
       if (!free_.empty()) {
         const uint32_t face = free_.back();
         free_.pop_back();
-        if (meshlet_of_[face] == kNone) {
+        if (state_[face].meshlet == kNone) {
           Add(meshlet, face, sum);
           ++assigned;
         }
@@ -213,7 +319,8 @@ class MeshletBuilder {
       size_t kept = 0;
       for (size_t i = 0; i < candidates_.size(); ++i) {
         const Candidate& candidate = candidates_[i];
-        if (meshlet_of_[candidate.face] != kNone) continue;  // taken from free_
+        // Its outside vertex joined: it went to free_ (and may be taken already).
+        if (local_[candidate.outside] != kNotInMeshlet) continue;
         candidates_[kept++] = candidate;
         for (const uint32_t v : candidate.corners) {
           if (local_[v] != kNotInMeshlet) continue;
@@ -227,7 +334,7 @@ class MeshletBuilder {
         const Candidate& candidate = candidates_[i];
         uint32_t added = 0;
         uint32_t closes = 0;
-        bool stranded = live_faces_[candidate.face] == 0;
+        bool stranded = state_[candidate.face].live == 0;
         for (const uint32_t v : candidate.corners) {
           if (local_[v] == kNotInMeshlet) {
             ++added;
@@ -263,7 +370,7 @@ class MeshletBuilder {
     }
     for (uint32_t v : vertices_) local_[v] = kNotInMeshlet;
     for (const uint32_t face : free_) {
-      if (meshlet_of_[face] == kNone) pending_.push_back(face);
+      if (state_[face].meshlet == kNone) pending_.push_back(face);
     }
     free_.clear();
     // The next seed: the most enclosed face left over (fewest unassigned edge neighbours,
@@ -272,11 +379,11 @@ class MeshletBuilder {
     uint64_t next_key = std::numeric_limits<uint64_t>::max();
     for (const Candidate& candidate : candidates_) {
       const uint32_t c = candidate.face;
-      if (meshlet_of_[c] != kNone) continue;
+      if (state_[c].meshlet != kNone) continue;
       const uint32_t* corners = &mesh_.indices[3 * size_t{c}];
       const uint64_t around =
           uint64_t{live_vertex_[corners[0]]} + live_vertex_[corners[1]] + live_vertex_[corners[2]];
-      const uint64_t key = (uint64_t{live_faces_[c]} << 40) | around;
+      const uint64_t key = (uint64_t{state_[c].live} << 40) | around;
       if (key < next_key) {
         if (next != kNone) pending_.push_back(next);
         next = c;
@@ -288,14 +395,8 @@ class MeshletBuilder {
     return next;
   }
 
-  bool AllInside(uint32_t face) const {
-    const uint32_t* c = &mesh_.indices[3 * size_t{face}];
-    return local_[c[0]] != kNotInMeshlet && local_[c[1]] != kNotInMeshlet &&
-           local_[c[2]] != kNotInMeshlet;
-  }
-
   void Add(uint32_t meshlet, uint32_t face, std::array<double, 6>& sum) {
-    meshlet_of_[face] = meshlet;
+    state_[face].meshlet = meshlet;
     if (tail_[meshlet] == kNone) {
       head_[meshlet] = face;
     } else {
@@ -310,8 +411,10 @@ class MeshletBuilder {
         local_[v] = static_cast<uint8_t>(vertices_.size());
         vertices_.push_back(v);
         // Candidates around the new vertex may now add none.
-        for (const uint32_t g : around_.faces_around(v)) {
-          if (candidate_stamp_[g] == meshlet && meshlet_of_[g] == kNone && AllInside(g)) {
+        for (const CornerTable::Corner& around : around_.around(v)) {
+          const uint32_t g = around.face;
+          if (local_[around.next] != kNotInMeshlet && local_[around.previous] != kNotInMeshlet &&
+              state_[g].stamp == meshlet && state_[g].meshlet == kNone) {
             free_.push_back(g);
           }
         }
@@ -319,16 +422,19 @@ class MeshletBuilder {
       --live_vertex_[v];
     }
     for (uint32_t g : neighbours_.of(face)) {
-      --live_faces_[g];
-      if (meshlet_of_[g] == kNone && candidate_stamp_[g] != meshlet) {
-        candidate_stamp_[g] = meshlet;
-        if (AllInside(g)) {
+      --state_[g].live;
+      if (state_[g].meshlet == kNone && state_[g].stamp != meshlet) {
+        state_[g].stamp = meshlet;
+        const FaceFrame& frame = frames_[g];
+        uint32_t outside = kNone;
+        for (const uint32_t v : frame.corners) {
+          if (local_[v] == kNotInMeshlet) outside = v;
+        }
+        if (outside == kNone) {
           free_.push_back(g);
           continue;
         }
-        const uint32_t* c = &mesh_.indices[3 * size_t{g}];
-        const FaceFrame& frame = frames_[g];
-        candidates_.push_back({g, {c[0], c[1], c[2]}, frame.centroid, frame.normal});
+        candidates_.push_back({g, outside, frame.corners, frame.centroid, frame.normal});
       }
     }
     const FaceFrame& frame = frames_[face];
@@ -369,7 +475,7 @@ class MeshletBuilder {
       targets.clear();
       for (uint32_t f = head_[small]; f != kNone; f = next_[f]) {
         for (uint32_t g : neighbours_.of(f)) {
-          const uint32_t t = meshlet_of_[g];
+          const uint32_t t = state_[g].meshlet;
           if (t != small && std::find(targets.begin(), targets.end(), t) == targets.end()) {
             targets.push_back(t);
           }
@@ -409,7 +515,7 @@ class MeshletBuilder {
         }
       }
       if (best == kNone) continue;
-      for (uint32_t f = head_[small]; f != kNone; f = next_[f]) meshlet_of_[f] = best;
+      for (uint32_t f = head_[small]; f != kNone; f = next_[f]) state_[f].meshlet = best;
       next_[tail_[best]] = head_[small];
       tail_[best] = tail_[small];
       triangles_[best] += triangles_[small];
@@ -467,18 +573,22 @@ class MeshletBuilder {
  private:
   const TriangleMesh& mesh_;
   const MeshletOptions& options_;
-  const VertexFaceTable& around_;
+  const CornerTable& around_;
   const EdgeNeighbours& neighbours_;
   uint32_t faces_;
   float expected_radius_ = 1;
-  std::vector<uint32_t> meshlet_of_;
+  // What growth reads and writes of a face, side by side (one cache line per visit).
+  struct FaceState {
+    uint32_t meshlet = kNone;  // its meshlet; kNone while unassigned
+    uint32_t stamp = kNone;    // the meshlet that has it as a candidate
+    uint32_t live = 0;         // its unassigned edge neighbours
+  };
+  std::vector<FaceState> state_;
   std::vector<uint32_t> next_;
   std::vector<uint32_t> head_, tail_, triangles_;
   std::vector<uint8_t> alive_;
-  std::vector<uint32_t> live_faces_;   // unassigned edge neighbours of each face
   std::vector<uint32_t> live_vertex_;  // unassigned faces around each vertex
   std::vector<uint8_t> local_;         // a vertex's index in the meshlet being built
-  std::vector<uint32_t> candidate_stamp_;
   struct Closing {
     uint32_t step = 0;
     uint32_t count = 0;
@@ -490,6 +600,7 @@ class MeshletBuilder {
   // A face across an edge of the meshlet being built, with what scoring reads.
   struct Candidate {
     uint32_t face;
+    uint32_t outside;  // its corner outside the meshlet (one: it shares an edge with it)
     std::array<uint32_t, 3> corners;
     std::array<float, 3> centroid;
     std::array<float, 3> normal;
@@ -584,12 +695,16 @@ absl::Status ValidateMeshletOptions(const MeshletOptions& options) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& mesh,
+absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& input,
                                             const MeshletOptions& options) {
   MLCLUST_RETURN_IF_ERROR(ValidateMeshletOptions(options));
-  MLCLUST_RETURN_IF_ERROR(CheckMeshletInput(mesh));
-  const VertexFaceTable around = BuildVertexFaceTable(mesh);
-  absl::StatusOr<EdgeNeighbours> neighbours = BuildEdgeNeighbours(mesh, options.cancel);
+  MLCLUST_RETURN_IF_ERROR(CheckMeshletInput(input));
+  // Built on the spatially ordered copy; ids map back to the input's at the end.
+  const SpatialOrder order = OrderSpatially(input);
+  const TriangleMesh& mesh = order.mesh;
+  const CornerTable around = BuildCornerTable(mesh);
+  absl::StatusOr<EdgeNeighbours> neighbours =
+      BuildEdgeNeighbours(around, static_cast<uint32_t>(mesh.num_faces()), options.cancel);
   if (!neighbours.ok()) return neighbours.status();
   MeshletBuilder builder(mesh, options, around, *neighbours);
   MLCLUST_RETURN_IF_ERROR(builder.Grow());
@@ -618,6 +733,13 @@ absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& mesh,
       if (b.radius == 0) DegenerateBounds(mesh, result, meshlet, out);
     }
   }
+  for (uint32_t& face : result.triangle_faces) face = order.input_face[face];
+  for (uint32_t& vertex : result.meshlet_vertices) vertex = order.input_vertex[vertex];
+  std::vector<uint32_t> face_meshlet(result.face_meshlet.size());
+  for (size_t f = 0; f < face_meshlet.size(); ++f) {
+    face_meshlet[order.input_face[f]] = result.face_meshlet[f];
+  }
+  result.face_meshlet = std::move(face_meshlet);
   return result;
 }
 
