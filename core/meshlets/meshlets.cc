@@ -385,40 +385,35 @@ class MeshletBuilder {
         const Candidate& candidate = candidates_[i];
         // Its outside vertex joined: it went to free_ (and may be taken already).
         if (local_[candidate.outside] != kNotInMeshlet) continue;
-        candidates_[kept++] = candidate;
-        for (const uint32_t v : candidate.corners) {
-          if (local_[v] != kNotInMeshlet) continue;
-          Closing& closing = closing_[v];
-          if (closing.step != step_) closing = {step_, 0};
-          ++closing.count;
-        }
+        if (kept != i) candidates_[kept] = candidate;
+        ++kept;
+        Closing& closing = closing_[candidate.outside];
+        if (closing.step != step_) closing = {step_, 0};
+        ++closing.count;
       }
       candidates_.resize(kept);
+      // Every candidate left adds its one outside vertex.
+      if (vertices_.size() + 1 > max_vertices) break;
+      const float inverse_radius = 1.0f / expected_radius_;
       for (size_t i = 0; i < candidates_.size(); ++i) {
         const Candidate& candidate = candidates_[i];
-        uint32_t added = 0;
-        uint32_t closes = 0;
-        bool stranded = state_[candidate.face].live == 0;
-        for (const uint32_t v : candidate.corners) {
-          if (local_[v] == kNotInMeshlet) {
-            ++added;
-            closes = std::max(closes, closing_[v].count);
-          }
-          stranded |= live_vertex_[v] == 1;
-        }
-        if (vertices_.size() + added > max_vertices) continue;
-        const int face_class = added == 0 ? 0 : (stranded ? 1 : 2);
+        const uint32_t closes = closing_[candidate.outside].count;
+        const bool stranded = state_[candidate.face].live == 0 ||
+                              live_vertex_[candidate.corners[0]] == 1 ||
+                              live_vertex_[candidate.corners[1]] == 1 ||
+                              live_vertex_[candidate.corners[2]] == 1;
+        const int face_class = stranded ? 1 : 2;
         if (face_class > best_class) continue;
         const float dx = candidate.centroid[0] - center[0];
         const float dy = candidate.centroid[1] - center[1];
         const float dz = candidate.centroid[2] - center[2];
-        const float distance = std::sqrt(dx * dx + dy * dy + dz * dz) / expected_radius_;
+        const float distance = std::sqrt(dx * dx + dy * dy + dz * dz) * inverse_radius;
         const float spread = candidate.normal[0] * axis[0] + candidate.normal[1] * axis[1] +
                              candidate.normal[2] * axis[2];
         const float cone = std::max(1.0f - spread * cone_weight, 1e-3f);
-        float score = (1.0f + distance * (1.0f - cone_weight)) * cone;
         // Each further face the new vertex admits counts as one unit of distance.
-        if (added == 1) score -= static_cast<float>(closes - 1);
+        const float score = (1.0f + distance * (1.0f - cone_weight)) * cone -
+                            static_cast<float>(closes - 1);
         if (face_class < best_class || score < best_score) {
           best = i;
           best_class = face_class;
