@@ -156,41 +156,52 @@ struct EdgeNeighbours {
 };
 
 // Every half-edge v -> w is matched in v's row of the corner table: the other faces at v
-// that have w as their next or previous corner. Two passes over the rows (count, fill);
-// each row writes only its own half-edges' runs.
+// that have w as their next or previous corner. One pass over the rows keeps each
+// half-edge's first partner in a slot of its own and any further ones (non-manifold
+// edges) aside; the rows are then laid out half-edge by half-edge, partners in row order.
 absl::StatusOr<EdgeNeighbours> BuildEdgeNeighbours(const CornerTable& table, uint32_t faces,
                                                    const std::atomic<bool>* cancel) {
   using Corner = CornerTable::Corner;
   const auto vertices = static_cast<uint32_t>(table.start.size() - 1);
-  EdgeNeighbours result;
-  result.offset.assign(3 * size_t{faces} + 1, 0);
-  auto for_each_partner = [&](uint32_t v, auto&& visit) {
-    const std::span<const Corner> ring = table.around(v);
-    for (const Corner& corner : ring) {
-      if (corner.next == v) continue;  // degenerate edge
-      for (const Corner& other : ring) {
-        if (other.face != corner.face &&
-            (other.previous == corner.next || other.next == corner.next)) {
-          visit(corner, other.face);
-        }
-      }
-    }
-  };
+  const size_t half_edges = 3 * size_t{faces};
+  std::vector<uint32_t> first(half_edges, kNone);
+  std::vector<std::pair<uint32_t, uint32_t>> further;  // (half-edge, face)
   for (uint32_t v = 0; v < vertices; ++v) {
     if (v % kCancelStride == 0 && IsCancelled(cancel)) {
       return absl::CancelledError("cancelled during meshlet adjacency");
     }
-    for_each_partner(v, [&](const Corner& corner, uint32_t /*face*/) {
-      ++result.offset[3 * size_t{corner.face} + corner.corner + 1];
-    });
+    const std::span<const Corner> ring = table.around(v);
+    for (const Corner& corner : ring) {
+      if (corner.next == v) continue;  // degenerate edge
+      const uint32_t half_edge = 3 * corner.face + corner.corner;
+      for (const Corner& other : ring) {
+        if (other.face != corner.face &&
+            (other.previous == corner.next || other.next == corner.next)) {
+          if (first[half_edge] == kNone) {
+            first[half_edge] = other.face;
+          } else {
+            further.emplace_back(half_edge, other.face);
+          }
+        }
+      }
+    }
   }
-  for (size_t i = 0; i < 3 * size_t{faces}; ++i) result.offset[i + 1] += result.offset[i];
+  EdgeNeighbours result;
+  result.offset.assign(half_edges + 1, 0);
+  for (size_t h = 0; h < half_edges; ++h) {
+    result.offset[h + 1] = first[h] != kNone ? 1 : 0;
+  }
+  for (const auto& [half_edge, face] : further) ++result.offset[half_edge + 1];
+  for (size_t h = 0; h < half_edges; ++h) result.offset[h + 1] += result.offset[h];
   result.faces.resize(result.offset.back());
-  std::vector<uint32_t> fill(result.offset.begin(), result.offset.end() - 1);
-  for (uint32_t v = 0; v < vertices; ++v) {
-    for_each_partner(v, [&](const Corner& corner, uint32_t face) {
-      result.faces[fill[3 * size_t{corner.face} + corner.corner]++] = face;
-    });
+  for (size_t h = 0; h < half_edges; ++h) {
+    if (first[h] != kNone) result.faces[result.offset[h]] = first[h];
+  }
+  if (!further.empty()) {
+    // Further partners after the first, in the order the rows found them.
+    std::vector<uint32_t> fill(half_edges);
+    for (size_t h = 0; h < half_edges; ++h) fill[h] = result.offset[h] + 1;
+    for (const auto& [half_edge, face] : further) result.faces[fill[half_edge]++] = face;
   }
   return result;
 }
