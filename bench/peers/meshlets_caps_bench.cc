@@ -3,7 +3,7 @@
 //
 //   meshlets_caps_bench MESH... [--repeats R] [--max-vertices 64] [--max-triangles 124]
 //                       [--cone-weights 0,0.25] [--ours-cone-weights 0,0.25]
-//                       [--merge-below N] [--peers meshoptimizer,metis|none] [--header]
+//                       [--peers meshoptimizer,metis|none] [--header]
 //
 // One CSV row per mesh and method (best of R timings; the meshlets of the last run):
 //   mesh,faces,method,cone_weight,meshlets,fill,vertices_per_triangle,mean_radius,
@@ -265,14 +265,13 @@ int Run(int argc, char** argv) {
   bench::Args args(argc, argv,
                    "usage: meshlets_caps_bench MESH... [--repeats R] [--max-vertices 64] "
                    "[--max-triangles 124] [--cone-weights 0,0.25] [--ours-cone-weights 0,0.25] "
-                   "[--merge-below N] [--peers meshoptimizer,metis|none] [--header]");
+                   "[--peers meshoptimizer,metis|none] [--header]");
   const bool header = args.Flag("header");
   const int repeats = args.Get<int>("repeats", 5);
   const auto max_vertices = args.Get<uint32_t>("max-vertices", 64);
   const auto max_triangles = args.Get<uint32_t>("max-triangles", 124);
   const std::vector<double> cone_weights = args.GetList<double>("cone-weights", "0,0.25");
   const std::vector<double> ours_cone_weights = args.GetList<double>("ours-cone-weights", "0,0.25");
-  const auto merge_below = args.Get<uint32_t>("merge-below", 0);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
   auto with_peer = [&](absl::string_view name) {
@@ -312,7 +311,6 @@ int Run(int argc, char** argv) {
       options.max_vertices = max_vertices;
       options.max_triangles = max_triangles;
       options.cone_weight = static_cast<float>(weight);
-      options.merge_below = merge_below;
       Row row;
       row.method = "ours";
       row.cone_weight = options.cone_weight;

@@ -214,7 +214,7 @@ struct FaceFrame {
 };
 
 // The greedy pass's state (see the top of meshlets.h). Faces of meshlet m are a linked
-// list head[m] -> next[f] -> ... so that the merge pass can join two in O(1).
+// list head[m] -> next[f] -> ... (a meshlet grown again is taken back along it).
 class MeshletBuilder {
  public:
   MeshletBuilder(const TriangleMesh& mesh, const MeshletOptions& options, const CornerTable& around,
@@ -409,10 +409,9 @@ class MeshletBuilder {
       for (size_t i = 0; i < candidates_.size(); ++i) {
         const Candidate& candidate = candidates_[i];
         const uint32_t closes = closing_[candidate.outside].count;
-        const bool stranded = state_[candidate.face].live == 0 ||
-                              live_vertex_[candidate.corners[0]] == 1 ||
-                              live_vertex_[candidate.corners[1]] == 1 ||
-                              live_vertex_[candidate.corners[2]] == 1;
+        const bool stranded =
+            state_[candidate.face].live == 0 || live_vertex_[candidate.corners[0]] == 1 ||
+            live_vertex_[candidate.corners[1]] == 1 || live_vertex_[candidate.corners[2]] == 1;
         const int face_class = stranded ? 1 : 2;
         if (face_class > best_class) continue;
         const float dx = candidate.centroid[0] - center[0];
@@ -423,8 +422,8 @@ class MeshletBuilder {
                              candidate.normal[2] * axis[2];
         const float cone = std::max(1.0f - spread * cone_weight, 1e-3f);
         // Each further face the new vertex admits counts as one unit of distance.
-        const float score = (1.0f + distance * (1.0f - cone_weight)) * cone -
-                            static_cast<float>(closes - 1);
+        const float score =
+            (1.0f + distance * (1.0f - cone_weight)) * cone - static_cast<float>(closes - 1);
         if (face_class < best_class || score < best_score) {
           best = i;
           best_class = face_class;
@@ -515,86 +514,6 @@ class MeshletBuilder {
   }
 
  public:
-  // The merge pass: a meshlet below `merge_below` triangles joins the edge-neighbouring
-  // meshlet whose union with it adds the fewest vertices and still fits both caps.
-  // Smallest meshlets first; a meshlet that grew by a merge may take part again.
-  void MergeSmall(uint32_t merge_below) {
-    const auto count = static_cast<uint32_t>(head_.size());
-    std::vector<uint32_t> order;
-    for (uint32_t m = 0; m < count; ++m) {
-      if (triangles_[m] < merge_below) order.push_back(m);
-    }
-    std::stable_sort(order.begin(), order.end(),
-                     [&](uint32_t a, uint32_t b) { return triangles_[a] < triangles_[b]; });
-    alive_.assign(count, 1);
-    std::vector<uint32_t> stamp(mesh_.num_vertices(), kNone);
-    std::vector<uint32_t> targets;
-    for (uint32_t small : order) {
-      if (!alive_[small] || triangles_[small] >= merge_below) continue;
-      // Its vertices, stamped.
-      uint32_t small_vertices = 0;
-      for (uint32_t f = head_[small]; f != kNone; f = next_[f]) {
-        for (int corner = 0; corner < 3; ++corner) {
-          const uint32_t v = mesh_.indices[3 * size_t{f} + corner];
-          if (stamp[v] != small) {
-            stamp[v] = small;
-            ++small_vertices;
-          }
-        }
-      }
-      targets.clear();
-      for (uint32_t f = head_[small]; f != kNone; f = next_[f]) {
-        for (uint32_t g : neighbours_.of(f)) {
-          const uint32_t t = state_[g].meshlet;
-          if (t != small && std::find(targets.begin(), targets.end(), t) == targets.end()) {
-            targets.push_back(t);
-          }
-        }
-      }
-      uint32_t best = kNone;
-      uint32_t best_added = kNone;
-      for (uint32_t t : targets) {
-        if (triangles_[t] + triangles_[small] > options_.max_triangles) continue;
-        // Vertices of t not in small; stamp with a second mark so each counts once.
-        uint32_t union_vertices = small_vertices;
-        const uint32_t mark = count + t;
-        for (uint32_t f = head_[t]; f != kNone; f = next_[f]) {
-          for (int corner = 0; corner < 3; ++corner) {
-            const uint32_t v = mesh_.indices[3 * size_t{f} + corner];
-            if (stamp[v] != small && stamp[v] != mark) {
-              stamp[v] = mark;
-              ++union_vertices;
-            }
-          }
-        }
-        // Restore small's stamps overwritten? None were: only unstamped ones took `mark`.
-        if (union_vertices > options_.max_vertices) continue;
-        const uint32_t added = union_vertices - small_vertices;
-        if (added < best_added) {
-          best = t;
-          best_added = added;
-        }
-      }
-      // Clear the marks of the targets so later passes see a clean slate.
-      for (uint32_t t : targets) {
-        for (uint32_t f = head_[t]; f != kNone; f = next_[f]) {
-          for (int corner = 0; corner < 3; ++corner) {
-            uint32_t& s = stamp[mesh_.indices[3 * size_t{f} + corner]];
-            if (s == count + t) s = kNone;
-          }
-        }
-      }
-      if (best == kNone) continue;
-      for (uint32_t f = head_[small]; f != kNone; f = next_[f]) state_[f].meshlet = best;
-      next_[tail_[best]] = head_[small];
-      tail_[best] = tail_[small];
-      triangles_[best] += triangles_[small];
-      triangles_[small] = 0;
-      head_[small] = tail_[small] = kNone;
-      alive_[small] = 0;
-    }
-  }
-
   // Writes the layout: surviving meshlets in order of their ids, faces in list order.
   void Emit(MeshletResult& result) {
     const auto count = static_cast<uint32_t>(head_.size());
@@ -656,7 +575,6 @@ class MeshletBuilder {
   std::vector<FaceState> state_;
   std::vector<uint32_t> next_;
   std::vector<uint32_t> head_, tail_, triangles_;
-  std::vector<uint8_t> alive_;
   std::vector<uint32_t> live_vertex_;  // unassigned faces around each vertex
   std::vector<uint8_t> local_;         // a vertex's index in the meshlet being built
   struct Closing {
@@ -766,11 +684,6 @@ absl::Status ValidateMeshletOptions(const MeshletOptions& options) {
     return absl::InvalidArgumentError(
         absl::StrCat("cone_weight is ", options.cone_weight, "; it must be in [0, 1]"));
   }
-  if (options.merge_below > options.max_triangles) {
-    return absl::InvalidArgumentError(absl::StrCat("merge_below is ", options.merge_below,
-                                                   "; it must be at most max_triangles (",
-                                                   options.max_triangles, ")"));
-  }
   return absl::OkStatus();
 }
 
@@ -787,9 +700,6 @@ absl::StatusOr<MeshletResult> BuildMeshlets(const TriangleMesh& input,
   if (!neighbours.ok()) return neighbours.status();
   MeshletBuilder builder(mesh, options, around, *neighbours);
   MLCLUST_RETURN_IF_ERROR(builder.Grow());
-  const uint32_t merge_below =
-      options.merge_below == 0 ? options.max_triangles / 2 : options.merge_below;
-  builder.MergeSmall(merge_below);
   MeshletResult result;
   builder.Emit(result);
   if (options.compute_bounds) {

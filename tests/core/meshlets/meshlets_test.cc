@@ -304,9 +304,6 @@ TEST(BuildMeshlets, RejectsBadOptions) {
   MeshletOptions cone;
   cone.cone_weight = -0.5f;
   EXPECT_EQ(BuildMeshlets(mesh, cone).status().code(), absl::StatusCode::kInvalidArgument);
-  MeshletOptions merge;
-  merge.merge_below = 200;
-  EXPECT_EQ(BuildMeshlets(mesh, merge).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
 TEST(BuildMeshlets, RejectsBadMeshes) {
