@@ -122,7 +122,8 @@ TriangleMesh Strip(uint32_t quads) {
 TriangleMesh SeparateTriangles(uint32_t pieces) {
   TriangleMesh mesh;
   for (uint32_t i = 0; i < pieces; ++i) {
-    const auto x = static_cast<float>(i % 40), y = static_cast<float>(i / 40);
+    const uint32_t column = i % 40, row = i / 40;
+    const auto x = static_cast<float>(column), y = static_cast<float>(row);
     mesh.positions.insert(mesh.positions.end(), {x, y, 0, x + 0.5f, y, 0, x, y + 0.5f, 0});
     mesh.indices.insert(mesh.indices.end(), {3 * i, 3 * i + 1, 3 * i + 2});
   }
