@@ -30,7 +30,6 @@
 // libmetis-dev were found (bench/peers/meshlets.cmake); their rows are missing otherwise.
 #include <algorithm>
 #include <cstdio>
-#include <ctime>
 #include <limits>
 #include <map>
 #include <string>
@@ -38,17 +37,11 @@
 
 #include "absl/strings/str_split.h"
 #include "bench/bench_util.h"
+#include "bench/peers/meshlet_peers.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
 #include "core/cluster/patches.h"
 #include "core/hierarchy/hierarchy.h"
-
-#ifdef MLCLUST_HAVE_MESHOPTIMIZER
-#include <meshoptimizer.h>
-#endif
-#ifdef MLCLUST_HAVE_METIS
-#include <metis.h>
-#endif
 
 namespace mlclust {
 namespace {
@@ -63,54 +56,16 @@ struct Shape {
 // Patch count, patches in more than one edge-connected piece, largest patch in faces and
 // in distinct vertices.
 Shape MeasureShape(const PreparedMesh& prepared, std::span<const ClusterId> labels) {
-  const size_t n = labels.size();
-  uint32_t k = 0;
-  for (ClusterId c : labels) k = std::max(k, c.value() + 1);
+  std::vector<uint32_t> parts(labels.size());
+  for (size_t f = 0; f < labels.size(); ++f) parts[f] = labels[f].value();
+  const bench::PartShapes parts_shape = bench::MeasureParts(prepared, parts);
   Shape shape;
-  std::vector<uint32_t> faces_in(k, 0), pieces(k, 0);
-  for (ClusterId c : labels) ++faces_in[c.value()];
-  std::vector<uint8_t> seen(n, 0);
-  std::vector<uint32_t> stack;
-  for (uint32_t f = 0; f < n; ++f) {
-    if (seen[f]) continue;
-    const uint32_t c = labels[f].value();
-    ++pieces[c];
-    seen[f] = 1;
-    stack.assign(1, f);
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : prepared.adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && labels[h.value()].value() == c) {
-          seen[h.value()] = 1;
-          stack.push_back(h.value());
-        }
-      }
-    }
-  }
-  // Distinct vertices per patch: faces bucketed by patch, a stamp per vertex.
-  std::vector<uint32_t> start(k + 1, 0), order(n);
-  for (ClusterId c : labels) ++start[c.value() + 1];
-  for (uint32_t c = 0; c < k; ++c) start[c + 1] += start[c];
-  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-  for (uint32_t f = 0; f < n; ++f) order[fill[labels[f].value()]++] = f;
-  std::vector<uint32_t> stamp(prepared.mesh.num_vertices(), UINT32_MAX);
-  for (uint32_t c = 0; c < k; ++c) {
-    if (faces_in[c] == 0) continue;
+  for (size_t c = 0; c < parts_shape.faces.size(); ++c) {
+    if (parts_shape.faces[c] == 0) continue;
     ++shape.patches;
-    if (pieces[c] > 1) ++shape.disconnected;
-    shape.max_faces = std::max(shape.max_faces, faces_in[c]);
-    uint32_t vertices = 0;
-    for (uint32_t i = start[c]; i < start[c + 1]; ++i) {
-      for (int corner = 0; corner < 3; ++corner) {
-        const uint32_t v = prepared.mesh.indices[3 * size_t{order[i]} + corner];
-        if (stamp[v] != c) {
-          stamp[v] = c;
-          ++vertices;
-        }
-      }
-    }
-    shape.max_vertices = std::max(shape.max_vertices, vertices);
+    if (parts_shape.pieces[c] > 1) ++shape.disconnected;
+    shape.max_faces = std::max(shape.max_faces, parts_shape.faces[c]);
+    shape.max_vertices = std::max(shape.max_vertices, parts_shape.vertices[c]);
   }
   return shape;
 }
@@ -146,26 +101,9 @@ struct Row {
   std::vector<ClusterId> labels;
 };
 
-double ProcessCpuSeconds() {
-  timespec now{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
-  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
-}
-
-// Best of `repeats` runs of `run` (returning whether it worked) in wall-clock and in CPU
-// time into row; false if a run failed. On a shared machine the CPU time is the steadier
-// figure; the wall clock is what a caller waits.
 template <typename Run>
 bool Time(int repeats, Run&& run, Row& row) {
-  row.seconds = row.cpu_seconds = std::numeric_limits<double>::infinity();
-  for (int r = 0; r < repeats; ++r) {
-    const double cpu = ProcessCpuSeconds();
-    bench::Stopwatch watch;
-    if (!run()) return false;
-    row.seconds = std::min(row.seconds, watch.Seconds());
-    row.cpu_seconds = std::min(row.cpu_seconds, ProcessCpuSeconds() - cpu);
-  }
-  return true;
+  return bench::TimeBest(repeats, run, row);
 }
 
 #ifdef MLCLUST_HAVE_MESHOPTIMIZER
@@ -192,68 +130,30 @@ bool RunMeshoptimizer(const PreparedMesh& prepared, int repeats, Row& row) {
       },
       row);
   if (!ok) return false;
-  const VertexFaceTable table = BuildVertexFaceTable(mesh);
-  row.labels.assign(mesh.num_faces(), ClusterId::Invalid());
-  for (uint32_t m = 0; m < count; ++m) {
-    const meshopt_Meshlet& meshlet = meshlets[m];
-    for (uint32_t t = 0; t < meshlet.triangle_count; ++t) {
-      uint32_t v[3];
-      for (int corner = 0; corner < 3; ++corner) {
-        v[corner] = meshlet_vertices[meshlet.vertex_offset +
-                                     meshlet_triangles[meshlet.triangle_offset + 3 * t + corner]];
-      }
-      for (uint32_t f : table.faces_around(v[0])) {
-        const uint32_t* w = &mesh.indices[3 * size_t{f}];
-        const bool same = (w[0] == v[0] || w[0] == v[1] || w[0] == v[2]) &&
-                          (w[1] == v[0] || w[1] == v[1] || w[1] == v[2]) &&
-                          (w[2] == v[0] || w[2] == v[1] || w[2] == v[2]);
-        if (same) {
-          row.labels[f] = ClusterId(m);
-          break;
-        }
-      }
-    }
+  std::vector<uint32_t> labels;
+  if (!bench::MeshoptFaceLabels(mesh, {meshlets.data(), count}, meshlet_vertices, meshlet_triangles,
+                                labels)) {
+    return false;
   }
+  row.labels.clear();
+  for (uint32_t m : labels) row.labels.push_back(ClusterId(m));
   row.k = static_cast<uint32_t>(count);
-  for (ClusterId c : row.labels) {
-    if (!c.valid()) {
-      std::fprintf(stderr, "meshoptimizer: a face is in no meshlet\n");
-      return false;
-    }
-  }
   return true;
 }
 #endif
 
 #ifdef MLCLUST_HAVE_METIS
 bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
-  const size_t n = prepared.mesh.num_faces();
-  std::vector<idx_t> xadj(n + 1, 0), adjncy;
-  adjncy.reserve(3 * n);
-  for (size_t f = 0; f < n; ++f) {
-    for (FaceId g : prepared.adjacency.neighbours[f]) {
-      if (g.valid()) adjncy.push_back(static_cast<idx_t>(g.value()));
-    }
-    xadj[f + 1] = static_cast<idx_t>(adjncy.size());
-  }
-  std::vector<idx_t> part(n, 0);
+  bench::DualGraph graph = bench::FaceDualGraph(prepared);
   row.method = "metis";
   row.k = k;
   return Time(
       repeats,
       [&] {
-        idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
-        idx_t cut = 0;
-        idx_t options[METIS_NOPTIONS];
-        METIS_SetDefaultOptions(options);
-        options[METIS_OPTION_CONTIG] = 1;
-        const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
-                                               nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
-                                               options, &cut, part.data());
-        if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
-        if (status != METIS_OK) return false;
-        row.labels.resize(n);
-        for (size_t f = 0; f < n; ++f) row.labels[f] = ClusterId(static_cast<uint32_t>(part[f]));
+        std::vector<uint32_t> part;
+        if (!bench::MetisKway(graph, k, part)) return false;
+        row.labels.clear();
+        for (uint32_t p : part) row.labels.push_back(ClusterId(p));
         return true;
       },
       row);
@@ -357,7 +257,7 @@ int Run(int argc, char** argv) {
       // Down to K: the levels pass through meshoptimizer's count too (at least K, as its
       // meshlets hold at most 124 triangles).
       options.min_clusters = k;
-      const double cpu = ProcessCpuSeconds();
+      const double cpu = bench::ProcessCpuSeconds();
       bench::Stopwatch watch;
       absl::StatusOr<MultilevelSummary> summary = RunMultilevel(problem, options, ml);
       if (!summary.ok()) {
@@ -365,7 +265,7 @@ int Run(int argc, char** argv) {
         return 1;
       }
       std::printf("%s,%u,ml,%u,%.4f,%.4f,%.10g,1,,,,\n", bench::BaseName(path).c_str(), faces, k,
-                  watch.Seconds(), ProcessCpuSeconds() - cpu, ml.At(k));
+                  watch.Seconds(), bench::ProcessCpuSeconds() - cpu, ml.At(k));
     }
     for (const Row& row : rows) {
       const double energy = MeshEnergyOfLabels(problem.energy, prepared.mesh, row.labels);

@@ -25,31 +25,18 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <ctime>
 #include <limits>
 #include <string>
 #include <vector>
 
 #include "absl/strings/str_split.h"
 #include "bench/bench_util.h"
+#include "bench/peers/meshlet_peers.h"
 #include "core/mesh/prepared_mesh.h"
 #include "core/meshlets/meshlets.h"
 
-#ifdef MLCLUST_HAVE_MESHOPTIMIZER
-#include <meshoptimizer.h>
-#endif
-#ifdef MLCLUST_HAVE_METIS
-#include <metis.h>
-#endif
-
 namespace mlclust {
 namespace {
-
-double ProcessCpuSeconds() {
-  timespec now{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
-  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
-}
 
 struct Row {
   std::string method;
@@ -62,67 +49,23 @@ struct Row {
 
 template <typename Run>
 bool Time(int repeats, Run&& run, Row& row) {
-  for (int r = 0; r < repeats; ++r) {
-    const double cpu = ProcessCpuSeconds();
-    bench::Stopwatch watch;
-    if (!run()) return false;
-    row.seconds = std::min(row.seconds, watch.Seconds());
-    row.cpu_seconds = std::min(row.cpu_seconds, ProcessCpuSeconds() - cpu);
-  }
-  return true;
+  return bench::TimeBest(repeats, run, row);
 }
 
 void PrintRow(const std::string& mesh_name, const PreparedMesh& prepared, const Row& row,
               uint32_t max_vertices, uint32_t max_triangles) {
-  const TriangleMesh& mesh = prepared.mesh;
-  const size_t n = mesh.num_faces();
-  uint32_t k = 0;
-  for (uint32_t m : row.labels) k = std::max(k, m + 1);
-  std::vector<uint32_t> triangles(k, 0), pieces(k, 0), vertices(k, 0);
-  for (uint32_t m : row.labels) ++triangles[m];
-  // Pieces per meshlet: a flood across edges inside the meshlet.
-  std::vector<uint8_t> seen(n, 0);
-  std::vector<uint32_t> stack;
-  for (uint32_t f = 0; f < n; ++f) {
-    if (seen[f]) continue;
-    const uint32_t m = row.labels[f];
-    ++pieces[m];
-    seen[f] = 1;
-    stack.assign(1, f);
-    while (!stack.empty()) {
-      const uint32_t g = stack.back();
-      stack.pop_back();
-      for (FaceId h : prepared.adjacency.neighbours[g]) {
-        if (h.valid() && !seen[h.value()] && row.labels[h.value()] == m) {
-          seen[h.value()] = 1;
-          stack.push_back(h.value());
-        }
-      }
-    }
-  }
-  // Distinct vertices per meshlet: faces bucketed by meshlet, a stamp per vertex.
-  std::vector<uint32_t> start(k + 1, 0), order(n);
-  for (uint32_t m : row.labels) ++start[m + 1];
-  for (uint32_t m = 0; m < k; ++m) start[m + 1] += start[m];
-  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-  for (uint32_t f = 0; f < n; ++f) order[fill[row.labels[f]]++] = f;
-  std::vector<uint32_t> stamp(mesh.num_vertices(), UINT32_MAX);
+  const size_t n = prepared.mesh.num_faces();
+  const bench::PartShapes shapes = bench::MeasureParts(prepared, row.labels);
+  const auto k = static_cast<uint32_t>(shapes.faces.size());
+  const std::vector<uint32_t>& triangles = shapes.faces;
+  const std::vector<uint32_t>& vertices = shapes.vertices;
   uint32_t meshlets = 0, disconnected = 0, over_cap = 0, most_vertices = 0, most_triangles = 0;
   uint64_t vertex_entries = 0;
   for (uint32_t m = 0; m < k; ++m) {
     if (triangles[m] == 0) continue;
     ++meshlets;
-    for (uint32_t i = start[m]; i < start[m + 1]; ++i) {
-      for (int corner = 0; corner < 3; ++corner) {
-        const uint32_t v = mesh.indices[3 * size_t{order[i]} + corner];
-        if (stamp[v] != m) {
-          stamp[v] = m;
-          ++vertices[m];
-        }
-      }
-    }
     vertex_entries += vertices[m];
-    if (pieces[m] > 1) ++disconnected;
+    if (shapes.pieces[m] > 1) ++disconnected;
     if (vertices[m] > max_vertices || triangles[m] > max_triangles) ++over_cap;
     most_vertices = std::max(most_vertices, vertices[m]);
     most_triangles = std::max(most_triangles, triangles[m]);
@@ -195,69 +138,17 @@ bool RunMeshoptimizer(const PreparedMesh& prepared, uint32_t max_vertices, uint3
       },
       row);
   if (!ok) return false;
-  const VertexFaceTable table = BuildVertexFaceTable(mesh);
-  row.labels.assign(mesh.num_faces(), UINT32_MAX);
-  for (uint32_t m = 0; m < count; ++m) {
-    const meshopt_Meshlet& meshlet = meshlets[m];
-    for (uint32_t t = 0; t < meshlet.triangle_count; ++t) {
-      uint32_t v[3];
-      for (int corner = 0; corner < 3; ++corner) {
-        v[corner] = meshlet_vertices[meshlet.vertex_offset +
-                                     meshlet_triangles[meshlet.triangle_offset + 3 * t + corner]];
-      }
-      for (uint32_t f : table.faces_around(v[0])) {
-        const uint32_t* w = &mesh.indices[3 * size_t{f}];
-        const bool same = (w[0] == v[0] || w[0] == v[1] || w[0] == v[2]) &&
-                          (w[1] == v[0] || w[1] == v[1] || w[1] == v[2]) &&
-                          (w[2] == v[0] || w[2] == v[1] || w[2] == v[2]);
-        if (same && row.labels[f] == UINT32_MAX) {
-          row.labels[f] = m;
-          break;
-        }
-      }
-    }
-  }
-  for (uint32_t m : row.labels) {
-    if (m == UINT32_MAX) {
-      std::fprintf(stderr, "meshoptimizer: a face is in no meshlet\n");
-      return false;
-    }
-  }
-  return true;
+  return bench::MeshoptFaceLabels(mesh, {meshlets.data(), count}, meshlet_vertices,
+                                  meshlet_triangles, row.labels);
 }
 #endif
 
 #ifdef MLCLUST_HAVE_METIS
 bool RunMetis(const PreparedMesh& prepared, uint32_t k, int repeats, Row& row) {
-  const size_t n = prepared.mesh.num_faces();
-  std::vector<idx_t> xadj(n + 1, 0), adjncy;
-  adjncy.reserve(3 * n);
-  for (size_t f = 0; f < n; ++f) {
-    for (FaceId g : prepared.adjacency.neighbours[f]) {
-      if (g.valid()) adjncy.push_back(static_cast<idx_t>(g.value()));
-    }
-    xadj[f + 1] = static_cast<idx_t>(adjncy.size());
-  }
-  std::vector<idx_t> part(n, 0);
+  bench::DualGraph graph = bench::FaceDualGraph(prepared);
   row.method = "metis";
   return Time(
-      repeats,
-      [&] {
-        idx_t vertices = static_cast<idx_t>(n), constraints = 1, parts = static_cast<idx_t>(k);
-        idx_t cut = 0;
-        idx_t options[METIS_NOPTIONS];
-        METIS_SetDefaultOptions(options);
-        options[METIS_OPTION_CONTIG] = 1;
-        const int status = METIS_PartGraphKway(&vertices, &constraints, xadj.data(), adjncy.data(),
-                                               nullptr, nullptr, nullptr, &parts, nullptr, nullptr,
-                                               options, &cut, part.data());
-        if (status != METIS_OK) std::fprintf(stderr, "metis: status %d\n", status);
-        if (status != METIS_OK) return false;
-        row.labels.resize(n);
-        for (size_t f = 0; f < n; ++f) row.labels[f] = static_cast<uint32_t>(part[f]);
-        return true;
-      },
-      row);
+      repeats, [&] { return bench::MetisKway(graph, k, row.labels); }, row);
 }
 #endif
 
