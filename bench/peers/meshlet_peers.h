@@ -12,6 +12,8 @@
 #include <span>
 #include <vector>
 
+#include "absl/strings/str_split.h"
+#include "absl/strings/string_view.h"
 #include "bench/bench_util.h"
 #include "core/mesh/prepared_mesh.h"
 
@@ -28,6 +30,14 @@ inline double ProcessCpuSeconds() {
   timespec now{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
   return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+// Whether the comma-separated `list` ("meshoptimizer,metis") names `name`.
+inline bool ListHas(absl::string_view list, absl::string_view name) {
+  for (absl::string_view item : absl::StrSplit(list, ',')) {
+    if (item == name) return true;
+  }
+  return false;
 }
 
 // Best of `repeats` runs of `run` (returning whether it worked) in wall-clock and in CPU

@@ -175,12 +175,7 @@ int Run(int argc, char** argv) {
   const uint32_t reseeds = args.Get<uint32_t>("reseeds", 1);
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
-  auto with_peer = [&](absl::string_view name) {
-    for (absl::string_view p : absl::StrSplit(peers, ',')) {
-      if (p == name) return true;
-    }
-    return false;
-  };
+  auto with_peer = [&](absl::string_view name) { return bench::ListHas(peers, name); };
   if (header) {
     std::printf(
         "mesh,faces,method,k,seconds,cpu_seconds,energy,energy_over_ml,patches,disconnected,"

@@ -165,12 +165,7 @@ int Run(int argc, char** argv) {
   const std::vector<double> ours_cone_weights = args.GetList<double>("ours-cone-weights", "0,0.25");
   const std::string peers = args.Get<std::string>("peers", "meshoptimizer,metis");
   if (!args.Done()) return 2;
-  auto with_peer = [&](absl::string_view name) {
-    for (absl::string_view p : absl::StrSplit(peers, ',')) {
-      if (p == name) return true;
-    }
-    return false;
-  };
+  auto with_peer = [&](absl::string_view name) { return bench::ListHas(peers, name); };
   if (header) {
     std::printf(
         "mesh,faces,method,cone_weight,meshlets,fill,vertices_per_triangle,mean_radius,"
