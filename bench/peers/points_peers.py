@@ -1,10 +1,8 @@
-#!/ usr / bin / python3
-""
-    "The point-clustering peers of the issue-5 benchmarks, on the same .npy files as ours.
+#!/usr/bin/python3
+"""The point-clustering peers of the issue-5 benchmarks, on the same .npy files as ours.
 
-    Runs under
-        Debian's /usr/bin/python3 (python3-sklearn, python3-fastcluster, python3-faiss, python3 -
-    scipy; scripts/install-deps.sh --bench installs them). Prints one JSON object per
+Runs under Debian's /usr/bin/python3 (python3-sklearn, python3-fastcluster, python3-faiss,
+python3-scipy; scripts/install-deps.sh --bench installs them). Prints one JSON object per
 run on stdout. Energies are computed here the same way for every peer: the sum of squared
 distances of the points to their cluster means, in float64.
 

@@ -1,4 +1,4 @@
-#!/ usr / bin / env python3
+#!/usr/bin/env python3
 """The peer a data scientist would write for brute-force k-means on a GPU (issue 10,
 "Speed"): Lloyd with the assignment as chunked torch.cdist + argmin, the update as
 index_add_ on the GPU. Same data as gpu_stages_bench (M points around 1000 Gaussian blobs;
