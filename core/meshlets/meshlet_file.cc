@@ -104,6 +104,9 @@ absl::StatusOr<MeshletFile> DecodeMeshletFile(const std::string& bytes) {
   file.vertex_count = GetU32(bytes, 40);
   const uint32_t flags = GetU32(bytes, 44);
   if ((flags & ~kBoundsFlag) != 0) return fail(absl::StrCat("unknown flags ", flags));
+  for (size_t i = 48; i < kMeshletFileHeaderBytes; ++i) {
+    if (bytes[i] != 0) return fail(absl::StrCat("header byte ", i, " is not zero"));
+  }
   if (triangle_bytes % 4 != 0) {
     return fail(absl::StrCat("triangle bytes ", triangle_bytes, " not a multiple of 4"));
   }
@@ -160,6 +163,16 @@ absl::StatusOr<MeshletFile> DecodeMeshletFile(const std::string& bytes) {
   }
   absl::Status layout = CheckMeshletLayout(result, file.max_vertices, file.max_triangles);
   if (!layout.ok()) return fail(layout.message());
+  // The padding after each meshlet's triangles is zero (as meshoptimizer writes it).
+  for (size_t m = 0; m < result.meshlets.size(); ++m) {
+    const Meshlet& meshlet = result.meshlets[m];
+    const size_t end = meshlet.triangle_offset + ((3 * size_t{meshlet.triangle_count} + 3) & ~3u);
+    for (size_t i = meshlet.triangle_offset + 3 * size_t{meshlet.triangle_count}; i < end; ++i) {
+      if (result.meshlet_triangles[i] != 0) {
+        return fail(absl::StrCat("meshlet ", m, ": padding byte ", i, " is not zero"));
+      }
+    }
+  }
   return file;
 }
 

@@ -13,7 +13,7 @@
 //   36      4   uint32        face count F (the input mesh's faces)
 //   40      4   uint32        vertex count V (the input mesh's vertices)
 //   44      4   uint32        flags: bit 0 = bounds present
-//   48      16                zero
+//   48      16                zero (a reader refuses other bytes)
 //   64      16 M              meshlets: vertex_offset, triangle_offset (bytes), vertex_count,
 //                             triangle_count, uint32 each (meshopt_Meshlet)
 //   ..      4 N               meshlet_vertices: uint32 input vertex indices
@@ -56,9 +56,10 @@ struct MeshletFile {
 absl::StatusOr<std::string> EncodeMeshletFile(const MeshletResult& meshlets, uint32_t vertex_count,
                                               uint32_t max_vertices, uint32_t max_triangles);
 
-// Parses and checks a meshlet file's bytes: the magic, version, sizes that add up to the
-// byte count, and the layout (offsets, counts, local indices, caps, each face once, vertex
-// indices below V). INVALID_ARGUMENT naming what is wrong and where.
+// Parses and checks a meshlet file's bytes: the magic, version, zero reserved bytes, sizes
+// that add up to the byte count, and the layout (offsets, counts, local indices, caps, each
+// face once, vertex indices below V, zero padding). What it accepts, EncodeMeshletFile
+// writes back byte for byte. INVALID_ARGUMENT naming what is wrong and where.
 absl::StatusOr<MeshletFile> DecodeMeshletFile(const std::string& bytes);
 
 // Writes EncodeMeshletFile's bytes to `path`; UNAVAILABLE naming the path if it cannot.

@@ -381,6 +381,19 @@ TEST(MeshletFile, RoundTrips) {
   }
 }
 
+TEST(MeshletFile, RejectsNonZeroPadding) {
+  // Three vertices a meshlet: one triangle each, 3 bytes padded to 4.
+  const TriangleMesh mesh = testing::TwoTriangles();
+  const MeshletResult built = BuildAndCheck(mesh, 3, 124);
+  ASSERT_EQ(built.meshlet_triangles.size(), 8u);
+  std::string bytes = *EncodeMeshletFile(built, 4, 3, 124);
+  ASSERT_TRUE(DecodeMeshletFile(bytes).ok());
+  bytes[64 + 16 * 2 + 4 * built.meshlet_vertices.size() + 3] = 1;  // meshlet 0's padding
+  absl::StatusOr<MeshletFile> file = DecodeMeshletFile(bytes);
+  EXPECT_FALSE(file.ok());
+  EXPECT_NE(file.status().message().find("padding"), std::string::npos) << file.status();
+}
+
 TEST(MeshletFile, RejectsDamagedFiles) {
   const TriangleMesh mesh = testing::Grid(5);
   const MeshletResult built = BuildAndCheck(mesh, 16, 16);
@@ -394,6 +407,9 @@ TEST(MeshletFile, RejectsDamagedFiles) {
   std::string version = bytes;
   version[8] = 2;
   EXPECT_FALSE(DecodeMeshletFile(version).ok());
+  std::string reserved = bytes;
+  reserved[50] = 1;
+  EXPECT_FALSE(DecodeMeshletFile(reserved).ok());
   // A local index past its meshlet's vertices (the first triangle byte).
   std::string local = bytes;
   local[64 + 16 * built.meshlets.size() + 4 * built.meshlet_vertices.size()] =
