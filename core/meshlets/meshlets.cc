@@ -281,16 +281,14 @@ class MeshletBuilder {
       }
       const uint32_t before = assigned;
       seed = GrowOne(seed, assigned);
-      {
-        // Lookahead: a meshlet that leaves a small pocket of unassigned faces behind (between
-        // itself, holes and earlier meshlets) would leave an island that no full neighbour can
-        // take; grown again from inside the pocket, it takes the pocket first.
-        for (uint32_t retry = 0; retry < kPocketRetries; ++retry) {
-          const uint32_t pocket = FindPocket();
-          if (pocket == kNone) break;
-          Undo(assigned);
-          seed = GrowOne(pocket, assigned);
-        }
+      // Lookahead: a meshlet that leaves a small pocket of unassigned faces behind (between
+      // itself, holes and earlier meshlets) would leave an island that no full neighbour can
+      // take; grown again from inside the pocket, it takes the pocket first.
+      for (uint32_t retry = 0; retry < kPocketRetries; ++retry) {
+        const uint32_t pocket = FindPocket();
+        if (pocket == kNone) break;
+        Undo(assigned);
+        seed = GrowOne(pocket, assigned);
       }
       if (before / kCancelStride != assigned / kCancelStride) {
         MLCLUST_RETURN_IF_ERROR(CheckCancelled(options_.cancel, "meshlet growth"));
@@ -300,7 +298,6 @@ class MeshletBuilder {
   }
 
  private:
-  // Grows meshlet `head_.size()` from `seed`; returns the next seed (kNone: none left over).
   // A face of an unassigned region of at most pocket_limit_ faces that touches the last
   // meshlet's left-over candidates, or kNone. Floods stop past the limit; a flood that
   // reaches a face an earlier flood found in a large region stops at once.
@@ -350,6 +347,7 @@ class MeshletBuilder {
     flood_large_ = ++flood_;
   }
 
+  // Grows meshlet `head_.size()` from `seed`; returns the next seed (kNone: none left over).
   uint32_t GrowOne(uint32_t seed, uint32_t& assigned) {
     ++growth_;
     const auto meshlet = static_cast<uint32_t>(head_.size());
