@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string>
 
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -12,6 +13,7 @@
 #include "client/job_cli.h"
 #include "core/io/mesh_io.h"
 #include "core/meshlets/meshlet_file.h"
+#include "core/meshlets/meshlet_gltf.h"
 #include "core/meshlets/meshlets.h"
 
 namespace mlclust::cli {
@@ -31,7 +33,9 @@ std::vector<Flag> MeshletFlags() {
            "per triangle, each meshlet's run padded to 4 bytes), F uint32 faces (the input face of "
            "each meshlet triangle, in order), and M bounds of 48 bytes (centre xyz, radius, cone "
            "apex xyz, cone axis xyz, cone cutoff as float32; cone axis xyz and cutoff as int8 "
-           "SNORM)"},
+           "SNORM). FILE.glb instead: a glTF 2.0 binary with the mesh (its index buffer in meshlet "
+           "order) and the same arrays as buffer views, named in the mesh's "
+           "extras.mlclust_meshlets (core/meshlets/meshlet_gltf.h)"},
           {"max-vertices", "N",
            "with --meshlets: distinct vertices per meshlet, 3 to 255 (default 64)"},
           {"max-triangles", "N", "with --meshlets: triangles per meshlet, 1 to 512 (default 124)"},
@@ -84,12 +88,12 @@ int RunMeshMeshlets(const Arguments& args) {
                              absl::StrCat(input_path, ": ", meshlets.status().message())));
   }
   const std::string path = args.get("meshlets");
-  if (absl::Status s =
-          WriteMeshletFile(path, *meshlets, static_cast<uint32_t>(mesh->num_vertices()),
-                           options.max_vertices, options.max_triangles);
-      !s.ok()) {
-    return Fail(s);
-  }
+  const absl::Status written =
+      absl::EndsWithIgnoreCase(path, ".glb")
+          ? WriteMeshletGlb(path, *mesh, *meshlets, options.max_vertices, options.max_triangles)
+          : WriteMeshletFile(path, *meshlets, static_cast<uint32_t>(mesh->num_vertices()),
+                             options.max_vertices, options.max_triangles);
+  if (!written.ok()) return Fail(written);
   if (args.has("labels")) {
     if (absl::Status s = WriteLabels(args.get("labels"), meshlets->face_meshlet); !s.ok()) {
       return Fail(s);

@@ -38,6 +38,21 @@ void PutArray(std::string& out, const std::vector<T>& values) {
 
 }  // namespace
 
+std::string EncodeMeshletBounds(const std::vector<MeshletBounds>& bounds) {
+  std::string out;
+  out.reserve(kBoundsBytes * bounds.size());
+  for (const MeshletBounds& b : bounds) {
+    const float floats[11] = {b.center[0],    b.center[1],    b.center[2],    b.radius,
+                              b.cone_apex[0], b.cone_apex[1], b.cone_apex[2], b.cone_axis[0],
+                              b.cone_axis[1], b.cone_axis[2], b.cone_cutoff};
+    out.append(reinterpret_cast<const char*>(floats), sizeof(floats));
+    const int8_t snorm[4] = {b.cone_axis_s8[0], b.cone_axis_s8[1], b.cone_axis_s8[2],
+                             b.cone_cutoff_s8};
+    out.append(reinterpret_cast<const char*>(snorm), sizeof(snorm));
+  }
+  return out;
+}
+
 absl::StatusOr<std::string> EncodeMeshletFile(const MeshletResult& meshlets, uint32_t vertex_count,
                                               uint32_t max_vertices, uint32_t max_triangles) {
   constexpr size_t kMax = std::numeric_limits<uint32_t>::max();
@@ -66,15 +81,7 @@ absl::StatusOr<std::string> EncodeMeshletFile(const MeshletResult& meshlets, uin
   PutArray(out, meshlets.meshlet_vertices);
   PutArray(out, meshlets.meshlet_triangles);
   PutArray(out, meshlets.triangle_faces);
-  for (const MeshletBounds& b : meshlets.bounds) {
-    const float floats[11] = {b.center[0],    b.center[1],    b.center[2],    b.radius,
-                              b.cone_apex[0], b.cone_apex[1], b.cone_apex[2], b.cone_axis[0],
-                              b.cone_axis[1], b.cone_axis[2], b.cone_cutoff};
-    out.append(reinterpret_cast<const char*>(floats), sizeof(floats));
-    const int8_t snorm[4] = {b.cone_axis_s8[0], b.cone_axis_s8[1], b.cone_axis_s8[2],
-                             b.cone_cutoff_s8};
-    out.append(reinterpret_cast<const char*>(snorm), sizeof(snorm));
-  }
+  out += EncodeMeshletBounds(meshlets.bounds);
   return out;
 }
 

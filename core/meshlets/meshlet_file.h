@@ -32,6 +32,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -61,6 +62,10 @@ absl::StatusOr<std::string> EncodeMeshletFile(const MeshletResult& meshlets, uin
 // face once, vertex indices below V, zero padding). What it accepts, EncodeMeshletFile
 // writes back byte for byte. INVALID_ARGUMENT naming what is wrong and where.
 absl::StatusOr<MeshletFile> DecodeMeshletFile(const std::string& bytes);
+
+// The bounds section alone: 48 bytes per meshlet, meshopt_Bounds' layout (also the glTF
+// writer's bounds view, core/meshlets/meshlet_gltf.h).
+std::string EncodeMeshletBounds(const std::vector<MeshletBounds>& bounds);
 
 // Writes EncodeMeshletFile's bytes to `path`; UNAVAILABLE naming the path if it cannot.
 absl::Status WriteMeshletFile(const std::string& path, const MeshletResult& meshlets,

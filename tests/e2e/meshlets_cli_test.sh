@@ -35,6 +35,18 @@ for i, (vo, to, vc, tc) in enumerate(meshlets):
     assert max(local) < vc
 assert len(seen) == faces == t
 PY
+# FILE.glb: a glTF 2.0 binary whose mesh extras name the meshlet views.
+"$mlclust" mesh "$data/elephant.off" --meshlets "$work/m.glb" > /dev/null
+python3 - "$work/m.glb" <<'PY'
+import json, struct, sys
+data = open(sys.argv[1], "rb").read()
+magic, version, length, json_length, kind = struct.unpack_from("<4sIII4s", data, 0)
+assert (magic, version, length, kind) == (b"glTF", 2, len(data), b"JSON")
+gltf = json.loads(data[20:20 + json_length])
+extras = gltf["meshes"][0]["extras"]["mlclust_meshlets"]
+assert extras["version"] == 1 and extras["max_vertices"] == 64 and extras["meshlet_count"] > 0
+assert gltf["accessors"][1]["count"] == 3 * 5558
+PY
 # Refusals: caps out of range, a flag of the clustering job.
 if "$mlclust" mesh "$data/elephant.off" --meshlets "$work/x.bin" --max-vertices 256 2> "$work/err.txt"; then
   echo "--max-vertices 256 accepted" >&2; exit 1

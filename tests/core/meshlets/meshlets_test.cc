@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <string>
 #include <utility>
@@ -12,6 +13,8 @@
 
 #include "core/io/mesh_io.h"
 #include "core/meshlets/meshlet_file.h"
+#include "core/meshlets/meshlet_gltf.h"
+#include "nlohmann/json.hpp"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
@@ -417,6 +420,53 @@ TEST(MeshletFile, RejectsDamagedFiles) {
   absl::StatusOr<MeshletFile> damaged = DecodeMeshletFile(local);
   EXPECT_FALSE(damaged.ok());
   EXPECT_NE(damaged.status().message().find("meshlet 0"), std::string::npos) << damaged.status();
+}
+
+TEST(MeshletGlb, HoldsTheMeshInMeshletOrderAndTheArrays) {
+  const TriangleMesh mesh = testing::Grid(10, {7});
+  const MeshletResult built = BuildAndCheck(mesh, 16, 20);
+  absl::StatusOr<std::string> glb = EncodeMeshletGlb(mesh, built, 16, 20);
+  ASSERT_TRUE(glb.ok()) << glb.status();
+  auto u32 = [&](size_t at) {
+    uint32_t v = 0;
+    std::memcpy(&v, glb->data() + at, 4);
+    return v;
+  };
+  ASSERT_EQ(glb->substr(0, 4), "glTF");
+  EXPECT_EQ(u32(4), 2u);
+  EXPECT_EQ(u32(8), glb->size());
+  const uint32_t json_bytes = u32(12);
+  EXPECT_EQ(glb->substr(16, 4), "JSON");
+  const nlohmann::json gltf = nlohmann::json::parse(glb->substr(20, json_bytes));
+  const size_t binary = 20 + json_bytes + 8;
+  EXPECT_EQ(glb->substr(20 + json_bytes + 4, 4), std::string("BIN\0", 4));
+  const nlohmann::json& extras = gltf["meshes"][0]["extras"]["mlclust_meshlets"];
+  EXPECT_EQ(extras["meshlet_count"], built.meshlets.size());
+  EXPECT_EQ(extras["max_vertices"], 16);
+  auto view_bytes = [&](const nlohmann::json& view_number) {
+    const nlohmann::json& view = gltf["bufferViews"][view_number.get<size_t>()];
+    return glb->substr(binary + view["byteOffset"].get<size_t>(), view["byteLength"].get<size_t>());
+  };
+  const std::string triangles = view_bytes(extras["meshlet_triangles"]);
+  EXPECT_EQ(triangles, std::string(built.meshlet_triangles.begin(), built.meshlet_triangles.end()));
+  EXPECT_EQ(view_bytes(extras["bounds"]).size(), 48 * built.meshlets.size());
+  // The index buffer: the meshlets' triangles in order, as input vertex indices.
+  const nlohmann::json& indices = gltf["accessors"][1];
+  EXPECT_EQ(indices["count"], mesh.indices.size());
+  const std::string index_bytes = view_bytes(indices["bufferView"]);
+  for (size_t t = 0; t < built.triangle_faces.size(); ++t) {
+    for (int corner = 0; corner < 3; ++corner) {
+      uint32_t index = 0;
+      std::memcpy(&index, index_bytes.data() + 4 * (3 * t + corner), 4);
+      EXPECT_EQ(index, mesh.indices[3 * built.triangle_faces[t] + corner]);
+    }
+  }
+  // A glTF reader (Assimp, through ReadMeshFile) sees the mesh.
+  const std::string path = ::testing::TempDir() + "/meshlets_test.glb";
+  ASSERT_TRUE(WriteMeshletGlb(path, mesh, built, 16, 20).ok());
+  absl::StatusOr<TriangleMesh> read = ReadMeshFile(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->num_faces(), mesh.num_faces());
 }
 
 }  // namespace
