@@ -229,8 +229,8 @@ class MeshletBuilder {
         live_vertex_(mesh.num_vertices()),
         local_(mesh.num_vertices(), kNotInMeshlet),
         closing_(mesh.num_vertices()),
-        flood_stamp_(faces_, kNone),
-        frames_(faces_) {
+        frames_(faces_),
+        flood_stamp_(faces_, kNone) {
     for (uint32_t f = 0; f < faces_; ++f) {
       state_[f].live = static_cast<uint32_t>(neighbours.of(f).size());
     }
