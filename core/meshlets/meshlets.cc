@@ -61,19 +61,21 @@ SpatialOrder OrderSpatially(const TriangleMesh& input) {
     }
     codes[f] = MortonCode(cell[0], cell[1], cell[2]);
   }
-  // Two stable 15-bit counting passes over the 30-bit codes (ties keep the input order).
+  // Stable counting passes over the 30-bit codes (ties keep the input order): two of 15
+  // bits, or three of 10 for a small mesh, where clearing 32,768 buckets twice would cost
+  // more than its faces.
   SpatialOrder order;
   order.input_face.resize(faces);
   std::vector<uint32_t> pass(faces);
   for (uint32_t f = 0; f < faces; ++f) pass[f] = f;
-  constexpr uint32_t kBits = 15;
-  std::vector<uint32_t> start((1u << kBits) + 1);
-  for (int shift : {0, static_cast<int>(kBits)}) {
+  const uint32_t bits = faces < (1u << 16) ? 10 : 15;
+  const uint32_t mask = (1u << bits) - 1;
+  std::vector<uint32_t> start((1u << bits) + 1);
+  for (uint32_t shift = 0; shift < 30; shift += bits) {
     std::fill(start.begin(), start.end(), 0);
-    for (uint32_t f : pass) ++start[((codes[f] >> shift) & ((1u << kBits) - 1)) + 1];
+    for (uint32_t f : pass) ++start[((codes[f] >> shift) & mask) + 1];
     for (size_t b = 0; b + 1 < start.size(); ++b) start[b + 1] += start[b];
-    for (uint32_t f : pass)
-      order.input_face[start[(codes[f] >> shift) & ((1u << kBits) - 1)]++] = f;
+    for (uint32_t f : pass) order.input_face[start[(codes[f] >> shift) & mask]++] = f;
     pass.swap(order.input_face);
   }
   order.input_face.swap(pass);
