@@ -514,7 +514,8 @@ class MeshletBuilder {
   }
 
  public:
-  // Writes the layout: surviving meshlets in order of their ids, faces in list order.
+  // Writes the layout: meshlets in order of their ids, faces in list order (ids of the
+  // spatially ordered mesh; BuildMeshlets maps them back).
   void Emit(MeshletResult& result) {
     const auto count = static_cast<uint32_t>(head_.size());
     std::vector<uint32_t> renumber(count, kNone);
