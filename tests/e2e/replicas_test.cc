@@ -17,6 +17,7 @@
 #include "absl/strings/str_cat.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
+#include "grpc/health/v1/health.grpc.pb.h"
 #include "server/server.h"
 #include "tests/fixtures/cutting_proxy.h"
 #include "tests/fixtures/loopback.h"
@@ -433,6 +434,61 @@ TEST(ReplicasTest, ADetachedJobLostWithItsReplicaIsSubmittedAgainByWatchOnReplic
           .status();
   EXPECT_EQ(gone.code(), absl::StatusCode::kNotFound) << gone;
   EXPECT_EQ(resubmissions.size(), 1u);
+}
+
+grpc::health::v1::HealthCheckResponse::ServingStatus Readiness(const server::Server& server) {
+  auto stub = grpc::health::v1::Health::NewStub(client::Connect(AddressOf(server)));
+  grpc::ClientContext context;
+  grpc::health::v1::HealthCheckRequest request;
+  request.set_service("mlclust.v1.Clustering");
+  grpc::health::v1::HealthCheckResponse response;
+  EXPECT_TRUE(stub->Check(&context, request, &response).ok());
+  return response.status();
+}
+
+// Readiness (the health service's mlclust.v1.Clustering, docker/k8s's readinessProbe; GET
+// /ready on the metrics port for probes without gRPC or TLS) follows the server's own
+// state: NOT_SERVING while its queue is full, SERVING when it has room again; the overall
+// service (liveness) stays SERVING.
+TEST(ReplicasTest, ReadinessFollowsAFullQueue) {
+  server::ServerOptions options;
+  options.gpu = server::GpuMode::kOff;
+  options.queue_capacity = 1;
+  options.metrics_address = "127.0.0.1:0";
+  std::unique_ptr<server::Server> a = testing::StartServer(options);
+  ASSERT_TRUE(a);
+  auto channel = client::Connect(AddressOf(*a));
+  using Health = grpc::health::v1::HealthCheckResponse;
+  EXPECT_EQ(Readiness(*a), Health::SERVING);
+  EXPECT_THAT(testing::HttpGet(a->metrics_port(), "/ready"), HasSubstr("200 OK"));
+  // One job runs (seconds of HC on 320,000 faces), one waits: the queue is full.
+  absl::StatusOr<v1::Accepted> running =
+      client::SubmitDetached(channel, HcSpec(), *EncodeMeshToDraco(testing::Grid(400)));
+  ASSERT_TRUE(running.ok()) << running.status();
+  for (int i = 0; i < 600; ++i) {
+    absl::StatusOr<v1::JobList> jobs = client::ListJobs(channel);
+    ASSERT_TRUE(jobs.ok()) << jobs.status();
+    if (jobs->jobs(0).state() == "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  absl::StatusOr<v1::Accepted> waiting =
+      client::SubmitDetached(channel, HcSpec(), *EncodeMeshToDraco(testing::Grid(10)));
+  ASSERT_TRUE(waiting.ok()) << waiting.status();
+  EXPECT_EQ(Readiness(*a), Health::NOT_SERVING);
+  const std::string full = testing::HttpGet(a->metrics_port(), "/ready");
+  EXPECT_THAT(full, HasSubstr("503"));
+  EXPECT_THAT(full, HasSubstr("not ready: the job queue is full"));
+  {
+    auto stub = grpc::health::v1::Health::NewStub(channel);
+    grpc::ClientContext context;
+    grpc::health::v1::HealthCheckResponse overall;
+    ASSERT_TRUE(stub->Check(&context, grpc::health::v1::HealthCheckRequest(), &overall).ok());
+    EXPECT_EQ(overall.status(), Health::SERVING);
+  }
+  ASSERT_TRUE(client::CancelJob(channel, waiting->job_id()).ok());
+  EXPECT_EQ(Readiness(*a), Health::SERVING);
+  EXPECT_THAT(testing::HttpGet(a->metrics_port(), "/ready"), HasSubstr("200 OK"));
+  ASSERT_TRUE(client::CancelJob(channel, running->job_id()).ok());
 }
 
 }  // namespace
