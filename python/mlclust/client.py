@@ -501,7 +501,9 @@ class Client:
         if error.code == grpc.StatusCode.UNAVAILABLE:
             return Error(error.code, f"replica {replica}, which holds job {job}, does not "
                          "answer: it was stopped or died, and its jobs and their results went "
-                         f"with it (a job is never moved to another replica) ({error.details})")
+                         "with it (replicas share nothing). Submit the job again, from its "
+                         "input and options: its levels are the same (watch(job_id, "
+                         f"resubmit=...) does it) ({error.details})")
         return Error(error.code, f"replica {replica}: {error.details}")
 
     def _order_after_loss(self, lost):
