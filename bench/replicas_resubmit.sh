@@ -2,16 +2,17 @@
 # A replica SIGKILLed in the middle of a job it accepted (client/replicas.h, issue 28): the
 # time to the final result of one CLI job (ML on bunny00 subdivided twice, 1,206,528 faces,
 # CPU) through two `mlclust serve` replicas, without a kill and with the accepting replica
-# killed halfway through (once it has produced half the job's levels, polled with `mlclust
-# jobs` every 0.2 s; the time of the kill is printed, from the submission): the
+# killed halfway through (once it has produced half the job's levels, KILL_AT=0.5, polled
+# with `mlclust jobs` every 0.2 s; the time of the kill is printed, from the submission): the
 # client submits the job again to the other replica, keeps the levels received, and its
 # result must equal the no-kill run's (every level's cluster count and energy, and the
 # labels at --clusters K), checked here.
 #   bench/replicas_resubmit.sh [MLCLUST_BINARY] [BENCH_MESH_DIR] [RUNS]
+#   KILL_AT=0.9 bench/replicas_resubmit.sh ...   # the kill once 90 % of the levels exist
 # The mesh is made once in BENCH_MESH_DIR (default data/bench) from bunny00.off
 # (scripts/fetch-bench-meshes.sh puts it there) with that script's subdivision (one copy).
 set -euo pipefail
-M=${1:-build/client/mlclust}; D=${2:-data/bench}; runs=${3:-1}
+M=${1:-build/client/mlclust}; D=${2:-data/bench}; runs=${3:-1}; kill_at=${KILL_AT:-0.5}
 mesh="$D/bunny00_x16.off"
 if [ ! -s "$mesh" ]; then
   [ -s "$D/bunny00.off" ] || { echo "no $D/bunny00.off: run scripts/fetch-bench-meshes.sh" >&2; exit 1; }
@@ -41,13 +42,15 @@ echo "mesh: $mesh ($(sed -n 2p "$mesh" | awk '{print $2}') faces); runs: $runs"
 for r in $(seq "$runs"); do
   job plain "$a,$b"
   plain=$(cat "$work/plain.s")
-  # The kill run: A accepts the job (in order) and is SIGKILLed once half its levels exist.
+  # The kill run: A accepts the job (in order) and is SIGKILLed once KILL_AT of its levels
+  # exist.
   levels=$(($(wc -l < "$work/plain.csv") - 1))
+  at=$(echo "$levels * $kill_at / 1" | bc)
   start=$(date +%s.%N)
   job killed "$a,$b" &
   run=$!
   until "$M" jobs --server "$a" 2> /dev/null |
-      awk -v half=$((levels / 2)) '$2 == "running" && $5 >= half { f = 1 } END { exit !f }'; do
+      awk -v at="$at" '$2 == "running" && $5 >= at { f = 1 } END { exit !f }'; do
     kill -0 "$run" 2> /dev/null || break
     sleep 0.2
   done
