@@ -337,12 +337,14 @@ client::ReplicaOptions ReplicaOptionsFrom(const ServerFlags& flags, bool quiet) 
                  replica.c_str(), std::string(status.message()).c_str());
   };
   options.on_resubmit = [](const client::Resubmission& lost) {
+    // On a terminal, after the progress line (job_cli.cc's, which rewrites its line).
     std::fprintf(stderr,
-                 "\nmlclust: replica %s accepted the job and then became unreachable (%s); "
+                 "%smlclust: replica %s accepted the job and then became unreachable (%s); "
                  "submitting it again to the next replica (try %d of %d), keeping the %zu "
                  "levels received\n",
-                 lost.lost_replica.c_str(), std::string(lost.status.message()).c_str(),
-                 lost.attempt, lost.max_resubmits, lost.levels_kept);
+                 isatty(STDERR_FILENO) ? "\n" : "", lost.lost_replica.c_str(),
+                 std::string(lost.status.message()).c_str(), lost.attempt, lost.max_resubmits,
+                 lost.levels_kept);
   };
   return options;
 }
