@@ -18,6 +18,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "core/base/renumber.h"
 #include "core/base/status_macros.h"
@@ -198,14 +199,20 @@ class HierarchyAssembler {
     if (labels_.size() < snapshot.total_elements()) return absl::OkStatus();
     if (snapshot.cluster_count() != held.cluster_count(0) || snapshot.energy() != held.energy(0)) {
       return DifferentLevel(result_.first_level,
-                            absl::StrCat("it has ", snapshot.cluster_count(), " clusters (energy ",
-                                         snapshot.energy(), "), the level held ",
-                                         held.cluster_count(0), " (energy ", held.energy(0), ")"));
+                            CountAndEnergy(snapshot.cluster_count(), snapshot.energy(),
+                                           held.cluster_count(0), held.energy(0)));
     }
     started_ = true;
     stream_levels_ = 1;
     std::vector<ClusterId>().swap(labels_);
     return absl::OkStatus();
+  }
+
+  // Energies to the last bit: two replicas may differ only there.
+  static std::string CountAndEnergy(uint32_t count, double energy, uint32_t held_count,
+                                    double held_energy) {
+    return absl::StrFormat("it has %u clusters (energy %.17g), the level held %u (energy %.17g)",
+                           count, energy, held_count, held_energy);
   }
 
   static absl::Status DifferentLevel(uint64_t level, const std::string& how) {
@@ -348,9 +355,8 @@ class HierarchyAssembler {
       const LevelMoves held = result_.hierarchy.level(stream_levels_);
       const uint64_t number = result_.first_level + stream_levels_;
       if (cluster_count != held.cluster_count || energy != held.energy) {
-        return DifferentLevel(number, absl::StrCat("it has ", cluster_count, " clusters (energy ",
-                                                   energy, "), the level held ", held.cluster_count,
-                                                   " (energy ", held.energy, ")"));
+        return DifferentLevel(
+            number, CountAndEnergy(cluster_count, energy, held.cluster_count, held.energy));
       }
       if (!std::ranges::equal(element, held.element) || !std::ranges::equal(to, held.to_cluster) ||
           !std::ranges::equal(from, held.from_cluster)) {
