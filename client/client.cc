@@ -216,10 +216,11 @@ class HierarchyAssembler {
   }
 
   static absl::Status DifferentLevel(uint64_t level, const std::string& how) {
-    return absl::DataLossError(absl::StrCat(
-        "the job was run again on another replica and its level ", level,
-        " differs from the one received before (", how,
-        "): the replicas do not compute the same levels (different builds or versions?)"));
+    return absl::DataLossError(
+        absl::StrCat("the job was run again on another replica and its level ", level,
+                     " differs from the one received before (", how,
+                     "): the replicas do not compute the same levels (different builds, versions "
+                     "or devices: a GPU replica's float order may differ from a CPU one's?)"));
   }
 
   absl::Status AddLevels(const v1::LevelBatch& batch) {

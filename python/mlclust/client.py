@@ -356,7 +356,8 @@ def _same_levels(kept, new):
         return Error(grpc.StatusCode.DATA_LOSS,
                      f"the job was run again on another replica and its level {level} differs "
                      f"from the one received before ({how}): the replicas do not compute the "
-                     "same levels (different builds or versions?)")
+                     "same levels (different builds, versions or devices: a GPU replica's "
+                     "float order may differ from a CPU one's?)")
     if not np.array_equal(kept[0], new[0]):
         raise differs(0, "its start labels differ")
     for level in range(n):
