@@ -202,9 +202,19 @@ FlagGroup ConnectionFlags() {
             "address the name resolves to) spreads jobs over the replicas, the least loaded "
             "first (GetStats: queue depth plus running jobs; ties at random; the default), or "
             "in the order given. A replica that is unreachable, draining or full BEFORE it "
-            "accepted the job is skipped and the job tried on the next; a job a replica "
-            "accepted is never submitted again. A detached job's id names its replica "
-            "(HOST:PORT/JOBID): watch and cancel go there."}},
+            "accepted the job is skipped and the job tried on the next. A replica lost AFTER "
+            "accepting it (killed, drained with the job running): see --resubmit. A detached "
+            "job's id names its replica (HOST:PORT/JOBID): watch and cancel go there; "
+            "replicas share nothing, so a detached job lost with its replica is submitted "
+            "again by running its command again (the same levels)."},
+           {"resubmit", "N",
+            "several servers: a job whose replica was lost after accepting it (unreachable, "
+            "died, drained with the job; not a job that failed or was cancelled there, nor "
+            "--deadline) is submitted again to the next replica, at most N times (default "
+            "2; 0: never), a line on stderr each time. A job is a pure function of its "
+            "input and options (seed included), so its levels are the same: those already "
+            "received are kept, checked against the new stream (the job fails if a replica "
+            "sent other levels) and not written twice"}},
           /*stacked=*/false,
           /*shared=*/true};
 }

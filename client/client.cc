@@ -18,6 +18,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "core/base/renumber.h"
 #include "core/base/status_macros.h"
@@ -40,12 +41,35 @@ class HierarchyAssembler {
   explicit HierarchyAssembler(JobResult& result, bool absolute_levels = false)
       : result_(result), absolute_levels_(absolute_levels) {}
 
-  // The job's number of the last complete level held, or -1 before the snapshot is.
+  // The job's number of the last complete level this stream delivered, or -1 before its
+  // snapshot is complete.
   int64_t last_complete_level() const {
     if (!started_) return -1;
-    return static_cast<int64_t>(result_.first_level + result_.hierarchy.num_levels()) - 1;
+    return static_cast<int64_t>(result_.first_level + stream_levels_) - 1;
   }
   bool started() const { return started_; }
+  // Complete levels held, over every stream (ReceivedLevels).
+  size_t levels_held() const { return hierarchy_started_ ? result_.hierarchy.num_levels() : 0; }
+
+  // A new stream of the same job (another replica ran it again: ReceivedLevels): the levels
+  // held are expected again first, checked against those held and skipped; the stream's own
+  // state (a split level, a snapshot in pieces, its end) starts afresh.
+  void BeginStream(bool absolute_levels) {
+    DropPartialLevel();
+    labels_.clear();
+    started_ = false;
+    done_ = false;
+    stream_levels_ = 0;
+    absolute_levels_ = absolute_levels;
+    replay_levels_ = levels_held();
+  }
+
+  // How the last event Add took goes on to RunOptions::on_event: whole, not at all (it only
+  // repeated levels held: a snapshot or levels a lost replica had sent), or trimmed to the
+  // levels after those (trimmed()).
+  enum class Forward { kWhole, kNone, kTrimmed };
+  Forward forward() const { return forward_; }
+  const v1::JobEvent& trimmed() const { return trimmed_; }
 
   // A stream broke: a level split across messages and not yet complete is dropped (the
   // resumed stream sends it again whole).
@@ -57,6 +81,7 @@ class HierarchyAssembler {
   }
 
   absl::Status Add(const v1::JobEvent& event) {
+    forward_ = Forward::kWhole;
     switch (event.event_case()) {
       case v1::JobEvent::kAccepted:
         result_.job_id = event.accepted().job_id();
@@ -70,6 +95,11 @@ class HierarchyAssembler {
         return absl::OkStatus();
       case v1::JobEvent::kDone:
         if (continuing_) return absl::DataLossError("the job ended inside a split level");
+        if (stream_levels_ < replay_levels_) {
+          return DifferentLevel(result_.first_level + stream_levels_,
+                                absl::StrCat("the job ended after ", stream_levels_, " levels; ",
+                                             replay_levels_, " were received before"));
+        }
         result_.done = event.done();
         done_ = true;
         return absl::OkStatus();
@@ -132,8 +162,11 @@ class HierarchyAssembler {
     if (labels_.size() > snapshot.total_elements()) {
       return absl::DataLossError("snapshot holds more labels than its total_elements");
     }
+    if (replay_levels_ > 0) return RepeatSnapshot(snapshot);
     if (labels_.size() == snapshot.total_elements()) {
       started_ = true;
+      hierarchy_started_ = true;
+      stream_levels_ = 1;
       if (absolute_levels_) result_.first_level = snapshot.level();
       absl::Status status =
           result_.hierarchy.OnStart(labels_, snapshot.cluster_count(), snapshot.energy());
@@ -151,13 +184,52 @@ class HierarchyAssembler {
     return absl::OkStatus();
   }
 
+  // A snapshot piece of a stream that repeats the levels held (BeginStream): it must equal
+  // the held start, label for label.
+  absl::Status RepeatSnapshot(const v1::LevelSnapshot& snapshot) {
+    forward_ = Forward::kNone;
+    const HierarchyLog& held = result_.hierarchy;
+    const std::span<const ClusterId> start = held.start_labels();
+    if (snapshot.total_elements() != start.size() ||
+        (absolute_levels_ && snapshot.level() != result_.first_level) ||
+        !std::equal(labels_.begin() + snapshot.first_element(), labels_.end(),
+                    start.begin() + snapshot.first_element())) {
+      return DifferentLevel(result_.first_level, "its start labels differ");
+    }
+    if (labels_.size() < snapshot.total_elements()) return absl::OkStatus();
+    if (snapshot.cluster_count() != held.cluster_count(0) || snapshot.energy() != held.energy(0)) {
+      return DifferentLevel(result_.first_level,
+                            CountAndEnergy(snapshot.cluster_count(), snapshot.energy(),
+                                           held.cluster_count(0), held.energy(0)));
+    }
+    started_ = true;
+    stream_levels_ = 1;
+    std::vector<ClusterId>().swap(labels_);
+    return absl::OkStatus();
+  }
+
+  // Energies to the last bit: two replicas may differ only there.
+  static std::string CountAndEnergy(uint32_t count, double energy, uint32_t held_count,
+                                    double held_energy) {
+    return absl::StrFormat("it has %u clusters (energy %.17g), the level held %u (energy %.17g)",
+                           count, energy, held_count, held_energy);
+  }
+
+  static absl::Status DifferentLevel(uint64_t level, const std::string& how) {
+    return absl::DataLossError(
+        absl::StrCat("the job was run again on another replica and its level ", level,
+                     " differs from the one received before (", how,
+                     "): the replicas do not compute the same levels (different builds, versions "
+                     "or devices: a GPU replica's float order may differ from a CPU one's?)"));
+  }
+
   absl::Status AddLevels(const v1::LevelBatch& batch) {
     if (!started_) return absl::DataLossError("levels arrived before the snapshot");
     const int count = batch.cluster_count_size();
     if (batch.energy_size() != count || batch.triplet_end_size() != count) {
       return absl::DataLossError("a level batch with arrays of different lengths");
     }
-    const uint64_t expected = result_.first_level + result_.hierarchy.num_levels();
+    const uint64_t expected = result_.first_level + stream_levels_;
     if (batch.first_level() != expected) {
       return absl::DataLossError(
           absl::StrCat("levels from ", batch.first_level(), " arrived, expected level ", expected));
@@ -184,8 +256,12 @@ class HierarchyAssembler {
     if (count == 0 && batch.last_level_continues()) {
       return absl::DataLossError("an empty level batch that says its last level continues");
     }
+    // The leading entries that repeat levels held (each piece of a split level counts as
+    // one entry) are not passed on to on_event.
+    int repeated = 0;
     uint32_t begin = 0;
     for (int i = 0; i < count; ++i) {
+      if (stream_levels_ < replay_levels_) repeated = i + 1;
       const uint32_t end = batch.triplet_end(i);
       if (end < begin || end > all_element.size()) {
         return absl::DataLossError("a level batch with triplet_end out of order");
@@ -225,7 +301,40 @@ class HierarchyAssembler {
           ApplyLevel(batch.cluster_count(i), batch.energy(i), element, to, from));
     }
     if (count > 0 && !batch.last_level_continues()) continuing_ = false;
+    if (repeated == count) {
+      forward_ = Forward::kNone;
+    } else if (repeated > 0) {
+      forward_ = Forward::kTrimmed;
+      TrimBatch(batch, repeated);
+    }
     return absl::OkStatus();
+  }
+
+  // trimmed_: `batch` without its first `skip` entries (levels, or pieces of one).
+  void TrimBatch(const v1::LevelBatch& batch, int skip) {
+    trimmed_.Clear();
+    v1::LevelBatch& out = *trimmed_.mutable_levels();
+    const uint32_t skip_triplets = batch.triplet_end(skip - 1);
+    out.set_first_level(batch.first_level() + skip);
+    for (int i = skip; i < batch.cluster_count_size(); ++i) {
+      out.add_cluster_count(batch.cluster_count(i));
+      out.add_energy(batch.energy(i));
+      out.add_triplet_end(batch.triplet_end(i) - skip_triplets);
+      if (i < batch.source_level_size()) out.add_source_level(batch.source_level(i));
+    }
+    out.set_last_level_continues(batch.last_level_continues());
+    const size_t skip_bytes = size_t{skip_triplets} * sizeof(uint32_t);
+    if (!batch.packed_element().empty()) {
+      out.set_packed_element(batch.packed_element().substr(skip_bytes));
+      out.set_packed_to_cluster(batch.packed_to_cluster().substr(skip_bytes));
+      out.set_packed_from_cluster(batch.packed_from_cluster().substr(skip_bytes));
+    } else {
+      out.mutable_element()->Add(batch.element().begin() + skip_triplets, batch.element().end());
+      out.mutable_to_cluster()->Add(batch.to_cluster().begin() + skip_triplets,
+                                    batch.to_cluster().end());
+      out.mutable_from_cluster()->Add(batch.from_cluster().begin() + skip_triplets,
+                                      batch.from_cluster().end());
+    }
   }
 
   static absl::Status Unpack(const std::string& bytes, std::vector<uint32_t>& values) {
@@ -241,6 +350,24 @@ class HierarchyAssembler {
 
   absl::Status ApplyLevel(uint32_t cluster_count, double energy, std::span<const uint32_t> element,
                           std::span<const uint32_t> to, std::span<const uint32_t> from) {
+    if (stream_levels_ < replay_levels_) {
+      // A level held already (ReceivedLevels): the same cluster count, energy and triplets,
+      // or the replicas disagree; it is not applied again.
+      const LevelMoves held = result_.hierarchy.level(stream_levels_);
+      const uint64_t number = result_.first_level + stream_levels_;
+      if (cluster_count != held.cluster_count || energy != held.energy) {
+        return DifferentLevel(
+            number, CountAndEnergy(cluster_count, energy, held.cluster_count, held.energy));
+      }
+      if (!std::ranges::equal(element, held.element) || !std::ranges::equal(to, held.to_cluster) ||
+          !std::ranges::equal(from, held.from_cluster)) {
+        return DifferentLevel(number,
+                              absl::StrCat("its ", element.size(), " triplets differ from the ",
+                                           held.element.size(), " held"));
+      }
+      ++stream_levels_;
+      return absl::OkStatus();
+    }
     LevelMoves level;
     level.cluster_count = cluster_count;
     level.energy = energy;
@@ -251,12 +378,20 @@ class HierarchyAssembler {
       return absl::DataLossError(s.message());
     }
     Track(cluster_count, element, to);
+    ++stream_levels_;
     return absl::OkStatus();
   }
 
   JobResult& result_;
-  const bool absolute_levels_;
+  bool absolute_levels_;
   std::vector<ClusterId> labels_;
+  // Complete levels of this stream (the snapshot counts one), and the first this many of
+  // them repeat levels held from an earlier stream (BeginStream).
+  size_t stream_levels_ = 0;
+  size_t replay_levels_ = 0;
+  bool hierarchy_started_ = false;  // over every stream: the hierarchy has its level 0
+  Forward forward_ = Forward::kWhole;
+  v1::JobEvent trimmed_;
   // A level whose triplets arrive in several batches, joined here.
   bool continuing_ = false;
   uint32_t pending_cluster_count_ = 0;
@@ -323,7 +458,38 @@ class ReadAhead {
   bool stopped_ = false;
 };
 
+// RunOptions/WatchOptions::on_event after the assembler took `event`: levels held from an
+// earlier stream (ReceivedLevels) are not passed on again.
+void PassOn(const HierarchyAssembler& assembler, const v1::JobEvent& event,
+            const std::function<void(const v1::JobEvent&)>& on_event) {
+  switch (assembler.forward()) {
+    case HierarchyAssembler::Forward::kWhole:
+      on_event(event);
+      break;
+    case HierarchyAssembler::Forward::kTrimmed: {
+      v1::JobEvent trimmed = assembler.trimmed();
+      trimmed.set_final(event.final());
+      on_event(trimmed);
+      break;
+    }
+    case HierarchyAssembler::Forward::kNone:
+      break;
+  }
+}
+
 }  // namespace
+
+struct ReceivedLevels::State {
+  JobResult result;
+  HierarchyAssembler assembler{result};
+  bool begun = false;      // a call used it
+  bool saw_final = false;  // the last stream carried the job's final event
+};
+
+ReceivedLevels::ReceivedLevels() : state_(std::make_unique<State>()) {}
+ReceivedLevels::~ReceivedLevels() = default;
+size_t ReceivedLevels::levels() const { return state_->assembler.levels_held(); }
+bool ReceivedLevels::saw_final() const { return state_->saw_final; }
 
 std::shared_ptr<grpc::Channel> Connect(const std::string& address) {
   grpc::ChannelArguments arguments;
@@ -369,8 +535,8 @@ absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) 
   return bytes.str();
 }
 
-// A stream that broke on the way (the server restarted its listener, a proxy dropped the
-// connection) rather than a job or request that failed.
+}  // namespace
+
 bool IsBrokenStream(const absl::Status& status) {
   return status.code() == absl::StatusCode::kUnavailable ||
          (status.code() == absl::StatusCode::kInternal &&
@@ -378,8 +544,6 @@ bool IsBrokenStream(const absl::Status& status) {
          (status.code() == absl::StatusCode::kUnknown &&
           absl::StrContains(status.message(), "Stream removed"));
 }
-
-}  // namespace
 
 absl::StatusOr<std::shared_ptr<grpc::Channel>> Connect(const std::string& address,
                                                        const ConnectOptions& options) {
@@ -441,13 +605,20 @@ absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, 
   spec.set_packed_triplets(options.packed_triplets);
   Upload(*stream, std::move(spec), input, options.chunk_bytes);
 
-  JobResult result;
-  HierarchyAssembler assembler(result);
-  assembler.TrackLabelsFor(options.labels_for_clusters);
+  // One stream's levels, or the job's over several streams (RunOptions::received).
+  std::optional<ReceivedLevels> own;
+  ReceivedLevels& received = options.received != nullptr ? *options.received : own.emplace();
+  JobResult& result = received.state().result;
+  HierarchyAssembler& assembler = received.state().assembler;
+  if (!received.state().begun) assembler.TrackLabelsFor(options.labels_for_clusters);
+  received.state().begun = true;
+  received.state().saw_final = false;
+  assembler.BeginStream(/*absolute_levels=*/false);
   absl::Status stream_status;
   auto take = [&](const v1::JobEvent& event) {
-    if (options.on_event) options.on_event(event);
+    received.state().saw_final = received.state().saw_final || event.final();
     if (stream_status.ok()) stream_status = assembler.Add(event);
+    if (options.on_event) PassOn(assembler, event, options.on_event);
     return stream_status.ok();
   };
   if (options.read_ahead_events == 0) {
@@ -483,7 +654,7 @@ absl::StatusOr<JobResult> RunJob(const std::shared_ptr<grpc::Channel>& channel, 
   if (!status.ok()) return FromGrpc(status);
   if (!assembler.done()) return absl::DataLossError("the job ended without a done event");
   assembler.FinishTracking();
-  return result;
+  return std::move(result);
 }
 
 absl::StatusOr<v1::Accepted> SubmitDetached(const std::shared_ptr<grpc::Channel>& channel,
@@ -517,10 +688,19 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
   const absl::Time deadline = options.deadline == absl::InfiniteDuration()
                                   ? absl::InfiniteFuture()
                                   : absl::Now() + options.deadline;
-  JobResult result;
-  auto assembler = std::make_unique<HierarchyAssembler>(result, /*absolute_levels=*/true);
+  std::optional<ReceivedLevels> own;
+  ReceivedLevels& received = options.received != nullptr ? *options.received : own.emplace();
+  JobResult& result = received.state().result;
+  HierarchyAssembler* assembler = &received.state().assembler;
+  received.state().begun = true;
+  // A job's levels held from another replica's stream (the job submitted again) come
+  // again first, from the same first level.
+  const uint32_t from_level =
+      assembler->levels_held() > 0 ? result.first_level : options.from_level;
+  assembler->BeginStream(/*absolute_levels=*/true);
   int resumes = 0;
   while (true) {
+    received.state().saw_final = false;
     grpc::ClientContext context;
     if (deadline != absl::InfiniteFuture()) context.set_deadline(absl::ToChronoTime(deadline));
     v1::WatchRequest request;
@@ -530,7 +710,7 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
       request.set_from_level(static_cast<uint32_t>(assembler->last_complete_level()));
       request.set_resume(true);
     } else {
-      request.set_from_level(options.from_level);
+      request.set_from_level(from_level);
     }
     std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream = stub->Watch(&context, request);
     absl::Status stream_status;
@@ -540,8 +720,9 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
     while (stream->Read(&event)) {
       progressed = true;
       final_seen = final_seen || event.final();
-      if (options.on_event) options.on_event(event);
+      received.state().saw_final = final_seen;
       if (stream_status.ok()) stream_status = assembler->Add(event);
+      if (options.on_event) PassOn(*assembler, event, options.on_event);
       if (!stream_status.ok()) context.TryCancel();
     }
     const grpc::Status status = stream->Finish();
@@ -549,7 +730,7 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
     if (status.ok()) {
       if (!assembler->done()) return absl::DataLossError("the watch ended without a done event");
       result.job_id = job_id;
-      return result;
+      return std::move(result);
     }
     const absl::Status failed = FromGrpc(status);
     if (final_seen || !IsBrokenStream(failed) || absl::Now() + options.resume_delay >= deadline) {
@@ -561,8 +742,7 @@ absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel
     assembler->DropPartialLevel();
     if (!assembler->started()) {
       // The snapshot was cut short: start again from it.
-      result = JobResult();
-      assembler = std::make_unique<HierarchyAssembler>(result, /*absolute_levels=*/true);
+      assembler->BeginStream(/*absolute_levels=*/true);
     }
     std::this_thread::sleep_for(absl::ToChronoNanoseconds(options.resume_delay));
   }

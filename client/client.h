@@ -40,6 +40,37 @@ struct ConnectOptions {
 absl::StatusOr<std::shared_ptr<grpc::Channel>> Connect(const std::string& address,
                                                        const ConnectOptions& options);
 
+// The levels a job's streams delivered, kept across calls for one job: a job whose replica
+// was lost is submitted again elsewhere (client/replicas.h) and its new stream continues
+// the levels held. Pass the same ReceivedLevels to each RunJob (or each WatchJob) call
+// for the job. The first call fills it; a later call's stream repeats the levels held
+// first (the job runs again from the start: it is a pure function of its input and spec,
+// seed included), and they are checked, each the same level number, cluster count,
+// energy and triplets as held (DATA_LOSS naming the level otherwise: the replicas do not
+// compute the same levels), and skipped: not applied again and not passed to on_event
+// again (a batch holding both is passed on trimmed to the new levels). The levels after
+// them are added. The JobResult of the call that succeeds holds every level once (moved
+// out of here).
+class ReceivedLevels {
+ public:
+  ReceivedLevels();
+  ~ReceivedLevels();
+  ReceivedLevels(const ReceivedLevels&) = delete;
+  ReceivedLevels& operator=(const ReceivedLevels&) = delete;
+
+  // Complete levels held (the start counts one; 0 before a snapshot was complete).
+  size_t levels() const;
+  // The last call's stream carried the job's final event (done or failed): the job ended
+  // there, its status is the job's own and not a lost stream.
+  bool saw_final() const;
+
+  struct State;  // the library's
+  State& state() { return *state_; }
+
+ private:
+  std::unique_ptr<State> state_;
+};
+
 struct RunOptions {
   // Input is uploaded in chunks of this many bytes (the server accepts up to 64 MiB).
   size_t chunk_bytes = size_t{1} << 20;
@@ -57,6 +88,8 @@ struct RunOptions {
   // Events are read (and parsed) on a reader thread into a queue of at most this many,
   // while the calling thread rebuilds the levels (issue 13); 0: one thread.
   size_t read_ahead_events = 16;
+  // The levels an earlier call for the same job received (ReceivedLevels); null: none.
+  ReceivedLevels* received = nullptr;
 };
 
 struct JobResult {
@@ -100,6 +133,9 @@ struct WatchOptions {
   std::function<void(const v1::JobEvent&)> on_event;
   // Called before each resume, with the status that broke the stream.
   std::function<void(const absl::Status&)> on_resume;
+  // The levels an earlier watch of the same job's spec received, on another replica
+  // (ReceivedLevels): the watch starts from their first level; null: none.
+  ReceivedLevels* received = nullptr;
 };
 
 // Reads a job's levels (Watch; detached or not): level `from_level` and every level after it
@@ -108,6 +144,10 @@ struct WatchOptions {
 // saying when and why).
 absl::StatusOr<JobResult> WatchJob(const std::shared_ptr<grpc::Channel>& channel,
                                    const std::string& job_id, const WatchOptions& options = {});
+
+// A stream that broke on the way (UNAVAILABLE; a reset stream: INTERNAL RST_STREAM,
+// UNKNOWN "Stream removed") rather than a job or request that failed.
+bool IsBrokenStream(const absl::Status& status);
 
 // Cancels a job; returns its state after the call.
 absl::StatusOr<std::string> CancelJob(const std::shared_ptr<grpc::Channel>& channel,

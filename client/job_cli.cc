@@ -263,15 +263,7 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     // accept the job.
     MLCLUST_ASSIGN_OR_RETURN(const std::vector<std::string> replicas,
                              client::ResolveReplicas(args.get("server")));
-    client::ReplicaOptions replica_options;
-    replica_options.connect = flags.connect;
-    replica_options.in_order = flags.spread_in_order;
-    replica_options.on_retry = [&](const std::string& replica, const absl::Status& status) {
-      if (!args.has("quiet")) {
-        std::cerr << "mlclust: replica " << replica << " did not accept the job ("
-                  << status.message() << "); trying another\n";
-      }
-    };
+    const client::ReplicaOptions replica_options = ReplicaOptionsFrom(flags, args.has("quiet"));
     std::string replica;
     absl::StatusOr<client::JobResult> result =
         client::RunJobOnReplicas(replicas, spec, payload, run_options, replica_options, &replica);

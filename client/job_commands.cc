@@ -315,7 +315,38 @@ absl::StatusOr<ServerFlags> ServerFlagsFrom(const Arguments& args) {
     }
     flags.spread_in_order = *spread == "in-order";
   }
+  if (std::optional<std::string> resubmit = get("resubmit")) {
+    int n = 0;
+    if (!absl::SimpleAtoi(*resubmit, &n) || n < 0 || n > 100) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--resubmit: '", *resubmit, "' is not a number of tries in 0-100"));
+    }
+    flags.max_resubmits = n;
+  }
   return flags;
+}
+
+client::ReplicaOptions ReplicaOptionsFrom(const ServerFlags& flags, bool quiet) {
+  client::ReplicaOptions options;
+  options.connect = flags.connect;
+  options.in_order = flags.spread_in_order;
+  options.max_resubmits = flags.max_resubmits;
+  if (quiet) return options;
+  options.on_retry = [](const std::string& replica, const absl::Status& status) {
+    std::fprintf(stderr, "mlclust: replica %s did not accept the job (%s); trying another\n",
+                 replica.c_str(), std::string(status.message()).c_str());
+  };
+  options.on_resubmit = [](const client::Resubmission& lost) {
+    // On a terminal, after the progress line (job_cli.cc's, which rewrites its line).
+    std::fprintf(stderr,
+                 "%smlclust: replica %s accepted the job and then became unreachable (%s); "
+                 "submitting it again to the next replica (try %d of %d), keeping the %zu "
+                 "levels received\n",
+                 isatty(STDERR_FILENO) ? "\n" : "", lost.lost_replica.c_str(),
+                 std::string(lost.status.message()).c_str(), lost.attempt, lost.max_resubmits,
+                 lost.levels_kept);
+  };
+  return options;
 }
 
 absl::StatusOr<std::shared_ptr<grpc::Channel>> ConnectTo(const ServerFlags& flags) {
@@ -349,15 +380,7 @@ int SubmitDetachedCommand(const ServerFlags& flags, const v1::JobSpec& spec,
     // Several replicas: the id printed names the one that accepted the job.
     absl::StatusOr<std::vector<std::string>> replicas = client::ResolveReplicas(flags.server);
     if (!replicas.ok()) return Fail(replicas.status());
-    client::ReplicaOptions replica_options;
-    replica_options.connect = flags.connect;
-    replica_options.in_order = flags.spread_in_order;
-    replica_options.on_retry = [&](const std::string& replica, const absl::Status& status) {
-      if (!quiet) {
-        std::fprintf(stderr, "mlclust: replica %s did not accept the job (%s); trying another\n",
-                     replica.c_str(), std::string(status.message()).c_str());
-      }
-    };
+    const client::ReplicaOptions replica_options = ReplicaOptionsFrom(flags, quiet);
     std::string replica;
     absl::StatusOr<v1::Accepted> accepted = client::SubmitDetachedOnReplicas(
         *replicas, spec, payload, options, replica_options, &replica);

@@ -14,6 +14,7 @@
 #include "absl/time/time.h"
 #include "client/cli.h"
 #include "client/client.h"
+#include "client/replicas.h"
 #include "grpcpp/channel.h"
 #include "mlclust/v1/mlclust.pb.h"
 
@@ -28,7 +29,14 @@ struct ServerFlags {
   // --spread least-loaded|in-order: with several servers (client/replicas.h), the least
   // loaded first, or the order given.
   bool spread_in_order = false;
+  // --resubmit N: with several servers, a job whose replica was lost after accepting it is
+  // submitted again at most N times (client::ReplicaOptions::max_resubmits).
+  int max_resubmits = 2;
 };
+
+// The replica options of `flags`, with a line on stderr (unless `quiet`) for each replica
+// that did not accept a job and for each resubmission.
+client::ReplicaOptions ReplicaOptionsFrom(const ServerFlags& flags, bool quiet);
 
 // Reads --server and the connection flags (cli.h's ConnectionFlags). INVALID_ARGUMENT for a
 // bad --deadline or --spread.

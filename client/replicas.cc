@@ -112,42 +112,80 @@ absl::StatusOr<absl::Duration> DeadlineLeft(absl::Duration deadline, absl::Time 
   return left;
 }
 
+// A replica that accepted a job was lost (it died, was drained with the job, or the stream
+// broke before the job's final event), rather than the job failing or being cancelled on
+// it, or the caller's own deadline.
+bool LostReplica(const absl::Status& status, bool saw_final) {
+  return status.code() == absl::StatusCode::kUnavailable || (IsBrokenStream(status) && !saw_final);
+}
+
 // Tries `attempt` on each replica in turn until one accepts the job (`accepted` set by the
-// attempt once the Accepted event arrived).
+// attempt once the Accepted event arrived, `saw_final` once the job's final event did). A
+// replica lost after accepting the job: the job is submitted again (the replicas in a
+// fresh order, the lost one last), at most options.max_resubmits times, `levels_kept`
+// telling on_resubmit how many levels are kept.
 template <typename T>
 absl::StatusOr<T> OnReplicas(
     const std::vector<std::string>& replicas, const ReplicaOptions& options, std::string* replica,
-    const std::function<absl::StatusOr<T>(const std::shared_ptr<grpc::Channel>&, bool* accepted)>&
-        attempt) {
+    const std::function<size_t()>& levels_kept,
+    const std::function<absl::StatusOr<T>(const std::shared_ptr<grpc::Channel>&, bool* accepted,
+                                          bool* saw_final)>& attempt) {
   if (replicas.empty()) return absl::InvalidArgumentError("--server names no replica");
+  std::vector<std::string> order = OrderReplicas(replicas, options);
   std::vector<std::string> refused;
-  for (const std::string& address : OrderReplicas(replicas, options)) {
+  std::vector<std::string> lost;  // "ADDRESS (why)", one per resubmission
+  for (size_t next = 0;;) {
+    if (next == order.size()) {
+      if (lost.empty()) {
+        return absl::UnavailableError(
+            absl::StrCat("no replica accepted the job: ", absl::StrJoin(refused, "; ")));
+      }
+      return absl::UnavailableError(
+          absl::StrCat("the job was lost with replica ", absl::StrJoin(lost, ", then "),
+                       ", and no replica accepted it again: ", absl::StrJoin(refused, "; ")));
+    }
+    const std::string address = order[next++];
     if (replica != nullptr) *replica = address;
     absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = Connect(address, options.connect);
     if (!channel.ok()) return channel.status();
     bool accepted = false;
-    absl::StatusOr<T> result = attempt(*channel, &accepted);
+    bool saw_final = false;
+    absl::StatusOr<T> result = attempt(*channel, &accepted, &saw_final);
     if (result.ok()) return result;
+    const absl::Status& status = result.status();
     if (accepted) {
-      if (result.status().code() == absl::StatusCode::kUnavailable) {
+      if (!LostReplica(status, saw_final)) {
+        // Failed or cancelled on its replica, or the caller's deadline: the job's own end.
+        return absl::Status(status.code(),
+                            absl::StrCat("replica ", address, ": ", status.message()));
+      }
+      lost.push_back(absl::StrCat(address, " (", status.message(), ")"));
+      if (static_cast<int>(lost.size()) > options.max_resubmits) {
         return absl::UnavailableError(absl::StrCat(
             "replica ", address,
-            " accepted the job and then became unreachable; the job is not submitted again "
-            "elsewhere (an accepted job may have run) (gRPC: ",
-            result.status().message(), ")"));
+            " accepted the job and then became unreachable (gRPC: ", status.message(),
+            "); the job was submitted again ", lost.size() - 1, " times, the limit (--resubmit ",
+            options.max_resubmits, "): lost with replica ", absl::StrJoin(lost, ", then ")));
       }
-      return absl::Status(result.status().code(),
-                          absl::StrCat("replica ", address, ": ", result.status().message()));
+      if (options.on_resubmit) {
+        options.on_resubmit(Resubmission{address, status, static_cast<int>(lost.size()),
+                                         options.max_resubmits, levels_kept()});
+      }
+      // The next healthy replica: a fresh order (the lost one answers no GetStats), the lost
+      // one last, for it may have been restarted at its address.
+      order = OrderReplicas(replicas, options);
+      std::stable_partition(order.begin(), order.end(),
+                            [&](const std::string& r) { return r != address; });
+      refused.clear();
+      next = 0;
+      continue;
     }
-    if (!TryAnotherReplica(result.status())) {
-      return absl::Status(result.status().code(),
-                          absl::StrCat("replica ", address, ": ", result.status().message()));
+    if (!TryAnotherReplica(status)) {
+      return absl::Status(status.code(), absl::StrCat("replica ", address, ": ", status.message()));
     }
-    refused.push_back(absl::StrCat(address, " (", result.status().message(), ")"));
-    if (options.on_retry) options.on_retry(address, result.status());
+    refused.push_back(absl::StrCat(address, " (", status.message(), ")"));
+    if (options.on_retry) options.on_retry(address, status);
   }
-  return absl::UnavailableError(
-      absl::StrCat("no replica accepted the job: ", absl::StrJoin(refused, "; ")));
 }
 
 }  // namespace
@@ -240,18 +278,24 @@ absl::StatusOr<JobResult> RunJobOnReplicas(const std::vector<std::string>& repli
                                            const RunOptions& run_options,
                                            const ReplicaOptions& options, std::string* replica) {
   const absl::Time start = absl::Now();
-  return OnReplicas<JobResult>(replicas, options, replica,
-                               [&](const std::shared_ptr<grpc::Channel>& channel,
-                                   bool* accepted) -> absl::StatusOr<JobResult> {
-                                 RunOptions attempt = run_options;
-                                 MLCLUST_ASSIGN_OR_RETURN(
-                                     attempt.deadline, DeadlineLeft(run_options.deadline, start));
-                                 attempt.on_event = [&](const v1::JobEvent& event) {
-                                   if (event.has_accepted()) *accepted = true;
-                                   if (run_options.on_event) run_options.on_event(event);
-                                 };
-                                 return RunJob(channel, spec, input, attempt);
-                               });
+  // The levels received, kept across the replicas the job is submitted to.
+  ReceivedLevels own;
+  ReceivedLevels& received = run_options.received != nullptr ? *run_options.received : own;
+  return OnReplicas<JobResult>(
+      replicas, options, replica, [&] { return received.levels(); },
+      [&](const std::shared_ptr<grpc::Channel>& channel, bool* accepted,
+          bool* saw_final) -> absl::StatusOr<JobResult> {
+        RunOptions attempt = run_options;
+        MLCLUST_ASSIGN_OR_RETURN(attempt.deadline, DeadlineLeft(run_options.deadline, start));
+        attempt.received = &received;
+        attempt.on_event = [&](const v1::JobEvent& event) {
+          if (event.has_accepted()) *accepted = true;
+          if (run_options.on_event) run_options.on_event(event);
+        };
+        absl::StatusOr<JobResult> result = RunJob(channel, spec, input, attempt);
+        *saw_final = received.saw_final();
+        return result;
+      });
 }
 
 absl::StatusOr<v1::Accepted> SubmitDetachedOnReplicas(
@@ -260,13 +304,14 @@ absl::StatusOr<v1::Accepted> SubmitDetachedOnReplicas(
   std::string used;
   const absl::Time start = absl::Now();
   absl::StatusOr<v1::Accepted> accepted = OnReplicas<v1::Accepted>(
-      replicas, options, &used,
-      [&](const std::shared_ptr<grpc::Channel>& channel,
-          bool* seen) -> absl::StatusOr<v1::Accepted> {
+      replicas, options, &used, [] { return size_t{0}; },
+      [&](const std::shared_ptr<grpc::Channel>& channel, bool* seen,
+          bool* saw_final) -> absl::StatusOr<v1::Accepted> {
         RunOptions attempt = run_options;
         MLCLUST_ASSIGN_OR_RETURN(attempt.deadline, DeadlineLeft(run_options.deadline, start));
         attempt.on_event = [&](const v1::JobEvent& event) {
           if (event.has_accepted()) *seen = true;
+          *saw_final = *saw_final || event.final();
           if (run_options.on_event) run_options.on_event(event);
         };
         return SubmitDetached(channel, spec, input, attempt);
@@ -277,6 +322,66 @@ absl::StatusOr<v1::Accepted> SubmitDetachedOnReplicas(
   return accepted;
 }
 
+absl::StatusOr<JobResult> WatchOnReplicas(const std::vector<std::string>& replicas,
+                                          const std::string& job_id, const v1::JobSpec& spec,
+                                          std::string_view input, const WatchOptions& watch,
+                                          const ReplicaOptions& options,
+                                          std::string* final_job_id) {
+  std::optional<SplitJobId> split = SplitReplicaJobId(job_id);
+  if (!split.has_value()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "job id '", job_id, "' does not name its replica: give the id HOST:PORT/JOBID"));
+  }
+  const absl::Time start = absl::Now();
+  ReceivedLevels own;
+  ReceivedLevels& received = watch.received != nullptr ? *watch.received : own;
+  std::string current = job_id;
+  int resubmits = 0;
+  while (true) {
+    if (final_job_id != nullptr) *final_job_id = current;
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+        Connect(split->replica, options.connect);
+    if (!channel.ok()) return channel.status();
+    WatchOptions attempt = watch;
+    MLCLUST_ASSIGN_OR_RETURN(attempt.deadline, DeadlineLeft(watch.deadline, start));
+    attempt.received = &received;
+    absl::StatusOr<JobResult> result = WatchJob(*channel, split->job_id, attempt);
+    if (result.ok()) {
+      result->job_id = current;
+      return result;
+    }
+    if (!LostReplica(result.status(), received.saw_final())) {
+      return ExplainReplicaFailure(result.status(), split->replica, split->job_id);
+    }
+    if (resubmits == options.max_resubmits) {
+      return absl::UnavailableError(absl::StrCat(
+          "replica ", split->replica, ", which holds job ", split->job_id,
+          ", does not answer (gRPC: ", result.status().message(), "); the job was submitted again ",
+          resubmits, " times, the limit (--resubmit ", options.max_resubmits, ")"));
+    }
+    ++resubmits;
+    if (options.on_resubmit) {
+      options.on_resubmit(Resubmission{split->replica, result.status(), resubmits,
+                                       options.max_resubmits, received.levels()});
+    }
+    // The next healthy replica: OrderReplicas' order, the lost one last (it may have been
+    // restarted at its address).
+    std::vector<std::string> others = OrderReplicas(replicas, options);
+    std::stable_partition(others.begin(), others.end(),
+                          [&](const std::string& r) { return r != split->replica; });
+    ReplicaOptions submit = options;
+    submit.in_order = true;
+    submit.max_resubmits = 0;
+    RunOptions upload;
+    MLCLUST_ASSIGN_OR_RETURN(upload.deadline, DeadlineLeft(watch.deadline, start));
+    MLCLUST_ASSIGN_OR_RETURN(
+        const v1::Accepted accepted,
+        SubmitDetachedOnReplicas(others, spec, input, upload, submit, nullptr));
+    current = accepted.job_id();
+    split = SplitReplicaJobId(current);
+  }
+}
+
 absl::Status ExplainReplicaFailure(const absl::Status& status, const std::string& replica,
                                    const std::string& job_id) {
   if (status.ok()) return status;
@@ -284,7 +389,8 @@ absl::Status ExplainReplicaFailure(const absl::Status& status, const std::string
     return absl::UnavailableError(absl::StrCat(
         "replica ", replica, ", which holds job ", job_id,
         ", does not answer: it was stopped or died, and its jobs and their results went with "
-        "it (a job is never moved to another replica) (gRPC: ",
+        "it (replicas share nothing). Submit the job again, from its input and options: its "
+        "levels are the same (WatchOnReplicas does it for a client that kept them) (gRPC: ",
         status.message(), ")"));
   }
   return absl::Status(status.code(), absl::StrCat("replica ", replica, ": ", status.message()));

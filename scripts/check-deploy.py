@@ -16,6 +16,8 @@ What it checks (no kubeconform or API server here, so no full schema validation)
   tolerations, nodeSelector), NVIDIA_DRIVER_CAPABILITIES includes graphics, the pull
   policy works for a local image, memory request = limit, and the memory arithmetic of
   deployment.yaml holds for the args actually given;
+- readiness asks for mlclust.v1.Clustering, liveness for the overall service, and the
+  preStop hook drains (SIGTERM to PID 1, waiting for it to end);
 - the metric the HPA scales on is one the server exports (server/*.cc);
 - every `mlclust serve` flag in the Deployment and compose file is one `mlclust help
   serve` lists, and with --mlclust the server really starts with the Deployment's args.
@@ -121,6 +123,21 @@ def check_objects(objs, label, serve_flags, server_metrics):
         if handlers and handlers[0] == "grpc" and "service" in probe["grpc"]:
             check(probe["grpc"]["service"] == "mlclust.v1.Clustering",
                   "%s: %s asks the health service for mlclust.v1.Clustering" % (label, name))
+    # Readiness follows the server's state (mlclust.v1.Clustering: device ready, queue not
+    # full, not draining); liveness only a hung process (the overall service ""); the
+    # preStop hook drains (SIGTERM to the server, waiting for it to end).
+    ready = c.get("readinessProbe", {})
+    check(ready.get("grpc", {}).get("service") == "mlclust.v1.Clustering" or
+          ready.get("httpGet", {}).get("path") == "/ready",
+          "%s: readiness asks for mlclust.v1.Clustering or GET /ready (queue full, draining)"
+          % label)
+    live = c.get("livenessProbe", {})
+    check(("grpc" in live and "service" not in live["grpc"]) or "tcpSocket" in live,
+          "%s: liveness asks for the overall service or the port (a hung process only)" % label)
+    pre_stop = " ".join(c.get("lifecycle", {}).get("preStop", {}).get("exec", {})
+                        .get("command", []))
+    check("kill -TERM 1" in pre_stop and "kill -0 1" in pre_stop,
+          "%s: the preStop hook drains the server and waits for it" % label)
     grace = spec.get("terminationGracePeriodSeconds", 30)
     check(grace > 25, "%s: terminationGracePeriodSeconds %s > the image's --drain-seconds 25"
           % (label, grace))

@@ -12,6 +12,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -29,6 +30,12 @@ class BoundedJobQueue {
 
   explicit BoundedJobQueue(size_t capacity) : capacity_(capacity) {}
 
+  // `on_full(full)` is called with true when the queue becomes full (`capacity` jobs
+  // waiting: the next Push is refused) and with false when it has room again, under the
+  // queue's lock (keep it short, never call back into the queue). The server's readiness
+  // follows it (server.cc). Set before the queue is used.
+  void SetOnFull(std::function<void(bool full)> on_full) { on_full_ = std::move(on_full); }
+
   // Appends `job` to `lane` and returns the number of jobs ahead of it in that lane.
   // RESOURCE_EXHAUSTED at once when `capacity` jobs are waiting; FAILED_PRECONDITION once
   // the queue is stopped. `on_queued(jobs_ahead)` runs before any Pop can return the job
@@ -44,6 +51,7 @@ class BoundedJobQueue {
     const size_t ahead = CountInLanes(1u << lane);
     on_queued(ahead);
     jobs_.push_back({lane, std::move(job)});
+    NoteFullness();
     ready_.notify_all();
     return ahead;
   }
@@ -60,6 +68,7 @@ class BoundedJobQueue {
         if ((lanes >> it->lane) & 1u) {
           std::shared_ptr<Job> job = std::move(it->job);
           jobs_.erase(it);
+          NoteFullness();
           return job;
         }
       }
@@ -74,6 +83,7 @@ class BoundedJobQueue {
     for (auto it = jobs_.begin(); it != jobs_.end(); ++it) {
       if (it->job.get() == job) {
         jobs_.erase(it);
+        NoteFullness();
         return true;
       }
     }
@@ -103,6 +113,7 @@ class BoundedJobQueue {
     std::vector<std::shared_ptr<Job>> taken;
     for (Entry& entry : jobs_) taken.push_back(std::move(entry.job));
     jobs_.clear();
+    NoteFullness();
     ready_.notify_all();
     return taken;
   }
@@ -119,6 +130,14 @@ class BoundedJobQueue {
     std::shared_ptr<Job> job;
   };
 
+  // Under the lock: on_full_ when the queue became full or has room again.
+  void NoteFullness() {
+    const bool full = jobs_.size() >= capacity_;
+    if (full == full_) return;
+    full_ = full;
+    if (on_full_) on_full_(full);
+  }
+
   size_t CountInLanes(unsigned lanes) const {
     size_t n = 0;
     for (const Entry& entry : jobs_) n += (lanes >> entry.lane) & 1u;
@@ -130,6 +149,8 @@ class BoundedJobQueue {
   std::condition_variable ready_;
   std::deque<Entry> jobs_;
   bool stopped_ = false;
+  bool full_ = false;
+  std::function<void(bool)> on_full_;
 };
 
 }  // namespace mlclust::server

@@ -74,7 +74,8 @@ struct MetricsHttpServer::Impl {
 };
 
 absl::StatusOr<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Start(
-    const std::string& address, std::function<std::string()> render) {
+    const std::string& address, std::function<std::string()> render,
+    std::function<std::string()> not_ready) {
   const size_t colon = address.rfind(':');
   int port = -1;
   if (colon == std::string::npos || !absl::SimpleAtoi(address.substr(colon + 1), &port) ||
@@ -92,6 +93,14 @@ absl::StatusOr<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Start(
   http.Get("/metrics", [render](const httplib::Request&, httplib::Response& response) {
     response.set_content(render(), "text/plain; version=0.0.4; charset=utf-8");
   });
+  if (not_ready) {
+    http.Get("/ready", [not_ready](const httplib::Request&, httplib::Response& response) {
+      const std::string reason = not_ready();
+      response.status = reason.empty() ? 200 : 503;
+      response.set_content(reason.empty() ? std::string("ready\n") : reason + "\n",
+                           "text/plain; charset=utf-8");
+    });
+  }
   // No SO_REUSEADDR surprises: a port in use is refused like the gRPC one.
   http.set_socket_options([](socket_t socket) {
     int no = 0;

@@ -46,12 +46,15 @@ class JobMetrics {
 // A label value escaped for the exposition format.
 std::string PrometheusLabel(const std::string& value);
 
-// GET /metrics on `address` ("HOST:PORT"; port 0 picks one) answering `render()`; any
-// other path is 404. Stops on destruction.
+// GET /metrics on `address` ("HOST:PORT"; port 0 picks one) answering `render()`, and,
+// with `not_ready`, GET /ready: 200 "ready" when not_ready() is empty, else 503 with its
+// reason (readiness for probes that speak no gRPC or no TLS: docker/k8s/tls); any other
+// path is 404. Stops on destruction.
 class MetricsHttpServer {
  public:
   static absl::StatusOr<std::unique_ptr<MetricsHttpServer>> Start(
-      const std::string& address, std::function<std::string()> render);
+      const std::string& address, std::function<std::string()> render,
+      std::function<std::string()> not_ready = nullptr);
   ~MetricsHttpServer();
   int port() const { return port_; }
 

@@ -1073,8 +1073,16 @@ class ServerImpl {
                                                  "' (in use, or not an address of this host)"));
     }
     if (!options.metrics_address.empty()) {
+      // GET /ready: what the health service's mlclust.v1.Clustering says (SetOnFull below).
       absl::StatusOr<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Start(
-          options.metrics_address, [this] { return service_.RenderMetrics(); });
+          options.metrics_address, [this] { return service_.RenderMetrics(); },
+          [this]() -> std::string {
+            if (service_.draining()) return "not ready: draining";
+            if (service_.queue().size() >= service_.queue().capacity()) {
+              return "not ready: the job queue is full";
+            }
+            return "";
+          });
       if (!metrics.ok()) {
         server_->Shutdown();
         StopWorkers();
@@ -1085,7 +1093,16 @@ class ServerImpl {
               options.metrics_address.substr(0, options.metrics_address.rfind(':')), ":",
               metrics_->port(), "/metrics");
     }
-    // The device is ready (the GL worker has started): serving from here on.
+    // The device is ready (the GL worker has started): serving from here on. Readiness
+    // (mlclust.v1.Clustering; docker/k8s) follows the server's own state: NOT_SERVING while
+    // the queue is full (new jobs are refused at once: a load balancer or a client resolving
+    // the replicas sends them elsewhere) and from the drain on; the overall service ("",
+    // liveness) stays SERVING until the drain.
+    service_.queue().SetOnFull([this](bool full) {
+      if (!service_.draining()) {
+        server_->GetHealthCheckService()->SetServingStatus(kServiceName, !full);
+      }
+    });
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
     LogLine(
         options.log, "serving ", kServiceName,
@@ -1154,6 +1171,11 @@ class ServerImpl {
     }
     // 2. Queued jobs end now, with a final Failed UNAVAILABLE.
     std::vector<std::shared_ptr<Job>> queued = service_.queue().StopAndTakeAll();
+    if (server_ != nullptr) {
+      // Again, now that the queue is stopped: a queue that had room again just before the
+      // drain may have set SERVING after step 1 (SetOnFull).
+      server_->GetHealthCheckService()->SetServingStatus(kServiceName, false);
+    }
     for (const std::shared_ptr<Job>& job : queued) {
       service_.LeftQueue(*job);
       ++service_.counters().cancelled;

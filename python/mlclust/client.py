@@ -1,5 +1,6 @@
 """A client for the mlclust gRPC service (proto/mlclust/v1/mlclust.proto)."""
 
+import logging
 import random
 import socket
 import sys
@@ -305,6 +306,25 @@ class _Assembler:
         self._last_count = int(self._counts[0][-1])
         self._continuing = False
 
+    @property
+    def final(self):
+        """The stream carried the job's final event (done or failed)."""
+        return self.done is not None or self.failed is not None
+
+    def held(self):
+        """(start labels, cluster counts, energies, triplet ends, element, to, from) of the
+        complete levels received, or None before the snapshot was complete."""
+        if not self._started:
+            return None
+        keep = self._num_levels - (1 if self._continuing else 0)
+        ends = np.concatenate(self._ends)[:keep]
+        cut = int(ends[-1])
+        cat = lambda arrays: (np.concatenate(arrays)[:cut] if arrays
+                              else np.empty(0, dtype=np.uint32))
+        return (np.concatenate(self._pieces), np.concatenate(self._counts)[:keep],
+                np.concatenate(self._energies)[:keep], ends, cat(self._element),
+                cat(self._to), cat(self._from))
+
     def finish(self):
         if self.done is None:
             raise Error(grpc.StatusCode.DATA_LOSS, "the job ended without a done event")
@@ -318,6 +338,52 @@ class _Assembler:
                          np.concatenate(self._energies), np.concatenate(self._sources),
                          np.concatenate(self._ends), cat(self._element), cat(self._to),
                          cat(self._from), done=self.done, job_id=self.job_id)
+
+
+def _levels_held(held):
+    return 0 if held is None else len(held[1])
+
+
+def _same_levels(kept, new):
+    """Checks that two streams of one job (a lost replica's and the one it was submitted
+    to again) agree on the levels both hold: the same start, cluster counts, energies and
+    triplets. Returns the one holding more levels; Error DATA_LOSS naming the first level
+    that differs."""
+    if kept is None or new is None:
+        return new if kept is None else kept
+    n = min(_levels_held(kept), _levels_held(new))
+    def differs(level, how):
+        return Error(grpc.StatusCode.DATA_LOSS,
+                     f"the job was run again on another replica and its level {level} differs "
+                     f"from the one received before ({how}): the replicas do not compute the "
+                     "same levels (different builds, versions or devices: a GPU replica's "
+                     "float order may differ from a CPU one's?)")
+    if not np.array_equal(kept[0], new[0]):
+        raise differs(0, "its start labels differ")
+    for level in range(n):
+        if kept[1][level] != new[1][level] or kept[2][level] != new[2][level]:
+            raise differs(level, f"it has {new[1][level]} clusters (energy {new[2][level]}), "
+                          f"the level held {kept[1][level]} (energy {kept[2][level]})")
+        a, b = (int(kept[3][level - 1]) if level else 0), int(kept[3][level])
+        c, d = (int(new[3][level - 1]) if level else 0), int(new[3][level])
+        if any(not np.array_equal(x[a:b], y[c:d]) for x, y in zip(kept[4:], new[4:])):
+            raise differs(level, "its triplets differ")
+    return kept if _levels_held(kept) >= _levels_held(new) else new
+
+
+def _lost_replica(error, final):
+    """A replica that accepted the job was lost (it died, was drained with the job, or the
+    stream broke before the job's final event), rather than the job failing or being
+    cancelled there, or the caller's own timeout."""
+    return (error.code == grpc.StatusCode.UNAVAILABLE
+            or (_is_broken_stream(error) and not final))
+
+
+def _warn_resubmit(replica, error, attempt, limit, levels_kept):
+    logging.getLogger("mlclust").warning(
+        "replica %s accepted the job and then became unreachable (%s); submitting it again "
+        "to the next replica (try %d of %d), keeping the %d levels received", replica,
+        error.details, attempt, limit, levels_kept)
 
 
 def _option_text(value):
@@ -335,18 +401,33 @@ class Client:
     """
 
     def __init__(self, address, *, max_receive_message_length: Optional[int] = None,
-                 options=None, credentials=None, spread: str = "least-loaded"):
+                 options=None, credentials=None, spread: str = "least-loaded",
+                 resubmit: int = 2, on_resubmit: Optional[Callable[..., None]] = None):
         # Several servers (replicas): a list of "host:port", a comma-separated string, or
         # "dns:///name:port". Jobs go to the least loaded replica (GetStats: queue depth
         # plus running jobs; ties at random) or, with spread="in-order", in the order
         # given; a replica unreachable, draining or full BEFORE it accepted the job is
-        # skipped and the next tried. A job a replica accepted is never submitted again.
-        # A detached job's id names its replica ("host:port/job-000001"); watch and
-        # cancel go there. jobs() lists every replica's, stats() is {replica: Stats}.
+        # skipped and the next tried. A replica lost AFTER accepting a job (UNAVAILABLE:
+        # it died, or was drained with the job; or the stream broke before the job's final
+        # event) loses no job: it is submitted again to the next replica, at most
+        # `resubmit` times (0: never), on_resubmit(replica, error, attempt, resubmit,
+        # levels_kept) called before each (by default a warning on the "mlclust" logger).
+        # A job is a pure function of its input and options (seed included): the levels
+        # already received are kept, and the new stream's repeats are checked against them
+        # (Error DATA_LOSS if a replica sent other levels) and not reported twice. A job
+        # that failed or was cancelled on its replica, or hit `timeout`, is not submitted
+        # again. A detached job's id names its replica ("host:port/JOBID"); watch and
+        # cancel go there; replicas share nothing, so a detached job lost with its replica
+        # is gone: watch(job_id, resubmit=...) submits it again (the caller keeps what
+        # rebuilds it). jobs() lists every replica's, stats() is {replica: Stats}.
         if spread not in ("least-loaded", "in-order"):
             raise ValueError(f"spread must be least-loaded or in-order, got {spread!r}")
+        if int(resubmit) < 0:
+            raise ValueError(f"resubmit must be >= 0, got {resubmit!r}")
         self._replicas = resolve_replicas(address)
         self._spread = spread
+        self._resubmit = int(resubmit)
+        self._on_resubmit = on_resubmit or _warn_resubmit
         self._member_args = dict(max_receive_message_length=max_receive_message_length,
                                  options=options, credentials=credentials)
         self._members = {}
@@ -421,23 +502,62 @@ class Client:
         if error.code == grpc.StatusCode.UNAVAILABLE:
             return Error(error.code, f"replica {replica}, which holds job {job}, does not "
                          "answer: it was stopped or died, and its jobs and their results went "
-                         f"with it (a job is never moved to another replica) ({error.details})")
+                         "with it (replicas share nothing). Submit the job again, from its "
+                         "input and options: its levels are the same (watch(job_id, "
+                         f"resubmit=...) does it) ({error.details})")
         return Error(error.code, f"replica {replica}: {error.details}")
 
+    def _order_after_loss(self, lost):
+        """The replicas to try after `lost` lost a job: a fresh order, the lost one last
+        (it may have been restarted at its address)."""
+        order = self._order()
+        return [r for r in order if r != lost] + [r for r in order if r == lost]
+
     def _run_on_replicas(self, spec, payload, progress, timeout, chunk_bytes):
-        refused = []
-        for replica in self._order():
+        deadline = None if timeout is None else time.monotonic() + timeout
+        refused, lost = [], []
+        kept = None  # the complete levels received, over the replicas tried
+        order, next_ = self._order(), 0
+        while True:
+            if next_ == len(order):
+                if lost:
+                    raise Error(grpc.StatusCode.UNAVAILABLE,
+                                f"the job was lost with replica {', then '.join(lost)}, and "
+                                "no replica accepted it again: " + "; ".join(refused))
+                raise Error(grpc.StatusCode.UNAVAILABLE,
+                            "no replica accepted the job: " + "; ".join(refused))
+            replica = order[next_]
+            next_ += 1
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            kept_levels = _levels_held(kept)
+
+            def report(p, kept_levels=kept_levels):
+                # The levels a lost replica had sent come again first: not reported twice.
+                if progress is not None and (p.stage != "levels"
+                                             or p.levels_received > kept_levels):
+                    progress(p)
+
+            assembler = _Assembler(report)
             try:
-                result = self._member(replica)._run(spec, payload, progress, timeout,
-                                                    chunk_bytes)
+                result = self._member(replica)._run(spec, payload, report, left,
+                                                    chunk_bytes, assembler=assembler)
             except Error as e:
                 if e.accepted:
-                    if e.code == grpc.StatusCode.UNAVAILABLE:
-                        raise Error(e.code, f"replica {replica} accepted the job and then "
-                                    "became unreachable; the job is not submitted again "
-                                    f"elsewhere (an accepted job may have run) ({e.details})",
+                    kept = _same_levels(kept, assembler.held())
+                    if not _lost_replica(e, assembler.final):
+                        raise Error(e.code, f"replica {replica}: {e.details}",
                                     accepted=True) from None
-                    raise Error(e.code, f"replica {replica}: {e.details}", accepted=True) from None
+                    lost.append(f"{replica} ({e.details})")
+                    if len(lost) > self._resubmit:
+                        raise Error(e.code, f"replica {replica} accepted the job and then "
+                                    f"became unreachable ({e.details}); the job was submitted "
+                                    f"again {len(lost) - 1} times, the limit (resubmit="
+                                    f"{self._resubmit}): lost with replica "
+                                    f"{', then '.join(lost)}", accepted=True) from None
+                    self._on_resubmit(replica, e, len(lost), self._resubmit,
+                                      _levels_held(kept))
+                    order, next_, refused = self._order_after_loss(replica), 0, []
+                    continue
                 if e.code not in (grpc.StatusCode.UNAVAILABLE,
                                   grpc.StatusCode.RESOURCE_EXHAUSTED):
                     raise Error(e.code, f"replica {replica}: {e.details}") from None
@@ -445,10 +565,9 @@ class Client:
                 continue
             if spec.detach:
                 return f"{replica}/{result}"
+            _same_levels(kept, assembler.held())
             result.job_id = f"{replica}/{result.job_id}"
             return result
-        raise Error(grpc.StatusCode.UNAVAILABLE,
-                    "no replica accepted the job: " + "; ".join(refused))
 
     def __enter__(self):
         return self
@@ -460,7 +579,9 @@ class Client:
               progress: Optional[Callable[[Progress], None]] = None,
               timeout: Optional[float] = None, max_resumes: int = 5,
               resume_delay: float = 0.5,
-              on_resume: Optional[Callable[["Error"], None]] = None) -> Hierarchy:
+              on_resume: Optional[Callable[["Error"], None]] = None,
+              resubmit: Optional[Callable[[], str]] = None,
+              _assembler=None) -> Hierarchy:
         """The levels of a job (detached or not) of this client's tenant, while it runs or
         after it ended: level `from_level` of the job (as a snapshot, the returned
         hierarchy's first level) and every level after it. A stream that breaks on the way
@@ -469,19 +590,24 @@ class Client:
         without progress, `resume_delay` seconds apart, calling `on_resume(error)` before
         each. `timeout` bounds the whole watch. Raises Error: NOT_FOUND once the server
         dropped the job's results (the details say when and why), PERMISSION_DENIED for
-        another tenant's job. The job runs on if this ends."""
+        another tenant's job. The job runs on if this ends.
+
+        Several replicas share nothing: a detached job lost with its replica (UNAVAILABLE
+        after the resumes, before its final event) is gone there. `resubmit`, a callable
+        that submits the job again (detached) and returns its new id (for example
+        lambda: client.cluster_mesh(vertices, faces, ..., detach=True): the caller keeps
+        what rebuilds the job), is then called, at most the client's `resubmit` times, and
+        the new id watched, the levels received kept and checked as for a run; the
+        returned hierarchy's job_id is the id that finished."""
         client, job, replica = self._route(job_id)
         if client is not self:
-            try:
-                hierarchy = client.watch(job, from_level, progress=progress, timeout=timeout,
-                                         max_resumes=max_resumes, resume_delay=resume_delay,
-                                         on_resume=on_resume)
-            except Error as e:
-                raise self._explain(e, replica, job) from None
-            hierarchy.job_id = job_id
-            return hierarchy
+            return self._watch_on_replica(client, job_id, job, replica, from_level,
+                                          progress, timeout, max_resumes, resume_delay,
+                                          on_resume, resubmit)
         deadline = None if timeout is None else time.monotonic() + timeout
         assembler = _Assembler(progress, absolute_levels=True)
+        if _assembler is not None:
+            _assembler.append(assembler)  # the caller keeps the levels if this fails
         resumes = 0
         while True:
             if assembler.started:
@@ -516,6 +642,8 @@ class Client:
                 if not assembler.started:
                     # The snapshot was cut short: start again from it.
                     assembler = _Assembler(progress, absolute_levels=True)
+                    if _assembler is not None:
+                        _assembler[-1] = assembler
                 time.sleep(resume_delay)
                 continue
             except BaseException:
@@ -526,6 +654,49 @@ class Client:
             raise Error(assembler.failed.code, assembler.failed.message)
         assembler.job_id = job_id
         return assembler.finish()
+
+    def _watch_on_replica(self, client, job_id, job, replica, from_level, progress, timeout,
+                          max_resumes, resume_delay, on_resume, resubmit):
+        """watch() of "HOST:PORT/JOBID" on its replica; with `resubmit`, a lost replica's
+        job submitted again and watched on its new replica."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        kept, resubmits = None, 0
+        while True:
+            kept_levels = _levels_held(kept)
+
+            def report(p, kept_levels=kept_levels):
+                if progress is not None and (p.stage != "levels"
+                                             or p.levels_received > kept_levels):
+                    progress(p)
+
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            streams = []
+            try:
+                hierarchy = client.watch(job, from_level, progress=report, timeout=left,
+                                         max_resumes=max_resumes, resume_delay=resume_delay,
+                                         on_resume=on_resume, _assembler=streams)
+            except Error as e:
+                final = bool(streams) and streams[-1].final
+                if streams:
+                    kept = _same_levels(kept, streams[-1].held())
+                if resubmit is None or not _lost_replica(e, final):
+                    raise self._explain(e, replica, job) from None
+                if resubmits == self._resubmit:
+                    raise Error(e.code, f"replica {replica}, which holds job {job}, does not "
+                                f"answer ({e.details}); the job was submitted again "
+                                f"{resubmits} times, the limit (resubmit={self._resubmit})"
+                                ) from None
+                resubmits += 1
+                self._on_resubmit(replica, e, resubmits, self._resubmit, _levels_held(kept))
+                job_id = resubmit()
+                client, job, replica = self._route(job_id)
+                if client is self:
+                    raise ValueError(f"resubmit() returned {job_id!r}, an id without its "
+                                     "replica (HOST:PORT/JOBID)") from None
+                continue
+            _same_levels(kept, streams[-1].held() if streams else None)
+            hierarchy.job_id = job_id
+            return hierarchy
 
     def cancel(self, job_id: str, timeout: float = 30.0) -> str:
         """Cancels a queued or running job; returns its state after the call."""
@@ -670,7 +841,7 @@ class Client:
             spec.options[name.replace("_", "-")] = _option_text(value)
         return spec
 
-    def _run(self, spec, payload, progress, timeout, chunk_bytes):
+    def _run(self, spec, payload, progress, timeout, chunk_bytes, assembler=None):
         if self._replicas is not None:
             return self._run_on_replicas(spec, payload, progress, timeout, chunk_bytes)
         spec.input_bytes = len(payload)
@@ -692,7 +863,8 @@ class Client:
                     return
 
         call = self._run_raw(requests(), timeout=timeout)
-        assembler = _Assembler(progress)
+        if assembler is None:
+            assembler = _Assembler(progress)
         try:
             for event in call:
                 assembler.add_bytes(event)

@@ -16,7 +16,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
-#include "tests/fixtures/loopback.h"
+#include "tests/fixtures/cutting_proxy.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -527,65 +527,7 @@ TEST(DetachTest, DrainEndsQueuedDetachedJobsAndTheirWatchers) {
 namespace mlclust {
 namespace {
 
-// A TCP forwarder on loopback that cuts its first connection after `cut_after` bytes from
-// the server to the client; later connections are forwarded whole. A broken network in
-// the middle of a watch.
-class CuttingProxy {
- public:
-  CuttingProxy(int server_port, size_t cut_after)
-      : server_port_(server_port), cut_after_(cut_after) {
-    listener_ = testing::ListenOnLoopback(8, port_);
-    acceptor_ = std::thread([this] { Accept(); });
-  }
-  ~CuttingProxy() {
-    stopping_ = true;
-    shutdown(listener_, SHUT_RDWR);
-    close(listener_);
-    acceptor_.join();
-    for (std::thread& pump : pumps_) pump.join();
-  }
-  int port() const { return port_; }
-  int connections() const { return connections_; }
-
- private:
-  void Accept() {
-    while (!stopping_) {
-      const int client = accept(listener_, nullptr, nullptr);
-      if (client < 0) return;
-      const int upstream = testing::ConnectToLoopback(server_port_);
-      if (upstream < 0) {
-        close(client);
-        continue;
-      }
-      const size_t limit = connections_++ == 0 ? cut_after_ : SIZE_MAX;
-      pumps_.emplace_back([=] { Pump(client, upstream, SIZE_MAX); });
-      pumps_.emplace_back([=] { Pump(upstream, client, limit); });
-    }
-  }
-  // Copies from -> to until either side closes or `limit` bytes passed; then closes both.
-  static void Pump(int from, int to, size_t limit) {
-    char buffer[16384];
-    size_t passed = 0;
-    while (passed < limit) {
-      const ssize_t n = read(from, buffer, std::min(sizeof(buffer), limit - passed));
-      if (n <= 0) break;
-      // MSG_NOSIGNAL: a side that has closed gives EPIPE here, not a SIGPIPE that kills the test.
-      if (send(to, buffer, static_cast<size_t>(n), MSG_NOSIGNAL) != n) break;
-      passed += static_cast<size_t>(n);
-    }
-    shutdown(from, SHUT_RDWR);
-    shutdown(to, SHUT_RDWR);
-  }
-
-  const int server_port_;
-  const size_t cut_after_;
-  int listener_ = -1;
-  int port_ = 0;
-  std::atomic<bool> stopping_{false};
-  std::atomic<int> connections_{0};
-  std::thread acceptor_;
-  std::vector<std::thread> pumps_;
-};
+using testing::CuttingProxy;
 
 // The client's own resume: the connection breaks in the middle of the levels, WatchJob
 // reconnects and asks for the levels after the last complete one; the result is whole.

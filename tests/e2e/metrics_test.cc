@@ -21,18 +21,7 @@ namespace {
 using ::testing::HasSubstr;
 
 // GET `path` from 127.0.0.1:`port` over plain HTTP/1.0; the whole response.
-std::string HttpGet(int port, const std::string& path) {
-  const int fd = testing::ConnectToLoopback(port);
-  if (fd < 0) return "";
-  const std::string request = "GET " + path + " HTTP/1.0\r\nHost: localhost\r\n\r\n";
-  (void)!write(fd, request.data(), request.size());
-  std::string response;
-  char buffer[4096];
-  ssize_t n;
-  while ((n = read(fd, buffer, sizeof(buffer))) > 0) response.append(buffer, n);
-  close(fd);
-  return response;
-}
+using testing::HttpGet;
 
 // The value of the sample line that starts with `name` (labels included), or -1.
 double Sample(const std::string& metrics, const std::string& name) {

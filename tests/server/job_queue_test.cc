@@ -1,4 +1,5 @@
-// The bounded job queue: refuses at once when full, lanes, removal, drain.
+// The bounded job queue: refuses at once when full, lanes, removal, drain, the full state
+// readiness follows.
 #include "server/job_queue.h"
 
 #include <gtest/gtest.h>
@@ -51,6 +52,29 @@ TEST(BoundedJobQueueTest, PositionsRemoveAndDrain) {
   EXPECT_EQ(*taken[1], "c");
   EXPECT_EQ(queue.Pop(), nullptr);  // stopped and empty: at once
   EXPECT_EQ(queue.Push(Job("late"), 0).status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+// SetOnFull: told once when the queue fills and once when it has room again, by Pop,
+// Remove and the drain alike (the server's readiness follows it).
+TEST(BoundedJobQueueTest, TellsWhenItIsFullAndWhenItHasRoomAgain) {
+  Queue queue(2);
+  std::vector<bool> told;
+  queue.SetOnFull([&](bool full) { told.push_back(full); });
+  auto a = Job("a"), b = Job("b");
+  ASSERT_TRUE(queue.Push(a, 0).ok());
+  EXPECT_TRUE(told.empty());
+  ASSERT_TRUE(queue.Push(b, 0).ok());
+  EXPECT_EQ(told, (std::vector<bool>{true}));
+  EXPECT_FALSE(queue.Push(Job("refused"), 0).ok());
+  EXPECT_EQ(told, (std::vector<bool>{true}));  // a refusal changes nothing
+  EXPECT_EQ(*queue.Pop(), "a");
+  EXPECT_EQ(told, (std::vector<bool>{true, false}));
+  ASSERT_TRUE(queue.Push(Job("c"), 0).ok());
+  EXPECT_TRUE(queue.Remove(b.get()));
+  ASSERT_TRUE(queue.Push(Job("d"), 0).ok());
+  EXPECT_EQ(told, (std::vector<bool>{true, false, true, false, true}));
+  EXPECT_EQ(queue.StopAndTakeAll().size(), 2u);
+  EXPECT_EQ(told, (std::vector<bool>{true, false, true, false, true, false}));
 }
 
 }  // namespace
