@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_replace.h"
 #include "absl/time/clock.h"
 #include "client/job_commands.h"
 #include "client/replicas.h"
@@ -213,8 +214,8 @@ absl::Status WriteLabels(const std::string& path, std::span<const uint32_t> labe
 int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload) {
   absl::StatusOr<ServerFlags> flags = ServerFlagsFrom(args);
   if (!flags.ok()) return Fail(flags.status());
-  for (const char* output :
-       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair", "preview"}) {
+  for (const char* output : {"labels", "levels-csv", "ply", "out", "coarse", "json", "auto-k",
+                             "plot", "repair", "preview"}) {
     if (args.has(output)) {
       return Fail(absl::InvalidArgumentError(absl::StrCat(
           "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
@@ -392,9 +393,12 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot", "preview"}) {
-    if (args.has(name) && !not_written.contains(name))
-      outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
+  // Keyed by the flag's name in the summary's one style, snake_case ("levels_csv").
+  for (const char* name : {"labels", "levels-csv", "ply", "out", "coarse", "plot", "preview"}) {
+    if (args.has(name) && !not_written.contains(name)) {
+      outputs.push_back(absl::StrCat(JsonString(absl::StrReplaceAll(name, {{"-", "_"}})), ": ",
+                                     JsonString(args.get(name))));
+    }
   }
   absl::StrAppend(&json, ", \"outputs\": {", absl::StrJoin(outputs, ", "), "}}");
   return json;

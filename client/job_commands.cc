@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/clustered_mesh_file.h"
 #include "client/job_cli.h"
 #include "client/replicas.h"
 #include "core/cluster/registry.h"
@@ -102,6 +103,10 @@ int Watch(const Arguments& flags) {
   if (flags.has("ply") != flags.has("mesh")) {
     return Fail(absl::InvalidArgumentError(
         "--ply FILE needs --mesh INPUT (the mesh file the job was submitted from)"));
+  }
+  if (absl::Status s = client::CheckClusteredMeshOutputs(std::nullopt, flags.value("ply"));
+      !s.ok()) {
+    return Fail(s);
   }
   // The mesh first: a wrong path fails before the watch starts.
   std::optional<TriangleMesh> mesh;
