@@ -183,10 +183,11 @@ int Watch(const Arguments& flags) {
   const v1::Done& done = result->done;
   if (flags.has("json")) {
     std::string json = absl::StrCat(
-        R"({"job_id": ")", full_id, R"(", "elements": )", log.num_elements(),
+        R"({"job_id": )", JsonString(full_id), R"(, "elements": )", log.num_elements(),
         R"(, "first_level": )", result->first_level, R"(, "levels": )", log.num_levels(),
         R"(, "triplets": )", log.num_moves(), R"(, "final_clusters": )", done.final_clusters(),
-        R"(, "device": ")", done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
+        R"(, "device": )", JsonString(done.device()), R"(, "seconds": )",
+        absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
       absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
                       R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
