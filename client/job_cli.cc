@@ -24,44 +24,10 @@
 #ifdef MLCLUST_HAVE_PLOT
 #include "client/plot.h"
 #endif
+#include "client/progress_bar.h"
 
 namespace mlclust::cli {
 namespace {
-
-// A one-line progress display on a terminal.
-class ProgressLine {
- public:
-  explicit ProgressLine(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
-  void Update(const v1::JobEvent& event) {
-    if (!enabled_) return;
-    if (event.has_levels()) {
-      levels_ += event.levels().cluster_count_size();
-      clusters_ = event.levels().cluster_count(event.levels().cluster_count_size() - 1);
-    } else if (event.has_snapshot()) {
-      levels_ = 1;
-      clusters_ = event.snapshot().cluster_count();
-    } else if (event.has_progress()) {
-      stage_ = event.progress().stage();
-    } else if (event.has_accepted()) {
-      stage_ = absl::StrCat("queued (", event.accepted().queue_position(), " ahead)");
-    }
-    const absl::Time now = absl::Now();
-    if (now - last_ < absl::Milliseconds(100) && !event.final()) return;
-    last_ = now;
-    if (levels_ > 0) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %u levels received, %u clusters", levels_, clusters_);
-    } else {
-      std::fprintf(stderr, "\r\033[Kmlclust: %s", stage_.c_str());
-    }
-    if (event.final()) std::fputc('\n', stderr);
-  }
-
- private:
-  bool enabled_;
-  uint32_t levels_ = 0, clusters_ = 0;
-  std::string stage_;
-  absl::Time last_ = absl::InfinitePast();
-};
 
 std::string JsonList(const google::protobuf::RepeatedField<uint32_t>& values) {
   return absl::StrCat("[", absl::StrJoin(values, ", "), "]");
@@ -250,7 +216,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     embedded = *std::move(started);
     channel = embedded->InProcessChannel();
   }
-  ProgressLine progress(!args.has("quiet"));
+  client::ProgressBarOptions progress_options;
+  progress_options.mode = client::ProgressModeFor(stderr, args.has("quiet"), args.has("progress"));
+  progress_options.final_clusters = std::max({1u, spec.clusters(), spec.levels_low()});
+  client::ProgressBar progress(stderr, progress_options);
   client::RunOptions run_options;
   run_options.on_event = [&](const v1::JobEvent& event) {
     if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
@@ -325,7 +294,10 @@ std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& o
         "submit the job to --server and return as soon as it is queued; the job id is the last "
         "line of stdout (`mlclust watch JOB` streams its levels). The server keeps the job's "
         "levels for its retention time (serve --retention-seconds)"},
-       {"quiet", "", "no progress line on stderr", 'q'},
+       {"quiet", "", "no progress on stderr", 'q'},
+       {"progress", "",
+        "progress on stderr even when it is not a terminal: a line at every tenth done (on a "
+        "terminal a bar with the share done and the time left is the default)"},
        {"json", "", "print the job summary as one JSON object"}});
   std::vector<FlagGroup> groups = {{"", std::move(flags)}};
   for (FlagGroup& group : RegistryOptionGroups(input)) groups.push_back(std::move(group));

@@ -67,6 +67,41 @@ refused "no command 'poitns' (did you mean 'points'?)" help poitns
 "$mlclust" mesh --help > "$work/help.txt"
 [ "$(wc -l < "$work/help.txt")" -gt 100 ] || fail "mesh --help is not the full help"
 
+# Progress: a bar with the share done redrawn in place on a terminal (a pseudo-terminal
+# here); nothing on a pipe; with --progress, lines on a pipe; none with --quiet.
+/usr/bin/python3 - "$mlclust" "$mesh" <<'PY' || fail "progress on a terminal"
+import os, pty, subprocess, sys
+def on_pty(*extra):
+    master, slave = pty.openpty()
+    process = subprocess.Popen([sys.argv[1], "mesh", sys.argv[2], "-k", "20", *extra],
+                               stdin=slave, stdout=subprocess.DEVNULL, stderr=slave)
+    os.close(slave)
+    out = b""
+    while True:
+        try:
+            data = os.read(master, 65536)
+        except OSError:
+            break
+        if not data:
+            break
+        out += data
+    assert process.wait() == 0
+    os.close(master)
+    return out.decode()
+out = on_pty()
+assert out.startswith("\r\x1b[Kmlclust: queued, 0 ahead ["), repr(out[:200])
+assert out.endswith("[########################] 100%  12946 levels, 1 clusters  "
+                    + out.rsplit("clusters  ", 1)[1]), repr(out[-200:])
+assert out.endswith("\r\n") and out.count("\n") == 1, repr(out[-200:])
+assert on_pty("--quiet") == "", "--quiet on a terminal"
+PY
+"$mlclust" mesh "$mesh" -k 20 > /dev/null 2> "$work/piped.txt"
+[ ! -s "$work/piped.txt" ] || fail "progress on a pipe: $(cat "$work/piped.txt")"
+"$mlclust" mesh "$mesh" -k 20 --progress > /dev/null 2> "$work/asked.txt"
+tail -1 "$work/asked.txt" | grep -q "^mlclust: cluster \[#*\] 100%  12946 levels, 1 clusters  0:0" \
+  || fail "--progress on a pipe: $(cat "$work/asked.txt")"
+! grep -q $'\r' "$work/asked.txt" || fail "--progress on a pipe redraws in place"
+
 # --json: keys in one style (snake_case) at every depth, numbers as numbers.
 "$mlclust" mesh "$mesh" -k 20 --out "$work/j.obj" --levels-csv "$work/j.csv" --json --quiet \
   > "$work/summary.json"
