@@ -35,7 +35,7 @@ std::string JsonList(const google::protobuf::RepeatedField<uint32_t>& values) {
 
 // --plot FILE.png: every level received (clusters, energy), the server's elbows marked.
 absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v1::Done& done,
-                       const std::string& title) {
+                       const std::string& title, uint32_t chosen) {
 #ifdef MLCLUST_HAVE_PLOT
   std::vector<client::EnergyCurvePoint> curve;
   std::set<uint32_t> counts;
@@ -49,6 +49,7 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
   for (uint32_t k : done.elbow_cluster_counts()) {
     if (counts.contains(k)) options.elbows.push_back(k);
   }
+  if (counts.contains(chosen)) options.chosen = chosen;
   absl::Status status = client::WriteEnergyPlotPng(curve, options, path);
   if (!status.ok()) return absl::Status(status.code(), absl::StrCat("--plot: ", status.message()));
   return absl::OkStatus();
@@ -56,6 +57,7 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
   (void)log;
   (void)done;
   (void)title;
+  (void)chosen;
   return absl::UnimplementedError(absl::StrCat(
       "--plot ", path, ": this mlclust was built without cairo (libcairo2-dev); no plot"));
 #endif
@@ -270,7 +272,20 @@ absl::Status WriteLevelOutputs(const Arguments& args, const client::JobResult& r
     MLCLUST_RETURN_IF_ERROR(WriteLevelsCsv(args.get("levels-csv"), log));
   }
   if (args.has("plot")) {
-    MLCLUST_RETURN_IF_ERROR(WritePlot(args.get("plot"), log, result.done, plot_title));
+    // The level the command writes: --clusters K (the level ChooseLevel picks), or the
+    // one --auto-k picks (the first elbow, or the highest BIC).
+    uint32_t chosen = 0;
+    const std::string auto_k = args.get("auto-k", "");
+    absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
+    if (auto_k == "elbow" && !result.done.elbow_cluster_counts().empty()) {
+      chosen = result.done.elbow_cluster_counts(0);
+    } else if (auto_k == "bic") {
+      chosen = result.done.bic_best_cluster_count();
+    } else if (auto_k.empty() && clusters.ok() && *clusters > 0) {
+      absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
+      if (level.ok()) chosen = log.cluster_count(*level);
+    }
+    MLCLUST_RETURN_IF_ERROR(WritePlot(args.get("plot"), log, result.done, plot_title, chosen));
   }
   return absl::OkStatus();
 }

@@ -2,6 +2,7 @@
 // outputs of the level chosen (labels, PLY, coarse mesh, preview, plot, JSON summary).
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
@@ -264,7 +265,8 @@ int RunMesh(const Arguments& args) {
       job_energy != nullptr ? job_energy->name : (*algorithm)->energies[0];
   if (absl::Status s =
           WriteLevelOutputs(args, *result, mesh->num_faces(), "faces",
-                            absl::StrCat(input_path, ": ", algo, ", ", energy_name, " energy"));
+                            absl::StrCat(std::filesystem::path(input_path).filename().string(),
+                                         ": ", algo, ", ", energy_name, " energy"));
       !s.ok()) {
     return Fail(s);
   }

@@ -50,6 +50,12 @@ absl::Status CheckInput(std::span<const EnergyCurvePoint> curve, const EnergyPlo
           absl::StrCat("elbow at ", elbow, " clusters: no level of the curve has that many"));
     }
   }
+  if (options.chosen != 0 &&
+      std::none_of(curve.begin(), curve.end(),
+                   [&](const EnergyCurvePoint& p) { return p.clusters == options.chosen; })) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "chosen level at ", options.chosen, " clusters: no level of the curve has that many"));
+  }
   return absl::OkStatus();
 }
 
@@ -241,6 +247,16 @@ absl::StatusOr<std::string> RenderEnergyPlotPng(std::span<const EnergyCurvePoint
     cairo_arc(cr, x, y, 6, 0, 2 * std::numbers::pi);
     cairo_fill(cr);
     ShowText(cr, absl::StrCat("elbow: ", elbow), x + 9, y - 9, 0, 1);
+  }
+  // The chosen level: a blue line over the whole height, its count at the top.
+  if (options.chosen != 0) {
+    const double x = std::round(frame.X(options.chosen));
+    cairo_set_source_rgb(cr, 0.1, 0.3, 0.85);
+    cairo_set_line_width(cr, 2);
+    cairo_move_to(cr, x, frame.top);
+    cairo_line_to(cr, x, frame.bottom + kAxisGap);
+    cairo_stroke(cr);
+    ShowText(cr, absl::StrCat("chosen: ", options.chosen), x + 6, frame.top + 4, 0, 0);
   }
   cairo_restore(cr);
 

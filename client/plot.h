@@ -2,7 +2,7 @@
 // of every received level against its number of clusters on a logarithmic axis, the way
 // the dissertation draws its energy curves (Figs. 4.15-4.25), with the elbows (section
 // 4.4, core/hierarchy/elbow.h) marked by a red dot on the curve, a dashed red line down to
-// the axis and the elbow's number of clusters.
+// the axis and the elbow's number of clusters, and the chosen level by a blue line.
 //
 // Drawn with cairo (libcairo2-dev); text with cairo's own fonts through fontconfig (a sans
 // serif font such as fonts-dejavu-core must be installed for the labels to appear).
@@ -33,6 +33,9 @@ struct EnergyPlotOptions {
   std::string title;
   // Cluster counts to mark as elbows; each must be the count of some point of the curve.
   std::vector<uint32_t> elbows;
+  // The chosen level's count (what --clusters K or --auto-k wrote), marked by a blue line
+  // from top to bottom and "chosen: K"; 0 = none. Must be the count of some point.
+  uint32_t chosen = 0;
 };
 
 // Where things are drawn, in pixels from the top left corner: the data area (the axes stand

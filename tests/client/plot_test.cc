@@ -102,6 +102,26 @@ TEST(PlotTest, PngHasTheSizeAskedForAndMarksTheElbow) {
   EXPECT_FALSE(IsRed(plain.at(frame->X(6), frame->Y(0) - 3)));
 }
 
+TEST(PlotTest, MarksTheChosenLevelOverTheWholeHeight) {
+  const std::vector<EnergyCurvePoint> curve = CubeCurve();
+  EnergyPlotOptions options;
+  options.chosen = 150;
+  const Image image(*RenderEnergyPlotPng(curve, options));
+  ASSERT_TRUE(image.ok());
+  absl::StatusOr<EnergyPlotFrame> frame = EnergyPlotFrameFor(curve, options);
+  ASSERT_TRUE(frame.ok());
+  // Blue at 150 clusters (between grid lines) high above the curve (energy 0 there), white beside
+  // it.
+  EXPECT_TRUE(IsBlue(image.at(std::round(frame->X(150)), frame->Y(0.7))));
+  EXPECT_TRUE(IsWhite(image.at(frame->X(170), frame->Y(0.7))));
+  options.chosen = 0;
+  const Image plain(*RenderEnergyPlotPng(curve, options));
+  EXPECT_TRUE(IsWhite(plain.at(std::round(frame->X(150)), frame->Y(0.7))));
+  options.chosen = 7000;
+  EXPECT_EQ(RenderEnergyPlotPng(curve, options).status().message(),
+            "chosen level at 7000 clusters: no level of the curve has that many");
+}
+
 TEST(PlotTest, MarksEveryElbowOnTheCurve) {
   // Two steps: flat to 40, a rise to 10 clusters, flat, then a rise to 1.
   std::vector<EnergyCurvePoint> curve;
