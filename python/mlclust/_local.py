@@ -42,16 +42,21 @@ def server_binary():
                             "Client() a server address")
 
 
-def _stop(process, directory, log):
-    """Ends the server (SIGTERM: it drains for at most --drain-seconds), then removes its
-    folder. Safe to call twice."""
+def end_process(process, seconds=30.0):
+    """Ends a server process if it still runs: SIGTERM (it drains for at most its
+    --drain-seconds), then SIGKILL after `seconds` (also the tests' stop_server)."""
     if process.poll() is None:
         process.terminate()
         try:
-            process.wait(timeout=30)
+            process.wait(timeout=seconds)
         except subprocess.TimeoutExpired:
             process.kill()
-            process.wait(timeout=30)
+            process.wait(timeout=seconds)
+
+
+def _stop(process, directory, log):
+    """Ends the server, then removes its folder. Safe to call twice."""
+    end_process(process)
     log.close()
     shutil.rmtree(directory, ignore_errors=True)
 

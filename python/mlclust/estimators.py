@@ -136,10 +136,11 @@ def _nearest_centre(X, centres):
 
 
 def _centres(X, labels, k):
+    """The mean of each cluster's rows (one bincount per column: far faster than add.at)."""
     X = np.asarray(X, dtype=np.float64)
     counts = np.bincount(labels, minlength=k).astype(np.float64)
-    sums = np.zeros((k, X.shape[1]))
-    np.add.at(sums, labels, X)
+    sums = np.stack([np.bincount(labels, weights=X[:, j], minlength=k)
+                     for j in range(X.shape[1])], axis=1)
     return sums / counts[:, None]
 
 
