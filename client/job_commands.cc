@@ -1,7 +1,5 @@
 #include "client/job_commands.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +11,7 @@
 #include "absl/strings/str_join.h"
 #include "client/clustered_mesh_file.h"
 #include "client/job_cli.h"
+#include "client/progress_bar.h"
 #include "client/replicas.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
@@ -119,22 +118,15 @@ int Watch(const Arguments& flags) {
   if (!channel.ok()) return Fail(channel.status());
 
   const bool quiet = flags.has("quiet") || flags.has("json");
-  const bool progress = !quiet && isatty(STDERR_FILENO);
   client::WatchOptions options;
   options.from_level = *from_level;
   options.deadline = server->deadline;
-  size_t levels_seen = 0;
-  options.on_event = [&](const v1::JobEvent& event) {
-    if (!progress) return;
-    if (event.has_levels()) levels_seen += event.levels().cluster_count_size();
-    if (event.has_snapshot()) levels_seen = 1;
-    if (event.has_progress()) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %s", event.progress().stage().c_str());
-    } else if (levels_seen > 0) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %zu levels received", levels_seen);
-    }
-    if (event.final()) std::fputc('\n', stderr);
-  };
+  // The bar of mesh and points (client/progress_bar.h); the watcher does not know the
+  // job's JobSpec.clusters, so the levels' share is reckoned down to one cluster.
+  client::ProgressBarOptions progress_options;
+  progress_options.mode = client::ProgressModeFor(stderr, quiet, flags.has("progress"));
+  client::ProgressBar progress(stderr, progress_options);
+  options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
   options.on_resume = [&](const absl::Status& status) {
     if (!quiet) {
       std::fprintf(stderr, "mlclust: the stream broke (%s); resuming\n",
@@ -412,7 +404,8 @@ Command WatchCommand() {
            {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
            {"ply", "FILE", "the mesh INPUT with one colour per cluster at that level"},
            {"mesh", "INPUT", "the mesh file the job was submitted from (for --ply)"},
-           {"quiet", "", "no progress line on stderr", 'q'},
+           {"quiet", "", "no progress on stderr", 'q'},
+           {"progress", "", "progress lines on stderr even when it is not a terminal"},
            {"json", "", "print the summary as one JSON object"}}),
       Watch};
 }
