@@ -122,6 +122,32 @@ TEST(PlotTest, MarksTheChosenLevelOverTheWholeHeight) {
             "chosen level at 7000 clusters: no level of the curve has that many");
 }
 
+TEST(PlotTest, EnergiesOverManyDecadesGetALogAxis) {
+  // 1000 clusters at energy 0 (each its own), then 1e-6 .. 1 down to one cluster.
+  std::vector<EnergyCurvePoint> curve = {{1000, 0.0}};
+  for (uint32_t k = 7; k >= 1; --k) curve.push_back({k, std::pow(10.0, 1.0 - k)});
+  absl::StatusOr<EnergyPlotFrame> frame = EnergyPlotFrameFor(curve);
+  ASSERT_TRUE(frame.ok()) << frame.status();
+  EXPECT_TRUE(frame->log_energy);
+  EXPECT_EQ(frame->y_min, -6);
+  EXPECT_EQ(frame->y_max, 0);
+  EXPECT_DOUBLE_EQ(frame->Y(1e-3), (frame->Y(1e-6) + frame->Y(1)) / 2);  // decades evenly
+  EXPECT_EQ(frame->Y(0), frame->bottom);                                 // 0 on the bottom edge
+  const Image image(*RenderEnergyPlotPng(curve));
+  ASSERT_TRUE(image.ok());
+  EXPECT_TRUE(IsBlue(image.at(frame->X(3), frame->Y(0.01))));  // the curve at (3, 1e-2)
+  EnergyPlotOptions linear;
+  linear.energy_axis = EnergyPlotOptions::EnergyAxis::kLinear;
+  EXPECT_FALSE(EnergyPlotFrameFor(curve, linear)->log_energy);
+  // The cube's curve (energy 0, then 0.2 .. 1: under 1000 times) stays linear.
+  EXPECT_FALSE(EnergyPlotFrameFor(CubeCurve())->log_energy);
+  EnergyPlotOptions log;
+  log.energy_axis = EnergyPlotOptions::EnergyAxis::kLog;
+  EXPECT_TRUE(EnergyPlotFrameFor(CubeCurve(), log)->log_energy);
+  curve.push_back({2000, -1.0});
+  EXPECT_EQ(EnergyPlotFrameFor(curve, log).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(PlotTest, MarksEveryElbowOnTheCurve) {
   // Two steps: flat to 40, a rise to 10 clusters, flat, then a rise to 1.
   std::vector<EnergyCurvePoint> curve;
