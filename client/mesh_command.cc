@@ -490,7 +490,9 @@ Command MeshCommand() {
        "split non-manifold edges and vertices before sending (say what was changed); face ids "
        "stay the input's"},
       {"plot", "FILE.png",
-       "the energy of every level received against its clusters, elbows (section 4.4) marked"},
+       "the energy of every level received against its clusters (log axes; the energy's linear "
+       "where it spans under three decades), the elbows (section 4.4) and the level written "
+       "marked, the input's file name as title"},
       {"per-polygon", "",
        "OFF/OBJ input with quads or n-gons: a polygon's triangles stay in one cluster and "
        "--labels writes one line per polygon. ml, hc, pml, emlo and bb cluster whole polygons "

@@ -159,7 +159,9 @@ Command PointsCommand() {
        "hierarchies: --labels writes the level with the highest BIC, or the first elbow"},
       {"labels", "FILE", "one line per point: its cluster (0..K-1) at that level", 'o'},
       {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
-      {"plot", "FILE.png", "the energy of every level against its clusters, elbows marked"}};
+      {"plot", "FILE.png",
+       "the energy of every level against its clusters (log axes; the energy's linear where it "
+       "spans under three decades), the elbows and the level written marked"}};
   return {{"points",
            "INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|elbow]\n"
            "                       [--labels FILE] [--levels-csv FILE] [--seed S] [--levels "
