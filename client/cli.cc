@@ -1,16 +1,18 @@
 #include "client/cli.h"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "google/protobuf/util/json_util.h"
+#include "google/protobuf/descriptor.h"
 
 namespace mlclust::cli {
 namespace {
@@ -143,8 +145,14 @@ absl::StatusOr<Arguments> ParseCommandLine(const CommandLine& command,
   }
   for (const std::string& extra : app.remaining()) {
     const std::string name = extra.substr(0, extra.find('='));
+    std::vector<std::string> known;
+    known.reserve(options.size());
+    for (const auto& [option, unused] : options) known.push_back(absl::StrCat("--", option));
+    const std::optional<std::string> nearest = DidYouMean(name, known);
     return absl::InvalidArgumentError(
-        absl::StrCat("unknown option ", name, " (`mlclust ", command.name, " --help` lists them)"));
+        absl::StrCat("unknown option ", name,
+                     nearest.has_value() ? absl::StrCat("; did you mean ", *nearest, "?") : "",
+                     " (`mlclust ", command.name, " --help` lists them)"));
   }
   Arguments parsed;
   for (const auto& [name, option] : options) {
@@ -152,6 +160,36 @@ absl::StatusOr<Arguments> ParseCommandLine(const CommandLine& command,
   }
   for (const std::string& word : positional) parsed.AddPositional(word);
   return parsed;
+}
+
+std::optional<std::string> DidYouMean(const std::string& word,
+                                      const std::vector<std::string>& candidates) {
+  // Levenshtein distance, one row at a time.
+  const auto distance = [](const std::string& a, const std::string& b) {
+    std::vector<size_t> row(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i) {
+      size_t diagonal = row[0];
+      row[0] = i;
+      for (size_t j = 1; j <= b.size(); ++j) {
+        const size_t above = row[j];
+        row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+        diagonal = above;
+      }
+    }
+    return row[b.size()];
+  };
+  const size_t limit = std::max<size_t>(1, word.size() / 3);
+  std::optional<std::string> best;
+  size_t best_distance = limit + 1;
+  for (const std::string& candidate : candidates) {
+    const size_t d = distance(word, candidate);
+    if (d < best_distance) {
+      best_distance = d;
+      best = candidate;
+    }
+  }
+  return best;
 }
 
 std::string Wrap(const std::string& text, size_t indent) {
@@ -322,14 +360,115 @@ std::string JsonNumber(double value) {
   return std::isfinite(value) ? absl::StrFormat("%.17g", value) : "null";
 }
 
+namespace {
+
+// One field's value (`index` of a repeated field) as JSON: integers of every width as JSON
+// numbers (proto3's JSON mapping writes 64-bit ones as strings), enums by name.
+std::string FieldValueJson(const google::protobuf::Message& message,
+                           const google::protobuf::FieldDescriptor* field, int index,
+                           size_t indent);
+
+// Recursive over nested messages: the depth is the proto's nesting, fixed and small.
+std::string MessageJsonAt(  // NOLINT(misc-no-recursion): the proto's nesting depth
+    const google::protobuf::Message& message, size_t indent) {
+  const google::protobuf::Descriptor* descriptor = message.GetDescriptor();
+  const google::protobuf::Reflection* reflection = message.GetReflection();
+  const std::string pad(indent + 2, ' ');
+  std::vector<std::string> members;
+  for (int i = 0; i < descriptor->field_count(); ++i) {
+    const google::protobuf::FieldDescriptor* field = descriptor->field(i);
+    std::string value;
+    if (field->is_map()) {
+      // map<string, V>: an object, as the JSON mapping writes it.
+      std::vector<std::string> entries;
+      for (int e = 0; e < reflection->FieldSize(message, field); ++e) {
+        const google::protobuf::Message& entry = reflection->GetRepeatedMessage(message, field, e);
+        const google::protobuf::FieldDescriptor* key = entry.GetDescriptor()->map_key();
+        const std::string key_text = key->type() == google::protobuf::FieldDescriptor::TYPE_STRING
+                                         ? entry.GetReflection()->GetString(entry, key)
+                                         : FieldValueJson(entry, key, -1, 0);
+        entries.push_back(absl::StrCat(
+            JsonString(key_text), ": ",
+            FieldValueJson(entry, entry.GetDescriptor()->map_value(), -1, indent + 2)));
+      }
+      value = absl::StrCat("{", absl::StrJoin(entries, ", "), "}");
+    } else if (field->is_repeated()) {
+      std::vector<std::string> items;
+      items.reserve(reflection->FieldSize(message, field));
+      for (int e = 0; e < reflection->FieldSize(message, field); ++e) {
+        items.push_back(FieldValueJson(message, field, e, indent + 2));
+      }
+      value = absl::StrCat("[", absl::StrJoin(items, ", "), "]");
+    } else {
+      // Every scalar, set or not (as always_print_primitive_fields); a message or a oneof
+      // member only where it is set.
+      const bool presence =
+          field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_MESSAGE ||
+          field->containing_oneof() != nullptr;
+      if (presence && !reflection->HasField(message, field)) continue;
+      value = FieldValueJson(message, field, -1, indent + 2);
+    }
+    members.push_back(absl::StrCat(pad, JsonString(field->name()), ": ", value));
+  }
+  if (members.empty()) return "{}";
+  return absl::StrCat("{\n", absl::StrJoin(members, ",\n"), "\n", std::string(indent, ' '), "}");
+}
+
+std::string FieldValueJson(  // NOLINT(misc-no-recursion): the proto's nesting depth
+    const google::protobuf::Message& message, const google::protobuf::FieldDescriptor* field,
+    int index, size_t indent) {
+  const google::protobuf::Reflection* r = message.GetReflection();
+  const bool one = index < 0;
+  using Field = google::protobuf::FieldDescriptor;
+  switch (field->cpp_type()) {
+    case Field::CPPTYPE_INT32:
+      return absl::StrCat(one ? r->GetInt32(message, field)
+                              : r->GetRepeatedInt32(message, field, index));
+    case Field::CPPTYPE_INT64:
+      return absl::StrCat(one ? r->GetInt64(message, field)
+                              : r->GetRepeatedInt64(message, field, index));
+    case Field::CPPTYPE_UINT32:
+      return absl::StrCat(one ? r->GetUInt32(message, field)
+                              : r->GetRepeatedUInt32(message, field, index));
+    case Field::CPPTYPE_UINT64:
+      return absl::StrCat(one ? r->GetUInt64(message, field)
+                              : r->GetRepeatedUInt64(message, field, index));
+    case Field::CPPTYPE_DOUBLE:
+      return JsonNumber(one ? r->GetDouble(message, field)
+                            : r->GetRepeatedDouble(message, field, index));
+    case Field::CPPTYPE_FLOAT: {
+      const float value =
+          one ? r->GetFloat(message, field) : r->GetRepeatedFloat(message, field, index);
+      return std::isfinite(value) ? absl::StrFormat("%.9g", value) : "null";
+    }
+    case Field::CPPTYPE_BOOL:
+      return (one ? r->GetBool(message, field) : r->GetRepeatedBool(message, field, index))
+                 ? "true"
+                 : "false";
+    case Field::CPPTYPE_ENUM: {
+      const int number =
+          one ? r->GetEnumValue(message, field) : r->GetRepeatedEnumValue(message, field, index);
+      const google::protobuf::EnumValueDescriptor* value =
+          field->enum_type()->FindValueByNumber(number);
+      return value != nullptr ? JsonString(value->name()) : absl::StrCat(number);
+    }
+    case Field::CPPTYPE_STRING: {
+      const std::string text =
+          one ? r->GetString(message, field) : r->GetRepeatedString(message, field, index);
+      return JsonString(field->type() == Field::TYPE_BYTES ? absl::Base64Escape(text) : text);
+    }
+    case Field::CPPTYPE_MESSAGE:
+      return MessageJsonAt(
+          one ? r->GetMessage(message, field) : r->GetRepeatedMessage(message, field, index),
+          indent);
+  }
+  return "null";
+}
+
+}  // namespace
+
 std::string MessageJson(const google::protobuf::Message& message) {
-  std::string json;
-  google::protobuf::util::JsonPrintOptions options;
-  options.add_whitespace = true;
-  options.always_print_primitive_fields = true;
-  options.preserve_proto_field_names = true;
-  (void)google::protobuf::util::MessageToJsonString(message, &json, options);
-  return json;
+  return absl::StrCat(MessageJsonAt(message, 0), "\n");
 }
 
 }  // namespace mlclust::cli

@@ -115,11 +115,18 @@ FlagGroup EnergyOptionGroup();
 // energy options), once each.
 std::vector<std::string> RegistryOptionNames(InputKind input);
 
+// The candidate nearest to a mistyped `word` (edit distance, at most a third of its length
+// and at least 1; the first on a tie), or nullopt where none is that near.
+std::optional<std::string> DidYouMean(const std::string& word,
+                                      const std::vector<std::string>& candidates);
+
 // Prints "mlclust: MESSAGE" on stderr; the exit code: 2 for INVALID_ARGUMENT, else 1.
 int Fail(const absl::Status& status);
 
-// A JSON string literal; a number (null where not finite); a message in the proto3 JSON
-// mapping (fields with default values included).
+// A JSON string literal; a number (null where not finite); a message as a JSON object with
+// the proto's field names (snake_case), every scalar field included (default values too),
+// integers of every width as numbers (unlike proto3's JSON mapping, which writes 64-bit
+// ones as strings), enums by name, bytes in base64, unset messages left out.
 std::string JsonString(absl::string_view text);
 std::string JsonNumber(double value);
 std::string MessageJson(const google::protobuf::Message& message);

@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_replace.h"
 #include "absl/time/clock.h"
 #include "client/job_commands.h"
 #include "client/replicas.h"
@@ -23,44 +24,10 @@
 #ifdef MLCLUST_HAVE_PLOT
 #include "client/plot.h"
 #endif
+#include "client/progress_bar.h"
 
 namespace mlclust::cli {
 namespace {
-
-// A one-line progress display on a terminal.
-class ProgressLine {
- public:
-  explicit ProgressLine(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
-  void Update(const v1::JobEvent& event) {
-    if (!enabled_) return;
-    if (event.has_levels()) {
-      levels_ += event.levels().cluster_count_size();
-      clusters_ = event.levels().cluster_count(event.levels().cluster_count_size() - 1);
-    } else if (event.has_snapshot()) {
-      levels_ = 1;
-      clusters_ = event.snapshot().cluster_count();
-    } else if (event.has_progress()) {
-      stage_ = event.progress().stage();
-    } else if (event.has_accepted()) {
-      stage_ = absl::StrCat("queued (", event.accepted().queue_position(), " ahead)");
-    }
-    const absl::Time now = absl::Now();
-    if (now - last_ < absl::Milliseconds(100) && !event.final()) return;
-    last_ = now;
-    if (levels_ > 0) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %u levels received, %u clusters", levels_, clusters_);
-    } else {
-      std::fprintf(stderr, "\r\033[Kmlclust: %s", stage_.c_str());
-    }
-    if (event.final()) std::fputc('\n', stderr);
-  }
-
- private:
-  bool enabled_;
-  uint32_t levels_ = 0, clusters_ = 0;
-  std::string stage_;
-  absl::Time last_ = absl::InfinitePast();
-};
 
 std::string JsonList(const google::protobuf::RepeatedField<uint32_t>& values) {
   return absl::StrCat("[", absl::StrJoin(values, ", "), "]");
@@ -68,7 +35,7 @@ std::string JsonList(const google::protobuf::RepeatedField<uint32_t>& values) {
 
 // --plot FILE.png: every level received (clusters, energy), the server's elbows marked.
 absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v1::Done& done,
-                       const std::string& title) {
+                       const std::string& title, uint32_t chosen) {
 #ifdef MLCLUST_HAVE_PLOT
   std::vector<client::EnergyCurvePoint> curve;
   std::set<uint32_t> counts;
@@ -82,6 +49,7 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
   for (uint32_t k : done.elbow_cluster_counts()) {
     if (counts.contains(k)) options.elbows.push_back(k);
   }
+  if (counts.contains(chosen)) options.chosen = chosen;
   absl::Status status = client::WriteEnergyPlotPng(curve, options, path);
   if (!status.ok()) return absl::Status(status.code(), absl::StrCat("--plot: ", status.message()));
   return absl::OkStatus();
@@ -89,6 +57,7 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
   (void)log;
   (void)done;
   (void)title;
+  (void)chosen;
   return absl::UnimplementedError(absl::StrCat(
       "--plot ", path, ": this mlclust was built without cairo (libcairo2-dev); no plot"));
 #endif
@@ -213,8 +182,8 @@ absl::Status WriteLabels(const std::string& path, std::span<const uint32_t> labe
 int Detach(const Arguments& args, const v1::JobSpec& spec, const std::string& payload) {
   absl::StatusOr<ServerFlags> flags = ServerFlagsFrom(args);
   if (!flags.ok()) return Fail(flags.status());
-  for (const char* output :
-       {"labels", "levels-csv", "ply", "coarse", "json", "auto-k", "plot", "repair", "preview"}) {
+  for (const char* output : {"labels", "levels-csv", "ply", "out", "coarse", "json", "auto-k",
+                             "plot", "repair", "preview"}) {
     if (args.has(output)) {
       return Fail(absl::InvalidArgumentError(absl::StrCat(
           "--detach returns before the job runs: --", output, " goes to `mlclust watch JOB`")));
@@ -249,7 +218,10 @@ absl::StatusOr<client::JobResult> RunOnServer(const Arguments& args, const v1::J
     embedded = *std::move(started);
     channel = embedded->InProcessChannel();
   }
-  ProgressLine progress(!args.has("quiet"));
+  client::ProgressBarOptions progress_options;
+  progress_options.mode = client::ProgressModeFor(stderr, args.has("quiet"), args.has("progress"));
+  progress_options.final_clusters = std::max({1u, spec.clusters(), spec.levels_low()});
+  client::ProgressBar progress(stderr, progress_options);
   client::RunOptions run_options;
   run_options.on_event = [&](const v1::JobEvent& event) {
     if (event.has_accepted() && accepted != nullptr) *accepted = event.accepted();
@@ -292,7 +264,20 @@ absl::Status WriteLevelOutputs(const Arguments& args, const client::JobResult& r
     MLCLUST_RETURN_IF_ERROR(WriteLevelsCsv(args.get("levels-csv"), log));
   }
   if (args.has("plot")) {
-    MLCLUST_RETURN_IF_ERROR(WritePlot(args.get("plot"), log, result.done, plot_title));
+    // The level the command writes: --clusters K (the level ChooseLevel picks), or the
+    // one --auto-k picks (the first elbow, or the highest BIC).
+    uint32_t chosen = 0;
+    const std::string auto_k = args.get("auto-k", "");
+    absl::StatusOr<uint64_t> clusters = args.GetUint("clusters", 0, UINT32_MAX);
+    if (auto_k == "elbow" && !result.done.elbow_cluster_counts().empty()) {
+      chosen = result.done.elbow_cluster_counts(0);
+    } else if (auto_k == "bic") {
+      chosen = result.done.bic_best_cluster_count();
+    } else if (auto_k.empty() && clusters.ok() && *clusters > 0) {
+      absl::StatusOr<size_t> level = ChooseLevel(log, static_cast<uint32_t>(*clusters));
+      if (level.ok()) chosen = log.cluster_count(*level);
+    }
+    MLCLUST_RETURN_IF_ERROR(WritePlot(args.get("plot"), log, result.done, plot_title, chosen));
   }
   return absl::OkStatus();
 }
@@ -316,7 +301,10 @@ std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& o
         "submit the job to --server and return as soon as it is queued; the job id is the last "
         "line of stdout (`mlclust watch JOB` streams its levels). The server keeps the job's "
         "levels for its retention time (serve --retention-seconds)"},
-       {"quiet", "", "no progress line on stderr", 'q'},
+       {"quiet", "", "no progress on stderr", 'q'},
+       {"progress", "",
+        "progress on stderr even when it is not a terminal: a line at every tenth done (on a "
+        "terminal a bar with the share done and the time left is the default)"},
        {"json", "", "print the job summary as one JSON object"}});
   std::vector<FlagGroup> groups = {{"", std::move(flags)}};
   for (FlagGroup& group : RegistryOptionGroups(input)) groups.push_back(std::move(group));
@@ -384,9 +372,12 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
     absl::StrAppend(&json, ", \"level\": null");
   }
   std::vector<std::string> outputs;
-  for (const char* name : {"labels", "levels-csv", "ply", "coarse", "plot", "preview"}) {
-    if (args.has(name) && !not_written.contains(name))
-      outputs.push_back(absl::StrCat(JsonString(name), ": ", JsonString(args.get(name))));
+  // Keyed by the flag's name in the summary's one style, snake_case ("levels_csv").
+  for (const char* name : {"labels", "levels-csv", "ply", "out", "coarse", "plot", "preview"}) {
+    if (args.has(name) && !not_written.contains(name)) {
+      outputs.push_back(absl::StrCat(JsonString(absl::StrReplaceAll(name, {{"-", "_"}})), ": ",
+                                     JsonString(args.get(name))));
+    }
   }
   absl::StrAppend(&json, ", \"outputs\": {", absl::StrJoin(outputs, ", "), "}}");
   return json;

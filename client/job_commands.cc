@@ -1,7 +1,5 @@
 #include "client/job_commands.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,7 +9,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/clustered_mesh_file.h"
 #include "client/job_cli.h"
+#include "client/progress_bar.h"
 #include "client/replicas.h"
 #include "core/cluster/registry.h"
 #include "core/io/mesh_io.h"
@@ -103,6 +103,10 @@ int Watch(const Arguments& flags) {
     return Fail(absl::InvalidArgumentError(
         "--ply FILE needs --mesh INPUT (the mesh file the job was submitted from)"));
   }
+  if (absl::Status s = client::CheckClusteredMeshOutputs(std::nullopt, flags.value("ply"));
+      !s.ok()) {
+    return Fail(s);
+  }
   // The mesh first: a wrong path fails before the watch starts.
   std::optional<TriangleMesh> mesh;
   if (flags.has("mesh")) {
@@ -114,22 +118,15 @@ int Watch(const Arguments& flags) {
   if (!channel.ok()) return Fail(channel.status());
 
   const bool quiet = flags.has("quiet") || flags.has("json");
-  const bool progress = !quiet && isatty(STDERR_FILENO);
   client::WatchOptions options;
   options.from_level = *from_level;
   options.deadline = server->deadline;
-  size_t levels_seen = 0;
-  options.on_event = [&](const v1::JobEvent& event) {
-    if (!progress) return;
-    if (event.has_levels()) levels_seen += event.levels().cluster_count_size();
-    if (event.has_snapshot()) levels_seen = 1;
-    if (event.has_progress()) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %s", event.progress().stage().c_str());
-    } else if (levels_seen > 0) {
-      std::fprintf(stderr, "\r\033[Kmlclust: %zu levels received", levels_seen);
-    }
-    if (event.final()) std::fputc('\n', stderr);
-  };
+  // The bar of mesh and points (client/progress_bar.h); the watcher does not know the
+  // job's JobSpec.clusters, so the levels' share is reckoned down to one cluster.
+  client::ProgressBarOptions progress_options;
+  progress_options.mode = client::ProgressModeFor(stderr, quiet, flags.has("progress"));
+  client::ProgressBar progress(stderr, progress_options);
+  options.on_event = [&](const v1::JobEvent& event) { progress.Update(event); };
   options.on_resume = [&](const absl::Status& status) {
     if (!quiet) {
       std::fprintf(stderr, "mlclust: the stream broke (%s); resuming\n",
@@ -178,10 +175,11 @@ int Watch(const Arguments& flags) {
   const v1::Done& done = result->done;
   if (flags.has("json")) {
     std::string json = absl::StrCat(
-        R"({"job_id": ")", full_id, R"(", "elements": )", log.num_elements(),
+        R"({"job_id": )", JsonString(full_id), R"(, "elements": )", log.num_elements(),
         R"(, "first_level": )", result->first_level, R"(, "levels": )", log.num_levels(),
         R"(, "triplets": )", log.num_moves(), R"(, "final_clusters": )", done.final_clusters(),
-        R"(, "device": ")", done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
+        R"(, "device": )", JsonString(done.device()), R"(, "seconds": )",
+        absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
       absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
                       R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
@@ -429,7 +427,8 @@ Command WatchCommand() {
            {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
            {"ply", "FILE", "the mesh INPUT with one colour per cluster at that level"},
            {"mesh", "INPUT", "the mesh file the job was submitted from (for --ply)"},
-           {"quiet", "", "no progress line on stderr", 'q'},
+           {"quiet", "", "no progress on stderr", 'q'},
+           {"progress", "", "progress lines on stderr even when it is not a terminal"},
            {"json", "", "print the summary as one JSON object"}}),
       Watch};
 }

@@ -2,6 +2,7 @@
 // outputs of the level chosen (labels, PLY, coarse mesh, preview, plot, JSON summary).
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
@@ -10,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "client/clustered_mesh_file.h"
 #include "client/commands.h"
 #include "client/job_cli.h"
 #include "client/meshlets_command.h"
@@ -123,9 +125,14 @@ int RunMesh(const Arguments& args) {
     return Fail(absl::InvalidArgumentError(
         "--preview needs --clusters K: the server draws the level before --auto-k chooses it"));
   }
-  if ((args.has("labels") || args.has("ply")) && *clusters == 0 && auto_k.empty()) {
+  if ((args.has("labels") || args.has("ply") || args.has("out")) && *clusters == 0 &&
+      auto_k.empty()) {
     return Fail(absl::InvalidArgumentError(
-        "--labels and --ply need --clusters K (K >= 1) or --auto-k elbow"));
+        "--labels, --ply and --out need --clusters K (K >= 1) or --auto-k elbow"));
+  }
+  if (absl::Status s = client::CheckClusteredMeshOutputs(args.value("out"), args.value("ply"));
+      !s.ok()) {
+    return Fail(s);
   }
   v1::JobSpec spec;
   spec.set_input_kind(v1::INPUT_KIND_DRACO_MESH);
@@ -260,7 +267,8 @@ int RunMesh(const Arguments& args) {
       job_energy != nullptr ? job_energy->name : (*algorithm)->energies[0];
   if (absl::Status s =
           WriteLevelOutputs(args, *result, mesh->num_faces(), "faces",
-                            absl::StrCat(input_path, ": ", algo, ", ", energy_name, " energy"));
+                            absl::StrCat(std::filesystem::path(input_path).filename().string(),
+                                         ": ", algo, ", ", energy_name, " energy"));
       !s.ok()) {
     return Fail(s);
   }
@@ -366,6 +374,11 @@ int RunMesh(const Arguments& args) {
         return Fail(s);
       }
     }
+    if (args.has("out")) {
+      if (absl::Status s = client::WriteClusteredMesh(args.get("out"), *mesh, ids); !s.ok()) {
+        return Fail(s);
+      }
+    }
     if (args.has("coarse")) {
       CoarseningOptions options;
       options.placement = placement == "qem" ? CoarseningOptions::Placement::kQuadric
@@ -423,17 +436,18 @@ int RunMesh(const Arguments& args) {
                 level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   }
   if (!coarse_error.empty()) {
-    std::fprintf(stderr,
-                 "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
-                 "  written: %s\n  %s\n",
-                 args.get("coarse").c_str(), coarse_error.c_str(),
-                 OutputList(args, {"labels", "levels-csv", "ply", "plot", "preview"}).c_str(),
-                 coarse_nearest.has_value()
-                     ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
-                                    " clusters: --clusters ", *coarse_nearest)
-                           .c_str()
-                     : (hierarchy ? "no level near it coarsens (32 tried): try a larger --clusters"
-                                  : "try a larger --clusters"));
+    std::fprintf(
+        stderr,
+        "mlclust: --coarse %s: not written: this level has no coarse mesh: %s\n"
+        "  written: %s\n  %s\n",
+        args.get("coarse").c_str(), coarse_error.c_str(),
+        OutputList(args, {"labels", "levels-csv", "ply", "out", "plot", "preview"}).c_str(),
+        coarse_nearest.has_value()
+            ? absl::StrCat("the nearest level that coarsens has ", *coarse_nearest,
+                           " clusters: --clusters ", *coarse_nearest)
+                  .c_str()
+            : (hierarchy ? "no level near it coarsens (32 tried): try a larger --clusters"
+                         : "try a larger --clusters"));
     return kExitCoarseFailed;
   }
   return 0;
@@ -445,7 +459,7 @@ Command MeshCommand() {
   std::vector<Flag> own = {
       EnergyFlag(InputKind::kMesh, "the algorithm's first below", /*wire_only=*/true),
       {"clusters", "K",
-       "the level written by --labels, --ply and --coarse (for single-level algorithms the "
+       "the level written by --labels, --out, --ply and --coarse (for single-level algorithms the "
        "number of clusters to compute); at most the mesh's faces",
        'k'},
       {"auto-k", "elbow",
@@ -454,9 +468,14 @@ Command MeshCommand() {
        "planar); an error where the curve has none"},
       {"labels", "FILE", "one line per input face: its cluster (0..K-1) at that level", 'o'},
       {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
+      {"out", "FILE",
+       "the mesh with the clusters of that level, the format by FILE's extension: .ply (an "
+       "integer `cluster` face property and a colour per face), .glb or .gltf (the `_CLUSTER` "
+       "vertex attribute and COLOR_0), .obj (a group `g cluster_K` per run of faces of one "
+       "cluster); another extension is refused before the job runs"},
       {"ply", "FILE",
        "the mesh with one colour per cluster at that level and an integer `cluster` face "
-       "property"},
+       "property (a .ply name: --out chooses the format by extension)"},
       {"coarse", "FILE",
        "the coarse mesh of that level: one vertex per cluster, a triangle where three clusters "
        "meet (format by extension: .ply, .obj, .off). A level that has no coarse mesh (small "
@@ -473,7 +492,9 @@ Command MeshCommand() {
        "split non-manifold edges and vertices before sending (say what was changed); face ids "
        "stay the input's"},
       {"plot", "FILE.png",
-       "the energy of every level received against its clusters, elbows (section 4.4) marked"},
+       "the energy of every level received against its clusters (log axes; the energy's linear "
+       "where it spans under three decades), the elbows (section 4.4) and the level written "
+       "marked, the input's file name as title"},
       {"per-polygon", "",
        "OFF/OBJ input with quads or n-gons: a polygon's triangles stay in one cluster and "
        "--labels writes one line per polygon. ml, hc, pml, emlo and bb cluster whole polygons "
@@ -503,18 +524,20 @@ Command MeshCommand() {
        "the camera in degrees (default 35,25: from the right of +z, above; 215,25 looks from "
        "the other side)"}};
   for (Flag& flag : MeshletFlags()) own.push_back(std::move(flag));
-  return {{"mesh",
-           "INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]\n"
-           "                     [--labels FILE] [--levels-csv FILE] [--ply FILE] [--coarse FILE]\n"
-           "                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]\n"
-           "                     [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy "
-           "options]\n"
-           "  mlclust mesh INPUT --meshlets FILE [--max-vertices 64] [--max-triangles 124] "
-           "[--labels FILE]",
-           "Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and "
-           "receives every level. Without --server the server runs inside this process.",
-           JobFlagGroups(InputKind::kMesh, own)},
-          RunMesh};
+  return {
+      {"mesh",
+       "INPUT [--server ADDR] [--algo ALGO] [--energy E] [--clusters K]\n"
+       "                     [--labels FILE] [--levels-csv FILE] [--out FILE.ply|glb|gltf|obj]\n"
+       "                     [--coarse FILE]\n"
+       "                     [--preview FILE.png [--preview-size WxH] [--preview-view AZ,EL]]\n"
+       "                     [--device auto|gpu|cpu] [--quiet] [--json] [algorithm and energy "
+       "options]\n"
+       "  mlclust mesh INPUT --meshlets FILE [--max-vertices 64] [--max-triangles 124] "
+       "[--labels FILE]",
+       "Clusters the mesh INPUT (OBJ, PLY, OFF, STL, glTF/GLB, ... or a .drc sent as is) and "
+       "receives every level. Without --server the server runs inside this process.",
+       JobFlagGroups(InputKind::kMesh, own)},
+      RunMesh};
 }
 
 }  // namespace mlclust::cli

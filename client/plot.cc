@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <vector>
@@ -49,6 +50,12 @@ absl::Status CheckInput(std::span<const EnergyCurvePoint> curve, const EnergyPlo
       return absl::InvalidArgumentError(
           absl::StrCat("elbow at ", elbow, " clusters: no level of the curve has that many"));
     }
+  }
+  if (options.chosen != 0 &&
+      std::none_of(curve.begin(), curve.end(),
+                   [&](const EnergyCurvePoint& p) { return p.clusters == options.chosen; })) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "chosen level at ", options.chosen, " clusters: no level of the curve has that many"));
   }
   return absl::OkStatus();
 }
@@ -99,7 +106,9 @@ double EnergyPlotFrame::X(double clusters) const {
 }
 
 double EnergyPlotFrame::Y(double energy) const {
-  return bottom - (energy - y_min) / (y_max - y_min) * (bottom - top);
+  if (log_energy && !(energy > 0)) return bottom;  // 0 on a log axis: its bottom edge
+  const double value = log_energy ? std::log10(energy) : energy;
+  return bottom - (value - y_min) / (y_max - y_min) * (bottom - top);
 }
 
 absl::StatusOr<EnergyPlotFrame> EnergyPlotFrameFor(std::span<const EnergyCurvePoint> curve,
@@ -124,6 +133,29 @@ absl::StatusOr<EnergyPlotFrame> EnergyPlotFrameFor(std::span<const EnergyCurvePo
   // An energy kept incrementally can end a hair below zero where the exact one is 0; that
   // must not add a whole step of negative axis.
   if (lowest < 0 && -lowest <= 1e-6 * (highest - lowest)) lowest = 0;
+  using Axis = EnergyPlotOptions::EnergyAxis;
+  // A log axis: energies of 0 (a face alone under the CVD energy, a plane under the planar
+  // one) lie on its bottom edge; a negative one rules it out.
+  double smallest_positive = std::numeric_limits<double>::infinity();
+  for (const EnergyCurvePoint& p : curve) {
+    if (p.energy > 0) smallest_positive = std::min(smallest_positive, p.energy);
+  }
+  const bool log_possible = lowest >= 0 && highest > 0;
+  if (options.energy_axis == Axis::kLog && !log_possible) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "a logarithmic energy axis needs energies of at least 0, one above; they run from ", lowest,
+        " to ", highest));
+  }
+  frame.log_energy =
+      options.energy_axis == Axis::kLog ||
+      (options.energy_axis == Axis::kAuto && log_possible && highest > 1000 * smallest_positive);
+  if (frame.log_energy) {
+    frame.y_min = std::floor(std::log10(smallest_positive));
+    frame.y_max = std::ceil(std::log10(highest));
+    if (frame.y_max <= frame.y_min) frame.y_max = frame.y_min + 1;
+    frame.y_step = 1;
+    return frame;
+  }
   lowest = std::min(lowest, 0.0);
   if (!(highest > lowest)) highest = lowest + 1;
   frame.y_step = NiceStep(highest - lowest);
@@ -162,14 +194,16 @@ absl::StatusOr<std::string> RenderEnergyPlotPng(std::span<const EnergyCurvePoint
   const double y_step = frame.y_step;
   cairo_set_font_size(cr, 13);
   for (double e = frame.y_min; e <= frame.y_max + y_step / 2; e += y_step) {
-    const double y = std::round(frame.Y(e)) + 0.5;
+    const double y = std::round(frame.log_energy ? frame.Y(std::pow(10.0, e)) : frame.Y(e)) + 0.5;
     cairo_set_source_rgb(cr, 0.88, 0.88, 0.88);
     cairo_move_to(cr, frame.left, y);
     cairo_line_to(cr, frame.right, y);
     cairo_stroke(cr);
     cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
-    ShowText(cr, absl::StrFormat("%.4g", std::abs(e) < y_step * 1e-9 ? 0.0 : e), frame.left - 8, y,
-             1.0, 0.5);
+    const std::string label = frame.log_energy
+                                  ? absl::StrFormat("%g", std::pow(10.0, e))
+                                  : absl::StrFormat("%.4g", std::abs(e) < y_step * 1e-9 ? 0.0 : e);
+    ShowText(cr, label, frame.left - 8, y, 1.0, 0.5);
   }
   for (int decade = static_cast<int>(frame.log_x_min); decade <= frame.log_x_max; ++decade) {
     ShowText(cr, DecadeLabel(decade), frame.X(std::pow(10.0, decade)), frame.bottom + kAxisGap + 8,
@@ -189,7 +223,7 @@ absl::StatusOr<std::string> RenderEnergyPlotPng(std::span<const EnergyCurvePoint
   cairo_save(cr);
   cairo_translate(cr, 22, (frame.top + frame.bottom) / 2);
   cairo_rotate(cr, -std::numbers::pi / 2);
-  ShowText(cr, "energy", 0, 0, 0.5, 0);
+  ShowText(cr, frame.log_energy ? "energy (log scale)" : "energy", 0, 0, 0.5, 0);
   cairo_restore(cr);
   if (!options.title.empty()) {
     cairo_set_font_size(cr, 17);
@@ -241,6 +275,16 @@ absl::StatusOr<std::string> RenderEnergyPlotPng(std::span<const EnergyCurvePoint
     cairo_arc(cr, x, y, 6, 0, 2 * std::numbers::pi);
     cairo_fill(cr);
     ShowText(cr, absl::StrCat("elbow: ", elbow), x + 9, y - 9, 0, 1);
+  }
+  // The chosen level: a blue line over the whole height, its count at the top.
+  if (options.chosen != 0) {
+    const double x = std::round(frame.X(options.chosen));
+    cairo_set_source_rgb(cr, 0.1, 0.3, 0.85);
+    cairo_set_line_width(cr, 2);
+    cairo_move_to(cr, x, frame.top);
+    cairo_line_to(cr, x, frame.bottom + kAxisGap);
+    cairo_stroke(cr);
+    ShowText(cr, absl::StrCat("chosen: ", options.chosen), x + 6, frame.top + 4, 0, 0);
   }
   cairo_restore(cr);
 

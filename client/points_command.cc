@@ -1,6 +1,7 @@
 // `mlclust points`: reads a point set, sends it (float32), receives every level and writes
 // the outputs of the level chosen (--clusters K or --auto-k).
 #include <cstdio>
+#include <filesystem>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -82,8 +83,10 @@ int RunPoints(const Arguments& args) {
       auto_k.empty() && !grid_start && !chooses_k ? static_cast<uint32_t>(*clusters) : 0);
   if (!result.ok()) return Fail(result.status());
   const HierarchyLog& log = result->hierarchy;
-  if (absl::Status s = WriteLevelOutputs(args, *result, points->num_points(), "points",
-                                         absl::StrCat(input_path, ": ", algo, ", variance"));
+  if (absl::Status s =
+          WriteLevelOutputs(args, *result, points->num_points(), "points",
+                            absl::StrCat(std::filesystem::path(input_path).filename().string(),
+                                         ": ", algo, ", variance"));
       !s.ok()) {
     return Fail(s);
   }
@@ -156,7 +159,9 @@ Command PointsCommand() {
        "hierarchies: --labels writes the level with the highest BIC, or the first elbow"},
       {"labels", "FILE", "one line per point: its cluster (0..K-1) at that level", 'o'},
       {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
-      {"plot", "FILE.png", "the energy of every level against its clusters, elbows marked"}};
+      {"plot", "FILE.png",
+       "the energy of every level against its clusters (log axes; the energy's linear where it "
+       "spans under three decades), the elbows and the level written marked"}};
   return {{"points",
            "INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|elbow]\n"
            "                       [--labels FILE] [--levels-csv FILE] [--seed S] [--levels "

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "client/clustered_mesh_file.h"
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
 
@@ -92,9 +93,9 @@ __attribute__((visibility("default"))) int mlclust_read_mesh(const char* path, f
   return 0;
 }
 
-// Writes a clustered mesh by the path's extension: .ply (WriteClusteredPly, the input's
-// vertices and an int `cluster` face property) or .glb / .gltf (WriteClusteredGltf, the
-// `_CLUSTER` attribute). labels: one per face, -1 for none. 0 or the status code.
+// Writes a clustered mesh by the path's extension, as the CLI's --out: .ply (the input's
+// vertices and an int `cluster` face property), .glb / .gltf (the `_CLUSTER` attribute) or
+// .obj (a group per cluster). labels: one per face, -1 for none. 0 or the status code.
 __attribute__((visibility("default"))) int mlclust_write_clustered(
     const char* path, const float* positions, uint64_t num_vertices, const uint32_t* indices,
     uint64_t num_faces, const int64_t* labels, char* error, uint64_t error_size) {
@@ -111,19 +112,8 @@ __attribute__((visibility("default"))) int mlclust_write_clustered(
     }
     if (labels[f] >= 0) ids[f] = mlclust::ClusterId(static_cast<uint32_t>(labels[f]));
   }
-  const std::string name(path);
-  const auto ends_with = [&](const std::string& suffix) {
-    return name.size() >= suffix.size() &&
-           name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  absl::Status status;
-  if (ends_with(".ply")) {
-    status = mlclust::WriteClusteredPly(name, mesh, ids);
-  } else if (ends_with(".glb") || ends_with(".gltf")) {
-    status = mlclust::WriteClusteredGltf(name, mesh, ids);
-  } else {
-    status = absl::InvalidArgumentError(name + ": write .ply, .glb or .gltf");
-  }
+  // The CLI's writer by extension (.ply, .glb, .gltf, .obj): client/clustered_mesh_file.h.
+  const absl::Status status = mlclust::client::WriteClusteredMesh(path, mesh, ids);
   if (!status.ok()) {
     SetError(std::string(status.message()), error, error_size);
     return static_cast<int>(status.code());

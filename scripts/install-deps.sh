@@ -16,6 +16,9 @@ packages=(
   # the Python package (python/): Debian's python3 with gRPC, protobuf and numpy; the
   # stubs are generated with protoc and grpc_python_plugin (protobuf-compiler-grpc)
   python3 python3-grpcio python3-protobuf python3-numpy
+  # its install (python/setup.py: `pip install --no-build-isolation ./python` into a venv)
+  # and its estimators' tests (scikit-learn's conventions and estimator checks)
+  python3-pip python3-venv python3-setuptools python3-wheel python3-sklearn
   # the --plot PNG (client/plot.h): cairo, and a font for its labels
   libcairo2-dev fonts-dejavu-core
   # the --preview PNG (gpu/render/png_codec.h)

@@ -367,6 +367,15 @@ absl::StatusOr<DecodedDracoMesh> DecodeDracoMeshWithFaceIds(std::string_view byt
                                                    static_cast<int>(position->data_type()),
                                                    "; a number type is required"));
   }
+  // A payload is one Draco mesh: bytes after it are a client's mistake (two files joined, a
+  // length wrong), never data, and were taken silently before.
+  if (buffer.remaining_size() > 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "Draco mesh: ", buffer.remaining_size(),
+        " bytes after the end of the Draco data (it ends at byte ",
+        bytes.size() - buffer.remaining_size(), " of ", bytes.size(), "); send one Draco mesh"));
+  }
+
   const size_t num_points = decoded->num_points();
   const size_t num_faces = decoded->num_faces();
   if (num_points > kMaxMeshElements || num_faces > kMaxMeshElements) {

@@ -12,7 +12,7 @@ from typing import Callable, NamedTuple, Optional
 import grpc
 import numpy as np
 
-from . import _draco, _wire
+from . import _draco, _local, _wire
 from .hierarchy import Hierarchy
 from .v1 import mlclust_pb2 as pb
 from .v1 import mlclust_pb2_grpc as pb_grpc
@@ -393,16 +393,26 @@ def _option_text(value):
 
 
 class Client:
-    """A connection to an mlclust server at "host:port" (plaintext).
+    """A connection to an mlclust server at "host:port" (plaintext), or, with no address,
+    to a server of its own.
 
+    Client() starts the bundled `mlclust serve` on a Unix socket in a private folder
+    (mode 0700) and stops it with the client: close(), the end of a `with` block, garbage
+    collection or interpreter exit (mlclust/_local.py; `serve_args` are further serve
+    flags, e.g. ["--workers", "2"]). An address selects a remote server instead.
     Messages over gRPC's default 4 MiB receive limit are refused as by any default
     client; pass max_receive_message_length=-1 to lift it. `options` are further gRPC
     channel arguments; `credentials` (grpc.ssl_channel_credentials) makes it TLS.
     """
 
-    def __init__(self, address, *, max_receive_message_length: Optional[int] = None,
+    def __init__(self, address=None, *, max_receive_message_length: Optional[int] = None,
                  options=None, credentials=None, spread: str = "least-loaded",
-                 resubmit: int = 2, on_resubmit: Optional[Callable[..., None]] = None):
+                 resubmit: int = 2, on_resubmit: Optional[Callable[..., None]] = None,
+                 serve_args=()):
+        self._local = None
+        if address is None:
+            self._local = _local.LocalServer(serve_args)
+            address = self._local.address
         # Several servers (replicas): a list of "host:port", a comma-separated string, or
         # "dns:///name:port". Jobs go to the least loaded replica (GetStats: queue depth
         # plus running jobs; ties at random) or, with spread="in-order", in the order
@@ -424,6 +434,7 @@ class Client:
             raise ValueError(f"spread must be least-loaded or in-order, got {spread!r}")
         if int(resubmit) < 0:
             raise ValueError(f"resubmit must be >= 0, got {resubmit!r}")
+        self._address = address
         self._replicas = resolve_replicas(address)
         self._spread = spread
         self._resubmit = int(resubmit)
@@ -457,6 +468,13 @@ class Client:
             member.close()
         if self._replicas is None:
             self._channel.close()
+        if self._local is not None:
+            self._local.stop()
+
+    @property
+    def address(self):
+        """The server's address: "unix:..." for the client's own server."""
+        return self._address
 
     # --- several replicas ------------------------------------------------------------
     def _member(self, replica):
@@ -748,6 +766,13 @@ class Client:
             return out
         try:
             return self._stub.GetStats(pb.GetStatsRequest(), timeout=timeout)
+        except grpc.RpcError as e:
+            raise Error(e.code(), e.details()) from None
+
+    def info(self, timeout: float = 10.0):
+        """The server's ServerInfo message (version, build, device, limits, algorithms)."""
+        try:
+            return self._stub.GetServerInfo(pb.GetServerInfoRequest(), timeout=timeout)
         except grpc.RpcError as e:
             raise Error(e.code(), e.details()) from None
 

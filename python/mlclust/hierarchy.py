@@ -29,15 +29,37 @@ def compact_labels(labels):
     return rank[inverse]
 
 
+class LevelNotFoundError(KeyError):
+    """No level has the asked number of clusters. `k` is what was asked; `nearest` the
+    (cluster_count, level) of the nearest levels, the one above k then the one below (one
+    or none where the hierarchy ends on that side)."""
+
+    def __init__(self, k, nearest):
+        self.k = k
+        self.nearest = list(nearest)
+        super().__init__(k)
+
+    def __str__(self):
+        if not self.nearest:
+            return f"no level has {self.k} clusters (the hierarchy has no levels)"
+        named = " and ".join(f"{count} (level {level})" for count, level in self.nearest)
+        return (f"no level has {self.k} clusters; the nearest: {named}; pass nearest=True "
+                "to take the closest")
+
+
 class Hierarchy:
     """Every level of one job, with a cursor that steps between levels.
 
     levels: the levels as Level tuples; cluster_counts / energies as numpy arrays.
-    labels(k): compact labels (0..k'-1) of the level with k clusters.
+    labels(k): compact labels (0..k-1) of the level with k clusters (LevelNotFoundError
+    naming the nearest levels when none has k; nearest=True takes the closest).
     seek(level) / step(n): moves the cursor by applying triplets; current_labels() gives
     the server's cluster ids at the cursor.
     done: the job's Done message (device, times, elbows, BIC); job_id: the server's id.
+    polygons: triangles per polygon where mlclust.cluster_mesh split polygons, else None.
     """
+
+    polygons = None
 
     def __init__(self, snapshot, cluster_counts, energies, source_levels, level_end,
                  element, to_cluster, from_cluster, done=None, job_id=""):
@@ -82,32 +104,47 @@ class Hierarchy:
             yield (Level(i, int(self.cluster_counts[i]), float(self.energies[i]),
                          int(self._source_levels[i])), self.current_labels())
 
-    def level_for(self, k: int) -> int:
+    def level_for(self, k: int, nearest: bool = False) -> int:
         """The level with k clusters: the last with exactly k (a single-level algorithm's
-        result follows its start at the same k), else the first with fewer (PML may skip
-        counts). KeyError if every level has more than k."""
+        result follows its start at the same k). When no level has k: LevelNotFoundError
+        naming the nearest levels above and below k, or with nearest=True the level whose
+        count is closest to k (the one with fewer clusters on a tie; PML may skip counts)."""
+        k = int(k)
         exact = np.flatnonzero(self.cluster_counts == k)
         if exact.size:
             return int(exact[-1])
-        fewer = np.flatnonzero(self.cluster_counts <= k)
-        if fewer.size:
-            return int(fewer[0])
-        raise KeyError(f"no level has {k} clusters or fewer (the last has "
-                       f"{int(self.cluster_counts[-1])})")
+        above = np.flatnonzero(self.cluster_counts > k)
+        below = np.flatnonzero(self.cluster_counts < k)
+        # The closest count on each side, each at the last level that has it (as for k).
+        candidates = []
+        for side, pick in ((above, np.min), (below, np.max)):
+            if side.size:
+                count = int(pick(self.cluster_counts[side]))
+                candidates.append((count, int(np.flatnonzero(self.cluster_counts == count)[-1])))
+        if nearest and candidates:
+            return min(candidates, key=lambda c: (abs(c[0] - k), c[0]))[1]
+        raise LevelNotFoundError(k, candidates)
 
-    def energy(self, k: int) -> float:
-        return float(self.energies[self.level_for(k)])
+    def energy(self, k: int, nearest: bool = False) -> float:
+        """The energy of the level with k clusters (level_for(k, nearest))."""
+        return float(self.energies[self.level_for(k, nearest)])
 
     def labels(self, k: Optional[int] = None, *, level: Optional[int] = None,
-               compact: bool = True):
+               compact: bool = True, nearest: bool = False):
         """Labels of every element at the level with k clusters (or at `level`), as
         0..K-1 in order of first appearance (compact=True) or the server's ids. Moves the
-        cursor there."""
+        cursor there. A k that no level has raises LevelNotFoundError naming the nearest
+        levels; nearest=True takes the closest of them instead (level_for)."""
         if (k is None) == (level is None):
             raise ValueError("give k or level")
-        self.seek(self.level_for(k) if level is None else level)
+        self.seek(self.level_for(k, nearest) if level is None else level)
         labels = self._current.copy()
         return compact_labels(labels) if compact else labels
+
+    def labels_at(self, k: int, nearest: bool = False):
+        """labels(k): the compact labels of the level with k clusters (the estimators'
+        hierarchy_.labels_at(k))."""
+        return self.labels(k, nearest=nearest)
 
     def triplets(self, level: int):
         """(element, to_cluster, from_cluster) arrays of `level` (empty for level 0)."""

@@ -38,9 +38,10 @@ def read_mesh(path):
 
 
 def write_clustered(path, vertices, faces, labels):
-    """Writes the mesh with one cluster id per face (-1: none), by extension: .ply (the
-    input's vertices, an int `cluster` face property and a colour per face) or .glb /
-    .gltf (the per-vertex `_CLUSTER` attribute and COLOR_0, vertices split per cluster).
+    """Writes the mesh with one cluster id per face (-1: none), by extension, as the CLI's
+    --out: .ply (the input's vertices, an int `cluster` face property and a colour per
+    face), .glb / .gltf (the per-vertex `_CLUSTER` attribute and COLOR_0, vertices split per
+    cluster) or .obj (a group `g cluster_K` before each run of faces of cluster K).
     Raises mlclust.Error (INVALID_ARGUMENT for a label count other than one per face)."""
     v = np.ascontiguousarray(vertices, dtype=np.float32)
     f = np.ascontiguousarray(faces, dtype=np.uint32)

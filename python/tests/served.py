@@ -15,6 +15,8 @@ import tempfile
 import time
 import unittest
 
+from mlclust._local import end_process
+
 BIN = os.environ.get("MLCLUST_BIN", "build/client/mlclust")
 DATA = os.environ.get("MLCLUST_DATA", "data")
 
@@ -42,13 +44,7 @@ def start_server(directory, name="server", *args):
 
 def stop_server(process, log):
     """Ends the server (if it still runs) and closes its log."""
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=30)
+    end_process(process)
     log.close()
 
 

@@ -102,6 +102,52 @@ TEST(PlotTest, PngHasTheSizeAskedForAndMarksTheElbow) {
   EXPECT_FALSE(IsRed(plain.at(frame->X(6), frame->Y(0) - 3)));
 }
 
+TEST(PlotTest, MarksTheChosenLevelOverTheWholeHeight) {
+  const std::vector<EnergyCurvePoint> curve = CubeCurve();
+  EnergyPlotOptions options;
+  options.chosen = 150;
+  const Image image(*RenderEnergyPlotPng(curve, options));
+  ASSERT_TRUE(image.ok());
+  absl::StatusOr<EnergyPlotFrame> frame = EnergyPlotFrameFor(curve, options);
+  ASSERT_TRUE(frame.ok());
+  // Blue at 150 clusters (between grid lines) high above the curve (energy 0 there), white beside
+  // it.
+  EXPECT_TRUE(IsBlue(image.at(std::round(frame->X(150)), frame->Y(0.7))));
+  EXPECT_TRUE(IsWhite(image.at(frame->X(170), frame->Y(0.7))));
+  options.chosen = 0;
+  const Image plain(*RenderEnergyPlotPng(curve, options));
+  EXPECT_TRUE(IsWhite(plain.at(std::round(frame->X(150)), frame->Y(0.7))));
+  options.chosen = 7000;
+  EXPECT_EQ(RenderEnergyPlotPng(curve, options).status().message(),
+            "chosen level at 7000 clusters: no level of the curve has that many");
+}
+
+TEST(PlotTest, EnergiesOverManyDecadesGetALogAxis) {
+  // 1000 clusters at energy 0 (each its own), then 1e-6 .. 1 down to one cluster.
+  std::vector<EnergyCurvePoint> curve = {{1000, 0.0}};
+  for (uint32_t k = 7; k >= 1; --k) curve.push_back({k, std::pow(10.0, 1.0 - k)});
+  absl::StatusOr<EnergyPlotFrame> frame = EnergyPlotFrameFor(curve);
+  ASSERT_TRUE(frame.ok()) << frame.status();
+  EXPECT_TRUE(frame->log_energy);
+  EXPECT_EQ(frame->y_min, -6);
+  EXPECT_EQ(frame->y_max, 0);
+  EXPECT_DOUBLE_EQ(frame->Y(1e-3), (frame->Y(1e-6) + frame->Y(1)) / 2);  // decades evenly
+  EXPECT_EQ(frame->Y(0), frame->bottom);                                 // 0 on the bottom edge
+  const Image image(*RenderEnergyPlotPng(curve));
+  ASSERT_TRUE(image.ok());
+  EXPECT_TRUE(IsBlue(image.at(frame->X(3), frame->Y(0.01))));  // the curve at (3, 1e-2)
+  EnergyPlotOptions linear;
+  linear.energy_axis = EnergyPlotOptions::EnergyAxis::kLinear;
+  EXPECT_FALSE(EnergyPlotFrameFor(curve, linear)->log_energy);
+  // The cube's curve (energy 0, then 0.2 .. 1: under 1000 times) stays linear.
+  EXPECT_FALSE(EnergyPlotFrameFor(CubeCurve())->log_energy);
+  EnergyPlotOptions log;
+  log.energy_axis = EnergyPlotOptions::EnergyAxis::kLog;
+  EXPECT_TRUE(EnergyPlotFrameFor(CubeCurve(), log)->log_energy);
+  curve.push_back({2000, -1.0});
+  EXPECT_EQ(EnergyPlotFrameFor(curve, log).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(PlotTest, MarksEveryElbowOnTheCurve) {
   // Two steps: flat to 40, a rise to 10 clusters, flat, then a rise to 1.
   std::vector<EnergyCurvePoint> curve;

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "core/io/allocation_budget.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/mesh.h"
@@ -93,6 +94,25 @@ TEST(DracoCodecTest, FandiskRoundTripIsBitExact) {
   EXPECT_EQ(decoded->num_vertices(), 6475u);  // No deduplication, no reordering.
   EXPECT_TRUE(SameBits(decoded->positions, fandisk.positions));
   EXPECT_EQ(decoded->indices, fandisk.indices);
+}
+
+TEST(DracoCodecTest, BytesAfterTheDracoDataAreRefused) {
+  const TriangleMesh fandisk = Fandisk();
+  for (DracoMethod method : {DracoMethod::kSequential, DracoMethod::kEdgebreaker}) {
+    DracoEncodeOptions options;
+    options.method = method;
+    options.write_face_ids = method == DracoMethod::kEdgebreaker;
+    absl::StatusOr<std::string> bytes = EncodeMeshToDraco(fandisk, options);
+    ASSERT_TRUE(bytes.ok()) << bytes.status();
+    ASSERT_TRUE(DecodeDracoMeshWithFaceIds(*bytes).ok());  // the whole payload is read
+    const absl::StatusOr<DecodedDracoMesh> joined = DecodeDracoMeshWithFaceIds(*bytes + "xyz");
+    EXPECT_EQ(joined.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(joined.status().message(),
+              absl::StrCat("Draco mesh: 3 bytes after the end of the Draco data (it ends at byte ",
+                           bytes->size(), " of ", bytes->size() + 3, "); send one Draco mesh"));
+    EXPECT_EQ(DecodeDracoMeshWithFaceIds(*bytes + *bytes).status().code(),
+              absl::StatusCode::kInvalidArgument);
+  }
 }
 
 TEST(DracoCodecTest, EverySpeedIsLossless) {
