@@ -181,7 +181,8 @@ int Watch(const Arguments& flags) {
         R"({"job_id": ")", full_id, R"(", "elements": )", log.num_elements(),
         R"(, "first_level": )", result->first_level, R"(, "levels": )", log.num_levels(),
         R"(, "triplets": )", log.num_moves(), R"(, "final_clusters": )", done.final_clusters(),
-        R"(, "device": ")", done.device(), R"(", "seconds": )", absl::StrFormat("%.4f", seconds));
+        R"(, "device": ")", done.device(), R"(", "devices": )", DevicesJson(done),
+        R"(, "seconds": )", absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
       absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
                       R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
@@ -202,7 +203,7 @@ int Watch(const Arguments& flags) {
   std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n",
               full_id.c_str(), log.num_elements(), result->first_level,
               result->first_level + log.num_levels() - 1, log.num_moves(), seconds,
-              done.device().c_str(), level_note.c_str());
+              DevicesSummary(done).c_str(), level_note.c_str());
   return 0;
 }
 

@@ -2,6 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
+#include "core/plan/device_policy.h"
 #include "server/wire_registry.h"
 
 namespace mlclust::server {
@@ -134,13 +135,14 @@ v1::ServerInfo MakeServerInfo(const ServerFacts& facts) {
       v1::StageDescription* measures = out->add_stages();
       measures->set_name("measures");
       measures->set_help("face areas, centroids and normals");
-      measures->set_has_gpu(true);
+      measures->set_has_gpu(StageHasGpu(algorithm, PlanStage::kMeasures));
     }
     for (const StageInfo& stage : algorithm.stages) {
       v1::StageDescription* described = out->add_stages();
       described->set_name(stage.name);
       described->set_help(stage.help);
-      described->set_has_gpu(stage.has_gpu);
+      const std::optional<PlanStage> planned = PlanStageFromName(stage.name);
+      described->set_has_gpu(planned.has_value() && StageHasGpu(algorithm, *planned));
     }
   }
   for (const EnergyInfo& energy : Energies()) {

@@ -9,6 +9,7 @@
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_points.h"
