@@ -35,6 +35,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -58,6 +59,10 @@ struct InputShape {
 
 // What the machine running the job offers.
 struct DeviceCaps {
+  DeviceCaps() = default;
+  DeviceCaps(bool has_gpu, bool software, std::string gl_renderer)
+      : gpu(has_gpu), gpu_is_software(software), renderer(std::move(gl_renderer)) {}
+
   bool gpu = false;              // a GL context is available
   bool gpu_is_software = false;  // ... and it is a software renderer (llvmpipe)
   std::string renderer;          // the GL renderer string

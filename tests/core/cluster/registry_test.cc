@@ -293,7 +293,8 @@ TEST_P(RegistryRunTest, RunsAndReportsTheEnergyOfItsLabels) {
   RunContext context;
   context.on_stage = [&](const StagePlan& stage, const std::string&) {
     EXPECT_EQ(stage.device, StageDevice::kCpu);
-    if (stages_seen.empty() || stages_seen.back() != stage.name) stages_seen.push_back(stage.name);
+    if (stages_seen.empty() || stages_seen.back() != stage.name())
+      stages_seen.push_back(stage.name());
   };
   CheckingSink sink;
   absl::StatusOr<RunSummary> summary;
