@@ -113,10 +113,10 @@ std::string DevicesSummary(const v1::Done& done) {
     (stage.device() == "cpu" ? on_cpu : elsewhere)
         .push_back(absl::StrCat(stage.stage(), " on ", stage.device()));
   }
-  if (devices.empty()) return done.device();
-  if (devices.size() == 1) return *devices.begin();
+  if (devices.empty()) return absl::StrCat("on ", done.device());
+  if (devices.size() == 1) return absl::StrCat("on ", *devices.begin());
   on_cpu.insert(on_cpu.end(), elsewhere.begin(), elsewhere.end());
-  return absl::StrJoin(on_cpu, ", ");
+  return absl::StrCat("with ", absl::StrJoin(on_cpu, ", "));
 }
 
 bool HardwareGpuDevicePresent() {
@@ -341,7 +341,9 @@ std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& o
        {"seed", "S", "random seed (default 1)"},
        {"device", "D",
         "auto (default): the GPU for the stages that have a GPU implementation where it is "
-        "hardware; gpu: there even on a software renderer; cpu: every stage on the CPU"},
+        "hardware and the job fits its memory; gpu: there even on a software renderer (a stage "
+        "the GPU does not cover runs on the CPU and the job says why; refused where no stage "
+        "can, or the job does not fit); cpu: every stage on the CPU"},
        {"detach", "",
         "submit the job to --server and return as soon as it is queued; the job id is the last "
         "line of stdout (`mlclust watch JOB` streams its levels). The server keeps the job's "

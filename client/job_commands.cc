@@ -200,10 +200,9 @@ int Watch(const Arguments& flags) {
         absl::StrFormat("; level %zu: %u clusters, energy %.10g", result->first_level + *level,
                         log.cluster_count(*level), log.energy(*level));
   }
-  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n",
-              full_id.c_str(), log.num_elements(), result->first_level,
-              result->first_level + log.num_levels() - 1, log.num_moves(), seconds,
-              DevicesSummary(done).c_str(), level_note.c_str());
+  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s %s%s\n", full_id.c_str(),
+              log.num_elements(), result->first_level, result->first_level + log.num_levels() - 1,
+              log.num_moves(), seconds, DevicesSummary(done).c_str(), level_note.c_str());
   return 0;
 }
 

@@ -465,8 +465,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, JobPlan& plan, const JobRunnerCo
                                                      " is more than the mesh's ",
                                                      polygons->num_polygons(), " polygons"));
     }
-    EmitProgress(events, "measures",
-                 absl::StrCat(polygons->num_polygons(), " polygons: each one element"), "cpu", 1);
+    EmitStage(events, ran, measures_stage, caps,
+              absl::StrCat(polygons->num_polygons(), " polygons: each one element"), 1);
   }
 
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
