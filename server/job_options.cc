@@ -44,26 +44,6 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
   return PlanJob(request);
 }
 
-absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec) {
-  MeshEnergyOptions energy;
-  MLCLUST_ASSIGN_OR_RETURN(energy.kind, MeshEnergyFromWire(spec.energy()));
-  JobPlan plan;
-  plan.mesh_energy = energy;
-  for (const auto& [name, text] : spec.options()) {
-    const OptionInfo* option = nullptr;
-    for (const OptionInfo& candidate : EnergyOptions()) {
-      if (candidate.name == name) option = &candidate;
-    }
-    if (option == nullptr) {
-      return absl::InvalidArgumentError(absl::StrCat("option ", name, " is not an energy option"));
-    }
-    MLCLUST_ASSIGN_OR_RETURN(OptionValue value, ParseOptionValue(*option, text));
-    option->apply(value, plan);
-  }
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));
-  return plan.mesh_energy;
-}
-
 namespace {
 
 v1::OptionDescription DescribeOption(const OptionInfo& option) {

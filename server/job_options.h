@@ -21,9 +21,6 @@ namespace mlclust::server {
 // A job that names no algorithm runs ML, for meshes as for points.
 absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec);
 
-// The energy part alone (spec.energy and the energy options; any other option is refused).
-absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec);
-
 // What GetServerInfo reports beyond the registry.
 struct ServerFacts {
   bool gpu_available = false;
