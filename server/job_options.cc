@@ -24,7 +24,8 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
   for (const auto& [name, value] : spec.options()) request.options.emplace_back(name, value);
   MLCLUST_ASSIGN_OR_RETURN(request.device, ParseDeviceChoice(spec.device()));
   if (spec.polygon_triangle_counts_size() > 0) {
-    // Per-polygon clustering (issue 13): the CPU drivers of these algorithms only.
+    // Per-polygon clustering (issue 13): the CPU drivers of these algorithms only (the
+    // device policy keeps their stages on the CPU: core/plan/device_policy.h).
     const std::string& name = request.algorithm->name;
     if (input != InputKind::kMesh) {
       return absl::InvalidArgumentError("polygon_triangle_counts: only for meshes");
@@ -35,11 +36,6 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
                        "and bb, not ",
                        name));
     }
-    if (request.device == DeviceChoice::kGpu) {
-      return absl::InvalidArgumentError(
-          "polygon_triangle_counts: per-polygon clustering runs on the CPU (device 'gpu' asked)");
-    }
-    request.device = DeviceChoice::kCpu;
   }
   return PlanJob(request);
 }

@@ -210,6 +210,11 @@ absl::Status PlanDevices(const DeviceCaps& caps, const InputShape& input, JobPla
           absl::StrCat("option device: 'gpu' but no stage of ", algorithm.name, " on ",
                        InputKindName(algorithm.input), " has a GPU implementation yet"));
     }
+    if (input.polygons) {
+      return absl::FailedPreconditionError(
+          "option device: 'gpu' but per-polygon clustering (polygon_triangle_counts) runs on "
+          "the CPU");
+    }
   }
   plan.stages.clear();
   for (PlanStage stage : stages) {

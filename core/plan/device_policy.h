@@ -18,10 +18,10 @@
 //  - Device limits (the working set against the device's free memory, the point levels'
 //    kGpuPointMaxDims): kGpu refuses the job (FAILED_PRECONDITION naming the limit); kAuto
 //    plans the stage on the CPU and says why in StagePlan::why.
-//  - kGpu refuses a job no stage of whose algorithm has a GPU implementation, and a job
-//    on a machine without a GPU. A job whose stages the GPU does not cover is not refused:
-//    those stages run on the CPU, and StagePlan::why says why (the runner sends it in the
-//    job's first event).
+//  - kGpu refuses a job no stage of whose algorithm has a GPU implementation, a
+//    per-polygon job, and a job on a machine without a GPU. A job whose stages the GPU does not
+//    cover is not refused: those stages run on the CPU, and StagePlan::why says why (the runner
+//    sends it in the job's first event).
 //
 // Free memory: DeviceCaps::free_bytes, where the driver reports it (GL_NVX_gpu_memory_info,
 // GL_ATI_meminfo; gpu/context/gl_context.h QueryDeviceMemory). Where it reports none (Mesa's

@@ -251,6 +251,9 @@ TEST(DevicePolicyTest, DeviceGpuSaysWhyAStageTheGpuDoesNotCoverRunsOnTheCpu) {
   plan = *PlanJob(request);
   ASSERT_TRUE(PlanDevices(kHardware, polygons, plan).ok());
   EXPECT_FALSE(UsesGpu(plan));
+  request.device = DeviceChoice::kGpu;
+  plan = *PlanJob(request);
+  EXPECT_EQ(PlanDevices(kHardware, polygons, plan).code(), absl::StatusCode::kFailedPrecondition);
 }
 
 TEST(DevicePolicyTest, StageHasGpuAndMayUseGpu) {
