@@ -19,9 +19,12 @@
 //    kGpuPointMaxDims): kGpu refuses the job (FAILED_PRECONDITION naming the limit); kAuto
 //    plans the stage on the CPU and says why in StagePlan::why.
 //  - kGpu refuses a job no stage of whose algorithm has a GPU implementation, a
-//    per-polygon job, and a job on a machine without a GPU. A job whose stages the GPU does not
-//    cover is not refused: those stages run on the CPU, and StagePlan::why says why (the runner
-//    sends it in the job's first event).
+//    per-polygon job, and a job on a machine without a GPU. A job some of whose stages the
+//    GPU does not cover is not refused: those stages run on the CPU, and StagePlan::why
+//    says why (the runner sends it in a Progress of stage "plan" before any stage).
+//  - A new GPU stage: its kernel, its stage (a DeviceStages method), and one entry in this
+//    policy's table (device_policy.cc GpuStageFor), with its working set in
+//    gpu/stages/gpu_working_set.cc.
 //
 // Free memory: DeviceCaps::free_bytes, where the driver reports it (GL_NVX_gpu_memory_info,
 // GL_ATI_meminfo; gpu/context/gl_context.h QueryDeviceMemory). Where it reports none (Mesa's
