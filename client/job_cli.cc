@@ -18,6 +18,7 @@
 #include "client/job_commands.h"
 #include "client/replicas.h"
 #include "core/base/status_macros.h"
+#include "core/plan/device_policy.h"
 #include "grpcpp/grpcpp.h"
 #include "server/job_options.h"
 #include "server/server.h"
@@ -65,6 +66,28 @@ absl::Status WritePlot(const std::string& path, const HierarchyLog& log, const v
 
 }  // namespace
 
+std::string DevicesJson(const v1::Done& done) {
+  std::vector<std::string> stages;
+  for (const v1::StageRan& stage : done.devices()) {
+    stages.push_back(absl::StrCat(JsonString(stage.stage()), ": ", JsonString(stage.device())));
+  }
+  return absl::StrCat("{", absl::StrJoin(stages, ", "), "}");
+}
+
+std::string DevicesSummary(const v1::Done& done) {
+  std::vector<std::string> on_cpu, elsewhere;
+  std::set<std::string> devices;
+  for (const v1::StageRan& stage : done.devices()) {
+    devices.insert(stage.device());
+    (stage.device() == "cpu" ? on_cpu : elsewhere)
+        .push_back(absl::StrCat(stage.stage(), " on ", stage.device()));
+  }
+  if (devices.empty()) return absl::StrCat("on ", done.device());
+  if (devices.size() == 1) return absl::StrCat("on ", *devices.begin());
+  on_cpu.insert(on_cpu.end(), elsewhere.begin(), elsewhere.end());
+  return absl::StrCat("with ", absl::StrJoin(on_cpu, ", "));
+}
+
 bool HardwareGpuDevicePresent() {
   std::error_code error;
   if (std::filesystem::exists("/dev/nvidiactl", error)) return true;
@@ -84,11 +107,10 @@ server::ServerOptions EmbeddedServerOptions(const Arguments& args) {
   options.kept_results_bytes = 0;
   // A job whose stages all run on the CPU and that draws no preview needs no GL context,
   // whose creation (EGL loading Mesa's driver and LLVM) cost 0.08-0.10 s of CPU, ~6% of an
-  // ML run on bunny00 (BENCHMARKS.md): --device cpu, and --device auto where no GPU device
-  // node exists (EGL could only give a software renderer, on which auto uses the CPU).
-  const std::string device = args.get("device", "auto");
-  if (!args.has("preview") &&
-      (device == "cpu" || (device == "auto" && !HardwareGpuDevicePresent()))) {
+  // ML run on bunny00: the device policy says which (a bad --device is the server's to
+  // refuse).
+  const absl::StatusOr<DeviceChoice> device = ParseDeviceChoice(args.get("device", "auto"));
+  if (!args.has("preview") && device.ok() && !MayUseGpu(*device, HardwareGpuDevicePresent())) {
     options.gpu = server::GpuMode::kOff;
   }
   return options;
@@ -296,7 +318,9 @@ std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& o
        {"seed", "S", "random seed (default 1)"},
        {"device", "D",
         "auto (default): the GPU for the stages that have a GPU implementation where it is "
-        "hardware; gpu: there even on a software renderer; cpu: every stage on the CPU"},
+        "hardware and the job fits its memory; gpu: there even on a software renderer (a stage "
+        "the GPU does not cover runs on the CPU and the job says why; refused where no stage "
+        "can, or the job does not fit); cpu: every stage on the CPU"},
        {"detach", "",
         "submit the job to --server and return as soon as it is queued; the job id is the last "
         "line of stdout (`mlclust watch JOB` streams its levels). The server keeps the job's "
@@ -355,7 +379,7 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
       "{\"input\": ", JsonString(input), ", \"", element_name, "\": ", elements,
       ", \"algorithm\": ", JsonString(algorithm.name), ", \"energy\": ", JsonString(energy_name),
       ", \"server\": ", JsonString(args.has("server") ? args.get("server") : "embedded"),
-      ", \"device\": ", JsonString(done.device()),
+      ", \"device\": ", JsonString(done.device()), ", \"devices\": ", DevicesJson(done),
       ", \"seconds\": ", absl::StrFormat("%.4f", seconds), ", \"levels\": ", log.num_levels(),
       ", \"triplets\": ", log.num_moves(), ", \"final_clusters\": ", done.final_clusters(),
       ", \"elbows\": ", JsonList(done.elbow_cluster_counts()));

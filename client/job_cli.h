@@ -42,6 +42,14 @@ absl::Status WriteLabels(const std::string& path, std::span<const uint32_t> labe
 // registry's options of `input`, and the connection flags.
 std::vector<FlagGroup> JobFlagGroups(InputKind input, const std::vector<Flag>& own);
 
+// Done.devices as a JSON object, each stage's device as it ran ({"measures": "llvmpipe ...",
+// "cluster": "cpu"}); {} from a server that predates it.
+std::string DevicesJson(const v1::Done& done);
+// Where the job ran, for a summary line: "on DEVICE" where every stage ran on one ("cpu", a
+// renderer; Done.device from a server that predates Done.devices), else each stage's
+// ("with cluster on cpu, measures on llvmpipe ...", the CPU's stages first).
+std::string DevicesSummary(const v1::Done& done);
+
 // Whether this machine has a device node a hardware GL driver opens: a DRM render node
 // (/dev/dri/renderD*) or NVIDIA's (/dev/nvidiactl).
 bool HardwareGpuDevicePresent();

@@ -178,8 +178,8 @@ int Watch(const Arguments& flags) {
         R"({"job_id": )", JsonString(full_id), R"(, "elements": )", log.num_elements(),
         R"(, "first_level": )", result->first_level, R"(, "levels": )", log.num_levels(),
         R"(, "triplets": )", log.num_moves(), R"(, "final_clusters": )", done.final_clusters(),
-        R"(, "device": )", JsonString(done.device()), R"(, "seconds": )",
-        absl::StrFormat("%.4f", seconds));
+        R"(, "device": )", JsonString(done.device()), R"(, "devices": )", DevicesJson(done),
+        R"(, "seconds": )", absl::StrFormat("%.4f", seconds));
     if (level.has_value()) {
       absl::StrAppend(&json, R"(, "level": {"index": )", result->first_level + *level,
                       R"(, "clusters": )", log.cluster_count(*level), R"(, "energy": )",
@@ -197,10 +197,9 @@ int Watch(const Arguments& flags) {
         absl::StrFormat("; level %zu: %u clusters, energy %.10g", result->first_level + *level,
                         log.cluster_count(*level), log.energy(*level));
   }
-  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s on %s%s\n",
-              full_id.c_str(), log.num_elements(), result->first_level,
-              result->first_level + log.num_levels() - 1, log.num_moves(), seconds,
-              done.device().c_str(), level_note.c_str());
+  std::printf("%s: %zu elements, levels %u to %zu, %zu triplets in %.3f s %s%s\n", full_id.c_str(),
+              log.num_elements(), result->first_level, result->first_level + log.num_levels() - 1,
+              log.num_moves(), seconds, DevicesSummary(done).c_str(), level_note.c_str());
   return 0;
 }
 

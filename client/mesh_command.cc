@@ -430,9 +430,9 @@ int RunMesh(const Arguments& args) {
     }
     std::printf("%s}\n", json.c_str());
   } else {
-    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s on %s (%s)%s%s%s\n",
+    std::printf("%s: %zu faces, %zu levels, %zu triplets in %.3f s %s (%s)%s%s%s\n",
                 input_path.c_str(), mesh->num_faces(), log.num_levels(), log.num_moves(), seconds,
-                result->done.device().c_str(), args.has("server") ? "remote" : "embedded",
+                DevicesSummary(result->done).c_str(), args.has("server") ? "remote" : "embedded",
                 level_note.c_str(), ElbowNote(result->done).c_str(), preview_note.c_str());
   }
   if (!coarse_error.empty()) {

@@ -5,9 +5,11 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "absl/time/time.h"
+#include "core/cluster/registry.h"
 #include "grpcpp/support/status.h"
 #include "mlclust/v1/mlclust.pb.h"
 
@@ -62,6 +64,10 @@ struct Job {
   absl::Time accepted_at;
   std::string peer;  // the client's address, for logs
   JobLane lane = JobLane::kGl;
+  // The plan made at submit, its devices included (server/job_runner.h PlanJobOnDevice);
+  // the lane is its. Empty where planning failed (the runner plans again and reports the
+  // error) or where the job did not come through the service (tests call RunJob).
+  std::optional<JobPlan> plan;
   // Bytes of `input` counted against the server's queued-input budget until the job
   // leaves the queue.
   uint64_t queued_bytes = 0;

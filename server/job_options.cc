@@ -2,6 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/base/status_macros.h"
+#include "core/plan/device_policy.h"
 #include "server/wire_registry.h"
 
 namespace mlclust::server {
@@ -23,7 +24,8 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
   for (const auto& [name, value] : spec.options()) request.options.emplace_back(name, value);
   MLCLUST_ASSIGN_OR_RETURN(request.device, ParseDeviceChoice(spec.device()));
   if (spec.polygon_triangle_counts_size() > 0) {
-    // Per-polygon clustering (issue 13): the CPU drivers of these algorithms only.
+    // Per-polygon clustering (issue 13): the CPU drivers of these algorithms only (the
+    // device policy keeps their stages on the CPU: core/plan/device_policy.h).
     const std::string& name = request.algorithm->name;
     if (input != InputKind::kMesh) {
       return absl::InvalidArgumentError("polygon_triangle_counts: only for meshes");
@@ -34,33 +36,8 @@ absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec) {
                        "and bb, not ",
                        name));
     }
-    if (request.device == DeviceChoice::kGpu) {
-      return absl::InvalidArgumentError(
-          "polygon_triangle_counts: per-polygon clustering runs on the CPU (device 'gpu' asked)");
-    }
-    request.device = DeviceChoice::kCpu;
   }
   return PlanJob(request);
-}
-
-absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec) {
-  MeshEnergyOptions energy;
-  MLCLUST_ASSIGN_OR_RETURN(energy.kind, MeshEnergyFromWire(spec.energy()));
-  JobPlan plan;
-  plan.mesh_energy = energy;
-  for (const auto& [name, text] : spec.options()) {
-    const OptionInfo* option = nullptr;
-    for (const OptionInfo& candidate : EnergyOptions()) {
-      if (candidate.name == name) option = &candidate;
-    }
-    if (option == nullptr) {
-      return absl::InvalidArgumentError(absl::StrCat("option ", name, " is not an energy option"));
-    }
-    MLCLUST_ASSIGN_OR_RETURN(OptionValue value, ParseOptionValue(*option, text));
-    option->apply(value, plan);
-  }
-  MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));
-  return plan.mesh_energy;
 }
 
 namespace {
@@ -134,13 +111,14 @@ v1::ServerInfo MakeServerInfo(const ServerFacts& facts) {
       v1::StageDescription* measures = out->add_stages();
       measures->set_name("measures");
       measures->set_help("face areas, centroids and normals");
-      measures->set_has_gpu(true);
+      measures->set_has_gpu(StageHasGpu(algorithm, PlanStage::kMeasures));
     }
     for (const StageInfo& stage : algorithm.stages) {
       v1::StageDescription* described = out->add_stages();
       described->set_name(stage.name);
       described->set_help(stage.help);
-      described->set_has_gpu(stage.has_gpu);
+      const std::optional<PlanStage> planned = PlanStageFromName(stage.name);
+      described->set_has_gpu(planned.has_value() && StageHasGpu(algorithm, *planned));
     }
   }
   for (const EnergyInfo& energy : Energies()) {

@@ -17,12 +17,9 @@
 namespace mlclust::server {
 
 // The plan of `spec` (input kind, algorithm, energy, clusters, levels, seed, options and
-// device). Devices are not planned yet: the worker knows its GPU (PlanDevices).
+// device). Devices are not planned yet (server/job_runner.h PlanJobOnDevice plans them).
 // A job that names no algorithm runs ML, for meshes as for points.
 absl::StatusOr<JobPlan> PlanWireJob(const v1::JobSpec& spec);
-
-// The energy part alone (spec.energy and the energy options; any other option is refused).
-absl::StatusOr<MeshEnergyOptions> PlanMeshEnergy(const v1::JobSpec& spec);
 
 // What GetServerInfo reports beyond the registry.
 struct ServerFacts {

@@ -12,9 +12,9 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "core/base/status_macros.h"
-#include "core/cluster/device_stages.h"
 #include "core/cluster/registry.h"
 #include "core/hierarchy/elbow.h"
 #include "core/hierarchy/model_selection.h"
@@ -24,13 +24,10 @@
 #include "core/mesh/face_measures.h"
 #include "core/mesh/mesh.h"
 #include "core/mesh/polygons.h"
+#include "core/plan/device_policy.h"
 #include "core/points/points.h"
 #include "server/job_options.h"
 #include "server/preview.h"
-#ifdef MLCLUST_HAVE_GPU
-#include "gpu/kernels/face_measures_gpu.h"
-#include "gpu/stages/gl_device_stages.h"
-#endif
 
 namespace mlclust::server {
 namespace {
@@ -285,48 +282,92 @@ absl::Status WithContext(const absl::Status& status, absl::string_view what) {
   return absl::Status(status.code(), absl::StrCat(what, ": ", status.message()));
 }
 
-// The face measures on the device the plan's "measures" stage names. Where the plan says
-// GPU and the GPU fails, device auto falls back to the CPU (which always works) and says
-// so in `device_used`; device gpu fails.
-absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh, const JobPlan& plan,
-                                          const JobRunnerContext& context,
-                                          std::string& device_used) {
-  device_used = "cpu";
-  const StagePlan* stage = FindStage(plan, "measures");
-#ifdef MLCLUST_HAVE_GPU
-  if (stage != nullptr && stage->device == StageDevice::kGpu && context.gl != nullptr) {
-    absl::StatusOr<FaceMeasures> measures = gpu::ComputeFaceMeasuresGpu(*context.gl, mesh);
-    if (measures.ok()) {
-      device_used = context.gl_renderer;
-      return measures;
+// The device each stage ran on, in the order the stages started (Done.devices): every
+// stage's Progress goes through Note, so what Done says is what the events said.
+class StagesRan {
+ public:
+  void Note(const StagePlan& stage, const DeviceCaps& caps) {
+    const std::string device = StageDeviceName(stage, caps);
+    for (auto& [name, ran] : stages_) {
+      if (name == stage.name()) {
+        ran = device;
+        return;
+      }
     }
-    if (plan.device == DeviceChoice::kGpu) {
-      return WithContext(measures.status(), "face measures on the GPU");
+    stages_.emplace_back(stage.name(), device);
+  }
+
+  // Done.devices, and Done.device for clients before it: the renderer where any stage ran
+  // on the GPU, else "cpu".
+  void WriteTo(v1::Done& done) const {
+    std::string any = "cpu";
+    for (const auto& [name, device] : stages_) {
+      v1::StageRan* ran = done.add_devices();
+      ran->set_stage(name);
+      ran->set_device(device);
+      if (device != "cpu") any = device;
     }
-    return ComputeFaceMeasures(mesh);  // auto: the CPU path always works
+    done.set_device(any);
   }
-#endif
-  if (stage != nullptr && stage->device == StageDevice::kGpu) {
-    return absl::FailedPreconditionError("option device: 'gpu' but this server has no GPU");
+
+ private:
+  std::vector<std::pair<std::string, std::string>> stages_;
+};
+
+// Progress for a stage of the plan, noted in `ran`.
+void EmitStage(EventChannel& events, StagesRan& ran, const StagePlan& stage, const DeviceCaps& caps,
+               const std::string& message, double fraction = 0) {
+  ran.Note(stage, caps);
+  EmitProgress(events, stage.name(), message, StageDeviceName(stage, caps), fraction);
+}
+
+// The job's first Progress (stage "plan") where the plan has something to say: each stage
+// the job asked on the GPU, or that auto moved off it, with why it is on the CPU.
+void EmitPlanNotes(EventChannel& events, const JobPlan& plan, const DeviceCaps& caps) {
+  std::vector<std::string> notes;
+  for (const StagePlan& stage : plan.stages) {
+    if (!stage.why.empty()) notes.push_back(absl::StrCat(stage.name(), " on the CPU: ", stage.why));
   }
-  return ComputeFaceMeasures(mesh);
+  if (notes.empty()) return;
+  for (const StagePlan& stage : plan.stages) {
+    if (stage.device == StageDevice::kGpu) {
+      notes.push_back(absl::StrCat(stage.name(), " on ", StageDeviceName(stage, caps)));
+    }
+  }
+  EmitProgress(events, "plan", absl::StrJoin(notes, "; "), "");
 }
 
 // Progress events for the run functions' stages, naming the device each runs on; the GPU
 // stages (over the worker's GL context) where the plan puts a stage on the GPU.
-RunContext MakeRunContext(const Job& job, const DeviceCaps& caps, DeviceStages* devices) {
+RunContext MakeRunContext(const Job& job, const DeviceCaps& caps, DeviceStages* devices,
+                          StagesRan& ran) {
   EventChannel& events = *job.events;
   RunContext run;
   run.cancel = job.cancel_flag();
   run.devices = devices;
-  run.on_stage = [&events, caps](const StagePlan& stage, const std::string& message) {
-    EmitProgress(events, stage.name, message, StageDeviceName(stage, caps));
+  run.on_stage = [&events, &ran, caps](const StagePlan& stage, const std::string& message) {
+    EmitStage(events, ran, stage, caps, message);
   };
-  run.on_fraction = [&events, caps](const StagePlan& stage, double fraction,
-                                    const std::string& message) {
-    EmitProgress(events, stage.name, message, StageDeviceName(stage, caps), fraction);
+  run.on_fraction = [&events, &ran, caps](const StagePlan& stage, double fraction,
+                                          const std::string& message) {
+    EmitStage(events, ran, stage, caps, message, fraction);
   };
   return run;
+}
+
+// The device limits for the input as read (a mesh's faces, known only once decoded): the
+// policy's FitDevicesToInput, and a "plan" Progress for each stage it moved to the CPU.
+absl::Status FitPlanToInput(EventChannel& events, const DeviceCaps& caps, const InputShape& input,
+                            JobPlan& plan) {
+  const std::vector<StagePlan> before = plan.stages;
+  MLCLUST_RETURN_IF_ERROR(FitDevicesToInput(caps, input, plan));
+  for (size_t i = 0; i < plan.stages.size(); ++i) {
+    if (plan.stages[i].device != before[i].device) {
+      EmitProgress(events, "plan",
+                   absl::StrCat(plan.stages[i].name(), " on the CPU: ", plan.stages[i].why), "");
+    }
+  }
+  return absl::OkStatus();
 }
 
 StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunnerContext& context,
@@ -343,7 +384,7 @@ StreamingLevelSink MakeSink(const Job& job, const JobPlan& plan, const JobRunner
   // (the engine may stop above it: one cluster per connected component).
   const uint32_t target =
       plan.algorithm->divisive ? 1 : std::max<uint32_t>({1, spec.clusters(), spec.levels_low()});
-  const StagePlan* cluster = FindStage(plan, "cluster");
+  const StagePlan* cluster = FindStage(plan, PlanStage::kCluster);
   const std::string device = cluster != nullptr ? StageDeviceName(*cluster, caps) : "cpu";
   EventChannel* events = job.events.get();
   sink.ReportProgress(
@@ -365,21 +406,25 @@ void AddElbows(const StreamingLevelSink& sink, v1::Done& done, ElbowOptions::Rul
   }
 }
 
-absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
-                                      const JobRunnerContext& context, DeviceStages* devices) {
+absl::StatusOr<JobOutcome> RunMeshJob(Job& job, JobPlan& plan, const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
+  const DeviceCaps& caps = context.device;
   EventChannel& events = *job.events;
+  StagesRan ran;
   EmitProgress(events, "decode", absl::StrCat("decoding ", job.input.size(), " bytes"), "cpu", 0);
-  const StagePlan* measures_stage = FindStage(plan, "measures");
-  const bool gpu_measures =
-      measures_stage != nullptr && measures_stage->device == StageDevice::kGpu;
-  std::string device_used = "cpu";
   // Decode (faces in the client's order where the payload carries face ids), then the one
   // set-up path (core/mesh/prepared_mesh.h): validate, adjacency, measures -- the measures
   // on the device the plan's "measures" stage names.
   absl::StatusOr<DecodedDracoMesh> decoded = DecodeDracoMeshWithFaceIds(job.input);
   if (!decoded.ok()) return WithContext(decoded.status(), "input mesh");
   std::string().swap(job.input);  // the bytes are no longer needed
+  InputShape shape;
+  shape.elements = decoded->mesh.num_faces();
+  shape.vertices = decoded->mesh.num_vertices();
+  shape.polygons = spec.polygon_triangle_counts_size() > 0;
+  MLCLUST_RETURN_IF_ERROR(FitPlanToInput(events, caps, shape, plan));
+  const StagePlan measures_stage = *FindStage(plan, PlanStage::kMeasures);
+  const bool gpu_measures = measures_stage.device == StageDevice::kGpu;
   const std::string measures_note = absl::StrCat(
       decoded->mesh.num_faces(), " faces, ", decoded->mesh.num_vertices(), " vertices; ",
       decoded->has_face_ids ? "faces put back in order by the face id attribute"
@@ -388,8 +433,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   options.cancel = job.cancel_flag();
   if (gpu_measures) {
     options.measure_faces = [&](const TriangleMesh& mesh, const std::atomic<bool>* /*cancel*/) {
-      EmitProgress(events, "measures", measures_note, StageDeviceName(*measures_stage, caps), 0);
-      return MeasureFaces(mesh, plan, context, device_used);
+      EmitStage(events, ran, measures_stage, caps, measures_note, 0);
+      return context.devices->MeasureFaces(mesh);
     };
   }
   absl::StatusOr<PreparedMesh> ready = PrepareMesh(std::move(decoded->mesh), options);
@@ -400,7 +445,7 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
                : WithContext(ready.status(), "input mesh");
   }
   PreparedMesh prepared = *std::move(ready);
-  EmitProgress(events, "measures", measures_note, device_used, 1);
+  EmitStage(events, ran, measures_stage, caps, measures_note, 1);
   const size_t num_faces = prepared.mesh.num_faces();
   if (plan.clusters > num_faces) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -420,8 +465,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
                                                      " is more than the mesh's ",
                                                      polygons->num_polygons(), " polygons"));
     }
-    EmitProgress(events, "measures",
-                 absl::StrCat(polygons->num_polygons(), " polygons: each one element"), "cpu", 1);
+    EmitStage(events, ran, measures_stage, caps,
+              absl::StrCat(polygons->num_polygons(), " polygons: each one element"), 1);
   }
 
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
@@ -435,8 +480,8 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   }
   MeshProblem problem{&prepared.mesh, &prepared.adjacency, &prepared.measures, plan.mesh_energy};
   if (polygons.has_value()) problem.polygons = &*polygons;
-  absl::StatusOr<RunSummary> summary =
-      plan.algorithm->run_mesh(problem, plan, *run_sink, MakeRunContext(job, caps, devices));
+  absl::StatusOr<RunSummary> summary = plan.algorithm->run_mesh(
+      problem, plan, *run_sink, MakeRunContext(job, caps, context.devices, ran));
   if (!summary.ok()) return summary.status();
   if (!sink.started()) {
     return absl::FailedPreconditionError(
@@ -447,26 +492,22 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   MLCLUST_RETURN_IF_ERROR(sink.Flush());
   sink.ReportProgressDone();
   JobOutcome outcome;
-  const StagePlan* cluster_stage = FindStage(plan, "cluster");
-  if (cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu) {
-    device_used = StageDeviceName(*cluster_stage, caps);
-  }
   if (preview_levels.has_value()) {
     EmitProgress(
         events, "preview",
         absl::StrCat("drawing the level with ", preview_levels->cluster_count(), " clusters"),
-        context.gl_renderer);
+        caps.renderer);
     const absl::Time preview_start = absl::Now();
     absl::StatusOr<v1::Preview> preview =
-        RenderPreview(context.gl, context.gl_renderer, prepared.mesh, prepared.adjacency,
-                      *preview_levels, spec.preview());
+        RenderPreview(context.gl, caps.renderer, prepared.mesh, prepared.adjacency, *preview_levels,
+                      spec.preview());
     if (!preview.ok()) return preview.status();
     outcome.done.set_seconds_preview(absl::ToDoubleSeconds(absl::Now() - preview_start));
     v1::JobEvent event;
     *event.mutable_preview() = *std::move(preview);
     if (!events.Emit(std::move(event))) return absl::CancelledError("the call was cancelled");
   }
-  outcome.done.set_device(device_used);
+  ran.WriteTo(outcome.done);
   outcome.done.set_final_clusters(summary->final_clusters);
   if (plan.algorithm->hierarchy) {
     AddElbows(sink, outcome.done, ElbowOptions::Rule::kEndOfZeroPlateau);
@@ -476,9 +517,10 @@ absl::StatusOr<JobOutcome> RunMeshJob(Job& job, const JobPlan& plan, const Devic
   return outcome;
 }
 
-absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const DeviceCaps& caps,
-                                        const JobRunnerContext& context, DeviceStages* devices) {
+absl::StatusOr<JobOutcome> RunPointsJob(Job& job, JobPlan& plan, const JobRunnerContext& context) {
   const v1::JobSpec& spec = job.spec;
+  const DeviceCaps& caps = context.device;
+  StagesRan ran;
   // m x d float32, little-endian, row-major.
   const uint32_t d = spec.point_dims();
   if (d == 0) return absl::InvalidArgumentError("point_dims: d = 0");
@@ -497,13 +539,13 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     return absl::InvalidArgumentError(absl::StrCat(
         "clusters: ", plan.clusters, " is more than the ", points.num_points(), " points"));
   }
+  InputShape shape;
+  shape.elements = points.num_points();
+  shape.dims = d;
+  MLCLUST_RETURN_IF_ERROR(FitPlanToInput(*job.events, caps, shape, plan));
   StreamingLevelSink sink = MakeSink(job, plan, context, caps);
   JobOutcome outcome;
-  const StagePlan* cluster_stage = FindStage(plan, "cluster");
-  outcome.done.set_device(cluster_stage != nullptr && cluster_stage->device == StageDevice::kGpu
-                              ? StageDeviceName(*cluster_stage, caps)
-                              : "cpu");
-  const RunContext run = MakeRunContext(job, caps, devices);
+  const RunContext run = MakeRunContext(job, caps, context.devices, ran);
   if (plan.algorithm->hierarchy) {
     // Every level also goes to the BIC's bookkeeping (O(1) per moved point), so the summary
     // names the BIC's choice over the whole hierarchy, whatever range is sent.
@@ -533,12 +575,25 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     sink.ReportProgressDone();
     outcome.done.set_final_clusters(summary->final_clusters);
   }
+  ran.WriteTo(outcome.done);
   outcome.done.set_levels(sink.levels_sent());
   outcome.done.set_triplets(sink.triplets_sent());
   return outcome;
 }
 
 }  // namespace
+
+absl::StatusOr<JobPlan> PlanJobOnDevice(const v1::JobSpec& spec, const DeviceCaps& device) {
+  MLCLUST_ASSIGN_OR_RETURN(JobPlan plan, PlanWireJob(spec));
+  InputShape shape;
+  shape.polygons = spec.polygon_triangle_counts_size() > 0;
+  if (spec.input_kind() == v1::INPUT_KIND_POINTS_F32 && spec.point_dims() > 0) {
+    shape.dims = spec.point_dims();
+    shape.elements = spec.input_bytes() / (uint64_t{4} * spec.point_dims());
+  }
+  MLCLUST_RETURN_IF_ERROR(PlanDevices(device, shape, plan));
+  return plan;
+}
 
 void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted& accepted) {
   if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return;
@@ -554,13 +609,9 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
     return absl::InvalidArgumentError(
         "spec.input_kind: unspecified (a Draco mesh or float32 points)");
   }
-  absl::StatusOr<JobPlan> plan = PlanWireJob(job.spec);
+  absl::StatusOr<JobPlan> plan =
+      job.plan.has_value() ? *job.plan : PlanJobOnDevice(job.spec, context.device);
   if (!plan.ok()) return plan.status();
-  DeviceCaps caps;
-  caps.gpu = context.gl != nullptr;
-  caps.gpu_is_software = context.gl_is_software;
-  caps.renderer = context.gl_renderer;
-  MLCLUST_RETURN_IF_ERROR(PlanDevices(caps, *plan));
   if (job.spec.has_preview()) {
     // Refused before the job runs, not after.
     if (kind != v1::INPUT_KIND_DRACO_MESH) {
@@ -573,18 +624,15 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
           "device or platform gave OpenGL 4.5, or the server runs with the GPU off)");
     }
   }
-  // The GPU stages, over the context of this (the GL-owning) worker; none without a GL
-  // context, and a plan that puts a stage on the GPU then fails in its run function.
-  std::unique_ptr<DeviceStages> devices;
-#ifdef MLCLUST_HAVE_GPU
-  if (context.gl != nullptr && UsesGpu(*plan)) {
-    devices = std::make_unique<gpu::GlDeviceStages>(*context.gl);
+  if (UsesGpu(*plan) && context.devices == nullptr) {
+    // The lane is the plan's (device_policy.h LaneFor): a worker without GPU stages never
+    // takes a job planned for the GPU.
+    return absl::FailedPreconditionError(
+        "the plan puts a stage on the GPU but this worker has no GPU stages");
   }
-#endif
-  if (kind == v1::INPUT_KIND_DRACO_MESH) {
-    return RunMeshJob(job, *plan, caps, context, devices.get());
-  }
-  return RunPointsJob(job, *plan, caps, context, devices.get());
+  EmitPlanNotes(*job.events, *plan, context.device);
+  if (kind == v1::INPUT_KIND_DRACO_MESH) return RunMeshJob(job, *plan, context);
+  return RunPointsJob(job, *plan, context);
 }
 
 }  // namespace mlclust::server

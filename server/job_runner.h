@@ -5,6 +5,8 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "core/cluster/device_stages.h"
+#include "core/plan/device_policy.h"
 #include "server/job.h"
 
 namespace mlclust::gpu {
@@ -14,13 +16,15 @@ class GlContext;
 namespace mlclust::server {
 
 struct JobRunnerContext {
-  // The worker's GL context, or nullptr when the server runs without a GPU. Only used on
-  // the thread that created it (the worker's).
+  // The worker's GL context, for the preview; nullptr on a worker without one (the CPU
+  // workers, a server without a GPU). Only used on the thread that created it.
   gpu::GlContext* gl = nullptr;
-  std::string gl_renderer;
-  // A software renderer (llvmpipe) is slower than the CPU path for these kernels, so
-  // device "auto" uses it only when it is hardware; device "gpu" uses it regardless.
-  bool gl_is_software = false;
+  // The stages on the GPU over that context (gpu/stages/gl_device_stages.h), run where the
+  // plan puts a stage on the GPU; nullptr on a worker without one. Borrowed.
+  DeviceStages* devices = nullptr;
+  // The server's device as the device policy reads it (core/plan/device_policy.h): the
+  // same on every worker of a server, so a job planned here and at submit agree.
+  DeviceCaps device;
   // Triplets per LevelBatch when the job does not say.
   uint32_t default_batch_triplets = 1 << 16;
 };
@@ -29,10 +33,18 @@ struct JobOutcome {
   v1::Done done;  // filled on success
 };
 
+// The plan of `spec` with its devices (core/plan/device_policy.h PlanDevices on `device`),
+// for what the spec says of the input: points' count and dimensions, whether it is
+// per-polygon (a mesh's faces are known once decoded: RunJob fits the plan to them then).
+// The server plans at submit with it and picks the job's lane from the plan.
+absl::StatusOr<JobPlan> PlanJobOnDevice(const v1::JobSpec& spec, const DeviceCaps& device);
+
 // Runs `job` to the end and streams its events (progress, snapshot, level batches) to
-// job.events. Does not send the final event: the caller does, from the returned status.
-// INVALID_ARGUMENT for bad input (with the validation message), UNIMPLEMENTED for inputs
-// and algorithms this server does not run, CANCELLED if the call went away.
+// job.events. Runs job.plan (RunJob plans where it is empty); the stages run where the plan
+// says (no fallback) and Done.devices names each as it ran. Does not send the final event: the
+// caller does, from the returned status. INVALID_ARGUMENT for bad input (with the validation
+// message), UNIMPLEMENTED for inputs and algorithms this server does not run, CANCELLED if the call
+// went away.
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context);
 
 // Fills Accepted's description of the input (face_ids, face_order, draco_method) from

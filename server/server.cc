@@ -34,6 +34,8 @@
 #include "server/result_store.h"
 #ifdef MLCLUST_HAVE_GPU
 #include "gpu/context/gl_context.h"
+#include "gpu/stages/gl_device_stages.h"
+#include "gpu/stages/gpu_working_set.h"
 #endif
 
 namespace mlclust::server {
@@ -408,19 +410,42 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     return absl::OkStatus();
   }
 
-  // Which workers may run a job: with CPU workers, a job goes to the GL worker only when
-  // it is planned for the GPU (a mesh with device "gpu", or "auto" on a hardware GL).
-  JobLane LaneFor(const v1::JobSpec& spec) const {
-    if (options_.cpu_workers == 0) return JobLane::kGl;
-    if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return JobLane::kCpu;
-    std::lock_guard<std::mutex> lock(gl_mutex_);
-    if (gl_renderer_.empty()) return JobLane::kCpu;
-    if (spec.device() == "gpu") return JobLane::kGl;
-    if (spec.has_preview()) return JobLane::kGl;  // the preview draws with the GL context
-    if ((spec.device().empty() || spec.device() == "auto") && !gl_is_software_) {
-      return JobLane::kGl;
+  // The job's plan at submit (server/job_runner.h PlanJobOnDevice) and its lane, the device
+  // policy's (core/plan/device_policy.h LaneFor). A spec that does not plan goes to any
+  // worker, which plans it again and reports the error as the job's.
+  void PlanAtSubmit(Job& job) const {
+    absl::StatusOr<JobPlan> plan = PlanJobOnDevice(job.spec, Device());
+    const bool cpu_workers = options_.cpu_workers > 0;
+    if (!plan.ok()) {
+      job.lane = cpu_workers ? JobLane::kCpu : JobLane::kGl;
+      return;
     }
-    return JobLane::kCpu;
+    job.lane = LaneFor(*plan, cpu_workers, job.spec.has_preview()) == WorkerLane::kGl
+                   ? JobLane::kGl
+                   : JobLane::kCpu;
+    job.plan = *std::move(plan);
+  }
+
+  // The device as the device policy reads it: the GL context's renderer, the device's free
+  // memory as last sampled (after each GL job) where the driver reports it, and the GPU
+  // stages' working-set bound.
+  DeviceCaps Device() const {
+    std::lock_guard<std::mutex> lock(gl_mutex_);
+    DeviceCaps caps;
+    caps.gpu = !gl_renderer_.empty();
+    caps.gpu_is_software = gl_is_software_;
+    caps.renderer = gl_renderer_;
+    if (device_memory_.device_exposed) caps.free_bytes = device_memory_.device_available_bytes;
+#ifdef MLCLUST_HAVE_GPU
+    if (gl_limits_ != nullptr) {
+      caps.gpu_working_set = [this](PlanStage stage, const JobPlan& plan,
+                                    const InputShape& input) -> uint64_t {
+        std::lock_guard<std::mutex> lock(gl_mutex_);  // the context may be gone since
+        return gl_limits_ != nullptr ? gpu::GpuWorkingSetBound(*gl_limits_, stage, plan, input) : 0;
+      };
+    }
+#endif
+    return caps;
   }
 
   std::string NextJobId() { return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1); }
@@ -601,6 +626,14 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     gl_device_ = std::move(device);
     gl_is_software_ = is_software;
   }
+#ifdef MLCLUST_HAVE_GPU
+  // The GL worker's context, whose limits the working-set bound reads (their values only,
+  // so on any thread); nullptr before it is destroyed.
+  void SetGlLimits(const gpu::GlContext* gl) {
+    std::lock_guard<std::mutex> lock(gl_mutex_);
+    gl_limits_ = gl;
+  }
+#endif
 
   // GPU memory (Stats 33-36, mlclust_gpu_memory_bytes and the device's memory gauges).
   struct GpuMemoryNow {
@@ -654,6 +687,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   GpuMemoryNow device_memory_;  // the device's part, sampled by the GL worker
 #ifdef MLCLUST_HAVE_GPU
   std::shared_ptr<gpu::GpuMemoryGauge> gpu_memory_gauge_;
+  const gpu::GlContext* gl_limits_ = nullptr;
 #endif
 };
 
@@ -781,7 +815,7 @@ void RunCall::Submit() {
   job->events = channel_;
   job->accepted_at = absl::Now();
   job->peer = peer_;
-  job->lane = service_->LaneFor(job->spec);
+  service_->PlanAtSubmit(*job);
   job->tenant = tenant_;
   const std::string id = job->id;
   const std::string label = job->spec.label();
@@ -1035,7 +1069,7 @@ class ServerImpl {
     });
     for (size_t i = 0; i < options.cpu_workers; ++i) {
       cpu_workers_.emplace_back([this] {
-        JobRunnerContext context;  // no GL: every stage on the CPU
+        JobRunnerContext context;  // no GL: the jobs planned for the CPU (the lane)
         RunJobs(1u << static_cast<unsigned>(JobLane::kCpu), context);
       });
     }
@@ -1251,15 +1285,17 @@ class ServerImpl {
     JobRunnerContext context;
 #ifdef MLCLUST_HAVE_GPU
     std::unique_ptr<gpu::GlContext> gl;
+    std::unique_ptr<gpu::GlDeviceStages> stages;
     if (options.gpu != GpuMode::kOff) {
       absl::StatusOr<std::unique_ptr<gpu::GlContext>> created = gpu::GlContext::Create({});
       if (created.ok()) {
         gl = *std::move(created);
         context.gl = gl.get();
+        stages = std::make_unique<gpu::GlDeviceStages>(*gl);
+        context.devices = stages.get();
         gl_renderer_ = gl->renderer();
-        context.gl_renderer = gl_renderer_;
-        context.gl_is_software = gl->is_software();
         service_.SetGl(gl->renderer(), gl->device_description(), gl->is_software());
+        service_.SetGlLimits(gl.get());
         service_.SampleGpuMemory(*gl);
         LogLine(options.log, "GL context: ", gl->renderer(), " (", gl->version(), ", ",
                 gl->device_description(), ")");
@@ -1282,6 +1318,9 @@ class ServerImpl {
     const unsigned lanes = options.cpu_workers == 0 ? BoundedJobQueue<Job>::kAllLanes
                                                     : 1u << static_cast<unsigned>(JobLane::kGl);
     RunJobs(lanes, context);
+#ifdef MLCLUST_HAVE_GPU
+    service_.SetGlLimits(nullptr);  // the context goes with this function
+#endif
   }
 
   // A worker's loop: runs the jobs of `lanes` until the queue stops.
@@ -1304,7 +1343,9 @@ class ServerImpl {
       }
       ++counters.jobs_running;
       const absl::Time started_at = absl::Now();
-      absl::StatusOr<JobOutcome> outcome = RunJob(*job, context);
+      JobRunnerContext job_context = context;
+      job_context.device = service_.Device();  // its free memory as last sampled
+      absl::StatusOr<JobOutcome> outcome = RunJob(*job, job_context);
       const absl::Time ended_at = absl::Now();
       if (outcome.ok()) {
         v1::JobEvent event;

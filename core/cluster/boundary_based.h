@@ -32,6 +32,7 @@
 #include "core/base/ids.h"
 #include "core/base/renumber.h"
 #include "core/base/status_macros.h"
+#include "core/base/tolerance.h"
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/partition.h"
 #include "core/energy/energies.h"
@@ -72,28 +73,41 @@ void FitProxies(const Partition<Energy>& partition, std::vector<typename Energy:
 // Stage 2's rule for one face: among the clusters of its edge neighbours other than its
 // own, the one whose proxy gives the smallest FaceCost (the first in edge order on ties),
 // if that cost is below the face's cost against its own proxy by more than rounding
-// (1e-12 relative); kNoMove otherwise. A device decide stage must give the same answer
-// (up to its arithmetic).
+// (kRelativeImprovement); kNoMove otherwise. A device decide stage must give the same
+// answer (up to its arithmetic). `label(f)` is face f's cluster and `proxy(c)` cluster c's
+// proxy, asked in this order (own first, then each new neighbouring cluster): the sweeps
+// read fixed arrays (DecideBoundaryMove), ML's local BB its live partition and a lazy
+// proxy cache (multilevel.cc).
 // `adjacency` is a FaceAdjacency or the polygons' PolygonAdjacency (core/mesh/polygons.h).
-template <typename Energy, typename Adjacency = FaceAdjacency>
-uint32_t DecideBoundaryMove(const Energy& energy, const Adjacency& adjacency,
-                            std::span<const uint32_t> labels,
-                            std::span<const typename Energy::Proxy> proxies, uint32_t face) {
-  const uint32_t own = labels[face];
-  double best = energy.FaceCost(face, proxies[own]);
+template <typename Energy, typename Adjacency, typename LabelOf, typename ProxyOf>
+uint32_t DecideBoundaryMoveWith(const Energy& energy, const Adjacency& adjacency, uint32_t face,
+                                const LabelOf& label, const ProxyOf& proxy) {
+  const uint32_t own = label(face);
+  double best = energy.FaceCost(face, proxy(own));
   const double own_cost = best;
   uint32_t best_cluster = own;
   for (FaceId g : adjacency.neighbours[face]) {
     if (!g.valid()) continue;
-    const uint32_t c = labels[g.value()];
+    const uint32_t c = label(g.value());
     if (c == own || c == best_cluster) continue;
-    const double cost = energy.FaceCost(face, proxies[c]);
+    const double cost = energy.FaceCost(face, proxy(c));
     if (cost < best) {
       best = cost;
       best_cluster = c;
     }
   }
-  return best_cluster != own && own_cost - best > 1e-12 * own_cost ? best_cluster : kNoMove;
+  return best_cluster != own && own_cost - best > kRelativeImprovement * own_cost ? best_cluster
+                                                                                  : kNoMove;
+}
+
+// DecideBoundaryMoveWith over a sweep's fixed labels and proxies.
+template <typename Energy, typename Adjacency = FaceAdjacency>
+uint32_t DecideBoundaryMove(const Energy& energy, const Adjacency& adjacency,
+                            std::span<const uint32_t> labels,
+                            std::span<const typename Energy::Proxy> proxies, uint32_t face) {
+  return DecideBoundaryMoveWith(
+      energy, adjacency, face, [labels](uint32_t f) { return labels[f]; },
+      [proxies](uint32_t c) -> const typename Energy::Proxy& { return proxies[c]; });
 }
 
 // Stage 2 on the CPU: target[f] = DecideBoundaryMove(f) for every face, in parallel.

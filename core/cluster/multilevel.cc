@@ -12,6 +12,8 @@
 #include "absl/strings/str_cat.h"
 #include "core/base/cancel.h"
 #include "core/base/status_macros.h"
+#include "core/base/tolerance.h"
+#include "core/cluster/boundary_based.h"
 #include "core/cluster/detail/emlo_impl.h"
 #include "core/cluster/detail/member_lists.h"
 #include "core/cluster/detail/multilevel_engine.h"
@@ -595,7 +597,7 @@ class MeshSpace {
       const double after = own_after + energy.Energy(partition_.sums(to) + energy.face_sums(f));
       const double gain = keep - after;
       // Rounding in the sums is ~1e-16 relative; demand a real improvement.
-      if (gain > 1e-12 * keep && gain > best_gain) {
+      if (gain > kRelativeImprovement * keep && gain > best_gain) {
         best_gain = gain;
         best_to = to;
       }
@@ -1225,22 +1227,13 @@ class MeshSpace {
         return it->second;
       };
       next.clear();
+      const auto label = [this](uint32_t face) { return partition_.label(face); };
       for (uint32_t f : worklist_) {
+        // Alg. 5.1's decide rule, the sweeps' own (boundary_based.h), on the live labels.
+        const uint32_t target = boundary_based::DecideBoundaryMoveWith(partition_.energy(),
+                                                                       adjacency_, f, label, proxy);
+        if (target == boundary_based::kNoMove) continue;
         const uint32_t own = partition_.label(f);
-        double best = partition_.energy().FaceCost(f, proxy(own));
-        const double own_cost = best;
-        uint32_t target = own;
-        for (FaceId g : adjacency_.neighbours[f]) {
-          if (!g.valid()) continue;
-          const uint32_t c = partition_.label(g.value());
-          if (c == own || c == target) continue;
-          const double cost = partition_.energy().FaceCost(f, proxy(c));
-          if (cost < best) {
-            best = cost;
-            target = c;
-          }
-        }
-        if (target == own || own_cost - best <= 1e-12 * own_cost) continue;
         if (partition_.size(own) <= 1) continue;
         if (guard != nullptr &&
             !guard->CanMove(f, target, partition_.labels(), partition_.sizes())) {

@@ -308,13 +308,13 @@ void SetPointThreads(JobPlan& plan, int threads) {
 // ---------------------------------------------------------------------------------------
 // Run functions.
 
-const StagePlan& Stage(const JobPlan& plan, absl::string_view name) {
-  static const StagePlan kCpu{"", StageDevice::kCpu};
-  const StagePlan* stage = FindStage(plan, name);
-  return stage != nullptr ? *stage : kCpu;
+// The plan's `stage` (on the CPU where the plan has none: a plan not yet given devices).
+StagePlan Stage(const JobPlan& plan, PlanStage stage) {
+  const StagePlan* found = FindStage(plan, stage);
+  return found != nullptr ? *found : StagePlan{stage, StageDevice::kCpu, ""};
 }
 
-void Report(const RunContext& context, const JobPlan& plan, absl::string_view stage,
+void Report(const RunContext& context, const JobPlan& plan, PlanStage stage,
             const std::string& message) {
   if (context.on_stage) context.on_stage(Stage(plan, stage), message);
 }
@@ -355,75 +355,14 @@ std::string EnergyNote(const JobPlan& plan) {
   return absl::StrCat(" (", plan.energy != nullptr ? plan.energy->name : "?", ")");
 }
 
-// Whether PML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, PmlGpuUnsupported
-// says the same): merges only (optimizer none) or with BB sweeps (optimizer bb, Alg. 5.7;
-// ring test or no guard), without p% or the switch to ML, for the energies whose merge
-// cost the GPU has (cvd, cvd-adaptive).
-bool PmlLevelsOnGpu(const JobPlan& plan) {
-  const MeshEnergyKind kind = plan.mesh_energy.kind;
-  const MultilevelOptions& ml = plan.multilevel;
-  const bool bb =
-      ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased &&
-      !(ml.connectivity_guard && ml.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount);
-  return (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
-         (ml.optimizer == MultilevelOptions::Optimizer::kNone || bb) && ml.p_percent == 0 &&
-         ml.pml_until == 0;
-}
-
-// Whether HC's steps can run on the GPU (gpu/stages/hierarchy_gpu.h, HcGpuUnsupported says
-// the same): merges only, one per level, for cvd and cvd-adaptive; with device gpu only
-// (one collapse per step is latency-bound on a GPU: auto keeps the CPU's heap until the
-// NVIDIA figures show otherwise, BENCHMARKS.md).
-bool HcLevelsOnGpu(const JobPlan& plan) {
-  const MeshEnergyKind kind = plan.mesh_energy.kind;
-  return plan.device == DeviceChoice::kGpu &&
-         (kind == MeshEnergyKind::kCvd || kind == MeshEnergyKind::kCvdAdaptive) &&
-         plan.multilevel.optimizer == MultilevelOptions::Optimizer::kNone &&
-         !plan.multilevel.parallel && plan.multilevel.p_percent == 0;
-}
-
-// Whether ML's levels can run on the GPU (gpu/stages/multilevel_gpu.h, MlGpuUnsupported
-// says the same): optimizer none (HC's steps, HcLevelsOnGpu) or bb (Alg. 5.6, one merge
-// then BB sweeps per level; ring test or no guard), for cvd and cvd-adaptive, without p%;
-// with device gpu only (one collapse per step is latency-bound, and on llvmpipe ML with BB
-// is far slower than the CPU's: BENCHMARKS.md "ML with BB on the GPU").
-bool MlLevelsOnGpu(const JobPlan& plan) {
-  const MultilevelOptions& ml = plan.multilevel;
-  if (ml.optimizer == MultilevelOptions::Optimizer::kNone) return HcLevelsOnGpu(plan);
-  return plan.device == DeviceChoice::kGpu && !ml.parallel && PmlLevelsOnGpu(plan) &&
-         ml.optimizer == MultilevelOptions::Optimizer::kBoundaryBased;
-}
-
-// Whether PML's levels for points can run on the GPU (gpu/stages/points_multilevel_gpu.h,
-// PointsPmlGpuUnsupported says the same): merges only (optimizer none), or with LN k-means
-// inside the levels (gpu/stages/points_optimise_gpu.h, with or without bounded-drift) for
-// --device gpu only (auto keeps LN k-means on the CPU until the NVIDIA figures are taken:
-// each round is a round trip); the switch to ML (pml-until, then one merge per level as
-// PointHierarchyLevelsOnGpu) for --device gpu only too.
-bool PointPmlLevelsOnGpu(const JobPlan& plan) {
-  const PointMultilevelOptions& options = plan.point_multilevel;
-  if (options.pml_until != 0) return plan.device == DeviceChoice::kGpu;
-  if (options.optimizer == PointMultilevelOptions::Optimizer::kNone) return true;
-  return plan.device == DeviceChoice::kGpu;
-}
-
-// Whether HC's and ML's steps for points can run on the GPU
-// (gpu/stages/points_multilevel_gpu.h, RunPointHierarchyGpu): merges only (HC) or LN k-means
-// around each merge (ML, with or without bounded-drift); with --device gpu only, as the
-// meshes' HcLevelsOnGpu (one collapse per step is latency-bound, and each of ML's rounds is a
-// round trip: auto keeps the CPU until the NVIDIA figures show otherwise).
-bool PointHierarchyLevelsOnGpu(const JobPlan& plan) {
-  return plan.device == DeviceChoice::kGpu && !plan.point_multilevel.parallel;
-}
-
 absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
-  Report(context, plan, "cluster", absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
+  Report(context, plan, PlanStage::kCluster, absl::StrCat(plan.algorithm->name, EnergyNote(plan)));
   MultilevelOptions options = plan.multilevel;
   options.cancel = context.cancel;
   absl::StatusOr<MultilevelSummary> ran;
-  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
-    // PML's levels (PmlLevelsOnGpu), HC's steps (HcLevelsOnGpu) or ML's (MlLevelsOnGpu).
+  if (Stage(plan, PlanStage::kCluster).device == StageDevice::kGpu) {
+    // PML's levels, HC's steps or ML's (core/plan/device_policy.h says which plans).
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
           "the plan puts the cluster stage on the GPU but this run has no GPU stages");
@@ -437,22 +376,10 @@ absl::StatusOr<RunSummary> RunMeshHierarchy(const MeshProblem& problem, const Jo
   return RunSummary{static_cast<uint32_t>(problem.mesh->num_faces()), summary.final_clusters};
 }
 
-// Whether the seed stage grows on the GPU: where the plan puts it there, for triangles
-// (polygons grow on the CPU: the GPU pass takes triangles). Reports `message` on the
-// stage with the device it runs on.
-bool SeedGrowsOnGpu(const MeshProblem& problem, const JobPlan& plan, const RunContext& context,
-                    const std::string& message) {
-  const bool planned = Stage(plan, "seed").device == StageDevice::kGpu;
-  const bool on_gpu = planned && problem.polygons == nullptr;
-  if (planned && !on_gpu) {
-    if (context.on_stage) {
-      context.on_stage(StagePlan{"seed", StageDevice::kCpu},
-                       absl::StrCat(message, " (polygons: on the CPU)"));
-    }
-  } else {
-    Report(context, plan, "seed", message);
-  }
-  return on_gpu;
+// Whether the plan puts the seed stage's growth on the GPU; reports `message` on the stage.
+bool SeedGrowsOnGpu(const JobPlan& plan, const RunContext& context, const std::string& message) {
+  Report(context, plan, PlanStage::kSeed, message);
+  return Stage(plan, PlanStage::kSeed).device == StageDevice::kGpu;
 }
 
 // The device's growth rounds for a seed stage the plan put on the GPU.
@@ -483,13 +410,13 @@ absl::StatusOr<RunSummary> RunMeshPatches(const MeshProblem& problem, const JobP
                                                          : ConnectivityGuardKind::kOff;
   options.cancel = context.cancel;
   if (SeedGrowsOnGpu(
-          problem, plan, context,
+          plan, context,
           absl::StrCat(plan.clusters, " spread seeds grown (", options.reseeds, " Lloyd steps)"))) {
     // The energy-free growth is growth rounds' partition: grown as rounds on the GPU.
     options.growth = SeedOptions::Growth::kRounds;
     MLCLUST_ASSIGN_OR_RETURN(options.device_rounds, DeviceRoundsGrowth(context));
   }
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat("patches: at most ", options.sweeps, " BB sweeps", EnergyNote(plan)));
   MLCLUST_ASSIGN_OR_RETURN(PatchResult result, BuildPatches(problem, options));
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.initial_labels, result.initial_energy,
@@ -503,7 +430,7 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
     return RunMeshPatches(problem, plan, sink, context);
   }
   const bool seed_on_gpu =
-      SeedGrowsOnGpu(problem, plan, context, absl::StrCat(plan.clusters, " initial clusters"));
+      SeedGrowsOnGpu(plan, context, absl::StrCat(plan.clusters, " initial clusters"));
   SeedOptions seeds = plan.seeds;
   seeds.cancel = context.cancel;
   if (seed_on_gpu) {
@@ -513,16 +440,17 @@ absl::StatusOr<RunSummary> RunMeshLocal(const MeshProblem& problem, const JobPla
   std::vector<ClusterId> labels = initial;
   absl::StatusOr<OptimizeResult> result;
   if (plan.algorithm->name == "emlo") {
-    Report(context, plan, "cluster", absl::StrCat("EMLO", EnergyNote(plan)));
+    Report(context, plan, PlanStage::kCluster, absl::StrCat("EMLO", EnergyNote(plan)));
     result = OptimizeEmlo(problem, labels, plan.emlo);
   } else {
-    Report(context, plan, "cluster", absl::StrCat("boundary-based", EnergyNote(plan)));
+    Report(context, plan, PlanStage::kCluster, absl::StrCat("boundary-based", EnergyNote(plan)));
     BoundaryBasedOptions options = plan.boundary_based;
     options.cancel = context.cancel;
     options.on_iteration = [&](uint32_t iteration, double energy) {
-      Report(context, plan, "cluster", absl::StrCat("sweep ", iteration, ": energy ", energy));
+      Report(context, plan, PlanStage::kCluster,
+             absl::StrCat("sweep ", iteration, ": energy ", energy));
     };
-    if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+    if (Stage(plan, PlanStage::kCluster).device == StageDevice::kGpu) {
       if (context.devices == nullptr) {
         return absl::FailedPreconditionError(
             "BB: the plan puts the decide stage on the GPU but this run has no GPU stages");
@@ -542,19 +470,19 @@ absl::StatusOr<RunSummary> RunMeshVsa(const MeshProblem& problem, const JobPlan&
                                       LevelSink& sink, const RunContext& context) {
   // Level 0 is the seeding's partition (VsaResult::initial_labels), the last level the
   // result.
-  Report(context, plan, "seed", absl::StrCat(plan.clusters, " initial regions"));
-  Report(context, plan, "cluster", absl::StrCat("VSA", EnergyNote(plan)));
+  Report(context, plan, PlanStage::kSeed, absl::StrCat(plan.clusters, " initial regions"));
+  Report(context, plan, PlanStage::kCluster, absl::StrCat("VSA", EnergyNote(plan)));
   VsaOptions options = plan.vsa;
   // Without min-relative-decrease every iteration runs, so the share done is known.
   const bool fixed_count = plan.vsa.min_relative_decrease == 0 && plan.vsa.iterations > 0;
   options.on_iteration = [&](uint32_t iteration, double energy) {
     const std::string message = absl::StrCat("iteration ", iteration, ": energy ", energy);
     if (fixed_count && context.on_fraction) {
-      context.on_fraction(Stage(plan, "cluster"),
+      context.on_fraction(Stage(plan, PlanStage::kCluster),
                           std::min(1.0, static_cast<double>(iteration) / plan.vsa.iterations),
                           message);
     } else {
-      Report(context, plan, "cluster", message);
+      Report(context, plan, PlanStage::kCluster, message);
     }
   };
   MLCLUST_ASSIGN_OR_RETURN(VsaResult result, RunVsa(problem, options));
@@ -565,26 +493,15 @@ absl::StatusOr<RunSummary> RunMeshVsa(const MeshProblem& problem, const JobPlan&
 
 absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPlan& plan,
                                              LevelSink& sink, const RunContext& context) {
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   PointMultilevelOptions options = plan.point_multilevel;
   options.cancel = context.cancel;
   absl::StatusOr<PointMultilevelSummary> ran;
-  bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
-  if (on_gpu && plan.device == DeviceChoice::kAuto && points.dims > kGpuPointMaxDims) {
-    // The plan cannot see the dimensions: auto keeps such a point set on the CPU, as it
-    // would have before the GPU had point levels (--device gpu gets the GPU's refusal).
-    on_gpu = false;
-    if (context.on_stage) {
-      context.on_stage(StagePlan{"cluster", StageDevice::kCpu},
-                       absl::StrCat(points.dims, " dimensions: over the GPU's ", kGpuPointMaxDims,
-                                    ", on the CPU"));
-    }
-  }
+  const bool on_gpu = Stage(plan, PlanStage::kCluster).device == StageDevice::kGpu;
   if (on_gpu) {
-    // PML's levels (PointPmlLevelsOnGpu) or HC's and ML's steps (PointHierarchyLevelsOnGpu)
-    // for points on the GPU.
+    // PML's levels or HC's and ML's steps for points on the GPU.
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
           "the plan puts the point levels on the GPU but this run has no GPU stages");
@@ -599,7 +516,7 @@ absl::StatusOr<RunSummary> RunPointHierarchy(const PointSet& points, const JobPl
 
 absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPlan& plan,
                                             LevelSink& sink, const RunContext& context) {
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   if (plan.point_init == JobPlan::PointInit::kGrid) {
@@ -620,7 +537,7 @@ absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPla
   LnKmeansOptions options = plan.ln_kmeans;
   options.cancel = context.cancel;
   absl::StatusOr<LnKmeansResult> ran;
-  if (Stage(plan, "cluster").device == StageDevice::kGpu) {
+  if (Stage(plan, PlanStage::kCluster).device == StageDevice::kGpu) {
     if (context.devices == nullptr) {
       return absl::FailedPreconditionError(
           "LN k-means: the plan puts the assign stage on the GPU but this run has no GPU stages");
@@ -638,14 +555,14 @@ absl::StatusOr<RunSummary> RunPointLnKmeans(const PointSet& points, const JobPla
 
 absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan& plan,
                                           LevelSink& sink, const RunContext& context) {
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: ", plan.algorithm->name));
   // Lloyd from k-means++ (or random) centres. Level 0 is the seeding: every point at its
   // nearest initial centre, Lloyd's first assignment (KmeansOptions::keep_first_assignment,
   // on either device: the GPU's Lloyd is the CPU's loop with another assignment step).
   const bool plus_plus = plan.point_init == JobPlan::PointInit::kKmeansPlusPlus;
-  const bool on_gpu = Stage(plan, "cluster").device == StageDevice::kGpu;
+  const bool on_gpu = Stage(plan, PlanStage::kCluster).device == StageDevice::kGpu;
   if (on_gpu && context.devices == nullptr) {
     return absl::FailedPreconditionError(
         "k-means: the plan puts the assignment on the GPU but this run has no GPU stages");
@@ -663,7 +580,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
   options.clusters = plan.clusters;
   options.keep_first_assignment = true;
   options.on_iteration = [&](uint32_t iteration, double inertia) {
-    Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
+    Report(context, plan, PlanStage::kCluster,
+           absl::StrCat("iteration ", iteration, ": energy ", inertia));
   };
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
   MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(result.first_labels, result.first_inertia, result.labels,
@@ -681,19 +599,19 @@ absl::StatusOr<RunSummary> RunPointXmeans(const PointSet& points, const JobPlan&
   options.min_clusters = plan.clusters;
   options.seed = plan.seed;
   options.cancel = context.cancel;
-  Report(context, plan, "seed",
+  Report(context, plan, PlanStage::kSeed,
          absl::StrCat(points.num_points(), " points in ", points.dims, " dimensions: k-means at ",
                       "k_min = ", options.min_clusters));
   KmeansOptions first = KmeansOptionsFor(options, options.min_clusters);
   first.seed = Random(options.seed).Next();
   MLCLUST_ASSIGN_OR_RETURN(KmeansResult start, RunKmeans(points, first));
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat("X-means: virtual splits kept where the BIC rises, up to k_max = ",
                       options.max_clusters == 0 ? points.num_points() : options.max_clusters));
   MLCLUST_ASSIGN_OR_RETURN(XmeansResult result, RunXmeans(points, options));
   for (size_t r = 0; r < result.rounds.size(); ++r) {
     const XmeansRound& round = result.rounds[r];
-    Report(context, plan, "cluster",
+    Report(context, plan, PlanStage::kCluster,
            absl::StrCat("round ", r, ": ", round.clusters, " clusters (", round.splits,
                         " splits), energy ", round.inertia, ", BIC ", round.bic,
                         r == result.chosen_round ? " (chosen: the largest BIC)" : ""));
@@ -711,7 +629,7 @@ absl::StatusOr<RunSummary> RunPointBisecting(const PointSet& points, const JobPl
   options.clusters = plan.clusters;
   options.seed = plan.seed;
   options.cancel = context.cancel;
-  Report(context, plan, "cluster",
+  Report(context, plan, PlanStage::kCluster,
          absl::StrCat(points.num_points(), " points in ", points.dims,
                       " dimensions: bisecting k-means to ", options.clusters, " clusters"));
   MLCLUST_ASSIGN_OR_RETURN(BisectingKmeansResult result, RunBisectingKmeans(points, options));
@@ -809,10 +727,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
   // With growth rounds the seeding's growth on the GPU (section 5.2,
   // gpu/stages/seed_growth_gpu.h), BB's preset patches' too (its energy-free growth is the
   // same partition).
-  const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)",
-                             /*has_gpu=*/true, [](const JobPlan& plan) {
-                               return plan.seeds.growth == SeedOptions::Growth::kRounds;
-                             }};
+  const StageInfo seed_stage{"seed", "k initial clusters (growth rounds on the GPU)"};
   std::vector<AlgorithmInfo> algorithms;
 
   // Meshes.
@@ -825,7 +740,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "merges only: every level from one cluster per face down to --clusters";
     a.energies = mesh_energies;
     // HC's steps on the GPU (gpu/stages/hierarchy_gpu.h): CVD energies.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, HcLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -840,7 +755,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves", /*vertex_count=*/true),
                  PPercentOption(), PPercentRuleOption()};
     // ML's levels on the GPU (gpu/stages/multilevel_gpu.h): HC's steps or one merge and BB.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, MlLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -862,7 +777,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                  ParallelOptimisationOption(),
                  PmlPresetOption()};
     // PML's levels on the GPU (gpu/stages/multilevel_gpu.h): merges only or with BB, CVD.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PmlLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
     algorithms.push_back(a);
   }
@@ -900,13 +815,9 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                          })};
     for (OptionInfo& option : PatchPresetOptions()) a.options.push_back(std::move(option));
     // The decide stage on the GPU (gpu/kernels/bb_decide.h) for the proxy-point energies,
-    // HasGpuBoundaryDecide (core/cluster/device_stages.h).
+    // HasGpuBoundaryDecide (core/plan/device_policy.h).
     a.stages = {seed_stage,
-                {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)",
-                 /*has_gpu=*/true, [](const JobPlan& plan) {
-                   if (plan.bb_patches) return false;  // preset patches: its own sweeps, CPU
-                   return HasGpuBoundaryDecide(plan.mesh_energy.kind);
-                 }}};
+                {"cluster", "parallel sweeps with proxies fixed per sweep (decide on the GPU)"}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
   }
@@ -964,7 +875,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.energies = point_energies;
     a.options = {GridOption(kHierarchyGridHelp), point_threads};
     // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h).
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -980,7 +891,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
     a.options.push_back(BoundedDriftOption());
     // ML's steps (LN k-means around each merge) on the GPU with --device gpu.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -998,7 +909,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options.push_back(BoundedDriftOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
     // merges, with LN k-means inside the levels (--device gpu), without the switch to ML.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
+    a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -1028,9 +939,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                            plan.ln_kmeans.max_iterations = static_cast<uint32_t>(v.integer);
                          })};
     // Assign and the initial neighbours on the GPU (gpu/kernels/ln_kmeans.h), from seeds.
-    a.stages = {{"cluster", "seeding, then LN k-means iterations (assign on the GPU)",
-                 /*has_gpu=*/true,
-                 [](const JobPlan& plan) { return plan.point_init != JobPlan::PointInit::kGrid; }}};
+    a.stages = {{"cluster", "seeding, then LN k-means iterations (assign on the GPU)"}};
     a.run_points = RunPointLnKmeans;
     algorithms.push_back(a);
   }
@@ -1050,8 +959,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                   plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);
                 })};
     // The assignment on the GPU (gpu/kernels/kmeans_assign.h).
-    a.stages = {{"cluster", "seeding, then Lloyd iterations (assignment on the GPU)",
-                 /*has_gpu=*/true}};
+    a.stages = {{"cluster", "seeding, then Lloyd iterations (assignment on the GPU)"}};
     a.run_points = RunPointKmeans;
     algorithms.push_back(a);
   }
@@ -1403,52 +1311,35 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
   return plan;
 }
 
-absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan) {
-  const AlgorithmInfo& algorithm = *plan.algorithm;
-  std::vector<StageInfo> stages;
-  if (algorithm.input == InputKind::kMesh) {
-    stages.push_back({"measures", "face areas, centroids and normals", /*has_gpu=*/true});
+const char* PlanStageName(PlanStage stage) {
+  switch (stage) {
+    case PlanStage::kMeasures:
+      return "measures";
+    case PlanStage::kSeed:
+      return "seed";
+    case PlanStage::kCluster:
+      return "cluster";
   }
-  stages.insert(stages.end(), algorithm.stages.begin(), algorithm.stages.end());
-  const bool any_gpu =
-      std::any_of(stages.begin(), stages.end(), [](const StageInfo& s) { return s.has_gpu; });
-  if (plan.device == DeviceChoice::kGpu) {
-    if (!caps.gpu) {
-      return absl::FailedPreconditionError("option device: 'gpu' but this server has no GPU");
-    }
-    if (!any_gpu) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("option device: 'gpu' but no stage of ", algorithm.name, " on ",
-                       InputKindName(algorithm.input), " has a GPU implementation yet"));
-    }
-  }
-  // Today's rule: a software renderer (llvmpipe) is slower than the CPU for these kernels,
-  // so auto takes the GPU only where it is hardware; gpu takes it regardless.
-  const bool use_gpu = caps.gpu && (plan.device == DeviceChoice::kGpu ||
-                                    (plan.device == DeviceChoice::kAuto && !caps.gpu_is_software));
-  plan.stages.clear();
-  for (const StageInfo& stage : stages) {
-    const bool covered = !stage.gpu_covers || stage.gpu_covers(plan);
-    plan.stages.push_back(
-        {stage.name, stage.has_gpu && covered && use_gpu ? StageDevice::kGpu : StageDevice::kCpu});
-  }
-  return absl::OkStatus();
+  return "?";
 }
 
-bool UsesGpu(const JobPlan& plan) {
-  return std::any_of(plan.stages.begin(), plan.stages.end(),
-                     [](const StagePlan& stage) { return stage.device == StageDevice::kGpu; });
+std::optional<PlanStage> PlanStageFromName(absl::string_view name) {
+  for (PlanStage stage : {PlanStage::kMeasures, PlanStage::kSeed, PlanStage::kCluster}) {
+    if (name == PlanStageName(stage)) return stage;
+  }
+  return std::nullopt;
 }
 
-std::string StageDeviceName(const StagePlan& stage, const DeviceCaps& caps) {
-  return stage.device == StageDevice::kGpu ? caps.renderer : "cpu";
+const StagePlan* FindStage(const JobPlan& plan, PlanStage stage) {
+  for (const StagePlan& planned : plan.stages) {
+    if (planned.stage == stage) return &planned;
+  }
+  return nullptr;
 }
 
 const StagePlan* FindStage(const JobPlan& plan, absl::string_view name) {
-  for (const StagePlan& stage : plan.stages) {
-    if (stage.name == name) return &stage;
-  }
-  return nullptr;
+  const std::optional<PlanStage> stage = PlanStageFromName(name);
+  return stage.has_value() ? FindStage(plan, *stage) : nullptr;
 }
 
 }  // namespace mlclust

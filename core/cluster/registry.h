@@ -3,11 +3,11 @@
 // An entry says what a user can ask for by name (the CLI's --algo / --energy), by wire enum
 // (mlclust.v1.Algorithm / Energy, kept here as numbers so that core needs no proto), what
 // input it takes (a mesh or points), its options (type, range, default and help text), the
-// stages it runs (and which of them have a GPU implementation), and how it plans and runs
-// a job. The server's option parsing (server/job_options.cc), the wire mapping
-// (server/wire_registry.h), the CLI's option table and usage text, GetServerInfo, every
-// "available: ..." message and the parameterised tests all read it; nothing else lists
-// the algorithms or energies. CONTRIBUTING.md says how to add one.
+// stages it runs (which of them run on the GPU is the device policy's,
+// core/plan/device_policy.h), and how it plans and runs a job. The server's option parsing
+// (server/job_options.cc), the wire mapping (server/wire_registry.h), the CLI's option table and
+// usage text, GetServerInfo, every "available: ..." message and the parameterised tests all read
+// it; nothing else lists the algorithms or energies. CONTRIBUTING.md says how to add one.
 //
 // Help texts that carry the dissertation's name cite the equation or algorithm they
 // implement; our extensions say "ours".
@@ -56,29 +56,31 @@ enum class DeviceChoice {
 // "" and "auto", "gpu", "cpu". INVALID_ARGUMENT naming 'device' otherwise.
 absl::StatusOr<DeviceChoice> ParseDeviceChoice(absl::string_view name);
 
-// What the machine running the job offers.
-struct DeviceCaps {
-  bool gpu = false;              // a GL context is available
-  bool gpu_is_software = false;  // ... and it is a software renderer (llvmpipe)
-  std::string renderer;          // the GL renderer string
-};
-
 enum class StageDevice { kCpu, kGpu };
 
-// One stage of an algorithm, as the registry lists it.
+// The stages a plan names, indexed by enum (Progress.stage is PlanStageName's).
+enum class PlanStage {
+  kMeasures,  // meshes: face areas, centroids and normals
+  kSeed,      // k initial clusters
+  kCluster,   // the algorithm's main stage
+};
+const char* PlanStageName(PlanStage stage);  // "measures", "seed", "cluster"
+std::optional<PlanStage> PlanStageFromName(absl::string_view name);
+
+// One stage of an algorithm, as the registry lists it. Whether it has a GPU implementation,
+// and for which plans, is the device policy's (core/plan/device_policy.h).
 struct StageInfo {
   std::string name;  // "measures", "seed", "cluster": Progress.stage
   std::string help;
-  bool has_gpu = false;  // a GPU implementation exists
-  // Where set, the GPU implementation covers only the plans it accepts (energies, inits);
-  // the stage stays on the CPU for the others.
-  std::function<bool(const JobPlan&)> gpu_covers;
 };
 
-// One stage of a job's plan: where it runs.
+// One stage of a job's plan: where it runs (core/plan/device_policy.h PlanDevices decides).
 struct StagePlan {
-  std::string name;
+  PlanStage stage = PlanStage::kCluster;
   StageDevice device = StageDevice::kCpu;
+  // Why the stage is on the CPU where the job did not ask for the CPU ("" otherwise).
+  std::string why;
+  const char* name() const { return PlanStageName(stage); }
 };
 
 // ---------------------------------------------------------------------------------------
@@ -225,7 +227,7 @@ struct JobPlan {
   uint32_t clusters = 0;
   uint64_t seed = 1;
   DeviceChoice device = DeviceChoice::kAuto;
-  std::vector<StagePlan> stages;  // PlanDevices fills it
+  std::vector<StagePlan> stages;  // PlanDevices (core/plan/device_policy.h) fills it
 
   // Meshes.
   MeshEnergyOptions mesh_energy;
@@ -253,25 +255,13 @@ struct JobPlan {
 // Checks the request against the registry and builds the plan: the energy is one the
 // algorithm runs; every option is one it accepts (INVALID_ARGUMENT "option NAME is not
 // known for ALGO" otherwise) and in range; clusters >= 1 for single-level algorithms.
-// Does not plan devices (PlanDevices) and does not know the input's size (the caller
-// checks clusters against it).
+// Does not plan devices (core/plan/device_policy.h PlanDevices) and does not know the input's size
+// (the caller checks clusters against it).
 absl::StatusOr<JobPlan> PlanJob(const JobRequest& request);
 
-// Fills plan.stages: each of the algorithm's stages (for meshes, "measures" first) on the
-// CPU or the GPU, as `plan.device` and `caps` say. kAuto keeps the rule the server has
-// always had: the GPU for stages with a GPU implementation where the GPU is hardware.
-// kGpu: FAILED_PRECONDITION where there is no GPU or no stage has a GPU implementation.
-absl::Status PlanDevices(const DeviceCaps& caps, JobPlan& plan);
-
-// Whether any stage of the plan runs on the GPU (the job then needs the worker that owns
-// the GL context).
-bool UsesGpu(const JobPlan& plan);
-
-// "cpu", or the renderer for a GPU stage.
-std::string StageDeviceName(const StagePlan& stage, const DeviceCaps& caps);
-
-// The stage `name` of the plan (nullptr if the algorithm has none of that name).
+// The stage `name` / `stage` of the plan (nullptr if the plan has none).
 const StagePlan* FindStage(const JobPlan& plan, absl::string_view name);
+const StagePlan* FindStage(const JobPlan& plan, PlanStage stage);
 
 }  // namespace mlclust
 

@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "core/cluster/boundary_based.h"
-#include "core/cluster/device_stages.h"
+#include "core/plan/device_policy.h"
 #include "gpu/kernels/bb_decide.h"
 
 namespace mlclust::gpu {

@@ -17,7 +17,7 @@ namespace mlclust::gpu {
 
 // OptimizeBoundaryBased (core/cluster/mesh_clustering.h) with the decide stage on
 // `context`; the same contract, plus: FAILED_PRECONDITION for an energy without a GPU
-// decide (HasGpuBoundaryDecide, core/cluster/device_stages.h) and the GPU's errors, named by pass
+// decide (HasGpuBoundaryDecide, core/plan/device_policy.h) and the GPU's errors, named by pass
 // ("GPU pass 'bb decide': ..."): RESOURCE_EXHAUSTED where the buffers do not fit, INTERNAL on GL
 // errors. On an error `labels` are unchanged. Runs on the context's thread.
 absl::StatusOr<OptimizeResult> OptimizeBoundaryBasedGpu(GlContext& context,

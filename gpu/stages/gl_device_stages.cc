@@ -2,6 +2,8 @@
 
 #include <utility>
 
+#include "absl/strings/str_cat.h"
+#include "gpu/kernels/face_measures_gpu.h"
 #include "gpu/stages/boundary_based_gpu.h"
 #include "gpu/stages/hierarchy_gpu.h"
 #include "gpu/stages/multilevel_gpu.h"
@@ -10,6 +12,15 @@
 #include "gpu/stages/seed_growth_gpu.h"
 
 namespace mlclust::gpu {
+
+absl::StatusOr<FaceMeasures> GlDeviceStages::MeasureFaces(const TriangleMesh& mesh) {
+  absl::StatusOr<FaceMeasures> measures = ComputeFaceMeasuresGpu(context_, mesh);
+  if (!measures.ok()) {
+    return absl::Status(measures.status().code(),
+                        absl::StrCat("face measures on the GPU: ", measures.status().message()));
+  }
+  return measures;
+}
 
 absl::StatusOr<OptimizeResult> GlDeviceStages::OptimizeBoundaryBased(
     const MeshProblem& problem, std::vector<ClusterId>& labels,

@@ -15,6 +15,7 @@ class GlDeviceStages : public DeviceStages {
  public:
   explicit GlDeviceStages(GlContext& context) : context_(context) {}
 
+  absl::StatusOr<FaceMeasures> MeasureFaces(const TriangleMesh& mesh) override;
   absl::StatusOr<OptimizeResult> OptimizeBoundaryBased(
       const MeshProblem& problem, std::vector<ClusterId>& labels,
       const BoundaryBasedOptions& options) override;

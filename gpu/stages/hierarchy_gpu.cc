@@ -12,18 +12,6 @@
 
 namespace mlclust::gpu {
 
-std::string HcGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy) {
-  if (options.parallel) return "PML's levels are gpu/stages/multilevel_gpu.h's";
-  if (energy != MeshEnergyKind::kCvd && energy != MeshEnergyKind::kCvdAdaptive) {
-    return "the GPU has the merge cost of cvd and cvd-adaptive only";
-  }
-  if (options.optimizer != MultilevelOptions::Optimizer::kNone) {
-    return "the GPU's levels are merges only (HC: optimizer none)";
-  }
-  if (options.p_percent != 0) return "p-percent is not on the GPU";
-  return "";
-}
-
 absl::StatusOr<MultilevelSummary> RunHierarchyGpu(GlContext& context, const MeshProblem& problem,
                                                   const MultilevelOptions& options,
                                                   LevelSink& sink) {

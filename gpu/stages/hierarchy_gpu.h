@@ -19,12 +19,12 @@
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
-// Empty where RunHierarchyGpu covers these options and energy; else why not.
-std::string HcGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy);
+// What it covers is the device policy's HcGpuUnsupported (core/plan/device_policy.h).
 
 // RunMultilevel's contract (level 0 one cluster per face, energy 0; then one level per
 // merge), plus UNIMPLEMENTED for what HcGpuUnsupported refuses (and polygons) and the

@@ -186,25 +186,6 @@ absl::StatusOr<MultilevelSummary> RunLevelsWithBoundaryBased(
 
 }  // namespace
 
-std::string PmlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy) {
-  if (!options.parallel) return "only PML (parallel levels) runs on the GPU";
-  if (energy != MeshEnergyKind::kCvd && energy != MeshEnergyKind::kCvdAdaptive) {
-    return "the GPU has the merge cost of cvd and cvd-adaptive only";
-  }
-  if (options.optimizer == MultilevelOptions::Optimizer::kEmlo) {
-    return "the GPU's PML optimises with BB (optimizer bb) or not at all (none), not EMLO";
-  }
-  if (options.optimizer == MultilevelOptions::Optimizer::kBoundaryBased &&
-      options.connectivity_guard &&
-      options.guard == ConnectivityGuardKind::kVertexBoundaryEdgeCount) {
-    return "the GPU's PML with BB checks moves with the ring test or not at all, not "
-           "vertex-count";
-  }
-  if (options.p_percent != 0) return "p-percent is not on the GPU";
-  if (options.pml_until != 0) return "pml-until (the switch to ML) is not on the GPU";
-  return "";
-}
-
 absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
                                                            const MeshProblem& problem,
                                                            const MultilevelOptions& options,
@@ -240,21 +221,6 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
         }
         return reporter.Finish();
       });
-}
-
-std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy) {
-  if (options.optimizer == MultilevelOptions::Optimizer::kNone) {
-    return HcGpuUnsupported(options, energy);
-  }
-  if (options.parallel) return "PML's levels are RunParallelMultilevelGpu's";
-  if (options.optimizer != MultilevelOptions::Optimizer::kBoundaryBased) {
-    return "the GPU's ML optimises with BB (optimizer bb) or not at all (none, HC's steps), "
-           "not EMLO";
-  }
-  // The rest as PML with BB: the energies, the guard, no p-percent.
-  MultilevelOptions as_pml = options;
-  as_pml.parallel = true;
-  return PmlGpuUnsupported(as_pml, energy);
 }
 
 absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const MeshProblem& problem,

@@ -37,12 +37,12 @@
 #include "core/cluster/mesh_clustering.h"
 #include "core/cluster/multilevel.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
-// Empty where RunParallelMultilevelGpu covers these options and energy; else why not.
-std::string PmlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy);
+// What it covers is the device policy's PmlGpuUnsupported (core/plan/device_policy.h).
 
 // RunMultilevel's contract (level 0 one cluster per face, energy 0; then every level),
 // plus UNIMPLEMENTED for options PmlGpuUnsupported refuses and the GPU's errors, each
@@ -63,8 +63,7 @@ absl::StatusOr<MultilevelSummary> RunParallelMultilevelGpu(GlContext& context,
 //     optimizer bb sweeps locally around the merge, faces one by one; the levels differ.
 // Covered (MlGpuUnsupported): cvd and cvd-adaptive; guard on (ring test) or off, not
 // vertex-count; p-percent 0. Errors as RunParallelMultilevelGpu, the step's choice named
-// "ml min ode".
-std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind energy);
+// "ml min ode". What it covers is the device policy's MlGpuUnsupported.
 absl::StatusOr<MultilevelSummary> RunMultilevelGpu(GlContext& context, const MeshProblem& problem,
                                                    const MultilevelOptions& options,
                                                    LevelSink& sink);

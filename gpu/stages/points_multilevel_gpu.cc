@@ -12,7 +12,7 @@
 #include "core/base/status_macros.h"
 #include "core/cluster/detail/ln_kmeans_stages.h"
 #include "core/cluster/detail/point_levels_checks.h"
-#include "core/cluster/device_stages.h"
+#include "core/plan/device_policy.h"
 #include "gpu/kernels/points_levels.h"
 #include "gpu/kernels/voxel_start.h"
 #include "gpu/stages/gpu_level_sink.h"
@@ -84,15 +84,6 @@ std::vector<ClusterId> AsClusterIds(std::span<const uint32_t> labels) {
   for (size_t i = 0; i < labels.size(); ++i) ids[i] = ClusterId(labels[i]);
   return ids;
 }
-
-}  // namespace
-
-std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
-  if (!options.parallel) return "one merge per level is RunPointHierarchyGpu's";
-  return "";
-}
-
-namespace {
 
 // The start both loops share: the voxel start (level 0 to the sink), the GPU's levels and,
 // with LN k-means, the optimiser with the host's mirror.

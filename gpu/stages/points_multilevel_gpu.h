@@ -35,13 +35,14 @@
 #include "absl/status/statusor.h"
 #include "core/cluster/point_clustering.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "core/points/points.h"
 #include "gpu/context/gl_context.h"
 
 namespace mlclust::gpu {
 
-// Empty where RunPointParallelMultilevelGpu covers these options; else why not.
-std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options);
+// What it covers is the device policy's PointsPmlGpuUnsupported
+// (core/plan/device_policy.h).
 
 // RunPointMultilevel's contract (level 0 the voxel clusters; then every level), plus
 // UNIMPLEMENTED for options PointsPmlGpuUnsupported refuses and the GPU's errors, each

@@ -98,6 +98,18 @@ cmp -s "$work/auto.labels" "$work/cpu.labels" || fail "--device auto and cpu dif
 import json, sys
 assert json.load(open(sys.argv[1]))["device"] != "cpu", "--device gpu ran without GL"' \
   "$work/gpu.json" || fail "--device gpu: $(cat "$work/gpu.json")"
+# Each stage's device as it ran (issue 23's (c)): PML's default optimiser, EMLO, has no GPU
+# stage, so only the face measures run on the GPU; --json and the summary line say so.
+"$mlclust" mesh "$data/fandisk.off" --algo pml -k 100 -q --device gpu --json > "$work/pml.json" \
+  || fail "pml --device gpu"
+/usr/bin/python3 -c '
+import json, sys
+devices = json.load(open(sys.argv[1]))["devices"]
+assert devices["cluster"] == "cpu" and devices["measures"] != "cpu", devices' \
+  "$work/pml.json" || fail "pml --device gpu: $(cat "$work/pml.json")"
+"$mlclust" mesh "$data/fandisk.off" --algo pml -k 100 -q --device gpu > "$work/pml.txt" \
+  || fail "pml --device gpu"
+grep -q " s with cluster on cpu, measures on " "$work/pml.txt" || fail "pml --device gpu: $(cat "$work/pml.txt")"
 # A flag given twice: the last one counts (-k 5 then --clusters 30).
 "$mlclust" mesh "$data/fandisk.off" --algo hc -k 5 --clusters 30 -o "$work/twice.labels" -q \
   > /dev/null || fail "a flag given twice"

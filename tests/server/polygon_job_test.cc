@@ -38,16 +38,21 @@ TEST(PolygonJobTest, PlanTakesPolygonsForTheCpuDriversOnly) {
   const std::vector<uint32_t> squares(96, 2);
   for (v1::Algorithm algorithm : {v1::ALGORITHM_ML, v1::ALGORITHM_HC, v1::ALGORITHM_PML,
                                   v1::ALGORITHM_EMLO, v1::ALGORITHM_BB}) {
-    absl::StatusOr<JobPlan> plan = PlanWireJob(PolygonSpec(algorithm, 6, squares));
+    // Every stage on the CPU, on a machine with a GPU too (the device policy's rule).
+    absl::StatusOr<JobPlan> plan = server::PlanJobOnDevice(PolygonSpec(algorithm, 6, squares),
+                                                           DeviceCaps(true, false, "NVIDIA H100"));
     ASSERT_TRUE(plan.ok()) << plan.status();
-    EXPECT_EQ(plan->device, DeviceChoice::kCpu);
+    EXPECT_FALSE(UsesGpu(*plan));
   }
   v1::JobSpec vsa = PolygonSpec(v1::ALGORITHM_VSA, 6, squares);
   vsa.set_energy(v1::ENERGY_PLANAR);
   EXPECT_THAT(std::string(PlanWireJob(vsa).status().message()), HasSubstr("not vsa"));
   v1::JobSpec gpu = PolygonSpec(v1::ALGORITHM_ML, 6, squares);
   gpu.set_device("gpu");
-  EXPECT_EQ(PlanWireJob(gpu).status().code(), absl::StatusCode::kInvalidArgument);
+  const absl::Status refused =
+      server::PlanJobOnDevice(gpu, DeviceCaps(true, false, "NVIDIA H100")).status();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(refused.message()), HasSubstr("per-polygon clustering"));
   v1::JobSpec points = PolygonSpec(v1::ALGORITHM_ML, 6, squares);
   points.set_input_kind(v1::INPUT_KIND_POINTS_F32);
   points.set_point_dims(3);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/base/cancel.h"
+#include "core/base/tolerance.h"
 #include "core/cluster/partition.h"
 #include "core/mesh/connectivity_guard.h"
 #include "core/mesh/mesh.h"
@@ -136,7 +137,7 @@ EmloCounters RunEmloOn(const Adjacency& adjacency, const Guard* guard, Partition
         }
       }
       // Rounding in the sums is ~1e-16 relative; demand a real improvement.
-      if (choice == 0 || keep - best <= 1e-12 * keep) continue;
+      if (choice == 0 || keep - best <= kRelativeImprovement * keep) continue;
       const uint32_t face = choice == 1 ? f : g;
       const uint32_t to = choice == 1 ? b : a;
       if (guard != nullptr && !guard->CanMove(face, to, partition.labels(), partition.sizes())) {
@@ -149,7 +150,7 @@ EmloCounters RunEmloOn(const Adjacency& adjacency, const Guard* guard, Partition
         from_without -= energy.face_sums(other_face);
         const double e = energy.Energy(from_without) +
                          energy.Energy(partition.sums(other_to) + energy.face_sums(other_face));
-        if (keep - e > 1e-12 * keep &&
+        if (keep - e > kRelativeImprovement * keep &&
             guard->CanMove(other_face, other_to, partition.labels(), partition.sizes())) {
           apply(other_face, other_to);
           if (other_face == f) break;

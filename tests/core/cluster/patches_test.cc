@@ -9,6 +9,7 @@
 #include "core/cluster/registry.h"
 #include "core/hierarchy/hierarchy.h"
 #include "core/mesh/connectivity_guard.h"
+#include "core/plan/device_policy.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {

@@ -9,6 +9,7 @@
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "tests/fixtures/recording_sink.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_points.h"
@@ -292,7 +293,8 @@ TEST_P(RegistryRunTest, RunsAndReportsTheEnergyOfItsLabels) {
   RunContext context;
   context.on_stage = [&](const StagePlan& stage, const std::string&) {
     EXPECT_EQ(stage.device, StageDevice::kCpu);
-    if (stages_seen.empty() || stages_seen.back() != stage.name) stages_seen.push_back(stage.name);
+    if (stages_seen.empty() || stages_seen.back() != stage.name())
+      stages_seen.push_back(stage.name());
   };
   CheckingSink sink;
   absl::StatusOr<RunSummary> summary;

@@ -7,6 +7,7 @@
 #include "core/cluster/registry.h"
 #include "core/cluster/xmeans.h"
 #include "core/hierarchy/hierarchy.h"
+#include "core/plan/device_policy.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "tests/fixtures/recording_sink.h"
