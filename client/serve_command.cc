@@ -84,6 +84,7 @@ int RunServe(const Arguments& flags) {
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
   options.metrics_address = flags.get("metrics", options.metrics_address);
+  options.list_all_jobs = flags.has("list-all-jobs");
   if (flags.has("log-format")) {
     const std::string format = flags.get("log-format");
     if (format != "text" && format != "json") {
@@ -190,8 +191,13 @@ Command ServeCommand() {
           {"tls-client-ca", "FILE", "require client certificates signed by this CA (PEM)"},
           {"auth-token-file", "F",
            "bearer tokens, one \"TOKEN TENANT\" per line (needs TLS): every call needs a known "
-           "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (PERMISSION_DENIED "
-           "for another's); health checks need none. Tokens are never logged."}}},
+           "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (another tenant's "
+           "job answers NOT_FOUND exactly like an unknown id); health checks need none. Tokens "
+           "are never logged."},
+          {"list-all-jobs", "",
+           "without tokens, `jobs` lists every job (a single-user server); by default it lists "
+           "only the jobs submitted on the caller's own connection (none over unix sockets). "
+           "Job ids are 128 random bits: watch and cancel work for whoever was given one."}}},
         {"operations:",
          {{"metrics", "ADDR",
            "Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by state and "

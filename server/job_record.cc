@@ -535,18 +535,12 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
                                                              const std::string& tenant) {
   Sweep();
   std::lock_guard<std::mutex> lock(mutex_);
+  // Another tenant's job, kept or dropped, answers exactly like an id never issued.
   auto it = records_.find(id);
-  if (it != records_.end()) {
-    if (it->second->tenant() != tenant) {
-      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
-    }
-    return it->second;
-  }
+  if (it != records_.end() && it->second->tenant() == tenant) return it->second;
   auto dropped = dropped_reasons_.find(id);
-  if (dropped != dropped_reasons_.end()) {
-    if (dropped->second.first != tenant) {
-      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
-    }
+  if (it == records_.end() && dropped != dropped_reasons_.end() &&
+      dropped->second.first == tenant) {
     return absl::NotFoundError(absl::StrCat("job ", id, ": ", dropped->second.second));
   }
   return absl::NotFoundError(
@@ -556,14 +550,16 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
                    absl::FormatDuration(options_.retention), ")"));
 }
 
-std::vector<v1::JobSummary> JobRegistry::List(const std::string& tenant) {
+std::vector<v1::JobSummary> JobRegistry::List(const std::string& tenant, const std::string* owner) {
   Sweep();
   std::lock_guard<std::mutex> lock(mutex_);
   const absl::Time now = absl::Now();
   std::vector<v1::JobSummary> jobs;
   for (const std::string& id : order_) {
     const std::shared_ptr<JobRecord>& record = records_.at(id);
-    if (record->tenant() == tenant) jobs.push_back(record->Summary(now, options_.retention));
+    if (record->tenant() != tenant) continue;
+    if (owner != nullptr && record->owner() != *owner) continue;
+    jobs.push_back(record->Summary(now, options_.retention));
   }
   return jobs;
 }

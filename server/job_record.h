@@ -104,6 +104,11 @@ class JobRecord : public EventChannel {
   const std::string& id() const { return id_; }
   const v1::JobSpec& spec() const { return spec_; }
   const std::string& tenant() const { return tenant_; }
+  // The connection that submitted the job (its peer string, "ipv4:127.0.0.1:41234"): without
+  // tokens, ListJobs shows a caller only the jobs its own connection submitted. Set before
+  // the record is added to the registry.
+  void set_owner(std::string owner) { owner_ = std::move(owner); }
+  const std::string& owner() const { return owner_; }
   bool detached() const { return detached_; }
   // Memory taken by the kept levels (counted in the registry's budget).
   uint64_t kept_bytes() const { return kept_bytes_.load(std::memory_order_relaxed); }
@@ -141,6 +146,7 @@ class JobRecord : public EventChannel {
   JobRegistry* const registry_;
   const std::string id_;
   const std::string tenant_;
+  std::string owner_;
   const v1::JobSpec spec_;
   const bool detached_;
   const size_t max_event_bytes_;
@@ -192,11 +198,13 @@ class JobRegistry {
   // Takes a record out again (a job refused after it was registered).
   void Remove(const std::string& id);
 
-  // The job `id` of `tenant`: NOT_FOUND (never known, or dropped: the message says when
-  // and why), PERMISSION_DENIED (another tenant's).
+  // The job `id` of `tenant`: NOT_FOUND when it was never known or is another tenant's
+  // (the same code and message, so a tenant cannot tell others' jobs from unknown ids), or
+  // when it was dropped (the message says when and why; only to its own tenant).
   absl::StatusOr<std::shared_ptr<JobRecord>> Find(const std::string& id, const std::string& tenant);
-  // The jobs of `tenant`, in submission order.
-  std::vector<v1::JobSummary> List(const std::string& tenant);
+  // The jobs of `tenant`, in submission order; with `owner`, only those whose owner() is
+  // `*owner` (a caller without tokens sees its own connection's jobs).
+  std::vector<v1::JobSummary> List(const std::string& tenant, const std::string* owner = nullptr);
   // Jobs of `tenant` queued or running.
   uint32_t ActiveJobs(const std::string& tenant);
   // Calls visit(record) for every record, under the registry's lock (keep it short).

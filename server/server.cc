@@ -1,9 +1,11 @@
 #include "server/server.h"
 
 #include <malloc.h>
+#include <sys/random.h>
 #include <zlib.h>
 
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <future>
 #include <map>
@@ -61,6 +63,31 @@ std::string PeerHost(const std::string& peer) {
   const size_t scheme = peer.find(':');
   if (colon == std::string::npos || colon == scheme) return peer;
   return peer.substr(0, colon);
+}
+
+// A connection's peer string names that one connection (address and port), so ListJobs
+// can show a caller its own connection's jobs; unix-socket and in-process peers do not.
+bool NamesOneConnection(const std::string& peer) {
+  return absl::StartsWith(peer, "ipv4:") || absl::StartsWith(peer, "ipv6:");
+}
+
+// "job-" and 128 bits from the kernel's CSPRNG as 32 lowercase hex digits: a job id is a
+// capability (Watch, Cancel), so it must not be guessable from other ids.
+absl::StatusOr<std::string> RandomJobId() {
+  unsigned char bytes[16];
+  size_t have = 0;
+  while (have < sizeof(bytes)) {
+    const ssize_t got = getrandom(bytes + have, sizeof(bytes) - have, 0);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) {
+      return absl::InternalError(
+          absl::StrCat("no random job id: getrandom failed (errno ", errno, ")"));
+    }
+    have += static_cast<size_t>(got);
+  }
+  std::string id = "job-";
+  for (unsigned char byte : bytes) absl::StrAppend(&id, absl::Hex(byte, absl::kZeroPad2));
+  return id;
 }
 
 bool IsLoopback(const std::string& address) {
@@ -307,7 +334,15 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                      v1::JobList* list) override {
     std::string tenant;
     if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
-    for (v1::JobSummary& summary : registry_.List(tenant)) {
+    // Without tokens: the caller's own connection's jobs, unless every job is listed
+    // (ServerOptions::list_all_jobs); a peer that names no one connection sees none.
+    const std::string peer = context->peer();
+    const bool own_connection = options_.auth_tokens.empty() && !options_.list_all_jobs;
+    std::vector<v1::JobSummary> jobs;
+    if (!own_connection || NamesOneConnection(peer)) {
+      jobs = registry_.List(tenant, own_connection ? &peer : nullptr);
+    }
+    for (v1::JobSummary& summary : jobs) {
       *list->add_jobs() = std::move(summary);
     }
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
@@ -422,8 +457,6 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     }
     return JobLane::kCpu;
   }
-
-  std::string NextJobId() { return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1); }
 
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
@@ -646,7 +679,6 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   JobRegistry registry_;
   JobMetrics job_metrics_;
   std::atomic<uint32_t> watch_calls_active_{0};
-  std::atomic<uint64_t> next_job_number_{0};
   std::atomic<bool> draining_{false};
   mutable std::mutex gl_mutex_;
   std::string gl_renderer_, gl_device_;
@@ -774,8 +806,13 @@ void RunCall::OnReadDone(bool ok) {
 }
 
 void RunCall::Submit() {
+  absl::StatusOr<std::string> new_id = RandomJobId();
+  if (!new_id.ok()) {
+    Refuse(new_id.status());
+    return;
+  }
   auto job = std::make_shared<Job>();
-  job->id = service_->NextJobId();
+  job->id = *std::move(new_id);
   job->spec = std::move(spec_);
   job->input = std::move(input_);
   job->events = channel_;
@@ -813,6 +850,7 @@ void RunCall::Submit() {
   auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
                                             service_->options().max_event_bytes);
   record->set_job(job);
+  record->set_owner(peer_);
   job->record = record;
   job->events = detach ? std::shared_ptr<EventChannel>(record)
                        : std::make_shared<RecordingChannel>(channel_, record);

@@ -78,8 +78,13 @@ struct ServerOptions {
   std::string tls_client_ca_pem;
   // Bearer tokens, token -> tenant (server/auth.h); they need TLS. With them every
   // Clustering call needs a known token (UNAUTHENTICATED otherwise) and sees only its
-  // tenant's jobs (PERMISSION_DENIED for another's). Empty: one tenant, "".
+  // tenant's jobs (another's answers NOT_FOUND exactly like an unknown id). Empty: one
+  // tenant, "".
   std::map<std::string, std::string> auth_tokens;
+  // Without tokens, ListJobs shows a caller only the jobs its own connection submitted
+  // (job ids are unguessable capabilities: Watch and Cancel work for whoever holds one).
+  // True: every job (a single-user server). Ignored with tokens (a tenant sees its own).
+  bool list_all_jobs = false;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;

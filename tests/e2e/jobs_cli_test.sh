@@ -7,7 +7,7 @@
 source "$(dirname "$0")/cli_lib.sh" "$@"
 
 port=$((20000 + RANDOM % 20000))
-start_server "$work/server.log" --listen "127.0.0.1:$port" --retention-seconds 3 --gpu off
+start_server "$work/server.log" --listen "127.0.0.1:$port" --retention-seconds 3 --gpu off --list-all-jobs
 server="127.0.0.1:$port"
 # A mesh big enough that ML runs for seconds: a 300 x 300 grid (180,000 faces), slightly wavy.
 awk 'BEGIN { n = 300; print "OFF"; print (n + 1) * (n + 1), 2 * n * n, 0;
@@ -58,7 +58,8 @@ s = json.load(open(sys.argv[1]))
 assert s["first_level"] == 12000 and s["levels"] == 946 and s["level"]["clusters"] == 50, s
 ' "$work/from.json" || fail "watch --json: $(cat "$work/from.json")"
 
-# jobs: both, with their state; --json parses.
+# jobs: both, with their state (the server lists every connection's: --list-all-jobs); --json
+# parses.
 "$mlclust" jobs --server "$server" > "$work/jobs.txt" || fail "jobs failed"
 grep -q "^$id .*succeeded .*ml .*yes" "$work/jobs.txt" || fail "jobs: $(cat "$work/jobs.txt")"
 "$mlclust" jobs --server "$server" --json > "$work/jobs.json" || fail "jobs --json failed"

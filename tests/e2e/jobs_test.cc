@@ -256,6 +256,52 @@ TEST(DetachTest, ABrokenStreamResumesWhereItStopped) {
   EXPECT_EQ(total, solo->hierarchy.num_moves());
 }
 
+// Job ids are capabilities: 128 random bits, so an id tells nothing of the others; without
+// tokens a caller lists only its own connection's jobs, and any connection holding an id
+// may watch and cancel it.
+TEST(JobIdsTest, IdsAreRandomAndOthersJobsAreNotListedWithoutTokens) {
+  std::unique_ptr<server::Server> server = StartServer({});
+  ASSERT_TRUE(server);
+  auto owner = testing::OwnConnectionTo(*server);
+  auto other = testing::OwnConnectionTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(10));
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) {
+    absl::StatusOr<v1::Accepted> accepted =
+        client::SubmitDetached(owner, MeshSpec(v1::ALGORITHM_HC), bytes);
+    ASSERT_TRUE(accepted.ok()) << accepted.status();
+    ids.push_back(accepted->job_id());
+  }
+  for (const std::string& id : ids) {
+    EXPECT_THAT(id, ::testing::MatchesRegex("job-[0-9a-f]{32}")) << id;
+  }
+  EXPECT_NE(ids[0], ids[1]);
+  EXPECT_NE(ids[1], ids[2]);
+  // Only the owner's connection lists them.
+  EXPECT_EQ(List(owner).jobs_size(), 3);
+  EXPECT_EQ(List(other).jobs_size(), 0);
+  // The id is enough to watch from another connection.
+  WaitEnded(owner, ids[2]);
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(other, ids[2]);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->hierarchy.num_levels(), 200u);
+}
+
+TEST(JobIdsTest, ListAllJobsShowsEveryConnectionsJobs) {
+  server::ServerOptions options;
+  options.list_all_jobs = true;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto owner = testing::OwnConnectionTo(*server);
+  auto other = testing::OwnConnectionTo(*server);
+  absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(
+      owner, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(10)));
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  const v1::JobList list = List(other);
+  ASSERT_EQ(list.jobs_size(), 1);
+  EXPECT_EQ(list.jobs(0).job_id(), accepted->job_id());
+}
+
 TEST(DetachTest, UnknownDroppedAndUnkeptJobsAreRefusedWithReasons) {
   server::ServerOptions options;
   options.result_retention = absl::Seconds(1);

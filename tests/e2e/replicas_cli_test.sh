@@ -25,7 +25,7 @@ base=$((20000 + RANDOM % 20000))
 addresses=()
 for i in 0 1 2; do
   port=$((base + i))
-  "$mlclust" serve --listen "127.0.0.1:$port" --gpu off 2> "$work/server$i.log" &
+  "$mlclust" serve --listen "127.0.0.1:$port" --gpu off --list-all-jobs 2> "$work/server$i.log" &
   pids+=($!)
   addresses+=("127.0.0.1:$port")
 done
@@ -103,7 +103,7 @@ awk 'BEGIN { n = 250; print "OFF"; print (n + 1) * (n + 1), 2 * n * n, 0;
   for (j = 0; j < n; ++j) for (i = 0; i < n; ++i) { a = j * (n + 1) + i; b = a + 1;
     c = a + n + 1; d = c + 1; print 3, a, b, d; print 3, a, d, c } }' > "$work/grid.off"
 port=$((base + 3))
-"$mlclust" serve --listen "127.0.0.1:$port" --gpu off 2> "$work/server3.log" &
+"$mlclust" serve --listen "127.0.0.1:$port" --gpu off --list-all-jobs 2> "$work/server3.log" &
 d_pid=$!
 pids+=($d_pid)
 d="127.0.0.1:$port"

@@ -8,6 +8,8 @@
 
 #include <cstring>
 
+#include "absl/strings/str_replace.h"
+
 namespace mlclust::server {
 namespace {
 
@@ -62,8 +64,47 @@ TEST(JobRegistryTest, RetentionDropsEveryEndedJobUnderItsOwnId) {
     EXPECT_THAT(found.status().message(), HasSubstr("retention time"));
   }
   ASSERT_TRUE(registry.Find("job-b", "").ok());
-  EXPECT_EQ(registry.Find("job-b", "other").status().code(), absl::StatusCode::kPermissionDenied);
   EXPECT_THAT(registry.Find("job-z", "").status().message(), HasSubstr("no job 'job-z'"));
+}
+
+TEST(JobRegistryTest, AnotherTenantsJobAnswersExactlyLikeAnUnknownId) {
+  JobRegistryOptions options;
+  options.retention = absl::ZeroDuration();
+  JobRegistry registry(options);
+  auto kept = Record(registry, "job-kept", "alpha");
+  auto dropped = Record(registry, "job-gone", "alpha");
+  dropped->MarkEnded(grpc::Status::OK);
+  registry.Sweep();  // job-gone's results dropped, a note left for alpha
+  // The unknown id's answer, with the id in place of "job-none".
+  auto unknown_answer = [&](const std::string& id) {
+    const absl::Status unknown = registry.Find("job-none", "beta").status();
+    return absl::Status(unknown.code(), absl::StrReplaceAll(unknown.message(), {{"job-none", id}}));
+  };
+  for (const char* id : {"job-kept", "job-gone"}) {
+    const absl::Status other = registry.Find(id, "beta").status();
+    EXPECT_EQ(other.code(), absl::StatusCode::kNotFound) << id;
+    EXPECT_EQ(other, unknown_answer(id)) << id;
+  }
+  ASSERT_TRUE(registry.Find("job-kept", "alpha").ok());
+  EXPECT_THAT(registry.Find("job-gone", "alpha").status().message(), HasSubstr("retention time"));
+}
+
+TEST(JobRegistryTest, ListingByOwnerShowsOnlyThatConnectionsJobs) {
+  JobRegistry registry(JobRegistryOptions{});
+  for (const auto& [id, owner] :
+       {std::pair{"job-1", "ipv4:127.0.0.1:1000"}, std::pair{"job-2", "ipv4:127.0.0.1:2000"},
+        std::pair{"job-3", "ipv4:127.0.0.1:1000"}}) {
+    v1::JobSpec spec;
+    auto record = std::make_shared<JobRecord>(&registry, id, "", spec, true, 1 << 20);
+    record->set_owner(owner);
+    registry.Add(record);
+  }
+  const std::string first = "ipv4:127.0.0.1:1000", nobody = "ipv4:127.0.0.1:3000";
+  std::vector<std::string> ids;
+  for (const v1::JobSummary& job : registry.List("", &first)) ids.push_back(job.job_id());
+  EXPECT_THAT(ids, ::testing::ElementsAre("job-1", "job-3"));
+  EXPECT_TRUE(registry.List("", &nobody).empty());
+  EXPECT_EQ(registry.List("").size(), 3u);
 }
 
 TEST(JobRegistryTest, MemoryForANewJobDropsTheOldestEndedFirst) {
