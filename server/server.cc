@@ -321,8 +321,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         JobEnded(*job, "cancelled", absl::Now(), absl::Now(), cancelled.error_code(),
                  cancelled.error_message(), nullptr);
       }
-      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ",
-              context->peer());
+      LogLine(options_.log, LogSafe(request->job_id()), " cancelled by a Cancel call from ",
+              LogSafe(context->peer()));
     }
     reply->set_state(JobStateName((*record)->state()));
     reactor->Finish(grpc::Status::OK);
@@ -479,11 +479,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         .Add("tenant", tenant)
         .Add("label", label)
         .Add("code", static_cast<int>(status.code()))
-        .Add("message", std::string(status.message()))
+        .Add("message", std::string(status.message()), kLoggedLineBytes)
         .Write(options_.log,
-               absl::StrCat("refused a call from ", peer,
-                            label.empty() ? std::string() : absl::StrCat(" (label '", label, "')"),
-                            ": ", status.ToString()));
+               absl::StrCat(
+                   "refused a call from ", LogSafe(peer),
+                   label.empty() ? std::string() : absl::StrCat(" (label '", LogSafe(label), "')"),
+                   ": ", status.ToString()));
   }
 
   // A job ended (after running, or while queued): metrics and one log event.
@@ -512,7 +513,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
           .Add("final_clusters", uint64_t{done->final_clusters()})
           .Add("device", done->device());
     } else {
-      event.Add("message", message);
+      event.Add("message", message, kLoggedLineBytes);
     }
     const std::string text =
         done != nullptr
@@ -903,9 +904,10 @@ void RunCall::Submit() {
       .Add("jobs_ahead", uint64_t{*ahead})
       .Add("detached", detach)
       .Write(service_->options().log,
-             absl::StrCat(id, " accepted from ", peer_, " (label '", label, "', ", bytes,
-                          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ",
-                          *ahead, " ahead", detach ? ", detached" : "", ")"));
+             absl::StrCat(id, " accepted from ", LogSafe(peer_), " (label '", LogSafe(label), "', ",
+                          bytes, " bytes, ",
+                          job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
+                          " ahead", detach ? ", detached" : "", ")"));
   // A detached job's call ends here; the job runs on and Watch reads its levels.
   if (detach) channel_->Finish(std::move(accepted_event), grpc::Status::OK);
 }

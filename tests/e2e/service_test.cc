@@ -6,11 +6,16 @@
 #include <future>
 #include <thread>
 
+#include "absl/strings/match.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
+#include "google/protobuf/struct.pb.h"
+#include "google/protobuf/util/json_util.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/log.h"
 #include "server/server.h"
+#include "tests/fixtures/capture_stderr.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -18,6 +23,7 @@ namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 using testing::ExpectSameHierarchy;
 using testing::MeshSpec;
@@ -392,6 +398,60 @@ TEST(OperationsTest, ShutdownCancelsRunningJobsWhenTheDrainTimeRunsOut) {
   if (!result.ok()) {
     EXPECT_EQ(result.status().code(), absl::StatusCode::kUnavailable) << result.status();
     EXPECT_THAT(result.status().message(), HasSubstr("drain time"));
+  }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 4: a label with a newline and ANSI escapes cannot forge a log line, and an
+// 8 MiB label is not logged whole, in text and in JSON (each line parses). (A label is a
+// proto3 string: bytes that are not UTF-8 never reach the server; LogSafeTest has them.)
+TEST(LogInjectionTest, ALabelCannotForgeALineAndABigOneIsCutInBothFormats) {
+  const std::string forging =
+      "x\n2026-01-01T00:00:00.000Z mlclust: job-1 done in 1s\x1b[2K\x1b]0;owned\x07\xc2\x9b";
+  const std::string big(8 << 20, 'b');
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(5));
+  for (bool json : {false, true}) {
+    server::ServerOptions options;
+    options.listen_address = "127.0.0.1:0";
+    options.gpu = server::GpuMode::kOff;
+    options.log_json = json;
+    const std::string out = testing::CaptureStderr([&] {
+      absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
+      ASSERT_TRUE(server.ok()) << server.status();
+      auto channel = testing::ChannelTo(**server);
+      for (const std::string& label : {forging, big}) {
+        EXPECT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC, 0, label), bytes).ok());
+      }
+      (*server)->Shutdown();
+    });
+    server::JsonLogs() = false;
+    const std::vector<std::string> lines = testing::LinesOf(out);
+    ASSERT_GE(lines.size(), 4u) << out.substr(0, 2000);
+    int escaped = 0, cut = 0;
+    for (const std::string& line : lines) {
+      EXPECT_THAT(line, Not(HasSubstr("\x1b"))) << line;
+      EXPECT_THAT(line, Not(HasSubstr("\x07"))) << line;
+      EXPECT_LT(line.size(), size_t{8192}) << line.substr(0, 200);
+      if (json) {
+        google::protobuf::Struct parsed;
+        EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(line, &parsed).ok()) << line;
+      } else {
+        EXPECT_THAT(line, ::testing::MatchesRegex("[0-9]{4}-[0-9T:.-]+Z mlclust: .*")) << line;
+        EXPECT_FALSE(absl::StartsWith(line, "2026-01-01T00:00:00.000Z")) << "forged: " << line;
+      }
+      if (line.find("x\\\\x0a2026") != std::string::npos ||
+          line.find("x\\x0a2026") != std::string::npos) {
+        ++escaped;
+      }
+      if (line.find("...[8388608 bytes]") != std::string::npos) ++cut;
+    }
+    EXPECT_GE(escaped, 1) << (json ? "json" : "text");
+    EXPECT_GE(cut, 1) << (json ? "json" : "text");
   }
 }
 
