@@ -46,6 +46,8 @@ int RunServe(const Arguments& flags) {
   };
   uint64_t drain_seconds = 30;
   uint64_t retention_seconds = 3600;
+  uint64_t upload_idle_seconds = 30;
+  uint64_t upload_min_kib = options.upload_min_bytes_per_second >> 10;
   const Number numbers[] = {
       {"queue", nullptr, nullptr, &options.queue_capacity, 1},
       {"workers", nullptr, nullptr, &options.cpu_workers, 1},
@@ -57,6 +59,9 @@ int RunServe(const Arguments& flags) {
       {"max-calls", nullptr, &options.max_calls, nullptr, 1},
       {"max-calls-per-connection", nullptr, &options.max_calls_per_connection, nullptr, 1},
       {"max-calls-per-peer", nullptr, &options.max_calls_per_peer, nullptr, 1},
+      {"max-calls-per-tenant", nullptr, &options.max_calls_per_tenant, nullptr, 1},
+      {"upload-idle-seconds", &upload_idle_seconds, nullptr, nullptr, 1},
+      {"upload-min-kib-per-second", &upload_min_kib, nullptr, nullptr, 1},
       {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
       {"retention-seconds", &retention_seconds, nullptr, nullptr, 1},
       {"kept-results-mb", &options.kept_results_bytes, nullptr, nullptr, 1 << 20},
@@ -81,6 +86,16 @@ int RunServe(const Arguments& flags) {
   if (options.queue_capacity > 100000) {
     return Fail(absl::InvalidArgumentError("--queue: over 100000"));
   }
+  if (upload_idle_seconds < 1 || upload_idle_seconds > 3600) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--upload-idle-seconds must be 1 to 3600, not ", upload_idle_seconds)));
+  }
+  if (upload_min_kib > (1 << 20)) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--upload-min-kib-per-second must be at most 1048576 (1 GiB/s), not ", upload_min_kib)));
+  }
+  options.upload_idle_timeout = absl::Seconds(static_cast<double>(upload_idle_seconds));
+  options.upload_min_bytes_per_second = upload_min_kib << 10;
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
   options.metrics_address = flags.get("metrics", options.metrics_address);
@@ -171,7 +186,17 @@ Command ServeCommand() {
          {{"max-upload-mb", "N", "bytes of uploads in progress, all calls together (default 1024)"},
           {"max-calls", "N", "calls in progress (default 256)"},
           {"max-calls-per-connection", "N", "calls in progress on one connection (default 32)"},
-          {"max-calls-per-peer", "N", "calls in progress per client address (default 64)"},
+          {"max-calls-per-peer", "N",
+           "calls in progress per client address (default 64; behind a proxy every client "
+           "has the proxy's address: raise it toward --max-calls)"},
+          {"max-calls-per-tenant", "N",
+           "with tokens, calls in progress per tenant (default 64; 0: no limit)"},
+          {"upload-idle-seconds", "S",
+           "a job's upload that receives nothing for S seconds is ended with "
+           "DEADLINE_EXCEEDED (default 30; 1 to 3600), so stalled calls give their slots back"},
+          {"upload-min-kib-per-second", "N",
+           "an upload slower than N KiB/s on average (after its first --upload-idle-seconds) "
+           "is ended with DEADLINE_EXCEEDED (default 64; 0: no minimum)"},
           {"result-job-mb", "N",
            "events a job's client may leave unread (memory; default 256) before it is cut off "
            "with RESOURCE_EXHAUSTED and the job cancelled: producing levels never waits on a "

@@ -117,22 +117,24 @@ const char* InputKindText(const v1::JobSpec& spec) {
 
 struct Counters {
   std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
-      readers_cut_off{0}, calls_refused{0};
+      readers_cut_off{0}, calls_refused{0}, uploads_timed_out{0};
   // Input bytes received and serialized event bytes written (Run and Watch calls).
   std::atomic<uint64_t> bytes_in{0}, bytes_out{0};
   std::atomic<uint32_t> jobs_running{0};
 };
 
-// Calls in progress, in total, per connection and per client address. Admission comes
-// before any allocation for the call.
+// Calls in progress, in total, per connection, per client address and (with tokens) per
+// tenant. Admission comes before any allocation for the call.
 class CallAdmission {
  public:
   explicit CallAdmission(const ServerOptions& options) : options_(options) {}
 
-  // OK and counted, or RESOURCE_EXHAUSTED saying which limit.
-  absl::Status Admit(const std::string& peer) {
+  // OK and counted, or RESOURCE_EXHAUSTED saying which limit. `tenant` counts only on a
+  // server with tokens (without, every caller is the one tenant "").
+  absl::Status Admit(const std::string& peer, const std::string& tenant) {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::string host = PeerHost(peer);
+    const bool per_tenant = !options_.auth_tokens.empty() && options_.max_calls_per_tenant > 0;
     if (total_ >= options_.max_calls) {
       return absl::ResourceExhaustedError(absl::StrCat(
           "the server has ", total_, " calls in progress, its limit; try again later"));
@@ -147,18 +149,27 @@ class CallAdmission {
           absl::StrCat("this client address has ", options_.max_calls_per_peer,
                        " calls in progress, the server's limit per address; try again later"));
     }
+    if (per_tenant && Count(by_tenant_, tenant) >= options_.max_calls_per_tenant) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat("tenant '", tenant, "' has ", options_.max_calls_per_tenant,
+                       " calls in progress, the server's limit per tenant; try again later"));
+    }
     ++total_;
     ++by_connection_[peer];
     ++by_host_[host];
+    if (per_tenant) ++by_tenant_[tenant];
     return absl::OkStatus();
   }
 
-  void Release(const std::string& peer) {
+  void Release(const std::string& peer, const std::string& tenant) {
     std::lock_guard<std::mutex> lock(mutex_);
     --total_;
     if (--by_connection_[peer] == 0) by_connection_.erase(peer);
     const std::string host = PeerHost(peer);
     if (--by_host_[host] == 0) by_host_.erase(host);
+    if (auto it = by_tenant_.find(tenant); it != by_tenant_.end() && --it->second == 0) {
+      by_tenant_.erase(it);
+    }
   }
 
   uint32_t total() const {
@@ -175,14 +186,127 @@ class CallAdmission {
   const ServerOptions& options_;
   mutable std::mutex mutex_;
   uint32_t total_ = 0;
-  std::map<std::string, uint32_t> by_connection_, by_host_;
+  std::map<std::string, uint32_t> by_connection_, by_host_, by_tenant_;
 };
 
 class ServiceImpl;
 
+// An upload the watchdog can end: RunCall.
+class WatchedUpload {
+ public:
+  virtual ~WatchedUpload() = default;
+  // Marks the upload ended (no read is started after this) and returns what ends the
+  // call with `status`, which the watchdog runs once its lock is released (the call may
+  // be gone by then: the closure holds what it needs). Called on the watchdog's thread
+  // with its lock held, so the call is alive (it leaves the watchdog before it is
+  // deleted).
+  virtual std::function<void()> EndUpload(const grpc::Status& status) = 0;
+};
+
+// Uploads must make progress: the Run calls still receiving their spec or input, each
+// ended (DEADLINE_EXCEEDED, saying why) when nothing arrived for the idle timeout, or when
+// it has received less than the minimum rate allows: a call may take
+// idle_timeout + received / min_rate. One thread checks every call a few times per idle
+// timeout.
+class UploadWatchdog {
+ public:
+  UploadWatchdog(absl::Duration idle_timeout, uint64_t min_bytes_per_second)
+      : idle_timeout_(idle_timeout), min_rate_(min_bytes_per_second) {}
+  ~UploadWatchdog() { Stop(); }
+
+  void Start() {
+    thread_ = std::thread([this] { Main(); });
+  }
+  void Stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
+  void Add(WatchedUpload* call, uint64_t declared_bytes = 0) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const absl::Time now = absl::Now();
+    calls_[call] = {now, now, 0, declared_bytes};
+  }
+  void Progress(WatchedUpload* call, uint64_t bytes, uint64_t declared_bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = calls_.find(call);
+    if (it == calls_.end()) return;
+    it->second.last_progress = absl::Now();
+    it->second.received += bytes;
+    it->second.declared = declared_bytes;
+  }
+  // Takes `call` out: false when the watchdog has ended it already (then EndUpload was
+  // called or is on its way).
+  bool Remove(WatchedUpload* call) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return calls_.erase(call) > 0;
+  }
+
+ private:
+  struct Upload {
+    absl::Time started, last_progress;
+    uint64_t received, declared;
+  };
+
+  void Main() {
+    const absl::Duration tick =
+        std::clamp(idle_timeout_ / 4, absl::Milliseconds(10), absl::Seconds(1));
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stop_) {
+      wake_.wait_for(lock, absl::ToChronoNanoseconds(tick));
+      const absl::Time now = absl::Now();
+      for (auto it = calls_.begin(); it != calls_.end();) {
+        const Upload& upload = it->second;
+        std::string why;
+        const std::string sizes =
+            upload.declared > 0 ? absl::StrCat(upload.received, " of ", upload.declared, " bytes")
+                                : absl::StrCat(upload.received, " bytes, no job spec yet");
+        if (now - upload.last_progress > idle_timeout_) {
+          why = absl::StrCat("the upload made no progress for ",
+                             absl::FormatDuration(now - upload.last_progress), " (", sizes,
+                             " received); the server ends uploads idle longer than ",
+                             absl::FormatDuration(idle_timeout_));
+        } else if (min_rate_ > 0 &&
+                   now - upload.started >
+                       idle_timeout_ + absl::Seconds(static_cast<double>(upload.received) /
+                                                     static_cast<double>(min_rate_))) {
+          why = absl::StrCat(
+              "the upload is too slow: ", sizes, " received in ",
+              absl::FormatDuration(now - upload.started), ", under the server's minimum rate of ",
+              min_rate_, " bytes/s (after the first ", absl::FormatDuration(idle_timeout_), ")");
+        }
+        if (why.empty()) {
+          ++it;
+          continue;
+        }
+        WatchedUpload* call = it->first;
+        calls_.erase(it);
+        const std::function<void()> end =
+            call->EndUpload(grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, why));
+        lock.unlock();
+        end();
+        lock.lock();
+        it = calls_.begin();  // the map may have changed meanwhile
+      }
+    }
+  }
+
+  const absl::Duration idle_timeout_;
+  const uint64_t min_rate_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::map<WatchedUpload*, Upload> calls_;
+  std::thread thread_;
+};
+
 // The reactor of one Run call: reads the spec and the input chunks, submits the job,
 // then writes the job's events through its ResultStore.
-class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
+class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>, public WatchedUpload {
  public:
   // `refusal` not OK: the call was not admitted and is answered with it at once.
   RunCall(ServiceImpl* service, std::string peer, std::string tenant, const absl::Status& refusal);
@@ -191,6 +315,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
   void OnCancel() override;
   void OnDone() override;
+  std::function<void()> EndUpload(const grpc::Status& status) override;
 
  private:
   // The store's view of this reactor.
@@ -208,6 +333,11 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   void Refuse(const absl::Status& status);  // Fail, logged and counted as a refusal
   void Submit();
   void ReleaseUpload();
+  // The next read, unless the watchdog has ended the upload (then false: nothing more is
+  // read, the call's end is on its way).
+  bool ReadNext();
+  // Leaves the watchdog: false when it has ended the upload already.
+  bool LeaveWatchdog();
 
   ServiceImpl* service_;
   const std::string peer_;
@@ -225,6 +355,10 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   static constexpr size_t kTrimAfterBytes = size_t{16} << 20;
   bool held_big_upload_ = false;
   std::weak_ptr<Job> job_;
+  // Set by the watchdog (EndUpload); no read is started after it.
+  std::mutex read_mutex_;
+  bool upload_ended_ = false;
+  bool watched_ = false;  // in the watchdog's list
 };
 
 class ServiceImpl final : public v1::Clustering::CallbackService {
@@ -236,7 +370,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         upload_budget_(options.max_upload_bytes_in_flight),
         queued_budget_(options.max_queued_input_bytes),
         result_budget_(options.result_server_budget_bytes),
-        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}) {}
+        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}),
+        uploads_(options.upload_idle_timeout, options.upload_min_bytes_per_second) {}
 
   // A new job's store of events, writing to `writer`.
   std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
@@ -254,15 +389,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>* Run(
       grpc::CallbackServerContext* context) override {
     std::string peer = context->peer();
-    absl::Status admitted = draining_ ? absl::UnavailableError(
-                                            "the server is shutting down; submit the job to "
-                                            "another server or try again later")
-                                      : admission_.Admit(peer);
     absl::StatusOr<std::string> tenant = Authorize(context);
-    if (!tenant.ok()) {
-      if (admitted.ok()) admission_.Release(peer);
-      admitted = tenant.status();
-    }
+    absl::Status admitted = !tenant.ok() ? tenant.status()
+                            : draining_  ? absl::UnavailableError(
+                                               "the server is shutting down; submit the job to "
+                                                "another server or try again later")
+                                        : admission_.Admit(peer, *tenant);
     return new RunCall(this, std::move(peer), tenant.value_or(""), admitted);
   }
 
@@ -367,6 +499,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_max_input_bytes(options_.max_input_bytes);
     stats->set_calls_active(admission_.total());
     stats->set_calls_refused(counters_.calls_refused);
+    stats->set_uploads_timed_out(counters_.uploads_timed_out);
     stats->set_upload_bytes_in_flight(upload_budget_.used());
     stats->set_upload_bytes_limit(upload_budget_.limit());
     stats->set_queued_input_bytes(queued_budget_.used());
@@ -465,6 +598,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   std::atomic<uint64_t>& bytes_out() { return counters_.bytes_out; }
   Counters& counters() { return counters_; }
   CallAdmission& admission() { return admission_; }
+  UploadWatchdog& uploads() { return uploads_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
   MemoryBudget& queued_budget() { return queued_budget_; }
   bool draining() const { return draining_; }
@@ -541,6 +675,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     metric("mlclust_calls_refused_total", "counter", "Calls refused (admission, auth, limits).",
            counters_.calls_refused.load());
     metric("mlclust_calls_active", "gauge", "Run calls in progress.", admission_.total());
+    metric("mlclust_uploads_timed_out_total", "counter",
+           "Uploads ended for making no progress or going under the minimum rate.",
+           counters_.uploads_timed_out.load());
     metric("mlclust_input_bytes_total", "counter", "Input bytes received.",
            counters_.bytes_in.load());
     metric("mlclust_output_bytes_total", "counter", "Event bytes written to clients (serialized).",
@@ -678,6 +815,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   CallAdmission admission_;
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
   JobRegistry registry_;
+  UploadWatchdog uploads_;
   JobMetrics job_metrics_;
   std::atomic<uint32_t> watch_calls_active_{0};
   std::atomic<bool> draining_{false};
@@ -701,13 +839,47 @@ RunCall::RunCall(ServiceImpl* service, std::string peer, std::string tenant,
     Refuse(refusal);
     return;
   }
+  service_->uploads().Add(this);
+  watched_ = true;
   StartRead(&request_);
 }
 
+bool RunCall::LeaveWatchdog() {
+  if (!watched_) return true;
+  watched_ = false;
+  return service_->uploads().Remove(this);
+}
+
+std::function<void()> RunCall::EndUpload(const grpc::Status& status) {
+  {
+    std::lock_guard<std::mutex> lock(read_mutex_);
+    upload_ended_ = true;
+  }
+  // A read may be outstanding: Finish is allowed then, and the read ends with ok false.
+  return [service = service_, channel = channel_, peer = peer_, tenant = tenant_, status] {
+    ++service->counters().uploads_timed_out;
+    service->LogRefusal(
+        peer, tenant, "",
+        absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()));
+    channel->Finish(FailedEvent(status), status);
+  };
+}
+
+bool RunCall::ReadNext() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  if (upload_ended_) {
+    ReleaseUpload();
+    return false;
+  }
+  StartRead(&request_);
+  return true;
+}
+
 void RunCall::OnDone() {
+  LeaveWatchdog();
   channel_->Detach();
   ReleaseUpload();
-  if (admitted_) service_->admission().Release(peer_);
+  if (admitted_) service_->admission().Release(peer_, tenant_);
   // An upload that never became a job (refused, cut short, cancelled) gives its memory
   // back to the system, not only to the allocator.
   const bool held_upload = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
@@ -721,6 +893,7 @@ void RunCall::ReleaseUpload() {
 }
 
 void RunCall::Fail(const absl::Status& status) {
+  LeaveWatchdog();
   ReleaseUpload();
   held_big_upload_ = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
   std::string().swap(input_);
@@ -734,6 +907,10 @@ void RunCall::Refuse(const absl::Status& status) {
 }
 
 void RunCall::OnReadDone(bool ok) {
+  {
+    std::lock_guard<std::mutex> lock(read_mutex_);
+    if (upload_ended_) ok = false;  // the watchdog ended it: its status stands
+  }
   if (!ok) {
     // The client closed its side (or the call broke) before the input was complete.
     if (!have_spec_) {
@@ -758,6 +935,7 @@ void RunCall::OnReadDone(bool ok) {
     }
     spec_ = request_.spec();
     have_spec_ = true;
+    service_->uploads().Progress(this, 0, spec_.input_bytes());  // the spec is progress
     // No reservation from the declared size: the buffer grows as data arrives.
   } else if (request_.has_spec()) {
     Fail(absl::InvalidArgumentError("a second job spec in the same call"));
@@ -781,6 +959,7 @@ void RunCall::OnReadDone(bool ok) {
       return;
     }
     upload_reserved_ += chunk.size();
+    service_->uploads().Progress(this, chunk.size(), spec_.input_bytes());
     if (input_.capacity() < input_.size() + chunk.size()) {
       // Doubling, but never past the declared size.
       input_.reserve(std::min<uint64_t>(
@@ -800,10 +979,14 @@ void RunCall::OnReadDone(bool ok) {
                        " (a chunk was lost, repeated or reordered on the way)")));
       return;
     }
+    if (!LeaveWatchdog()) {  // ended by the watchdog as the last chunk came
+      ReleaseUpload();
+      return;
+    }
     Submit();
     return;
   }
-  StartRead(&request_);
+  ReadNext();
 }
 
 void RunCall::Submit() {
@@ -1053,6 +1236,7 @@ class ServerImpl {
 
   absl::Status Start() {
     const ServerOptions& options = service_.options();
+    if (absl::Status valid = ValidateOptions(options); !valid.ok()) return valid;
     JsonLogs() = options.log_json;
     // The GL worker owns the GL context: it creates it on its own thread and reports back.
     std::promise<absl::Status> started;
@@ -1073,6 +1257,7 @@ class ServerImpl {
         lock.lock();
       }
     });
+    service_.uploads().Start();
     for (size_t i = 0; i < options.cpu_workers; ++i) {
       cpu_workers_.emplace_back([this] {
         JobRunnerContext context;  // no GL: every stage on the CPU
@@ -1146,6 +1331,22 @@ class ServerImpl {
               options.tls_client_ca_pem.empty() ? "not requested" : "required", "; bearer tokens ",
               options.auth_tokens.empty() ? std::string("off")
                                           : absl::StrCat("on (", options.auth_tokens.size(), ")"));
+    }
+    return absl::OkStatus();
+  }
+
+  // Options a server cannot run with safely, refused before anything starts.
+  static absl::Status ValidateOptions(const ServerOptions& options) {
+    if (options.upload_idle_timeout <= absl::ZeroDuration() ||
+        options.upload_idle_timeout > absl::Hours(1)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the upload idle timeout must be over 0 and at most 1 hour, not ",
+                       absl::FormatDuration(options.upload_idle_timeout)));
+    }
+    if (options.upload_min_bytes_per_second > (uint64_t{1} << 30)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the minimum upload rate must be at most 1 GiB/s, not ",
+                       options.upload_min_bytes_per_second, " bytes/s"));
     }
     return absl::OkStatus();
   }
@@ -1251,6 +1452,7 @@ class ServerImpl {
  private:
   void StopWorkers() {
     service_.queue().Stop();
+    service_.uploads().Stop();
     if (sweeper_.joinable()) {
       {
         std::lock_guard<std::mutex> lock(sweeper_mutex_);

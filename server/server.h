@@ -44,6 +44,17 @@ struct ServerOptions {
   uint32_t max_calls = 256;
   uint32_t max_calls_per_connection = 32;
   uint32_t max_calls_per_peer = 64;
+  // With tokens: calls in progress per tenant (0: no limit), so one tenant's stalled calls
+  // cannot take the slots of the others behind the same address or proxy.
+  uint32_t max_calls_per_tenant = 64;
+  // Uploads must make progress: a Run call that receives nothing (no spec, no input
+  // bytes) for `upload_idle_timeout`, or whose input arrives slower than
+  // `upload_min_bytes_per_second` on average (it may take upload_idle_timeout +
+  // received / rate), is ended with DEADLINE_EXCEEDED saying which, so stalled calls give
+  // back their admission slots and upload memory. The timeout must be over 0 and at most
+  // 1 hour; a rate of 0 turns the rate check off (at most 1 GiB/s).
+  absl::Duration upload_idle_timeout = absl::Seconds(30);
+  uint64_t upload_min_bytes_per_second = uint64_t{64} << 10;
   // Bytes received into uploads not yet complete, over all calls. Buffers grow as data
   // arrives; nothing is reserved from a declared size.
   uint64_t max_upload_bytes_in_flight = uint64_t{1} << 30;

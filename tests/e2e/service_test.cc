@@ -192,6 +192,76 @@ TEST(AdmissionTest, CallsPerConnectionAreBoundedAndSpecsReserveNothing) {
           .ok());
 }
 
+// Issue 24, item 1: stalled calls used to hold their admission slots for ever (64 of them
+// locked every other local client out). An upload that receives nothing for the idle
+// timeout is ended with DEADLINE_EXCEEDED saying so, a call that never sends its spec too,
+// and the slots come back for everyone else.
+TEST(UploadTimeoutTest, StalledUploadsAndSilentCallsAreEndedAndTheirSlotsComeBack) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::Milliseconds(300);
+  options.max_calls_per_peer = 4;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  std::vector<std::unique_ptr<StalledCall>> calls;
+  for (int i = 0; i < 3; ++i) calls.push_back(StartStalledCall(*stub, 1 << 20, "x"));
+  // One call that sends nothing at all, not even its spec.
+  auto silent = std::make_unique<StalledCall>();
+  silent->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+  silent->stream = stub->Run(&silent->context);
+  calls.push_back(std::move(silent));
+  for (auto& call : calls) {
+    const grpc::Status status = ReadToEnd(*call);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+    EXPECT_THAT(status.error_message(), HasSubstr("the upload made no progress for"));
+  }
+  for (int i = 0; i < 500 && GetStats(channel).calls_active() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.calls_active(), 0u);
+  EXPECT_EQ(stats.uploads_timed_out(), 4u);
+  EXPECT_EQ(stats.upload_bytes_in_flight(), 0u);
+  EXPECT_TRUE(
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
+          .ok());
+}
+
+// A trickle that is never idle long enough for the idle timeout is ended by the minimum
+// rate: a call may take idle_timeout + received / rate.
+TEST(UploadTimeoutTest, AnUploadUnderTheMinimumRateIsEnded) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::Milliseconds(500);
+  options.upload_min_bytes_per_second = 1 << 20;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  std::unique_ptr<StalledCall> call = StartStalledCall(*stub, 64 << 20, std::string(1024, 'x'));
+  v1::RunRequest more;
+  more.set_chunk(std::string(1024, 'x'));
+  // 1 KiB every 50 ms (20 KiB/s) until the server ends the call (at most 100 s of it).
+  for (int i = 0; i < 2000 && call->stream->Write(more); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const grpc::Status status = ReadToEnd(*call);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  EXPECT_THAT(status.error_message(), HasSubstr("the upload is too slow"));
+  EXPECT_THAT(status.error_message(), HasSubstr("minimum rate of 1048576 bytes/s"));
+}
+
+TEST(UploadTimeoutTest, OptionsOutOfRangeAreRefusedAtStart) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::ZeroDuration();
+  absl::StatusOr<std::unique_ptr<server::Server>> zero = testing::StartLocal(options);
+  EXPECT_EQ(zero.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(zero.status().message(), HasSubstr("upload idle timeout"));
+  options.upload_idle_timeout = absl::Seconds(30);
+  options.upload_min_bytes_per_second = uint64_t{2} << 30;
+  EXPECT_EQ(testing::StartLocal(options).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 TEST(AdmissionTest, UploadsInFlightAreBoundedBeforeTheBufferGrows) {
   server::ServerOptions options;
   options.max_upload_bytes_in_flight = 8 << 20;

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "absl/strings/str_replace.h"
 #include "client/client.h"
@@ -256,6 +257,67 @@ TEST(TlsTest, TheServerRefusesTokensWithoutTls) {
   absl::StatusOr<std::unique_ptr<server::Server>> started = testing::StartLocal(options);
   EXPECT_EQ(started.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(started.status().message(), HasSubstr("need TLS"));
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 1: one tenant's stalled calls cannot take every slot of the address that
+// tenants share (a proxy, one host): calls in progress are also counted per tenant.
+TEST(TlsTest, OneTenantsStalledCallsLeaveTheOtherTenantsSlots) {
+  Certificates certs;
+  ASSERT_TRUE(certs.ok());
+  server::ServerOptions options;
+  options.gpu = server::GpuMode::kOff;
+  options.tls_cert_pem = certs.pem("server.pem");
+  options.tls_key_pem = certs.pem("server.key");
+  options.auth_tokens = {{kAlphaToken, "alpha"}, {kBetaToken, "beta"}};
+  options.max_calls_per_tenant = 2;
+  absl::StatusOr<std::unique_ptr<server::Server>> server = testing::StartLocal(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto alpha = Channel(**server, certs, "alpha.token");
+  auto beta = Channel(**server, certs, "beta.token");
+  auto stub = v1::Clustering::NewStub(alpha);
+  struct Stalled {
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream;
+  };
+  std::vector<std::unique_ptr<Stalled>> stalled;
+  for (int i = 0; i < 2; ++i) {
+    auto call = std::make_unique<Stalled>();
+    call->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+    call->stream = stub->Run(&call->context);
+    v1::RunRequest request;
+    *request.mutable_spec() = MeshSpec();
+    request.mutable_spec()->set_input_bytes(1 << 20);
+    request.set_chunk("x");
+    ASSERT_TRUE(call->stream->Write(request));
+    stalled.push_back(std::move(call));
+    // Admitted before the next one starts (calls started together arrive in any order).
+    for (int wait = 0; wait < 1000; ++wait) {
+      auto stats_stub = v1::Clustering::NewStub(beta);
+      grpc::ClientContext context;
+      v1::Stats stats;
+      ASSERT_TRUE(stats_stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+      if (stats.calls_active() > static_cast<uint32_t>(i)) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  const std::string small = *EncodeMeshToDraco(testing::Grid(5));
+  absl::StatusOr<client::JobResult> third = client::RunJob(alpha, MeshSpec(), small);
+  EXPECT_EQ(third.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(third.status().message(), HasSubstr("tenant 'alpha' has 2 calls in progress"));
+  EXPECT_TRUE(client::RunJob(beta, MeshSpec(), small).ok());
+  for (auto& call : stalled) call->context.TryCancel();
+  for (auto& call : stalled) {
+    v1::JobEvent event;
+    while (call->stream->Read(&event)) {
+    }
+    call->stream->Finish();
+  }
 }
 
 }  // namespace
