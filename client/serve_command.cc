@@ -47,6 +47,7 @@ int RunServe(const Arguments& flags) {
   uint64_t drain_seconds = 30;
   uint64_t retention_seconds = 3600;
   uint64_t upload_idle_seconds = 30;
+  uint64_t watch_idle_seconds = 60;
   uint64_t upload_min_kib = options.upload_min_bytes_per_second >> 10;
   const Number numbers[] = {
       {"queue", nullptr, nullptr, &options.queue_capacity, 1},
@@ -62,6 +63,7 @@ int RunServe(const Arguments& flags) {
       {"max-calls-per-tenant", nullptr, &options.max_calls_per_tenant, nullptr, 1},
       {"upload-idle-seconds", &upload_idle_seconds, nullptr, nullptr, 1},
       {"upload-min-kib-per-second", &upload_min_kib, nullptr, nullptr, 1},
+      {"watch-idle-seconds", &watch_idle_seconds, nullptr, nullptr, 1},
       {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
       {"retention-seconds", &retention_seconds, nullptr, nullptr, 1},
       {"kept-results-mb", &options.kept_results_bytes, nullptr, nullptr, 1 << 20},
@@ -94,6 +96,11 @@ int RunServe(const Arguments& flags) {
     return Fail(absl::InvalidArgumentError(absl::StrCat(
         "--upload-min-kib-per-second must be at most 1048576 (1 GiB/s), not ", upload_min_kib)));
   }
+  if (watch_idle_seconds < 1 || watch_idle_seconds > 3600) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--watch-idle-seconds must be 1 to 3600, not ", watch_idle_seconds)));
+  }
+  options.watch_idle_timeout = absl::Seconds(static_cast<double>(watch_idle_seconds));
   options.upload_idle_timeout = absl::Seconds(static_cast<double>(upload_idle_seconds));
   options.upload_min_bytes_per_second = upload_min_kib << 10;
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
@@ -201,7 +208,12 @@ Command ServeCommand() {
            "events a job's client may leave unread (memory; default 256) before it is cut off "
            "with RESOURCE_EXHAUSTED and the job cancelled: producing levels never waits on a "
            "reader"},
-          {"result-total-mb", "N", "the same over all jobs (default 1024)"}}},
+          {"result-total-mb", "N",
+           "the same over all jobs, and the events watchers are being sent (default 1024)"},
+          {"watch-idle-seconds", "S",
+           "a watch whose client takes no event for S seconds is cut off (default 60; 1 to "
+           "3600); watch calls are admitted like jobs (--max-calls and the limits per "
+           "connection, address and tenant)"}}},
         {"kept results (every job's levels, for watch; cancel, jobs):",
          {{"retention-seconds", "S", "an ended job's results are kept this long (default 3600)"},
           {"kept-results-mb", "N",

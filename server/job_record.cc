@@ -325,6 +325,7 @@ uint64_t JobRecord::DropLevels(const std::string& reason) {
   std::vector<uint32_t>().swap(element_);
   std::vector<uint32_t>().swap(to_cluster_);
   std::vector<uint32_t>().swap(from_cluster_);
+  level_labels_.clear();
   snapshot_complete_ = false;
   const uint64_t bytes = kept_bytes_.exchange(0);
   WakeAll(lock);
@@ -346,9 +347,21 @@ uint32_t JobRecord::ReadableLevelsLocked() const {
 }
 
 void JobRecord::BuildSnapshotLocked(WatchCursor& cursor) const {
-  cursor.labels = snapshot_labels_;
-  const uint64_t end = cursor.from_level == 0 ? 0 : levels_[cursor.from_level - 1].triplet_end;
-  for (uint64_t t = 0; t < end; ++t) cursor.labels[element_[t]] = to_cluster_[t];
+  cursor.labels.reset();
+  if (cursor.from_level > 0) {
+    // One copy per level however many watchers start there (issue 24: a thousand
+    // watchers each held their own).
+    std::weak_ptr<const std::vector<uint32_t>>& cached = level_labels_[cursor.from_level];
+    cursor.labels = cached.lock();
+    if (cursor.labels == nullptr) {
+      auto labels = std::make_shared<std::vector<uint32_t>>(snapshot_labels_);
+      const uint64_t end = levels_[cursor.from_level - 1].triplet_end;
+      for (uint64_t t = 0; t < end; ++t) (*labels)[element_[t]] = to_cluster_[t];
+      cursor.labels = labels;
+      cached = labels;
+    }
+    std::erase_if(level_labels_, [](const auto& entry) { return entry.second.expired(); });
+  }
   cursor.snapshot_built = true;
   cursor.snapshot_sent = 0;
   cursor.next_level = cursor.from_level + 1;
@@ -446,9 +459,11 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
             return wait();
           }
         }
+        const std::vector<uint32_t>& labels =
+            cursor.labels != nullptr ? *cursor.labels : snapshot_labels_;
         const size_t per_piece = std::max<size_t>(1024, (max_event_bytes_ - kBatchOverhead) / 5);
         const size_t first = cursor.snapshot_sent;
-        const size_t end = std::min(cursor.labels.size(), first + per_piece);
+        const size_t end = std::min(labels.size(), first + per_piece);
         v1::LevelSnapshot* snapshot = event.mutable_snapshot();
         snapshot->set_level(cursor.from_level);
         if (cursor.from_level == 0) {
@@ -459,12 +474,12 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
           snapshot->set_energy(levels_[cursor.from_level - 1].energy);
         }
         snapshot->set_first_element(static_cast<uint32_t>(first));
-        snapshot->set_total_elements(static_cast<uint32_t>(cursor.labels.size()));
-        snapshot->mutable_labels()->Add(cursor.labels.begin() + static_cast<ptrdiff_t>(first),
-                                        cursor.labels.begin() + static_cast<ptrdiff_t>(end));
+        snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
+        snapshot->mutable_labels()->Add(labels.begin() + static_cast<ptrdiff_t>(first),
+                                        labels.begin() + static_cast<ptrdiff_t>(end));
         cursor.snapshot_sent = end;
-        if (end == cursor.labels.size()) {
-          std::vector<uint32_t>().swap(cursor.labels);
+        if (end == labels.size()) {
+          cursor.labels.reset();
           cursor.phase = WatchCursor::Phase::kLevels;
         }
         return Next::kEvent;

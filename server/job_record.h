@@ -61,7 +61,10 @@ struct WatchCursor {
   uint32_t from_level = 0;
   bool resume = false;
   bool snapshot_built = false;
-  std::vector<uint32_t> labels;  // the labels at from_level, while the snapshot is sent
+  // The labels at from_level > 0 while the snapshot is sent, shared by every watcher of
+  // that level (the record keeps one copy however many read it); level 0 is sent from
+  // the record's own labels.
+  std::shared_ptr<const std::vector<uint32_t>> labels;
   size_t snapshot_sent = 0;
   uint32_t next_level = 0;     // the next level to send
   uint64_t next_triplet = 0;   // within next_level, when a big level is split
@@ -179,6 +182,9 @@ class JobRecord : public EventChannel {
   std::vector<uint32_t> element_, to_cluster_, from_cluster_;
   uint64_t levels_total_ = 0, triplets_total_ = 0;  // counted for every job
   std::vector<std::weak_ptr<RecordWaiter>> waiters_;
+  // The labels at a level > 0 built for watchers starting there, while any still sends
+  // them (BuildSnapshotLocked).
+  mutable std::map<uint32_t, std::weak_ptr<const std::vector<uint32_t>>> level_labels_;
 };
 
 struct JobRegistryOptions {

@@ -191,16 +191,17 @@ class CallAdmission {
 
 class ServiceImpl;
 
-// An upload the watchdog can end: RunCall.
+// A call the watchdog can end: RunCall (its upload), WatchCall (a write its client does
+// not take).
 class WatchedUpload {
  public:
   virtual ~WatchedUpload() = default;
-  // Marks the upload ended (no read is started after this) and returns what ends the
+  // Marks the call ended (no read is started after this) and returns what ends the
   // call with `status`, which the watchdog runs once its lock is released (the call may
   // be gone by then: the closure holds what it needs). Called on the watchdog's thread
   // with its lock held, so the call is alive (it leaves the watchdog before it is
-  // deleted).
-  virtual std::function<void()> EndUpload(const grpc::Status& status) = 0;
+  // deleted). `*rearm` set: watch the call again (one more idle timeout).
+  virtual std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) = 0;
 };
 
 // Uploads must make progress: the Run calls still receiving their spec or input, each
@@ -210,8 +211,11 @@ class WatchedUpload {
 // timeout.
 class UploadWatchdog {
  public:
-  UploadWatchdog(absl::Duration idle_timeout, uint64_t min_bytes_per_second)
-      : idle_timeout_(idle_timeout), min_rate_(min_bytes_per_second) {}
+  UploadWatchdog(absl::Duration idle_timeout, uint64_t min_bytes_per_second,
+                 absl::Duration write_idle_timeout)
+      : idle_timeout_(idle_timeout),
+        min_rate_(min_bytes_per_second),
+        write_idle_timeout_(write_idle_timeout) {}
   ~UploadWatchdog() { Stop(); }
 
   void Start() {
@@ -229,7 +233,13 @@ class UploadWatchdog {
   void Add(WatchedUpload* call, uint64_t declared_bytes = 0) {
     std::lock_guard<std::mutex> lock(mutex_);
     const absl::Time now = absl::Now();
-    calls_[call] = {now, now, 0, declared_bytes};
+    calls_[call] = {now, now, 0, declared_bytes, false};
+  }
+  // A write the client must take within the write idle timeout (WatchCall).
+  void AddWrite(WatchedUpload* call) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const absl::Time now = absl::Now();
+    calls_[call] = {now, now, 0, 0, true};
   }
   void Progress(WatchedUpload* call, uint64_t bytes, uint64_t declared_bytes) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -250,11 +260,12 @@ class UploadWatchdog {
   struct Upload {
     absl::Time started, last_progress;
     uint64_t received, declared;
+    bool write;  // a write to the client, not an upload
   };
 
   void Main() {
-    const absl::Duration tick =
-        std::clamp(idle_timeout_ / 4, absl::Milliseconds(10), absl::Seconds(1));
+    const absl::Duration tick = std::clamp(std::min(idle_timeout_, write_idle_timeout_) / 4,
+                                           absl::Milliseconds(10), absl::Seconds(1));
     std::unique_lock<std::mutex> lock(mutex_);
     while (!stop_) {
       wake_.wait_for(lock, absl::ToChronoNanoseconds(tick));
@@ -265,7 +276,13 @@ class UploadWatchdog {
         const std::string sizes =
             upload.declared > 0 ? absl::StrCat(upload.received, " of ", upload.declared, " bytes")
                                 : absl::StrCat(upload.received, " bytes, no job spec yet");
-        if (now - upload.last_progress > idle_timeout_) {
+        if (upload.write) {
+          if (now - upload.last_progress > write_idle_timeout_) {
+            why = absl::StrCat(
+                "the client read nothing for ", absl::FormatDuration(now - upload.last_progress),
+                " (the server's limit is ", absl::FormatDuration(write_idle_timeout_), ")");
+          }
+        } else if (now - upload.last_progress > idle_timeout_) {
           why = absl::StrCat("the upload made no progress for ",
                              absl::FormatDuration(now - upload.last_progress), " (", sizes,
                              " received); the server ends uploads idle longer than ",
@@ -284,9 +301,15 @@ class UploadWatchdog {
           continue;
         }
         WatchedUpload* call = it->first;
+        const bool write = upload.write;
         calls_.erase(it);
+        bool rearm = false;
         const std::function<void()> end =
-            call->EndUpload(grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, why));
+            call->EndUpload(grpc::Status(write ? grpc::StatusCode::RESOURCE_EXHAUSTED
+                                               : grpc::StatusCode::DEADLINE_EXCEEDED,
+                                         why),
+                            &rearm);
+        if (rearm) calls_[call] = {now, now, 0, 0, write};
         lock.unlock();
         end();
         lock.lock();
@@ -297,6 +320,7 @@ class UploadWatchdog {
 
   const absl::Duration idle_timeout_;
   const uint64_t min_rate_;
+  const absl::Duration write_idle_timeout_;
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stop_ = false;
@@ -315,7 +339,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>, pu
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
   void OnCancel() override;
   void OnDone() override;
-  std::function<void()> EndUpload(const grpc::Status& status) override;
+  std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) override;
 
  private:
   // The store's view of this reactor.
@@ -371,7 +395,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         queued_budget_(options.max_queued_input_bytes),
         result_budget_(options.result_server_budget_bytes),
         registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}),
-        uploads_(options.upload_idle_timeout, options.upload_min_bytes_per_second) {}
+        uploads_(options.upload_idle_timeout, options.upload_min_bytes_per_second,
+                 options.watch_idle_timeout) {}
 
   // A new job's store of events, writing to `writer`.
   std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
@@ -601,6 +626,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   UploadWatchdog& uploads() { return uploads_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
   MemoryBudget& queued_budget() { return queued_budget_; }
+  MemoryBudget& result_budget() { return result_budget_; }
   bool draining() const { return draining_; }
   void set_draining() { draining_ = true; }
 
@@ -850,7 +876,7 @@ bool RunCall::LeaveWatchdog() {
   return service_->uploads().Remove(this);
 }
 
-std::function<void()> RunCall::EndUpload(const grpc::Status& status) {
+std::function<void()> RunCall::EndUpload(const grpc::Status& status, bool* /*rearm*/) {
   {
     std::lock_guard<std::mutex> lock(read_mutex_);
     upload_ended_ = true;
@@ -1112,12 +1138,22 @@ void RunCall::OnCancel() {
 
 // The reactor of one Watch call: writes the job's kept events one at a time from its
 // record, each when the previous write is done, and waits (registered with the record)
-// when it has read everything so far. The job never waits for it.
-class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
+// when it has read everything so far. The job never waits for it. Admitted like a Run call
+// (the same limits); the event being written counts in the server's memory for unread
+// events (a watcher that does not fit is cut off), and a client that takes no event for
+// the watch idle timeout is cut off: its slot is given back at once, the call ends with
+// RESOURCE_EXHAUSTED when the client reads again, and is cancelled after one more timeout.
+class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent>, public WatchedUpload {
  public:
-  WatchCall(ServiceImpl* service, absl::StatusOr<std::shared_ptr<JobRecord>> record,
-            const v1::WatchRequest& request)
-      : service_(service), waker_(std::make_shared<Waker>(this)) {
+  WatchCall(ServiceImpl* service, grpc::CallbackServerContext* context,
+            absl::StatusOr<std::shared_ptr<JobRecord>> record, const v1::WatchRequest& request,
+            std::string peer, std::string tenant, bool admitted)
+      : service_(service),
+        context_(context),
+        peer_(std::move(peer)),
+        tenant_(std::move(tenant)),
+        slot_held_(admitted),
+        waker_(std::make_shared<Waker>(this)) {
     ++service_->watch_calls_active();
     if (!record.ok()) {
       finished_ = true;  // before Finish: OnDone may delete this at once
@@ -1135,9 +1171,11 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   void OnWriteDone(bool ok) override {
+    service_->uploads().Remove(this);
     {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       write_in_flight_ = false;
+      ReleaseReservedLocked();
       if (!ok) cancelled_ = true;
     }
     Wake();
@@ -1152,12 +1190,37 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   void OnDone() override {
+    service_->uploads().Remove(this);
     {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       waker_->call = nullptr;
+      ReleaseReservedLocked();
+      ReleaseSlotLocked();
     }
     --service_->watch_calls_active();
     delete this;
+  }
+
+  // The watchdog: the write in flight was not taken for the watch idle timeout.
+  std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) override {
+    std::lock_guard<std::mutex> lock(waker_->mutex);
+    if (cut_off_.has_value()) {
+      // Cut off one timeout ago and still not reading: cancelled, its memory freed.
+      context_->TryCancel();
+      return [] {};
+    }
+    const grpc::Status cut_off(
+        status.error_code(),
+        absl::StrCat(status.error_message(), "; the watch was cut off (the job runs on: watch ",
+                     record_->id(), " again, with --from-level or resume, to read on)"));
+    cut_off_ = cut_off;
+    *rearm = true;
+    cursor_ = WatchCursor();  // the labels it held go
+    ReleaseSlotLocked();
+    return [service = service_, cut_off] {
+      ++service->counters().readers_cut_off;
+      LogLine(service->options().log, "a watcher was cut off: ", cut_off.error_message());
+    };
   }
 
  private:
@@ -1179,11 +1242,28 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
     WatchCall* call;
   };
 
+  void ReleaseReservedLocked() {
+    service_->result_budget().Release(reserved_bytes_);
+    reserved_bytes_ = 0;
+  }
+  void ReleaseSlotLocked() {
+    if (!slot_held_) return;
+    slot_held_ = false;
+    service_->admission().Release(peer_, tenant_);
+  }
+
   // With the waker's lock held: starts the next write or ends the call. The lock is
   // released before calling into gRPC; the call cannot end in between (only Finish, here,
   // ends it, and a write in flight keeps it).
   void Pump(std::unique_lock<std::mutex>& lock) {
     if (finished_ || write_in_flight_) return;
+    if (cut_off_.has_value()) {
+      finished_ = true;
+      const grpc::Status status = *cut_off_;
+      lock.unlock();
+      Finish(status);
+      return;
+    }
     if (cancelled_) {
       finished_ = true;
       lock.unlock();
@@ -1192,12 +1272,30 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
     }
     grpc::Status status;
     switch (record_->NextEvent(cursor_, event_, status, waker_)) {
-      case JobRecord::Next::kEvent:
+      case JobRecord::Next::kEvent: {
+        // The event in flight counts in the server's memory for unread events.
+        const uint64_t bytes = event_.SpaceUsedLong();
+        if (!service_->result_budget().TryReserve(bytes)) {
+          finished_ = true;
+          ++service_->counters().readers_cut_off;
+          const grpc::Status full(
+              grpc::StatusCode::RESOURCE_EXHAUSTED,
+              absl::StrCat("the server's memory for unread events (",
+                           service_->result_budget().limit() >> 20,
+                           " MiB) is full; the watch was cut off (the job runs on: watch ",
+                           record_->id(), " again later, with --from-level or resume)"));
+          lock.unlock();
+          Finish(full);
+          return;
+        }
+        reserved_bytes_ = bytes;
         write_in_flight_ = true;
         service_->bytes_out() += event_.ByteSizeLong();
         lock.unlock();
+        service_->uploads().AddWrite(this);
         StartWrite(&event_);
         return;
+      }
       case JobRecord::Next::kEnd:
         finished_ = true;
         lock.unlock();
@@ -1209,6 +1307,11 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   ServiceImpl* service_;
+  grpc::CallbackServerContext* const context_;  // valid until OnDone
+  const std::string peer_, tenant_;
+  bool slot_held_;                       // an admission slot (given back once)
+  uint64_t reserved_bytes_ = 0;          // of the result budget, for the event in flight
+  std::optional<grpc::Status> cut_off_;  // set by the watchdog
   std::shared_ptr<Waker> waker_;
   std::shared_ptr<JobRecord> record_;
   WatchCursor cursor_;
@@ -1220,12 +1323,20 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
 
 grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
                                                            const v1::WatchRequest* request) {
+  // The same admission as Run calls, before anything is allocated for the call.
+  std::string peer = context->peer();
   absl::StatusOr<std::string> tenant = Authorize(context);
-  if (!tenant.ok()) {
-    LogRefusal(context->peer(), "", "", tenant.status());
-    return new WatchCall(this, tenant.status(), *request);
+  const absl::Status admitted =
+      !tenant.ok() ? tenant.status()
+      : draining_  ? absl::UnavailableError("the server is shutting down; try again later")
+                   : admission_.Admit(peer, *tenant);
+  if (!admitted.ok()) {
+    LogRefusal(peer, tenant.value_or(""), "", admitted);
+    return new WatchCall(this, context, admitted, *request, std::move(peer), "", false);
   }
-  return new WatchCall(this, registry_.Find(request->job_id(), *tenant), *request);
+  absl::StatusOr<std::shared_ptr<JobRecord>> record = registry_.Find(request->job_id(), *tenant);
+  return new WatchCall(this, context, std::move(record), *request, std::move(peer),
+                       *std::move(tenant), true);
 }
 
 }  // namespace
@@ -1342,6 +1453,12 @@ class ServerImpl {
       return absl::InvalidArgumentError(
           absl::StrCat("the upload idle timeout must be over 0 and at most 1 hour, not ",
                        absl::FormatDuration(options.upload_idle_timeout)));
+    }
+    if (options.watch_idle_timeout <= absl::ZeroDuration() ||
+        options.watch_idle_timeout > absl::Hours(1)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the watch idle timeout must be over 0 and at most 1 hour, not ",
+                       absl::FormatDuration(options.watch_idle_timeout)));
     }
     if (options.upload_min_bytes_per_second > (uint64_t{1} << 30)) {
       return absl::InvalidArgumentError(

@@ -55,6 +55,12 @@ struct ServerOptions {
   // 1 hour; a rate of 0 turns the rate check off (at most 1 GiB/s).
   absl::Duration upload_idle_timeout = absl::Seconds(30);
   uint64_t upload_min_bytes_per_second = uint64_t{64} << 10;
+  // A Watch call whose client takes no event for this long is cut off (its admission
+  // slot given back at once; RESOURCE_EXHAUSTED when it reads again; cancelled after one
+  // more such time). Watch calls are admitted like Run calls (max_calls and the limits
+  // per connection, address and tenant) and the event each is writing counts in
+  // `result_server_budget_bytes`. Over 0, at most 1 hour.
+  absl::Duration watch_idle_timeout = absl::Seconds(60);
   // Bytes received into uploads not yet complete, over all calls. Buffers grow as data
   // arrives; nothing is reserved from a declared size.
   uint64_t max_upload_bytes_in_flight = uint64_t{1} << 30;

@@ -302,6 +302,94 @@ TEST(JobIdsTest, ListAllJobsShowsEveryConnectionsJobs) {
   EXPECT_EQ(list.jobs(0).job_id(), accepted->job_id());
 }
 
+// A channel of its own whose client takes at most 64 KiB ahead of what it has read (no
+// window growth): a watcher that does not read stalls the server's write at once.
+std::shared_ptr<grpc::Channel> NarrowChannel(const server::Server& server) {
+  grpc::ChannelArguments arguments;
+  arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  arguments.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  arguments.SetInt(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 64 << 10);
+  arguments.SetMaxReceiveMessageSize(-1);
+  return grpc::CreateCustomChannel(testing::AddressOf(server), grpc::InsecureChannelCredentials(),
+                                   arguments);
+}
+
+v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  v1::Stats stats;
+  EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+  return stats;
+}
+
+// Issue 24, item 2: Watch calls had no admission (1,000 unread watchers of one job took
+// 2.3 GiB). They are admitted like Run calls, and a watcher whose client reads nothing is
+// cut off: its slot comes back at once and it learns why (and to watch again) when it
+// reads.
+TEST(WatchLimitsTest, WatchersAreAdmittedLikeRunsAndUnreadOnesAreCutOff) {
+  server::ServerOptions options;
+  options.max_calls_per_connection = 3;
+  options.watch_idle_timeout = absl::Milliseconds(300);
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(120)));
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  const std::string id = accepted->job_id();
+  WaitEnded(channel, id);
+
+  auto narrow = NarrowChannel(*server);
+  auto stub = v1::Clustering::NewStub(narrow);
+  struct Watcher {
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream;
+  };
+  std::vector<std::unique_ptr<Watcher>> watchers;
+  v1::WatchRequest request;
+  request.set_job_id(id);
+  for (int i = 0; i < 4; ++i) {
+    auto watcher = std::make_unique<Watcher>();
+    watcher->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+    watcher->stream = stub->Watch(&watcher->context, request);
+    watchers.push_back(std::move(watcher));
+    // Admitted before the next one starts (calls started together arrive in any order).
+    for (int wait = 0; i < 3 && wait < 1000 && GetStats(channel).calls_active() <= uint32_t(i);
+         ++wait) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  // The fourth on that connection is refused like a fourth Run call.
+  {
+    v1::JobEvent event;
+    EXPECT_FALSE(watchers[3]->stream->Read(&event));
+    const grpc::Status refused = watchers[3]->stream->Finish();
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_THAT(refused.error_message(), HasSubstr("per connection"));
+  }
+  // The three read nothing: cut off, their slots back.
+  for (int i = 0; i < 3000 && GetStats(channel).readers_cut_off() < 3; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.readers_cut_off(), 3u);
+  EXPECT_EQ(stats.calls_active(), 0u);
+  // Another client watches the whole job meanwhile.
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(channel, id);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->hierarchy.num_levels(), 28800u);
+  // A cut-off watcher that reads again learns why, and what to do.
+  for (int i = 0; i < 3; ++i) {
+    v1::JobEvent event;
+    while (watchers[i]->stream->Read(&event)) {
+    }
+    const grpc::Status status = watchers[i]->stream->Finish();
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_THAT(status.error_message(), HasSubstr("the client read nothing for"));
+    EXPECT_THAT(status.error_message(), HasSubstr(absl::StrCat("watch ", id, " again")));
+  }
+}
+
 TEST(DetachTest, UnknownDroppedAndUnkeptJobsAreRefusedWithReasons) {
   server::ServerOptions options;
   options.result_retention = absl::Seconds(1);

@@ -168,6 +168,59 @@ TEST(JobRecordTest, ACursorReadsASnapshotAtAnyLevelThenTheRest) {
   EXPECT_TRUE(events[3].final());
 }
 
+// Issue 24, item 2: a thousand watchers of one job each held their own copy of the labels
+// they started from. Watchers of one level share one copy, level 0 needs none, and the
+// copy goes when the last of them has sent it.
+TEST(JobRecordTest, WatchersOfOneLevelShareOneCopyOfItsLabels) {
+  JobRegistry registry(JobRegistryOptions{});
+  auto record = Record(registry, "job-s", "", /*keep=*/true);
+  EmitHierarchy(*record, 10);
+  record->MarkEnded(grpc::Status::OK);
+  std::vector<WatchCursor> cursors(3);
+  cursors[0].from_level = cursors[1].from_level = 4;  // cursors[2] from level 0
+  v1::JobEvent event;
+  grpc::Status status;
+  for (WatchCursor& cursor : cursors) {
+    ASSERT_EQ(record->NextEvent(cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    ASSERT_TRUE(event.has_accepted());
+    ASSERT_EQ(record->NextEvent(cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    ASSERT_TRUE(event.has_snapshot());
+  }
+  // The whole snapshot fits one event, so each cursor has sent it: nothing is held.
+  for (const WatchCursor& cursor : cursors) EXPECT_EQ(cursor.labels, nullptr);
+  EXPECT_THAT(event.snapshot().labels(), ::testing::ElementsAre(0, 1, 2, 3, 4, 5, 6, 7, 8, 9));
+}
+
+TEST(JobRecordTest, WatchersOfOneLevelHoldTheSameLabelsWhileSendingThem) {
+  JobRegistry registry(JobRegistryOptions{});
+  v1::JobSpec spec;
+  // Events of at most 4 KiB: a 5000-element snapshot goes in several pieces.
+  auto record = std::make_shared<JobRecord>(&registry, "job-big", "", spec, true, 4096);
+  registry.Add(record);
+  EmitHierarchy(*record, 5000);
+  record->MarkEnded(grpc::Status::OK);
+  WatchCursor first, second, from_zero;
+  first.from_level = second.from_level = 7;
+  v1::JobEvent event;
+  grpc::Status status;
+  for (WatchCursor* cursor : {&first, &second, &from_zero}) {
+    for (int i = 0; i < 2; ++i) {
+      ASSERT_EQ(record->NextEvent(*cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    }
+    ASSERT_TRUE(event.has_snapshot());
+    ASSERT_LT(event.snapshot().labels_size(), 5000);  // more pieces to come
+  }
+  ASSERT_NE(first.labels, nullptr);
+  EXPECT_EQ(first.labels.get(), second.labels.get());  // one copy for both
+  EXPECT_EQ(from_zero.labels, nullptr);                // level 0: the record's own
+  // The rest of the snapshot: level 7 has elements 1..7 in cluster 0.
+  while (second.phase == WatchCursor::Phase::kSnapshot) {
+    ASSERT_EQ(record->NextEvent(second, event, status, nullptr), JobRecord::Next::kEvent);
+  }
+  EXPECT_EQ(second.labels, nullptr);
+  EXPECT_EQ(first.labels.use_count(), 1);  // only the first holds it now
+}
+
 // The call's side of an attached job: counts what reaches it.
 class FakeCall : public EventChannel {
  public:
