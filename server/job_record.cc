@@ -649,7 +649,15 @@ void JobRegistry::DropLocked(std::string id, const std::string& reason) {
 
 bool RecordingChannel::Emit(v1::JobEvent event) {
   record_->Keep(event);
-  return call_->Emit(std::move(event));
+  if (call_->Emit(std::move(event))) return true;
+  if (!call_->released() || call_->cancelled()) return false;
+  // The reader was cut off and the job released to its record, which must keep its
+  // levels for it to be worth running on.
+  if (!record_->levels_dropped()) return true;
+  Abort(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     "its reader was cut off and its levels do not fit the server's memory for "
+                     "kept results; the job was cancelled"));
+  return false;
 }
 
 void RecordingChannel::Finish(v1::JobEvent final_event, const grpc::Status& status) {

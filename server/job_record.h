@@ -113,6 +113,11 @@ class JobRecord : public EventChannel {
   void set_owner(std::string owner) { owner_ = std::move(owner); }
   const std::string& owner() const { return owner_; }
   bool detached() const { return detached_; }
+  // The levels were dropped (retention, memory, or not kept): Watch cannot read them.
+  bool levels_dropped() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !dropped_reason_.empty();
+  }
   // Memory taken by the kept levels (counted in the registry's budget).
   uint64_t kept_bytes() const { return kept_bytes_.load(std::memory_order_relaxed); }
   // Frees the kept levels (the registry drops the record): watchers end with NOT_FOUND
@@ -252,7 +257,9 @@ class JobRegistry {
 
 // The channel of an attached job: its call's channel, with a copy of every event kept in
 // the job's record, so the job can be watched like a detached one. Cancellation is the
-// call's (the call going away cancels the job); Abort reaches both.
+// call's (the call going away cancels the job); Abort reaches both. A call whose reader
+// was cut off releases the job (ResultStore::KeepJobOnCutOff): it runs on for its record,
+// unless the record cannot keep its levels either (then it is cancelled).
 class RecordingChannel : public EventChannel {
  public:
   RecordingChannel(std::shared_ptr<EventChannel> call, std::shared_ptr<JobRecord> record)

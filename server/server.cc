@@ -408,7 +408,28 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       ++counters_.readers_cut_off;
       LogLine(options_.log, "a reader was cut off: ", status.error_message());
     };
-    return std::make_shared<ResultStore>(writer, &result_budget_, std::move(store_options));
+    auto store = std::make_shared<ResultStore>(writer, &result_budget_, std::move(store_options));
+    std::lock_guard<std::mutex> lock(stores_mutex_);
+    std::erase_if(stores_, [](const std::weak_ptr<ResultStore>& weak) { return weak.expired(); });
+    stores_.push_back(store);
+    return store;
+  }
+
+  // Shutdown, once the jobs have ended: every call still holding events its client has
+  // not read drops them and ends with a final Failed event, so a slow reader still gets
+  // one before the calls are cancelled.
+  void FlushCallsForShutdown() {
+    std::vector<std::shared_ptr<ResultStore>> stores;
+    {
+      std::lock_guard<std::mutex> lock(stores_mutex_);
+      for (const std::weak_ptr<ResultStore>& weak : stores_) {
+        if (std::shared_ptr<ResultStore> store = weak.lock()) stores.push_back(std::move(store));
+      }
+    }
+    const grpc::Status status(grpc::StatusCode::UNAVAILABLE,
+                              "the server is shutting down and the client had not read all of "
+                              "the job's events; submit the job again, to another server");
+    for (const std::shared_ptr<ResultStore>& store : stores) store->FlushForShutdown(status);
   }
 
   grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>* Run(
@@ -842,6 +863,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
   JobRegistry registry_;
   UploadWatchdog uploads_;
+  std::mutex stores_mutex_;
+  std::vector<std::weak_ptr<ResultStore>> stores_;  // every call's, for the shutdown
   JobMetrics job_metrics_;
   std::atomic<uint32_t> watch_calls_active_{0};
   std::atomic<bool> draining_{false};
@@ -1055,6 +1078,9 @@ void RunCall::Submit() {
     return;
   }
   job->queued_bytes = bytes;
+  // An attached job's record keeps its levels: a reader cut off releases the job to it
+  // (the job runs on; the call's end says to watch it) instead of cancelling it.
+  if (!detach) channel_->KeepJobOnCutOff(id);
   // The job's entry in the registry, which keeps its levels for Watch: a detached job's
   // events go to it, an attached job's to this call with a copy to it.
   auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
@@ -1543,6 +1569,7 @@ class ServerImpl {
     }
     StopWorkers();
     metrics_.reset();
+    service_.FlushCallsForShutdown();
     if (server_ != nullptr) {
       // Calls still open (clients that stopped reading) are cancelled after 2 s.
       server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));

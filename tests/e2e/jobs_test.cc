@@ -302,18 +302,6 @@ TEST(JobIdsTest, ListAllJobsShowsEveryConnectionsJobs) {
   EXPECT_EQ(list.jobs(0).job_id(), accepted->job_id());
 }
 
-// A channel of its own whose client takes at most 64 KiB ahead of what it has read (no
-// window growth): a watcher that does not read stalls the server's write at once.
-std::shared_ptr<grpc::Channel> NarrowChannel(const server::Server& server) {
-  grpc::ChannelArguments arguments;
-  arguments.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  arguments.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
-  arguments.SetInt(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 64 << 10);
-  arguments.SetMaxReceiveMessageSize(-1);
-  return grpc::CreateCustomChannel(testing::AddressOf(server), grpc::InsecureChannelCredentials(),
-                                   arguments);
-}
-
 v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
   auto stub = v1::Clustering::NewStub(channel);
   grpc::ClientContext context;
@@ -339,7 +327,7 @@ TEST(WatchLimitsTest, WatchersAreAdmittedLikeRunsAndUnreadOnesAreCutOff) {
   const std::string id = accepted->job_id();
   WaitEnded(channel, id);
 
-  auto narrow = NarrowChannel(*server);
+  auto narrow = testing::NarrowChannelTo(*server);
   auto stub = v1::Clustering::NewStub(narrow);
   struct Watcher {
     grpc::ClientContext context;

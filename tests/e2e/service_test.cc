@@ -73,7 +73,8 @@ TEST(SplitMessagesTest, AClientWithSmallLimitsRebuildsTheSameLevels) {
 }
 
 // The probe's finding: a client that stops reading held the single worker as long as it
-// stayed connected. Now its job is cut off at its budget and the next job runs.
+// stayed connected. Now its call is cut off at its budget, its job runs on for Watch, and
+// the next job runs.
 TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   server::ServerOptions options;
   options.result_job_budget_bytes = 1 << 20;
@@ -96,6 +97,7 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   v1::JobEvent event;
   ASSERT_TRUE(stalled->Read(&event));
   ASSERT_TRUE(event.has_accepted());
+  const std::string id = event.accepted().job_id();
   // ... and reads nothing more. The next job still runs (it would wait for ever before).
   client::RunOptions run_options;
   run_options.deadline = absl::Seconds(120);
@@ -104,9 +106,12 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   ASSERT_TRUE(next.ok()) << next.status();
   const v1::Stats stats = GetStats(channel);
   EXPECT_EQ(stats.readers_cut_off(), 1u);
-  EXPECT_EQ(stats.jobs_succeeded(), 1u);
+  // Issue 24, item 6: the cut-off reader's job is not cancelled (it was, at 94% done): it
+  // runs on where its record keeps its levels, and ends succeeded before the next one.
+  EXPECT_EQ(stats.jobs_succeeded(), 2u);
+  EXPECT_EQ(stats.jobs_cancelled(), 0u);
   EXPECT_EQ(stats.result_bytes_held(), 0u);
-  // When the stalled client reads again it learns why its stream ended.
+  // When the stalled client reads again it learns why its stream ended, and to watch.
   v1::JobEvent last;
   while (stalled->Read(&event)) last = event;
   EXPECT_TRUE(last.final());
@@ -114,6 +119,14 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   const grpc::Status status = stalled->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(status.error_message(), HasSubstr("read too slowly"));
+  EXPECT_THAT(status.error_message(), HasSubstr("the job runs on and keeps its levels"));
+  EXPECT_THAT(status.error_message(), HasSubstr(absl::StrCat("mlclust watch ", id)));
+  // And watching gives the whole hierarchy.
+  client::WatchOptions watch_options;
+  watch_options.from_level = 319990;  // the last levels of 320,000 faces
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(channel, id, watch_options);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->done.levels(), 320000u);
 }
 
 }  // namespace
@@ -448,6 +461,50 @@ TEST(OperationsTest, ShutdownDrainsRunningJobsAndFailsQueuedOnes) {
   ASSERT_TRUE(finished.ok()) << finished.status();
   EXPECT_EQ(finished->done.final_clusters(), 1u);
   shutdown.join();
+}
+
+// Issue 24, item 6: a client that read slowly lost its final event at SIGTERM (its call
+// was cancelled with events still unread). Now the unread events are dropped at shutdown
+// and the call ends with a final Failed event saying why.
+TEST(OperationsTest, ASlowReaderAtShutdownStillGetsAFinalEvent) {
+  server::ServerOptions options;
+  options.max_event_bytes = 64 << 10;  // many events
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(testing::AddressOf(*server));
+  auto narrow = testing::NarrowChannelTo(*server);
+  const std::string mesh = *EncodeMeshToDraco(testing::Grid(250));  // 125,000 faces
+  auto stub = v1::Clustering::NewStub(narrow);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
+  auto stream = stub->Run(&context);
+  v1::RunRequest request;
+  *request.mutable_spec() = MeshSpec(v1::ALGORITHM_HC);
+  request.mutable_spec()->set_input_bytes(mesh.size());
+  request.set_chunk(mesh);
+  ASSERT_TRUE(stream->Write(request));
+  stream->WritesDone();
+  v1::JobEvent event;
+  ASSERT_TRUE(stream->Read(&event));
+  ASSERT_TRUE(event.has_accepted());
+  // The client reads nothing more until its job has ended (its levels wait unread) ...
+  for (int i = 0; i < 6000 && GetStats(channel).jobs_succeeded() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(GetStats(channel).jobs_succeeded(), 1u);
+  // ... then the server is told to stop, and the client reads slowly.
+  std::thread shutdown([&] { server->Shutdown(); });
+  v1::JobEvent last;
+  for (int i = 0; i < 100000 && stream->Read(&event); ++i) {
+    last = event;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const grpc::Status status = stream->Finish();
+  shutdown.join();
+  EXPECT_TRUE(last.final());
+  EXPECT_EQ(last.failed().code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_THAT(status.error_message(), HasSubstr("had not read all of the job's events"));
 }
 
 TEST(OperationsTest, ShutdownCancelsRunningJobsWhenTheDrainTimeRunsOut) {
