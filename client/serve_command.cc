@@ -107,6 +107,7 @@ int RunServe(const Arguments& flags) {
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
   options.metrics_address = flags.get("metrics", options.metrics_address);
   options.list_all_jobs = flags.has("list-all-jobs");
+  options.metrics_allow_remote = flags.has("metrics-allow-remote");
   if (flags.has("log-format")) {
     const std::string format = flags.get("log-format");
     if (format != "text" && format != "json") {
@@ -229,8 +230,8 @@ Command ServeCommand() {
           {"auth-token-file", "F",
            "bearer tokens, one \"TOKEN TENANT\" per line (needs TLS): every call needs a known "
            "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (another tenant's "
-           "job answers NOT_FOUND exactly like an unknown id); health checks need none. Tokens "
-           "are never logged."},
+           "job answers NOT_FOUND exactly like an unknown id); health checks need none, server "
+           "reflection needs one like every other service. Tokens are never logged."},
           {"list-all-jobs", "",
            "without tokens, `jobs` lists every job (a single-user server); by default it lists "
            "only the jobs submitted on the caller's own connection (none over unix sockets). "
@@ -238,7 +239,12 @@ Command ServeCommand() {
         {"operations:",
          {{"metrics", "ADDR",
            "Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by state and "
-           "algorithm, queue depth, job durations (histograms), bytes in and out, the device"},
+           "algorithm, queue depth, job durations (histograms), bytes in and out, the device. "
+           "Plain HTTP without a token: with --auth-token-file it must be a loopback address "
+           "(scrape through a sidecar or a port forward) unless --metrics-allow-remote"},
+          {"metrics-allow-remote", "",
+           "serve --metrics on a non-loopback address although tokens are on (a private "
+           "network)"},
           {"log-format", "text|json",
            "json: one JSON object per line (job id, tenant, algorithm, sizes, durations, "
            "outcome)"}}}}},

@@ -1486,6 +1486,15 @@ class ServerImpl {
           absl::StrCat("the watch idle timeout must be over 0 and at most 1 hour, not ",
                        absl::FormatDuration(options.watch_idle_timeout)));
     }
+    // /metrics is plain HTTP without a token: where tokens are on it stays on loopback
+    // (scraped by a sidecar or through a port forward) unless the operator says otherwise.
+    if (!options.auth_tokens.empty() && !options.metrics_address.empty() &&
+        !options.metrics_allow_remote && !IsLoopback(options.metrics_address)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--metrics ", options.metrics_address,
+          ": metrics are plain HTTP without a token; with --auth-token-file they are served on "
+          "loopback only (127.0.0.1:PORT or [::1]:PORT), unless --metrics-allow-remote"));
+    }
     if (options.upload_min_bytes_per_second > (uint64_t{1} << 30)) {
       return absl::InvalidArgumentError(
           absl::StrCat("the minimum upload rate must be at most 1 GiB/s, not ",

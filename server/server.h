@@ -111,6 +111,11 @@ struct ServerOptions {
   // "HOST:PORT" for Prometheus metrics over HTTP (GET /metrics; port 0 picks one); empty:
   // none. A port in use is refused.
   std::string metrics_address;
+  // Where tokens are on, a metrics address that is not loopback is refused at start (the
+  // exposition is plain HTTP without a token) unless this is set (a network that is
+  // already private). Metrics answer under idle or slow connections: 32 workers, and a
+  // connection idle for 1 s is dropped.
+  bool metrics_allow_remote = false;
 };
 
 class ServerImpl;

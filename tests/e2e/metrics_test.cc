@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <future>
+#include <thread>
+
 #include "absl/strings/match.h"
 #include "absl/strings/str_split.h"
 #include "client/client.h"
@@ -179,6 +183,56 @@ TEST(MetricsTest, GpuMemoryOfTheGlContextAndTheDeviceWhereExposed) {
   } else if (stats.has_gpu_device_memory_total_bytes()) {
     EXPECT_GE(stats.gpu_device_memory_total_bytes(), stats.gpu_device_memory_available_bytes());
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 5: 8 idle sockets blocked /metrics (each held one of 8 workers). Here 16
+// slow connections that send a byte of a request every 200 ms (so no read ever times out)
+// hold workers as long as they go on; a scrape meanwhile still answers.
+TEST(MetricsTest, AScrapeAnswersWhileSlowConnectionsHoldWorkers) {
+  server::ServerOptions options = WithMetrics(server::GpuMode::kOff);
+  options.log = false;
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  ASSERT_TRUE(started.ok()) << started.status();
+  const int port = (*started)->metrics_port();
+  std::vector<int> slow;
+  for (int i = 0; i < 16; ++i) slow.push_back(testing::ConnectToLoopback(port));
+  std::atomic<bool> stop{false};
+  std::thread trickle([&] {
+    const std::string request = "GET /metrics HTTP/1.1\r\nHost: localhost\r\nX-Slow: ";
+    for (size_t i = 0; i < 150 && !stop; ++i) {  // 30 s at most
+      for (int fd : slow) (void)!write(fd, request.data() + std::min(i, request.size() - 1), 1);
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // they hold workers now
+  std::future<std::string> scrape =
+      std::async(std::launch::async, [port] { return HttpGet(port, "/metrics"); });
+  // Generous: the trickle lasts 30 s; a scrape that waits for it has failed.
+  const bool answered = scrape.wait_for(std::chrono::seconds(25)) == std::future_status::ready;
+  stop = true;
+  trickle.join();
+  for (int fd : slow) close(fd);
+  ASSERT_TRUE(answered) << "the scrape waited for the slow connections";
+  EXPECT_THAT(scrape.get(), HasSubstr("200 OK"));
+}
+
+TEST(MetricsTest, WithTokensMetricsStayOnLoopbackUnlessAllowed) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  options.gpu = server::GpuMode::kOff;
+  options.auth_tokens = {{"alpha-token-0123456789abcdef", "alpha"}};
+  options.metrics_address = "0.0.0.0:0";
+  // (The TLS check comes after: the metrics address is refused first.)
+  absl::StatusOr<std::unique_ptr<server::Server>> remote = server::Server::Start(options);
+  EXPECT_EQ(remote.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(remote.status().message(), HasSubstr("loopback only"));
 }
 
 }  // namespace

@@ -8,12 +8,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <thread>
 
 #include "absl/strings/str_replace.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "grpcpp/generic/generic_stub.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
@@ -318,6 +320,45 @@ TEST(TlsTest, OneTenantsStalledCallsLeaveTheOtherTenantsSlots) {
     }
     call->stream->Finish();
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// A unary call of `method` with an empty message through the generic stub: its status.
+grpc::Status GenericCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method) {
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(20));
+  grpc::Slice empty("");  // an empty message (a ByteBuffer without slices is none)
+  grpc::ByteBuffer request(&empty, 1), response;
+  std::promise<grpc::Status> done;
+  stub.UnaryCall(&context, method, grpc::StubOptions(), &request, &response,
+                 [&done](grpc::Status status) { done.set_value(std::move(status)); });
+  return done.get_future().get();
+}
+
+// Issue 24, item 5: server reflection answered without a token on a server that requires
+// tokens (it lists the whole API). Now only health checks pass without one.
+TEST(TlsTest, ReflectionNeedsATokenWhereTokensAreOn) {
+  Certificates certs;
+  ASSERT_TRUE(certs.ok());
+  std::unique_ptr<server::Server> server = StartTlsServer(certs, /*tokens=*/true, false);
+  ASSERT_TRUE(server);
+  const std::string reflection = "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo";
+  const grpc::Status anonymous = GenericCall(Channel(*server, certs, ""), reflection);
+  EXPECT_EQ(anonymous.error_code(), grpc::StatusCode::UNAUTHENTICATED) << anonymous.error_message();
+  EXPECT_THAT(anonymous.error_message(), HasSubstr("bearer token"));
+  const grpc::Status with_token = GenericCall(Channel(*server, certs, "alpha.token"), reflection);
+  EXPECT_NE(with_token.error_code(), grpc::StatusCode::UNAUTHENTICATED)
+      << with_token.error_message();
+  // Health checks still need none.
+  const grpc::Status health =
+      GenericCall(Channel(*server, certs, ""), "/grpc.health.v1.Health/Check");
+  EXPECT_TRUE(health.ok()) << health.error_message();
 }
 
 }  // namespace
