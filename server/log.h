@@ -95,25 +95,28 @@ inline std::string JsonQuote(std::string_view text, size_t max_bytes = kLoggedVa
   return out + "\"";
 }
 
-// A free-text line: `{"time":..,"event":"message","message":..}` in JSON. The message is
-// made safe and cut at kLoggedLineBytes; a value a client sent should be passed through
+// A free-text line: `{"time":..,"level":"info","event":"message","message":..}` in JSON. The
+// message is made safe and cut at kLoggedLineBytes; a value a client sent should be passed through
 // LogSafe first, so it is cut at kLoggedValueBytes.
 template <typename... Args>
 void LogLine(bool enabled, const Args&... args) {
   if (!enabled) return;
   const std::string message = LogSafe(absl::StrCat(args...), kLoggedLineBytes);
-  const std::string line = JsonLogs() ? absl::StrCat("{\"time\":\"", LogTimestamp(),
-                                                     "\",\"event\":\"message\",\"message\":",
-                                                     JsonQuote(message, kLoggedLineBytes), "}\n")
-                                      : absl::StrCat(LogTimestamp(), " mlclust: ", message, "\n");
+  const std::string line =
+      JsonLogs() ? absl::StrCat("{\"time\":\"", LogTimestamp(),
+                                "\",\"level\":\"info\",\"event\":\"message\",\"message\":",
+                                JsonQuote(message, kLoggedLineBytes), "}\n")
+                 : absl::StrCat(LogTimestamp(), " mlclust: ", message, "\n");
   std::fputs(line.c_str(), stderr);
 }
 
 // A structured event: its fields in JSON, or `text` (the same line LogLine would write).
 class LogEvent {
  public:
-  explicit LogEvent(const std::string& event) {
-    json_ = absl::StrCat("{\"time\":\"", LogTimestamp(), "\",\"event\":", JsonQuote(event));
+  // `level`: "info", "warning" or "error" (JSON's "level" field).
+  explicit LogEvent(const std::string& event, const char* level = "info") {
+    json_ = absl::StrCat("{\"time\":\"", LogTimestamp(), "\",\"level\":\"", level,
+                         "\",\"event\":", JsonQuote(event));
   }
   // A string value: made safe and cut at `max_bytes` (a client's value at
   // kLoggedValueBytes, a message at kLoggedLineBytes).

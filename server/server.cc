@@ -90,6 +90,11 @@ absl::StatusOr<std::string> RandomJobId() {
   return id;
 }
 
+// A status code's name for logs ("RESOURCE_EXHAUSTED"), not its number.
+std::string CodeName(int code) {
+  return absl::StatusCodeToString(static_cast<absl::StatusCode>(code));
+}
+
 bool IsLoopback(const std::string& address) {
   return absl::StartsWith(address, "127.") || absl::StartsWith(address, "localhost:") ||
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
@@ -101,7 +106,8 @@ std::string AlgorithmName(const v1::JobSpec& spec) {
       spec.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
   const AlgorithmInfo* algorithm = FindAlgorithmByWire(
       input, spec.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : spec.algorithm());
-  return algorithm != nullptr ? algorithm->name : absl::StrCat("unknown-", spec.algorithm());
+  // One label for every unknown value (a client's number is not a label).
+  return algorithm != nullptr ? algorithm->name : std::string("unknown");
 }
 
 const char* InputKindText(const v1::JobSpec& spec) {
@@ -655,11 +661,11 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   void LogRefusal(const std::string& peer, const std::string& tenant, const std::string& label,
                   const absl::Status& status) {
     ++counters_.calls_refused;
-    LogEvent("call_refused")
+    LogEvent("call_refused", "warning")
         .Add("peer", peer)
         .Add("tenant", tenant)
         .Add("label", label)
-        .Add("code", static_cast<int>(status.code()))
+        .Add("code", CodeName(static_cast<int>(status.code())))
         .Add("message", std::string(status.message()), kLoggedLineBytes)
         .Write(options_.log,
                absl::StrCat(
@@ -675,7 +681,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     const double queued = absl::ToDoubleSeconds(started_at - job.accepted_at);
     const double running = absl::ToDoubleSeconds(ended_at - started_at);
     job_metrics_.JobEnded(algorithm, outcome, queued, running);
-    LogEvent event("job_ended");
+    LogEvent event("job_ended", code == 0                                               ? "info"
+                                : code == static_cast<int>(grpc::StatusCode::CANCELLED) ? "warning"
+                                                                                        : "error");
     event.Add("job_id", job.id)
         .Add("tenant", job.tenant)
         .Add("peer", job.peer)
@@ -685,7 +693,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         .Add("input_bytes", uint64_t{job.spec.input_bytes()})
         .Add("detached", job.spec.detach())
         .Add("outcome", outcome)
-        .Add("code", code)
+        .Add("code", CodeName(code))
         .Add("seconds_queued", queued)
         .Add("seconds_running", running);
     if (done != nullptr) {
@@ -714,8 +722,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     };
     metric("mlclust_queue_depth", "gauge", "Jobs waiting in the queue.", queue_.size());
     metric("mlclust_queue_capacity", "gauge", "Jobs that may wait.", queue_.capacity());
-    metric("mlclust_jobs_running_count", "gauge", "Jobs running now.",
-           counters_.jobs_running.load());
+    metric("mlclust_jobs_running", "gauge", "Jobs running now.", counters_.jobs_running.load());
     metric("mlclust_jobs_accepted_total", "counter", "Jobs accepted.", counters_.accepted.load());
     metric("mlclust_jobs_rejected_total", "counter", "Jobs refused before queueing.",
            counters_.rejected.load());
@@ -746,6 +753,16 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.",
            options_.cpu_workers);
     metric("mlclust_draining", "gauge", "1 while shutting down.", draining_ ? 1 : 0);
+#ifdef MLCLUST_HAVE_GPU
+    constexpr char kWithGpu[] = "true";
+#else
+    constexpr char kWithGpu[] = "false";
+#endif
+    absl::StrAppend(&out,
+                    "# HELP mlclust_build_info The server's version and build (value 1).\n"
+                    "# TYPE mlclust_build_info gauge\nmlclust_build_info{version=\"",
+                    kMlclustVersion, "\",grpc=\"", PrometheusLabel(grpc::Version()),
+                    "\",gpu_backend=\"", kWithGpu, "\"} 1\n");
     // Jobs by state (queued, running) and algorithm, from the registry.
     std::map<std::pair<std::string, std::string>, uint64_t> by_state;
     registry_.ForEach([&](const JobRecord& record) {
@@ -1539,6 +1556,16 @@ class ServerImpl {
     if (shut_down_) return;
     shut_down_ = true;
     const ServerOptions& options = service_.options();
+    // One line when the drain starts (SIGTERM, SIGINT or Shutdown()), in either format.
+    LogEvent("shutdown", "warning")
+        .Add("queued", uint64_t{service_.queue().size()})
+        .Add("running", uint64_t{service_.counters().jobs_running.load()})
+        .Add("drain_seconds", absl::ToDoubleSeconds(options.drain_time))
+        .Write(
+            options.log,
+            absl::StrCat("shutting down: not serving; ", service_.queue().size(),
+                         " queued jobs end now, ", service_.counters().jobs_running.load(),
+                         " running may finish within ", absl::FormatDuration(options.drain_time)));
     // 1. Not serving, at once: health checks and new calls see it.
     service_.set_draining();
     if (server_ != nullptr) {

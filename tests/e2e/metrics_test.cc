@@ -89,6 +89,10 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
 
   const std::string response = HttpGet(server.metrics_port(), "/metrics");
   EXPECT_THAT(response, HasSubstr("200 OK"));
+  // Issue 24, item 7: no gauge with the reserved _count suffix; the build as a metric.
+  EXPECT_EQ(Sample(response, "mlclust_jobs_running"), 0);
+  EXPECT_THAT(response, ::testing::Not(HasSubstr("mlclust_jobs_running_count")));
+  EXPECT_THAT(response, ::testing::ContainsRegex(R"(mlclust_build_info\{version="[0-9.]+",)"));
   EXPECT_THAT(response, HasSubstr("text/plain; version=0.0.4"));
   EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="hc",outcome="succeeded"})"), 3);
   EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="ml",outcome="failed"})"), 1);
@@ -119,6 +123,8 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
     ASSERT_EQ(line.front(), '{') << line;
     ASSERT_EQ(line.back(), '}') << line;
     EXPECT_THAT(std::string(line), HasSubstr(R"("time":")"));
+    EXPECT_THAT(std::string(line),
+                ::testing::ContainsRegex(R"re("level":"(info|warning|error)")re"));
     if (absl::StrContains(line, R"("event":"job_accepted")")) {
       ++accepted;
       EXPECT_THAT(std::string(line), HasSubstr(R"("label":"metrics \"test\"")"));
@@ -130,12 +136,15 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
       EXPECT_THAT(std::string(line), HasSubstr(R"("input_bytes":)"));
       if (absl::StrContains(line, R"("outcome":"failed")")) {
         EXPECT_THAT(std::string(line), HasSubstr(R"("algorithm":"ml")"));
-        EXPECT_THAT(std::string(line), HasSubstr(R"("code":3)"));
+        EXPECT_THAT(std::string(line), HasSubstr(R"("code":"INVALID_ARGUMENT")"));
+        EXPECT_THAT(std::string(line), HasSubstr(R"("level":"error")"));
       }
     }
   }
   EXPECT_EQ(accepted, 4);
   EXPECT_EQ(ended, 4);
+  // Issue 24, item 7: a line when the server is told to stop (SIGTERM), with a level.
+  EXPECT_THAT(logs, HasSubstr(R"("level":"warning","event":"shutdown")"));
   server::JsonLogs() = false;
 }
 
