@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -14,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
 #include "server/auth.h"
+#include "server/memory_limit.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -132,6 +134,28 @@ int RunServe(const Arguments& flags) {
     }
     options.auth_tokens = *std::move(tokens);
   }
+  // The memory the budgets may take, against what the server is given (issue 24 item 8).
+  const server::MemoryNeeded needed = server::MemoryNeededFor(options);
+  if (flags.has("memory-needed")) {
+    std::printf("%llu\n", static_cast<unsigned long long>(needed.total() >> 20));
+    return 0;
+  }
+  std::optional<uint64_t> memory_limit = server::CgroupMemoryLimit();
+  if (flags.has("memory-limit-mb")) {
+    absl::StatusOr<uint64_t> mb = flags.GetUint("memory-limit-mb", 0);
+    if (!mb.ok()) return Fail(mb.status());
+    memory_limit = *mb << 20;
+  }
+  if (absl::Status fits = server::CheckMemoryFits(needed, memory_limit); !fits.ok()) {
+    return Fail(fits);
+  }
+  if (!server::RunningJobsFit(needed, memory_limit)) {
+    std::fprintf(stderr,
+                 "mlclust: warning: with (1 + --workers) jobs of --max-input-mb running, the "
+                 "server may need %llu MiB, over its memory limit of %llu MiB\n",
+                 static_cast<unsigned long long>(needed.total() >> 20),
+                 static_cast<unsigned long long>(*memory_limit >> 20));
+  }
   const std::string gpu = flags.get("gpu", "auto");
   if (gpu == "auto")
     options.gpu = server::GpuMode::kAuto;
@@ -245,6 +269,12 @@ Command ServeCommand() {
           {"metrics-allow-remote", "",
            "serve --metrics on a non-loopback address although tokens are on (a private "
            "network)"},
+          {"memory-needed", "",
+           "print the most memory (MiB) these flags let the server use (running jobs, queued "
+           "inputs, uploads, unread events, kept results, the process) and exit: the figure for "
+           "a container's memory request and limit. The server refuses to start where its "
+           "cgroup's memory limit is below its budgets, and warns where below this figure"},
+          {"memory-limit-mb", "N", "check the budgets against N MiB instead of the cgroup's limit"},
           {"log-format", "text|json",
            "json: one JSON object per line (job id, tenant, algorithm, sizes, durations, "
            "outcome)"}}}}},
