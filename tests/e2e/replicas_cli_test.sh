@@ -86,7 +86,7 @@ jobs_rc=$?
 noreplica_rc=$?
 set -e
 [ "$rc" = 1 ] || fail "watch on the killed replica: exit $rc"
-grep -q "replica $b, which holds job job-000001, does not answer" "$work/watch_after.err" ||
+grep -q "replica $b, which holds job ${id#*/}, does not answer" "$work/watch_after.err" ||
   fail "watch: $(cat "$work/watch_after.err")"
 [ "$cancel_rc" = 1 ] || fail "cancel on the killed replica: exit $cancel_rc"
 grep -q "does not answer" "$work/cancel_after.err" || fail "cancel: $(cat "$work/cancel_after.err")"
