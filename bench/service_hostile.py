@@ -74,6 +74,22 @@ def fandisk():
     return payload
 
 
+def grid(n):
+    """A flat n x n grid of 2 n^2 triangles, as Draco bytes."""
+    import numpy as np
+    xs, ys = np.meshgrid(np.arange(n + 1, dtype=np.float32), np.arange(n + 1, dtype=np.float32))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros((n + 1) ** 2, np.float32)], axis=1)
+    faces = []
+    for y in range(n):
+        for x in range(n):
+            a = y * (n + 1) + x
+            faces += [(a, a + 1, a + n + 2), (a, a + n + 2, a + n + 1)]
+    payload, code, message = _draco.encode_mesh(vertices, np.array(faces, dtype=np.uint32))
+    if code != 0:
+        raise SystemExit(message)
+    return payload
+
+
 def requests(spec, payload):
     spec.input_bytes = len(payload)
     for offset in range(0, len(payload), 1 << 20):
@@ -160,10 +176,18 @@ def watchers(binary, n):
                                     "--max-calls-per-peer", "1024")
     payload = fandisk()
     alone, _ = good_job(port, payload)
+    # The watched job: HC on a 200 x 200 grid (80,000 faces; a stream of many MiB, so a
+    # watcher that does not read stalls the server's writes).
+    big = pb.JobSpec(input_kind=pb.INPUT_KIND_DRACO_MESH, algorithm=pb.ALGORITHM_HC,
+                     energy=pb.ENERGY_CVD, label="watched", detach=True)
     stub = pb_grpc.ClusteringStub(channel(port))
-    accepted = next(iter(stub.Run(requests(spec(detach=True), payload), timeout=60)))
+    accepted = next(iter(stub.Run(requests(big, grid(200)), timeout=60)))
     job_id = accepted.accepted.job_id
-    time.sleep(2.0)  # the detached job ends
+    for _ in range(600):  # the detached job ends
+        jobs = stub.ListJobs(pb.ListJobsRequest(), timeout=10).jobs
+        if jobs and jobs[0].state not in ("queued", "running"):
+            break
+        time.sleep(0.1)
     rss_before = peak_rss_mib(process)
     calls = []
     started = time.time()

@@ -1316,8 +1316,9 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent>, public WatchedU
     grpc::Status status;
     switch (record_->NextEvent(cursor_, event_, status, waker_)) {
       case JobRecord::Next::kEvent: {
-        // The event in flight counts in the server's memory for unread events.
-        const uint64_t bytes = event_.SpaceUsedLong();
+        // The event in flight counts in the server's memory for unread events: the
+        // message and its serialized copy in gRPC's buffers until the write is done.
+        const uint64_t bytes = event_.SpaceUsedLong() + event_.ByteSizeLong();
         if (!service_->result_budget().TryReserve(bytes)) {
           finished_ = true;
           ++service_->counters().readers_cut_off;
