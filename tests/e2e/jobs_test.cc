@@ -27,6 +27,7 @@ using ::testing::HasSubstr;
 
 using testing::ChannelTo;
 using testing::ExpectSameHierarchy;
+using testing::GetStats;
 
 std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
   options.gpu = server::GpuMode::kOff;
@@ -300,14 +301,6 @@ TEST(JobIdsTest, ListAllJobsShowsEveryConnectionsJobs) {
   const v1::JobList list = List(other);
   ASSERT_EQ(list.jobs_size(), 1);
   EXPECT_EQ(list.jobs(0).job_id(), accepted->job_id());
-}
-
-v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
-  auto stub = v1::Clustering::NewStub(channel);
-  grpc::ClientContext context;
-  v1::Stats stats;
-  EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
-  return stats;
 }
 
 // Issue 24, item 2: Watch calls had no admission (1,000 unread watchers of one job took

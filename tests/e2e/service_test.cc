@@ -26,6 +26,7 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 
 using testing::ExpectSameHierarchy;
+using testing::GetStats;
 using testing::MeshSpec;
 using testing::StartServer;
 
@@ -34,14 +35,6 @@ std::shared_ptr<grpc::Channel> LimitedChannel(int port, int max_receive_bytes) {
   arguments.SetMaxReceiveMessageSize(max_receive_bytes);
   return grpc::CreateCustomChannel(absl::StrCat("127.0.0.1:", port),
                                    grpc::InsecureChannelCredentials(), arguments);
-}
-
-v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
-  auto stub = v1::Clustering::NewStub(channel);
-  grpc::ClientContext context;
-  v1::Stats stats;
-  EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
-  return stats;
 }
 
 // Messages are split under the server's max_event_bytes (3 MiB by default, under gRPC's
