@@ -231,8 +231,8 @@ Command ServeCommand() {
            "is ended with DEADLINE_EXCEEDED (default 64; 0: no minimum)"},
           {"result-job-mb", "N",
            "events a job's client may leave unread (memory; default 256) before it is cut off "
-           "with RESOURCE_EXHAUSTED and the job cancelled: producing levels never waits on a "
-           "reader"},
+           "with RESOURCE_EXHAUSTED (producing levels never waits on a reader); the job runs on "
+           "and keeps its levels, and the message says to `watch` it"},
           {"result-total-mb", "N",
            "the same over all jobs, and the events watchers are being sent (default 1024)"},
           {"watch-idle-seconds", "S",

@@ -75,7 +75,10 @@ struct ServerOptions {
   absl::Duration drain_time = absl::ZeroDuration();
   // Events a job has produced and its client not yet read (memory, not wire bytes): per
   // job and over all jobs. A reader that falls further behind is cut off with
-  // RESOURCE_EXHAUSTED and its job cancelled; producing levels never waits on a reader.
+  // RESOURCE_EXHAUSTED; its job runs on where its record keeps its levels (the message says
+  // to watch it) and is cancelled only where they cannot be kept. Producing levels never
+  // waits on a reader. At Shutdown, a call's unread events are dropped so it still gets a
+  // final event.
   uint64_t result_job_budget_bytes = uint64_t{256} << 20;
   uint64_t result_server_budget_bytes = uint64_t{1} << 30;
   // Largest message sent; larger level batches and snapshots are split (under gRPC's
