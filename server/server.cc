@@ -360,7 +360,8 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>, pu
   };
 
   void Fail(const absl::Status& status);
-  void Refuse(const absl::Status& status);  // Fail, logged and counted as a refusal
+  void Refuse(const absl::Status& status);         // Fail, logged and counted as a refusal
+  void FailMalformed(const absl::Status& status);  // Fail, logged (call_failed)
   void Submit();
   void ReleaseUpload();
   // The next read, unless the watchdog has ended the upload (then false: nothing more is
@@ -657,11 +658,12 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   bool draining() const { return draining_; }
   void set_draining() { draining_ = true; }
 
-  // A refused call: counted and logged (never its token).
+  // A refused call: counted and logged (never its token). `refused` false: a call that
+  // broke the stream's shape (logged as call_failed, not counted as refused).
   void LogRefusal(const std::string& peer, const std::string& tenant, const std::string& label,
-                  const absl::Status& status) {
-    ++counters_.calls_refused;
-    LogEvent("call_refused", "warning")
+                  const absl::Status& status, bool refused = true) {
+    if (refused) ++counters_.calls_refused;
+    LogEvent(refused ? "call_refused" : "call_failed", "warning")
         .Add("peer", peer)
         .Add("tenant", tenant)
         .Add("label", label)
@@ -669,7 +671,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         .Add("message", std::string(status.message()), kLoggedLineBytes)
         .Write(options_.log,
                absl::StrCat(
-                   "refused a call from ", LogSafe(peer),
+                   refused ? "refused a call from " : "a call failed from ", LogSafe(peer),
                    label.empty() ? std::string() : absl::StrCat(" (label '", LogSafe(label), "')"),
                    ": ", status.ToString()));
   }
@@ -972,24 +974,37 @@ void RunCall::Refuse(const absl::Status& status) {
   Fail(status);
 }
 
+void RunCall::FailMalformed(const absl::Status& status) {
+  service_->LogRefusal(peer_, tenant_, have_spec_ ? spec_.label() : std::string(), status,
+                       /*refused=*/false);
+  Fail(status);
+}
+
 void RunCall::OnReadDone(bool ok) {
+  bool ended_by_watchdog = false;
   {
     std::lock_guard<std::mutex> lock(read_mutex_);
-    if (upload_ended_) ok = false;  // the watchdog ended it: its status stands
+    ended_by_watchdog = upload_ended_;
   }
+  if (ended_by_watchdog) {
+    Fail(absl::DeadlineExceededError("the upload was ended"));  // its status stands, logged
+    return;
+  }
+  // Every malformed or broken stream below is logged (call_failed).
   if (!ok) {
     // The client closed its side (or the call broke) before the input was complete.
     if (!have_spec_) {
-      Fail(absl::InvalidArgumentError("the call ended before a job spec was sent"));
+      FailMalformed(absl::InvalidArgumentError("the call ended before a job spec was sent"));
     } else {
-      Fail(absl::InvalidArgumentError(absl::StrCat("the input ended after ", input_.size(), " of ",
-                                                   spec_.input_bytes(), " bytes")));
+      FailMalformed(absl::InvalidArgumentError(absl::StrCat(
+          "the input ended after ", input_.size(), " of ", spec_.input_bytes(), " bytes")));
     }
     return;
   }
   if (!have_spec_) {
     if (!request_.has_spec()) {
-      Fail(absl::InvalidArgumentError("the first message of a call must carry the job spec"));
+      FailMalformed(
+          absl::InvalidArgumentError("the first message of a call must carry the job spec"));
       return;
     }
     if (absl::Status status = service_->CheckSpec(request_.spec()); !status.ok()) {
@@ -1004,13 +1019,13 @@ void RunCall::OnReadDone(bool ok) {
     service_->uploads().Progress(this, 0, spec_.input_bytes());  // the spec is progress
     // No reservation from the declared size: the buffer grows as data arrives.
   } else if (request_.has_spec()) {
-    Fail(absl::InvalidArgumentError("a second job spec in the same call"));
+    FailMalformed(absl::InvalidArgumentError("a second job spec in the same call"));
     return;
   }
   const std::string& chunk = request_.chunk();
   service_->counters().bytes_in += chunk.size();
   if (input_.size() + chunk.size() > spec_.input_bytes()) {
-    Fail(absl::InvalidArgumentError(
+    FailMalformed(absl::InvalidArgumentError(
         absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
     return;
   }
@@ -1038,7 +1053,7 @@ void RunCall::OnReadDone(bool ok) {
   }
   if (input_.size() == spec_.input_bytes()) {
     if (spec_.has_input_crc32() && spec_.input_crc32() != input_crc32_) {
-      Fail(absl::InvalidArgumentError(
+      FailMalformed(absl::InvalidArgumentError(
           absl::StrCat("input checksum: the ", input_.size(), " bytes received have CRC-32 ",
                        absl::Hex(input_crc32_, absl::kZeroPad8), ", spec.input_crc32 says ",
                        absl::Hex(spec_.input_crc32(), absl::kZeroPad8),

@@ -577,3 +577,45 @@ TEST(LogInjectionTest, ALabelCannotForgeALineAndABigOneIsCutInBothFormats) {
 
 }  // namespace
 }  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 7: streams of the wrong shape were answered but not logged. Each is a
+// call_failed line now (not counted as a refusal).
+TEST(LogInjectionTest, MalformedStreamsAreLogged) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.gpu = server::GpuMode::kOff;
+  const std::string out = testing::CaptureStderr([&] {
+    absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto stub = v1::Clustering::NewStub(testing::ChannelTo(**server));
+    for (int shape = 0; shape < 3; ++shape) {
+      grpc::ClientContext context;
+      context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+      auto stream = stub->Run(&context);
+      v1::RunRequest request;
+      if (shape != 1) {
+        *request.mutable_spec() = MeshSpec(v1::ALGORITHM_HC);
+        request.mutable_spec()->set_input_bytes(10);
+      }
+      request.set_chunk(shape == 2 ? std::string(11, 'x') : std::string("x"));
+      stream->Write(request);
+      if (shape == 0) stream->Write(request);  // a second spec
+      stream->WritesDone();
+      v1::JobEvent event;
+      while (stream->Read(&event)) {
+      }
+      EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    }
+    (*server)->Shutdown();
+  });
+  EXPECT_THAT(out, HasSubstr("a second job spec in the same call"));
+  EXPECT_THAT(out, HasSubstr("the first message of a call must carry the job spec"));
+  EXPECT_THAT(out, HasSubstr("more input than spec.input_bytes = 10"));
+  EXPECT_THAT(out, HasSubstr("a call failed from ipv4:127.0.0.1:"));
+}
+
+}  // namespace
+}  // namespace mlclust
