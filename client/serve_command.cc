@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -14,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/time.h"
 #include "server/auth.h"
+#include "server/memory_limit.h"
 #include "server/server.h"
 
 namespace mlclust::cli {
@@ -46,6 +48,9 @@ int RunServe(const Arguments& flags) {
   };
   uint64_t drain_seconds = 30;
   uint64_t retention_seconds = 3600;
+  uint64_t upload_idle_seconds = 30;
+  uint64_t watch_idle_seconds = 60;
+  uint64_t upload_min_kib = options.upload_min_bytes_per_second >> 10;
   const Number numbers[] = {
       {"queue", nullptr, nullptr, &options.queue_capacity, 1},
       {"workers", nullptr, nullptr, &options.cpu_workers, 1},
@@ -57,6 +62,10 @@ int RunServe(const Arguments& flags) {
       {"max-calls", nullptr, &options.max_calls, nullptr, 1},
       {"max-calls-per-connection", nullptr, &options.max_calls_per_connection, nullptr, 1},
       {"max-calls-per-peer", nullptr, &options.max_calls_per_peer, nullptr, 1},
+      {"max-calls-per-tenant", nullptr, &options.max_calls_per_tenant, nullptr, 1},
+      {"upload-idle-seconds", &upload_idle_seconds, nullptr, nullptr, 1},
+      {"upload-min-kib-per-second", &upload_min_kib, nullptr, nullptr, 1},
+      {"watch-idle-seconds", &watch_idle_seconds, nullptr, nullptr, 1},
       {"drain-seconds", &drain_seconds, nullptr, nullptr, 1},
       {"retention-seconds", &retention_seconds, nullptr, nullptr, 1},
       {"kept-results-mb", &options.kept_results_bytes, nullptr, nullptr, 1 << 20},
@@ -81,9 +90,26 @@ int RunServe(const Arguments& flags) {
   if (options.queue_capacity > 100000) {
     return Fail(absl::InvalidArgumentError("--queue: over 100000"));
   }
+  if (upload_idle_seconds < 1 || upload_idle_seconds > 3600) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--upload-idle-seconds must be 1 to 3600, not ", upload_idle_seconds)));
+  }
+  if (upload_min_kib > (1 << 20)) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "--upload-min-kib-per-second must be at most 1048576 (1 GiB/s), not ", upload_min_kib)));
+  }
+  if (watch_idle_seconds < 1 || watch_idle_seconds > 3600) {
+    return Fail(absl::InvalidArgumentError(
+        absl::StrCat("--watch-idle-seconds must be 1 to 3600, not ", watch_idle_seconds)));
+  }
+  options.watch_idle_timeout = absl::Seconds(static_cast<double>(watch_idle_seconds));
+  options.upload_idle_timeout = absl::Seconds(static_cast<double>(upload_idle_seconds));
+  options.upload_min_bytes_per_second = upload_min_kib << 10;
   options.drain_time = absl::Seconds(static_cast<double>(drain_seconds));
   options.result_retention = absl::Seconds(static_cast<double>(retention_seconds));
   options.metrics_address = flags.get("metrics", options.metrics_address);
+  options.list_all_jobs = flags.has("list-all-jobs");
+  options.metrics_allow_remote = flags.has("metrics-allow-remote");
   if (flags.has("log-format")) {
     const std::string format = flags.get("log-format");
     if (format != "text" && format != "json") {
@@ -107,6 +133,28 @@ int RunServe(const Arguments& flags) {
           "--auth-token-file ", flags.get("auth-token-file"), ": ", tokens.status().message())));
     }
     options.auth_tokens = *std::move(tokens);
+  }
+  // The memory the budgets may take, against what the server is given (issue 24 item 8).
+  const server::MemoryNeeded needed = server::MemoryNeededFor(options);
+  if (flags.has("memory-needed")) {
+    std::printf("%llu\n", static_cast<unsigned long long>(needed.total() >> 20));
+    return 0;
+  }
+  std::optional<uint64_t> memory_limit = server::CgroupMemoryLimit();
+  if (flags.has("memory-limit-mb")) {
+    absl::StatusOr<uint64_t> mb = flags.GetUint("memory-limit-mb", 0);
+    if (!mb.ok()) return Fail(mb.status());
+    memory_limit = *mb << 20;
+  }
+  if (absl::Status fits = server::CheckMemoryFits(needed, memory_limit); !fits.ok()) {
+    return Fail(fits);
+  }
+  if (!server::RunningJobsFit(needed, memory_limit)) {
+    std::fprintf(stderr,
+                 "mlclust: warning: with (1 + --workers) jobs of --max-input-mb running, the "
+                 "server may need %llu MiB, over its memory limit of %llu MiB\n",
+                 static_cast<unsigned long long>(needed.total() >> 20),
+                 static_cast<unsigned long long>(*memory_limit >> 20));
   }
   const std::string gpu = flags.get("gpu", "auto");
   if (gpu == "auto")
@@ -170,12 +218,27 @@ Command ServeCommand() {
          {{"max-upload-mb", "N", "bytes of uploads in progress, all calls together (default 1024)"},
           {"max-calls", "N", "calls in progress (default 256)"},
           {"max-calls-per-connection", "N", "calls in progress on one connection (default 32)"},
-          {"max-calls-per-peer", "N", "calls in progress per client address (default 64)"},
+          {"max-calls-per-peer", "N",
+           "calls in progress per client address (default 64; behind a proxy every client "
+           "has the proxy's address: raise it toward --max-calls)"},
+          {"max-calls-per-tenant", "N",
+           "with tokens, calls in progress per tenant (default 64; 0: no limit)"},
+          {"upload-idle-seconds", "S",
+           "a job's upload that receives nothing for S seconds is ended with "
+           "DEADLINE_EXCEEDED (default 30; 1 to 3600), so stalled calls give their slots back"},
+          {"upload-min-kib-per-second", "N",
+           "an upload slower than N KiB/s on average (after its first --upload-idle-seconds) "
+           "is ended with DEADLINE_EXCEEDED (default 64; 0: no minimum)"},
           {"result-job-mb", "N",
            "events a job's client may leave unread (memory; default 256) before it is cut off "
-           "with RESOURCE_EXHAUSTED and the job cancelled: producing levels never waits on a "
-           "reader"},
-          {"result-total-mb", "N", "the same over all jobs (default 1024)"}}},
+           "with RESOURCE_EXHAUSTED (producing levels never waits on a reader); the job runs on "
+           "and keeps its levels, and the message says to `watch` it"},
+          {"result-total-mb", "N",
+           "the same over all jobs, and the events watchers are being sent (default 1024)"},
+          {"watch-idle-seconds", "S",
+           "a watch whose client takes no event for S seconds is cut off (default 60; 1 to "
+           "3600); watch calls are admitted like jobs (--max-calls and the limits per "
+           "connection, address and tenant)"}}},
         {"kept results (every job's levels, for watch; cancel, jobs):",
          {{"retention-seconds", "S", "an ended job's results are kept this long (default 3600)"},
           {"kept-results-mb", "N",
@@ -190,12 +253,28 @@ Command ServeCommand() {
           {"tls-client-ca", "FILE", "require client certificates signed by this CA (PEM)"},
           {"auth-token-file", "F",
            "bearer tokens, one \"TOKEN TENANT\" per line (needs TLS): every call needs a known "
-           "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (PERMISSION_DENIED "
-           "for another's); health checks need none. Tokens are never logged."}}},
+           "token (UNAUTHENTICATED otherwise) and sees only its tenant's jobs (another tenant's "
+           "job answers NOT_FOUND exactly like an unknown id); health checks need none, server "
+           "reflection needs one like every other service. Tokens are never logged."},
+          {"list-all-jobs", "",
+           "without tokens, `jobs` lists every job (a single-user server); by default it lists "
+           "only the jobs submitted on the caller's own connection (none over unix sockets). "
+           "Job ids are 128 random bits: watch and cancel work for whoever was given one."}}},
         {"operations:",
          {{"metrics", "ADDR",
            "Prometheus metrics over HTTP at ADDR/metrics (HOST:PORT): jobs by state and "
-           "algorithm, queue depth, job durations (histograms), bytes in and out, the device"},
+           "algorithm, queue depth, job durations (histograms), bytes in and out, the device. "
+           "Plain HTTP without a token: with --auth-token-file it must be a loopback address "
+           "(scrape through a sidecar or a port forward) unless --metrics-allow-remote"},
+          {"metrics-allow-remote", "",
+           "serve --metrics on a non-loopback address although tokens are on (a private "
+           "network)"},
+          {"memory-needed", "",
+           "print the most memory (MiB) these flags let the server use (running jobs, queued "
+           "inputs, uploads, unread events, kept results, the process) and exit: the figure for "
+           "a container's memory request and limit. The server refuses to start where its "
+           "cgroup's memory limit is below its budgets, and warns where below this figure"},
+          {"memory-limit-mb", "N", "check the budgets against N MiB instead of the cgroup's limit"},
           {"log-format", "text|json",
            "json: one JSON object per line (job id, tenant, algorithm, sizes, durations, "
            "outcome)"}}}}},

@@ -23,7 +23,22 @@ class TokenProcessor : public grpc::AuthMetadataProcessor {
                        OutputMetadata* consumed_auth_metadata,
                        OutputMetadata* response_metadata) override {
     auto header = auth_metadata.find("authorization");
-    if (header == auth_metadata.end()) return grpc::Status::OK;  // the service decides
+    if (header == auth_metadata.end()) {
+      // Without a token only health checks pass (load balancers probe without one); the
+      // Clustering service answers its own calls (UNAUTHENTICATED with a message), and
+      // everything else (server reflection, which lists the API) is refused here.
+      auto path = auth_metadata.find(":path");
+      const std::string_view method =
+          path == auth_metadata.end() ? std::string_view()
+                                      : std::string_view(path->second.data(), path->second.size());
+      if (method.starts_with("/grpc.health.v1.Health/") ||
+          method.starts_with("/mlclust.v1.Clustering/")) {
+        return grpc::Status::OK;
+      }
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                          "this server needs a bearer token (mlclust --auth-token-file FILE, "
+                          "over TLS) for every service but health checks");
+    }
     absl::StatusOr<std::string> tenant =
         TenantOfCall(tokens_, std::string_view(header->second.data(), header->second.size()));
     if (!tenant.ok()) {

@@ -46,6 +46,10 @@ class EventChannel {
   // as the channel. The server's channel (ResultStore) has one; null (never cancelled)
   // for channels without.
   virtual const std::atomic<bool>* cancel_flag() const { return nullptr; }
+
+  // The call's reader was cut off but the job was released to run on for its record
+  // (ResultStore::KeepJobOnCutOff): Emit returns false, yet the job need not stop.
+  virtual bool released() const { return false; }
 };
 
 // Which worker runs a job.

@@ -325,6 +325,7 @@ uint64_t JobRecord::DropLevels(const std::string& reason) {
   std::vector<uint32_t>().swap(element_);
   std::vector<uint32_t>().swap(to_cluster_);
   std::vector<uint32_t>().swap(from_cluster_);
+  level_labels_.clear();
   snapshot_complete_ = false;
   const uint64_t bytes = kept_bytes_.exchange(0);
   WakeAll(lock);
@@ -346,9 +347,21 @@ uint32_t JobRecord::ReadableLevelsLocked() const {
 }
 
 void JobRecord::BuildSnapshotLocked(WatchCursor& cursor) const {
-  cursor.labels = snapshot_labels_;
-  const uint64_t end = cursor.from_level == 0 ? 0 : levels_[cursor.from_level - 1].triplet_end;
-  for (uint64_t t = 0; t < end; ++t) cursor.labels[element_[t]] = to_cluster_[t];
+  cursor.labels.reset();
+  if (cursor.from_level > 0) {
+    // One copy per level however many watchers start there (issue 24: a thousand
+    // watchers each held their own).
+    std::weak_ptr<const std::vector<uint32_t>>& cached = level_labels_[cursor.from_level];
+    cursor.labels = cached.lock();
+    if (cursor.labels == nullptr) {
+      auto labels = std::make_shared<std::vector<uint32_t>>(snapshot_labels_);
+      const uint64_t end = levels_[cursor.from_level - 1].triplet_end;
+      for (uint64_t t = 0; t < end; ++t) (*labels)[element_[t]] = to_cluster_[t];
+      cursor.labels = labels;
+      cached = labels;
+    }
+    std::erase_if(level_labels_, [](const auto& entry) { return entry.second.expired(); });
+  }
   cursor.snapshot_built = true;
   cursor.snapshot_sent = 0;
   cursor.next_level = cursor.from_level + 1;
@@ -446,9 +459,11 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
             return wait();
           }
         }
+        const std::vector<uint32_t>& labels =
+            cursor.labels != nullptr ? *cursor.labels : snapshot_labels_;
         const size_t per_piece = std::max<size_t>(1024, (max_event_bytes_ - kBatchOverhead) / 5);
         const size_t first = cursor.snapshot_sent;
-        const size_t end = std::min(cursor.labels.size(), first + per_piece);
+        const size_t end = std::min(labels.size(), first + per_piece);
         v1::LevelSnapshot* snapshot = event.mutable_snapshot();
         snapshot->set_level(cursor.from_level);
         if (cursor.from_level == 0) {
@@ -459,12 +474,12 @@ JobRecord::Next JobRecord::NextEvent(WatchCursor& cursor, v1::JobEvent& event, g
           snapshot->set_energy(levels_[cursor.from_level - 1].energy);
         }
         snapshot->set_first_element(static_cast<uint32_t>(first));
-        snapshot->set_total_elements(static_cast<uint32_t>(cursor.labels.size()));
-        snapshot->mutable_labels()->Add(cursor.labels.begin() + static_cast<ptrdiff_t>(first),
-                                        cursor.labels.begin() + static_cast<ptrdiff_t>(end));
+        snapshot->set_total_elements(static_cast<uint32_t>(labels.size()));
+        snapshot->mutable_labels()->Add(labels.begin() + static_cast<ptrdiff_t>(first),
+                                        labels.begin() + static_cast<ptrdiff_t>(end));
         cursor.snapshot_sent = end;
-        if (end == cursor.labels.size()) {
-          std::vector<uint32_t>().swap(cursor.labels);
+        if (end == labels.size()) {
+          cursor.labels.reset();
           cursor.phase = WatchCursor::Phase::kLevels;
         }
         return Next::kEvent;
@@ -535,18 +550,12 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
                                                              const std::string& tenant) {
   Sweep();
   std::lock_guard<std::mutex> lock(mutex_);
+  // Another tenant's job, kept or dropped, answers exactly like an id never issued.
   auto it = records_.find(id);
-  if (it != records_.end()) {
-    if (it->second->tenant() != tenant) {
-      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
-    }
-    return it->second;
-  }
+  if (it != records_.end() && it->second->tenant() == tenant) return it->second;
   auto dropped = dropped_reasons_.find(id);
-  if (dropped != dropped_reasons_.end()) {
-    if (dropped->second.first != tenant) {
-      return absl::PermissionDeniedError(absl::StrCat("job ", id, " belongs to another tenant"));
-    }
+  if (it == records_.end() && dropped != dropped_reasons_.end() &&
+      dropped->second.first == tenant) {
     return absl::NotFoundError(absl::StrCat("job ", id, ": ", dropped->second.second));
   }
   return absl::NotFoundError(
@@ -556,14 +565,16 @@ absl::StatusOr<std::shared_ptr<JobRecord>> JobRegistry::Find(const std::string& 
                    absl::FormatDuration(options_.retention), ")"));
 }
 
-std::vector<v1::JobSummary> JobRegistry::List(const std::string& tenant) {
+std::vector<v1::JobSummary> JobRegistry::List(const std::string& tenant, const std::string* owner) {
   Sweep();
   std::lock_guard<std::mutex> lock(mutex_);
   const absl::Time now = absl::Now();
   std::vector<v1::JobSummary> jobs;
   for (const std::string& id : order_) {
     const std::shared_ptr<JobRecord>& record = records_.at(id);
-    if (record->tenant() == tenant) jobs.push_back(record->Summary(now, options_.retention));
+    if (record->tenant() != tenant) continue;
+    if (owner != nullptr && record->owner() != *owner) continue;
+    jobs.push_back(record->Summary(now, options_.retention));
   }
   return jobs;
 }
@@ -638,7 +649,15 @@ void JobRegistry::DropLocked(std::string id, const std::string& reason) {
 
 bool RecordingChannel::Emit(v1::JobEvent event) {
   record_->Keep(event);
-  return call_->Emit(std::move(event));
+  if (call_->Emit(std::move(event))) return true;
+  if (!call_->released() || call_->cancelled()) return false;
+  // The reader was cut off and the job released to its record, which must keep its
+  // levels for it to be worth running on.
+  if (!record_->levels_dropped()) return true;
+  Abort(grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     "its reader was cut off and its levels do not fit the server's memory for "
+                     "kept results; the job was cancelled"));
+  return false;
 }
 
 void RecordingChannel::Finish(v1::JobEvent final_event, const grpc::Status& status) {

@@ -61,7 +61,10 @@ struct WatchCursor {
   uint32_t from_level = 0;
   bool resume = false;
   bool snapshot_built = false;
-  std::vector<uint32_t> labels;  // the labels at from_level, while the snapshot is sent
+  // The labels at from_level > 0 while the snapshot is sent, shared by every watcher of
+  // that level (the record keeps one copy however many read it); level 0 is sent from
+  // the record's own labels.
+  std::shared_ptr<const std::vector<uint32_t>> labels;
   size_t snapshot_sent = 0;
   uint32_t next_level = 0;     // the next level to send
   uint64_t next_triplet = 0;   // within next_level, when a big level is split
@@ -104,7 +107,17 @@ class JobRecord : public EventChannel {
   const std::string& id() const { return id_; }
   const v1::JobSpec& spec() const { return spec_; }
   const std::string& tenant() const { return tenant_; }
+  // The connection that submitted the job (its peer string, "ipv4:127.0.0.1:41234"): without
+  // tokens, ListJobs shows a caller only the jobs its own connection submitted. Set before
+  // the record is added to the registry.
+  void set_owner(std::string owner) { owner_ = std::move(owner); }
+  const std::string& owner() const { return owner_; }
   bool detached() const { return detached_; }
+  // The levels were dropped (retention, memory, or not kept): Watch cannot read them.
+  bool levels_dropped() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !dropped_reason_.empty();
+  }
   // Memory taken by the kept levels (counted in the registry's budget).
   uint64_t kept_bytes() const { return kept_bytes_.load(std::memory_order_relaxed); }
   // Frees the kept levels (the registry drops the record): watchers end with NOT_FOUND
@@ -141,6 +154,7 @@ class JobRecord : public EventChannel {
   JobRegistry* const registry_;
   const std::string id_;
   const std::string tenant_;
+  std::string owner_;
   const v1::JobSpec spec_;
   const bool detached_;
   const size_t max_event_bytes_;
@@ -173,6 +187,9 @@ class JobRecord : public EventChannel {
   std::vector<uint32_t> element_, to_cluster_, from_cluster_;
   uint64_t levels_total_ = 0, triplets_total_ = 0;  // counted for every job
   std::vector<std::weak_ptr<RecordWaiter>> waiters_;
+  // The labels at a level > 0 built for watchers starting there, while any still sends
+  // them (BuildSnapshotLocked).
+  mutable std::map<uint32_t, std::weak_ptr<const std::vector<uint32_t>>> level_labels_;
 };
 
 struct JobRegistryOptions {
@@ -192,11 +209,13 @@ class JobRegistry {
   // Takes a record out again (a job refused after it was registered).
   void Remove(const std::string& id);
 
-  // The job `id` of `tenant`: NOT_FOUND (never known, or dropped: the message says when
-  // and why), PERMISSION_DENIED (another tenant's).
+  // The job `id` of `tenant`: NOT_FOUND when it was never known or is another tenant's
+  // (the same code and message, so a tenant cannot tell others' jobs from unknown ids), or
+  // when it was dropped (the message says when and why; only to its own tenant).
   absl::StatusOr<std::shared_ptr<JobRecord>> Find(const std::string& id, const std::string& tenant);
-  // The jobs of `tenant`, in submission order.
-  std::vector<v1::JobSummary> List(const std::string& tenant);
+  // The jobs of `tenant`, in submission order; with `owner`, only those whose owner() is
+  // `*owner` (a caller without tokens sees its own connection's jobs).
+  std::vector<v1::JobSummary> List(const std::string& tenant, const std::string* owner = nullptr);
   // Jobs of `tenant` queued or running.
   uint32_t ActiveJobs(const std::string& tenant);
   // Calls visit(record) for every record, under the registry's lock (keep it short).
@@ -238,7 +257,9 @@ class JobRegistry {
 
 // The channel of an attached job: its call's channel, with a copy of every event kept in
 // the job's record, so the job can be watched like a detached one. Cancellation is the
-// call's (the call going away cancels the job); Abort reaches both.
+// call's (the call going away cancels the job); Abort reaches both. A call whose reader
+// was cut off releases the job (ResultStore::KeepJobOnCutOff): it runs on for its record,
+// unless the record cannot keep its levels either (then it is cancelled).
 class RecordingChannel : public EventChannel {
  public:
   RecordingChannel(std::shared_ptr<EventChannel> call, std::shared_ptr<JobRecord> record)

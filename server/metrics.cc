@@ -68,6 +68,10 @@ std::string JobMetrics::Render() const {
   return out;
 }
 
+// Workers answering /metrics: idle connections are dropped after 1 s, so this many idle
+// or slow clients at once are needed to delay a scrape.
+constexpr size_t kMetricsThreads = 32;
+
 struct MetricsHttpServer::Impl {
   httplib::Server http;
   std::thread thread;
@@ -90,6 +94,14 @@ absl::StatusOr<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Start(
   std::unique_ptr<MetricsHttpServer> server(new MetricsHttpServer());
   server->impl_ = std::make_unique<Impl>();
   httplib::Server& http = server->impl_->http;
+  // Idle or slow connections must not hold every worker (issue 24: 8 idle sockets blocked
+  // /metrics): more workers than a scraper needs, and a connection that sends nothing for
+  // a second is dropped.
+  http.new_task_queue = [] { return new httplib::ThreadPool(kMetricsThreads); };
+  http.set_read_timeout(1, 0);
+  http.set_write_timeout(5, 0);
+  http.set_keep_alive_timeout(1);
+  http.set_keep_alive_max_count(16);
   http.Get("/metrics", [render](const httplib::Request&, httplib::Response& response) {
     response.set_content(render(), "text/plain; version=0.0.4; charset=utf-8");
   });

@@ -152,22 +152,17 @@ bool ResultStore::Emit(v1::JobEvent event) {
   for (v1::JobEvent& piece : pieces) {
     const uint64_t bytes = piece.SpaceUsedLong();
     if (held_bytes_ + bytes > options_.job_budget_bytes) {
-      CutOff(grpc::Status(
-                 grpc::StatusCode::RESOURCE_EXHAUSTED,
-                 absl::StrCat("the client read too slowly: ", (held_bytes_ + bytes) >> 20,
-                              " MiB of events waited unread, over the job's budget of ",
-                              options_.job_budget_bytes >> 20, " MiB; the job was cancelled")),
+      CutOff(absl::StrCat("the client read too slowly: ", (held_bytes_ + bytes) >> 20,
+                          " MiB of events waited unread, over the job's budget of ",
+                          options_.job_budget_bytes >> 20, " MiB"),
              lock);
       return false;
     }
     if (!server_budget_->TryReserve(bytes)) {
-      CutOff(
-          grpc::Status(
-              grpc::StatusCode::RESOURCE_EXHAUSTED,
-              absl::StrCat("the server's memory for unread events (", server_budget_->limit() >> 20,
-                           " MiB) is full and this job's client read too slowly (",
-                           (held_bytes_ + bytes) >> 20, " MiB waiting); the job was cancelled")),
-          lock);
+      CutOff(absl::StrCat("the server's memory for unread events (", server_budget_->limit() >> 20,
+                          " MiB) is full and this job's client read too slowly (",
+                          (held_bytes_ + bytes) >> 20, " MiB waiting)"),
+             lock);
       return false;
     }
     held_bytes_ += bytes;
@@ -200,9 +195,9 @@ void ResultStore::HoldFailed(const grpc::Status& status) {
 }
 
 void ResultStore::Abort(const grpc::Status& status) {
+  cancelled_ = true;  // an explicit cancel reaches a released job too
   std::unique_lock<std::mutex> lock(mutex_);
   if (finished_) return;
-  cancelled_ = true;
   DropHeld();
   if (!finish_requested_) {
     HoldFailed(status);
@@ -210,8 +205,44 @@ void ResultStore::Abort(const grpc::Status& status) {
   Pump(lock);
 }
 
-void ResultStore::CutOff(const grpc::Status& status, std::unique_lock<std::mutex>& lock) {
-  cancelled_ = true;
+void ResultStore::KeepJobOnCutOff(std::string job_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  keep_job_id_ = std::move(job_id);
+}
+
+void ResultStore::CancelJobLocked() {
+  if (!released()) cancelled_ = true;
+}
+
+void ResultStore::FlushForShutdown(const grpc::Status& status) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (finished_ || client_gone_ || writer_ == nullptr) return;
+  size_t unread = 0;
+  for (const Held& held : held_) unread += held.event.final() ? 0 : 1;
+  if (unread == 0) return;
+  DropHeld();
+  HoldFailed(grpc::Status(status.error_code(),
+                          absl::StrCat(status.error_message(), " (", unread,
+                                       " events the client had not read were dropped)")));
+  Pump(lock);
+}
+
+void ResultStore::CutOff(const std::string& why, std::unique_lock<std::mutex>& lock) {
+  grpc::Status status;
+  if (!keep_job_id_.empty()) {
+    // The job's record keeps its levels: the job runs on for Watch.
+    released_.store(true, std::memory_order_release);
+    status = grpc::Status(
+        grpc::StatusCode::RESOURCE_EXHAUSTED,
+        absl::StrCat(why,
+                     "; this call was cut off, but the job runs on and keeps its levels: "
+                     "read them with `mlclust watch ",
+                     keep_job_id_, "` (Watch, from any level)"));
+  } else {
+    cancelled_ = true;
+    status = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          absl::StrCat(why, "; the job was cancelled"));
+  }
   DropHeld();
   HoldFailed(status);
   // The write in flight (the one the client stopped reading) ends when the client reads
@@ -232,7 +263,7 @@ void ResultStore::OnWriteDone(bool ok) {
   write_in_flight_ = false;
   if (!ok) {  // the client is gone
     client_gone_ = true;
-    cancelled_ = true;
+    CancelJobLocked();
   }
   Pump(lock);
 }
@@ -240,14 +271,14 @@ void ResultStore::OnWriteDone(bool ok) {
 void ResultStore::OnCancel() {
   std::unique_lock<std::mutex> lock(mutex_);
   client_gone_ = true;
-  cancelled_ = true;
+  CancelJobLocked();
   Pump(lock);
 }
 
 void ResultStore::Detach() {
   std::lock_guard<std::mutex> lock(mutex_);
   writer_ = nullptr;
-  cancelled_ = true;
+  CancelJobLocked();
   DropHeld();
 }
 

@@ -6,7 +6,9 @@
 // memory (SpaceUsedLong, not serialized bytes): the job's own and the server-wide one
 // shared by every job. An event that would exceed either cuts the reader off: the held
 // events are dropped, the call ends with RESOURCE_EXHAUSTED saying why, and the job is
-// cancelled (cancel_flag() set, Emit returns false), so the worker moves on.
+// cancelled (cancel_flag() set, Emit returns false), so the worker moves on; or, for a job
+// whose record keeps its levels (KeepJobOnCutOff), the job is released: it runs on, the
+// call's end says to Watch it, and nothing the call does later cancels it.
 //
 // No message is larger than `max_event_bytes` serialized: bigger level batches are split
 // across LevelBatch messages (LevelBatch.last_level_continues) and bigger snapshots by
@@ -69,6 +71,17 @@ class ResultStore : public EventChannel {
   // carrying it, if the call can still take one): drain, an operator's cancel.
   void Abort(const grpc::Status& status) override;
 
+  // The job `job_id` keeps its levels elsewhere (its record, for Watch): a reader cut off
+  // releases the job instead of cancelling it, and is told to watch it. Call before the
+  // job is queued.
+  void KeepJobOnCutOff(std::string job_id);
+  // The reader was cut off and the job released: it no longer depends on this call.
+  bool released() const override { return released_.load(std::memory_order_acquire); }
+  // Shutdown: events still unread are dropped and the call ends with a final Failed
+  // `status` as soon as the write in flight is done, so a slow reader still gets a final
+  // event in the time left. Nothing changes for a call with nothing unread.
+  void FlushForShutdown(const grpc::Status& status);
+
   // The writer's side.
   void OnWriteDone(bool ok);
   void OnCancel();  // the client cancelled, its deadline passed, or the server shut down
@@ -79,7 +92,9 @@ class ResultStore : public EventChannel {
 
  private:
   void Push(v1::JobEvent event, std::unique_lock<std::mutex>& lock);
-  void CutOff(const grpc::Status& status, std::unique_lock<std::mutex>& lock);
+  // `why` (the reader read too slowly): cancels the job, or releases it (KeepJobOnCutOff).
+  void CutOff(const std::string& why, std::unique_lock<std::mutex>& lock);
+  void CancelJobLocked();  // cancels the job unless it was released
   void DropHeld();
   // Holds a final Failed event with `status` and asks for the end with it (mutex held).
   void HoldFailed(const grpc::Status& status);
@@ -105,6 +120,8 @@ class ResultStore : public EventChannel {
   bool client_gone_ = false;  // cancelled by the client, its deadline or shutdown
   grpc::Status finish_status_;
   std::atomic<bool> cancelled_{false};
+  std::atomic<bool> released_{false};
+  std::string keep_job_id_;  // KeepJobOnCutOff
 };
 
 }  // namespace mlclust::server

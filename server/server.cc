@@ -1,9 +1,11 @@
 #include "server/server.h"
 
 #include <malloc.h>
+#include <sys/random.h>
 #include <zlib.h>
 
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <future>
 #include <map>
@@ -65,6 +67,36 @@ std::string PeerHost(const std::string& peer) {
   return peer.substr(0, colon);
 }
 
+// A connection's peer string names that one connection (address and port), so ListJobs
+// can show a caller its own connection's jobs; unix-socket and in-process peers do not.
+bool NamesOneConnection(const std::string& peer) {
+  return absl::StartsWith(peer, "ipv4:") || absl::StartsWith(peer, "ipv6:");
+}
+
+// "job-" and 128 bits from the kernel's CSPRNG as 32 lowercase hex digits: a job id is a
+// capability (Watch, Cancel), so it must not be guessable from other ids.
+absl::StatusOr<std::string> RandomJobId() {
+  unsigned char bytes[16];
+  size_t have = 0;
+  while (have < sizeof(bytes)) {
+    const ssize_t got = getrandom(bytes + have, sizeof(bytes) - have, 0);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) {
+      return absl::InternalError(
+          absl::StrCat("no random job id: getrandom failed (errno ", errno, ")"));
+    }
+    have += static_cast<size_t>(got);
+  }
+  std::string id = "job-";
+  for (unsigned char byte : bytes) absl::StrAppend(&id, absl::Hex(byte, absl::kZeroPad2));
+  return id;
+}
+
+// A status code's name for logs ("RESOURCE_EXHAUSTED"), not its number.
+std::string CodeName(int code) {
+  return absl::StatusCodeToString(static_cast<absl::StatusCode>(code));
+}
+
 bool IsLoopback(const std::string& address) {
   return absl::StartsWith(address, "127.") || absl::StartsWith(address, "localhost:") ||
          absl::StartsWith(address, "[::1]:") || absl::StartsWith(address, "unix:");
@@ -76,7 +108,8 @@ std::string AlgorithmName(const v1::JobSpec& spec) {
       spec.input_kind() == v1::INPUT_KIND_POINTS_F32 ? InputKind::kPoints : InputKind::kMesh;
   const AlgorithmInfo* algorithm = FindAlgorithmByWire(
       input, spec.algorithm() == v1::ALGORITHM_UNSPECIFIED ? v1::ALGORITHM_ML : spec.algorithm());
-  return algorithm != nullptr ? algorithm->name : absl::StrCat("unknown-", spec.algorithm());
+  // One label for every unknown value (a client's number is not a label).
+  return algorithm != nullptr ? algorithm->name : std::string("unknown");
 }
 
 const char* InputKindText(const v1::JobSpec& spec) {
@@ -92,22 +125,24 @@ const char* InputKindText(const v1::JobSpec& spec) {
 
 struct Counters {
   std::atomic<uint64_t> accepted{0}, succeeded{0}, failed{0}, cancelled{0}, rejected{0},
-      readers_cut_off{0}, calls_refused{0};
+      readers_cut_off{0}, calls_refused{0}, uploads_timed_out{0};
   // Input bytes received and serialized event bytes written (Run and Watch calls).
   std::atomic<uint64_t> bytes_in{0}, bytes_out{0};
   std::atomic<uint32_t> jobs_running{0};
 };
 
-// Calls in progress, in total, per connection and per client address. Admission comes
-// before any allocation for the call.
+// Calls in progress, in total, per connection, per client address and (with tokens) per
+// tenant. Admission comes before any allocation for the call.
 class CallAdmission {
  public:
   explicit CallAdmission(const ServerOptions& options) : options_(options) {}
 
-  // OK and counted, or RESOURCE_EXHAUSTED saying which limit.
-  absl::Status Admit(const std::string& peer) {
+  // OK and counted, or RESOURCE_EXHAUSTED saying which limit. `tenant` counts only on a
+  // server with tokens (without, every caller is the one tenant "").
+  absl::Status Admit(const std::string& peer, const std::string& tenant) {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::string host = PeerHost(peer);
+    const bool per_tenant = !options_.auth_tokens.empty() && options_.max_calls_per_tenant > 0;
     if (total_ >= options_.max_calls) {
       return absl::ResourceExhaustedError(absl::StrCat(
           "the server has ", total_, " calls in progress, its limit; try again later"));
@@ -122,18 +157,27 @@ class CallAdmission {
           absl::StrCat("this client address has ", options_.max_calls_per_peer,
                        " calls in progress, the server's limit per address; try again later"));
     }
+    if (per_tenant && Count(by_tenant_, tenant) >= options_.max_calls_per_tenant) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat("tenant '", tenant, "' has ", options_.max_calls_per_tenant,
+                       " calls in progress, the server's limit per tenant; try again later"));
+    }
     ++total_;
     ++by_connection_[peer];
     ++by_host_[host];
+    if (per_tenant) ++by_tenant_[tenant];
     return absl::OkStatus();
   }
 
-  void Release(const std::string& peer) {
+  void Release(const std::string& peer, const std::string& tenant) {
     std::lock_guard<std::mutex> lock(mutex_);
     --total_;
     if (--by_connection_[peer] == 0) by_connection_.erase(peer);
     const std::string host = PeerHost(peer);
     if (--by_host_[host] == 0) by_host_.erase(host);
+    if (auto it = by_tenant_.find(tenant); it != by_tenant_.end() && --it->second == 0) {
+      by_tenant_.erase(it);
+    }
   }
 
   uint32_t total() const {
@@ -150,14 +194,151 @@ class CallAdmission {
   const ServerOptions& options_;
   mutable std::mutex mutex_;
   uint32_t total_ = 0;
-  std::map<std::string, uint32_t> by_connection_, by_host_;
+  std::map<std::string, uint32_t> by_connection_, by_host_, by_tenant_;
 };
 
 class ServiceImpl;
 
+// A call the watchdog can end: RunCall (its upload), WatchCall (a write its client does
+// not take).
+class WatchedUpload {
+ public:
+  virtual ~WatchedUpload() = default;
+  // Marks the call ended (no read is started after this) and returns what ends the
+  // call with `status`, which the watchdog runs once its lock is released (the call may
+  // be gone by then: the closure holds what it needs). Called on the watchdog's thread
+  // with its lock held, so the call is alive (it leaves the watchdog before it is
+  // deleted). `*rearm` set: watch the call again (one more idle timeout).
+  virtual std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) = 0;
+};
+
+// Uploads must make progress: the Run calls still receiving their spec or input, each
+// ended (DEADLINE_EXCEEDED, saying why) when nothing arrived for the idle timeout, or when
+// it has received less than the minimum rate allows: a call may take
+// idle_timeout + received / min_rate. One thread checks every call a few times per idle
+// timeout.
+class UploadWatchdog {
+ public:
+  UploadWatchdog(absl::Duration idle_timeout, uint64_t min_bytes_per_second,
+                 absl::Duration write_idle_timeout)
+      : idle_timeout_(idle_timeout),
+        min_rate_(min_bytes_per_second),
+        write_idle_timeout_(write_idle_timeout) {}
+  ~UploadWatchdog() { Stop(); }
+
+  void Start() {
+    thread_ = std::thread([this] { Main(); });
+  }
+  void Stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
+  void Add(WatchedUpload* call, uint64_t declared_bytes = 0) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const absl::Time now = absl::Now();
+    calls_[call] = {now, now, 0, declared_bytes, false};
+  }
+  // A write the client must take within the write idle timeout (WatchCall).
+  void AddWrite(WatchedUpload* call) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const absl::Time now = absl::Now();
+    calls_[call] = {now, now, 0, 0, true};
+  }
+  void Progress(WatchedUpload* call, uint64_t bytes, uint64_t declared_bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = calls_.find(call);
+    if (it == calls_.end()) return;
+    it->second.last_progress = absl::Now();
+    it->second.received += bytes;
+    it->second.declared = declared_bytes;
+  }
+  // Takes `call` out: false when the watchdog has ended it already (then EndUpload was
+  // called or is on its way).
+  bool Remove(WatchedUpload* call) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return calls_.erase(call) > 0;
+  }
+
+ private:
+  struct Upload {
+    absl::Time started, last_progress;
+    uint64_t received, declared;
+    bool write;  // a write to the client, not an upload
+  };
+
+  void Main() {
+    const absl::Duration tick = std::clamp(std::min(idle_timeout_, write_idle_timeout_) / 4,
+                                           absl::Milliseconds(10), absl::Seconds(1));
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stop_) {
+      wake_.wait_for(lock, absl::ToChronoNanoseconds(tick));
+      const absl::Time now = absl::Now();
+      for (auto it = calls_.begin(); it != calls_.end();) {
+        const Upload& upload = it->second;
+        std::string why;
+        const std::string sizes =
+            upload.declared > 0 ? absl::StrCat(upload.received, " of ", upload.declared, " bytes")
+                                : absl::StrCat(upload.received, " bytes, no job spec yet");
+        if (upload.write) {
+          if (now - upload.last_progress > write_idle_timeout_) {
+            why = absl::StrCat(
+                "the client read nothing for ", absl::FormatDuration(now - upload.last_progress),
+                " (the server's limit is ", absl::FormatDuration(write_idle_timeout_), ")");
+          }
+        } else if (now - upload.last_progress > idle_timeout_) {
+          why = absl::StrCat("the upload made no progress for ",
+                             absl::FormatDuration(now - upload.last_progress), " (", sizes,
+                             " received); the server ends uploads idle longer than ",
+                             absl::FormatDuration(idle_timeout_));
+        } else if (min_rate_ > 0 &&
+                   now - upload.started >
+                       idle_timeout_ + absl::Seconds(static_cast<double>(upload.received) /
+                                                     static_cast<double>(min_rate_))) {
+          why = absl::StrCat(
+              "the upload is too slow: ", sizes, " received in ",
+              absl::FormatDuration(now - upload.started), ", under the server's minimum rate of ",
+              min_rate_, " bytes/s (after the first ", absl::FormatDuration(idle_timeout_), ")");
+        }
+        if (why.empty()) {
+          ++it;
+          continue;
+        }
+        WatchedUpload* call = it->first;
+        const bool write = upload.write;
+        calls_.erase(it);
+        bool rearm = false;
+        const std::function<void()> end =
+            call->EndUpload(grpc::Status(write ? grpc::StatusCode::RESOURCE_EXHAUSTED
+                                               : grpc::StatusCode::DEADLINE_EXCEEDED,
+                                         why),
+                            &rearm);
+        if (rearm) calls_[call] = {now, now, 0, 0, write};
+        lock.unlock();
+        end();
+        lock.lock();
+        it = calls_.begin();  // the map may have changed meanwhile
+      }
+    }
+  }
+
+  const absl::Duration idle_timeout_;
+  const uint64_t min_rate_;
+  const absl::Duration write_idle_timeout_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::map<WatchedUpload*, Upload> calls_;
+  std::thread thread_;
+};
+
 // The reactor of one Run call: reads the spec and the input chunks, submits the job,
 // then writes the job's events through its ResultStore.
-class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
+class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>, public WatchedUpload {
  public:
   // `refusal` not OK: the call was not admitted and is answered with it at once.
   RunCall(ServiceImpl* service, std::string peer, std::string tenant, const absl::Status& refusal);
@@ -166,6 +347,7 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   void OnWriteDone(bool ok) override { channel_->OnWriteDone(ok); }
   void OnCancel() override;
   void OnDone() override;
+  std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) override;
 
  private:
   // The store's view of this reactor.
@@ -180,9 +362,15 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   };
 
   void Fail(const absl::Status& status);
-  void Refuse(const absl::Status& status);  // Fail, logged and counted as a refusal
+  void Refuse(const absl::Status& status);         // Fail, logged and counted as a refusal
+  void FailMalformed(const absl::Status& status);  // Fail, logged (call_failed)
   void Submit();
   void ReleaseUpload();
+  // The next read, unless the watchdog has ended the upload (then false: nothing more is
+  // read, the call's end is on its way).
+  bool ReadNext();
+  // Leaves the watchdog: false when it has ended the upload already.
+  bool LeaveWatchdog();
 
   ServiceImpl* service_;
   const std::string peer_;
@@ -200,6 +388,10 @@ class RunCall : public grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent> {
   static constexpr size_t kTrimAfterBytes = size_t{16} << 20;
   bool held_big_upload_ = false;
   std::weak_ptr<Job> job_;
+  // Set by the watchdog (EndUpload); no read is started after it.
+  std::mutex read_mutex_;
+  bool upload_ended_ = false;
+  bool watched_ = false;  // in the watchdog's list
 };
 
 class ServiceImpl final : public v1::Clustering::CallbackService {
@@ -211,7 +403,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         upload_budget_(options.max_upload_bytes_in_flight),
         queued_budget_(options.max_queued_input_bytes),
         result_budget_(options.result_server_budget_bytes),
-        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}) {}
+        registry_(JobRegistryOptions{options.result_retention, options.kept_results_bytes}),
+        uploads_(options.upload_idle_timeout, options.upload_min_bytes_per_second,
+                 options.watch_idle_timeout) {}
 
   // A new job's store of events, writing to `writer`.
   std::shared_ptr<ResultStore> NewResultStore(EventWriter* writer) {
@@ -223,21 +417,39 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
       ++counters_.readers_cut_off;
       LogLine(options_.log, "a reader was cut off: ", status.error_message());
     };
-    return std::make_shared<ResultStore>(writer, &result_budget_, std::move(store_options));
+    auto store = std::make_shared<ResultStore>(writer, &result_budget_, std::move(store_options));
+    std::lock_guard<std::mutex> lock(stores_mutex_);
+    std::erase_if(stores_, [](const std::weak_ptr<ResultStore>& weak) { return weak.expired(); });
+    stores_.push_back(store);
+    return store;
+  }
+
+  // Shutdown, once the jobs have ended: every call still holding events its client has
+  // not read drops them and ends with a final Failed event, so a slow reader still gets
+  // one before the calls are cancelled.
+  void FlushCallsForShutdown() {
+    std::vector<std::shared_ptr<ResultStore>> stores;
+    {
+      std::lock_guard<std::mutex> lock(stores_mutex_);
+      for (const std::weak_ptr<ResultStore>& weak : stores_) {
+        if (std::shared_ptr<ResultStore> store = weak.lock()) stores.push_back(std::move(store));
+      }
+    }
+    const grpc::Status status(grpc::StatusCode::UNAVAILABLE,
+                              "the server is shutting down and the client had not read all of "
+                              "the job's events; submit the job again, to another server");
+    for (const std::shared_ptr<ResultStore>& store : stores) store->FlushForShutdown(status);
   }
 
   grpc::ServerBidiReactor<v1::RunRequest, v1::JobEvent>* Run(
       grpc::CallbackServerContext* context) override {
     std::string peer = context->peer();
-    absl::Status admitted = draining_ ? absl::UnavailableError(
-                                            "the server is shutting down; submit the job to "
-                                            "another server or try again later")
-                                      : admission_.Admit(peer);
     absl::StatusOr<std::string> tenant = Authorize(context);
-    if (!tenant.ok()) {
-      if (admitted.ok()) admission_.Release(peer);
-      admitted = tenant.status();
-    }
+    absl::Status admitted = !tenant.ok() ? tenant.status()
+                            : draining_  ? absl::UnavailableError(
+                                               "the server is shutting down; submit the job to "
+                                                "another server or try again later")
+                                        : admission_.Admit(peer, *tenant);
     return new RunCall(this, std::move(peer), tenant.value_or(""), admitted);
   }
 
@@ -296,8 +508,8 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         JobEnded(*job, "cancelled", absl::Now(), absl::Now(), cancelled.error_code(),
                  cancelled.error_message(), nullptr);
       }
-      LogLine(options_.log, request->job_id(), " cancelled by a Cancel call from ",
-              context->peer());
+      LogLine(options_.log, LogSafe(request->job_id()), " cancelled by a Cancel call from ",
+              LogSafe(context->peer()));
     }
     reply->set_state(JobStateName((*record)->state()));
     reactor->Finish(grpc::Status::OK);
@@ -309,7 +521,15 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                      v1::JobList* list) override {
     std::string tenant;
     if (grpc::ServerUnaryReactor* refused = RefuseUnauthorized(context, &tenant)) return refused;
-    for (v1::JobSummary& summary : registry_.List(tenant)) {
+    // Without tokens: the caller's own connection's jobs, unless every job is listed
+    // (ServerOptions::list_all_jobs); a peer that names no one connection sees none.
+    const std::string peer = context->peer();
+    const bool own_connection = options_.auth_tokens.empty() && !options_.list_all_jobs;
+    std::vector<v1::JobSummary> jobs;
+    if (!own_connection || NamesOneConnection(peer)) {
+      jobs = registry_.List(tenant, own_connection ? &peer : nullptr);
+    }
+    for (v1::JobSummary& summary : jobs) {
       *list->add_jobs() = std::move(summary);
     }
     grpc::ServerUnaryReactor* reactor = context->DefaultReactor();
@@ -334,6 +554,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     stats->set_max_input_bytes(options_.max_input_bytes);
     stats->set_calls_active(admission_.total());
     stats->set_calls_refused(counters_.calls_refused);
+    stats->set_uploads_timed_out(counters_.uploads_timed_out);
     stats->set_upload_bytes_in_flight(upload_budget_.used());
     stats->set_upload_bytes_limit(upload_budget_.limit());
     stats->set_queued_input_bytes(queued_budget_.used());
@@ -448,8 +669,6 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     return caps;
   }
 
-  std::string NextJobId() { return absl::StrFormat("job-%06d", next_job_number_.fetch_add(1) + 1); }
-
   const ServerOptions& options() const { return options_; }
   BoundedJobQueue<Job>& queue() { return queue_; }
   JobRegistry& registry() { return registry_; }
@@ -457,25 +676,29 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   std::atomic<uint64_t>& bytes_out() { return counters_.bytes_out; }
   Counters& counters() { return counters_; }
   CallAdmission& admission() { return admission_; }
+  UploadWatchdog& uploads() { return uploads_; }
   MemoryBudget& upload_budget() { return upload_budget_; }
   MemoryBudget& queued_budget() { return queued_budget_; }
+  MemoryBudget& result_budget() { return result_budget_; }
   bool draining() const { return draining_; }
   void set_draining() { draining_ = true; }
 
-  // A refused call: counted and logged (never its token).
+  // A refused call: counted and logged (never its token). `refused` false: a call that
+  // broke the stream's shape (logged as call_failed, not counted as refused).
   void LogRefusal(const std::string& peer, const std::string& tenant, const std::string& label,
-                  const absl::Status& status) {
-    ++counters_.calls_refused;
-    LogEvent("call_refused")
+                  const absl::Status& status, bool refused = true) {
+    if (refused) ++counters_.calls_refused;
+    LogEvent(refused ? "call_refused" : "call_failed", "warning")
         .Add("peer", peer)
         .Add("tenant", tenant)
         .Add("label", label)
-        .Add("code", static_cast<int>(status.code()))
-        .Add("message", std::string(status.message()))
+        .Add("code", CodeName(static_cast<int>(status.code())))
+        .Add("message", std::string(status.message()), kLoggedLineBytes)
         .Write(options_.log,
-               absl::StrCat("refused a call from ", peer,
-                            label.empty() ? std::string() : absl::StrCat(" (label '", label, "')"),
-                            ": ", status.ToString()));
+               absl::StrCat(
+                   refused ? "refused a call from " : "a call failed from ", LogSafe(peer),
+                   label.empty() ? std::string() : absl::StrCat(" (label '", LogSafe(label), "')"),
+                   ": ", status.ToString()));
   }
 
   // A job ended (after running, or while queued): metrics and one log event.
@@ -485,7 +708,9 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     const double queued = absl::ToDoubleSeconds(started_at - job.accepted_at);
     const double running = absl::ToDoubleSeconds(ended_at - started_at);
     job_metrics_.JobEnded(algorithm, outcome, queued, running);
-    LogEvent event("job_ended");
+    LogEvent event("job_ended", code == 0                                               ? "info"
+                                : code == static_cast<int>(grpc::StatusCode::CANCELLED) ? "warning"
+                                                                                        : "error");
     event.Add("job_id", job.id)
         .Add("tenant", job.tenant)
         .Add("peer", job.peer)
@@ -495,7 +720,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
         .Add("input_bytes", uint64_t{job.spec.input_bytes()})
         .Add("detached", job.spec.detach())
         .Add("outcome", outcome)
-        .Add("code", code)
+        .Add("code", CodeName(code))
         .Add("seconds_queued", queued)
         .Add("seconds_running", running);
     if (done != nullptr) {
@@ -504,7 +729,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
           .Add("final_clusters", uint64_t{done->final_clusters()})
           .Add("device", done->device());
     } else {
-      event.Add("message", message);
+      event.Add("message", message, kLoggedLineBytes);
     }
     const std::string text =
         done != nullptr
@@ -524,14 +749,16 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     };
     metric("mlclust_queue_depth", "gauge", "Jobs waiting in the queue.", queue_.size());
     metric("mlclust_queue_capacity", "gauge", "Jobs that may wait.", queue_.capacity());
-    metric("mlclust_jobs_running_count", "gauge", "Jobs running now.",
-           counters_.jobs_running.load());
+    metric("mlclust_jobs_running", "gauge", "Jobs running now.", counters_.jobs_running.load());
     metric("mlclust_jobs_accepted_total", "counter", "Jobs accepted.", counters_.accepted.load());
     metric("mlclust_jobs_rejected_total", "counter", "Jobs refused before queueing.",
            counters_.rejected.load());
     metric("mlclust_calls_refused_total", "counter", "Calls refused (admission, auth, limits).",
            counters_.calls_refused.load());
     metric("mlclust_calls_active", "gauge", "Run calls in progress.", admission_.total());
+    metric("mlclust_uploads_timed_out_total", "counter",
+           "Uploads ended for making no progress or going under the minimum rate.",
+           counters_.uploads_timed_out.load());
     metric("mlclust_input_bytes_total", "counter", "Input bytes received.",
            counters_.bytes_in.load());
     metric("mlclust_output_bytes_total", "counter", "Event bytes written to clients (serialized).",
@@ -553,6 +780,16 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
     metric("mlclust_cpu_workers", "gauge", "CPU workers beside the GL worker.",
            options_.cpu_workers);
     metric("mlclust_draining", "gauge", "1 while shutting down.", draining_ ? 1 : 0);
+#ifdef MLCLUST_HAVE_GPU
+    constexpr char kWithGpu[] = "true";
+#else
+    constexpr char kWithGpu[] = "false";
+#endif
+    absl::StrAppend(&out,
+                    "# HELP mlclust_build_info The server's version and build (value 1).\n"
+                    "# TYPE mlclust_build_info gauge\nmlclust_build_info{version=\"",
+                    kMlclustVersion, "\",grpc=\"", PrometheusLabel(grpc::Version()),
+                    "\",gpu_backend=\"", kWithGpu, "\"} 1\n");
     // Jobs by state (queued, running) and algorithm, from the registry.
     std::map<std::pair<std::string, std::string>, uint64_t> by_state;
     registry_.ForEach([&](const JobRecord& record) {
@@ -677,9 +914,11 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
   CallAdmission admission_;
   MemoryBudget upload_budget_, queued_budget_, result_budget_;
   JobRegistry registry_;
+  UploadWatchdog uploads_;
+  std::mutex stores_mutex_;
+  std::vector<std::weak_ptr<ResultStore>> stores_;  // every call's, for the shutdown
   JobMetrics job_metrics_;
   std::atomic<uint32_t> watch_calls_active_{0};
-  std::atomic<uint64_t> next_job_number_{0};
   std::atomic<bool> draining_{false};
   mutable std::mutex gl_mutex_;
   std::string gl_renderer_, gl_device_;
@@ -702,13 +941,47 @@ RunCall::RunCall(ServiceImpl* service, std::string peer, std::string tenant,
     Refuse(refusal);
     return;
   }
+  service_->uploads().Add(this);
+  watched_ = true;
   StartRead(&request_);
 }
 
+bool RunCall::LeaveWatchdog() {
+  if (!watched_) return true;
+  watched_ = false;
+  return service_->uploads().Remove(this);
+}
+
+std::function<void()> RunCall::EndUpload(const grpc::Status& status, bool* /*rearm*/) {
+  {
+    std::lock_guard<std::mutex> lock(read_mutex_);
+    upload_ended_ = true;
+  }
+  // A read may be outstanding: Finish is allowed then, and the read ends with ok false.
+  return [service = service_, channel = channel_, peer = peer_, tenant = tenant_, status] {
+    ++service->counters().uploads_timed_out;
+    service->LogRefusal(
+        peer, tenant, "",
+        absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message()));
+    channel->Finish(FailedEvent(status), status);
+  };
+}
+
+bool RunCall::ReadNext() {
+  std::lock_guard<std::mutex> lock(read_mutex_);
+  if (upload_ended_) {
+    ReleaseUpload();
+    return false;
+  }
+  StartRead(&request_);
+  return true;
+}
+
 void RunCall::OnDone() {
+  LeaveWatchdog();
   channel_->Detach();
   ReleaseUpload();
-  if (admitted_) service_->admission().Release(peer_);
+  if (admitted_) service_->admission().Release(peer_, tenant_);
   // An upload that never became a job (refused, cut short, cancelled) gives its memory
   // back to the system, not only to the allocator.
   const bool held_upload = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
@@ -722,6 +995,7 @@ void RunCall::ReleaseUpload() {
 }
 
 void RunCall::Fail(const absl::Status& status) {
+  LeaveWatchdog();
   ReleaseUpload();
   held_big_upload_ = held_big_upload_ || input_.capacity() >= kTrimAfterBytes;
   std::string().swap(input_);
@@ -734,20 +1008,37 @@ void RunCall::Refuse(const absl::Status& status) {
   Fail(status);
 }
 
+void RunCall::FailMalformed(const absl::Status& status) {
+  service_->LogRefusal(peer_, tenant_, have_spec_ ? spec_.label() : std::string(), status,
+                       /*refused=*/false);
+  Fail(status);
+}
+
 void RunCall::OnReadDone(bool ok) {
+  bool ended_by_watchdog = false;
+  {
+    std::lock_guard<std::mutex> lock(read_mutex_);
+    ended_by_watchdog = upload_ended_;
+  }
+  if (ended_by_watchdog) {
+    Fail(absl::DeadlineExceededError("the upload was ended"));  // its status stands, logged
+    return;
+  }
+  // Every malformed or broken stream below is logged (call_failed).
   if (!ok) {
     // The client closed its side (or the call broke) before the input was complete.
     if (!have_spec_) {
-      Fail(absl::InvalidArgumentError("the call ended before a job spec was sent"));
+      FailMalformed(absl::InvalidArgumentError("the call ended before a job spec was sent"));
     } else {
-      Fail(absl::InvalidArgumentError(absl::StrCat("the input ended after ", input_.size(), " of ",
-                                                   spec_.input_bytes(), " bytes")));
+      FailMalformed(absl::InvalidArgumentError(absl::StrCat(
+          "the input ended after ", input_.size(), " of ", spec_.input_bytes(), " bytes")));
     }
     return;
   }
   if (!have_spec_) {
     if (!request_.has_spec()) {
-      Fail(absl::InvalidArgumentError("the first message of a call must carry the job spec"));
+      FailMalformed(
+          absl::InvalidArgumentError("the first message of a call must carry the job spec"));
       return;
     }
     if (absl::Status status = service_->CheckSpec(request_.spec()); !status.ok()) {
@@ -759,15 +1050,16 @@ void RunCall::OnReadDone(bool ok) {
     }
     spec_ = request_.spec();
     have_spec_ = true;
+    service_->uploads().Progress(this, 0, spec_.input_bytes());  // the spec is progress
     // No reservation from the declared size: the buffer grows as data arrives.
   } else if (request_.has_spec()) {
-    Fail(absl::InvalidArgumentError("a second job spec in the same call"));
+    FailMalformed(absl::InvalidArgumentError("a second job spec in the same call"));
     return;
   }
   const std::string& chunk = request_.chunk();
   service_->counters().bytes_in += chunk.size();
   if (input_.size() + chunk.size() > spec_.input_bytes()) {
-    Fail(absl::InvalidArgumentError(
+    FailMalformed(absl::InvalidArgumentError(
         absl::StrCat("more input than spec.input_bytes = ", spec_.input_bytes())));
     return;
   }
@@ -782,6 +1074,7 @@ void RunCall::OnReadDone(bool ok) {
       return;
     }
     upload_reserved_ += chunk.size();
+    service_->uploads().Progress(this, chunk.size(), spec_.input_bytes());
     if (input_.capacity() < input_.size() + chunk.size()) {
       // Doubling, but never past the declared size.
       input_.reserve(std::min<uint64_t>(
@@ -794,22 +1087,31 @@ void RunCall::OnReadDone(bool ok) {
   }
   if (input_.size() == spec_.input_bytes()) {
     if (spec_.has_input_crc32() && spec_.input_crc32() != input_crc32_) {
-      Fail(absl::InvalidArgumentError(
+      FailMalformed(absl::InvalidArgumentError(
           absl::StrCat("input checksum: the ", input_.size(), " bytes received have CRC-32 ",
                        absl::Hex(input_crc32_, absl::kZeroPad8), ", spec.input_crc32 says ",
                        absl::Hex(spec_.input_crc32(), absl::kZeroPad8),
                        " (a chunk was lost, repeated or reordered on the way)")));
       return;
     }
+    if (!LeaveWatchdog()) {  // ended by the watchdog as the last chunk came
+      ReleaseUpload();
+      return;
+    }
     Submit();
     return;
   }
-  StartRead(&request_);
+  ReadNext();
 }
 
 void RunCall::Submit() {
+  absl::StatusOr<std::string> new_id = RandomJobId();
+  if (!new_id.ok()) {
+    Refuse(new_id.status());
+    return;
+  }
   auto job = std::make_shared<Job>();
-  job->id = service_->NextJobId();
+  job->id = *std::move(new_id);
   job->spec = std::move(spec_);
   job->input = std::move(input_);
   job->events = channel_;
@@ -842,11 +1144,15 @@ void RunCall::Submit() {
     return;
   }
   job->queued_bytes = bytes;
+  // An attached job's record keeps its levels: a reader cut off releases the job to it
+  // (the job runs on; the call's end says to watch it) instead of cancelling it.
+  if (!detach) channel_->KeepJobOnCutOff(id);
   // The job's entry in the registry, which keeps its levels for Watch: a detached job's
   // events go to it, an attached job's to this call with a copy to it.
   auto record = std::make_shared<JobRecord>(&service_->registry(), id, tenant_, job->spec, detach,
                                             service_->options().max_event_bytes);
   record->set_job(job);
+  record->set_owner(peer_);
   job->record = record;
   job->events = detach ? std::shared_ptr<EventChannel>(record)
                        : std::make_shared<RecordingChannel>(channel_, record);
@@ -899,9 +1205,10 @@ void RunCall::Submit() {
       .Add("jobs_ahead", uint64_t{*ahead})
       .Add("detached", detach)
       .Write(service_->options().log,
-             absl::StrCat(id, " accepted from ", peer_, " (label '", label, "', ", bytes,
-                          " bytes, ", job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ",
-                          *ahead, " ahead", detach ? ", detached" : "", ")"));
+             absl::StrCat(id, " accepted from ", LogSafe(peer_), " (label '", LogSafe(label), "', ",
+                          bytes, " bytes, ",
+                          job->lane == JobLane::kGl ? "GL worker, " : "CPU workers, ", *ahead,
+                          " ahead", detach ? ", detached" : "", ")"));
   // A detached job's call ends here; the job runs on and Watch reads its levels.
   if (detach) channel_->Finish(std::move(accepted_event), grpc::Status::OK);
 }
@@ -923,12 +1230,22 @@ void RunCall::OnCancel() {
 
 // The reactor of one Watch call: writes the job's kept events one at a time from its
 // record, each when the previous write is done, and waits (registered with the record)
-// when it has read everything so far. The job never waits for it.
-class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
+// when it has read everything so far. The job never waits for it. Admitted like a Run call
+// (the same limits); the event being written counts in the server's memory for unread
+// events (a watcher that does not fit is cut off), and a client that takes no event for
+// the watch idle timeout is cut off: its slot is given back at once, the call ends with
+// RESOURCE_EXHAUSTED when the client reads again, and is cancelled after one more timeout.
+class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent>, public WatchedUpload {
  public:
-  WatchCall(ServiceImpl* service, absl::StatusOr<std::shared_ptr<JobRecord>> record,
-            const v1::WatchRequest& request)
-      : service_(service), waker_(std::make_shared<Waker>(this)) {
+  WatchCall(ServiceImpl* service, grpc::CallbackServerContext* context,
+            absl::StatusOr<std::shared_ptr<JobRecord>> record, const v1::WatchRequest& request,
+            std::string peer, std::string tenant, bool admitted)
+      : service_(service),
+        context_(context),
+        peer_(std::move(peer)),
+        tenant_(std::move(tenant)),
+        slot_held_(admitted),
+        waker_(std::make_shared<Waker>(this)) {
     ++service_->watch_calls_active();
     if (!record.ok()) {
       finished_ = true;  // before Finish: OnDone may delete this at once
@@ -946,9 +1263,11 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   void OnWriteDone(bool ok) override {
+    service_->uploads().Remove(this);
     {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       write_in_flight_ = false;
+      ReleaseReservedLocked();
       if (!ok) cancelled_ = true;
     }
     Wake();
@@ -963,12 +1282,37 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   void OnDone() override {
+    service_->uploads().Remove(this);
     {
       std::lock_guard<std::mutex> lock(waker_->mutex);
       waker_->call = nullptr;
+      ReleaseReservedLocked();
+      ReleaseSlotLocked();
     }
     --service_->watch_calls_active();
     delete this;
+  }
+
+  // The watchdog: the write in flight was not taken for the watch idle timeout.
+  std::function<void()> EndUpload(const grpc::Status& status, bool* rearm) override {
+    std::lock_guard<std::mutex> lock(waker_->mutex);
+    if (cut_off_.has_value()) {
+      // Cut off one timeout ago and still not reading: cancelled, its memory freed.
+      context_->TryCancel();
+      return [] {};
+    }
+    const grpc::Status cut_off(
+        status.error_code(),
+        absl::StrCat(status.error_message(), "; the watch was cut off (the job runs on: watch ",
+                     record_->id(), " again, with --from-level or resume, to read on)"));
+    cut_off_ = cut_off;
+    *rearm = true;
+    cursor_ = WatchCursor();  // the labels it held go
+    ReleaseSlotLocked();
+    return [service = service_, cut_off] {
+      ++service->counters().readers_cut_off;
+      LogLine(service->options().log, "a watcher was cut off: ", cut_off.error_message());
+    };
   }
 
  private:
@@ -990,11 +1334,28 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
     WatchCall* call;
   };
 
+  void ReleaseReservedLocked() {
+    service_->result_budget().Release(reserved_bytes_);
+    reserved_bytes_ = 0;
+  }
+  void ReleaseSlotLocked() {
+    if (!slot_held_) return;
+    slot_held_ = false;
+    service_->admission().Release(peer_, tenant_);
+  }
+
   // With the waker's lock held: starts the next write or ends the call. The lock is
   // released before calling into gRPC; the call cannot end in between (only Finish, here,
   // ends it, and a write in flight keeps it).
   void Pump(std::unique_lock<std::mutex>& lock) {
     if (finished_ || write_in_flight_) return;
+    if (cut_off_.has_value()) {
+      finished_ = true;
+      const grpc::Status status = *cut_off_;
+      lock.unlock();
+      Finish(status);
+      return;
+    }
     if (cancelled_) {
       finished_ = true;
       lock.unlock();
@@ -1003,12 +1364,31 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
     }
     grpc::Status status;
     switch (record_->NextEvent(cursor_, event_, status, waker_)) {
-      case JobRecord::Next::kEvent:
+      case JobRecord::Next::kEvent: {
+        // The event in flight counts in the server's memory for unread events: the
+        // message and its serialized copy in gRPC's buffers until the write is done.
+        const uint64_t bytes = event_.SpaceUsedLong() + event_.ByteSizeLong();
+        if (!service_->result_budget().TryReserve(bytes)) {
+          finished_ = true;
+          ++service_->counters().readers_cut_off;
+          const grpc::Status full(
+              grpc::StatusCode::RESOURCE_EXHAUSTED,
+              absl::StrCat("the server's memory for unread events (",
+                           service_->result_budget().limit() >> 20,
+                           " MiB) is full; the watch was cut off (the job runs on: watch ",
+                           record_->id(), " again later, with --from-level or resume)"));
+          lock.unlock();
+          Finish(full);
+          return;
+        }
+        reserved_bytes_ = bytes;
         write_in_flight_ = true;
         service_->bytes_out() += event_.ByteSizeLong();
         lock.unlock();
+        service_->uploads().AddWrite(this);
         StartWrite(&event_);
         return;
+      }
       case JobRecord::Next::kEnd:
         finished_ = true;
         lock.unlock();
@@ -1020,6 +1400,11 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
   }
 
   ServiceImpl* service_;
+  grpc::CallbackServerContext* const context_;  // valid until OnDone
+  const std::string peer_, tenant_;
+  bool slot_held_;                       // an admission slot (given back once)
+  uint64_t reserved_bytes_ = 0;          // of the result budget, for the event in flight
+  std::optional<grpc::Status> cut_off_;  // set by the watchdog
   std::shared_ptr<Waker> waker_;
   std::shared_ptr<JobRecord> record_;
   WatchCursor cursor_;
@@ -1031,12 +1416,20 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent> {
 
 grpc::ServerWriteReactor<v1::JobEvent>* ServiceImpl::Watch(grpc::CallbackServerContext* context,
                                                            const v1::WatchRequest* request) {
+  // The same admission as Run calls, before anything is allocated for the call.
+  std::string peer = context->peer();
   absl::StatusOr<std::string> tenant = Authorize(context);
-  if (!tenant.ok()) {
-    LogRefusal(context->peer(), "", "", tenant.status());
-    return new WatchCall(this, tenant.status(), *request);
+  const absl::Status admitted =
+      !tenant.ok() ? tenant.status()
+      : draining_  ? absl::UnavailableError("the server is shutting down; try again later")
+                   : admission_.Admit(peer, *tenant);
+  if (!admitted.ok()) {
+    LogRefusal(peer, tenant.value_or(""), "", admitted);
+    return new WatchCall(this, context, admitted, *request, std::move(peer), "", false);
   }
-  return new WatchCall(this, registry_.Find(request->job_id(), *tenant), *request);
+  absl::StatusOr<std::shared_ptr<JobRecord>> record = registry_.Find(request->job_id(), *tenant);
+  return new WatchCall(this, context, std::move(record), *request, std::move(peer),
+                       *std::move(tenant), true);
 }
 
 }  // namespace
@@ -1047,6 +1440,7 @@ class ServerImpl {
 
   absl::Status Start() {
     const ServerOptions& options = service_.options();
+    if (absl::Status valid = ValidateOptions(options); !valid.ok()) return valid;
     JsonLogs() = options.log_json;
     // The GL worker owns the GL context: it creates it on its own thread and reports back.
     std::promise<absl::Status> started;
@@ -1067,6 +1461,7 @@ class ServerImpl {
         lock.lock();
       }
     });
+    service_.uploads().Start();
     for (size_t i = 0; i < options.cpu_workers; ++i) {
       cpu_workers_.emplace_back([this] {
         JobRunnerContext context;  // no GL: the jobs planned for the CPU (the lane)
@@ -1161,6 +1556,37 @@ class ServerImpl {
     return absl::OkStatus();
   }
 
+  // Options a server cannot run with safely, refused before anything starts.
+  static absl::Status ValidateOptions(const ServerOptions& options) {
+    if (options.upload_idle_timeout <= absl::ZeroDuration() ||
+        options.upload_idle_timeout > absl::Hours(1)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the upload idle timeout must be over 0 and at most 1 hour, not ",
+                       absl::FormatDuration(options.upload_idle_timeout)));
+    }
+    if (options.watch_idle_timeout <= absl::ZeroDuration() ||
+        options.watch_idle_timeout > absl::Hours(1)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the watch idle timeout must be over 0 and at most 1 hour, not ",
+                       absl::FormatDuration(options.watch_idle_timeout)));
+    }
+    // /metrics is plain HTTP without a token: where tokens are on it stays on loopback
+    // (scraped by a sidecar or through a port forward) unless the operator says otherwise.
+    if (!options.auth_tokens.empty() && !options.metrics_address.empty() &&
+        !options.metrics_allow_remote && !IsLoopback(options.metrics_address)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--metrics ", options.metrics_address,
+          ": metrics are plain HTTP without a token; with --auth-token-file they are served on "
+          "loopback only (127.0.0.1:PORT or [::1]:PORT), unless --metrics-allow-remote"));
+    }
+    if (options.upload_min_bytes_per_second > (uint64_t{1} << 30)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("the minimum upload rate must be at most 1 GiB/s, not ",
+                       options.upload_min_bytes_per_second, " bytes/s"));
+    }
+    return absl::OkStatus();
+  }
+
   // The listener's credentials: plaintext, or TLS (optionally requiring client
   // certificates) with the token check.
   static absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> Credentials(
@@ -1197,6 +1623,16 @@ class ServerImpl {
     if (shut_down_) return;
     shut_down_ = true;
     const ServerOptions& options = service_.options();
+    // One line when the drain starts (SIGTERM, SIGINT or Shutdown()), in either format.
+    LogEvent("shutdown", "warning")
+        .Add("queued", uint64_t{service_.queue().size()})
+        .Add("running", uint64_t{service_.counters().jobs_running.load()})
+        .Add("drain_seconds", absl::ToDoubleSeconds(options.drain_time))
+        .Write(
+            options.log,
+            absl::StrCat("shutting down: not serving; ", service_.queue().size(),
+                         " queued jobs end now, ", service_.counters().jobs_running.load(),
+                         " running may finish within ", absl::FormatDuration(options.drain_time)));
     // 1. Not serving, at once: health checks and new calls see it.
     service_.set_draining();
     if (server_ != nullptr) {
@@ -1241,6 +1677,7 @@ class ServerImpl {
     }
     StopWorkers();
     metrics_.reset();
+    service_.FlushCallsForShutdown();
     if (server_ != nullptr) {
       // Calls still open (clients that stopped reading) are cancelled after 2 s.
       server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
@@ -1267,6 +1704,7 @@ class ServerImpl {
  private:
   void StopWorkers() {
     service_.queue().Stop();
+    service_.uploads().Stop();
     if (sweeper_.joinable()) {
       {
         std::lock_guard<std::mutex> lock(sweeper_mutex_);

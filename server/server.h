@@ -44,6 +44,23 @@ struct ServerOptions {
   uint32_t max_calls = 256;
   uint32_t max_calls_per_connection = 32;
   uint32_t max_calls_per_peer = 64;
+  // With tokens: calls in progress per tenant (0: no limit), so one tenant's stalled calls
+  // cannot take the slots of the others behind the same address or proxy.
+  uint32_t max_calls_per_tenant = 64;
+  // Uploads must make progress: a Run call that receives nothing (no spec, no input
+  // bytes) for `upload_idle_timeout`, or whose input arrives slower than
+  // `upload_min_bytes_per_second` on average (it may take upload_idle_timeout +
+  // received / rate), is ended with DEADLINE_EXCEEDED saying which, so stalled calls give
+  // back their admission slots and upload memory. The timeout must be over 0 and at most
+  // 1 hour; a rate of 0 turns the rate check off (at most 1 GiB/s).
+  absl::Duration upload_idle_timeout = absl::Seconds(30);
+  uint64_t upload_min_bytes_per_second = uint64_t{64} << 10;
+  // A Watch call whose client takes no event for this long is cut off (its admission
+  // slot given back at once; RESOURCE_EXHAUSTED when it reads again; cancelled after one
+  // more such time). Watch calls are admitted like Run calls (max_calls and the limits
+  // per connection, address and tenant) and the event each is writing counts in
+  // `result_server_budget_bytes`. Over 0, at most 1 hour.
+  absl::Duration watch_idle_timeout = absl::Seconds(60);
   // Bytes received into uploads not yet complete, over all calls. Buffers grow as data
   // arrives; nothing is reserved from a declared size.
   uint64_t max_upload_bytes_in_flight = uint64_t{1} << 30;
@@ -58,7 +75,10 @@ struct ServerOptions {
   absl::Duration drain_time = absl::ZeroDuration();
   // Events a job has produced and its client not yet read (memory, not wire bytes): per
   // job and over all jobs. A reader that falls further behind is cut off with
-  // RESOURCE_EXHAUSTED and its job cancelled; producing levels never waits on a reader.
+  // RESOURCE_EXHAUSTED; its job runs on where its record keeps its levels (the message says
+  // to watch it) and is cancelled only where they cannot be kept. Producing levels never
+  // waits on a reader. At Shutdown, a call's unread events are dropped so it still gets a
+  // final event.
   uint64_t result_job_budget_bytes = uint64_t{256} << 20;
   uint64_t result_server_budget_bytes = uint64_t{1} << 30;
   // Largest message sent; larger level batches and snapshots are split (under gRPC's
@@ -78,8 +98,13 @@ struct ServerOptions {
   std::string tls_client_ca_pem;
   // Bearer tokens, token -> tenant (server/auth.h); they need TLS. With them every
   // Clustering call needs a known token (UNAUTHENTICATED otherwise) and sees only its
-  // tenant's jobs (PERMISSION_DENIED for another's). Empty: one tenant, "".
+  // tenant's jobs (another's answers NOT_FOUND exactly like an unknown id). Empty: one
+  // tenant, "".
   std::map<std::string, std::string> auth_tokens;
+  // Without tokens, ListJobs shows a caller only the jobs its own connection submitted
+  // (job ids are unguessable capabilities: Watch and Cancel work for whoever holds one).
+  // True: every job (a single-user server). Ignored with tokens (a tenant sees its own).
+  bool list_all_jobs = false;
   GpuMode gpu = GpuMode::kAuto;
   // Log lines (start-up, renderer, each job) to stderr.
   bool log = true;
@@ -89,6 +114,11 @@ struct ServerOptions {
   // "HOST:PORT" for Prometheus metrics over HTTP (GET /metrics; port 0 picks one); empty:
   // none. A port in use is refused.
   std::string metrics_address;
+  // Where tokens are on, a metrics address that is not loopback is refused at start (the
+  // exposition is plain HTTP without a token) unless this is set (a network that is
+  // already private). Metrics answer under idle or slow connections: 32 workers, and a
+  // connection idle for 1 s is dropped.
+  bool metrics_allow_remote = false;
 };
 
 class ServerImpl;

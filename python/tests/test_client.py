@@ -100,7 +100,7 @@ class ServerTest(ServedTestCase):
         vertices, faces = grid(20)  # 800 faces
         attached = self.client.cluster_mesh(vertices, faces, algo="hc")
         job = self.client.cluster_mesh(vertices, faces, algo="hc", detach=True)
-        self.assertRegex(job, r"^job-\d+$")
+        self.assertRegex(job, r"^job-[0-9a-f]{32}$")
         whole = self.client.watch(job)
         part = self.client.watch(job, from_level=700)
         self.assertEqual(whole.job_id, job)

@@ -195,7 +195,7 @@ class ReplicasTest(unittest.TestCase):
         b = self.addresses[1]
         with mlclust.Client([b] + self.addresses, spread="in-order") as client:
             job = client.cluster_mesh(vertices, faces, algo="ml", detach=True)
-            self.assertRegex(job, "^" + re.escape(b) + r"/job-\d+$")
+            self.assertRegex(job, "^" + re.escape(b) + r"/job-[0-9a-f]{32}$")
             self.assertEqual(client.watch(job).job_id, job)
             self.assertIn(job, [j.job_id for j in client.jobs()])
             process = self.servers[1][0]

@@ -27,6 +27,7 @@ using ::testing::HasSubstr;
 
 using testing::ChannelTo;
 using testing::ExpectSameHierarchy;
+using testing::GetStats;
 
 std::unique_ptr<server::Server> StartServer(server::ServerOptions options) {
   options.gpu = server::GpuMode::kOff;
@@ -254,6 +255,120 @@ TEST(DetachTest, ABrokenStreamResumesWhereItStopped) {
     total += moves[level];
   }
   EXPECT_EQ(total, solo->hierarchy.num_moves());
+}
+
+// Job ids are capabilities: 128 random bits, so an id tells nothing of the others; without
+// tokens a caller lists only its own connection's jobs, and any connection holding an id
+// may watch and cancel it.
+TEST(JobIdsTest, IdsAreRandomAndOthersJobsAreNotListedWithoutTokens) {
+  std::unique_ptr<server::Server> server = StartServer({});
+  ASSERT_TRUE(server);
+  auto owner = testing::OwnConnectionTo(*server);
+  auto other = testing::OwnConnectionTo(*server);
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(10));
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) {
+    absl::StatusOr<v1::Accepted> accepted =
+        client::SubmitDetached(owner, MeshSpec(v1::ALGORITHM_HC), bytes);
+    ASSERT_TRUE(accepted.ok()) << accepted.status();
+    ids.push_back(accepted->job_id());
+  }
+  for (const std::string& id : ids) {
+    EXPECT_THAT(id, ::testing::MatchesRegex("job-[0-9a-f]{32}")) << id;
+  }
+  EXPECT_NE(ids[0], ids[1]);
+  EXPECT_NE(ids[1], ids[2]);
+  // Only the owner's connection lists them.
+  EXPECT_EQ(List(owner).jobs_size(), 3);
+  EXPECT_EQ(List(other).jobs_size(), 0);
+  // The id is enough to watch from another connection.
+  WaitEnded(owner, ids[2]);
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(other, ids[2]);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->hierarchy.num_levels(), 200u);
+}
+
+TEST(JobIdsTest, ListAllJobsShowsEveryConnectionsJobs) {
+  server::ServerOptions options;
+  options.list_all_jobs = true;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto owner = testing::OwnConnectionTo(*server);
+  auto other = testing::OwnConnectionTo(*server);
+  absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(
+      owner, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(10)));
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  const v1::JobList list = List(other);
+  ASSERT_EQ(list.jobs_size(), 1);
+  EXPECT_EQ(list.jobs(0).job_id(), accepted->job_id());
+}
+
+// Issue 24, item 2: Watch calls had no admission (1,000 unread watchers of one job took
+// 2.3 GiB). They are admitted like Run calls, and a watcher whose client reads nothing is
+// cut off: its slot comes back at once and it learns why (and to watch again) when it
+// reads.
+TEST(WatchLimitsTest, WatchersAreAdmittedLikeRunsAndUnreadOnesAreCutOff) {
+  server::ServerOptions options;
+  options.max_calls_per_connection = 3;
+  options.watch_idle_timeout = absl::Milliseconds(300);
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = ChannelTo(*server);
+  absl::StatusOr<v1::Accepted> accepted = client::SubmitDetached(
+      channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(120)));
+  ASSERT_TRUE(accepted.ok()) << accepted.status();
+  const std::string id = accepted->job_id();
+  WaitEnded(channel, id);
+
+  auto narrow = testing::NarrowChannelTo(*server);
+  auto stub = v1::Clustering::NewStub(narrow);
+  struct Watcher {
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReader<v1::JobEvent>> stream;
+  };
+  std::vector<std::unique_ptr<Watcher>> watchers;
+  v1::WatchRequest request;
+  request.set_job_id(id);
+  for (int i = 0; i < 4; ++i) {
+    auto watcher = std::make_unique<Watcher>();
+    watcher->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+    watcher->stream = stub->Watch(&watcher->context, request);
+    watchers.push_back(std::move(watcher));
+    // Admitted before the next one starts (calls started together arrive in any order).
+    for (int wait = 0; i < 3 && wait < 1000 && GetStats(channel).calls_active() <= uint32_t(i);
+         ++wait) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  // The fourth on that connection is refused like a fourth Run call.
+  {
+    v1::JobEvent event;
+    EXPECT_FALSE(watchers[3]->stream->Read(&event));
+    const grpc::Status refused = watchers[3]->stream->Finish();
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_THAT(refused.error_message(), HasSubstr("per connection"));
+  }
+  // The three read nothing: cut off, their slots back.
+  for (int i = 0; i < 3000 && GetStats(channel).readers_cut_off() < 3; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.readers_cut_off(), 3u);
+  EXPECT_EQ(stats.calls_active(), 0u);
+  // Another client watches the whole job meanwhile.
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(channel, id);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->hierarchy.num_levels(), 28800u);
+  // A cut-off watcher that reads again learns why, and what to do.
+  for (int i = 0; i < 3; ++i) {
+    v1::JobEvent event;
+    while (watchers[i]->stream->Read(&event)) {
+    }
+    const grpc::Status status = watchers[i]->stream->Finish();
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_THAT(status.error_message(), HasSubstr("the client read nothing for"));
+    EXPECT_THAT(status.error_message(), HasSubstr(absl::StrCat("watch ", id, " again")));
+  }
 }
 
 TEST(DetachTest, UnknownDroppedAndUnkeptJobsAreRefusedWithReasons) {

@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <future>
+#include <thread>
+
 #include "absl/strings/match.h"
 #include "absl/strings/str_split.h"
 #include "client/client.h"
@@ -74,6 +78,10 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
 
   const std::string response = HttpGet(server.metrics_port(), "/metrics");
   EXPECT_THAT(response, HasSubstr("200 OK"));
+  // Issue 24, item 7: no gauge with the reserved _count suffix; the build as a metric.
+  EXPECT_EQ(Sample(response, "mlclust_jobs_running"), 0);
+  EXPECT_THAT(response, ::testing::Not(HasSubstr("mlclust_jobs_running_count")));
+  EXPECT_THAT(response, ::testing::ContainsRegex(R"(mlclust_build_info\{version="[0-9.]+",)"));
   EXPECT_THAT(response, HasSubstr("text/plain; version=0.0.4"));
   EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="hc",outcome="succeeded"})"), 3);
   EXPECT_EQ(Sample(response, R"(mlclust_jobs_ended_total{algorithm="ml",outcome="failed"})"), 1);
@@ -104,6 +112,8 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
     ASSERT_EQ(line.front(), '{') << line;
     ASSERT_EQ(line.back(), '}') << line;
     EXPECT_THAT(std::string(line), HasSubstr(R"("time":")"));
+    EXPECT_THAT(std::string(line),
+                ::testing::ContainsRegex(R"re("level":"(info|warning|error)")re"));
     if (absl::StrContains(line, R"("event":"job_accepted")")) {
       ++accepted;
       EXPECT_THAT(std::string(line), HasSubstr(R"("label":"metrics \"test\"")"));
@@ -115,12 +125,15 @@ TEST(MetricsTest, CountsJobsByAlgorithmAndOutcomeWithDurationsAndBytes) {
       EXPECT_THAT(std::string(line), HasSubstr(R"("input_bytes":)"));
       if (absl::StrContains(line, R"("outcome":"failed")")) {
         EXPECT_THAT(std::string(line), HasSubstr(R"("algorithm":"ml")"));
-        EXPECT_THAT(std::string(line), HasSubstr(R"("code":3)"));
+        EXPECT_THAT(std::string(line), HasSubstr(R"("code":"INVALID_ARGUMENT")"));
+        EXPECT_THAT(std::string(line), HasSubstr(R"("level":"error")"));
       }
     }
   }
   EXPECT_EQ(accepted, 4);
   EXPECT_EQ(ended, 4);
+  // Issue 24, item 7: a line when the server is told to stop (SIGTERM), with a level.
+  EXPECT_THAT(logs, HasSubstr(R"("level":"warning","event":"shutdown")"));
   server::JsonLogs() = false;
 }
 
@@ -168,6 +181,56 @@ TEST(MetricsTest, GpuMemoryOfTheGlContextAndTheDeviceWhereExposed) {
   } else if (stats.has_gpu_device_memory_total_bytes()) {
     EXPECT_GE(stats.gpu_device_memory_total_bytes(), stats.gpu_device_memory_available_bytes());
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 5: 8 idle sockets blocked /metrics (each held one of 8 workers). Here 16
+// slow connections that send a byte of a request every 200 ms (so no read ever times out)
+// hold workers as long as they go on; a scrape meanwhile still answers.
+TEST(MetricsTest, AScrapeAnswersWhileSlowConnectionsHoldWorkers) {
+  server::ServerOptions options = WithMetrics(server::GpuMode::kOff);
+  options.log = false;
+  absl::StatusOr<std::unique_ptr<server::Server>> started = server::Server::Start(options);
+  ASSERT_TRUE(started.ok()) << started.status();
+  const int port = (*started)->metrics_port();
+  std::vector<int> slow;
+  for (int i = 0; i < 16; ++i) slow.push_back(testing::ConnectToLoopback(port));
+  std::atomic<bool> stop{false};
+  std::thread trickle([&] {
+    const std::string request = "GET /metrics HTTP/1.1\r\nHost: localhost\r\nX-Slow: ";
+    for (size_t i = 0; i < 150 && !stop; ++i) {  // 30 s at most
+      for (int fd : slow) (void)!write(fd, request.data() + std::min(i, request.size() - 1), 1);
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // they hold workers now
+  std::future<std::string> scrape =
+      std::async(std::launch::async, [port] { return HttpGet(port, "/metrics"); });
+  // Generous: the trickle lasts 30 s; a scrape that waits for it has failed.
+  const bool answered = scrape.wait_for(std::chrono::seconds(25)) == std::future_status::ready;
+  stop = true;
+  trickle.join();
+  for (int fd : slow) close(fd);
+  ASSERT_TRUE(answered) << "the scrape waited for the slow connections";
+  EXPECT_THAT(scrape.get(), HasSubstr("200 OK"));
+}
+
+TEST(MetricsTest, WithTokensMetricsStayOnLoopbackUnlessAllowed) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.log = false;
+  options.gpu = server::GpuMode::kOff;
+  options.auth_tokens = {{"alpha-token-0123456789abcdef", "alpha"}};
+  options.metrics_address = "0.0.0.0:0";
+  // (The TLS check comes after: the metrics address is refused first.)
+  absl::StatusOr<std::unique_ptr<server::Server>> remote = server::Server::Start(options);
+  EXPECT_EQ(remote.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(remote.status().message(), HasSubstr("loopback only"));
 }
 
 }  // namespace

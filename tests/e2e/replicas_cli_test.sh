@@ -28,7 +28,7 @@ base=$((20000 + RANDOM % 20000))
 addresses=()
 for i in 0 1 2; do
   port=$((base + i))
-  "$mlclust" serve --listen "127.0.0.1:$port" --gpu off 2> "$work/server$i.log" &
+  "$mlclust" serve --listen "127.0.0.1:$port" --gpu off --list-all-jobs 2> "$work/server$i.log" &
   pids+=($!)
   addresses+=("127.0.0.1:$port")
 done
@@ -89,7 +89,7 @@ jobs_rc=$?
 noreplica_rc=$?
 set -e
 [ "$rc" = 1 ] || fail "watch on the killed replica: exit $rc"
-grep -q "replica $b, which holds job job-000001, does not answer" "$work/watch_after.err" ||
+grep -q "replica $b, which holds job ${id#*/}, does not answer" "$work/watch_after.err" ||
   fail "watch: $(cat "$work/watch_after.err")"
 [ "$cancel_rc" = 1 ] || fail "cancel on the killed replica: exit $cancel_rc"
 grep -q "does not answer" "$work/cancel_after.err" || fail "cancel: $(cat "$work/cancel_after.err")"
@@ -108,7 +108,7 @@ awk 'BEGIN { n = 250; print "OFF"; print (n + 1) * (n + 1), 2 * n * n, 0;
 "$mlclust" mesh "$work/grid.off" --server "$a" --algo ml --clusters 50 --labels "$work/grid_solo.labels" \
   --levels-csv "$work/grid_solo.csv" --quiet > /dev/null || fail "solo run of the grid"
 start_replica() {  # start_replica PORT LOG: its pid in $replica_pid, once it serves
-  "$mlclust" serve --listen "127.0.0.1:$1" --gpu off 2> "$2" &
+  "$mlclust" serve --listen "127.0.0.1:$1" --gpu off --list-all-jobs 2> "$2" &
   replica_pid=$!
   pids+=($replica_pid)
   for _ in $(seq 100); do

@@ -6,11 +6,16 @@
 #include <future>
 #include <thread>
 
+#include "absl/strings/match.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
+#include "google/protobuf/struct.pb.h"
+#include "google/protobuf/util/json_util.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
+#include "server/log.h"
 #include "server/server.h"
+#include "tests/fixtures/capture_stderr.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -18,8 +23,10 @@ namespace mlclust {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 using testing::ExpectSameHierarchy;
+using testing::GetStats;
 using testing::MeshSpec;
 using testing::StartServer;
 
@@ -28,14 +35,6 @@ std::shared_ptr<grpc::Channel> LimitedChannel(int port, int max_receive_bytes) {
   arguments.SetMaxReceiveMessageSize(max_receive_bytes);
   return grpc::CreateCustomChannel(absl::StrCat("127.0.0.1:", port),
                                    grpc::InsecureChannelCredentials(), arguments);
-}
-
-v1::Stats GetStats(const std::shared_ptr<grpc::Channel>& channel) {
-  auto stub = v1::Clustering::NewStub(channel);
-  grpc::ClientContext context;
-  v1::Stats stats;
-  EXPECT_TRUE(stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
-  return stats;
 }
 
 // Messages are split under the server's max_event_bytes (3 MiB by default, under gRPC's
@@ -67,7 +66,8 @@ TEST(SplitMessagesTest, AClientWithSmallLimitsRebuildsTheSameLevels) {
 }
 
 // The probe's finding: a client that stops reading held the single worker as long as it
-// stayed connected. Now its job is cut off at its budget and the next job runs.
+// stayed connected. Now its call is cut off at its budget, its job runs on for Watch, and
+// the next job runs.
 TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   server::ServerOptions options;
   options.result_job_budget_bytes = 1 << 20;
@@ -90,6 +90,7 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   v1::JobEvent event;
   ASSERT_TRUE(stalled->Read(&event));
   ASSERT_TRUE(event.has_accepted());
+  const std::string id = event.accepted().job_id();
   // ... and reads nothing more. The next job still runs (it would wait for ever before).
   client::RunOptions run_options;
   run_options.deadline = absl::Seconds(120);
@@ -98,9 +99,12 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   ASSERT_TRUE(next.ok()) << next.status();
   const v1::Stats stats = GetStats(channel);
   EXPECT_EQ(stats.readers_cut_off(), 1u);
-  EXPECT_EQ(stats.jobs_succeeded(), 1u);
+  // Issue 24, item 6: the cut-off reader's job is not cancelled (it was, at 94% done): it
+  // runs on where its record keeps its levels, and ends succeeded before the next one.
+  EXPECT_EQ(stats.jobs_succeeded(), 2u);
+  EXPECT_EQ(stats.jobs_cancelled(), 0u);
   EXPECT_EQ(stats.result_bytes_held(), 0u);
-  // When the stalled client reads again it learns why its stream ended.
+  // When the stalled client reads again it learns why its stream ended, and to watch.
   v1::JobEvent last;
   while (stalled->Read(&event)) last = event;
   EXPECT_TRUE(last.final());
@@ -108,6 +112,14 @@ TEST(StalledReaderTest, IsCutOffAtItsBudgetAndTheWorkerMovesOn) {
   const grpc::Status status = stalled->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_THAT(status.error_message(), HasSubstr("read too slowly"));
+  EXPECT_THAT(status.error_message(), HasSubstr("the job runs on and keeps its levels"));
+  EXPECT_THAT(status.error_message(), HasSubstr(absl::StrCat("mlclust watch ", id)));
+  // And watching gives the whole hierarchy.
+  client::WatchOptions watch_options;
+  watch_options.from_level = 319990;  // the last levels of 320,000 faces
+  absl::StatusOr<client::JobResult> watched = client::WatchJob(channel, id, watch_options);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  EXPECT_EQ(watched->done.levels(), 320000u);
 }
 
 }  // namespace
@@ -184,6 +196,76 @@ TEST(AdmissionTest, CallsPerConnectionAreBoundedAndSpecsReserveNothing) {
   EXPECT_TRUE(
       client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
           .ok());
+}
+
+// Issue 24, item 1: stalled calls used to hold their admission slots for ever (64 of them
+// locked every other local client out). An upload that receives nothing for the idle
+// timeout is ended with DEADLINE_EXCEEDED saying so, a call that never sends its spec too,
+// and the slots come back for everyone else.
+TEST(UploadTimeoutTest, StalledUploadsAndSilentCallsAreEndedAndTheirSlotsComeBack) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::Milliseconds(300);
+  options.max_calls_per_peer = 4;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  std::vector<std::unique_ptr<StalledCall>> calls;
+  for (int i = 0; i < 3; ++i) calls.push_back(StartStalledCall(*stub, 1 << 20, "x"));
+  // One call that sends nothing at all, not even its spec.
+  auto silent = std::make_unique<StalledCall>();
+  silent->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+  silent->stream = stub->Run(&silent->context);
+  calls.push_back(std::move(silent));
+  for (auto& call : calls) {
+    const grpc::Status status = ReadToEnd(*call);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+    EXPECT_THAT(status.error_message(), HasSubstr("the upload made no progress for"));
+  }
+  for (int i = 0; i < 500 && GetStats(channel).calls_active() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const v1::Stats stats = GetStats(channel);
+  EXPECT_EQ(stats.calls_active(), 0u);
+  EXPECT_EQ(stats.uploads_timed_out(), 4u);
+  EXPECT_EQ(stats.upload_bytes_in_flight(), 0u);
+  EXPECT_TRUE(
+      client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC), *EncodeMeshToDraco(testing::Grid(5)))
+          .ok());
+}
+
+// A trickle that is never idle long enough for the idle timeout is ended by the minimum
+// rate: a call may take idle_timeout + received / rate.
+TEST(UploadTimeoutTest, AnUploadUnderTheMinimumRateIsEnded) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::Milliseconds(500);
+  options.upload_min_bytes_per_second = 1 << 20;
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(absl::StrCat("127.0.0.1:", server->port()));
+  auto stub = v1::Clustering::NewStub(channel);
+  std::unique_ptr<StalledCall> call = StartStalledCall(*stub, 64 << 20, std::string(1024, 'x'));
+  v1::RunRequest more;
+  more.set_chunk(std::string(1024, 'x'));
+  // 1 KiB every 50 ms (20 KiB/s) until the server ends the call (at most 100 s of it).
+  for (int i = 0; i < 2000 && call->stream->Write(more); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const grpc::Status status = ReadToEnd(*call);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  EXPECT_THAT(status.error_message(), HasSubstr("the upload is too slow"));
+  EXPECT_THAT(status.error_message(), HasSubstr("minimum rate of 1048576 bytes/s"));
+}
+
+TEST(UploadTimeoutTest, OptionsOutOfRangeAreRefusedAtStart) {
+  server::ServerOptions options;
+  options.upload_idle_timeout = absl::ZeroDuration();
+  absl::StatusOr<std::unique_ptr<server::Server>> zero = testing::StartLocal(options);
+  EXPECT_EQ(zero.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(zero.status().message(), HasSubstr("upload idle timeout"));
+  options.upload_idle_timeout = absl::Seconds(30);
+  options.upload_min_bytes_per_second = uint64_t{2} << 30;
+  EXPECT_EQ(testing::StartLocal(options).status().code(), absl::StatusCode::kInvalidArgument);
 }
 
 TEST(AdmissionTest, UploadsInFlightAreBoundedBeforeTheBufferGrows) {
@@ -374,6 +456,50 @@ TEST(OperationsTest, ShutdownDrainsRunningJobsAndFailsQueuedOnes) {
   shutdown.join();
 }
 
+// Issue 24, item 6: a client that read slowly lost its final event at SIGTERM (its call
+// was cancelled with events still unread). Now the unread events are dropped at shutdown
+// and the call ends with a final Failed event saying why.
+TEST(OperationsTest, ASlowReaderAtShutdownStillGetsAFinalEvent) {
+  server::ServerOptions options;
+  options.max_event_bytes = 64 << 10;  // many events
+  std::unique_ptr<server::Server> server = StartServer(options);
+  ASSERT_TRUE(server);
+  auto channel = client::Connect(testing::AddressOf(*server));
+  auto narrow = testing::NarrowChannelTo(*server);
+  const std::string mesh = *EncodeMeshToDraco(testing::Grid(250));  // 125,000 faces
+  auto stub = v1::Clustering::NewStub(narrow);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
+  auto stream = stub->Run(&context);
+  v1::RunRequest request;
+  *request.mutable_spec() = MeshSpec(v1::ALGORITHM_HC);
+  request.mutable_spec()->set_input_bytes(mesh.size());
+  request.set_chunk(mesh);
+  ASSERT_TRUE(stream->Write(request));
+  stream->WritesDone();
+  v1::JobEvent event;
+  ASSERT_TRUE(stream->Read(&event));
+  ASSERT_TRUE(event.has_accepted());
+  // The client reads nothing more until its job has ended (its levels wait unread) ...
+  for (int i = 0; i < 6000 && GetStats(channel).jobs_succeeded() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(GetStats(channel).jobs_succeeded(), 1u);
+  // ... then the server is told to stop, and the client reads slowly.
+  std::thread shutdown([&] { server->Shutdown(); });
+  v1::JobEvent last;
+  for (int i = 0; i < 100000 && stream->Read(&event); ++i) {
+    last = event;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const grpc::Status status = stream->Finish();
+  shutdown.join();
+  EXPECT_TRUE(last.final());
+  EXPECT_EQ(last.failed().code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_THAT(status.error_message(), HasSubstr("had not read all of the job's events"));
+}
+
 TEST(OperationsTest, ShutdownCancelsRunningJobsWhenTheDrainTimeRunsOut) {
   server::ServerOptions options;  // drain time 0
   options.gpu = server::GpuMode::kOff;
@@ -393,6 +519,102 @@ TEST(OperationsTest, ShutdownCancelsRunningJobsWhenTheDrainTimeRunsOut) {
     EXPECT_EQ(result.status().code(), absl::StatusCode::kUnavailable) << result.status();
     EXPECT_THAT(result.status().message(), HasSubstr("drain time"));
   }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 4: a label with a newline and ANSI escapes cannot forge a log line, and an
+// 8 MiB label is not logged whole, in text and in JSON (each line parses). (A label is a
+// proto3 string: bytes that are not UTF-8 never reach the server; LogSafeTest has them.)
+TEST(LogInjectionTest, ALabelCannotForgeALineAndABigOneIsCutInBothFormats) {
+  const std::string forging =
+      "x\n2026-01-01T00:00:00.000Z mlclust: job-1 done in 1s\x1b[2K\x1b]0;owned\x07\xc2\x9b";
+  const std::string big(8 << 20, 'b');
+  const std::string bytes = *EncodeMeshToDraco(testing::Grid(5));
+  for (bool json : {false, true}) {
+    server::ServerOptions options;
+    options.listen_address = "127.0.0.1:0";
+    options.gpu = server::GpuMode::kOff;
+    options.log_json = json;
+    const std::string out = testing::CaptureStderr([&] {
+      absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
+      ASSERT_TRUE(server.ok()) << server.status();
+      auto channel = testing::ChannelTo(**server);
+      for (const std::string& label : {forging, big}) {
+        EXPECT_TRUE(client::RunJob(channel, MeshSpec(v1::ALGORITHM_HC, 0, label), bytes).ok());
+      }
+      (*server)->Shutdown();
+    });
+    server::JsonLogs() = false;
+    const std::vector<std::string> lines = testing::LinesOf(out);
+    ASSERT_GE(lines.size(), 4u) << out.substr(0, 2000);
+    int escaped = 0, cut = 0;
+    for (const std::string& line : lines) {
+      EXPECT_THAT(line, Not(HasSubstr("\x1b"))) << line;
+      EXPECT_THAT(line, Not(HasSubstr("\x07"))) << line;
+      EXPECT_LT(line.size(), size_t{8192}) << line.substr(0, 200);
+      if (json) {
+        google::protobuf::Struct parsed;
+        EXPECT_TRUE(google::protobuf::util::JsonStringToMessage(line, &parsed).ok()) << line;
+      } else {
+        EXPECT_THAT(line, ::testing::MatchesRegex("[0-9]{4}-[0-9T:.-]+Z mlclust: .*")) << line;
+        EXPECT_FALSE(absl::StartsWith(line, "2026-01-01T00:00:00.000Z")) << "forged: " << line;
+      }
+      if (line.find("x\\\\x0a2026") != std::string::npos ||
+          line.find("x\\x0a2026") != std::string::npos) {
+        ++escaped;
+      }
+      if (line.find("...[8388608 bytes]") != std::string::npos) ++cut;
+    }
+    EXPECT_GE(escaped, 1) << (json ? "json" : "text");
+    EXPECT_GE(cut, 1) << (json ? "json" : "text");
+  }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 7: streams of the wrong shape were answered but not logged. Each is a
+// call_failed line now (not counted as a refusal).
+TEST(LogInjectionTest, MalformedStreamsAreLogged) {
+  server::ServerOptions options;
+  options.listen_address = "127.0.0.1:0";
+  options.gpu = server::GpuMode::kOff;
+  const std::string out = testing::CaptureStderr([&] {
+    absl::StatusOr<std::unique_ptr<server::Server>> server = server::Server::Start(options);
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto stub = v1::Clustering::NewStub(testing::ChannelTo(**server));
+    for (int shape = 0; shape < 3; ++shape) {
+      grpc::ClientContext context;
+      context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+      auto stream = stub->Run(&context);
+      v1::RunRequest request;
+      if (shape != 1) {
+        *request.mutable_spec() = MeshSpec(v1::ALGORITHM_HC);
+        request.mutable_spec()->set_input_bytes(10);
+      }
+      request.set_chunk(shape == 2 ? std::string(11, 'x') : std::string("x"));
+      stream->Write(request);
+      if (shape == 0) stream->Write(request);  // a second spec
+      stream->WritesDone();
+      v1::JobEvent event;
+      while (stream->Read(&event)) {
+      }
+      EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    }
+    (*server)->Shutdown();
+  });
+  EXPECT_THAT(out, HasSubstr("a second job spec in the same call"));
+  EXPECT_THAT(out, HasSubstr("the first message of a call must carry the job spec"));
+  EXPECT_THAT(out, HasSubstr("more input than spec.input_bytes = 10"));
+  EXPECT_THAT(out, HasSubstr("a call failed from ipv4:127.0.0.1:"));
 }
 
 }  // namespace

@@ -8,10 +8,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
+#include <thread>
 
+#include "absl/strings/str_replace.h"
 #include "client/client.h"
 #include "core/io/draco_codec.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "grpcpp/generic/generic_stub.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/server.h"
@@ -135,11 +139,22 @@ TEST(TlsTest, TokensNameTenantsAndEveryOtherCallIsRefusedWithTheRightCode) {
   ASSERT_TRUE(watched.ok()) << watched.status();
   EXPECT_EQ(watched->hierarchy.num_levels(), 200u);
 
-  // Another tenant's job: PERMISSION_DENIED for watch and cancel, absent from its list.
-  EXPECT_EQ(client::WatchJob(beta, accepted->job_id()).status().code(),
-            absl::StatusCode::kPermissionDenied);
-  EXPECT_EQ(client::CancelJob(beta, accepted->job_id()).status().code(),
-            absl::StatusCode::kPermissionDenied);
+  // Another tenant's job: for watch and cancel exactly what an id never issued gets (so a
+  // tenant cannot count others' jobs), and absent from its list.
+  const std::string never_issued = "job-00000000000000000000000000000000";
+  for (const auto& call : {+[](const std::shared_ptr<grpc::Channel>&channel, const std::string&id) {
+                             return client::WatchJob(channel, id).status();
+                           },
+                           +[](const std::shared_ptr<grpc::Channel>&channel, const std::string&id) {
+                             return client::CancelJob(channel, id).status();
+                           }}) {
+    const absl::Status others = call(beta, accepted->job_id());
+    const absl::Status unknown = call(beta, never_issued);
+    EXPECT_EQ(others.code(), absl::StatusCode::kNotFound);
+    EXPECT_EQ(others.code(), unknown.code());
+    EXPECT_EQ(others.message(),
+              absl::StrReplaceAll(unknown.message(), {{never_issued, accepted->job_id()}}));
+  }
   absl::StatusOr<v1::JobList> beta_jobs = client::ListJobs(beta);
   ASSERT_TRUE(beta_jobs.ok()) << beta_jobs.status();
   EXPECT_EQ(beta_jobs->jobs_size(), 0);
@@ -244,6 +259,106 @@ TEST(TlsTest, TheServerRefusesTokensWithoutTls) {
   absl::StatusOr<std::unique_ptr<server::Server>> started = testing::StartLocal(options);
   EXPECT_EQ(started.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(started.status().message(), HasSubstr("need TLS"));
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// Issue 24, item 1: one tenant's stalled calls cannot take every slot of the address that
+// tenants share (a proxy, one host): calls in progress are also counted per tenant.
+TEST(TlsTest, OneTenantsStalledCallsLeaveTheOtherTenantsSlots) {
+  Certificates certs;
+  ASSERT_TRUE(certs.ok());
+  server::ServerOptions options;
+  options.gpu = server::GpuMode::kOff;
+  options.tls_cert_pem = certs.pem("server.pem");
+  options.tls_key_pem = certs.pem("server.key");
+  options.auth_tokens = {{kAlphaToken, "alpha"}, {kBetaToken, "beta"}};
+  options.max_calls_per_tenant = 2;
+  absl::StatusOr<std::unique_ptr<server::Server>> server = testing::StartLocal(options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto alpha = Channel(**server, certs, "alpha.token");
+  auto beta = Channel(**server, certs, "beta.token");
+  auto stub = v1::Clustering::NewStub(alpha);
+  struct Stalled {
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReaderWriter<v1::RunRequest, v1::JobEvent>> stream;
+  };
+  std::vector<std::unique_ptr<Stalled>> stalled;
+  for (int i = 0; i < 2; ++i) {
+    auto call = std::make_unique<Stalled>();
+    call->context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
+    call->stream = stub->Run(&call->context);
+    v1::RunRequest request;
+    *request.mutable_spec() = MeshSpec();
+    request.mutable_spec()->set_input_bytes(1 << 20);
+    request.set_chunk("x");
+    ASSERT_TRUE(call->stream->Write(request));
+    stalled.push_back(std::move(call));
+    // Admitted before the next one starts (calls started together arrive in any order).
+    for (int wait = 0; wait < 1000; ++wait) {
+      auto stats_stub = v1::Clustering::NewStub(beta);
+      grpc::ClientContext context;
+      v1::Stats stats;
+      ASSERT_TRUE(stats_stub->GetStats(&context, v1::GetStatsRequest(), &stats).ok());
+      if (stats.calls_active() > static_cast<uint32_t>(i)) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  const std::string small = *EncodeMeshToDraco(testing::Grid(5));
+  absl::StatusOr<client::JobResult> third = client::RunJob(alpha, MeshSpec(), small);
+  EXPECT_EQ(third.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_THAT(third.status().message(), HasSubstr("tenant 'alpha' has 2 calls in progress"));
+  EXPECT_TRUE(client::RunJob(beta, MeshSpec(), small).ok());
+  for (auto& call : stalled) call->context.TryCancel();
+  for (auto& call : stalled) {
+    v1::JobEvent event;
+    while (call->stream->Read(&event)) {
+    }
+    call->stream->Finish();
+  }
+}
+
+}  // namespace
+}  // namespace mlclust
+
+namespace mlclust {
+namespace {
+
+// A unary call of `method` with an empty message through the generic stub: its status.
+grpc::Status GenericCall(const std::shared_ptr<grpc::Channel>& channel, const std::string& method) {
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(20));
+  grpc::Slice empty("");  // an empty message (a ByteBuffer without slices is none)
+  grpc::ByteBuffer request(&empty, 1), response;
+  std::promise<grpc::Status> done;
+  stub.UnaryCall(&context, method, grpc::StubOptions(), &request, &response,
+                 [&done](grpc::Status status) { done.set_value(std::move(status)); });
+  return done.get_future().get();
+}
+
+// Issue 24, item 5: server reflection answered without a token on a server that requires
+// tokens (it lists the whole API). Now only health checks pass without one.
+TEST(TlsTest, ReflectionNeedsATokenWhereTokensAreOn) {
+  Certificates certs;
+  ASSERT_TRUE(certs.ok());
+  std::unique_ptr<server::Server> server = StartTlsServer(certs, /*tokens=*/true, false);
+  ASSERT_TRUE(server);
+  const std::string reflection = "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo";
+  const grpc::Status anonymous = GenericCall(Channel(*server, certs, ""), reflection);
+  EXPECT_EQ(anonymous.error_code(), grpc::StatusCode::UNAUTHENTICATED) << anonymous.error_message();
+  EXPECT_THAT(anonymous.error_message(), HasSubstr("bearer token"));
+  const grpc::Status with_token = GenericCall(Channel(*server, certs, "alpha.token"), reflection);
+  EXPECT_NE(with_token.error_code(), grpc::StatusCode::UNAUTHENTICATED)
+      << with_token.error_message();
+  // Health checks still need none.
+  const grpc::Status health =
+      GenericCall(Channel(*server, certs, ""), "/grpc.health.v1.Health/Check");
+  EXPECT_TRUE(health.ok()) << health.error_message();
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 
 #include <cstring>
 
+#include "absl/strings/str_replace.h"
+
 namespace mlclust::server {
 namespace {
 
@@ -62,8 +64,47 @@ TEST(JobRegistryTest, RetentionDropsEveryEndedJobUnderItsOwnId) {
     EXPECT_THAT(found.status().message(), HasSubstr("retention time"));
   }
   ASSERT_TRUE(registry.Find("job-b", "").ok());
-  EXPECT_EQ(registry.Find("job-b", "other").status().code(), absl::StatusCode::kPermissionDenied);
   EXPECT_THAT(registry.Find("job-z", "").status().message(), HasSubstr("no job 'job-z'"));
+}
+
+TEST(JobRegistryTest, AnotherTenantsJobAnswersExactlyLikeAnUnknownId) {
+  JobRegistryOptions options;
+  options.retention = absl::ZeroDuration();
+  JobRegistry registry(options);
+  auto kept = Record(registry, "job-kept", "alpha");
+  auto dropped = Record(registry, "job-gone", "alpha");
+  dropped->MarkEnded(grpc::Status::OK);
+  registry.Sweep();  // job-gone's results dropped, a note left for alpha
+  // The unknown id's answer, with the id in place of "job-none".
+  auto unknown_answer = [&](const std::string& id) {
+    const absl::Status unknown = registry.Find("job-none", "beta").status();
+    return absl::Status(unknown.code(), absl::StrReplaceAll(unknown.message(), {{"job-none", id}}));
+  };
+  for (const char* id : {"job-kept", "job-gone"}) {
+    const absl::Status other = registry.Find(id, "beta").status();
+    EXPECT_EQ(other.code(), absl::StatusCode::kNotFound) << id;
+    EXPECT_EQ(other, unknown_answer(id)) << id;
+  }
+  ASSERT_TRUE(registry.Find("job-kept", "alpha").ok());
+  EXPECT_THAT(registry.Find("job-gone", "alpha").status().message(), HasSubstr("retention time"));
+}
+
+TEST(JobRegistryTest, ListingByOwnerShowsOnlyThatConnectionsJobs) {
+  JobRegistry registry(JobRegistryOptions{});
+  for (const auto& [id, owner] :
+       {std::pair{"job-1", "ipv4:127.0.0.1:1000"}, std::pair{"job-2", "ipv4:127.0.0.1:2000"},
+        std::pair{"job-3", "ipv4:127.0.0.1:1000"}}) {
+    v1::JobSpec spec;
+    auto record = std::make_shared<JobRecord>(&registry, id, "", spec, true, 1 << 20);
+    record->set_owner(owner);
+    registry.Add(record);
+  }
+  const std::string first = "ipv4:127.0.0.1:1000", nobody = "ipv4:127.0.0.1:3000";
+  std::vector<std::string> ids;
+  for (const v1::JobSummary& job : registry.List("", &first)) ids.push_back(job.job_id());
+  EXPECT_THAT(ids, ::testing::ElementsAre("job-1", "job-3"));
+  EXPECT_TRUE(registry.List("", &nobody).empty());
+  EXPECT_EQ(registry.List("").size(), 3u);
 }
 
 TEST(JobRegistryTest, MemoryForANewJobDropsTheOldestEndedFirst) {
@@ -125,6 +166,59 @@ TEST(JobRecordTest, ACursorReadsASnapshotAtAnyLevelThenTheRest) {
   EXPECT_THAT(batch.triplet_end(), ::testing::ElementsAre(1, 2, 3, 4, 5));
   EXPECT_TRUE(events[3].has_done());
   EXPECT_TRUE(events[3].final());
+}
+
+// Issue 24, item 2: a thousand watchers of one job each held their own copy of the labels
+// they started from. Watchers of one level share one copy, level 0 needs none, and the
+// copy goes when the last of them has sent it.
+TEST(JobRecordTest, WatchersOfOneLevelShareOneCopyOfItsLabels) {
+  JobRegistry registry(JobRegistryOptions{});
+  auto record = Record(registry, "job-s", "", /*keep=*/true);
+  EmitHierarchy(*record, 10);
+  record->MarkEnded(grpc::Status::OK);
+  std::vector<WatchCursor> cursors(3);
+  cursors[0].from_level = cursors[1].from_level = 4;  // cursors[2] from level 0
+  v1::JobEvent event;
+  grpc::Status status;
+  for (WatchCursor& cursor : cursors) {
+    ASSERT_EQ(record->NextEvent(cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    ASSERT_TRUE(event.has_accepted());
+    ASSERT_EQ(record->NextEvent(cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    ASSERT_TRUE(event.has_snapshot());
+  }
+  // The whole snapshot fits one event, so each cursor has sent it: nothing is held.
+  for (const WatchCursor& cursor : cursors) EXPECT_EQ(cursor.labels, nullptr);
+  EXPECT_THAT(event.snapshot().labels(), ::testing::ElementsAre(0, 1, 2, 3, 4, 5, 6, 7, 8, 9));
+}
+
+TEST(JobRecordTest, WatchersOfOneLevelHoldTheSameLabelsWhileSendingThem) {
+  JobRegistry registry(JobRegistryOptions{});
+  v1::JobSpec spec;
+  // Events of at most 4 KiB: a 5000-element snapshot goes in several pieces.
+  auto record = std::make_shared<JobRecord>(&registry, "job-big", "", spec, true, 4096);
+  registry.Add(record);
+  EmitHierarchy(*record, 5000);
+  record->MarkEnded(grpc::Status::OK);
+  WatchCursor first, second, from_zero;
+  first.from_level = second.from_level = 7;
+  v1::JobEvent event;
+  grpc::Status status;
+  for (WatchCursor* cursor : {&first, &second, &from_zero}) {
+    for (int i = 0; i < 2; ++i) {
+      ASSERT_EQ(record->NextEvent(*cursor, event, status, nullptr), JobRecord::Next::kEvent);
+    }
+    ASSERT_TRUE(event.has_snapshot());
+    ASSERT_LT(event.snapshot().labels_size(), 5000);  // more pieces to come
+  }
+  ASSERT_NE(first.labels, nullptr);
+  EXPECT_EQ(first.labels.get(), second.labels.get());  // one copy for both
+  EXPECT_EQ(from_zero.labels, nullptr);                // level 0: the record's own
+  // The rest of the snapshot: level 7 has elements 1..7 in cluster 0.
+  while (second.phase == WatchCursor::Phase::kSnapshot) {
+    ASSERT_EQ(record->NextEvent(second, event, status, nullptr), JobRecord::Next::kEvent);
+  }
+  EXPECT_EQ(second.labels, nullptr);
+  EXPECT_EQ(first.labels.use_count(), 1);  // only the first holds it now
 }
 
 // The call's side of an attached job: counts what reaches it.
