@@ -25,7 +25,7 @@ cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 
 trap cleanup EXIT
 base=$((40000 + RANDOM % 10000))
 serve() {  # serve PORT: a replica on 127.0.0.1:PORT, its pid in $served
-  "$M" serve --listen "127.0.0.1:$1" --gpu off 2> "$work/serve$1.log" & served=$!; pids+=($served)
+  "$M" serve --listen "127.0.0.1:$1" --gpu off --list-all-jobs 2> "$work/serve$1.log" & served=$!; pids+=($served)
   for _ in $(seq 100); do grep -q serving "$work/serve$1.log" 2>/dev/null && return; sleep 0.1; done
   echo "replica $1 did not start" >&2; exit 1
 }

@@ -31,7 +31,7 @@ seconds() {  # runs "$@" quietly, prints its wall time in seconds
 median() { tr ' ' '\n' | sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 
 mport=$((20000 + RANDOM % 20000))
-start_server plain --metrics "127.0.0.1:$mport"
+start_server plain --list-all-jobs --metrics "127.0.0.1:$mport"
 plain=$port
 ( cd "$work" && openssl req -x509 -newkey rsa:2048 -nodes -keyout k.pem -out c.pem -days 1 \
     -subj /CN=localhost -addext subjectAltName=IP:127.0.0.1 ) > /dev/null 2>&1
