@@ -33,9 +33,12 @@ using testing::AddressOf;
 using testing::CuttingProxy;
 using testing::ExpectSameHierarchy;
 
+// Replicas that list every connection's jobs (serve --list-all-jobs): the tests count what
+// a replica ran from a connection of their own.
 std::unique_ptr<server::Server> StartServer() {
   server::ServerOptions options;
   options.gpu = server::GpuMode::kOff;
+  options.list_all_jobs = true;
   return testing::StartServer(options);
 }
 
