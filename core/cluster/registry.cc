@@ -1072,8 +1072,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "X-means (Alg. 2.5, Pelleg & Moore)";
     a.help =
         "k-means from --clusters = k_min, then every cluster split in two by 2-means where the "
-        "BIC of the halves beats the cluster's, and k-means again, until no split is kept or "
-        "k_max; the result is the round of largest BIC";
+        "BIC of the halves beats the cluster's, and k-means again, until no split is kept (after "
+        "--lookahead forced rounds, ours) or k_max; the result is the round of largest BIC";
     a.energies = point_energies;
     a.options = {
         Integer("kmax", 0, UINT32_MAX, "0",
@@ -1086,6 +1086,15 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                 "tested",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.xmeans.split_trials = static_cast<uint32_t>(v.integer);
+                }),
+        Integer("lookahead", 0, 64, "2",
+                "ours: after a round that keeps no split, up to this many forced rounds in a row "
+                "split every cluster anyway (k doubles), so that the search passes the BIC's "
+                "local maximum at few clusters (from k_min = 1 Alg. 2.5 stops at one cluster "
+                "on blobs spread over a volume); 0 = Alg. 2.5's stop at the first round that "
+                "keeps no split",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.xmeans.lookahead = static_cast<uint32_t>(v.integer);
                 }),
         divisive_init("kmeans++", "seeding of the first k-means and of every 2-means",
                       [](JobPlan& plan, KmeansOptions::Init init) { plan.xmeans.init = init; }),
