@@ -525,6 +525,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, const JobPlan& plan, const Dev
     if (!choice.ok()) return choice.status();
     outcome.done.set_bic_best_cluster_count(choice->best_k);
     outcome.done.set_bic_first_decrease_cluster_count(choice->first_decrease_k);
+    outcome.done.set_bic_merging_first_decrease_cluster_count(choice->merging_first_decrease_k);
     outcome.done.set_bic_best(choice->bic[choice->best_level]);
   } else {
     absl::StatusOr<RunSummary> summary = plan.algorithm->run_points(points, plan, sink, run);
