@@ -38,8 +38,9 @@ int RunPoints(const Arguments& args) {
   // and the result (the last level) has the K it found.
   const bool divisive = (*algorithm)->divisive;
   const bool chooses_k = (*algorithm)->chooses_k;
-  // LN k-means from the voxel grid: one cluster per occupied cell, no K.
-  const bool grid_start = algo == "lnkmeans" && args.get("init", "") == "grid";
+  // LN k-means or k-means from the voxel grid: one cluster per occupied cell, no K.
+  const bool grid_start =
+      (algo == "lnkmeans" || algo == "kmeans") && args.get("init", "") == "grid";
   if (grid_start && *clusters != 0) {
     return Fail(absl::InvalidArgumentError(
         "--clusters: --init grid starts from one cluster per occupied voxel (--grid A)"));

@@ -655,6 +655,33 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
     if (on_gpu) return context.devices->RunLloyd(points, std::move(start_centres), options);
     return RunLloyd(points, std::move(start_centres), options);
   };
+  if (plan.point_init == JobPlan::PointInit::kGrid) {
+    // From the voxel grid (Fig. 6.11's equal start with LN k-means): the centres are the
+    // means of the occupied voxels' points; level 0 is the voxel clusters, level 1 the result.
+    MLCLUST_ASSIGN_OR_RETURN(VoxelStart start, VoxelGridStart(points, plan.grid, context.cancel));
+    const uint32_t d = points.dims;
+    std::vector<double> sums(size_t{start.clusters} * d, 0.0);
+    std::vector<uint64_t> counts(start.clusters, 0);
+    for (size_t i = 0; i < points.num_points(); ++i) {
+      const uint32_t c = start.labels[i].value();
+      const std::span<const float> p = points.point(PointId(static_cast<uint32_t>(i)));
+      for (uint32_t j = 0; j < d; ++j) sums[size_t{c} * d + j] += p[j];
+      ++counts[c];
+    }
+    std::vector<float> centres(sums.size());
+    for (size_t v = 0; v < sums.size(); ++v) {
+      centres[v] = static_cast<float>(sums[v] / static_cast<double>(counts[v / d]));
+    }
+    KmeansOptions options = plan.kmeans;
+    options.clusters = start.clusters;
+    options.on_iteration = [&](uint32_t iteration, double inertia) {
+      Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
+    };
+    MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
+    MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, PointEnergy(points, start.labels),
+                                            result.labels, result.inertia, start.clusters, sink));
+    return RunSummary{start.clusters, start.clusters};
+  }
   MLCLUST_ASSIGN_OR_RETURN(
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
@@ -1043,8 +1070,11 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "brute-force Lloyd iterations from k-means++ or random centres (baseline)";
     a.energies = point_energies;
     a.options = {
-        point_init({"kmeans++", "random"}, "centres: greedy k-means++ or k distinct random points"),
-        point_threads,
+        point_init({"kmeans++", "random", "grid"},
+                   "centres: greedy k-means++, k distinct random points, or the means of the "
+                   "occupied voxels (section 6.2's start, no K: Fig. 6.11 compares LN k-means "
+                   "and k-means from it)"),
+        GridOption("voxels per dimension of init grid's start (0 = from m and d)"), point_threads,
         Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations at most",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/cluster/kmeans.h"
 #include "core/cluster/point_clustering.h"
 #include "core/energy/energies.h"
 #include "core/hierarchy/hierarchy.h"
@@ -439,6 +440,57 @@ TEST(RegistryTest, BoundedDriftReachesThePointHierarchies) {
     request.options = {{"bounded-drift", "1.5"}};
     EXPECT_EQ(PlanJob(request).status().code(), absl::StatusCode::kInvalidArgument) << name;
   }
+}
+
+// Issue 26 item 6: k-means from the voxel start (init grid), Fig. 6.11's equal start with LN
+// k-means: level 0 is the same voxel clusters LN k-means starts from, and level 1 is Lloyd from
+// the means of those voxels.
+TEST(RegistryTest, KmeansFromTheVoxelGridStartsWhereLnKmeansDoes) {
+  const testing::Blobs blobs = testing::GaussianBlobs(6, 40, 10, 5);
+  auto run = [&](const char* name, testing::LogSink& sink) {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kPoints, name);
+    request.options = {{"init", "grid"}, {"grid", "4"}};
+    absl::StatusOr<JobPlan> plan = PlanJob(request);
+    ASSERT_TRUE(plan.ok()) << plan.status();
+    ASSERT_TRUE(PlanDevices(DeviceCaps{}, *plan).ok());
+    absl::StatusOr<RunSummary> summary = plan->algorithm->run_points(blobs.points, *plan, sink, {});
+    ASSERT_TRUE(summary.ok()) << summary.status();
+  };
+  testing::LogSink kmeans, ln_kmeans;
+  run("kmeans", kmeans);
+  run("lnkmeans", ln_kmeans);
+  ASSERT_EQ(kmeans.log.num_levels(), 2u);
+  const absl::StatusOr<VoxelStart> start = VoxelGridStart(blobs.points, 4);
+  ASSERT_TRUE(start.ok());
+  EXPECT_EQ(*kmeans.log.LabelsAt(0), start->labels);
+  EXPECT_EQ(*kmeans.log.LabelsAt(0), *ln_kmeans.log.LabelsAt(0));
+  EXPECT_EQ(kmeans.log.cluster_count(0), start->clusters);
+  EXPECT_DOUBLE_EQ(kmeans.log.energy(0), PointEnergy(blobs.points, start->labels));
+  // Level 1: Lloyd from the voxels' means.
+  const uint32_t d = blobs.points.dims;
+  std::vector<double> sums(size_t{start->clusters} * d, 0.0);
+  std::vector<double> counts(start->clusters, 0.0);
+  for (uint32_t i = 0; i < blobs.points.num_points(); ++i) {
+    const uint32_t c = start->labels[i].value();
+    for (uint32_t j = 0; j < d; ++j) sums[size_t{c} * d + j] += blobs.points.point(PointId(i))[j];
+    counts[c] += 1;
+  }
+  std::vector<float> centres(sums.size());
+  for (size_t v = 0; v < sums.size(); ++v) centres[v] = static_cast<float>(sums[v] / counts[v / d]);
+  KmeansOptions options;
+  options.clusters = start->clusters;
+  const absl::StatusOr<KmeansResult> lloyd = RunLloyd(blobs.points, centres, options);
+  ASSERT_TRUE(lloyd.ok());
+  EXPECT_EQ(*kmeans.log.LabelsAt(1), lloyd->labels);
+  EXPECT_DOUBLE_EQ(kmeans.log.energy(1), lloyd->inertia);
+  EXPECT_LT(kmeans.log.energy(1), kmeans.log.energy(0));
+  // No K with the grid start.
+  JobRequest request;
+  request.algorithm = FindAlgorithm(InputKind::kPoints, "kmeans");
+  request.clusters = 5;
+  request.options = {{"init", "grid"}};
+  EXPECT_THAT(std::string(PlanJob(request).status().message()), HasSubstr("voxel"));
 }
 
 }  // namespace
