@@ -281,6 +281,21 @@ std::vector<OptionInfo> PatchPresetOptions() {
   };
 }
 
+// PointMultilevelOptions::start, for the point hierarchies (HC, ML, PML).
+bool OptimisedPointStart(const JobPlan& plan) {
+  return plan.point_multilevel.start == PointMultilevelOptions::Start::kOptimisedGrid;
+}
+OptionInfo PointStartOption() {
+  return Choice("start", {"grid", "optimised-grid"}, "grid",
+                "level 0: the voxel clusters (grid, ours) or LN k-means on them first "
+                "(optimised-grid, the text's start of Fig. 6.5 / 6.8; CPU only)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.point_multilevel.start = v.text == "optimised-grid"
+                                                    ? PointMultilevelOptions::Start::kOptimisedGrid
+                                                    : PointMultilevelOptions::Start::kGrid;
+                });
+}
+
 // PointMultilevelOptions::bounded_drift (ours), for ML/PML on points.
 OptionInfo BoundedDriftOption() {
   return Number(
@@ -989,9 +1004,12 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical data clustering (Alg. 2.6)";
     a.help = "merges only, from the voxel-grid start (section 6.2) down to one cluster";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads};
-    // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h).
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads};
+    // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h), from the
+    // voxel grid.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, [](const JobPlan& plan) {
+                   return PointHierarchyLevelsOnGpu(plan) && !OptimisedPointStart(plan);
+                 }}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -1004,10 +1022,13 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "multilevel data clustering (section 6.3)";
     a.help = "merges with local neighbours as dual edges, LN k-means around each merge";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads,
+                 PointOptimizerOption()};
     a.options.push_back(BoundedDriftOption());
-    // ML's steps (LN k-means around each merge) on the GPU with --device gpu.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointHierarchyLevelsOnGpu}};
+    // ML's steps (LN k-means around each merge) on the GPU with --device gpu, from the grid.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, [](const JobPlan& plan) {
+                   return PointHierarchyLevelsOnGpu(plan) && !OptimisedPointStart(plan);
+                 }}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
@@ -1020,12 +1041,15 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "parallel multilevel data clustering (Alg. 5.3 on points)";
     a.help = "collapse mutual optimal dual edges per level, then ML";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
-                 PmlUntilOption(true), PmlPairsOption()};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(),   point_threads,
+                 PointOptimizerOption(),         PmlUntilOption(true), PmlPairsOption()};
     a.options.push_back(BoundedDriftOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
-    // merges, with LN k-means inside the levels (--device gpu), without the switch to ML.
-    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, PointPmlLevelsOnGpu}};
+    // merges, with LN k-means inside the levels (--device gpu), without the switch to ML,
+    // from the grid.
+    a.stages = {{"cluster", merge_stage.help, /*has_gpu=*/true, [](const JobPlan& plan) {
+                   return PointPmlLevelsOnGpu(plan) && !OptimisedPointStart(plan);
+                 }}};
     a.run_points = RunPointHierarchy;
     algorithms.push_back(a);
   }
