@@ -385,7 +385,9 @@ std::string SummaryJson(const Arguments& args, const std::string& input,
       ", \"elbows\": ", JsonList(done.elbow_cluster_counts()));
   if (algorithm.input == InputKind::kPoints && algorithm.hierarchy) {
     absl::StrAppend(&json, ", \"bic_best_clusters\": ", done.bic_best_cluster_count(),
-                    ", \"bic_first_decrease_clusters\": ", done.bic_first_decrease_cluster_count());
+                    ", \"bic_first_decrease_clusters\": ", done.bic_first_decrease_cluster_count(),
+                    ", \"bic_merging_first_decrease_clusters\": ",
+                    done.bic_merging_first_decrease_cluster_count());
   }
   if (!auto_k.empty()) absl::StrAppend(&json, ", \"auto_k\": ", JsonString(auto_k));
   if (level.has_value()) {

@@ -22,6 +22,7 @@
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
 #include "core/io/prepare_mesh.h"
+#include "core/mesh/face_measures.h"
 #include "core/mesh/repair.h"
 #include "server/preview.h"
 
@@ -383,6 +384,14 @@ int RunMesh(const Arguments& args) {
       CoarseningOptions options;
       options.placement = placement == "qem" ? CoarseningOptions::Placement::kQuadric
                                              : CoarseningOptions::Placement::kCentroid;
+      // Adaptive CVD and MWCVD place a cluster's vertex at its density-weighted centroid
+      // sum rho A g / sum rho A (l. 783, 937), with the densities the job's energy used;
+      // the other energies (uniform CVD: l. 715) at sum A g / sum A (empty density).
+      absl::StatusOr<MeshEnergyOptions> energy_options = EnergyFromArguments(args, energy_name);
+      if (!energy_options.ok()) return Fail(energy_options.status());
+      const std::vector<double> face_density =
+          EnergyFaceDensity(*energy_options, sent, ComputeFaceMeasures(sent));
+      options.face_density = face_density;
       absl::StatusOr<FaceAdjacency> adjacency = BuildFaceAdjacency(sent);
       if (!adjacency.ok()) return Fail(adjacency.status());
       absl::StatusOr<TriangleMesh> coarse = CoarsenMesh(sent, *adjacency, ids, options);

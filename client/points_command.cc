@@ -28,8 +28,8 @@ int RunPoints(const Arguments& args) {
   const std::string algo = (*algorithm)->name;
   const bool hierarchy = (*algorithm)->hierarchy;
   const std::string auto_k = args.get("auto-k", "");
-  if (!auto_k.empty() && auto_k != "bic" && auto_k != "elbow") {
-    return Fail(absl::InvalidArgumentError("--auto-k must be bic or elbow"));
+  if (!auto_k.empty() && auto_k != "bic" && auto_k != "bic-first-decrease" && auto_k != "elbow") {
+    return Fail(absl::InvalidArgumentError("--auto-k must be bic, bic-first-decrease or elbow"));
   }
   if (!auto_k.empty() && !hierarchy) {
     return Fail(
@@ -39,8 +39,9 @@ int RunPoints(const Arguments& args) {
   // and the result (the last level) has the K it found.
   const bool divisive = (*algorithm)->divisive;
   const bool chooses_k = (*algorithm)->chooses_k;
-  // LN k-means from the voxel grid: one cluster per occupied cell, no K.
-  const bool grid_start = algo == "lnkmeans" && args.get("init", "") == "grid";
+  // LN k-means or k-means from the voxel grid: one cluster per occupied cell, no K.
+  const bool grid_start =
+      (algo == "lnkmeans" || algo == "kmeans") && args.get("init", "") == "grid";
   if (grid_start && *clusters != 0) {
     return Fail(absl::InvalidArgumentError(
         "--clusters: --init grid starts from one cluster per occupied voxel (--grid A)"));
@@ -113,6 +114,20 @@ int RunPoints(const Arguments& args) {
     }
     chosen = absl::StrCat("; BIC highest at ", k, " clusters, first decrease after ",
                           result->done.bic_first_decrease_cluster_count());
+  } else if (auto_k == "bic-first-decrease") {
+    // Section 6.6's rule: the level before the BIC first falls as the hierarchy merges.
+    const uint32_t k = result->done.bic_merging_first_decrease_cluster_count();
+    if (k == 0) {
+      return Fail(absl::NotFoundError("--auto-k bic-first-decrease: the server sent no BIC"));
+    }
+    level = log.LastLevelWith(k);
+    if (!level.has_value()) {
+      return Fail(absl::NotFoundError(
+          absl::StrCat("--auto-k bic-first-decrease: the BIC first falls after ", k,
+                       " clusters, a level outside the range that was sent")));
+    }
+    chosen = absl::StrCat("; merging stops where the BIC first falls (section 6.6): ", k,
+                          " clusters; BIC highest at ", result->done.bic_best_cluster_count());
   } else if (grid_start || chooses_k) {
     level = log.num_levels() - 1;
   } else if (*clusters > 0) {
@@ -155,15 +170,17 @@ Command PointsCommand() {
        "single-level algorithms: K; bisecting: the top of its hierarchy; xmeans: k_min, and "
        "--labels writes the K it found; hierarchies: the level written by --labels",
        'k'},
-      {"auto-k", "bic|elbow",
-       "hierarchies: --labels writes the level with the highest BIC, or the first elbow"},
+      {"auto-k", "bic|bic-first-decrease|elbow",
+       "hierarchies: --labels writes the level with the highest BIC, "
+       "the level where merging stops as the BIC first falls (section 6.6 offers both; the "
+       "stopping rule of l. 2798), or the first elbow"},
       {"labels", "FILE", "one line per point: its cluster (0..K-1) at that level", 'o'},
       {"levels-csv", "FILE", "a row \"clusters,energy\" per level received"},
       {"plot", "FILE.png",
        "the energy of every level against its clusters (log axes; the energy's linear where it "
        "spans under three decades), the elbows and the level written marked"}};
   return {{"points",
-           "INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|elbow]\n"
+           "INPUT [--dims D] [--server ADDR] [--algo ALGO] [--clusters K | --auto-k bic|...]\n"
            "                       [--labels FILE] [--levels-csv FILE] [--seed S] [--levels "
            "K_HI:K_LO]\n"
            "                       [--device auto|gpu|cpu] [--quiet] [--json] [algorithm options]",

@@ -567,6 +567,7 @@ absl::StatusOr<JobOutcome> RunPointsJob(Job& job, JobPlan& plan, const JobRunner
     if (!choice.ok()) return choice.status();
     outcome.done.set_bic_best_cluster_count(choice->best_k);
     outcome.done.set_bic_first_decrease_cluster_count(choice->first_decrease_k);
+    outcome.done.set_bic_merging_first_decrease_cluster_count(choice->merging_first_decrease_k);
     outcome.done.set_bic_best(choice->bic[choice->best_level]);
   } else {
     absl::StatusOr<RunSummary> summary = plan.algorithm->run_points(points, plan, sink, run);

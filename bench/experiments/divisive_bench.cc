@@ -3,7 +3,7 @@
 // bench/experiments/sklearn_divisive.py reads too).
 //   divisive_bench --algo bisecting|xmeans --input FILE [--dims D] [--k K]
 //                  [--split size|energy] [--trials L] [--init random|kmeans++]
-//                  [--kmin K] [--kmax K] [--seed S] [--threads T]
+//                  [--kmin K] [--kmax K] [--lookahead L] [--seed S] [--threads T]
 // --k is the bisecting k; --kmin/--kmax X-means' range (kmax 0: the number of points).
 // Prints one JSON object: algo, options, seconds, clusters, energy (the sum of squared
 // distances to the cluster means, in double, recomputed from the labels), and for X-means
@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   const std::string init = args.Get<std::string>("init", "");
   const uint32_t kmin = args.Get<uint32_t>("kmin", 1);
   const uint32_t kmax = args.Get<uint32_t>("kmax", 0);
+  const uint32_t lookahead = args.Get<uint32_t>("lookahead", mlclust::XmeansOptions{}.lookahead);
   const uint64_t seed = args.Get<uint64_t>("seed", 1);
   const int threads = args.Get<int>("threads", 0);
   if (!args.Done()) return 2;
@@ -74,6 +75,7 @@ int main(int argc, char** argv) {
     options.min_clusters = kmin;
     options.max_clusters = kmax;
     options.split_trials = trials;
+    options.lookahead = lookahead;
     options.init = kmeans_init(mlclust::KmeansOptions::Init::kKmeansPlusPlus);
     options.seed = seed;
     options.threads = threads;
@@ -92,11 +94,12 @@ int main(int argc, char** argv) {
     }
     std::printf(
         "{\"algo\": \"mlclust xmeans\", \"kmin\": %u, \"kmax\": %u, \"trials\": %u, "
-        "\"seed\": %lu, \"threads\": %d, \"m\": %zu, \"seconds\": %.4f, \"clusters\": %u, "
+        "\"lookahead\": %u, \"seed\": %lu, \"threads\": %d, \"m\": %zu, \"seconds\": %.4f, "
+        "\"clusters\": %u, "
         "\"energy\": %.10g, \"bic\": %.10g, \"rounds\": [%s]}\n",
-        kmin, kmax, trials, static_cast<unsigned long>(seed), threads, points.num_points(), seconds,
-        result->clusters, mlclust::PointEnergy(points, result->labels), result->bic,
-        rounds.c_str());
+        kmin, kmax, trials, lookahead, static_cast<unsigned long>(seed), threads,
+        points.num_points(), seconds, result->clusters,
+        mlclust::PointEnergy(points, result->labels), result->bic, rounds.c_str());
   } else {
     std::fprintf(stderr, "--algo must be bisecting or xmeans\n");
     return 2;

@@ -269,6 +269,7 @@ absl::StatusOr<OptimizeResult> RunBoundaryBased(const ConnectivityGuard& guard,
     result.moves += applied.size();
     if (options.on_iteration) options.on_iteration(iteration, current);
   }
+  partition.RefreshAllSums();  // the energy of the labels (partition.h)
   result.energy = partition.TotalEnergy();
   return result;
 }

@@ -801,6 +801,7 @@ absl::StatusOr<OptimizeResult> OptimizeEmloOnPolygons(const MeshProblem& problem
             max_moves, scratch, on_move, [](uint32_t, uint32_t) {}, options.cancel);
         if (counters.cancelled) return absl::CancelledError("cancelled during EMLO");
         result.converged = !counters.hit_move_limit;
+        partition.RefreshAllSums();  // the energy of the labels, not of sums worn by moves
         result.energy = partition.TotalEnergy();
         if (options.on_progress) options.on_progress(result.moves, result.energy);
         for (size_t f = 0; f < labels.size(); ++f) {
@@ -914,6 +915,7 @@ absl::StatusOr<OptimizeResult> OptimizeEmlo(const MeshProblem& problem,
                                      [](uint32_t, uint32_t) {}, options.cancel);
         if (counters.cancelled) return absl::CancelledError("cancelled during EMLO");
         result.converged = !counters.hit_move_limit;
+        partition.RefreshAllSums();  // the energy of the labels, not of sums worn by moves
         result.energy = partition.TotalEnergy();
         if (options.on_progress) options.on_progress(result.moves, result.energy);
         WriteBack(partition.labels(), original, labels);

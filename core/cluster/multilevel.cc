@@ -87,6 +87,9 @@ class MeshSpace {
         problem_(problem),
         n_(static_cast<uint32_t>(adjacency.num_faces())),
         partition_(energy, Identity(n_), n_),
+        exact_sums_(n_),
+        exact_energy_(n_, 0.0),
+        shrunk_mark_(n_, 0),
         members_(n_),
         position_(n_, 0),
         neighbours_(n_),
@@ -104,6 +107,10 @@ class MeshSpace {
   // Level 0: every face its own cluster, energy 0 for every energy here.
   absl::Status ReportStart(LevelSink& sink) {
     MLCLUST_RETURN_IF_ERROR(BuildClusterAdjacency());
+    for (uint32_t c = 0; c < n_; ++c) {
+      exact_sums_[c] = partition_.sums(c);
+      exact_energy_[c] = partition_.cluster_energy(c);
+    }
     if constexpr (!std::is_same_v<Adjacency, FaceAdjacency>) {
       // Polygons (RunMultilevel refused Alg. 3.2's per-triangle counts): their ring test.
       if (options_.connectivity_guard && options_.guard != ConnectivityGuardKind::kOff &&
@@ -156,6 +163,7 @@ class MeshSpace {
     Touch(gone);
     for (uint32_t f : members_[gone]) recorder_.RecordMove(f, gone);
     partition_.Merge(keep, gone, members_[gone]);
+    MergeExactSums(keep, gone);
     for (uint32_t f : members_[gone]) {
       position_[f] = static_cast<uint32_t>(members_[keep].size());
       members_[keep].push_back(f);
@@ -172,7 +180,7 @@ class MeshSpace {
     const detail::TbbBlocks blocks{/*grain=*/32};
     if (keep_gone.size() < detail::kParallelOdeGrain ||
         !recorder_.RecordMerges(
-            keep_gone, [&](uint32_t c) { return partition_.cluster_energy(c); },
+            keep_gone, [&](uint32_t c) { return exact_energy_[c]; },
             [&](uint32_t c) { return std::span<const uint32_t>(members_[c]); }, blocks)) {
       for (const auto& [keep, gone] : keep_gone) Merge(keep, gone);
       return;
@@ -181,6 +189,7 @@ class MeshSpace {
       for (size_t i = begin; i < end; ++i) {
         const auto [keep, gone] = keep_gone[i];
         partition_.MergeUncounted(keep, gone, members_[gone]);
+        MergeExactSums(keep, gone);
         std::vector<uint32_t>& kept = members_[keep];
         for (uint32_t f : members_[gone]) {
           position_[f] = static_cast<uint32_t>(kept.size());
@@ -430,7 +439,20 @@ class MeshSpace {
   bool ConnectWhenStuck(Engine& /*engine*/) { return false; }
 
   void Squash() {
-    recorder_.Squash([&](uint32_t c) { return partition_.cluster_energy(c); },
+    // The level's end (issue 26 item 7): the exact sums of the clusters that lost a face are
+    // summed again from their faces, and the touched clusters' energies taken from the exact
+    // sums, so that the level's energy is its labels'. Costs the faces of those clusters.
+    const Energy& energy = partition_.energy();
+    for (uint32_t c : recorder_.affected()) {
+      if (shrunk_mark_[c]) {
+        shrunk_mark_[c] = 0;
+        typename Energy::Sums sums;
+        for (uint32_t f : members_[c]) sums += energy.face_sums(f);
+        exact_sums_[c] = sums;
+      }
+      exact_energy_[c] = members_[c].empty() ? 0.0 : energy.Energy(exact_sums_[c]);
+    }
+    recorder_.Squash([&](uint32_t c) { return exact_energy_[c]; },
                      [&](uint32_t f) { return partition_.label(f); }, [](uint32_t f) { return f; },
                      detail::TbbBlocks{/*grain=*/1});
   }
@@ -513,6 +535,9 @@ class MeshSpace {
   // of f and of a face of y.
   template <typename MarkDirtyFn>
   void OnFaceMoved(uint32_t f, uint32_t y, uint32_t x, const MarkDirtyFn& mark_dirty) {
+    // The exact sums (Squash): x gains f's sums; y's are summed again at the level's end.
+    exact_sums_[x] += partition_.energy().face_sums(f);
+    shrunk_mark_[y] = 1;
     for (FaceId g : adjacency_.neighbours[f]) {
       if (!g.valid()) continue;
       const uint32_t z = partition_.label(g.value());
@@ -529,7 +554,14 @@ class MeshSpace {
   }
 
   void Touch(uint32_t cluster) {
-    recorder_.Touch(cluster, [&](uint32_t c) { return partition_.cluster_energy(c); });
+    recorder_.Touch(cluster, [&](uint32_t c) { return exact_energy_[c]; });
+  }
+  // A merge of `gone` into `keep` in the exact sums (Squash); writes only the two clusters.
+  void MergeExactSums(uint32_t keep, uint32_t gone) {
+    exact_sums_[keep] += exact_sums_[gone];
+    exact_sums_[gone] = typename Energy::Sums();
+    shrunk_mark_[keep] |= shrunk_mark_[gone];
+    shrunk_mark_[gone] = 0;
   }
   void MarkDirty(uint32_t c) {
     if (dirty_mark_[c]) return;
@@ -789,7 +821,7 @@ class MeshSpace {
         }
       }
     };
-    auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
+    auto energy_of = [&](uint32_t c) { return exact_energy_[c]; };
     step_moves_.resize(m);
     // The loop's body for candidate j, its entries in the shared lists kept in its record.
     auto body = [&](uint32_t j) {
@@ -1160,7 +1192,7 @@ class MeshSpace {
       }
       moves += winners.size();
       applied.resize(winners.size());
-      auto energy_of = [&](uint32_t c) { return partition_.cluster_energy(c); };
+      auto energy_of = [&](uint32_t c) { return exact_energy_[c]; };
       auto apply_one = [&](size_t w) {
         const uint32_t i = candidates[winners[w]];
         ApplyMoveUnlisted(list[i], target[i], energy_of, applied[w]);
@@ -1262,6 +1294,15 @@ class MeshSpace {
   std::optional<VertexBoundaryEdgeCountGuard> vertex_count_guard_;
   const uint32_t n_;
   Partition<Energy> partition_;
+  // What the levels report (issue 26 item 7): per cluster the sums of its faces and their
+  // energy as of the last level's end. partition_'s sums decide the merges and moves, as
+  // they always did; but a face's sums leave them by subtraction, which loses what it cancels
+  // (core/cluster/partition.h), so the reported energies come from these sums instead, which
+  // only ever add, and which a cluster that lost a face (shrunk_mark_) has summed again from
+  // its faces at the level's end.
+  std::vector<typename Energy::Sums> exact_sums_;
+  std::vector<double> exact_energy_;
+  std::vector<uint8_t> shrunk_mark_;
   std::vector<std::vector<uint32_t>> members_;
   std::vector<uint32_t> position_;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> neighbours_;

@@ -2,6 +2,7 @@
 #ifndef MLCLUST_CORE_CLUSTER_PARTITION_H_
 #define MLCLUST_CORE_CLUSTER_PARTITION_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -13,6 +14,14 @@ namespace mlclust {
 // Labels (one cluster id per face) plus, per cluster id, the energy's sums, the face count
 // and the cluster's energy. Cluster ids are indices below capacity(); a cluster with no
 // faces is empty, not an error. Moving a face updates both clusters in O(1).
+//
+// Exact sums (issue 26 item 7): adding a face's sums rounds like any sum of the cluster's
+// faces, but removing one subtracts, and what the subtraction cancels is lost: mwcvd-max's
+// sum of rho^10 spans some 40 orders of magnitude on a mesh with flat regions (power density),
+// so a flat cluster that gave away an edge face keeps a residue of the edge's rho^10 (or 0) in
+// place of its own sum, and its weight and energy drift. RefreshAllSums() recomputes every
+// cluster's sums from the labels, so that a driver reports the energy its labels have; the
+// multilevel engine keeps exact sums of its own for the levels (core/cluster/multilevel.cc).
 template <typename Energy>
 class Partition {
  public:
@@ -52,6 +61,18 @@ class Partition {
     double total = 0;
     for (uint32_t c = 0; c < capacity(); ++c) total += cluster_energy_[c];
     return total;
+  }
+
+  // Recomputes every cluster's sums and energy from the labels: a single-level driver's last
+  // step before it reports its energy. O(faces + capacity).
+  void RefreshAllSums() {
+    std::fill(sums_.begin(), sums_.end(), Sums());
+    for (size_t f = 0; f < labels_.size(); ++f) {
+      sums_[labels_[f]] += energy_->face_sums(static_cast<uint32_t>(f));
+    }
+    for (uint32_t c = 0; c < capacity(); ++c) {
+      cluster_energy_[c] = sizes_[c] > 0 ? energy_->Energy(sums_[c]) : 0.0;
+    }
   }
 
   // Moves `face` to cluster `to`, updating sums, sizes and the two cluster energies.

@@ -164,6 +164,7 @@ absl::StatusOr<SweepResult> Sweep(const MeshProblem& problem, const Energy& ener
     current = next;
     result.moves += applied.size();
   }
+  partition.RefreshAllSums();  // the energy of the labels (partition.h)
   result.energy = partition.TotalEnergy();
   const std::span<const uint32_t> final_labels = partition.labels();
   labels.assign(final_labels.begin(), final_labels.end());

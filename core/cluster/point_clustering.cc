@@ -907,6 +907,33 @@ absl::StatusOr<std::vector<ClusterId>> SeedPointClusters(const PointSet& points,
   return std::move(assigned->labels);
 }
 
+// The text's start (PointMultilevelOptions::Start::kOptimisedGrid, Fig. 6.5 / 6.8): LN
+// k-means on the voxel clusters, from their voxel neighbours as RunLnKmeansFromGrid; `cells`
+// then holds its labels, the clusters it emptied dropped (with their cells).
+namespace {
+absl::Status OptimiseVoxelStart(const PointSet& points, const std::atomic<bool>* cancel,
+                                VoxelCells& cells) {
+  const uint32_t k = static_cast<uint32_t>(cells.cell.size());
+  PointClusters clusters(points, cells.labels, k);
+  VoxelNeighbours(cells, clusters, cancel);
+  MLCLUST_RETURN_IF_ERROR(CheckCancelled(cancel, "the voxel start's neighbours"));
+  LnKmeansOptions options;
+  options.cancel = cancel;
+  LnKmeansResult result;
+  MLCLUST_RETURN_IF_ERROR(LnKmeansIterations(clusters, options, result));
+  std::vector<uint32_t> renumbered(k, kNone);
+  std::vector<std::vector<uint32_t>> kept;
+  for (uint32_t c = 0; c < k; ++c) {
+    if (clusters.count(c) == 0) continue;
+    renumbered[c] = static_cast<uint32_t>(kept.size());
+    kept.push_back(std::move(cells.cell[c]));
+  }
+  cells.cell = std::move(kept);
+  for (size_t i = 0; i < cells.labels.size(); ++i) cells.labels[i] = renumbered[clusters.label(i)];
+  return absl::OkStatus();
+}
+}  // namespace
+
 absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points,
                                                           const PointMultilevelOptions& options,
                                                           LevelSink& sink) {
@@ -916,8 +943,11 @@ absl::StatusOr<PointMultilevelSummary> RunPointMultilevel(const PointSet& points
     const Bounds bounds = BoundsOf(points);
     const std::vector<uint32_t> cells_per_axis =
         StartCells(points, bounds, options.grid, options.cancel);
-    const VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis, options.cancel);
+    VoxelCells cells = OccupiedCells(points, bounds, cells_per_axis, options.cancel);
     MLCLUST_RETURN_IF_ERROR(CheckCancelled(options.cancel, "the voxel start"));
+    if (options.start == PointMultilevelOptions::Start::kOptimisedGrid) {
+      MLCLUST_RETURN_IF_ERROR(OptimiseVoxelStart(points, options.cancel, cells));
+    }
     PointSpace space(points, options, cells);
     detail::MultilevelEngineOptions engine_options;
     engine_options.optimise = options.optimizer != PointMultilevelOptions::Optimizer::kNone;

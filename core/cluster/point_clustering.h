@@ -127,6 +127,12 @@ struct PointMultilevelOptions {
   // halved, axis by axis, until about m / 8 cells are occupied (so a 64-D set still starts
   // from many clusters, not from one).
   uint32_t grid = 0;
+  // Level 0. kGrid (default, ours): the voxel clusters as they are. kOptimisedGrid (the
+  // text's, Fig. 6.5 / 6.8): LN k-means (Alg. 6.1, at most 300 iterations) on the voxel
+  // clusters first, as RunLnKmeansFromGrid, and the hierarchy from its result (clusters that
+  // LN k-means emptied dropped).
+  enum class Start { kGrid, kOptimisedGrid };
+  Start start = Start::kGrid;
   int threads = 0;
   std::function<void(size_t level, std::span<const uint32_t> labels)> inspect_level;
   // Set from any thread to stop: checked during the start (every 65,536 points), after

@@ -281,6 +281,18 @@ std::vector<OptionInfo> PatchPresetOptions() {
   };
 }
 
+// PointMultilevelOptions::start, for the point hierarchies (HC, ML, PML).
+OptionInfo PointStartOption() {
+  return Choice("start", {"grid", "optimised-grid"}, "grid",
+                "level 0: the voxel clusters (grid, ours) or LN k-means on them first "
+                "(optimised-grid, the text's start of Fig. 6.5 / 6.8; CPU only)",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.point_multilevel.start = v.text == "optimised-grid"
+                                                    ? PointMultilevelOptions::Start::kOptimisedGrid
+                                                    : PointMultilevelOptions::Start::kGrid;
+                });
+}
+
 // PointMultilevelOptions::bounded_drift (ours), for ML/PML on points.
 OptionInfo BoundedDriftOption() {
   return Number(
@@ -572,6 +584,33 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
     if (on_gpu) return context.devices->RunLloyd(points, std::move(start_centres), options);
     return RunLloyd(points, std::move(start_centres), options);
   };
+  if (plan.point_init == JobPlan::PointInit::kGrid) {
+    // From the voxel grid (Fig. 6.11's equal start with LN k-means): the centres are the
+    // means of the occupied voxels' points; level 0 is the voxel clusters, level 1 the result.
+    MLCLUST_ASSIGN_OR_RETURN(VoxelStart start, VoxelGridStart(points, plan.grid, context.cancel));
+    const uint32_t d = points.dims;
+    std::vector<double> sums(size_t{start.clusters} * d, 0.0);
+    std::vector<uint64_t> counts(start.clusters, 0);
+    for (size_t i = 0; i < points.num_points(); ++i) {
+      const uint32_t c = start.labels[i].value();
+      const std::span<const float> p = points.point(PointId(static_cast<uint32_t>(i)));
+      for (uint32_t j = 0; j < d; ++j) sums[size_t{c} * d + j] += p[j];
+      ++counts[c];
+    }
+    std::vector<float> centres(sums.size());
+    for (size_t v = 0; v < sums.size(); ++v) {
+      centres[v] = static_cast<float>(sums[v] / static_cast<double>(counts[v / d]));
+    }
+    KmeansOptions options = plan.kmeans;
+    options.clusters = start.clusters;
+    options.on_iteration = [&](uint32_t iteration, double inertia) {
+      Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
+    };
+    MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
+    MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, PointEnergy(points, start.labels),
+                                            result.labels, result.inertia, start.clusters, sink));
+    return RunSummary{start.clusters, start.clusters};
+  }
   MLCLUST_ASSIGN_OR_RETURN(
       std::vector<float> centres,
       plus_plus ? KmeansPlusPlusCentres(points, plan.clusters, plan.seed, plan.kmeans.threads)
@@ -888,7 +927,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "multilevel data clustering (section 6.3)";
     a.help = "merges with local neighbours as dual edges, LN k-means around each merge";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption()};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads,
+                 PointOptimizerOption()};
     a.options.push_back(BoundedDriftOption());
     // ML's steps (LN k-means around each merge) on the GPU with --device gpu.
     a.stages = {merge_stage};
@@ -904,8 +944,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "parallel multilevel data clustering (Alg. 5.3 on points)";
     a.help = "collapse mutual optimal dual edges per level, then ML";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads, PointOptimizerOption(),
-                 PmlUntilOption(true), PmlPairsOption()};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(),   point_threads,
+                 PointOptimizerOption(),         PmlUntilOption(true), PmlPairsOption()};
     a.options.push_back(BoundedDriftOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
     // merges, with LN k-means inside the levels (--device gpu), without the switch to ML.
@@ -952,8 +992,11 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "brute-force Lloyd iterations from k-means++ or random centres (baseline)";
     a.energies = point_energies;
     a.options = {
-        point_init({"kmeans++", "random"}, "centres: greedy k-means++ or k distinct random points"),
-        point_threads,
+        point_init({"kmeans++", "random", "grid"},
+                   "centres: greedy k-means++, k distinct random points, or the means of the "
+                   "occupied voxels (section 6.2's start, no K: Fig. 6.11 compares LN k-means "
+                   "and k-means from it)"),
+        GridOption("voxels per dimension of init grid's start (0 = from m and d)"), point_threads,
         Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations at most",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);
@@ -980,8 +1023,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "X-means (Alg. 2.5, Pelleg & Moore)";
     a.help =
         "k-means from --clusters = k_min, then every cluster split in two by 2-means where the "
-        "BIC of the halves beats the cluster's, and k-means again, until no split is kept or "
-        "k_max; the result is the round of largest BIC";
+        "BIC of the halves beats the cluster's, and k-means again, until no split is kept (after "
+        "--lookahead forced rounds, ours) or k_max; the result is the round of largest BIC";
     a.energies = point_energies;
     a.options = {
         Integer("kmax", 0, UINT32_MAX, "0",
@@ -994,6 +1037,15 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                 "tested",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.xmeans.split_trials = static_cast<uint32_t>(v.integer);
+                }),
+        Integer("lookahead", 0, 64, "2",
+                "ours: after a round that keeps no split, up to this many forced rounds in a row "
+                "split every cluster anyway (k doubles), so that the search passes the BIC's "
+                "local maximum at few clusters (from k_min = 1 Alg. 2.5 stops at one cluster "
+                "on blobs spread over a volume); 0 = Alg. 2.5's stop at the first round that "
+                "keeps no split",
+                [](const OptionValue& v, JobPlan& plan) {
+                  plan.xmeans.lookahead = static_cast<uint32_t>(v.integer);
                 }),
         divisive_init("kmeans++", "seeding of the first k-means and of every 2-means",
                       [](JobPlan& plan, KmeansOptions::Init init) { plan.xmeans.init = init; }),

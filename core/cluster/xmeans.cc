@@ -76,10 +76,13 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
   uint32_t k = options.min_clusters;
 
   XmeansResult result;
-  auto record = [&](uint32_t splits) {
+  // Forced rounds since the last round that raised the largest BIC (XmeansOptions::lookahead).
+  uint32_t forced_since_best = 0;
+  auto record = [&](uint32_t splits, bool forced) {
     const double bic = ModelBic(current.labels, k, current.inertia, d);
-    result.rounds.push_back({k, current.inertia, bic, splits});
+    result.rounds.push_back({k, current.inertia, bic, splits, forced});
     if (result.rounds.size() == 1 || bic > result.bic) {
+      forced_since_best = 0;
       result.chosen_round = result.rounds.size() - 1;
       result.labels = current.labels;
       result.centres = current.centres;
@@ -88,7 +91,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       result.clusters = k;
     }
   };
-  record(0);
+  record(0, false);
 
   KmeansOptions two_means = kmeans;
   two_means.clusters = 2;
@@ -101,6 +104,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
     // kept where it raises the BIC of those points (PM00's local model comparison).
     const std::vector<std::vector<uint32_t>> members = MembersOf(current.labels, k);
     std::vector<Split> splits;
+    std::vector<Split> rejected;  // the splits a forced round applies
     for (uint32_t c = 0; c < k; ++c) {
       MLCLUST_RETURN_IF_ERROR(CheckCancelled(
           options.cancel, absl::StrCat("X-means round ", result.rounds.size(), " cluster ", c)));
@@ -120,7 +124,18 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
       const double one = SphericalGaussianBic(std::span<const uint64_t>(&n, 1),
                                               detail::SubsetSumOfSquares(points, cluster), n, d);
       const double two = SphericalGaussianBic(sizes, best.inertia, n, d);
-      if (two > one) splits.push_back({c, two - one, std::move(best.centres)});
+      if (two > one) {
+        splits.push_back({c, two - one, std::move(best.centres)});
+      } else if (splits.empty() && forced_since_best < options.lookahead) {
+        rejected.push_back({c, two - one, std::move(best.centres)});
+      }
+    }
+    // No split passed: Alg. 2.5 ends here, unless the look-ahead (ours) allows a forced round
+    // that splits every cluster the test rejected.
+    const bool forced = splits.empty() && !rejected.empty();
+    if (forced) {
+      splits = std::move(rejected);
+      ++forced_since_best;
     }
     if (splits.empty()) break;
     // Best gain first (ties to the smaller cluster id), as many as k_max allows.
@@ -142,7 +157,7 @@ absl::StatusOr<XmeansResult> RunXmeans(const PointSet& points, const XmeansOptio
     // Line 5 (PM00's Improve-Params): k-means over all points from those centres.
     kmeans.clusters = k;
     MLCLUST_ASSIGN_OR_RETURN(current, RunLloyd(points, std::move(centres), kmeans));
-    record(static_cast<uint32_t>(splits.size()));
+    record(static_cast<uint32_t>(splits.size()), forced);
   }
   return result;
 }

@@ -14,6 +14,21 @@
 // variance, hard assignments), for the local tests and for the whole model. As PM00 do, the
 // result is the model of the largest BIC over all rounds (with the rounds recorded), which
 // on data with that many clusters is the last round.
+//
+// Why line 2's stop needs a look-ahead (ours, XmeansOptions::lookahead): on blobs spread
+// over a volume the BIC has a local maximum at K = 1 (and often at 2 or 3). One 2-means cut
+// of such a cloud removes only 25-40% of its energy (a uniform cube: 25%), while halving
+// the mixing weights costs R ln 2 in the log-likelihood, so for R points in M dimensions the
+// split passes only where the energy falls below 2^(-2/M) of the cluster's (63% in 3-D):
+// from k_min = 1 the first round keeps no split and Alg. 2.5 stops at one cluster
+// (50 Gaussians of Fig. 6.15: BIC -309,102 at K = 1, -310,828 at K = 2, and ML's levels
+// rise above both from K = 8 on; bench/pages/fidelity.md). This is the text's own remark
+// on Fig. 6.16 (l. 2812: local maxima of the BIC between 1 and 100 clusters trap X-means).
+// With a look-ahead of L, a round that keeps no split splits every cluster anyway (a forced
+// round, k doubling within k_max), as long as fewer than L forced rounds have run since the
+// last round that raised the largest BIC; the search ends when L forced rounds in a row
+// bring no model of larger BIC, and the result is still the round of the largest BIC.
+// L = 0 is Alg. 2.5 as the text writes it.
 #ifndef MLCLUST_CORE_CLUSTER_XMEANS_H_
 #define MLCLUST_CORE_CLUSTER_XMEANS_H_
 
@@ -41,6 +56,11 @@ struct XmeansOptions : KmeansRunOptions {
   // 2-means runs per virtual split (seeded differently); the halves of least energy are
   // tested. At least 1.
   uint32_t split_trials = 1;
+  // Ours (see above): forced rounds allowed since the last round that raised the largest
+  // BIC; 0: Alg. 2.5's stop at the first round that keeps no split. Each forced round
+  // costs a round at up to twice the clusters, so the search ends after rounds at up to
+  // 2^L times the clusters of the result.
+  uint32_t lookahead = 2;
 };
 
 struct XmeansRound {
@@ -48,6 +68,7 @@ struct XmeansRound {
   double inertia = 0;     // its energy (sum of squared distances to the cluster means)
   double bic = 0;         // its BIC over all points
   uint32_t splits = 0;    // splits the round applied (0 for the first k-means)
+  bool forced = false;    // a forced round (XmeansOptions::lookahead): no split passed
 };
 
 struct XmeansResult {
@@ -61,7 +82,8 @@ struct XmeansResult {
   // Every round in order; rounds[chosen_round] is the result above.
   std::vector<XmeansRound> rounds;
   size_t chosen_round = 0;
-  // Why the search ended: no virtual split raised the local BIC, or k reached k_max.
+  // Why the search ended: no virtual split raised the local BIC (after `lookahead` forced
+  // rounds without a larger BIC), or k reached k_max.
   bool stopped_at_max = false;
 };
 

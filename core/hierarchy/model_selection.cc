@@ -121,6 +121,18 @@ BicChoice ChooseByScore(std::span<const uint32_t> cluster_counts, std::vector<do
       break;
     }
   }
+  // Section 6.6's rule, in the levels' own order: the level before the first whose BIC is
+  // below it (degenerate levels skipped); the last defined level where the BIC never falls.
+  size_t merging = best;
+  bool seen = false;
+  for (size_t level = 0; level < bic.size(); ++level) {
+    if (bic[level] == -kInfinity) continue;
+    if (seen && bic[level] < bic[merging]) break;
+    merging = level;
+    seen = true;
+  }
+  choice.merging_first_decrease_level = merging;
+  choice.merging_first_decrease_k = cluster_counts[merging];
   choice.best_level = best;
   choice.best_k = cluster_counts[best];
   choice.first_decrease_level = first_decrease;

@@ -111,6 +111,15 @@ struct BicChoice {
   // that splits one they do not.
   size_t first_decrease_level = 0;
   uint32_t first_decrease_k = 0;
+  // Section 6.6's stopping rule as the text states it for ML ("stop merging when the BIC
+  // starts to decrease", l. 2777, 2798): the levels read in their own order, a hierarchy's
+  // from many clusters to few as it merges, and the level just before the first level whose
+  // BIC is below it; where the BIC never falls, the last level. Degenerate levels
+  // (-infinity) are skipped; where all are, this is best_level. Unlike first_decrease above
+  // it reads the BIC where the variance rests on the fewest degrees of freedom, so from a
+  // fine start it stops early (bench/pages/fidelity.md).
+  size_t merging_first_decrease_level = 0;
+  uint32_t merging_first_decrease_k = 0;
   std::vector<double> bic;  // per input level, in input order
 };
 

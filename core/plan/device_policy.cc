@@ -70,7 +70,10 @@ GpuStage GpuStageFor(const JobPlan& plan, PlanStage stage) {
   const PointMultilevelOptions& levels = plan.point_multilevel;
   if (name == "hc" || name == "ml") {
     // HC's and ML's steps (RunPointHierarchyGpu): latency-bound, --device gpu only.
-    return {true, levels.parallel ? "PML's levels are the parallel ones" : "", false};
+    return {
+        true,
+        levels.parallel ? "PML's levels are the parallel ones" : PointsStartGpuUnsupported(levels),
+        false};
   }
   if (name == "pml") {
     // LN k-means inside the levels and the switch to ML are each a round trip per round:
@@ -166,9 +169,17 @@ std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind en
   return PmlGpuUnsupported(as_pml, energy);
 }
 
+std::string PointsStartGpuUnsupported(const PointMultilevelOptions& options) {
+  if (options.start == PointMultilevelOptions::Start::kOptimisedGrid) {
+    return "start optimised-grid (LN k-means on the voxel clusters before level 0, "
+           "Fig. 6.5 / 6.8) runs on the CPU only";
+  }
+  return "";
+}
+
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options) {
   if (!options.parallel) return "one merge per level is RunPointHierarchyGpu's";
-  return "";
+  return PointsStartGpuUnsupported(options);
 }
 
 bool HasGpuBoundaryDecide(MeshEnergyKind energy) {

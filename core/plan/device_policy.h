@@ -126,6 +126,9 @@ std::string MlGpuUnsupported(const MultilevelOptions& options, MeshEnergyKind en
 // only or with LN k-means, pml-until included; HC's and ML's steps are
 // RunPointHierarchyGpu's (options.parallel false).
 std::string PointsPmlGpuUnsupported(const PointMultilevelOptions& options);
+// The point hierarchies' start on the GPU: the voxel clusters only (start grid); the text's
+// optimised-grid start is the CPU's.
+std::string PointsStartGpuUnsupported(const PointMultilevelOptions& options);
 
 // The energies whose BB decide stage has a GPU cost (gpu/kernels/bb_decide.h): the
 // proxy-point energies (cvd, cvd-adaptive, mwcvd-*) and planar.

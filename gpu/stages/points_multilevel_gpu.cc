@@ -316,6 +316,10 @@ absl::StatusOr<PointMultilevelSummary> RunPointHierarchyGpu(GlContext& context,
         "HC and ML for points on the GPU: one merge per level (PML is "
         "RunPointParallelMultilevelGpu)");
   }
+  const std::string unsupported = PointsStartGpuUnsupported(options);
+  if (!unsupported.empty()) {
+    return absl::UnimplementedError(absl::StrCat("HC and ML for points on the GPU: ", unsupported));
+  }
   MLCLUST_ASSIGN_OR_RETURN(GpuLevelsStart started, StartLevels(context, points, options, sink));
   uint32_t clusters = started.k0;
   MLCLUST_RETURN_IF_ERROR(RunSteps(started, options, sink, /*table_current=*/true, clusters));

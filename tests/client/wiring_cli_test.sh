@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The library pieces wired into the CLI (issues 11 and 13), end to end through the embedded
 # server: X-means and bisecting k-means on points; on meshes --planar-merge, --repair,
-# --plot, --coarse's exit code 3, and the edgebreaker upload with per-face ids.
+# --plot, --coarse's exit code 3 and vertex placement, and the edgebreaker upload with
+# per-face ids.
 #   wiring_cli_test.sh MLCLUST_BINARY DATA_DIR
 set -euo pipefail
 mlclust=$1
@@ -223,5 +224,59 @@ diff "$work/options_doc.txt" "$work/options_proto.txt" > "$work/options.diff" ||
   "the proto's option list differs from the registry's: run /usr/bin/python3 \
 scripts/proto_options_doc.py build/client/mlclust --write proto/mlclust/v1/mlclust.proto
 $(cat "$work/options.diff")"
+
+# --coarse places each vertex where the clustering's energy has its cluster centre (issue 26
+# item 1): adaptive CVD at the density-weighted centroid sum rho A g / sum rho A (l. 783,
+# 937), with rho from eq. 3.17 and the power mapping recomputed here; uniform CVD at
+# sum A g / sum A (l. 715). Fandisk, EMLO, 200 clusters.
+coarse_check() {  # OFF LABELS OBJ weighted|uniform
+  /usr/bin/python3 -c '
+import sys
+import numpy as np
+off, labels_path, obj, mode = sys.argv[1:5]
+words = [l.split() for l in open(off) if l.strip() and not l.startswith("#")]
+nv, nf = int(words[1][0]), int(words[1][1])
+v = np.array([[float(x) for x in w[:3]] for w in words[2:2 + nv]])
+f = np.array([[int(x) for x in w[1:4]] for w in words[2 + nv:2 + nv + nf]])
+p = v[f]
+cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+area = 0.5 * np.linalg.norm(cross, axis=1)
+normal = cross / np.linalg.norm(cross, axis=1)[:, None]
+g = p.mean(axis=1)
+incident = [[] for _ in range(nv)]
+for face, corners in enumerate(f):
+    for c in corners: incident[c].append(face)
+rho_prime = np.zeros(nf)
+for face, corners in enumerate(f):
+    ks = [k for c in corners for k in incident[c]]
+    rho_prime[face] = np.linalg.norm(normal[ks] - normal[face], axis=1).sum() / len(ks)
+rho = (rho_prime + 0.01) ** 2
+labels = np.loadtxt(labels_path, dtype=int)
+got = np.array([[float(x) for x in l.split()[1:4]] for l in open(obj) if l.startswith("v ")])
+k = labels.max() + 1
+assert len(got) == k, (len(got), k)
+def centroids(mass):
+    m = np.bincount(labels, mass, k)
+    return np.stack([np.bincount(labels, mass * g[:, j], k) for j in range(3)], 1) / m[:, None]
+def distances(expected):
+    return np.linalg.norm(got[:, None] - expected[None], axis=2).min(axis=1)
+weighted, uniform = distances(centroids(rho * area)), distances(centroids(area))
+if mode == "weighted":
+    assert weighted.max() < 1e-5, "not at sum rho A g / sum rho A: %g" % weighted.max()
+    assert (uniform > 1e-4).sum() > k // 2, "the density moved few vertices"
+else:
+    assert uniform.max() < 1e-5, "not at sum A g / sum A: %g" % uniform.max()
+' "$@"
+}
+"$mlclust" mesh "$data/fandisk.off" --algo emlo --energy cvd-adaptive --density power \
+  --delta 0.01 --gamma 2 --clusters 200 --labels "$work/adaptive.txt" \
+  --coarse "$work/adaptive.obj" --quiet > /dev/null || fail "coarse: cvd-adaptive"
+coarse_check "$data/fandisk.off" "$work/adaptive.txt" "$work/adaptive.obj" weighted ||
+  fail "coarse: cvd-adaptive vertices"
+"$mlclust" mesh "$data/fandisk.off" --algo emlo --energy cvd --clusters 200 \
+  --labels "$work/uniform.txt" --coarse "$work/uniform.obj" --quiet > /dev/null ||
+  fail "coarse: cvd"
+coarse_check "$data/fandisk.off" "$work/uniform.txt" "$work/uniform.obj" uniform ||
+  fail "coarse: cvd vertices"
 
 echo "PASS"

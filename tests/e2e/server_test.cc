@@ -590,6 +590,8 @@ TEST_F(AlgorithmsTest, PointSummaryNamesTheBicOfEveryLevelEvenOutsideTheRangeSen
   ASSERT_TRUE(choice.ok()) << choice.status();
   EXPECT_EQ(full->done.bic_best_cluster_count(), choice->best_k);
   EXPECT_EQ(full->done.bic_first_decrease_cluster_count(), choice->first_decrease_k);
+  EXPECT_EQ(full->done.bic_merging_first_decrease_cluster_count(),
+            choice->merging_first_decrease_k);
   EXPECT_NEAR(full->done.bic_best(), choice->bic[choice->best_level],
               1e-9 * std::abs(choice->bic[choice->best_level]));
   ASSERT_GT(choice->best_k, 3u);
@@ -600,6 +602,8 @@ TEST_F(AlgorithmsTest, PointSummaryNamesTheBicOfEveryLevelEvenOutsideTheRangeSen
   EXPECT_LE(part->hierarchy.cluster_count(0), 3u);
   EXPECT_EQ(part->done.bic_best_cluster_count(), choice->best_k);
   EXPECT_EQ(part->done.bic_first_decrease_cluster_count(), choice->first_decrease_k);
+  EXPECT_EQ(part->done.bic_merging_first_decrease_cluster_count(),
+            choice->merging_first_decrease_k);
 }
 
 TEST_F(AlgorithmsTest, PointsFromOneTo64DimensionsOverTheWire) {

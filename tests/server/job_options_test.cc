@@ -182,10 +182,15 @@ TEST(JobRunnerTest, KmeansReportsItsClustersAndTheSeedingAsLevelZero) {
   ASSERT_EQ(snapshot.size(), seeded.size());
   for (size_t i = 0; i < seeded.size(); ++i) EXPECT_EQ(snapshot[i], seeded[i].value()) << i;
   // Options the registry does not list for k-means are refused, naming them.
-  (*spec.mutable_options())["grid"] = "4";
+  (*spec.mutable_options())["optimizer"] = "none";
   outcome = RunOne(spec, BlobBytes(blobs.points));
   EXPECT_THAT(std::string(outcome.result.status().message()),
-              HasSubstr("option grid is not known for kmeans"));
+              HasSubstr("option optimizer is not known for kmeans"));
+  // grid is k-means' since its voxel start (init grid), and only with it.
+  spec.mutable_options()->erase("optimizer");
+  (*spec.mutable_options())["grid"] = "4";
+  outcome = RunOne(spec, BlobBytes(blobs.points));
+  EXPECT_THAT(std::string(outcome.result.status().message()), HasSubstr("applies to init grid"));
 }
 
 TEST(JobRunnerTest, ClustersAboveTheElementCountAreRefused) {

@@ -193,10 +193,17 @@ TEST(XmeansTest, FindsTheNumberOfSeparatedGaussians) {
     XmeansOptions options;
     options.max_clusters = 50;
     options.split_trials = 2;
+    options.lookahead = 0;  // Alg. 2.5's stop, before k_max
+    absl::StatusOr<XmeansResult> text = RunXmeans(blobs.points, options);
+    ASSERT_TRUE(text.ok()) << text.status();
+    EXPECT_EQ(text->clusters, clusters);
+    EXPECT_FALSE(text->stopped_at_max);
+    // The look-ahead's forced rounds (ours) find no larger BIC: the same model.
+    options.lookahead = XmeansOptions{}.lookahead;
     absl::StatusOr<XmeansResult> result = RunXmeans(blobs.points, options);
     ASSERT_TRUE(result.ok()) << result.status();
-    EXPECT_EQ(result->clusters, clusters);
-    EXPECT_FALSE(result->stopped_at_max);
+    EXPECT_EQ(result->labels, text->labels);
+    EXPECT_FALSE(result->rounds[result->chosen_round].forced);
     ExpectDenseLabels(result->labels, result->clusters);
     EXPECT_TRUE(SamePartition(result->labels, blobs.truth)) << clusters << " Gaussians";
     EXPECT_NEAR(result->inertia, PointEnergy(blobs.points, result->labels),
@@ -215,10 +222,47 @@ TEST(XmeansTest, StartingAtTheTrueNumberSplitsNothing) {
   XmeansOptions options;
   options.min_clusters = 6;
   options.max_clusters = 40;
+  options.lookahead = 0;  // Alg. 2.5's stop: the first round keeps no split
   absl::StatusOr<XmeansResult> result = RunXmeans(blobs.points, options);
   ASSERT_TRUE(result.ok()) << result.status();
   ASSERT_EQ(result->rounds.size(), 1u);
   EXPECT_EQ(result->clusters, 6u);
+  // With the look-ahead (ours), two forced rounds (12, then 24 clusters) bring no larger
+  // BIC: the search ends there and the result is still the first round.
+  options.lookahead = 2;
+  result = RunXmeans(blobs.points, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_EQ(result->rounds.size(), 3u);
+  EXPECT_TRUE(result->rounds[1].forced && result->rounds[2].forced);
+  EXPECT_EQ(result->rounds[1].clusters, 12u);
+  EXPECT_EQ(result->rounds[2].clusters, 24u);
+  EXPECT_EQ(result->chosen_round, 0u);
+  EXPECT_EQ(result->clusters, 6u);
+  EXPECT_FALSE(result->stopped_at_max);
+}
+
+// Item 5 of issue 26: from k_min = 1 on Gaussians spread over a volume, the BIC of one
+// cluster beats that of any 2-means cut (the local maximum at K = 1 of xmeans.h), so
+// Alg. 2.5's stop (lookahead 0) ends at one cluster; the look-ahead's forced rounds pass the
+// valley and X-means finds every Gaussian.
+TEST(XmeansTest, FromOneClusterTheLookaheadFindsGaussiansSpreadOverAVolume) {
+  const Blobs blobs = ShuffledBlobs(40, 100, 8, /*seed=*/61);
+  XmeansOptions options;
+  options.min_clusters = 1;
+  options.lookahead = 0;
+  absl::StatusOr<XmeansResult> text = RunXmeans(blobs.points, options);
+  ASSERT_TRUE(text.ok()) << text.status();
+  EXPECT_EQ(text->clusters, 1u);
+  ASSERT_EQ(text->rounds.size(), 1u);
+  options.lookahead = XmeansOptions{}.lookahead;
+  absl::StatusOr<XmeansResult> ours = RunXmeans(blobs.points, options);
+  ASSERT_TRUE(ours.ok()) << ours.status();
+  EXPECT_EQ(ours->clusters, 40u);
+  EXPECT_TRUE(SamePartition(ours->labels, blobs.truth));
+  ASSERT_GE(ours->rounds.size(), 2u);
+  EXPECT_TRUE(ours->rounds[1].forced);  // the valley: K = 2 scores below K = 1
+  EXPECT_LT(ours->rounds[1].bic, ours->rounds[0].bic);
+  ExpectDenseLabels(ours->labels, ours->clusters);
 }
 
 TEST(XmeansTest, StopsAtMaxClusters) {

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <vector>
 
 #include "core/energy/energies.h"
@@ -108,6 +109,34 @@ TEST(PartitionTest, MergeMovesEveryFaceOfTheGoneCluster) {
   EXPECT_EQ(partition.size(2), 0u);
   for (uint32_t f : row_two) EXPECT_EQ(partition.label(f), 1u);
   ExpectConsistent(partition, energy);
+}
+
+// Issue 26 item 7: a face's sums leave a cluster by subtraction, which loses what it cancels.
+// mwcvd-max with densities 1e-4 (rho^10 = 1e-40) on 31 faces and 10 (rho^10 = 1e10) on one:
+// the cluster's sum of rho^10 rounds to 1e10, so removing that face leaves exactly 0 instead
+// of 30e-40, and the weight (sum rho^10)^(1/10) is 0 instead of about 1.4e-4. RefreshAllSums
+// gives every cluster the sums of its faces again.
+TEST(PartitionTest, RefreshAllSumsGivesBackWhatASubtractionLost) {
+  const testing::LoadedMesh& l = GridMesh();
+  std::vector<double> density(32, 1e-4);
+  density[5] = 10;
+  const MwcvdEnergy energy(l.measures, density, MwcvdEnergy::Weight::kMax);
+  std::vector<uint32_t> labels(32, 0);
+  labels[31] = 1;
+  Partition<MwcvdEnergy> partition(energy, labels, 2);
+  partition.Move(5, 1);
+  EXPECT_EQ(partition.sums(0).density_power, 0.0);  // the subtraction's loss
+  EXPECT_EQ(partition.cluster_energy(0), 0.0);
+  partition.RefreshAllSums();
+  const double power = 30 * std::pow(1e-4, 10);
+  EXPECT_NEAR(partition.sums(0).density_power, power, 1e-12 * power);
+  const double weight = std::pow(power, 0.1);
+  EXPECT_NEAR(energy.ClusterWeight(partition.sums(0)), weight, 1e-12 * weight);
+  EXPECT_DOUBLE_EQ(partition.cluster_energy(0), energy.Energy(partition.sums(0)));
+  EXPECT_GT(partition.cluster_energy(0), 0.0);
+  EXPECT_DOUBLE_EQ(partition.sums(1).density_power, std::pow(1e-4, 10) + 1e10);
+  EXPECT_EQ(partition.size(0), 30u);
+  EXPECT_EQ(partition.size(1), 2u);
 }
 
 }  // namespace

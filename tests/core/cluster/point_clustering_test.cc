@@ -307,6 +307,37 @@ TEST(PointMultilevelTest, RebuildsTheEnginesLabelsAndReportsTheirEnergy) {
   EXPECT_TRUE(SamePartition(*log.LabelsAt(*eight), truth));
 }
 
+// Issue 26 item 3: the text's start (Fig. 6.5 / 6.8), LN k-means on the voxel clusters before
+// the first level: level 0 is RunLnKmeansFromGrid's partition with its energy, below the raw
+// grid's; the default start is the raw grid (VoxelGridStart), and both hierarchies end at 1.
+TEST(PointMultilevelTest, TheOptimisedGridStartsFromLnKmeansOnTheVoxels) {
+  auto [points, truth] = Blobs(8, 300, 3, 11);
+  PointMultilevelOptions options;
+  options.grid = 12;
+  HierarchyLog raw, optimised;
+  ASSERT_TRUE(RunPointMultilevel(points, options, raw).ok());
+  options.start = PointMultilevelOptions::Start::kOptimisedGrid;
+  ASSERT_TRUE(RunPointMultilevel(points, options, optimised).ok());
+  const absl::StatusOr<VoxelStart> grid = VoxelGridStart(points, 12);
+  ASSERT_TRUE(grid.ok());
+  EXPECT_TRUE(SamePartition(*raw.LabelsAt(0), grid->labels));
+  LnKmeansOptions ln;
+  const absl::StatusOr<LnKmeansResult> ln_kmeans = RunLnKmeansFromGrid(points, 12, ln);
+  ASSERT_TRUE(ln_kmeans.ok());
+  const std::vector<ClusterId> start = *optimised.LabelsAt(0);
+  EXPECT_TRUE(SamePartition(start, ln_kmeans->labels));
+  std::set<uint32_t> used;
+  for (ClusterId c : ln_kmeans->labels) used.insert(c.value());
+  EXPECT_EQ(optimised.cluster_count(0), used.size());
+  EXPECT_NEAR(optimised.energy(0), ln_kmeans->energy, 1e-9 * ln_kmeans->energy);
+  EXPECT_NEAR(optimised.energy(0), PointEnergy(points, start), 1e-9 * optimised.energy(0));
+  EXPECT_LT(optimised.energy(0), raw.energy(0));
+  EXPECT_EQ(optimised.cluster_count(optimised.num_levels() - 1), 1u);
+  const std::optional<size_t> eight = optimised.LastLevelWith(8);
+  ASSERT_TRUE(eight.has_value());
+  EXPECT_TRUE(SamePartition(*optimised.LabelsAt(*eight), truth));
+}
+
 TEST(PointMultilevelTest, MlIsAtMostHcAtNearlyEveryLevel) {
   auto [points, truth] = Blobs(6, 400, 3, 21, 6);
   PointMultilevelOptions ml_options, hc_options;

@@ -178,6 +178,30 @@ TEST(SphericalGaussianBicTest, TrueNumberOfClustersScoresHighest) {
   }
 }
 
+// Issue 26 item 4: section 6.6's rule (stop merging when the BIC starts to fall, in the
+// hierarchy's own order) beside the highest BIC. A hierarchy from 8 clusters to 1 whose BIC
+// wobbles near its fine end (K = 8: 4, K = 7: 5, K = 6: 3): the text's rule stops at K = 7,
+// the highest BIC is at K = 3, and read from few to many the first decrease is at K = 3.
+TEST(ChooseByBicTest, TheTextsMergingRuleStopsAtTheFirstFallAndDiffersFromTheMaximum) {
+  const std::vector<uint32_t> counts = {8, 7, 6, 5, 4, 3, 2, 1};
+  BicChoice choice = ChooseByScore(counts, {4, 5, 3, 6, 8, 9, 2, 0});
+  EXPECT_EQ(choice.merging_first_decrease_level, 1u);
+  EXPECT_EQ(choice.merging_first_decrease_k, 7u);
+  EXPECT_EQ(choice.best_k, 3u);
+  EXPECT_EQ(choice.first_decrease_k, 3u);
+  // Rising all the way as it merges: the last level.
+  choice = ChooseByScore(counts, {0, 1, 2, 3, 4, 5, 6, 7});
+  EXPECT_EQ(choice.merging_first_decrease_level, 7u);
+  EXPECT_EQ(choice.merging_first_decrease_k, 1u);
+  // Degenerate levels (the first level of a bottom-up hierarchy) are skipped; equal scores
+  // are no fall.
+  choice = ChooseByScore(counts, {-kInfinity, 2, 2, 3, 1, 0, 0, 0});
+  EXPECT_EQ(choice.merging_first_decrease_k, 5u);
+  // All degenerate: the best level, the fewest clusters.
+  choice = ChooseByScore(std::vector<uint32_t>{3, 2, 1}, {-kInfinity, -kInfinity, -kInfinity});
+  EXPECT_EQ(choice.merging_first_decrease_level, 2u);
+}
+
 TEST(ChooseByBicTest, ChooseByScoreBestAndFirstDecrease) {
   // A hierarchy from 6 clusters down to 1. From few to many: K=1: 0, 2: 2, 3: 4, 4: 5, then
   // K=5: 3 is the first decrease, so the first-decrease level is K=4 (level 2); the maximum

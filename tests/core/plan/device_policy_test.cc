@@ -256,6 +256,26 @@ TEST(DevicePolicyTest, DeviceGpuSaysWhyAStageTheGpuDoesNotCoverRunsOnTheCpu) {
   EXPECT_EQ(PlanDevices(kHardware, polygons, plan).code(), absl::StatusCode::kFailedPrecondition);
 }
 
+TEST(DevicePolicyTest, ThePointsOptimisedGridStartRunsTheLevelsOnTheCpuAndSaysWhy) {
+  // Issue 26 item 3's start (LN k-means on the voxel clusters first) has no GPU path: HC, ML
+  // and PML keep their levels on the CPU with device gpu, and the plan says why.
+  for (const char* name : {"hc", "ml", "pml"}) {
+    JobRequest request;
+    request.algorithm = FindAlgorithm(InputKind::kPoints, name);
+    request.device = DeviceChoice::kGpu;
+    request.options = {{"start", "optimised-grid"}};
+    if (std::string(name) == "pml") request.options.push_back({"optimizer", "none"});
+    JobPlan plan = *PlanJob(request);
+    ASSERT_TRUE(PlanDevices(kSoftware, plan).ok()) << name;
+    EXPECT_EQ(FindStage(plan, PlanStage::kCluster)->device, StageDevice::kCpu) << name;
+    EXPECT_THAT(FindStage(plan, PlanStage::kCluster)->why, HasSubstr("optimised-grid")) << name;
+    request.options[0].second = "grid";
+    plan = *PlanJob(request);
+    ASSERT_TRUE(PlanDevices(kSoftware, plan).ok()) << name;
+    EXPECT_EQ(FindStage(plan, PlanStage::kCluster)->device, StageDevice::kGpu) << name;
+  }
+}
+
 TEST(DevicePolicyTest, StageHasGpuAndMayUseGpu) {
   EXPECT_TRUE(StageHasGpu(*FindAlgorithm(InputKind::kMesh, "vsa"), PlanStage::kMeasures));
   EXPECT_FALSE(StageHasGpu(*FindAlgorithm(InputKind::kMesh, "vsa"), PlanStage::kSeed));
