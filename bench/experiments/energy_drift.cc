@@ -38,6 +38,7 @@
 #include "core/energy/energies.h"
 #include "core/io/points_io.h"
 #include "core/io/prepare_mesh.h"
+#include "core/plan/device_policy.h"
 
 namespace {
 

@@ -604,7 +604,8 @@ absl::StatusOr<RunSummary> RunPointKmeans(const PointSet& points, const JobPlan&
     KmeansOptions options = plan.kmeans;
     options.clusters = start.clusters;
     options.on_iteration = [&](uint32_t iteration, double inertia) {
-      Report(context, plan, "cluster", absl::StrCat("iteration ", iteration, ": energy ", inertia));
+      Report(context, plan, PlanStage::kCluster,
+             absl::StrCat("iteration ", iteration, ": energy ", inertia));
     };
     MLCLUST_ASSIGN_OR_RETURN(KmeansResult result, lloyd(std::move(centres), options));
     MLCLUST_RETURN_IF_ERROR(EmitSingleLevel(start.labels, PointEnergy(points, start.labels),
