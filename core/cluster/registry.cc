@@ -913,7 +913,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical data clustering (Alg. 2.6)";
     a.help = "merges only, from the voxel-grid start (section 6.2) down to one cluster";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), point_threads};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads};
     // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h).
     a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;

@@ -148,7 +148,7 @@ source "$1"
 complete_words() { COMP_WORDS=("$@"); COMP_CWORD=$(($# - 1)); _mlclust; echo "${COMPREPLY[*]}"; }
 [ "$(complete_words mlclust mes)" = "mesh" ] || exit 11
 [ "$(complete_words mlclust mesh --clu)" = "--clusters" ] || exit 12
-[ "$(complete_words mlclust points --auto-k "")" = "bic elbow" ] || exit 13
+[ "$(complete_words mlclust points --auto-k "")" = "bic bic-first-decrease elbow" ] || exit 13
 [ "$(complete_words mlclust help poi)" = "points" ] || exit 14
 # The rows of the help: "  --name VALUE  help" or "  -k, --name K  help".
 for flag in $(grep -oE -- "^ +(-[a-z], )?--[a-z][a-z0-9-]*" "$2" | grep -oE -- "--[a-z0-9-]+$"); do
