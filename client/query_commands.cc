@@ -14,6 +14,7 @@
 #include "client/replicas.h"
 #include "core/base/status_macros.h"
 #include "core/io/prepare_mesh.h"
+#include "google/protobuf/text_format.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
@@ -80,6 +81,28 @@ absl::StatusOr<v1::Stats> FetchStats(const ServerFlags& flags) {
   return stats;
 }
 
+// Stats as text, one "name: value" line per field in the proto's order, every scalar
+// included where it is zero (DebugString leaves out a proto3 scalar at its default, so a
+// server with no failed job showed no jobs_failed line at all). Values as the text format
+// writes them (strings quoted and escaped). A proto3 `optional` field is printed where it
+// is set only: its absence says "not exposed" (the same fields as `--json` prints).
+std::string StatsText(const v1::Stats& stats) {
+  const google::protobuf::Descriptor* descriptor = v1::Stats::GetDescriptor();
+  const google::protobuf::Reflection* reflection = v1::Stats::GetReflection();
+  std::string text;
+  for (int i = 0; i < descriptor->field_count(); ++i) {
+    const google::protobuf::FieldDescriptor* field = descriptor->field(i);
+    if (field->is_repeated()) continue;  // Stats has no repeated field
+    const bool presence = field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_MESSAGE ||
+                          field->containing_oneof() != nullptr;
+    if (presence && !reflection->HasField(stats, field)) continue;
+    std::string value;
+    google::protobuf::TextFormat::PrintFieldValueToString(stats, field, -1, &value);
+    absl::StrAppend(&text, field->name(), ": ", value, "\n");
+  }
+  return text;
+}
+
 // INVALID_ARGUMENT where `args` has positional arguments (`command` takes none).
 absl::Status NoPositional(const Arguments& args, const std::string& command) {
   if (args.positional().empty()) return absl::OkStatus();
@@ -98,7 +121,7 @@ int RunStats(const Arguments& args) {
   if (!client::NamesReplicas(address)) {
     absl::StatusOr<v1::Stats> stats = FetchStats(*flags);
     if (!stats.ok()) return Fail(stats.status());
-    std::printf("%s", json ? MessageJson(*stats).c_str() : stats->DebugString().c_str());
+    std::printf("%s", (json ? MessageJson(*stats) : StatsText(*stats)).c_str());
     return 0;
   }
   // Several replicas: each one's stats under its address; one that does not answer is
@@ -121,7 +144,7 @@ int RunStats(const Arguments& args) {
       continue;
     }
     json ? std::printf("%s}\n", MessageJson(*stats).c_str())
-         : std::printf("%s", stats->DebugString().c_str());
+         : std::printf("%s", StatsText(*stats).c_str());
   }
   return code;
 }

@@ -114,7 +114,30 @@ done
 port=$(sed -n 's/.*listening on port \([0-9]*\).*/\1/p' "$work/serve.log")
 "$mlclust" mesh "$mesh" -k 5 --server "127.0.0.1:$port" --quiet > /dev/null
 "$mlclust" stats --server "127.0.0.1:$port" --json > "$work/stats.json"
+"$mlclust" stats --server "127.0.0.1:$port" > "$work/stats.txt"
 "$mlclust" info --json > "$work/info.json"
+# stats shows every field of the Stats message, zero included (no job failed here, so
+# jobs_failed is 0), in both forms: one "name: value" line each, in the proto's order, and
+# a JSON member each; a proto3 `optional` field only where the server sets it.
+/usr/bin/python3 - "$(dirname "$0")/../../proto/mlclust/v1/mlclust.proto" "$work/stats.txt" \
+  "$work/stats.json" <<'PY' || fail "stats fields: $(cat "$work/stats.txt")"
+import json, re, sys
+proto, text, document = open(sys.argv[1]).read(), open(sys.argv[2]).read(), json.load(open(sys.argv[3]))
+body = re.search(r"^message Stats \{(.*?)^\}", proto, re.S | re.M).group(1)
+fields = re.findall(r"^\s*(optional\s+)?\w+\s+(\w+)\s*=\s*\d+;", body, re.M)
+assert len(fields) > 30, fields
+lines = [line.split(": ", 1) for line in text.splitlines()]
+names = [name for name, _ in lines]
+expected = [name for optional, name in fields if not optional or name in names]
+assert names == expected, (names, expected)
+for optional, name in fields:
+    assert optional or name in document, f"--json lacks {name}"
+values = dict(lines)
+for name in ("jobs_failed", "jobs_cancelled", "jobs_rejected", "calls_refused",
+             "readers_cut_off", "uploads_timed_out", "results_dropped"):
+    assert values[name] == "0" and document[name] == 0, (name, values[name], document[name])
+assert values["jobs_succeeded"] == "1" and values["draining"] == "false", values
+PY
 /usr/bin/python3 - "$work/summary.json" "$work/stats.json" "$work/info.json" <<'PY' \
   || fail "--json: $(cat "$work/summary.json" "$work/stats.json")"
 import json, re, sys
