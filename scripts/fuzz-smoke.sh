@@ -17,7 +17,7 @@ cd "$(dirname "$0")/.."
 seconds="${FUZZ_SECONDS:-15}"
 build="${FUZZ_BUILD_DIR:-build-fuzz}"
 jobs="${FUZZ_JOBS:-$(nproc)}"
-all_targets=(draco points_batch off ply npy csv gltf_draco meshlet_file request)
+all_targets=(draco points_batch off ply npy csv gltf_draco meshlet_file request watch_cancel)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 

@@ -368,6 +368,17 @@ void JobRecord::BuildSnapshotLocked(WatchCursor& cursor) const {
   cursor.next_triplet = 0;
 }
 
+WatchCursor WatchCursorFor(uint32_t from_level, bool resume) {
+  WatchCursor cursor;
+  cursor.from_level = from_level;
+  cursor.resume = resume;
+  if (resume) {
+    cursor.phase = WatchCursor::Phase::kLevels;
+    cursor.next_level = from_level == UINT32_MAX ? UINT32_MAX : from_level + 1;
+  }
+  return cursor;
+}
+
 void JobRecord::FillLevelBatchLocked(WatchCursor& cursor, v1::LevelBatch& batch) const {
   const uint32_t readable = ReadableLevelsLocked();
   const uint64_t budget =

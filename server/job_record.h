@@ -71,6 +71,12 @@ struct WatchCursor {
   uint64_t progress_seen = 0;  // the last Progress sent
 };
 
+// A Watch call's cursor from its request (WatchRequest's from_level and resume): the
+// snapshot at from_level then the levels after it, or with `resume` only the levels after
+// it. No level comes after the largest level number (4294967295): resuming from it reads
+// no level (next_level saturates; it once wrapped to level 0 and read before the levels).
+WatchCursor WatchCursorFor(uint32_t from_level, bool resume);
+
 class JobRecord : public EventChannel {
  public:
   // `detached`: a detached job, whose only channel is this record (see Keep for attached

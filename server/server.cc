@@ -1253,12 +1253,7 @@ class WatchCall : public grpc::ServerWriteReactor<v1::JobEvent>, public WatchedU
       return;
     }
     record_ = *std::move(record);
-    cursor_.from_level = request.from_level();
-    cursor_.resume = request.resume();
-    if (request.resume()) {
-      cursor_.phase = WatchCursor::Phase::kLevels;
-      cursor_.next_level = request.from_level() + 1;
-    }
+    cursor_ = WatchCursorFor(request.from_level(), request.resume());
     Wake();
   }
 

@@ -168,6 +168,27 @@ TEST(JobRecordTest, ACursorReadsASnapshotAtAnyLevelThenTheRest) {
   EXPECT_TRUE(events[3].final());
 }
 
+// Found by fuzz/fuzz_watch_cancel.cc: resuming from level 4294967295 made the next level
+// wrap to 0, and the watcher read before the first level (out of bounds, the server
+// crashed). No level comes after the largest number: an ended job answers OUT_OF_RANGE.
+TEST(JobRecordTest, ResumingFromTheLargestLevelNumberReadsNoLevel) {
+  JobRegistry registry({});
+  auto record = Record(registry, "job-x");
+  EmitHierarchy(*record, 10);
+  v1::JobEvent done;
+  done.mutable_done()->set_levels(10);
+  record->Finish(done, grpc::Status::OK);
+  EXPECT_EQ(WatchCursorFor(3, true).next_level, 4u);
+  EXPECT_EQ(WatchCursorFor(3, false).phase, WatchCursor::Phase::kHeader);
+  WatchCursor cursor = WatchCursorFor(UINT32_MAX, true);
+  EXPECT_EQ(cursor.next_level, UINT32_MAX);
+  v1::JobEvent event;
+  grpc::Status status;
+  ASSERT_EQ(record->NextEvent(cursor, event, status, nullptr), JobRecord::Next::kEnd);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::OUT_OF_RANGE);
+  EXPECT_THAT(status.error_message(), HasSubstr("level 4294967295 is past its last"));
+}
+
 // Issue 24, item 2: a thousand watchers of one job each held their own copy of the labels
 // they started from. Watchers of one level share one copy, level 0 needs none, and the
 // copy goes when the last of them has sent it.
