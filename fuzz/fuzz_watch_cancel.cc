@@ -21,6 +21,7 @@
 #include "mlclust/v1/mlclust.pb.h"
 #include "server/job_record.h"
 #include "server/log.h"
+#include "tests/server/hierarchy_events.h"
 
 namespace {
 
@@ -35,26 +36,10 @@ constexpr char kEndedId[] = "job-00112233445566778899aabbccddeeff";
 constexpr char kRunningId[] = "job-0123456789abcdef0123456789abcdef";
 constexpr char kOtherTenantsId[] = "job-ffeeddccbbaa99887766554433221100";
 
-// Level 0: labels 0..n-1; level l (1..n-1): element l moves to cluster 0 (as the
-// registry's tests build it).
+// The registry tests' hierarchy (tests/server/hierarchy_events.h).
 void EmitHierarchy(JobRecord& record, uint32_t n) {
-  v1::JobEvent snapshot;
-  snapshot.mutable_snapshot()->set_total_elements(n);
-  snapshot.mutable_snapshot()->set_cluster_count(n);
-  for (uint32_t i = 0; i < n; ++i) snapshot.mutable_snapshot()->add_labels(i);
-  MLCLUST_FUZZ_CHECK(record.Emit(snapshot));
-  v1::JobEvent levels;
-  v1::LevelBatch* batch = levels.mutable_levels();
-  batch->set_first_level(1);
-  for (uint32_t l = 1; l < n; ++l) {
-    batch->add_cluster_count(n - l);
-    batch->add_energy(l);
-    batch->add_element(l);
-    batch->add_to_cluster(0);
-    batch->add_from_cluster(l);
-    batch->add_triplet_end(l);
-  }
-  MLCLUST_FUZZ_CHECK(record.Emit(levels));
+  MLCLUST_FUZZ_CHECK(record.Emit(mlclust::server::test_data::HierarchySnapshot(n)));
+  MLCLUST_FUZZ_CHECK(record.Emit(mlclust::server::test_data::HierarchyLevels(n)));
 }
 
 std::shared_ptr<JobRecord> AddJob(JobRegistry& registry, const std::string& id,

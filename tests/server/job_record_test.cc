@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "absl/strings/str_replace.h"
+#include "tests/server/hierarchy_events.h"
 
 namespace mlclust::server {
 namespace {
@@ -26,23 +27,8 @@ std::shared_ptr<JobRecord> Record(JobRegistry& registry, const std::string& id,
 
 // Level 0: labels 0..n-1; level l (1..n-1): element l moves to cluster 0.
 void EmitHierarchy(EventChannel& record, uint32_t n) {
-  v1::JobEvent snapshot;
-  snapshot.mutable_snapshot()->set_total_elements(n);
-  snapshot.mutable_snapshot()->set_cluster_count(n);
-  for (uint32_t i = 0; i < n; ++i) snapshot.mutable_snapshot()->add_labels(i);
-  ASSERT_TRUE(record.Emit(snapshot));
-  v1::JobEvent levels;
-  v1::LevelBatch* batch = levels.mutable_levels();
-  batch->set_first_level(1);
-  for (uint32_t l = 1; l < n; ++l) {
-    batch->add_cluster_count(n - l);
-    batch->add_energy(l);
-    batch->add_element(l);
-    batch->add_to_cluster(0);
-    batch->add_from_cluster(l);
-    batch->add_triplet_end(l);
-  }
-  ASSERT_TRUE(record.Emit(levels));
+  ASSERT_TRUE(record.Emit(test_data::HierarchySnapshot(n)));
+  ASSERT_TRUE(record.Emit(test_data::HierarchyLevels(n)));
 }
 
 TEST(JobRegistryTest, RetentionDropsEveryEndedJobUnderItsOwnId) {
