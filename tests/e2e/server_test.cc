@@ -19,6 +19,11 @@
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
+#include "draco/compression/config/compression_shared.h"
+#include "draco/compression/expert_encode.h"
+#include "draco/core/encoder_buffer.h"
+#include "draco/mesh/mesh.h"
+#include "draco/metadata/geometry_metadata.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
@@ -225,6 +230,104 @@ TEST_F(ServerTest, BadSpecsAreRefused) {
   result = client::RunJob(channel_, spec, *bytes);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(result->done.final_clusters(), 5u);
+}
+
+// A sequential Draco payload that carries the face id attribute (kDracoFaceIdAttributeName,
+// face f's corners all f), as an encoder other than ours can write it.
+std::string SequentialPayloadWithFaceIds(const TriangleMesh& mesh) {
+  const uint32_t num_points = static_cast<uint32_t>(3 * mesh.num_faces());
+  draco::Mesh draco_mesh;
+  draco_mesh.set_num_points(num_points);
+  draco::GeometryAttribute position;
+  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
+                sizeof(float) * 3, 0);
+  const int position_id = draco_mesh.AddAttribute(position, true, num_points);
+  draco::GeometryAttribute face_id;
+  face_id.Init(draco::GeometryAttribute::GENERIC, nullptr, 1, draco::DT_UINT32, false,
+               sizeof(uint32_t), 0);
+  const int id_id = draco_mesh.AddAttribute(face_id, true, num_points);
+  for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
+    for (uint32_t c = 0; c < 3; ++c) {
+      const draco::AttributeValueIndex point(3 * f + c);
+      draco_mesh.attribute(position_id)
+          ->SetAttributeValue(point, &mesh.positions[3 * mesh.indices[3 * f + c]]);
+      draco_mesh.attribute(id_id)->SetAttributeValue(point, &f);
+    }
+    draco_mesh.AddFace(
+        {draco::PointIndex(3 * f), draco::PointIndex(3 * f + 1), draco::PointIndex(3 * f + 2)});
+  }
+  auto metadata = std::make_unique<draco::AttributeMetadata>();
+  metadata->AddEntryString("name", kDracoFaceIdAttributeName);
+  draco_mesh.AddAttributeMetadata(id_id, std::move(metadata));
+  draco::ExpertEncoder encoder(draco_mesh);
+  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+  draco::EncoderBuffer buffer;
+  EXPECT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
+  return std::string(buffer.data(), buffer.size());
+}
+
+// Sends `bytes` under `spec` chunk by chunk and returns the call's status and whether an
+// Accepted event came before it.
+std::pair<grpc::Status, bool> SendAndWatchForAccepted(const std::shared_ptr<grpc::Channel>& channel,
+                                                      v1::JobSpec spec, const std::string& bytes) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  auto stream = stub->Run(&context);
+  v1::RunRequest first;
+  spec.set_input_bytes(bytes.size());
+  *first.mutable_spec() = spec;
+  first.set_chunk(bytes.substr(0, bytes.size() / 2));
+  v1::RunRequest second;
+  second.set_chunk(bytes.substr(bytes.size() / 2));
+  stream->Write(first);
+  stream->Write(second);
+  stream->WritesDone();
+  v1::JobEvent event;
+  bool accepted = false;
+  while (stream->Read(&event)) accepted = accepted || event.has_accepted();
+  return {stream->Finish(), accepted};
+}
+
+// Issue 25: what the spec and the payload's header contradict is refused before Accepted
+// (INVALID_ARGUMENT naming what and where), not as the job's error after it.
+TEST_F(ServerTest, ContradictoryPayloadsAreRefusedBeforeAccepted) {
+  const TriangleMesh grid = testing::Grid(6);
+  DracoEncodeOptions with_ids;
+  with_ids.method = DracoMethod::kEdgebreaker;
+  with_ids.write_face_ids = true;
+  const absl::StatusOr<std::string> edgebreaker = EncodeMeshToDraco(grid, with_ids);
+  ASSERT_TRUE(edgebreaker.ok()) << edgebreaker.status();
+  // As a foreign encoder writes it: the sequential method with the face id attribute.
+  const std::string sequential_with_ids = SequentialPayloadWithFaceIds(grid);
+  ASSERT_EQ(sequential_with_ids.substr(0, 5), "DRACO");
+  auto [status, accepted] = SendAndWatchForAccepted(channel_, HcSpec(), sequential_with_ids);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("byte 8"));
+  EXPECT_THAT(status.error_message(), HasSubstr("sequential"));
+  EXPECT_THAT(status.error_message(), HasSubstr("mlclust_face_id"));
+  EXPECT_FALSE(accepted);
+
+  // A mesh job whose payload is not Draco data.
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, HcSpec(), std::string(64, 'x'));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("input mesh: the payload does not start"));
+  EXPECT_FALSE(accepted);
+
+  // Points that are not a whole number of points, refused from the spec alone.
+  v1::JobSpec points;
+  points.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  points.set_point_dims(3);
+  points.set_algorithm(v1::ALGORITHM_ML);
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, points, std::string(16, '\0'));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("spec.input_bytes: 16 bytes"));
+  EXPECT_FALSE(accepted);
+
+  // The same edgebreaker payload as sent runs.
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, HcSpec(), *edgebreaker);
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(accepted);
+  EXPECT_TRUE(Healthy());
 }
 
 TEST_F(ServerTest, ChunkedUploadOfManySmallChunks) {
