@@ -19,15 +19,11 @@
 #include "core/io/draco_codec.h"
 #include "core/io/mesh_io.h"
 #include "core/mesh/face_measures.h"
-#include "draco/compression/config/compression_shared.h"
-#include "draco/compression/expert_encode.h"
-#include "draco/core/encoder_buffer.h"
-#include "draco/mesh/mesh.h"
-#include "draco/metadata/geometry_metadata.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "tests/fixtures/foreign_draco.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -232,40 +228,6 @@ TEST_F(ServerTest, BadSpecsAreRefused) {
   EXPECT_EQ(result->done.final_clusters(), 5u);
 }
 
-// A sequential Draco payload that carries the face id attribute (kDracoFaceIdAttributeName,
-// face f's corners all f), as an encoder other than ours can write it.
-std::string SequentialPayloadWithFaceIds(const TriangleMesh& mesh) {
-  const uint32_t num_points = static_cast<uint32_t>(3 * mesh.num_faces());
-  draco::Mesh draco_mesh;
-  draco_mesh.set_num_points(num_points);
-  draco::GeometryAttribute position;
-  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
-                sizeof(float) * 3, 0);
-  const int position_id = draco_mesh.AddAttribute(position, true, num_points);
-  draco::GeometryAttribute face_id;
-  face_id.Init(draco::GeometryAttribute::GENERIC, nullptr, 1, draco::DT_UINT32, false,
-               sizeof(uint32_t), 0);
-  const int id_id = draco_mesh.AddAttribute(face_id, true, num_points);
-  for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
-    for (uint32_t c = 0; c < 3; ++c) {
-      const draco::AttributeValueIndex point(3 * f + c);
-      draco_mesh.attribute(position_id)
-          ->SetAttributeValue(point, &mesh.positions[3 * mesh.indices[3 * f + c]]);
-      draco_mesh.attribute(id_id)->SetAttributeValue(point, &f);
-    }
-    draco_mesh.AddFace(
-        {draco::PointIndex(3 * f), draco::PointIndex(3 * f + 1), draco::PointIndex(3 * f + 2)});
-  }
-  auto metadata = std::make_unique<draco::AttributeMetadata>();
-  metadata->AddEntryString("name", kDracoFaceIdAttributeName);
-  draco_mesh.AddAttributeMetadata(id_id, std::move(metadata));
-  draco::ExpertEncoder encoder(draco_mesh);
-  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
-  draco::EncoderBuffer buffer;
-  EXPECT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
-  return std::string(buffer.data(), buffer.size());
-}
-
 // Sends `bytes` under `spec` chunk by chunk and returns the call's status and whether an
 // Accepted event came before it.
 std::pair<grpc::Status, bool> SendAndWatchForAccepted(const std::shared_ptr<grpc::Channel>& channel,
@@ -298,7 +260,10 @@ TEST_F(ServerTest, ContradictoryPayloadsAreRefusedBeforeAccepted) {
   const absl::StatusOr<std::string> edgebreaker = EncodeMeshToDraco(grid, with_ids);
   ASSERT_TRUE(edgebreaker.ok()) << edgebreaker.status();
   // As a foreign encoder writes it: the sequential method with the face id attribute.
-  const std::string sequential_with_ids = SequentialPayloadWithFaceIds(grid);
+  std::vector<uint32_t> ids(grid.num_faces());
+  for (uint32_t f = 0; f < ids.size(); ++f) ids[f] = f;
+  const std::string sequential_with_ids =
+      testing::EncodeLikeForeignEncoder(grid, ids, draco::MESH_SEQUENTIAL_ENCODING);
   ASSERT_EQ(sequential_with_ids.substr(0, 5), "DRACO");
   auto [status, accepted] = SendAndWatchForAccepted(channel_, HcSpec(), sequential_with_ids);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
