@@ -604,6 +604,48 @@ void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted
   accepted.set_draco_method(facts.method);
 }
 
+absl::Status CheckSpecIsConsistent(const v1::JobSpec& spec) {
+  if (spec.input_kind() != v1::INPUT_KIND_POINTS_F32) return absl::OkStatus();
+  if (spec.point_dims() == 0) {
+    return absl::InvalidArgumentError(
+        "spec.point_dims: d = 0 (float32 points need their dimension)");
+  }
+  const uint64_t point_bytes = uint64_t{4} * spec.point_dims();
+  if (spec.input_bytes() % point_bytes != 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "spec.input_bytes: ", spec.input_bytes(), " bytes are not a whole number of ",
+        spec.point_dims(), "-dimensional float32 points (", point_bytes, " bytes each)"));
+  }
+  if (spec.has_preview()) {
+    return absl::InvalidArgumentError("preview: only for meshes (a picture of the clusters)");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckPayloadAgainstSpec(const v1::JobSpec& spec, std::string_view input) {
+  if (spec.input_kind() != v1::INPUT_KIND_DRACO_MESH) return absl::OkStatus();
+  const DracoPayloadFacts facts = PeekDracoPayload(input);
+  if (!facts.is_draco) {
+    return absl::InvalidArgumentError(
+        "input mesh: the payload does not start with a Draco header (\"DRACO\", bytes 0-4), "
+        "and spec.input_kind is INPUT_KIND_DRACO_MESH");
+  }
+  if (!facts.is_mesh) {
+    return absl::InvalidArgumentError(
+        "input mesh: the Draco header (byte 7, the geometry type) says a point cloud, and "
+        "spec.input_kind is INPUT_KIND_DRACO_MESH (a triangle mesh)");
+  }
+  if (facts.names_face_ids && facts.method == "sequential") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "input mesh: the Draco header (byte 8, the encoder method) says sequential and the "
+        "metadata names the '",
+        kDracoFaceIdAttributeName,
+        "' attribute, which needs an edgebreaker payload; a sequential one keeps the face "
+        "order without it (send it without the attribute)"));
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context) {
   const v1::InputKind kind = job.spec.input_kind();
   if (kind != v1::INPUT_KIND_DRACO_MESH && kind != v1::INPUT_KIND_POINTS_F32) {

@@ -51,6 +51,18 @@ absl::StatusOr<JobOutcome> RunJob(Job& job, const JobRunnerContext& context);
 // `input`'s Draco header and metadata, without decoding it; nothing for points.
 void DescribeInput(const v1::JobSpec& spec, std::string_view input, v1::Accepted& accepted);
 
+// What the spec alone contradicts, checked when the spec arrives (before any input is read):
+// points without spec.point_dims, spec.input_bytes that is not a whole number of points, a
+// preview for points. INVALID_ARGUMENT naming the field.
+absl::Status CheckSpecIsConsistent(const v1::JobSpec& spec);
+
+// What the spec and the payload's Draco header (and metadata, core/io/draco_peek.h)
+// contradict, checked when the input is complete and before Accepted: a mesh job whose
+// payload is not Draco data or is a point cloud, a sequential payload that names the face id
+// attribute. The decoder still has the last word on everything else. INVALID_ARGUMENT with
+// "input mesh: ..." saying what and where (the header's byte).
+absl::Status CheckPayloadAgainstSpec(const v1::JobSpec& spec, std::string_view input);
+
 }  // namespace mlclust::server
 
 #endif  // MLCLUST_SERVER_JOB_RUNNER_H_

@@ -628,7 +628,7 @@ class ServiceImpl final : public v1::Clustering::CallbackService {
                                                        " bytes is over this server's limit of ",
                                                        options_.max_input_bytes, " bytes"));
     }
-    return absl::OkStatus();
+    return CheckSpecIsConsistent(spec);
   }
 
   // The job's plan at submit (server/job_runner.h PlanJobOnDevice) and its lane, the device
@@ -1125,6 +1125,12 @@ void RunCall::Submit() {
   const bool detach = job->spec.detach();
   // The input moves from the uploads in flight to the queued inputs.
   ReleaseUpload();
+  // What the payload's header contradicts in the spec is refused before Accepted.
+  if (absl::Status status = CheckPayloadAgainstSpec(job->spec, job->input); !status.ok()) {
+    spec_.set_label(label);
+    Refuse(status);
+    return;
+  }
   const uint32_t per_tenant = service_->options().max_jobs_per_tenant;
   if (per_tenant > 0 && service_->registry().ActiveJobs(tenant_) >= per_tenant) {
     ++service_->counters().rejected;

@@ -2,16 +2,26 @@
 // A Node client for the mlclust service, written from proto/mlclust/v1/mlclust.proto alone
 // (loaded at run time with @grpc/proto-loader) and draco3d for the upload.
 //
+// An npm package too: `npm install ./examples/node` (a link to this folder), or `npm pack`
+// here and `npm install mlclust-VERSION.tgz` (the proto and the dependencies bundled; no
+// registry needed); then require('mlclust'). mlclust.version is the server's VERSION.
+//
 //   const mlclust = require('./mlclust');
 //   const client = new mlclust.Client('localhost:50051');
 //   const h = await client.clusterMesh({vertices, faces}, {algo: 'ml', energy: 'cvd'});
 //   h.labels(100);  // one cluster id 0..99 per face, in the order of `faces`
+const fs = require('fs');
 const path = require('path');
 const grpc = require('@grpc/grpc-js');
 const protoLoader = require('@grpc/proto-loader');
 const draco3d = require('draco3d');
 
-const PROTO_FILE = path.join(__dirname, '..', '..', 'proto', 'mlclust', 'v1', 'mlclust.proto');
+// The proto: the copy an installed package carries (package.json's prepack bundles it), else
+// the repository's, two folders up (examples/node used in place or installed as a link).
+const PROTO_FILE = [
+  path.join(__dirname, 'proto', 'mlclust', 'v1', 'mlclust.proto'),
+  path.join(__dirname, '..', '..', 'proto', 'mlclust', 'v1', 'mlclust.proto'),
+].find((file) => fs.existsSync(file));
 const FACE_ID_NAME = 'mlclust_face_id';  // the per-face id attribute's metadata "name"
 const LITTLE_ENDIAN = new Uint8Array(new Uint32Array([1]).buffer)[0] === 1;
 
@@ -479,6 +489,8 @@ function receive(call, {progress = null, detach = false, absolute = false}) {
 }
 
 module.exports = {
+  version: require('./package.json').version,  // CMakeLists.txt's project() VERSION
+  PROTO_FILE,
   Client,
   Hierarchy,
   MlclustError,

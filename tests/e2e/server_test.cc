@@ -23,6 +23,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlclust/v1/mlclust.grpc.pb.h"
 #include "server/job_options.h"
+#include "tests/fixtures/foreign_draco.h"
 #include "tests/fixtures/test_meshes.h"
 #include "tests/fixtures/test_server.h"
 
@@ -225,6 +226,73 @@ TEST_F(ServerTest, BadSpecsAreRefused) {
   result = client::RunJob(channel_, spec, *bytes);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_EQ(result->done.final_clusters(), 5u);
+}
+
+// Sends `bytes` under `spec` chunk by chunk and returns the call's status and whether an
+// Accepted event came before it.
+std::pair<grpc::Status, bool> SendAndWatchForAccepted(const std::shared_ptr<grpc::Channel>& channel,
+                                                      v1::JobSpec spec, const std::string& bytes) {
+  auto stub = v1::Clustering::NewStub(channel);
+  grpc::ClientContext context;
+  auto stream = stub->Run(&context);
+  v1::RunRequest first;
+  spec.set_input_bytes(bytes.size());
+  *first.mutable_spec() = spec;
+  first.set_chunk(bytes.substr(0, bytes.size() / 2));
+  v1::RunRequest second;
+  second.set_chunk(bytes.substr(bytes.size() / 2));
+  stream->Write(first);
+  stream->Write(second);
+  stream->WritesDone();
+  v1::JobEvent event;
+  bool accepted = false;
+  while (stream->Read(&event)) accepted = accepted || event.has_accepted();
+  return {stream->Finish(), accepted};
+}
+
+// Issue 25: what the spec and the payload's header contradict is refused before Accepted
+// (INVALID_ARGUMENT naming what and where), not as the job's error after it.
+TEST_F(ServerTest, ContradictoryPayloadsAreRefusedBeforeAccepted) {
+  const TriangleMesh grid = testing::Grid(6);
+  DracoEncodeOptions with_ids;
+  with_ids.method = DracoMethod::kEdgebreaker;
+  with_ids.write_face_ids = true;
+  const absl::StatusOr<std::string> edgebreaker = EncodeMeshToDraco(grid, with_ids);
+  ASSERT_TRUE(edgebreaker.ok()) << edgebreaker.status();
+  // As a foreign encoder writes it: the sequential method with the face id attribute.
+  std::vector<uint32_t> ids(grid.num_faces());
+  for (uint32_t f = 0; f < ids.size(); ++f) ids[f] = f;
+  const std::string sequential_with_ids =
+      testing::EncodeLikeForeignEncoder(grid, ids, draco::MESH_SEQUENTIAL_ENCODING);
+  ASSERT_EQ(sequential_with_ids.substr(0, 5), "DRACO");
+  auto [status, accepted] = SendAndWatchForAccepted(channel_, HcSpec(), sequential_with_ids);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("byte 8"));
+  EXPECT_THAT(status.error_message(), HasSubstr("sequential"));
+  EXPECT_THAT(status.error_message(), HasSubstr("mlclust_face_id"));
+  EXPECT_FALSE(accepted);
+
+  // A mesh job whose payload is not Draco data.
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, HcSpec(), std::string(64, 'x'));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("input mesh: the payload does not start"));
+  EXPECT_FALSE(accepted);
+
+  // Points that are not a whole number of points, refused from the spec alone.
+  v1::JobSpec points;
+  points.set_input_kind(v1::INPUT_KIND_POINTS_F32);
+  points.set_point_dims(3);
+  points.set_algorithm(v1::ALGORITHM_ML);
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, points, std::string(16, '\0'));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("spec.input_bytes: 16 bytes"));
+  EXPECT_FALSE(accepted);
+
+  // The same edgebreaker payload as sent runs.
+  std::tie(status, accepted) = SendAndWatchForAccepted(channel_, HcSpec(), *edgebreaker);
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(accepted);
+  EXPECT_TRUE(Healthy());
 }
 
 TEST_F(ServerTest, ChunkedUploadOfManySmallChunks) {

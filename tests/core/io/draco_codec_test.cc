@@ -27,12 +27,14 @@
 #include "draco/metadata/geometry_metadata.h"
 #include "draco/point_cloud/point_cloud.h"
 #include "tests/fixtures/files.h"
+#include "tests/fixtures/foreign_draco.h"
 #include "tests/fixtures/test_meshes.h"
 
 namespace mlclust {
 namespace {
 
 using testing::DataPath;
+using testing::EncodeLikeForeignEncoder;
 using testing::Grid;
 using ::testing::HasSubstr;
 using testing::MakeMesh;
@@ -364,53 +366,6 @@ TEST(DracoCodecTest, FaceIdsLosslessEdgebreakerIsExact) {
   absl::StatusOr<TriangleMesh> decoded = RoundTrip(grid, options);
   ASSERT_TRUE(decoded.ok()) << decoded.status();
   EXPECT_EQ(FacesOutOfPlace(grid, *decoded, 0.0f), 0u);
-}
-
-// The recipe for other encoders (draco3d, DracoPy): a point per corner with its position
-// and its face's id, then Draco's own deduplication and encoder. `ids` gives each face's
-// id (the recipe: 0..F-1); `method` and `per_corner_ids` let tests break the recipe.
-std::string EncodeLikeForeignEncoder(const TriangleMesh& mesh, std::vector<uint32_t> ids,
-                                     int method = draco::MESH_EDGEBREAKER_ENCODING,
-                                     draco::DataType id_type = draco::DT_UINT32,
-                                     bool corner_ids_differ = false) {
-  const uint32_t num_points = static_cast<uint32_t>(3 * mesh.num_faces());
-  draco::Mesh draco_mesh;
-  draco_mesh.set_num_points(num_points);
-  draco::GeometryAttribute position;
-  position.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false,
-                sizeof(float) * 3, 0);
-  const int position_id = draco_mesh.AddAttribute(position, true, num_points);
-  draco::GeometryAttribute face_id;
-  face_id.Init(draco::GeometryAttribute::GENERIC, nullptr, 1, id_type, false,
-               draco::DataTypeLength(id_type), 0);
-  const int id_id = draco_mesh.AddAttribute(face_id, true, num_points);
-  for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
-    for (uint32_t c = 0; c < 3; ++c) {
-      const draco::AttributeValueIndex point(3 * f + c);
-      draco_mesh.attribute(position_id)
-          ->SetAttributeValue(point, &mesh.positions[3 * mesh.indices[3 * f + c]]);
-      const uint32_t id = ids[f] + (corner_ids_differ && c == 2 ? 1 : 0);
-      if (id_type == draco::DT_FLOAT32) {
-        const float value = static_cast<float>(id);
-        draco_mesh.attribute(id_id)->SetAttributeValue(point, &value);
-      } else {
-        draco_mesh.attribute(id_id)->SetAttributeValue(point, &id);
-      }
-    }
-    draco_mesh.AddFace(
-        {draco::PointIndex(3 * f), draco::PointIndex(3 * f + 1), draco::PointIndex(3 * f + 2)});
-  }
-  auto metadata = std::make_unique<draco::AttributeMetadata>();
-  metadata->AddEntryString("name", kDracoFaceIdAttributeName);
-  draco_mesh.AddAttributeMetadata(id_id, std::move(metadata));
-  EXPECT_TRUE(draco_mesh.DeduplicateAttributeValues());
-  draco_mesh.DeduplicatePointIds();
-  draco::ExpertEncoder encoder(draco_mesh);
-  encoder.SetEncodingMethod(method);
-  encoder.SetAttributeQuantization(position_id, 11);
-  draco::EncoderBuffer buffer;
-  EXPECT_TRUE(encoder.EncodeToBuffer(&buffer).ok());
-  return std::string(buffer.data(), buffer.size());
 }
 
 std::vector<uint32_t> Iota(size_t n) {
