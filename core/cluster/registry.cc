@@ -797,9 +797,10 @@ void DescribeDissertationPreset(AlgorithmInfo& algorithm) {
   for (OptionInfo& option : algorithm.options) {
     if (option.name == "preset") preset = &option;
     if (option.default_origin != OptionInfo::Origin::kOurs) continue;
-    sets.push_back(option.text_variant.empty()
-                       ? absl::StrCat(option.name, " given (the text's is the user's)")
-                       : absl::StrCat(option.name, " ", option.text_variant));
+    sets.push_back(
+        option.text_variant.empty()
+            ? absl::StrCat(option.name, " given >= 1 where it applies (the text's is the user's)")
+            : absl::StrCat(option.name, " ", option.text_variant));
   }
   if (preset == nullptr || std::find(preset->choices.begin(), preset->choices.end(),
                                      kDissertationPreset) == preset->choices.end()) {
@@ -1394,15 +1395,16 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
       option->apply(value, plan);
     }
   }
-  // The voxel grid's a is the user's in the text (section 6.2, l. 2605): no automatic grid.
+  // The voxel grid's a is the user's in the text (section 6.2, l. 2605): no automatic grid,
+  // not even given explicitly (0 is ours).
   const bool grid_start =
       algorithm.input == InputKind::kPoints && ((algorithm.hierarchy && !algorithm.divisive) ||
                                                 plan.point_init == JobPlan::PointInit::kGrid);
-  if (dissertation && grid_start && !seen.contains("grid")) {
+  if (dissertation && grid_start && plan.grid == 0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "option grid: preset dissertation starts ", algorithm.name,
         " from the voxel grid, whose voxels per dimension the text leaves to the user (section "
-        "6.2): give grid >= 1"));
+        "6.2; 0, the automatic grid, is ours): give grid >= 1"));
   }
   if (algorithm.input == InputKind::kMesh) {
     MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));

@@ -205,7 +205,12 @@ TEST(OptionDefaultsTest, PresetDissertationNeedsTheGridWhereTheVoxelStartRuns) {
   EXPECT_EQ(plan.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_TRUE(absl::StrContains(plan.status().message(), "option grid: preset dissertation"))
       << plan.status();
+  request.options.emplace_back("grid", "0");  // the automatic grid, ours: refused too
+  EXPECT_FALSE(PlanJob(request).ok());
+  request.options.back().second = "2";
+  EXPECT_TRUE(PlanJob(request).ok());
   request.algorithm = FindAlgorithm(InputKind::kPoints, "lnkmeans");
+  request.options = {{"preset", kDissertationPreset}};
   EXPECT_FALSE(PlanJob(request).ok());
   request.options.emplace_back("init", "kmeans++");
   request.clusters = 3;
