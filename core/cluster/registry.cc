@@ -1141,14 +1141,14 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
         "levels are K clusters, then the splits undone, down to one";
     a.energies = point_energies;
     a.options = {
-        Choice("split", {"size", "energy"}, "size",
-               "the cluster split: the largest (Alg. 2.7's \"largest cluster\") or, ours to "
-               "offer (scikit-learn's default), the one of largest energy",
-               [](const OptionValue& v, JobPlan& plan) {
-                 plan.bisecting.split = v.text == "energy"
-                                            ? BisectingKmeansOptions::SplitChoice::kLargestEnergy
-                                            : BisectingKmeansOptions::SplitChoice::kLargestSize;
-               }),
+        Texts(Choice("split", {"size", "energy"}, "size",
+                     "the cluster split: the largest (Alg. 2.7's \"largest cluster\") or, ours to "
+                     "offer (scikit-learn's default), the one of largest energy",
+                     [](const OptionValue& v, JobPlan& plan) {
+                       plan.bisecting.split =
+                           v.text == "energy" ? BisectingKmeansOptions::SplitChoice::kLargestEnergy
+                                              : BisectingKmeansOptions::SplitChoice::kLargestSize;
+                     })),
         Integer("trials", 1, 1000, "1",
                 "L of Alg. 2.7: 2-means runs per split (seeds S, S+1, ...), the split of least "
                 "energy kept",

@@ -236,6 +236,9 @@ TEST(OptionDefaultsTest, HelpMarksTheDefaultsAsTheTextsOrOurs) {
             "grid (ours; the text's: optimised-grid, preset dissertation)");
   EXPECT_EQ(OptionDefaultNote(*FindOption(*FindAlgorithm(InputKind::kPoints, "kmeans"), "init")),
             "kmeans++ (ours; the text's: random, preset dissertation)");
+  EXPECT_EQ(
+      OptionDefaultNote(*FindOption(*FindAlgorithm(InputKind::kPoints, "bisecting"), "split")),
+      "size (the text's)");
   EXPECT_TRUE(absl::StrContains(FindOption(emlo, "preset")->help,
                                 "growth free, seed-reduction reseed, guard vertex-count; an "
                                 "option given explicitly wins"))
