@@ -36,7 +36,7 @@ std::string OptionValueText(const OptionInfo& option) {
 
 Flag RegistryFlag(const OptionInfo& option) {
   return {option.name, OptionValueText(option),
-          absl::StrCat(option.help, " (default ", option.default_text, ")")};
+          absl::StrCat(option.help, " (default ", OptionDefaultNote(option), ")")};
 }
 
 // `text` wrapped to kWidth, the first line starting with `first` (padded to `indent`), the

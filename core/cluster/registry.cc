@@ -58,13 +58,33 @@ OptionInfo Number(std::string name, double low, double high, std::string default
   return option;
 }
 
+// `option` with its default marked as the text's.
+OptionInfo Texts(OptionInfo option) {
+  option.default_origin = OptionInfo::Origin::kText;
+  return option;
+}
+
+// `option` with its default marked as ours; `text_variant` the text's value, which the preset
+// dissertation sets ("": the text leaves it to the user, so the preset needs it given).
+OptionInfo Ours(OptionInfo option, std::string text_variant) {
+  option.default_origin = OptionInfo::Origin::kOurs;
+  option.text_variant = std::move(text_variant);
+  return option;
+}
+
+// The option "preset" of an algorithm that has no other preset: none, or the text's variants.
+OptionInfo DissertationPresetOption() {
+  return Choice("preset", {"none", kDissertationPreset}, "none", "",
+                [](const OptionValue&, JobPlan&) {});  // PlanJob applies it; help: below
+}
+
 // Options several algorithms share, each writing its own field.
 // `vertex_count`: the driver can run Alg. 3.2 (EMLO and BB with kept counts; ML's local
 // optimisation without, as a merge relabels whole clusters).
 OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
   std::vector<std::string> choices = {"on", "ring", "off"};
   if (vertex_count) choices.push_back("vertex-count");
-  return Choice(
+  OptionInfo option = Choice(
       "guard", std::move(choices), "on",
       absl::StrCat("the connectivity guard: no cluster splits or gains a hole (", help_target,
                    "); on = ring, ours: the faces around a face in its cluster and in the "
@@ -86,6 +106,8 @@ OptionInfo GuardOption(std::string help_target, bool vertex_count = false) {
         plan.boundary_based.connectivity_guard = on;
         plan.boundary_based.guard = kind;
       });
+  // The text embeds Alg. 3.2's check in its optimisers (l. 937).
+  return vertex_count ? Ours(std::move(option), "vertex-count") : option;
 }
 
 OptionInfo ThreadsOption(std::string what, void (*set)(JobPlan&, int)) {
@@ -114,14 +136,15 @@ OptionInfo PPercentOption() {
 }
 
 OptionInfo PPercentRuleOption() {
-  return Choice("p-percent-rule", {"sweep", "hc-first"}, "sweep",
-                "how the first p% merge: one sequential sweep collapsing non-conflicting optimal "
-                "dual edges (Alg. 4.2) or, ours, one level per merge, cheapest first, as HC",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.multilevel.p_percent_rule = v.text == "hc-first"
-                                                       ? MultilevelOptions::PPercentRule::kHcFirst
-                                                       : MultilevelOptions::PPercentRule::kSweep;
-                });
+  return Texts(
+      Choice("p-percent-rule", {"sweep", "hc-first"}, "sweep",
+             "how the first p% merge: one sequential sweep collapsing non-conflicting optimal "
+             "dual edges (Alg. 4.2) or, ours, one level per merge, cheapest first, as HC",
+             [](const OptionValue& v, JobPlan& plan) {
+               plan.multilevel.p_percent_rule = v.text == "hc-first"
+                                                    ? MultilevelOptions::PPercentRule::kHcFirst
+                                                    : MultilevelOptions::PPercentRule::kSweep;
+             }));
 }
 
 OptionInfo PmlUntilOption(bool points) {
@@ -138,20 +161,22 @@ OptionInfo PmlUntilOption(bool points) {
 
 // The PML pair rule (core/cluster/detail/pml_pairs.h), for meshes and points alike.
 OptionInfo PmlPairsOption() {
-  return Choice("pml-pairs", {"cheaper-half", "all"}, "cheaper-half",
-                "the mutual pairs a PML level collapses: all of them (Alg. 5.3) or, ours, those "
-                "at most the level's median cost (the default by measurement: BENCHMARKS.md)",
-                [](const OptionValue& v, JobPlan& plan) {
-                  const PmlPairRule rule =
-                      v.text == "all" ? PmlPairRule::kAll : PmlPairRule::kCheaperHalf;
-                  plan.multilevel.pml_pairs = rule;
-                  plan.point_multilevel.pml_pairs = rule;
-                });
+  return Ours(
+      Choice("pml-pairs", {"cheaper-half", "all"}, "cheaper-half",
+             "the mutual pairs a PML level collapses: all of them (Alg. 5.3) or, ours, those "
+             "at most the level's median cost (the default by measurement: BENCHMARKS.md)",
+             [](const OptionValue& v, JobPlan& plan) {
+               const PmlPairRule rule =
+                   v.text == "all" ? PmlPairRule::kAll : PmlPairRule::kCheaperHalf;
+               plan.multilevel.pml_pairs = rule;
+               plan.point_multilevel.pml_pairs = rule;
+             }),
+      "all");
 }
 
 // MultilevelOptions::parallel_optimisation and independent_moves (ours), for the mesh PML.
 OptionInfo ParallelOptimisationOption() {
-  return Choice(
+  return Texts(Choice(
       "parallel-optimisation", {"off", "rounds", "independent"}, "off",
       "ours: a PML level's local optimisation (EMLO only) in parallel rounds instead of EMLO's "
       "one queue, every boundary face finding its best move at once; rounds: the moves then "
@@ -162,14 +187,14 @@ OptionInfo ParallelOptimisationOption() {
       [](const OptionValue& v, JobPlan& plan) {
         plan.multilevel.parallel_optimisation = v.text != "off";
         plan.multilevel.independent_moves = v.text == "independent";
-      });
+      }));
 }
 
 // PML's preset "many-cores" (ours, issue 10): the configuration measured best for many CPU
 // cores (BENCHMARKS.md, "The preset many-cores and its 16-core bound"). Listed last, so it sets
 // what it names over those options.
 OptionInfo PmlPresetOption() {
-  return Choice("preset", {"none", "many-cores"}, "none",
+  return Choice("preset", {"none", "many-cores", kDissertationPreset}, "none",
                 "ours: many-cores = PML for many CPU cores: the first 95% of the merges "
                 "unoptimised (p-percent 95, p-percent-rule hc-first; optimised at least below "
                 "2 pml-until clusters), PML down to max(clusters, 1000) then ML (pml-until), "
@@ -187,40 +212,44 @@ OptionInfo PmlPresetOption() {
 }
 
 OptionInfo SeedInitOption() {
-  return Choice("init", {"lneigh", "random"}, "lneigh",
-                "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
-                "--growth says",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.seeds.method = v.text == "random" ? SeedOptions::Method::kRandom
-                                                         : SeedOptions::Method::kLNeighbourhood;
-                });
+  return Texts(Choice("init", {"lneigh", "random"}, "lneigh",
+                      "initial seeds: l-neighbourhood seeds (Alg. 3.1) or random faces, grown as "
+                      "--growth says",
+                      [](const OptionValue& v, JobPlan& plan) {
+                        plan.seeds.method = v.text == "random"
+                                                ? SeedOptions::Method::kRandom
+                                                : SeedOptions::Method::kLNeighbourhood;
+                      }));
 }
 
 OptionInfo SeedGrowthOption() {
-  return Choice("growth", {"flood", "free", "rounds"}, "flood",
-                "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
-                "energies by distance to the seed) or energy-free, each cluster in turn taking "
-                "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
-                "growth (Fig. 5.9), each round every free face next to clusters joining the one "
-                "with the smallest id: the same partition as free (proven in "
-                "mesh_clustering.cc); with --device gpu it runs as rounds on the GPU",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
-                                      : v.text == "rounds" ? SeedOptions::Growth::kRounds
-                                                           : SeedOptions::Growth::kEnergyOrdered;
-                });
+  return Ours(
+      Choice("growth", {"flood", "free", "rounds"}, "flood",
+             "how seeds grow into clusters: the energy-ordered flood (Alg. 2.2; the CVD "
+             "energies by distance to the seed) or energy-free, each cluster in turn taking "
+             "the free faces across its boundary (l. 671, 1219), or rounds: section 5.2's "
+             "growth (Fig. 5.9), each round every free face next to clusters joining the one "
+             "with the smallest id: the same partition as free (proven in "
+             "mesh_clustering.cc); with --device gpu it runs as rounds on the GPU",
+             [](const OptionValue& v, JobPlan& plan) {
+               plan.seeds.growth = v.text == "free"     ? SeedOptions::Growth::kEnergyFree
+                                   : v.text == "rounds" ? SeedOptions::Growth::kRounds
+                                                        : SeedOptions::Growth::kEnergyOrdered;
+             }),
+      "free");
 }
 
 OptionInfo SeedReductionOption() {
-  return Choice("seed-reduction", {"merge", "reseed"}, "merge",
-                "l-neighbourhood seeds above k: merge the three clusters at the vertex with "
-                "the smallest summed area, keeping the grown regions (ours) or re-seeding at "
-                "that common vertex and growing all seeds again (l. 849)",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.seeds.reduction = v.text == "reseed"
-                                             ? SeedOptions::Reduction::kReseedAndRegrow
-                                             : SeedOptions::Reduction::kMergeRegions;
-                });
+  return Ours(Choice("seed-reduction", {"merge", "reseed"}, "merge",
+                     "l-neighbourhood seeds above k: merge the three clusters at the vertex with "
+                     "the smallest summed area, keeping the grown regions (ours) or re-seeding at "
+                     "that common vertex and growing all seeds again (l. 849)",
+                     [](const OptionValue& v, JobPlan& plan) {
+                       plan.seeds.reduction = v.text == "reseed"
+                                                  ? SeedOptions::Reduction::kReseedAndRegrow
+                                                  : SeedOptions::Reduction::kMergeRegions;
+                     }),
+              "reseed");
 }
 
 OptionInfo AddSeedsOption() {
@@ -240,11 +269,13 @@ OptionInfo SeedLevelOption() {
 }
 
 OptionInfo GridOption(std::string help) {
-  return Integer("grid", 0, int64_t{1} << 20, "0", std::move(help),
-                 [](const OptionValue& v, JobPlan& plan) {
-                   plan.point_multilevel.grid = static_cast<uint32_t>(v.integer);
-                   plan.grid = static_cast<uint32_t>(v.integer);
-                 });
+  // The text's a is the user's (section 6.2, l. 2605): the preset dissertation needs it given.
+  return Ours(Integer("grid", 0, int64_t{1} << 20, "0", std::move(help),
+                      [](const OptionValue& v, JobPlan& plan) {
+                        plan.point_multilevel.grid = static_cast<uint32_t>(v.integer);
+                        plan.grid = static_cast<uint32_t>(v.integer);
+                      }),
+              "");
 }
 
 OptionInfo PointOptimizerOption() {
@@ -260,7 +291,7 @@ OptionInfo PointOptimizerOption() {
 // BB's preset "patches", ours: meshlet-sized patches fast (core/cluster/patches.h).
 std::vector<OptionInfo> PatchPresetOptions() {
   return {
-      Choice("preset", {"none", "patches"}, "none",
+      Choice("preset", {"none", "patches", kDissertationPreset}, "none",
              "ours: patches = many small connected patches fast (e.g. K = faces / 124, GPU "
              "meshlets): Morton-order seeds, energy-free growth, Lloyd steps on the seeds "
              "(patch-reseeds), then at most patch-sweeps BB sweeps applied in face order (on "
@@ -283,26 +314,28 @@ std::vector<OptionInfo> PatchPresetOptions() {
 
 // PointMultilevelOptions::start, for the point hierarchies (HC, ML, PML).
 OptionInfo PointStartOption() {
-  return Choice("start", {"grid", "optimised-grid"}, "grid",
-                "level 0: the voxel clusters (grid, ours) or LN k-means on them first "
-                "(optimised-grid, the text's start of Fig. 6.5 / 6.8; CPU only)",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.point_multilevel.start = v.text == "optimised-grid"
-                                                    ? PointMultilevelOptions::Start::kOptimisedGrid
-                                                    : PointMultilevelOptions::Start::kGrid;
-                });
+  return Ours(Choice("start", {"grid", "optimised-grid"}, "grid",
+                     "level 0: the voxel clusters (grid, ours) or LN k-means on them first "
+                     "(optimised-grid, the text's start of Fig. 6.5 / 6.8; CPU only)",
+                     [](const OptionValue& v, JobPlan& plan) {
+                       plan.point_multilevel.start =
+                           v.text == "optimised-grid"
+                               ? PointMultilevelOptions::Start::kOptimisedGrid
+                               : PointMultilevelOptions::Start::kGrid;
+                     }),
+              "optimised-grid");
 }
 
 // PointMultilevelOptions::bounded_drift (ours), for ML/PML on points.
 OptionInfo BoundedDriftOption() {
-  return Number(
+  return Texts(Number(
       "bounded-drift", 0, 1, "0",
       "ours: in LN k-means' later rounds after a merge, a changed cluster whose "
       "centroid moved by less than this share of its RMS radius keeps its points not "
       "yet checked in the level unchecked (0 = off: every one checked, as defined); "
       "e.g. 0.03: far less time on large sets at a slightly higher energy "
       "(BENCHMARKS.md, ML for points: bounded_drift)",
-      [](const OptionValue& v, JobPlan& plan) { plan.point_multilevel.bounded_drift = v.number; });
+      [](const OptionValue& v, JobPlan& plan) { plan.point_multilevel.bounded_drift = v.number; }));
 }
 
 constexpr char kHierarchyGridHelp[] =
@@ -756,6 +789,28 @@ const std::vector<EnergyInfo>& EnergyTable() {
   return *table;
 }
 
+// Appends to `algorithm`'s option preset, where it offers dissertation, what that sets: every
+// option whose default is ours, at the text's variant.
+void DescribeDissertationPreset(AlgorithmInfo& algorithm) {
+  OptionInfo* preset = nullptr;
+  std::vector<std::string> sets;
+  for (OptionInfo& option : algorithm.options) {
+    if (option.name == "preset") preset = &option;
+    if (option.default_origin != OptionInfo::Origin::kOurs) continue;
+    sets.push_back(
+        option.text_variant.empty()
+            ? absl::StrCat(option.name, " given >= 1 where it applies (the text's is the user's)")
+            : absl::StrCat(option.name, " ", option.text_variant));
+  }
+  if (preset == nullptr || std::find(preset->choices.begin(), preset->choices.end(),
+                                     kDissertationPreset) == preset->choices.end()) {
+    return;
+  }
+  absl::StrAppend(&preset->help, preset->help.empty() ? "" : "; ", kDissertationPreset,
+                  " = the dissertation's variant wherever the default is ours: ",
+                  absl::StrJoin(sets, ", "), "; an option given explicitly wins");
+}
+
 std::vector<AlgorithmInfo> BuildAlgorithms() {
   // The merge and local-optimisation drivers run every mesh energy (they need only an
   // energy's sums, merge cost, proxy and face cost), CVD first as the default.
@@ -793,7 +848,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "merge the cheapest dual edge (eq. 4.1), then optimise locally; every level";
     a.energies = mesh_energies;
     a.options = {MeshOptimizerOption(), GuardOption("the optimiser's moves", /*vertex_count=*/true),
-                 PPercentOption(), PPercentRuleOption()};
+                 PPercentOption(), PPercentRuleOption(), DissertationPresetOption()};
     // ML's levels on the GPU (gpu/stages/multilevel_gpu.h): HC's steps or one merge and BB.
     a.stages = {merge_stage};
     a.run_mesh = RunMeshHierarchy;
@@ -828,9 +883,10 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "energy minimisation by local optimisation (Alg. 3.3)";
     a.help = "seeds k clusters, then moves boundary faces while the energy falls";
     a.energies = mesh_energies;
-    a.options = {SeedInitOption(),   SeedLevelOption(),
-                 SeedGrowthOption(), SeedReductionOption(),
-                 AddSeedsOption(),   GuardOption("every move", /*vertex_count=*/true)};
+    a.options = {SeedInitOption(),          SeedLevelOption(),
+                 SeedGrowthOption(),        SeedReductionOption(),
+                 AddSeedsOption(),          GuardOption("every move", /*vertex_count=*/true),
+                 DissertationPresetOption()};
     a.stages = {seed_stage, {"cluster", "boundary moves until none lowers the energy"}};
     a.run_mesh = RunMeshLocal;
     algorithms.push_back(a);
@@ -913,7 +969,8 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "hierarchical data clustering (Alg. 2.6)";
     a.help = "merges only, from the voxel-grid start (section 6.2) down to one cluster";
     a.energies = point_energies;
-    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads};
+    a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads,
+                 DissertationPresetOption()};
     // HC's steps on the GPU with --device gpu (gpu/stages/points_multilevel_gpu.h).
     a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
@@ -931,6 +988,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {GridOption(kHierarchyGridHelp), PointStartOption(), point_threads,
                  PointOptimizerOption()};
     a.options.push_back(BoundedDriftOption());
+    a.options.push_back(DissertationPresetOption());
     // ML's steps (LN k-means around each merge) on the GPU with --device gpu.
     a.stages = {merge_stage};
     a.run_points = RunPointHierarchy;
@@ -948,6 +1006,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.options = {GridOption(kHierarchyGridHelp), PointStartOption(),   point_threads,
                  PointOptimizerOption(),         PmlUntilOption(true), PmlPairsOption()};
     a.options.push_back(BoundedDriftOption());
+    a.options.push_back(DissertationPresetOption());
     // The voxel start and PML's levels on the GPU (gpu/stages/points_multilevel_gpu.h):
     // merges, with LN k-means inside the levels (--device gpu), without the switch to ML.
     a.stages = {merge_stage};
@@ -970,15 +1029,18 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.title = "local neighbours k-means (Alg. 6.1)";
     a.help = "each point checked against at most 4d - 1 neighbouring clusters, in parallel";
     a.energies = point_energies;
-    a.options = {point_init({"kmeans++", "random", "grid"},
-                            "start: greedy k-means++ centres, random points, or one cluster per "
-                            "occupied voxel (section 6.2; no K)"),
+    // Alg. 6.1 starts from the voxel grid (section 6.2).
+    a.options = {Ours(point_init({"kmeans++", "random", "grid"},
+                                 "start: greedy k-means++ centres, random points, or one cluster "
+                                 "per occupied voxel (section 6.2; no K)"),
+                      "grid"),
                  GridOption("voxels per dimension of init grid's start (0 = from m and d)"),
                  point_threads,
                  Integer("max-iterations", 1, 1000000, "300", "LN k-means iterations at most",
                          [](const OptionValue& v, JobPlan& plan) {
                            plan.ln_kmeans.max_iterations = static_cast<uint32_t>(v.integer);
-                         })};
+                         }),
+                 DissertationPresetOption()};
     // Assign and the initial neighbours on the GPU (gpu/kernels/ln_kmeans.h), from seeds.
     a.stages = {{"cluster", "seeding, then LN k-means iterations (assign on the GPU)"}};
     a.run_points = RunPointLnKmeans;
@@ -993,15 +1055,18 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.help = "brute-force Lloyd iterations from k-means++ or random centres (baseline)";
     a.energies = point_energies;
     a.options = {
-        point_init({"kmeans++", "random", "grid"},
-                   "centres: greedy k-means++, k distinct random points, or the means of the "
-                   "occupied voxels (section 6.2's start, no K: Fig. 6.11 compares LN k-means "
-                   "and k-means from it)"),
+        // k randomly picked points (l. 352).
+        Ours(point_init({"kmeans++", "random", "grid"},
+                        "centres: greedy k-means++, k distinct random points, or the means of the "
+                        "occupied voxels (section 6.2's start, no K: Fig. 6.11 compares LN "
+                        "k-means and k-means from it)"),
+             "random"),
         GridOption("voxels per dimension of init grid's start (0 = from m and d)"), point_threads,
         Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations at most",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.kmeans.max_iterations = static_cast<uint32_t>(v.integer);
-                })};
+                }),
+        DissertationPresetOption()};
     // The assignment on the GPU (gpu/kernels/kmeans_assign.h).
     a.stages = {{"cluster", "seeding, then Lloyd iterations (assignment on the GPU)"}};
     a.run_points = RunPointKmeans;
@@ -1039,22 +1104,25 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.xmeans.split_trials = static_cast<uint32_t>(v.integer);
                 }),
-        Integer("lookahead", 0, 64, "2",
-                "ours: after a round that keeps no split, up to this many forced rounds in a row "
-                "split every cluster anyway (k doubles), so that the search passes the BIC's "
-                "local maximum at few clusters (from k_min = 1 Alg. 2.5 stops at one cluster "
-                "on blobs spread over a volume); 0 = Alg. 2.5's stop at the first round that "
-                "keeps no split",
-                [](const OptionValue& v, JobPlan& plan) {
-                  plan.xmeans.lookahead = static_cast<uint32_t>(v.integer);
-                }),
+        Ours(Integer(
+                 "lookahead", 0, 64, "2",
+                 "ours: after a round that keeps no split, up to this many forced rounds in a row "
+                 "split every cluster anyway (k doubles), so that the search passes the BIC's "
+                 "local maximum at few clusters (from k_min = 1 Alg. 2.5 stops at one cluster "
+                 "on blobs spread over a volume); 0 = Alg. 2.5's stop at the first round that "
+                 "keeps no split",
+                 [](const OptionValue& v, JobPlan& plan) {
+                   plan.xmeans.lookahead = static_cast<uint32_t>(v.integer);
+                 }),
+             "0"),
         divisive_init("kmeans++", "seeding of the first k-means and of every 2-means",
                       [](JobPlan& plan, KmeansOptions::Init init) { plan.xmeans.init = init; }),
         point_threads,
         Integer("max-iterations", 1, 1000000, "300", "Lloyd iterations of every k-means run",
                 [](const OptionValue& v, JobPlan& plan) {
                   plan.xmeans.max_iterations = static_cast<uint32_t>(v.integer);
-                })};
+                }),
+        DissertationPresetOption()};
     a.stages = {{"seed", "k-means at k_min (Alg. 2.5 line 1)"},
                 {"cluster", "rounds of virtual splits tested by the BIC, then k-means"}};
     a.run_points = RunPointXmeans;
@@ -1073,14 +1141,14 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
         "levels are K clusters, then the splits undone, down to one";
     a.energies = point_energies;
     a.options = {
-        Choice("split", {"size", "energy"}, "size",
-               "the cluster split: the largest (Alg. 2.7's \"largest cluster\") or, ours to "
-               "offer (scikit-learn's default), the one of largest energy",
-               [](const OptionValue& v, JobPlan& plan) {
-                 plan.bisecting.split = v.text == "energy"
-                                            ? BisectingKmeansOptions::SplitChoice::kLargestEnergy
-                                            : BisectingKmeansOptions::SplitChoice::kLargestSize;
-               }),
+        Texts(Choice("split", {"size", "energy"}, "size",
+                     "the cluster split: the largest (Alg. 2.7's \"largest cluster\") or, ours to "
+                     "offer (scikit-learn's default), the one of largest energy",
+                     [](const OptionValue& v, JobPlan& plan) {
+                       plan.bisecting.split =
+                           v.text == "energy" ? BisectingKmeansOptions::SplitChoice::kLargestEnergy
+                                              : BisectingKmeansOptions::SplitChoice::kLargestSize;
+                     })),
         Integer("trials", 1, 1000, "1",
                 "L of Alg. 2.7: 2-means runs per split (seeds S, S+1, ...), the split of least "
                 "energy kept",
@@ -1098,6 +1166,7 @@ std::vector<AlgorithmInfo> BuildAlgorithms() {
     a.run_points = RunPointBisecting;
     algorithms.push_back(a);
   }
+  for (AlgorithmInfo& algorithm : algorithms) DescribeDissertationPreset(algorithm);
   return algorithms;
 }
 
@@ -1169,6 +1238,20 @@ absl::StatusOr<OptionValue> ParseOptionValue(const OptionInfo& option, absl::str
                                                      option.high, "]"));
   }
   return absl::InternalError("unknown option type");
+}
+
+std::string OptionDefaultNote(const OptionInfo& option) {
+  switch (option.default_origin) {
+    case OptionInfo::Origin::kUnmarked:
+      return option.default_text;
+    case OptionInfo::Origin::kText:
+      return absl::StrCat(option.default_text, " (the text's)");
+    case OptionInfo::Origin::kOurs:
+      return absl::StrCat(option.default_text, " (ours; the text's: ",
+                          option.text_variant.empty() ? "the user's value" : option.text_variant,
+                          ", preset ", kDissertationPreset, ")");
+  }
+  return option.default_text;
 }
 
 namespace {
@@ -1288,12 +1371,40 @@ absl::StatusOr<JobPlan> PlanJob(const JobRequest& request) {
       return absl::InvalidArgumentError(absl::StrCat("option ", name, ": given twice"));
     }
   }
+  // The preset dissertation: the text's variant of every option whose default is ours, before
+  // the options given (so that those win).
+  const bool dissertation =
+      std::any_of(request.options.begin(), request.options.end(),
+                  [](const std::pair<std::string, std::string>& option) {
+                    return option.first == "preset" && option.second == kDissertationPreset;
+                  });
+  if (dissertation) {
+    for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
+      if (option->default_origin != OptionInfo::Origin::kOurs || option->text_variant.empty() ||
+          seen.contains(option->name)) {
+        continue;
+      }
+      MLCLUST_ASSIGN_OR_RETURN(OptionValue value, ParseOptionValue(*option, option->text_variant));
+      option->apply(value, plan);
+    }
+  }
   for (const OptionInfo* option : AlgorithmOptions(algorithm)) {
     for (const auto& [name, text] : request.options) {
       if (name != option->name) continue;
       MLCLUST_ASSIGN_OR_RETURN(OptionValue value, ParseOptionValue(*option, text));
       option->apply(value, plan);
     }
+  }
+  // The voxel grid's a is the user's in the text (section 6.2, l. 2605): no automatic grid,
+  // not even given explicitly (0 is ours).
+  const bool grid_start =
+      algorithm.input == InputKind::kPoints && ((algorithm.hierarchy && !algorithm.divisive) ||
+                                                plan.point_init == JobPlan::PointInit::kGrid);
+  if (dissertation && grid_start && plan.grid == 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "option grid: preset dissertation starts ", algorithm.name,
+        " from the voxel grid, whose voxels per dimension the text leaves to the user (section "
+        "6.2; 0, the automatic grid, is ours): give grid >= 1"));
   }
   if (algorithm.input == InputKind::kMesh) {
     MLCLUST_RETURN_IF_ERROR(ValidateMeshEnergyOptions(plan.mesh_energy));

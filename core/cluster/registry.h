@@ -102,12 +102,28 @@ struct OptionInfo {
   double low = 0, high = 0;          // kInteger, kNumber: the closed range accepted
   std::string default_text;          // what not giving the option means
   std::string help;
+  // Whose the default is: the dissertation's variant, ours, or not marked (the text does not
+  // decide it). `mlclust help` says which (OptionDefaultNote).
+  enum class Origin { kUnmarked, kText, kOurs };
+  Origin default_origin = Origin::kUnmarked;
+  // Where the default is ours: the text's variant, as the option's text, which the option
+  // "preset dissertation" sets unless the option is given; "" where the text leaves the value
+  // to the user (the voxel grid's a, section 6.2): the preset then needs the option given.
+  std::string text_variant;
   // Writes the parsed value into the plan.
   std::function<void(const OptionValue&, JobPlan&)> apply;
 };
 
 // "choice", "integer", "number".
 const char* OptionTypeName(OptionInfo::Type type);
+
+// The default as `mlclust help` prints it: "flood (ours; the text's: free, preset
+// dissertation)", "lneigh (the text's)", or the plain default where unmarked.
+std::string OptionDefaultNote(const OptionInfo& option);
+
+// The value of the option "preset" that runs the text's variants (default_origin kOurs
+// options set to their text_variant unless given explicitly).
+inline constexpr char kDissertationPreset[] = "dissertation";
 
 // Parses `text` as `option` says. INVALID_ARGUMENT "option NAME: 'TEXT' is not ...".
 absl::StatusOr<OptionValue> ParseOptionValue(const OptionInfo& option, absl::string_view text);

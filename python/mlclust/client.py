@@ -792,7 +792,8 @@ class Client:
         on every event until the levels are complete; if it raises, the job is cancelled
         and the exception propagates. timeout (seconds) cancels the job when it passes.
         Algorithm and energy options by name, '-' written '_' (p_percent=10,
-        guard=False, gamma=1.5, ...).
+        guard=False, gamma=1.5, ...); preset="dissertation" runs the text's variant of
+        every default that is ours (`mlclust help` marks them), options given still win.
         draco: how the mesh is compressed for the upload: by default sequential and
         lossless (positions bit for bit); {"method": "edgebreaker",
         "quantization_bits": 14} is several times smaller and writes per-face ids so
@@ -836,7 +837,8 @@ class Client:
         grid=A voxels per dimension, down to `clusters`), lnkmeans, kmeans (at
         `clusters`), xmeans (from k_min = `clusters`; the last level has the K it found,
         kmax=...), bisecting (levels from `clusters` down to one). Options as for
-        cluster_mesh (grid=8, init="kmeans++", ...)."""
+        cluster_mesh (grid=8, init="kmeans++", ...; preset="dissertation" needs grid >= 1
+        where the voxel start runs: the text has no automatic grid)."""
         x = np.asarray(points)
         if x.ndim != 2:
             raise ValueError(f"points must be a 2-d array (m x d), got shape {x.shape}")

@@ -216,7 +216,9 @@ class MultilevelClustering(_PointClustering):
     whose start has fewer than n_clusters clusters is refused.
     device: auto, gpu or cpu. random_state: the job's seed (None: 1). server: an address,
     or None for this process's own server. options: further algorithm options by name
-    ({"bounded_drift": 0.03, "pml_until": 100, ...}).
+    ({"bounded_drift": 0.03, "pml_until": 100, ...}; {"preset": "dissertation"}: the
+    text's variants of the defaults that are ours, with grid >= 1; the estimators' own
+    parameters, init, grid and optimizer, are sent as given and win over the preset).
     """
 
     _AUTO_K = ("bic", "bic-first-decrease", "elbow")
