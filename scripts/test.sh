@@ -4,5 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
+# The CGAL meshes some tests read (data/bench/, ignored by git; libcgal-demo from Debian).
+bash scripts/fetch-bench-meshes.sh --no-1m
 bash scripts/build.sh
 ctest --test-dir build --output-on-failure --parallel "$(nproc)" --timeout 900
